@@ -1,0 +1,1 @@
+"""Campaign engine: configuration, designs, runner, storage and the command line."""

@@ -1,0 +1,16 @@
+"""Fault detectors: the contract, the registry and the built-in detectors."""
+
+from .base import Capabilities, Detection, Detector, NotFittedError, as_variants, confirm
+from .registry import (
+    DetectorSpecError,
+    available_detectors,
+    load_detector_class,
+    make_detector,
+    parameter_errors,
+)
+
+__all__ = [
+    "Capabilities", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
+    "DetectorSpecError", "available_detectors", "load_detector_class", "make_detector",
+    "parameter_errors",
+]

@@ -1,0 +1,166 @@
+"""The detector contract (DESIGN.md, Contracts), in the manner of scikit-learn estimators.
+
+* ``__init__`` stores keyword parameters only (no work, no validation side effects);
+* ``fit(signals)`` learns from fault-free learning runs, stores learned values in
+  attributes ending in ``_`` and returns ``self``;
+* ``detect(signals)`` returns a :class:`Detection` (or a mapping variant → Detection for a
+  detector that runs several variants at once, e.g. several residual-filter poles);
+* capabilities are declared as data in :class:`Capabilities`.
+
+A detector never receives the truth of a run: it is only ever handed :class:`Signals`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from scenarios.signals import Signals
+
+
+class NotFittedError(RuntimeError):
+    """Raised when ``detect`` is called on a detector that needs ``fit`` first."""
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a detector needs and promises, as data the engine checks before a campaign."""
+
+    needs_fit: bool = True
+    needs_surface_sensor: bool = False
+    needs_pressure_sensor: bool = False
+    causal: bool = True
+
+
+@dataclass(frozen=True)
+class Detection:
+    """Per-run decision of one detector (variant).
+
+    alarm : ndarray (n_runs, n_steps) of bool
+        Alarm flag at each step.
+    residual : ndarray (n_runs, n_steps) of float
+        The residual normalised by its threshold, |r|/τ: ≥ 1 means alarm (before any
+        confirmation logic); used for margins and plots.
+    """
+
+    alarm: np.ndarray
+    residual: np.ndarray
+
+    def __post_init__(self):
+        alarm = np.asarray(self.alarm)
+        residual = np.asarray(self.residual)
+        if alarm.dtype != np.bool_:
+            raise TypeError(f"Detection.alarm must be a bool array, got dtype {alarm.dtype}")
+        if alarm.shape != residual.shape or alarm.ndim != 2:
+            raise ValueError(
+                f"Detection.alarm {alarm.shape} and residual {residual.shape} must both be "
+                "(n_runs, n_steps)"
+            )
+
+
+class Detector:
+    """Base class of every detector. Subclasses set :attr:`capabilities` and implement
+    :meth:`_fit` (when ``needs_fit``) and :meth:`_detect`."""
+
+    capabilities = Capabilities()
+
+    # ---- parameters (scikit-learn style) ------------------------------------------------
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        sig = inspect.signature(cls.__init__)
+        return [p.name for p in sig.parameters.values()
+                if p.name != "self" and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+
+    def get_params(self) -> dict:
+        """The keyword parameters this detector was built with."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def validate_params(self) -> None:
+        """Raise ``ValueError`` naming a parameter whose value is out of range. Called by the
+        registry before a campaign starts; subclasses override to check their ranges."""
+        return None
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+    # ---- learning and detection --------------------------------------------------------
+    @property
+    def is_fitted(self) -> bool:
+        return (not self.capabilities.needs_fit) or bool(self.fitted_state())
+
+    def fitted_state(self) -> dict:
+        """Learned attributes (names ending in ``_``), for storage with the results."""
+        return {k: v for k, v in vars(self).items() if k.endswith("_") and not k.startswith("_")}
+
+    def fit(self, signals: Signals) -> "Detector":
+        """Learn from fault-free runs; returns ``self``."""
+        self.check_signals(signals)
+        self._fit(signals)
+        return self
+
+    def detect(self, signals: Signals) -> Detection | Mapping[str, Detection]:
+        """Alarms and normalised residuals for each run of *signals*."""
+        if not self.is_fitted:
+            raise NotFittedError(
+                f"{type(self).__name__}.detect() called before fit(): this detector learns "
+                "its thresholds from fault-free runs; call fit(learning_signals) first"
+            )
+        self.check_signals(signals)
+        return self._detect(signals)
+
+    def check_signals(self, signals: Signals) -> None:
+        """Raise ``ValueError`` if *signals* lack what this detector needs."""
+        caps = self.capabilities
+        if caps.needs_surface_sensor and not signals.has_surface_sensor:
+            raise ValueError(
+                f"{type(self).__name__} needs a surface position sensor, but the "
+                "simulated surface has none (surface signal is NaN)"
+            )
+        if caps.needs_pressure_sensor and not signals.has_pressure_sensor:
+            raise ValueError(
+                f"{type(self).__name__} needs the chamber pressure sensor; enable it in the "
+                "campaign file ([campaign] pressure_sensor = true)"
+            )
+
+    def _fit(self, signals: Signals) -> None:  # pragma: no cover - overridden when needed
+        return None
+
+    def _detect(self, signals: Signals):
+        raise NotImplementedError(f"{type(self).__name__} must implement _detect(signals)")
+
+
+def as_variants(name: str, output) -> dict[str, Detection]:
+    """Normalise ``detect`` output to ``{detector_variant_name: Detection}``."""
+    if isinstance(output, Detection):
+        return {name: output}
+    if isinstance(output, Mapping):
+        out = {}
+        for variant, det in output.items():
+            if not isinstance(det, Detection):
+                raise TypeError(f"detector {name!r} variant {variant!r} returned "
+                                f"{type(det).__name__}, expected Detection")
+            out[f"{name}[{variant}]"] = det
+        return out
+    raise TypeError(f"detector {name!r} returned {type(output).__name__}; expected a "
+                    "Detection or a mapping of variant name to Detection")
+
+
+def confirm(raw: np.ndarray, n_confirm: int) -> np.ndarray:
+    """Latching confirmation: alarm from the step where *raw* has been true for *n_confirm*
+    consecutive steps (n_confirm ≥ 1), kept until the end of the run. Causal and
+    vectorised over runs (axis 0)."""
+    raw = np.asarray(raw, dtype=bool)
+    n_confirm = max(int(n_confirm), 1)
+    if n_confirm == 1:
+        confirmed = raw
+    else:
+        # length of the current run of consecutive True values, per step
+        idx = np.arange(raw.shape[1])
+        last_false = np.where(~raw, idx, -1)
+        np.maximum.accumulate(last_false, axis=1, out=last_false)
+        confirmed = (idx - last_false) >= n_confirm
+    return np.logical_or.accumulate(confirmed, axis=1)

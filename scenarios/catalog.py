@@ -1,0 +1,66 @@
+"""The names the simulator knows: surfaces, manoeuvres, faults.
+
+Kept in one small module with no heavy imports so that the campaign-file validator, the
+CLI and the detectors can list the allowed values without importing the simulator.
+"""
+
+from __future__ import annotations
+
+import difflib
+
+#: Control surfaces with a built-in servo-loop parameter set (PHYSICS §3).
+SURFACES: tuple[str, ...] = ("elevator", "aileron")
+
+#: The six ADDSAFE fault-free manoeuvres ([CHEN] §6.1, PHYSICS §7).
+MANOEUVRES: tuple[str, ...] = (
+    "cruise",
+    "nose_up",
+    "aoa_protection",
+    "pitch_protection",
+    "yaw_angle_mode",
+    "turn_coordination",
+)
+
+#: Fault types (PHYSICS §5). ``none`` marks a fault-free run.
+FAULTS: tuple[str, ...] = (
+    "none",
+    "runaway",
+    "hardover",
+    "liquid_jam",
+    "solid_jam",
+    "disconnection",
+    "ofc_liquid",
+    "ofc_solid",
+)
+
+#: Faults that really are faults (everything but ``none``).
+FAULT_TYPES: tuple[str, ...] = FAULTS[1:]
+
+#: Required detection times [s], the DTP denominators (PHYSICS §5: est. defaults, the
+#: ADDSAFE values are not public). OFC: 3 oscillation periods, resolved per run from the
+#: sampled frequency (the value here is the default for a 1 Hz oscillation).
+REQUIRED_DETECTION_TIME_S: dict[str, float] = {
+    "runaway": 0.5,
+    "hardover": 0.2,
+    "liquid_jam": 2.0,
+    "solid_jam": 2.0,
+    "disconnection": 1.0,
+    "ofc_liquid": 3.0,
+    "ofc_solid": 3.0,
+}
+
+
+def suggest(value: str, allowed: tuple[str, ...] | list[str]) -> str:
+    """Return a `` (did you mean 'x'?)`` hint for a misspelt name, or an empty string."""
+    close = difflib.get_close_matches(str(value), list(allowed), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def check_name(kind: str, value: str, allowed: tuple[str, ...] | list[str]) -> str:
+    """Return *value* if it is one of *allowed*, else raise a ``ValueError`` naming both."""
+    if value not in allowed:
+        raise ValueError(
+            f"unknown {kind} {value!r}{suggest(value, allowed)}; "
+            f"allowed: {', '.join(allowed)}"
+        )
+    return value

@@ -1,0 +1,223 @@
+"""Parameter tables of the servo-loop and its sensors (PHYSICS §3–4).
+
+Every number used by the plant lives here, with its unit and its provenance, so a user can
+replace it with their own actuator data (``dataclasses.replace(ELEVATOR, S_m2=...)``).
+"(est.)" marks engineering estimates: the Airbus benchmark data is proprietary.
+
+Conventions: rod position and order in mm, current in mA, surface deflection in deg
+(positive trailing edge down), force in N, pressure in Pa, time in s. Rod and surface are
+linked by x = r·sin(δ) (lever arm r).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+
+def param(unit: str, source: str, doc: str = ""):
+    """Declare a parameter field with its unit and provenance in the field metadata."""
+    return field(metadata={"unit": unit, "source": source, "doc": doc})
+
+
+@dataclass(frozen=True)
+class ActuatorParams:
+    """One active hydraulic servo-actuator and its control surface (PHYSICS §3).
+
+    The adjacent actuator of the same surface is in damping mode: it resists the motion with
+    a force Ka·ẋ|ẋ| ([COMB] eq. 2, [CHEN] eq. 11).
+    """
+
+    surface: str = param("-", "PHYSICS §3", "surface name")
+    delta_min_deg: float = param("deg", "A330-class (PHYSICS §3)", "electrical deflection limit, lower")
+    delta_max_deg: float = param("deg", "A330-class (PHYSICS §3)", "electrical deflection limit, upper")
+    stop_margin_deg: float = param("deg", "est. (PHYSICS §3: 1–2° beyond the electrical limits)",
+                                "mechanical stops lie this far beyond the electrical limits")
+    r_mm: float = param("mm", "est.", "lever arm r between rod and hinge line")
+    dP_Pa: float = param("Pa", "3000 psi hydraulic system", "supply differential pressure ΔP")
+    dP_ref_Pa: float = param("Pa", "PHYSICS §3 (ΔP_ref = ΔP)", "pressure drop of the maximum rod speed")
+    S_m2: float = param("m²", "est. (A320 aileron jack 22.7 cm²)", "piston area S")
+    K_mA_per_mm: float = param("mA/mm", "est.", "servo-loop gain K")
+    Kci_mm_s_per_mA: float = param("(mm/s)/mA", "est.", "servo-valve gain Kci")
+    i_max_mA: float = param("mA", "est.", "current saturation ±i_max")
+    Ka_N_per_mm_s2: float = param("N/(mm/s)²", "est.", "damping-mode neighbour coefficient Ka")
+    Sc_m2: float = param("m²", "est.", "control surface area S_c")
+    cc_m: float = param("m", "est.", "control surface chord c_c")
+    Ch_delta: float = param("1/rad", "est.", "hinge-moment derivative Chδ")
+    Ch_alpha: float = param("1/rad", "est.", "hinge-moment derivative Chα")
+    Ch0: float = param("-", "est.", "hinge-moment coefficient at zero α and δ")
+    downwash: float = param("-", "est. (elevator: dε/dα; 0 for the aileron)",
+                         "local AoA of the surface α_s = α·(1 − dε/dα)")
+    mach_compress_cap: float = param("-", "PHYSICS §3", "Prandtl–Glauert scaling held above this Mach")
+    has_surface_sensor: bool = param("-", "PHYSICS §4 ([CHEN]: none on the inboard aileron)",
+                                  "whether a surface position sensor is fitted")
+
+    # ---- derived quantities (never stored twice) -------------------------------------
+    @property
+    def stop_min_deg(self) -> float:
+        """Lower mechanical stop [deg]."""
+        return self.delta_min_deg - self.stop_margin_deg
+
+    @property
+    def stop_max_deg(self) -> float:
+        """Upper mechanical stop [deg]."""
+        return self.delta_max_deg + self.stop_margin_deg
+
+    @property
+    def x_min_mm(self) -> float:
+        """Rod position at the lower mechanical stop [mm]."""
+        return self.r_mm * math.sin(math.radians(self.stop_min_deg))
+
+    @property
+    def x_max_mm(self) -> float:
+        """Rod position at the upper mechanical stop [mm]."""
+        return self.r_mm * math.sin(math.radians(self.stop_max_deg))
+
+    @property
+    def u_min_mm(self) -> float:
+        """Rod order at the lower electrical limit [mm]."""
+        return self.r_mm * math.sin(math.radians(self.delta_min_deg))
+
+    @property
+    def u_max_mm(self) -> float:
+        """Rod order at the upper electrical limit [mm]."""
+        return self.r_mm * math.sin(math.radians(self.delta_max_deg))
+
+    @property
+    def bandwidth_per_s(self) -> float:
+        """Small-signal loop bandwidth Kci·K [1/s]; time constant τ = 1/(Kci·K)."""
+        return self.Kci_mm_s_per_mA * self.K_mA_per_mm
+
+    @property
+    def tau_s(self) -> float:
+        """Small-signal time constant 1/(Kci·K) [s]."""
+        return 1.0 / self.bandwidth_per_s
+
+    @property
+    def rate_max_mm_s(self) -> float:
+        """Saturated no-load rod speed Kci·i_max [mm/s] (no aero load, no damping neighbour)."""
+        return self.Kci_mm_s_per_mA * self.i_max_mA
+
+    @property
+    def stall_force_N(self) -> float:
+        """Force S·ΔP above which the rod cannot move against the load [N]."""
+        return self.S_m2 * self.dP_Pa
+
+    @property
+    def deflection_range_deg(self) -> float:
+        """Operational deflection range between the electrical limits [deg]."""
+        return self.delta_max_deg - self.delta_min_deg
+
+    def deg_to_mm(self, delta_deg):
+        """Rod position for a surface deflection, x = r·sin δ [mm]."""
+        import numpy as np
+
+        return self.r_mm * np.sin(np.radians(delta_deg))
+
+    def mm_to_deg(self, x_mm):
+        """Surface deflection for a rod position, δ = asin(x/r) [deg]."""
+        import numpy as np
+
+        return np.degrees(np.arcsin(np.clip(np.asarray(x_mm) / self.r_mm, -1.0, 1.0)))
+
+    def replace(self, **changes) -> "ActuatorParams":
+        """A copy with some parameters changed (unknown names raise a clear error)."""
+        names = {f.name for f in dataclasses.fields(self)}
+        bad = sorted(set(changes) - names)
+        if bad:
+            raise ValueError(f"unknown actuator parameter(s) {bad}; allowed: {sorted(names)}")
+        return dataclasses.replace(self, **changes)
+
+
+ELEVATOR = ActuatorParams(
+    surface="elevator",
+    delta_min_deg=-30.0,
+    delta_max_deg=15.0,
+    stop_margin_deg=1.5,
+    r_mm=120.0,
+    dP_Pa=20.68e6,
+    dP_ref_Pa=20.68e6,
+    S_m2=50e-4,
+    K_mA_per_mm=1.5,
+    Kci_mm_s_per_mA=10.0,
+    i_max_mA=10.0,
+    Ka_N_per_mm_s2=1.55,
+    Sc_m2=10.0,
+    cc_m=1.3,
+    Ch_delta=-0.30,
+    Ch_alpha=-0.15,
+    Ch0=0.0,
+    downwash=0.35,
+    mach_compress_cap=0.75,
+    has_surface_sensor=True,
+)
+
+AILERON = ActuatorParams(
+    surface="aileron",
+    delta_min_deg=-25.0,
+    delta_max_deg=25.0,
+    stop_margin_deg=1.5,
+    r_mm=70.0,
+    dP_Pa=20.68e6,
+    dP_ref_Pa=20.68e6,
+    S_m2=30e-4,
+    K_mA_per_mm=2.5,
+    Kci_mm_s_per_mA=7.0,
+    i_max_mA=10.0,
+    Ka_N_per_mm_s2=1.5,
+    Sc_m2=4.0,
+    cc_m=0.8,
+    Ch_delta=-0.40,
+    Ch_alpha=-0.20,
+    Ch0=0.0,
+    downwash=0.0,
+    mach_compress_cap=0.75,
+    has_surface_sensor=False,
+)
+
+ACTUATORS: dict[str, ActuatorParams] = {"elevator": ELEVATOR, "aileron": AILERON}
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Sensors acquired by the FCC (PHYSICS §4). All values (est.)."""
+
+    rod_noise_mm: float = param("mm", "est. (PHYSICS §4)", "white-noise σ of each LVDT acquisition")
+    rod_quant_mm: float = param("mm", "est. (PHYSICS §4)", "quantisation step of the rod acquisitions")
+    rod_bias_mm: float = param("mm", "est. (PHYSICS §4)", "per-run bias ~ U(−b, b)")
+    rod_scale: float = param("-", "est. (PHYSICS §4)", "per-run scale error ~ U(−s, s), relative")
+    surface_noise_deg: float = param("deg", "est. (PHYSICS §4)", "white-noise σ of the surface sensor")
+    surface_quant_deg: float = param("deg", "est. (PHYSICS §4)", "quantisation of the surface sensor")
+    surface_bias_deg: float = param("deg", "est. (PHYSICS §4)", "per-run bias ~ U(−b, b)")
+    pressure_noise_frac: float = param("-", "est. (PHYSICS §4)",
+                                    "σ of the chamber ΔP sensor as a fraction of supply")
+
+
+SENSORS = SensorParams(
+    rod_noise_mm=0.03,
+    rod_quant_mm=0.01,
+    rod_bias_mm=0.1,
+    rod_scale=0.005,
+    surface_noise_deg=0.02,
+    surface_quant_deg=0.01,
+    surface_bias_deg=0.05,
+    pressure_noise_frac=0.01,
+)
+
+#: FCC period [s] ([COMB] §4: T = 10 ms).
+TS_S: float = 0.01
+
+
+def parameter_table(params) -> list[dict]:
+    """Rows (name, value, unit, source, doc) describing a parameter dataclass instance."""
+    rows = []
+    for f in dataclasses.fields(params):
+        rows.append({
+            "name": f.name,
+            "value": getattr(params, f.name),
+            "unit": f.metadata.get("unit", ""),
+            "source": f.metadata.get("source", ""),
+            "doc": f.metadata.get("doc", ""),
+        })
+    return rows

@@ -1,0 +1,178 @@
+"""What a simulation returns: :class:`Signals` (what a detector may read) and :class:`Truth`
+(what only scoring sees). DESIGN.md, Contracts.
+
+Arrays are shaped ``(n_runs, n_steps)`` and sampled at ``ts`` (the FCC period); step ``k``
+is time ``k·ts``. Per-run scheduling data are the *measured/estimated* values, carrying the
+[CHEN] Table-2 errors; the true flight point stays in :class:`Truth`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from .params import ActuatorParams
+
+#: Units of the time-series signals, by name.
+SIGNAL_UNITS: dict[str, str] = {
+    "command": "mm",      # rod-position order u computed by the flight control law
+    "current": "mA",      # servo-valve current order i computed by the FCC (COM)
+    "rod_com": "mm",      # rod position acquired by the COM channel (the loop closes on it)
+    "rod_mon": "mm",      # rod position acquired by the MON channel
+    "surface": "deg",     # surface position sensor (NaN when the surface has none)
+    "pressure": "Pa",     # actuator chamber differential pressure (NaN when not fitted)
+}
+
+#: Units of the per-run scheduling data, by name.
+SCHEDULE_UNITS: dict[str, str] = {
+    "vcas_kt": "kt",
+    "alt_ft": "ft",
+    "mass_t": "t",
+    "cg_pct": "% MAC",
+    "mach": "-",
+    "qbar_pa": "Pa",
+    "alpha_deg": "deg",
+}
+
+
+@dataclass(frozen=True)
+class Signals:
+    """Everything a detector may read for a batch of runs.
+
+    Parameters
+    ----------
+    ts : float
+        Sampling period [s].
+    command, current, rod_com, rod_mon, surface, pressure : ndarray (n_runs, n_steps)
+        See :data:`SIGNAL_UNITS`. ``surface``/``pressure`` are all-NaN when not fitted.
+    schedule : dict[str, ndarray (n_runs,)]
+        Measured/estimated scheduling data (:data:`SCHEDULE_UNITS`).
+    actuator : ActuatorParams
+        The *nominal* actuator parameters (a model-based detector's knowledge).
+    run_ids : ndarray (n_runs,) of str
+        Identity of each run (for error messages and tracing only).
+    """
+
+    ts: float
+    command: np.ndarray
+    current: np.ndarray
+    rod_com: np.ndarray
+    rod_mon: np.ndarray
+    surface: np.ndarray
+    pressure: np.ndarray
+    schedule: dict = field(default_factory=dict)
+    actuator: ActuatorParams | None = None
+    run_ids: np.ndarray | None = None
+
+    @property
+    def n_runs(self) -> int:
+        return self.command.shape[0]
+
+    @property
+    def n_steps(self) -> int:
+        return self.command.shape[1]
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times [s], shape (n_steps,)."""
+        return np.arange(self.n_steps) * self.ts
+
+    @property
+    def has_surface_sensor(self) -> bool:
+        return bool(np.isfinite(self.surface).any())
+
+    @property
+    def has_pressure_sensor(self) -> bool:
+        return bool(np.isfinite(self.pressure).any())
+
+    def series_names(self) -> tuple[str, ...]:
+        return tuple(SIGNAL_UNITS)
+
+    def take(self, index) -> "Signals":
+        """The sub-batch of runs selected by *index* (an integer array, slice or mask)."""
+        return Signals(
+            ts=self.ts,
+            **{name: getattr(self, name)[index] for name in SIGNAL_UNITS},
+            schedule={k: np.asarray(v)[index] for k, v in self.schedule.items()},
+            actuator=self.actuator,
+            run_ids=None if self.run_ids is None else np.asarray(self.run_ids)[index],
+        )
+
+    def truncate(self, n_steps: int) -> "Signals":
+        """The first *n_steps* samples of every run (used to check causality)."""
+        return Signals(
+            ts=self.ts,
+            **{name: getattr(self, name)[:, :n_steps] for name in SIGNAL_UNITS},
+            schedule=dict(self.schedule),
+            actuator=self.actuator,
+            run_ids=self.run_ids,
+        )
+
+    @classmethod
+    def concat(cls, parts: list["Signals"]) -> "Signals":
+        """Stack batches of runs with the same time base."""
+        first = parts[0]
+        return cls(
+            ts=first.ts,
+            **{name: np.concatenate([getattr(p, name) for p in parts]) for name in SIGNAL_UNITS},
+            schedule={k: np.concatenate([p.schedule[k] for p in parts]) for k in first.schedule},
+            actuator=first.actuator,
+            run_ids=None if first.run_ids is None
+            else np.concatenate([p.run_ids for p in parts]),
+        )
+
+    def to_pandas(self, run: int = 0):
+        """One run's time series as a DataFrame indexed by time [s] (columns carry units)."""
+        import pandas as pd
+
+        data = {f"{name} [{unit}]": getattr(self, name)[run] for name, unit in SIGNAL_UNITS.items()}
+        return pd.DataFrame(data, index=pd.Index(self.time, name="time [s]"))
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What only scoring (and plots) may see.
+
+    rod_mm, surface_deg : ndarray (n_runs, n_steps)
+        True rod position [mm] and surface deflection [deg].
+    current_mA : ndarray (n_runs, n_steps)
+        Current actually flowing in the servo-valve [mA] (differs from the FCC's order
+        under a hardover or an oscillatory current fault).
+    fault : ndarray (n_runs,) of str
+        Fault type (``"none"`` for a fault-free run).
+    onset_s : ndarray (n_runs,)
+        Fault onset [s] (NaN for a fault-free run).
+    magnitude : ndarray (n_runs,)
+        Fault magnitude in the unit of its type (runaway: deg/s; liquid_jam: mm; hardover:
+        ±1 direction; OFC: amplitude). NaN where it does not apply.
+    """
+
+    rod_mm: np.ndarray
+    surface_deg: np.ndarray
+    current_mA: np.ndarray
+    fault: np.ndarray
+    onset_s: np.ndarray
+    magnitude: np.ndarray
+    flight: dict = field(default_factory=dict)
+
+    def take(self, index) -> "Truth":
+        return Truth(
+            rod_mm=self.rod_mm[index],
+            surface_deg=self.surface_deg[index],
+            current_mA=self.current_mA[index],
+            fault=np.asarray(self.fault)[index],
+            onset_s=np.asarray(self.onset_s)[index],
+            magnitude=np.asarray(self.magnitude)[index],
+            flight={k: np.asarray(v)[index] for k, v in self.flight.items()},
+        )
+
+
+def assert_same_shape(signals: Signals) -> None:
+    """Raise ``ValueError`` when the signal arrays disagree in shape (a malformed batch)."""
+    shape = signals.command.shape
+    for f in fields(signals):
+        if f.name in SIGNAL_UNITS:
+            arr = getattr(signals, f.name)
+            if arr.shape != shape:
+                raise ValueError(f"signal {f.name!r} has shape {arr.shape}, expected {shape}")
