@@ -1,0 +1,283 @@
+"""The acceptance gate: pass/fail checks on a summary, a human report and JUnit XML for CI.
+
+Requirements (DESIGN.md, Metrics; ADDSAFE's zero false alarm / zero missed detection / DTP
+targets, [CHEN] §5):
+
+* **false alarms** — checked on every finest-granularity summary row with scored runs
+  (each fault-free manoeuvre, and the pre-onset alarms of each fault × manoeuvre), so a
+  failure names the detector, the fault, the manoeuvre and the count;
+* **missed detections** (only with ``max_md``) — the MD rate per detector × fault type;
+  a failure lists the manoeuvres where the misses happened;
+* **detection time** (only with ``max_dtp``) — the largest DTP per detector × fault type;
+* **run errors** — any run with ``status != "ok"`` fails the gate unless ``allow_errors``;
+* every detector must have scored runs: an empty campaign proves nothing.
+
+Limits on rates are fractions (``max_fa=0.01`` is 1 %).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .metrics import FAULT_FREE
+from .summary import ALL_FAULTS, ALL_MANOEUVRES
+
+__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "write_junit"]
+
+_REQUIRED = ("detector", "fault", "manoeuvre", "n_runs", "n_errors", "fa_count",
+             "md_count", "dtp_max")
+
+
+class GateInputError(ValueError):
+    """A summary or a limit the gate cannot evaluate; lists every problem at once.
+
+    Survives pickling (it may cross a process boundary).
+    """
+
+    def __init__(self, problems):
+        self.problems = [str(p) for p in ([problems] if isinstance(problems, str) else problems)]
+        super().__init__("; ".join(self.problems))
+
+    def __reduce__(self):
+        return (type(self), (self.problems,))
+
+
+@dataclass(frozen=True)
+class Check:
+    """One requirement evaluated on one place of the summary.
+
+    ``value`` and ``limit`` are in the unit of the requirement (a rate as a fraction, a DTP,
+    a count of failed runs); ``fault``/``manoeuvre`` are ``"all"`` when the check covers
+    several of them.
+    """
+
+    name: str
+    detector: str
+    fault: str
+    manoeuvre: str
+    value: float
+    limit: float
+    passed: bool
+    message: str
+
+
+@dataclass
+class GateResult:
+    """Every check of one gate evaluation."""
+
+    checks: list[Check] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        """True when every check passed."""
+        return all(c.passed for c in self.checks)
+
+    @property
+    def failures(self) -> list[Check]:
+        """The checks that failed, in evaluation order."""
+        return [c for c in self.checks if not c.passed]
+
+    def format(self) -> str:
+        """Human report: one line per check, failures repeated at the end, and a verdict."""
+        lines = [c.message for c in self.checks]
+        failures = self.failures
+        if failures:
+            lines += ["", f"gate FAILED: {len(failures)} of {len(self.checks)} checks failed"]
+            lines += [f"  {c.message}" for c in failures]
+        else:
+            lines += ["", f"gate PASSED: all {len(self.checks)} checks passed"]
+        return "\n".join(lines)
+
+
+def _pct(x: float) -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f"{100 * x:.2f} %"
+
+
+def _where(fault: str, manoeuvre: str) -> str:
+    label = "fault-free" if fault == FAULT_FREE else fault
+    return label if manoeuvre == ALL_MANOEUVRES else f"{label} {manoeuvre}"
+
+
+def _validate(summary: pd.DataFrame, limits: dict) -> None:
+    problems = []
+    missing = [c for c in _REQUIRED if c not in summary.columns]
+    if missing:
+        problems.append(f"summary lacks column(s) {', '.join(missing)}; "
+                        "pass the output of reports.summarize")
+    for name, value in limits.items():
+        if value is None:
+            continue
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            problems.append(f"{name} must be a number, got {value!r}")
+            continue
+        if name in ("max_fa", "max_md") and not 0.0 <= v <= 1.0:
+            problems.append(f"{name} is a rate as a fraction in [0, 1] (0.01 = 1 %), got {v}")
+        if name == "max_dtp" and not (math.isfinite(v) and v > 0):
+            problems.append(f"max_dtp must be a positive DTP (1.0 = the required time), "
+                            f"got {v}")
+    if problems:
+        raise GateInputError(problems)
+
+
+def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float | None = None,
+                  max_dtp: float | None = None, allow_errors: bool = False) -> GateResult:
+    """Evaluate the acceptance requirements on a summary (see the module docstring).
+
+    Parameters
+    ----------
+    summary : DataFrame
+        Output of :func:`reports.summary.summarize`.
+    max_fa : float
+        Largest accepted false-alarm rate (fraction) in any fault-free manoeuvre and, for
+        pre-onset alarms, in any fault × manoeuvre. Default 0: no false alarm at all.
+    max_md : float or None
+        Largest accepted missed-detection rate (fraction) per fault type; None: not checked.
+    max_dtp : float or None
+        Largest accepted DTP (detection delay / required time) per fault type; None: not
+        checked.
+    allow_errors : bool
+        When False (default) any run that did not finish with ``status="ok"`` fails.
+
+    Raises
+    ------
+    GateInputError
+        When the summary lacks columns or a limit is out of range.
+    """
+    _validate(summary, {"max_fa": max_fa, "max_md": max_md, "max_dtp": max_dtp})
+    fine = summary[(summary["fault"] != ALL_FAULTS) & (summary["manoeuvre"] != ALL_MANOEUVRES)]
+    checks: list[Check] = []
+    for detector, rows in fine.groupby("detector", sort=True):
+        checks += _runs_check(detector, rows)
+        checks += _fa_checks(detector, rows, float(max_fa))
+        if max_md is not None:
+            checks += _md_checks(detector, rows, float(max_md))
+        if max_dtp is not None:
+            checks += _dtp_checks(detector, rows, float(max_dtp))
+        checks += _error_checks(detector, rows, allow_errors)
+    if fine.empty:
+        checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
+                            "FAIL scored runs: the summary holds no runs"))
+    return GateResult(checks)
+
+
+def _runs_check(detector, rows) -> list[Check]:
+    n = int(rows["n_runs"].sum())
+    if n > 0:
+        return []
+    return [Check("runs", detector, "all", "all", float(n), 1.0, False,
+                  f"FAIL scored runs: {detector}: no run finished with status ok")]
+
+
+def _fa_checks(detector, rows, limit) -> list[Check]:
+    out = []
+    for r in rows[rows["n_runs"] > 0].itertuples(index=False):
+        rate = r.fa_count / r.n_runs
+        passed = rate <= limit
+        what = "false alarms" if r.fault == FAULT_FREE else "false alarms before onset"
+        rel = "≤" if passed else ">"
+        bound = f"; FA ≤ {_pct(r.fa_upper95)} at 95 %" if hasattr(r, "fa_upper95") else ""
+        msg = (f"{'PASS' if passed else 'FAIL'} {what}: {detector}, "
+               f"{_where(r.fault, r.manoeuvre)}: {r.fa_count}/{r.n_runs} runs "
+               f"({_pct(rate)} {rel} {_pct(limit)}{bound if passed else ''})")
+        out.append(Check("false_alarm", detector, r.fault, r.manoeuvre, rate, limit,
+                         bool(passed), msg))
+    return out
+
+
+def _md_checks(detector, rows, limit) -> list[Check]:
+    out = []
+    faulty = rows[(rows["fault"] != FAULT_FREE) & (rows["n_runs"] > 0)]
+    for fault, g in faulty.groupby("fault", sort=True):
+        n, k = int(g["n_runs"].sum()), int(g["md_count"].sum())
+        rate = k / n
+        passed = rate <= limit
+        rel = "≤" if passed else ">"
+        msg = (f"{'PASS' if passed else 'FAIL'} missed detections: {detector}, {fault}: "
+               f"{k}/{n} runs ({_pct(rate)} {rel} {_pct(limit)})")
+        if k:
+            where = ", ".join(f"{m} {c}/{t}" for m, c, t in
+                              zip(g["manoeuvre"], g["md_count"], g["n_runs"]) if c)
+            msg += f"; misses in: {where}"
+        out.append(Check("missed_detection", detector, fault, ALL_MANOEUVRES, rate, limit,
+                         bool(passed), msg))
+    return out
+
+
+def _dtp_checks(detector, rows, limit) -> list[Check]:
+    out = []
+    faulty = rows[(rows["fault"] != FAULT_FREE) & (rows["n_runs"] > 0)]
+    for fault, g in faulty.groupby("fault", sort=True):
+        misses = int(g["md_count"].sum())
+        n = int(g["n_runs"].sum())
+        dtp = g["dtp_max"].to_numpy(dtype=float)
+        miss_note = f" ({misses} of {n} runs missed, not in DTP)" if misses else ""
+        if np.all(np.isnan(dtp)):
+            out.append(Check("dtp", detector, fault, ALL_MANOEUVRES, math.nan, limit, False,
+                             f"FAIL detection time: {detector}, {fault}: no detected run, "
+                             f"DTP ≤ {limit:g} not shown{miss_note}"))
+            continue
+        i = int(np.nanargmax(dtp))
+        worst, where = float(dtp[i]), g["manoeuvre"].iloc[i]
+        passed = worst <= limit
+        rel = "≤" if passed else ">"
+        msg = (f"{'PASS' if passed else 'FAIL'} detection time: {detector}, {fault}: "
+               f"max DTP {worst:.3g} {rel} {limit:g} (worst in {where}){miss_note}")
+        out.append(Check("dtp", detector, fault, ALL_MANOEUVRES, worst, limit, bool(passed),
+                         msg))
+    return out
+
+
+def _error_checks(detector, rows, allow_errors) -> list[Check]:
+    n_err = int(rows["n_errors"].sum())
+    if n_err == 0:
+        return [Check("errors", detector, "all", "all", 0.0, 0.0, True,
+                      f"PASS run errors: {detector}: none")]
+    where = ", ".join(f"{_where(f, m)} {int(e)}" for f, m, e in
+                      zip(rows["fault"], rows["manoeuvre"], rows["n_errors"]) if e)
+    verdict = "PASS (allowed)" if allow_errors else "FAIL"
+    return [Check("errors", detector, "all", "all", float(n_err), 0.0, bool(allow_errors),
+                  f"{verdict} run errors: {detector}: {n_err} run(s) did not finish "
+                  f"(status != ok): {where}")]
+
+
+def write_junit(result: GateResult, path) -> None:
+    """Write the gate as JUnit XML: one testcase per check, a ``failure`` per failed check.
+
+    The root is ``<testsuites>`` holding one ``<testsuite name="fdd-campaign gate">`` with
+    ``tests`` and ``failures`` counts. The file is replaced atomically.
+    """
+    failures = result.failures
+    n, k = str(len(result.checks)), str(len(failures))
+    root = ET.Element("testsuites", name="fdd-campaign", tests=n, failures=k, errors="0")
+    suite = ET.SubElement(root, "testsuite", name="fdd-campaign gate", tests=n, failures=k,
+                          errors="0", skipped="0")
+    for c in result.checks:
+        case = ET.SubElement(suite, "testcase", classname=f"gate.{c.detector}",
+                             name=f"{c.name}[{c.fault}/{c.manoeuvre}]")
+        if not c.passed:
+            fail = ET.SubElement(case, "failure", message=c.message, type=c.name)
+            fail.text = c.message
+        else:
+            ET.SubElement(case, "system-out").text = c.message
+    tree = ET.ElementTree(root)
+    ET.indent(tree)
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".junit-", suffix=".xml", dir=directory)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            tree.write(fh, encoding="utf-8", xml_declaration=True)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

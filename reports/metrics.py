@@ -1,0 +1,232 @@
+"""Run-level scoring of alarms: false alarm, missed detection, detection delay, DTP, margin.
+
+The definitions live here and nowhere else (DESIGN.md, Metrics; [CHEN] §5, the ADDSAFE
+industrial evaluation). Inputs are plain arrays: this module knows nothing of how the runs
+were simulated or which detector raised the alarms.
+
+Time convention: step ``k`` of a run is at time ``k * ts`` [s], the first sample being at
+0 s. A sample is *at or after onset* when ``k * ts >= onset_s - ONSET_TOL_S`` so that an
+onset that is an exact multiple of ``ts`` in decimal (0.3 s with ts = 0.1 s) is not lost to
+floating-point error.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+__all__ = [
+    "FAULT_FREE",
+    "ONSET_TOL_S",
+    "RESULT_COLUMNS",
+    "SCORE_COLUMNS",
+    "clopper_pearson",
+    "score_runs",
+    "upper_bound",
+]
+
+#: Value of the ``fault`` column of a fault-free run (DESIGN.md, Command line).
+FAULT_FREE = "none"
+
+#: Tolerance [s] on time comparisons with the onset and the end of the detection window:
+#: far below any sampling period (ms), far above the rounding error of ``k * ts``.
+ONSET_TOL_S = 1e-9
+
+#: Columns of a result row: one row per run × detector (DESIGN.md, Command line minimum
+#: columns, plus ``error`` and ``pre_onset_alarm``).
+RESULT_COLUMNS: tuple[str, ...] = (
+    "run_id", "detector", "fault", "manoeuvre", "status", "error",
+    "false_alarm", "pre_onset_alarm", "detected", "first_alarm_s", "delay_s", "dtp", "margin",
+)
+
+#: Columns returned by :func:`score_runs` (the scoring part of a result row).
+SCORE_COLUMNS: tuple[str, ...] = (
+    "run_id", "false_alarm", "pre_onset_alarm", "detected",
+    "first_alarm_s", "delay_s", "dtp", "margin",
+)
+
+
+def _first_true(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the first True per row and whether there is one (index 0 when none)."""
+    idx = np.argmax(mask, axis=1)
+    has = mask[np.arange(mask.shape[0]), idx] if mask.shape[0] else np.zeros(0, dtype=bool)
+    return idx, has
+
+
+def _per_run(value, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        return np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
+    return arr
+
+
+def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
+               window_s=None) -> pd.DataFrame:
+    """Score a batch of runs of one detector (DESIGN.md, Metrics).
+
+    Parameters
+    ----------
+    run_id : array-like (n,) of str
+        Identity of each run.
+    fault : array-like (n,) of str
+        Fault type of each run; ``"none"`` for a fault-free run.
+    onset_s : array-like (n,) of float [s]
+        Fault onset time; ignored (may be NaN) for fault-free runs, must be finite for
+        faulty runs.
+    alarm : array-like (n, T) of bool
+        Alarm flag of the detector at each step.
+    residual : array-like (n, T) of float [-]
+        Residual normalised by its threshold, |r|/τ (≥ 1 means alarm). NaN samples (e.g. a
+        filter warming up) are ignored by the margin.
+    ts : float [s]
+        Sampling period; step ``k`` is at ``k * ts``.
+    required_time_s : array-like (n,) of float [s]
+        Required detection time of the run's fault type (configuration data, the DTP
+        denominator); ignored for fault-free runs, must be finite and > 0 for faulty runs.
+    window_s : None, float or array-like (n,) of float [s]
+        Detection window after onset. ``None`` (or NaN/inf for a run) means the rest of the
+        run.
+
+    Returns
+    -------
+    DataFrame with :data:`SCORE_COLUMNS`, one row per run, in input order:
+
+    * fault-free run: ``false_alarm`` = any alarm; ``pre_onset_alarm`` = ``false_alarm``;
+      ``first_alarm_s`` = first alarm time (NaN if none); ``detected`` False; ``delay_s``
+      and ``dtp`` NaN; ``margin`` = max residual over the whole run.
+    * faulty run: ``pre_onset_alarm`` = any alarm at t < onset, reported as
+      ``false_alarm``; ``detected`` = some alarm at onset ≤ t ≤ onset + window;
+      ``first_alarm_s`` = first such alarm (NaN for a miss); ``delay_s`` =
+      ``first_alarm_s - onset_s``; ``dtp`` = ``delay_s / required_time_s`` ([CHEN] §5);
+      ``margin`` = max residual over t < onset (NaN if no sample precedes onset).
+
+    Raises
+    ------
+    ValueError
+        On inconsistent shapes, a non-positive ``ts``, a faulty run without a finite onset
+        or required detection time, or a negative window.
+    """
+    alarm = np.asarray(alarm)
+    residual = np.asarray(residual, dtype=float)
+    if alarm.ndim != 2:
+        raise ValueError(f"alarm must have shape (n_runs, n_steps), got {alarm.shape}")
+    n, n_steps = alarm.shape
+    if residual.shape != alarm.shape:
+        raise ValueError(f"residual {residual.shape} must have the shape of alarm {alarm.shape}")
+    if n_steps == 0 and n > 0:
+        raise ValueError("alarm has no time steps: a run must have at least one sample")
+    alarm = alarm.astype(bool, copy=False)
+    ts = float(ts)
+    if not np.isfinite(ts) or ts <= 0:
+        raise ValueError(f"ts must be a positive sampling period [s], got {ts}")
+
+    run_id = np.asarray(run_id).astype(str)
+    fault = np.asarray(fault).astype(str)
+    for name, arr in (("run_id", run_id), ("fault", fault)):
+        if arr.shape != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
+    onset = _per_run(onset_s, n, "onset_s")
+    required = _per_run(required_time_s, n, "required_time_s")
+    window = (np.full(n, np.inf) if window_s is None
+              else _per_run(window_s, n, "window_s"))
+    window = np.where(np.isnan(window), np.inf, window)
+    if np.any(window < 0):
+        raise ValueError("window_s must be ≥ 0 [s] (None or NaN for the rest of the run)")
+
+    faulty = fault != FAULT_FREE
+    bad_onset = faulty & ~np.isfinite(onset)
+    if bad_onset.any():
+        raise ValueError(
+            "onset_s must be finite for faulty runs; missing for run(s) "
+            f"{', '.join(run_id[bad_onset][:5])}")
+    bad_req = faulty & ~(np.isfinite(required) & (required > 0))
+    if bad_req.any():
+        kinds = ", ".join(sorted(set(fault[bad_req])))
+        raise ValueError(
+            "required_time_s must be a positive time [s] for every faulty run; "
+            f"missing or invalid for fault type(s): {kinds}")
+
+    # Fault-free runs: the whole run is "before onset" and there is no detection window.
+    onset_eff = np.where(faulty, onset, np.inf)
+    t = np.arange(n_steps) * ts
+    after_onset = t[None, :] >= (onset_eff - ONSET_TOL_S)[:, None]
+    before_onset = ~after_onset
+    in_window = after_onset & (t[None, :] <= (onset_eff + window + ONSET_TOL_S)[:, None])
+
+    pre_onset_alarm = np.any(alarm & before_onset, axis=1)
+
+    idx_win, detected = _first_true(alarm & in_window)
+    idx_any, any_alarm = _first_true(alarm)
+    first_alarm_s = np.where(
+        faulty,
+        np.where(detected, idx_win * ts, np.nan),
+        np.where(any_alarm, idx_any * ts, np.nan),
+    )
+    detected = faulty & detected
+    delay_s = np.where(detected, first_alarm_s - onset, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dtp = np.where(detected, delay_s / required, np.nan)
+
+    valid = before_onset & ~np.isnan(residual)
+    masked = np.where(valid, residual, -np.inf)
+    margin = masked.max(axis=1) if n_steps else np.full(n, -np.inf)
+    margin = np.where(valid.any(axis=1), margin, np.nan)
+
+    return pd.DataFrame({
+        "run_id": run_id.astype(object),
+        "false_alarm": pre_onset_alarm,
+        "pre_onset_alarm": pre_onset_alarm,
+        "detected": detected,
+        "first_alarm_s": first_alarm_s,
+        "delay_s": delay_s,
+        "dtp": dtp,
+        "margin": margin,
+    }, columns=list(SCORE_COLUMNS))
+
+
+def _as_output(x: np.ndarray):
+    return float(x) if x.ndim == 0 else x
+
+
+def _check_counts(k, n, confidence):
+    if not 0.0 < float(confidence) < 1.0:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence}")
+    k, n = np.broadcast_arrays(np.asarray(k, dtype=float), np.asarray(n, dtype=float))
+    bad = (k < 0) | (k > n) | (n < 0)
+    if np.any(bad):
+        raise ValueError("counts must satisfy 0 ≤ k ≤ n")
+    empty = ~(n > 0)  # n == 0 or NaN: no information
+    return k, n, empty
+
+
+def clopper_pearson(k, n, confidence: float = 0.95):
+    """Exact (Clopper–Pearson) two-sided interval of a binomial rate k/n.
+
+    ``lower = Beta⁻¹(α/2; k, n−k+1)`` (0 when k = 0), ``upper = Beta⁻¹(1−α/2; k+1, n−k)``
+    (1 when k = n), α = 1 − confidence (DESIGN.md, Metrics). Vectorised over ``k`` and
+    ``n``; ``n = 0`` gives NaN. Returns ``(lower, upper)`` as floats or arrays.
+    """
+    k, n, empty = _check_counts(k, n, confidence)
+    alpha = 1.0 - float(confidence)
+    with np.errstate(invalid="ignore"):
+        lower = np.where(k > 0, stats.beta.ppf(alpha / 2, k, n - k + 1), 0.0)
+        upper = np.where(k < n, stats.beta.ppf(1 - alpha / 2, k + 1, n - k), 1.0)
+    lower = np.where(empty, np.nan, lower)
+    upper = np.where(empty, np.nan, upper)
+    return _as_output(lower), _as_output(upper)
+
+
+def upper_bound(k, n, confidence: float = 0.95):
+    """Exact one-sided upper confidence bound of a binomial rate k/n.
+
+    ``Beta⁻¹(confidence; k+1, n−k)`` (1 when k = n): with 0 false alarms in 1200 runs the
+    rate is ≤ 1 − 0.05^(1/1200) = 0.25 % at 95 % confidence (DESIGN.md, Metrics).
+    Vectorised; ``n = 0`` gives NaN.
+    """
+    k, n, empty = _check_counts(k, n, confidence)
+    with np.errstate(invalid="ignore"):
+        upper = np.where(k < n, stats.beta.ppf(float(confidence), k + 1, n - k), 1.0)
+    return _as_output(np.where(empty, np.nan, upper))

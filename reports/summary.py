@@ -1,0 +1,167 @@
+"""Aggregate result rows into rates, exact confidence bounds and DTP statistics.
+
+One summary row per detector × fault × manoeuvre, plus aggregates (DESIGN.md, Metrics and
+Outputs; the layout of [CHEN] Tables 3–4):
+
+* ``manoeuvre = "all"`` per detector × fault (e.g. the 1200 fault-free runs of a Monte Carlo
+  campaign, or all runs of one fault type);
+* ``fault = "all-faults"``, ``manoeuvre = "all"`` per detector: every faulty run.
+
+Counting rules
+--------------
+* Only runs with ``status == "ok"`` are scored; ``n_runs`` counts them and is the
+  denominator of every rate. Other runs are counted in ``n_errors`` and nowhere else.
+* ``fa_count`` counts false alarms: any alarm in a fault-free run, an alarm before onset in
+  a faulty run. Both are reported apart because rows are split by fault.
+* ``md_*`` only concern faulty runs (``md_count`` 0 and the rate/bound NaN for
+  ``fault = "none"``).
+* ``dtp_min/mean/max/p95`` and ``delay_mean_s`` are over detected runs only, so misses sit
+  next to them in ``md_count``, and ``dtp_within`` is the share of all scored faulty runs
+  with DTP ≤ 1, a miss counting as not within. ``dtp_p95`` uses linear interpolation
+  between order statistics (numpy's default).
+* ``worst_margin`` is the largest margin (max |r|/τ before onset) of the group.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .metrics import FAULT_FREE, upper_bound
+
+__all__ = ["ALL_FAULTS", "ALL_MANOEUVRES", "SUMMARY_COLUMNS", "summarize"]
+
+#: ``fault`` of the per-detector aggregate over every faulty run.
+ALL_FAULTS = "all-faults"
+#: ``manoeuvre`` of the aggregates over manoeuvres.
+ALL_MANOEUVRES = "all"
+
+SUMMARY_COLUMNS: tuple[str, ...] = (
+    "detector", "fault", "manoeuvre", "n_runs", "n_errors",
+    "fa_count", "fa_rate", "fa_upper95",
+    "md_count", "md_rate", "md_upper95",
+    "dtp_min", "dtp_mean", "dtp_max", "dtp_p95", "dtp_within",
+    "delay_mean_s", "worst_margin",
+)
+
+_REQUIRED = ("detector", "fault", "manoeuvre", "status", "false_alarm", "detected",
+             "delay_s", "dtp", "margin")
+
+_KEYS = ["detector", "fault", "manoeuvre"]
+
+
+def _as_bool(series: pd.Series) -> np.ndarray:
+    """Boolean values of a result column; missing values (error rows) read as False."""
+    return series.astype("boolean").fillna(False).to_numpy(dtype=bool)
+
+
+def _as_float(series: pd.Series) -> np.ndarray:
+    return pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
+
+
+def _per_row(results: pd.DataFrame) -> pd.DataFrame:
+    """Per-run indicator columns; summing/reducing them per group gives the summary."""
+    ok = results["status"].astype(str).to_numpy() == "ok"
+    faulty = results["fault"].astype(str).to_numpy() != FAULT_FREE
+    scored_faulty = ok & faulty
+    detected = scored_faulty & _as_bool(results["detected"])
+    dtp = _as_float(results["dtp"])
+    return pd.DataFrame({
+        "detector": results["detector"].astype(str).to_numpy(),
+        "fault": results["fault"].astype(str).to_numpy(),
+        "manoeuvre": results["manoeuvre"].astype(str).to_numpy(),
+        "ok": ok,
+        "err": ~ok,
+        "fa": ok & _as_bool(results["false_alarm"]),
+        "miss": scored_faulty & ~detected,
+        "within": detected & (dtp <= 1.0),
+        "dtp": np.where(detected, dtp, np.nan),
+        "delay": np.where(detected, _as_float(results["delay_s"]), np.nan),
+        "margin": np.where(ok, _as_float(results["margin"]), np.nan),
+    })
+
+
+def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    grouped = rows.groupby(keys, sort=False, observed=True)
+    out = grouped.agg(
+        n_runs=("ok", "sum"),
+        n_errors=("err", "sum"),
+        fa_count=("fa", "sum"),
+        md_count=("miss", "sum"),
+        n_within=("within", "sum"),
+        dtp_min=("dtp", "min"),
+        dtp_mean=("dtp", "mean"),
+        dtp_max=("dtp", "max"),
+        delay_mean_s=("delay", "mean"),
+        worst_margin=("margin", "max"),
+    )
+    out["dtp_p95"] = grouped["dtp"].quantile(0.95)
+    return out.reset_index()
+
+
+def _sort_key(column: pd.Series) -> pd.Series:
+    """Order: fault-free first, fault types alphabetically, aggregates last."""
+    if column.name == "fault":
+        rank = np.select([column == FAULT_FREE, column == ALL_FAULTS], [0, 2], 1)
+    elif column.name == "manoeuvre":
+        rank = np.where(column == ALL_MANOEUVRES, 1, 0)
+    else:
+        return column
+    return pd.Series([f"{r}{v}" for r, v in zip(rank, column)], index=column.index)
+
+
+def summarize(results: pd.DataFrame) -> pd.DataFrame:
+    """Summary table of result rows (DESIGN.md, Metrics; see the module docstring).
+
+    Parameters
+    ----------
+    results : DataFrame
+        Result rows (:data:`reports.metrics.RESULT_COLUMNS`); needs at least ``detector,
+        fault, manoeuvre, status, false_alarm, detected, delay_s, dtp, margin``.
+
+    Returns
+    -------
+    DataFrame with :data:`SUMMARY_COLUMNS`, sorted by detector, then fault (``none`` first,
+    ``all-faults`` last), then manoeuvre (``all`` last).
+    """
+    missing = [c for c in _REQUIRED if c not in results.columns]
+    if missing:
+        raise ValueError(
+            f"results lack column(s) {', '.join(missing)}; expected result rows with "
+            f"columns {', '.join(_REQUIRED)}")
+    if len(results) == 0:
+        return pd.DataFrame({c: pd.Series(dtype=_dtype(c)) for c in SUMMARY_COLUMNS})
+
+    rows = _per_row(results)
+    finest = _aggregate(rows, _KEYS)
+    per_fault = _aggregate(rows, ["detector", "fault"]).assign(manoeuvre=ALL_MANOEUVRES)
+    faulty_rows = rows[rows["fault"] != FAULT_FREE]
+    parts = [finest, per_fault]
+    if len(faulty_rows):
+        parts.append(_aggregate(faulty_rows, ["detector"])
+                     .assign(fault=ALL_FAULTS, manoeuvre=ALL_MANOEUVRES))
+    out = pd.concat(parts, ignore_index=True)
+
+    for c in ("n_runs", "n_errors", "fa_count", "md_count", "n_within"):
+        out[c] = out[c].astype("int64")
+    n = out["n_runs"].to_numpy()
+    has_runs = n > 0
+    is_faulty = (out["fault"] != FAULT_FREE).to_numpy()
+    md_n = np.where(is_faulty, n, 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out["fa_rate"] = np.where(has_runs, out["fa_count"] / np.maximum(n, 1), np.nan)
+        out["md_rate"] = np.where(md_n > 0, out["md_count"] / np.maximum(md_n, 1), np.nan)
+        out["dtp_within"] = np.where(md_n > 0, out["n_within"] / np.maximum(md_n, 1), np.nan)
+    out["fa_upper95"] = upper_bound(out["fa_count"].to_numpy(), n)
+    out["md_upper95"] = upper_bound(np.where(is_faulty, out["md_count"], 0), md_n)
+
+    out = out.sort_values(_KEYS, key=_sort_key, kind="stable", ignore_index=True)
+    return out.loc[:, list(SUMMARY_COLUMNS)]
+
+
+def _dtype(column: str) -> str:
+    if column in ("detector", "fault", "manoeuvre"):
+        return "object"
+    if column in ("n_runs", "n_errors", "fa_count", "md_count"):
+        return "int64"
+    return "float64"

@@ -1,0 +1,94 @@
+"""Plain-text terminal table of a summary, laid out like [CHEN] Tables 3–4.
+
+Per detector: one row per fault type with FA (%), MD (%), Min/Mean/Max DTP ([CHEN] §5),
+each rate followed by its exact one-sided 95 % upper bound (DESIGN.md, Metrics), then the
+fault-free false alarms per manoeuvre as ``k/n, FA ≤ x %``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from .metrics import FAULT_FREE
+from .summary import ALL_FAULTS, ALL_MANOEUVRES
+
+__all__ = ["format_table"]
+
+
+def _num(x, fmt: str) -> str:
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return "-"
+    return "-" if not math.isfinite(x) else format(x, fmt)
+
+
+def _pct(x) -> str:
+    return _num(100 * x if x is not None else None, ".2f")
+
+
+def _dtp(row) -> str:
+    parts = [_num(row.dtp_min, ".4g"), _num(row.dtp_mean, ".4g"), _num(row.dtp_max, ".4g")]
+    return "-" if parts == ["-", "-", "-"] else "/".join(parts)
+
+
+def _fault_label(fault: str) -> str:
+    return "all faults" if fault == ALL_FAULTS else fault
+
+
+def _render(header: list[str], rows: list[list[str]], align: str) -> list[str]:
+    """Fixed-width lines; ``align`` has one 'l' or 'r' per column."""
+    widths = [max(len(str(c)) for c in col) for col in zip(header, *rows)]
+
+    def line(cells):
+        out = [c.ljust(w) if a == "l" else c.rjust(w) for c, w, a in zip(cells, widths, align)]
+        return "  ".join(out).rstrip()
+
+    rule = "  ".join("-" * w for w in widths)
+    return [line(header), rule] + [line(r) for r in rows]
+
+
+def format_table(summary: pd.DataFrame) -> str:
+    """Render a summary (:func:`reports.summary.summarize`) as fixed-width text.
+
+    Rates are in %; ``≤95`` columns are exact one-sided 95 % upper bounds; for faulty runs FA
+    counts alarms before onset. ``DTP≤1`` is the share of faulty runs detected within the
+    required time (misses count as not within).
+    """
+    if summary is None or len(summary) == 0:
+        return "no results"
+    lines: list[str] = []
+    for detector, det in summary.groupby("detector", sort=True):
+        if lines:
+            lines.append("")
+        lines.append(f"Detector: {detector}")
+        lines.append("")
+
+        faults = det[(det["manoeuvre"] == ALL_MANOEUVRES) & (det["fault"] != FAULT_FREE)]
+        if len(faults):
+            header = ["Fault scenario", "n", "err", "FA (%)", "FA ≤95 (%)", "MD (%)",
+                      "MD ≤95 (%)", "Min/Mean/Max DTP", "DTP≤1 (%)"]
+            body = [[_fault_label(r.fault), str(int(r.n_runs)), str(int(r.n_errors)),
+                     _pct(r.fa_rate), _pct(r.fa_upper95), _pct(r.md_rate), _pct(r.md_upper95),
+                     _dtp(r), _num(100 * r.dtp_within, ".1f")]
+                    for r in faults.itertuples(index=False)]
+            lines += _render(header, body, "lrrrrrrlr")
+            lines.append("(FA of faulty runs: alarms before onset)")
+            lines.append("")
+
+        free = det[det["fault"] == FAULT_FREE]
+        if len(free):
+            header = ["Fault-free manoeuvre", "n", "err", "FA (%)", "False alarms (95 % bound)",
+                      "Worst margin"]
+            body = []
+            for r in free.itertuples(index=False):
+                n = int(r.n_runs)
+                bound = (f"{int(r.fa_count)}/{n}, FA ≤ {_pct(r.fa_upper95)} %" if n
+                         else "no scored runs")
+                label = "all manoeuvres" if r.manoeuvre == ALL_MANOEUVRES else r.manoeuvre
+                body.append([label, str(n), str(int(r.n_errors)), _pct(r.fa_rate), bound,
+                             _num(r.worst_margin, ".3f")])
+            lines += _render(header, body, "lrrrlr")
+    return "\n".join(lines)

@@ -1,0 +1,305 @@
+"""Summary counts, rates, bounds and DTP statistics; the gate, its JUnit file and the table."""
+
+import pickle
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from reports.gate import Check, GateInputError, GateResult, evaluate_gate, write_junit
+from reports.metrics import RESULT_COLUMNS, upper_bound
+from reports.summary import SUMMARY_COLUMNS, summarize
+from reports.table import format_table
+
+DET = "position-monitor"
+MANOEUVRES = ("cruise", "nose_up", "aoa_protection", "pitch_protection", "yaw_angle_mode",
+              "turn_coordination")
+# Values computed here are ratios of small integers or numpy reductions of the same numbers;
+# 1e-12 relative covers floating-point rounding only.
+REL = 1e-12
+
+
+def fault_free(manoeuvre, n, *, alarms=0, detector=DET, margin=0.5):
+    fa = np.zeros(n, dtype=bool)
+    fa[:alarms] = True
+    return pd.DataFrame({
+        "run_id": [f"{detector}-ff-{manoeuvre}-{i}" for i in range(n)],
+        "detector": detector, "fault": "none", "manoeuvre": manoeuvre, "status": "ok",
+        "error": "", "false_alarm": fa, "pre_onset_alarm": fa, "detected": False,
+        "first_alarm_s": np.where(fa, 12.0, np.nan), "delay_s": np.nan, "dtp": np.nan,
+        "margin": np.full(n, margin),
+    })
+
+
+def faulty(fault, manoeuvre, dtps, *, pre_onset=(), detector=DET, margin=0.3):
+    """One run per entry of ``dtps``; NaN means a miss. Required time 0.5 s, onset 20 s."""
+    dtps = np.asarray(dtps, dtype=float)
+    n = len(dtps)
+    fa = np.zeros(n, dtype=bool)
+    fa[list(pre_onset)] = True
+    detected = ~np.isnan(dtps)
+    return pd.DataFrame({
+        "run_id": [f"{detector}-{fault}-{manoeuvre}-{i}" for i in range(n)],
+        "detector": detector, "fault": fault, "manoeuvre": manoeuvre, "status": "ok",
+        "error": "", "false_alarm": fa, "pre_onset_alarm": fa, "detected": detected,
+        "first_alarm_s": np.where(detected, 20.0 + 0.5 * dtps, np.nan),
+        "delay_s": 0.5 * dtps, "dtp": dtps, "margin": np.full(n, margin),
+    })
+
+
+def errors(fault, manoeuvre, n, detector=DET):
+    return pd.DataFrame({
+        "run_id": [f"{detector}-err-{fault}-{manoeuvre}-{i}" for i in range(n)],
+        "detector": detector, "fault": fault, "manoeuvre": manoeuvre, "status": "error",
+        "error": "RuntimeError: solver diverged", "false_alarm": None,
+        "pre_onset_alarm": None, "detected": None, "first_alarm_s": np.nan,
+        "delay_s": np.nan, "dtp": np.nan, "margin": np.nan,
+    })
+
+
+def campaign(*extra):
+    """1200 clean fault-free runs (200 per manoeuvre, [CHEN] §5.2) and detected faults."""
+    parts = [fault_free(m, 200) for m in MANOEUVRES]
+    parts.append(faulty("runaway", "cruise", [0.1, 0.2, 0.3, 0.4]))
+    parts.append(faulty("runaway", "nose_up", [0.2, 0.6]))
+    parts.append(faulty("solid_jam", "cruise", [0.05, 0.05, 0.05]))
+    return pd.concat(parts + list(extra), ignore_index=True)
+
+
+def row(summary, fault, manoeuvre, detector=DET):
+    sel = summary[(summary.detector == detector) & (summary.fault == fault)
+                  & (summary.manoeuvre == manoeuvre)]
+    assert len(sel) == 1, (fault, manoeuvre, len(sel))
+    return sel.iloc[0]
+
+
+# ---- summarize ---------------------------------------------------------------------------
+
+def test_summary_columns_rows_and_order():
+    s = summarize(campaign())
+    assert tuple(s.columns) == SUMMARY_COLUMNS
+    keys = list(zip(s.fault, s.manoeuvre))
+    # 6 fault-free manoeuvres + all; runaway 2 + all; solid_jam 1 + all; all-faults
+    assert len(keys) == 7 + 3 + 2 + 1
+    assert keys[:7] == [("none", m) for m in sorted(MANOEUVRES)] + [("none", "all")]
+    assert keys[-1] == ("all-faults", "all")
+    assert set(RESULT_COLUMNS) <= set(campaign().columns)
+
+
+def test_summary_fault_free_counts_and_bounds():
+    res = campaign()
+    res.loc[(res.fault == "none") & (res.manoeuvre == "cruise"), "false_alarm"] = \
+        [True, True] + [False] * 198
+    s = summarize(res)
+    r = row(s, "none", "cruise")
+    assert (r.n_runs, r.fa_count) == (200, 2)
+    assert r.fa_rate == pytest.approx(2 / 200, rel=REL)
+    assert r.fa_upper95 == pytest.approx(upper_bound(2, 200), rel=REL)
+    allff = row(s, "none", "all")
+    assert (allff.n_runs, allff.fa_count) == (1200, 2)
+    assert allff.fa_upper95 == pytest.approx(upper_bound(2, 1200), rel=REL)
+    # fault-free rows carry no MD / DTP
+    assert allff.md_count == 0 and np.isnan(allff.md_rate) and np.isnan(allff.md_upper95)
+    assert np.isnan(allff.dtp_max) and np.isnan(allff.dtp_within)
+    clean = row(s, "none", "nose_up")
+    assert clean.fa_count == 0
+    assert clean.fa_upper95 == pytest.approx(1 - 0.05 ** (1 / 200), rel=1e-10)
+
+
+def test_summary_dtp_stats_with_misses():
+    dtps = [0.1, 0.2, 0.3, 0.4, np.nan, 1.5]  # one miss, one late detection
+    s = summarize(pd.concat([fault_free("cruise", 10), faulty("runaway", "cruise", dtps)]))
+    r = row(s, "runaway", "cruise")
+    detected = np.array([0.1, 0.2, 0.3, 0.4, 1.5])
+    assert (r.n_runs, r.md_count) == (6, 1)
+    assert r.md_rate == pytest.approx(1 / 6, rel=REL)
+    assert r.md_upper95 == pytest.approx(upper_bound(1, 6), rel=REL)
+    assert r.dtp_min == pytest.approx(0.1, rel=REL)
+    assert r.dtp_max == pytest.approx(1.5, rel=REL)
+    assert r.dtp_mean == pytest.approx(detected.mean(), rel=REL)
+    assert r.dtp_p95 == pytest.approx(np.percentile(detected, 95), rel=REL)
+    # the miss and the late detection are both "not within": 4 of 6
+    assert r.dtp_within == pytest.approx(4 / 6, rel=REL)
+    assert r.delay_mean_s == pytest.approx(0.5 * detected.mean(), rel=REL)
+
+
+def test_summary_pre_onset_alarms_and_aggregates():
+    res = campaign(faulty("runaway", "cruise", [0.3, np.nan], pre_onset=[1]))
+    s = summarize(res)
+    rc = row(s, "runaway", "cruise")
+    assert (rc.n_runs, rc.fa_count, rc.md_count) == (6, 1, 1)
+    ra = row(s, "runaway", "all")
+    assert (ra.n_runs, ra.fa_count, ra.md_count) == (8, 1, 1)
+    assert ra.dtp_max == pytest.approx(0.6, rel=REL)
+    agg = row(s, "all-faults", "all")
+    assert (agg.n_runs, agg.fa_count, agg.md_count) == (11, 1, 1)  # 8 runaway + 3 solid
+    assert agg.dtp_min == pytest.approx(0.05, rel=REL)
+    assert agg.dtp_within == pytest.approx(10 / 11, rel=REL)
+    # pre-onset alarms of faulty runs never leak into the fault-free rows
+    assert row(s, "none", "all").fa_count == 0
+
+
+def test_summary_excludes_and_counts_error_rows():
+    s = summarize(campaign(errors("none", "cruise", 3), errors("runaway", "cruise", 2)))
+    r = row(s, "none", "cruise")
+    assert (r.n_runs, r.n_errors, r.fa_count) == (200, 3, 0)
+    assert r.fa_upper95 == pytest.approx(upper_bound(0, 200), rel=REL)
+    rr = row(s, "runaway", "cruise")
+    assert (rr.n_runs, rr.n_errors, rr.md_count) == (4, 2, 0)  # errors are not misses
+    assert rr.md_rate == 0.0 and rr.dtp_within == 1.0
+    assert row(s, "all-faults", "all").n_errors == 2
+    assert row(s, "none", "all").n_errors == 3
+
+
+def test_summary_several_detectors_and_empty_input():
+    res = pd.concat([campaign(), fault_free("cruise", 5, alarms=5, detector="b-det")])
+    s = summarize(res)
+    assert set(s.detector) == {DET, "b-det"}
+    assert row(s, "none", "cruise", "b-det").fa_count == 5
+    assert row(s, "none", "cruise").fa_count == 0
+    assert "all-faults" not in set(s[s.detector == "b-det"].fault)  # no faulty runs
+    empty = summarize(res.iloc[:0])
+    assert empty.empty and tuple(empty.columns) == SUMMARY_COLUMNS
+    with pytest.raises(ValueError, match="dtp"):
+        summarize(res.drop(columns=["dtp"]))
+
+
+# ---- gate ----------------------------------------------------------------------------------
+
+def test_gate_passes_on_clean_summary():
+    result = evaluate_gate(summarize(campaign()), max_md=0.0, max_dtp=1.0)
+    assert result.passed and result.failures == []
+    names = {c.name for c in result.checks}
+    assert names == {"false_alarm", "missed_detection", "dtp", "errors"}
+    # one FA check per finest row: 6 fault-free manoeuvres + 3 fault × manoeuvre rows
+    assert sum(c.name == "false_alarm" for c in result.checks) == 9
+    assert "gate PASSED" in result.format()
+
+
+def test_gate_fails_on_one_false_alarm_with_precise_message():
+    res = campaign()
+    res.loc[(res.fault == "none") & (res.manoeuvre == "cruise"), "false_alarm"] = \
+        [True] + [False] * 199
+    result = evaluate_gate(summarize(res))
+    assert not result.passed
+    [fail] = result.failures
+    assert (fail.detector, fail.fault, fail.manoeuvre) == (DET, "none", "cruise")
+    assert fail.value == pytest.approx(1 / 200, rel=REL) and fail.limit == 0.0
+    assert fail.message == ("FAIL false alarms: position-monitor, fault-free cruise: "
+                            "1/200 runs (0.50 % > 0.00 %)")
+    report = result.format()
+    assert "gate FAILED: 1 of" in report and fail.message in report
+    # a 1 % allowance accepts the same summary
+    assert evaluate_gate(summarize(res), max_fa=0.01).passed
+
+
+def test_gate_fails_on_pre_onset_alarm():
+    result = evaluate_gate(summarize(campaign(faulty("solid_jam", "nose_up", [0.1],
+                                                      pre_onset=[0]))))
+    [fail] = result.failures
+    assert fail.message == ("FAIL false alarms before onset: position-monitor, solid_jam "
+                            "nose_up: 1/1 runs (100.00 % > 0.00 %)")
+
+
+def test_gate_fails_on_a_miss_only_when_md_is_checked():
+    s = summarize(campaign(faulty("runaway", "nose_up", [np.nan])))
+    assert evaluate_gate(s).passed  # max_md=None: not a requirement
+    result = evaluate_gate(s, max_md=0.0)
+    [fail] = result.failures
+    assert (fail.name, fail.fault) == ("missed_detection", "runaway")
+    assert fail.message == ("FAIL missed detections: position-monitor, runaway: 1/7 runs "
+                            "(14.29 % > 0.00 %); misses in: nose_up 1/3")
+
+
+def test_gate_fails_on_dtp_above_limit():
+    s = summarize(campaign(faulty("solid_jam", "nose_up", [1.25])))
+    assert evaluate_gate(s, max_dtp=1.5).passed
+    result = evaluate_gate(s, max_dtp=1.0)
+    [fail] = result.failures
+    assert (fail.name, fail.fault, fail.value) == ("dtp", "solid_jam", 1.25)
+    assert "max DTP 1.25 > 1 (worst in nose_up)" in fail.message
+
+
+def test_gate_dtp_fails_when_nothing_was_detected():
+    s = summarize(pd.concat([fault_free("cruise", 5), faulty("runaway", "cruise", [np.nan])]))
+    [fail] = evaluate_gate(s, max_dtp=1.0).failures
+    assert "no detected run" in fail.message and "1 of 1 runs missed" in fail.message
+
+
+def test_gate_fails_on_errors_unless_allowed():
+    s = summarize(campaign(errors("runaway", "cruise", 2)))
+    result = evaluate_gate(s)
+    [fail] = result.failures
+    assert fail.name == "errors" and fail.value == 2
+    assert "2 run(s) did not finish" in fail.message and "runaway cruise 2" in fail.message
+    assert evaluate_gate(s, allow_errors=True).passed
+
+
+def test_gate_fails_without_scored_runs():
+    assert not evaluate_gate(summarize(campaign().iloc[:0])).passed
+    only_errors = summarize(errors("none", "cruise", 3))
+    assert {c.name for c in evaluate_gate(only_errors, allow_errors=True).failures} == {"runs"}
+
+
+def test_gate_bad_input_reports_every_problem_and_pickles():
+    s = summarize(campaign())
+    with pytest.raises(GateInputError) as info:
+        evaluate_gate(s.drop(columns=["fa_count"]), max_fa=5, max_dtp=-1)
+    err = info.value
+    assert len(err.problems) == 3
+    assert "fa_count" in str(err) and "0.01 = 1 %" in str(err) and "max_dtp" in str(err)
+    back = pickle.loads(pickle.dumps(err))
+    assert type(back) is GateInputError and back.problems == err.problems
+    result = evaluate_gate(s)
+    assert pickle.loads(pickle.dumps(result)) == result
+
+
+def test_junit_parses_with_failure_count(tmp_path):
+    res = campaign(faulty("runaway", "nose_up", [np.nan]))
+    res.loc[(res.fault == "none") & (res.manoeuvre == "yaw_angle_mode"), "false_alarm"] = \
+        [True] + [False] * 199
+    result = evaluate_gate(summarize(res), max_md=0.0, max_dtp=1.0)
+    assert len(result.failures) == 2
+    path = tmp_path / "gate.xml"
+    write_junit(result, path)
+    root = ET.parse(path).getroot()
+    suite = root.find("testsuite")
+    assert int(suite.get("tests")) == len(result.checks)
+    assert int(suite.get("failures")) == 2
+    cases = suite.findall("testcase")
+    assert len(cases) == len(result.checks)
+    failures = [f.get("message") for f in suite.iter("failure")]
+    assert sorted(failures) == sorted(c.message for c in result.failures)
+    assert list(tmp_path.iterdir()) == [path]  # no temporary file left behind
+
+
+def test_gate_result_api():
+    ok = Check("x", DET, "none", "cruise", 0.0, 0.0, True, "PASS x")
+    bad = Check("y", DET, "none", "cruise", 1.0, 0.0, False, "FAIL y")
+    r = GateResult([ok, bad])
+    assert not r.passed and r.failures == [bad]
+    assert GateResult().passed  # vacuous; evaluate_gate adds a failing check instead
+
+
+# ---- table ---------------------------------------------------------------------------------
+
+def test_format_table_numbers():
+    text = format_table(summarize(campaign(faulty("runaway", "cruise", [np.nan]))))
+    assert f"Detector: {DET}" in text
+    assert "0/1200, FA ≤ 0.25 %" in text       # 1 - 0.05**(1/1200) = 0.2493 %
+    assert "0/200, FA ≤ 1.49 %" in text        # 1 - 0.05**(1/200) = 1.487 %
+    lines = text.splitlines()
+    runaway = next(line for line in lines if line.startswith("runaway"))
+    # 7 runs, 1 miss: MD 14.29 %, one-sided bound 1 - 0.05**... computed by upper_bound
+    assert "14.29" in runaway and f"{100 * upper_bound(1, 7):.2f}" in runaway
+    assert "0.1/0.3/0.6" in runaway              # Min/Mean/Max DTP over detected runs
+    solid = next(line for line in lines if line.startswith("solid_jam"))
+    assert "0.05/0.05/0.05" in solid and "100.0" in solid
+    assert any(line.startswith("all faults") for line in lines)
+    # fixed width: the last column is right-aligned, so header, rule and rows of the fault
+    # block end at the same column
+    start = next(i for i, line in enumerate(lines) if line.startswith("Fault scenario"))
+    block = lines[start:start + 2 + 3]  # header, rule, runaway, solid_jam, all faults
+    assert len({len(line) for line in block}) == 1
+    assert format_table(summarize(campaign().iloc[:0])) == "no results"
