@@ -52,6 +52,9 @@ class ActuatorParams:
     mach_compress_cap: float = param("-", "PHYSICS §3", "Prandtl–Glauert scaling held above this Mach")
     has_surface_sensor: bool = param("-", "PHYSICS §4 ([CHEN]: none on the inboard aileron)",
                                   "whether a surface position sensor is fitted")
+    order_load_limit: float = param("-", "est. (PHYSICS §3: no stall in normal flight)",
+                                    "the flight control laws keep manoeuvre orders where the "
+                                    "hinge load stays below this share of the stall force S·ΔP")
 
     # ---- derived quantities (never stored twice) -------------------------------------
     @property
@@ -151,6 +154,7 @@ ELEVATOR = ActuatorParams(
     downwash=0.35,
     mach_compress_cap=0.75,
     has_surface_sensor=True,
+    order_load_limit=0.6,
 )
 
 AILERON = ActuatorParams(
@@ -174,6 +178,7 @@ AILERON = ActuatorParams(
     downwash=0.0,
     mach_compress_cap=0.75,
     has_surface_sensor=False,
+    order_load_limit=0.6,
 )
 
 ACTUATORS: dict[str, ActuatorParams] = {"elevator": ELEVATOR, "aileron": AILERON}

@@ -169,3 +169,25 @@ def float_rate(delta_rad, p: PlantArrays) -> np.ndarray:
     """δ̇ [rad/s] of the floating surface (used by the reference integrator)."""
     e = delta_rad - p.delta_float_rad
     return -np.sign(e) * float_rate_coef(delta_rad, p) * np.sqrt(np.abs(e))
+
+
+def authority_limits(p: PlantArrays, act: ActuatorParams, n_grid: int = 721):
+    """Deflections [deg] reachable in normal flight, per run: the widest interval around the
+    floating angle, inside the electrical limits, where the hinge load stays below
+    ``act.order_load_limit`` × S·ΔP (PHYSICS §3: the actuator never stalls in normal
+    flight, so the flight control laws do not order such deflections)."""
+    grid = np.linspace(act.delta_min_deg, act.delta_max_deg, n_grid)            # (G,)
+    x = act.r_mm * np.sin(np.radians(grid))
+    col = PlantArrays(**{k: np.asarray(v)[:, None] for k, v in vars(p).items()})
+    ok = np.abs(aero_force(x[None, :], col)) <= act.order_load_limit * col.SdP   # (n, G)
+    d_f = np.degrees(p.delta_float_rad)[:, None]
+    below = grid[None, :] <= d_f
+    # lowest reachable: the lowest grid point from which every point up to δ_f is ok
+    bad_below = ~ok & below
+    lo_idx = np.where(bad_below.any(axis=1),
+                      n_grid - np.argmax(bad_below[:, ::-1], axis=1), 0)
+    bad_above = ~ok & ~below
+    hi_idx = np.where(bad_above.any(axis=1), np.argmax(bad_above, axis=1) - 1, n_grid - 1)
+    lo = grid[np.clip(lo_idx, 0, n_grid - 1)]
+    hi = grid[np.clip(hi_idx, 0, n_grid - 1)]
+    return np.minimum(lo, hi), np.maximum(lo, hi)

@@ -25,12 +25,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from . import envelope
+from . import envelope, manoeuvres
 from .catalog import FAULTS, MANOEUVRES, SURFACES, suggest
 from .faults import (FAULT_DEFAULTS, NEVER, FaultArrays, default_magnitude, fault_arrays,
                      required_magnitude)
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
-from .servo import PlantArrays, float_step, plant_arrays, rk4_step
+from .servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from .signals import Signals, Truth
 
 #: Columns of a run row: name → (unit, meaning). The campaign's run table carries them.
@@ -195,13 +195,13 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     t = np.arange(T) * ts
     gens = [run_streams(s, k) for s, k in zip(col["seed"], col["stream"])]
     if orders_deg is None:
-        from . import manoeuvres
-
         order_deg = manoeuvres.orders_for_runs(
             list(col["manoeuvre"].astype(str)), act.surface, t,
             {k: flight_true[k] for k in ("qbar_pa", "tas_ms", "alt_ft", "alpha_deg", "cg_pct",
                                          "mach")},
             [g[0] for g in gens], act)
+        lo, hi = authority_limits(plant, act)
+        order_deg = np.clip(order_deg, lo[:, None], hi[:, None])
     else:
         order_deg = np.asarray(orders_deg, dtype=float)
         if order_deg.shape != (n, T) or not np.isfinite(order_deg).all():
