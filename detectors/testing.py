@@ -1,0 +1,124 @@
+"""``check_detector``: the public conformance checks of the detector contract.
+
+Any third party can test a plugin with::
+
+    from detectors.testing import check_detector
+    check_detector(MyDetector())
+
+It simulates a small batch of fault-free learning runs and mixed evaluation runs, then
+checks, on any detector (DESIGN.md, Contracts):
+
+* ``detect`` before ``fit`` raises :class:`~detectors.NotFittedError` (when it needs fit);
+* ``fit`` returns ``self`` and stores learned state only in attributes ending in ``_``;
+  ``__init__`` stored its parameters unchanged (``get_params``);
+* shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite;
+* determinism: detecting twice gives identical output;
+* batch invariance: a run's result does not depend on the other runs of the batch;
+* causality: truncating the future never changes past alarms or residuals;
+* picklability: a fitted detector survives a pickle round trip with identical output
+  (workers receive detectors pickled).
+
+A failed check raises :class:`DetectorCheckError` naming the check and what differed.
+"""
+
+from __future__ import annotations
+
+import copy
+import pickle
+
+import numpy as np
+import pandas as pd
+
+from .base import Detection, Detector, NotFittedError, as_variants
+
+
+class DetectorCheckError(AssertionError):
+    """A detector broke its contract; the message names the check."""
+
+
+def _batch(surface: str, duration_s: float) -> tuple:
+    from scenarios.simulate import simulate, single_run
+
+    learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
+                       .assign(stream=j, run_id=f"learn-{j}")
+                       for j, m in enumerate(["cruise", "nose_up", "turn_coordination"])],
+                      ignore_index=True)
+    evaluation = pd.concat([
+        single_run(surface, "cruise", "none", seed=12, duration_s=duration_s, vcas_kt=220.0),
+        single_run(surface, "nose_up", "runaway", seed=12, onset_s=8.0, duration_s=duration_s),
+        single_run(surface, "aoa_protection", "solid_jam", seed=12, onset_s=6.0,
+                   duration_s=duration_s, alt_ft=18000.0),
+        single_run(surface, "cruise", "liquid_jam", seed=12, onset_s=9.0, duration_s=duration_s),
+    ], ignore_index=True)
+    evaluation["stream"] = np.arange(len(evaluation))
+    evaluation["run_id"] = [f"eval-{j}" for j in range(len(evaluation))]
+    return simulate(learn)[0], simulate(evaluation)[0]
+
+
+def _variants(det, signals) -> dict[str, Detection]:
+    return as_variants("detector", det.detect(signals))
+
+
+def _same(a: dict, b: dict, what: str, sl=slice(None), row: int | None = None) -> None:
+    """Raise unless *b* equals *a* (restricted to columns *sl*, and to run *row* of *a*)."""
+    if set(a) != set(b):
+        raise DetectorCheckError(f"{what}: variants differ ({sorted(a)} vs {sorted(b)})")
+    rows = slice(None) if row is None else slice(row, row + 1)
+    for name in a:
+        for field in ("alarm", "residual"):
+            x = getattr(a[name], field)[rows, sl]
+            y = getattr(b[name], field)[:, sl]
+            if not np.array_equal(x, y, equal_nan=True):
+                raise DetectorCheckError(f"{what}: {name} {field} differs")
+
+
+def check_detector(detector: Detector, *, surface: str = "elevator",
+                   duration_s: float = 20.0) -> None:
+    """Run every contract check on *detector*; raises :class:`DetectorCheckError`."""
+    if not isinstance(detector, Detector):
+        raise DetectorCheckError(f"{type(detector).__name__} does not subclass detectors.Detector")
+    params = detector.get_params()
+    learn, ev = _batch(surface, duration_s)
+    det = copy.deepcopy(detector)
+
+    if det.capabilities.needs_fit:
+        try:
+            det.detect(ev)
+        except NotFittedError:
+            pass
+        else:
+            raise DetectorCheckError("detect() before fit() must raise NotFittedError")
+    returned = det.fit(learn)
+    if returned is not det:
+        raise DetectorCheckError("fit() must return self")
+    if det.get_params() != params:
+        raise DetectorCheckError("fit() changed the constructor parameters (get_params)")
+    if det.capabilities.needs_fit and not det.fitted_state():
+        raise DetectorCheckError("fit() stored no learned attribute ending in '_'")
+
+    out = _variants(det, ev)
+    for name, d in out.items():
+        if d.alarm.dtype != np.bool_ or d.alarm.shape != ev.command.shape:
+            raise DetectorCheckError(f"{name}: alarm must be bool of shape {ev.command.shape}")
+        if not np.issubdtype(d.residual.dtype, np.floating) or not np.isfinite(d.residual).all():
+            raise DetectorCheckError(f"{name}: residual must be finite floats")
+
+    _same(out, _variants(det, ev), "determinism")
+
+    for j in range(ev.n_runs):
+        alone = _variants(det, ev.take([j]))
+        _same(out, alone, f"batch invariance (run {j} alone)", row=j)
+    reordered = _variants(det, ev.take(np.arange(ev.n_runs)[::-1]))
+    for name in out:
+        for field in ("alarm", "residual"):
+            if not np.array_equal(getattr(out[name], field)[::-1], getattr(reordered[name], field),
+                                  equal_nan=True):
+                raise DetectorCheckError(f"batch invariance: {name} {field} depends on run order")
+
+    if det.capabilities.causal:
+        for cut in (ev.n_steps // 3, ev.n_steps // 2 + 7):
+            part = _variants(det, ev.truncate(cut))
+            _same(out, part, f"causality (truncated at step {cut})", sl=slice(0, cut))
+
+    clone = pickle.loads(pickle.dumps(det))
+    _same(out, _variants(clone, ev), "pickle round trip")
