@@ -1,0 +1,273 @@
+"""``fdd-campaign``: the command line (DESIGN.md, Command line). Exit codes: 0 ok, 1 gate
+failed, 2 bad input, 130 interrupted."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import textwrap
+from pathlib import Path
+
+EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class UsageError(ValueError):
+    """Bad command-line input (exit code 2)."""
+
+
+def _err(msg: str) -> None:
+    print(f"fdd-campaign: error: {msg}", file=sys.stderr)
+
+
+# ---- commands ------------------------------------------------------------------------------
+def cmd_run(args) -> int:
+    from . import config as cfg
+    from .runner import run
+
+    config = cfg.load_config(args.campaign)
+    if args.seed is not None:
+        config = cfg.with_overrides(config, seed=args.seed)
+    if args.jobs < 1:
+        raise UsageError("--jobs must be ≥ 1")
+    result = run(config, args.out, jobs=args.jobs, chunk_size=args.chunk_size,
+                 progress=not args.quiet, backend=args.backend)
+    print(f"campaign {config.campaign.name!r}: {result.results['run_id'].nunique() if not result.results.empty else 0}"
+          f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
+    if not result.summary.empty:
+        print(result.table())
+    return EXIT_OK if result.complete else EXIT_INTERRUPTED
+
+
+def cmd_plan(args) -> int:
+    from . import config as cfg
+    from .design import build_learning_plan, build_plan, plan_counts
+    from .storage import write_parquet
+
+    config = cfg.load_config(args.campaign)
+    if args.seed is not None:
+        config = cfg.with_overrides(config, seed=args.seed)
+    plan = build_plan(config)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_parquet(plan, out / "plan.parquet", config.to_json(), kind="plan")
+    learning = build_learning_plan(config)
+    counts = plan_counts(plan)
+    print(counts.to_string(index=False))
+    print(f"total: {len(plan)} runs ({int((plan['fault'] == 'none').sum())} fault-free, "
+          f"{int((plan['fault'] != 'none').sum())} faulty); learning set: {len(learning)} runs")
+    print(f"run table written to {out / 'plan.parquet'}")
+    return EXIT_OK
+
+
+def cmd_gate(args) -> int:
+    from reports.gate import evaluate_gate, write_junit
+
+    from .runner import load_results
+
+    _, summary, meta = load_results(args.dir)
+    req = (meta.get("config") or {}).get("requirements", {})
+    max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
+    result = evaluate_gate(summary, max_fa=max_fa, max_md=args.max_md, max_dtp=args.max_dtp,
+                           allow_errors=args.allow_errors)
+    if meta.get("complete") is False:
+        print(f"note: the campaign is incomplete ({meta.get('runs_done')} of "
+              f"{meta.get('runs_planned')} runs); rerun 'fdd-campaign run' to finish it")
+    print(result.format())
+    if args.junit:
+        write_junit(result, args.junit)
+        print(f"JUnit report written to {args.junit}")
+    complete = meta.get("complete", True)
+    return EXIT_OK if (result.passed and complete) else EXIT_GATE
+
+
+def cmd_report(args) -> int:
+    from reports.table import format_table
+
+    from .runner import load_results
+
+    _, summary, meta = load_results(args.dir)
+    cfg = meta.get("config") or {}
+    print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
+          f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
+    print(format_table(summary))
+    return EXIT_OK
+
+
+def cmd_presets(args) -> int:
+    from .config import list_presets
+
+    for name, description in list_presets().items():
+        print(f"{name:16s} {description}")
+    return EXIT_OK
+
+
+def cmd_init(args) -> int:
+    from .config import init_text
+
+    path = Path(args.file)
+    if path.exists() and not args.force:
+        raise UsageError(f"{path} exists; use --force to overwrite it")
+    path.write_text(init_text())
+    print(f"wrote {path}; run it with: fdd-campaign run {path} --out results/")
+    return EXIT_OK
+
+
+def cmd_simulate(args) -> int:
+    from scenarios.simulate import simulate, single_run
+
+    runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
+                      onset_s=args.onset, duration_s=args.duration,
+                      **({} if args.magnitude is None else {"magnitude": args.magnitude}))
+    signals, truth = simulate(runs, pressure_sensor=args.pressure)
+    frame = signals.to_pandas(0)
+    frame["true_rod [mm]"] = truth.rod_mm[0]
+    frame["true_surface [deg]"] = truth.surface_deg[0]
+    frame["true_current [mA]"] = truth.current_mA[0]
+    onset = float(truth.onset_s[0])
+    print(f"{args.surface} / {args.manoeuvre} / fault {args.fault}"
+          + (f" at {onset:.2f} s" if onset == onset else "")
+          + f": {signals.n_steps} steps of {signals.ts * 1000:.0f} ms")
+    if args.out:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(frame.reset_index())
+        table = table.replace_schema_metadata({
+            **(table.schema.metadata or {}),
+            b"fdd_campaign": runs.to_json(orient="records").encode()})
+        pq.write_table(table, args.out)
+        print(f"signals and truth written to {args.out}")
+    if args.plot:
+        from reports.plots import plot_run
+
+        plot_run(frame, onset_s=onset, title=f"{args.surface} — {args.manoeuvre} — {args.fault}",
+                 path=args.plot)
+        print(f"plot written to {args.plot}")
+    return EXIT_OK
+
+
+def cmd_bench(args) -> int:
+    from .bench import bench
+
+    bench(n_runs=args.runs, duration_s=args.duration, jobs=args.jobs,
+          chunk_size=args.chunk_size, reference_runs=args.reference_runs)
+    return EXIT_OK
+
+
+# ---- parser --------------------------------------------------------------------------------
+def _sub(subs, name, help_, example, func):
+    p = subs.add_parser(name, help=help_, description=help_,
+                        epilog="example:\n  " + example,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.set_defaults(func=func)
+    return p
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
+
+    parser = argparse.ArgumentParser(
+        prog="fdd-campaign",
+        description="Monte Carlo evaluation campaigns for control-surface fault detectors: "
+                    "false alarms, missed detections and detection time performance (DTP).",
+        epilog=textwrap.dedent("""\
+            examples:
+              fdd-campaign run addsafe-mc --jobs 2 --out results/
+              fdd-campaign gate results/ --junit gate.xml
+              fdd-campaign simulate --surface elevator --manoeuvre turn_coordination \\
+                  --fault solid_jam --plot run.png --out run.parquet"""),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    subs = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = _sub(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
+             "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
+    p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
+    p.add_argument("--out", required=True, help="output directory (rerun into it to resume)")
+    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--seed", type=int, help="override the campaign seed")
+    p.add_argument("--chunk-size", type=int, help="runs per chunk (default: campaign file)")
+    p.add_argument("--backend", default="loky", choices=["loky", "threading"],
+                   help="joblib backend (default loky: processes)")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+
+    p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
+             "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)
+    p.add_argument("campaign")
+    p.add_argument("--out", required=True)
+    p.add_argument("--seed", type=int)
+
+    p = _sub(subs, "report", "print the summary of a campaign directory",
+             "fdd-campaign report results/", cmd_report)
+    p.add_argument("dir")
+
+    p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
+             "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)
+    p.add_argument("dir")
+    p.add_argument("--max-fa", type=float, help="largest false-alarm rate (default: campaign file)")
+    p.add_argument("--max-md", type=float, help="largest missed-detection rate (default: unchecked)")
+    p.add_argument("--max-dtp", type=float, help="largest DTP (default: unchecked)")
+    p.add_argument("--allow-errors", action="store_true", help="do not fail on runs in error")
+    p.add_argument("--junit", help="write a JUnit XML report to this file")
+
+    p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
+             "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
+             "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
+    p.add_argument("--surface", default="elevator", choices=SURFACES)
+    p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES)
+    p.add_argument("--fault", default="none", choices=FAULTS)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--onset", type=float, default=10.0, help="fault onset [s] (default 10)")
+    p.add_argument("--magnitude", type=float, help="fault magnitude (unit per fault type)")
+    p.add_argument("--duration", type=float, default=30.0, help="run duration [s]")
+    p.add_argument("--pressure", action="store_true", help="simulate the chamber pressure sensor")
+    p.add_argument("--out", help="Parquet file for the signals and the truth")
+    p.add_argument("--plot", help="PNG file for a plot of the run")
+
+    _sub(subs, "presets", "list the campaign presets shipped with the package",
+         "fdd-campaign presets", cmd_presets)
+
+    p = _sub(subs, "init", "write an annotated starting campaign file",
+             "fdd-campaign init my-campaign.toml", cmd_init)
+    p.add_argument("file", nargs="?", default="campaign.toml")
+    p.add_argument("--force", action="store_true")
+
+    p = _sub(subs, "bench", "measure simulation speed, memory and the ratio to the per-run "
+             "reference", "fdd-campaign bench --runs 2200 --jobs 2", cmd_bench)
+    p.add_argument("--runs", type=int, default=2200)
+    p.add_argument("--duration", type=float, default=60.0)
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--chunk-size", type=int, default=275)
+    p.add_argument("--reference-runs", type=int, default=2,
+                   help="runs timed with the solve_ivp reference (default 2)")
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_INPUT
+    from detectors.registry import DetectorSpecError
+    from scenarios.simulate import RunSpecError
+
+    from .config import ConfigError
+    from .runner import CampaignSetupError
+    from .storage import CampaignDirError
+
+    try:
+        return args.func(args)
+    except (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
+            UsageError, FileNotFoundError) as exc:
+        _err(str(exc))
+        return EXIT_INPUT
+    except ValueError as exc:  # a value the library refused, named in its message
+        _err(str(exc))
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        _err("interrupted")
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,318 @@
+"""Run a campaign: plan, learn, simulate and score in parallel chunks, store as they finish.
+
+DESIGN.md, data flow steps 2–6. The run table is cut into chunks; a worker simulates a chunk
+(vectorised over its runs), hands the signals to every detector and scores the detections;
+only result rows come back. Results stream back as chunks finish and each chunk is written
+at once as a Parquet shard (atomically), so a crash, a kill or Ctrl-C loses at most the
+chunks in flight; rerunning into the same directory skips the runs already done.
+A run that fails (bad row, detector exception) is recorded with ``status="error"`` and its
+message; it never stops the campaign, and a rerun retries it.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from joblib import Parallel, delayed
+
+from detectors import as_variants, make_detector
+from reports.metrics import RESULT_COLUMNS, score_runs
+from reports.summary import summarize
+from reports.table import format_table
+from scenarios.params import ACTUATORS
+from scenarios.signals import Signals
+from scenarios.simulate import simulate
+
+from .design import build_learning_plan, build_plan
+from .storage import CampaignDir, read_metadata, write_parquet, write_pickle, write_text
+
+
+class CampaignSetupError(ValueError):
+    """The campaign cannot start (incompatible detector, bad directory, …)."""
+
+
+@dataclass(frozen=True)
+class ChunkSettings:
+    """What a worker needs besides the rows and the fitted detectors (picklable)."""
+
+    ts: float
+    pressure_sensor: bool
+    required_time_s: dict
+    window_s: float | None
+
+
+def _error_rows(rows: pd.DataFrame, detector: str, message: str) -> pd.DataFrame:
+    n = len(rows)
+    return pd.DataFrame({
+        "run_id": rows["run_id"].to_numpy(), "detector": detector,
+        "fault": rows["fault"].to_numpy(), "manoeuvre": rows["manoeuvre"].to_numpy(),
+        "status": "error", "error": message,
+        "false_alarm": np.zeros(n, bool), "pre_onset_alarm": np.zeros(n, bool),
+        "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
+        "dtp": np.nan, "margin": np.nan,
+    })
+
+
+def _describe(exc: BaseException) -> str:
+    last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
+    where = f" (at {Path(last[0].filename).name}:{last[0].lineno})" if last else ""
+    return f"{type(exc).__name__}: {exc}{where}"
+
+
+def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
+    """Simulate, detect and score one chunk of runs; returns its result rows.
+
+    Never raises for a bad run or a failing detector: those rows get ``status="error"``.
+    A chunk whose simulation fails is retried run by run, so one bad run does not take the
+    others of its chunk down with it.
+    """
+    try:
+        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
+    except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
+        if len(rows) > 1:
+            return pd.concat([run_chunk(rows.iloc[[j]], detectors, settings)
+                              for j in range(len(rows))], ignore_index=True)
+        return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
+                          for label in detectors], ignore_index=True)
+    required = np.array([settings.required_time_s.get(f, np.nan) for f in truth.fault])
+    frames = []
+    for label, det in detectors.items():
+        try:
+            variants = as_variants(label, det.detect(signals))
+            for name, detection in variants.items():
+                scored = score_runs(
+                    run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
+                    alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
+                    required_time_s=required, window_s=settings.window_s)
+                scored.insert(1, "detector", name)
+                scored.insert(2, "fault", truth.fault)
+                scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
+                scored.insert(4, "status", "ok")
+                scored.insert(5, "error", "")
+                frames.append(scored)
+        except Exception as exc:  # noqa: BLE001
+            frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+    return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+class Progress:
+    """A progress line on stderr with rate and ETA, driven by finished chunks."""
+
+    def __init__(self, total: int, done: int = 0, enabled: bool = True, stream=None):
+        self.total, self.done, self.enabled = total, done, enabled
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+        self.start_done = done
+        self.last_print = -1.0
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+
+    def update(self, n: int) -> None:
+        self.done += n
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.start
+        new = self.done - self.start_done
+        rate = new / elapsed if elapsed > 0 else 0.0
+        eta = (self.total - self.done) / rate if rate > 0 else float("nan")
+        frac = self.done / self.total if self.total else 1.0
+        bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
+        line = (f"[{bar}] {self.done}/{self.total} runs {100 * frac:5.1f} %  "
+                f"{rate:7.1f} runs/s  ETA {eta:5.1f} s")
+        if self.tty:
+            print("\r" + line, end="", file=self.stream, flush=True)
+        elif elapsed - self.last_print >= 5.0 or self.done >= self.total:
+            print(line, file=self.stream, flush=True)
+            self.last_print = elapsed
+
+    def close(self) -> None:
+        if self.enabled and self.tty:
+            print(file=self.stream, flush=True)
+
+
+def _check_compatibility(config, detectors: dict) -> None:
+    act = ACTUATORS[config.campaign.surface]
+    problems = []
+    for label, det in detectors.items():
+        caps = det.capabilities
+        if caps.needs_surface_sensor and not act.has_surface_sensor:
+            problems.append(f"detector {label!r} needs a surface position sensor; the "
+                            f"{act.surface} has none: choose another surface or detector")
+        if caps.needs_pressure_sensor and not config.campaign.pressure_sensor:
+            problems.append(f"detector {label!r} needs the chamber pressure sensor: set "
+                            "[campaign] pressure_sensor = true")
+    if problems:
+        raise CampaignSetupError("; ".join(problems))
+
+
+def build_detectors(config) -> dict:
+    """The configured detectors, unfitted: label → Detector."""
+    return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
+
+
+def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int) -> Signals:
+    """Signals of every run of *plan* (used for the small learning set)."""
+    parts = []
+    for start in range(0, len(plan), chunk_size):
+        sig, _ = simulate(plan.iloc[start:start + chunk_size], ts=settings.ts,
+                          pressure_sensor=settings.pressure_sensor)
+        parts.append(sig)
+    return Signals.concat(parts)
+
+
+def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
+                  log=print) -> dict:
+    """Fit each detector on the learning set, or reload it when this directory has it."""
+    detectors = build_detectors(config)
+    _check_compatibility(config, detectors)
+    learning = build_learning_plan(config)
+    write_parquet(learning, cdir.root / "learning.parquet", config.to_json(), kind="learning")
+    learning_signals = None
+    fitted = {}
+    for label, det in detectors.items():
+        path = cdir.fitted / f"{label}.pkl"
+        if path.exists():
+            import pickle
+
+            fitted[label] = pickle.loads(path.read_bytes())
+            continue
+        if det.capabilities.needs_fit:
+            if learning_signals is None:
+                log(f"learning set: simulating {len(learning)} fault-free runs")
+                learning_signals = simulate_chunks(learning, settings, chunk_size)
+            det.fit(learning_signals)
+        write_pickle(path, det)
+        write_text(cdir.fitted / f"{label}.json", _json_state(det))
+        fitted[label] = det
+    return fitted
+
+
+def _json_state(det) -> str:
+    import json
+
+    def plain(v):
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+        if isinstance(v, (np.floating, np.integer)):
+            return v.item()
+        if isinstance(v, dict):
+            return {str(k): plain(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [plain(x) for x in v]
+        return v
+
+    return json.dumps({"detector": type(det).__name__, "params": plain(det.get_params()),
+                       "fitted": plain(det.fitted_state())}, indent=2, default=str)
+
+
+@dataclass
+class CampaignResult:
+    """What a finished (or interrupted) campaign left in its directory."""
+
+    out: Path
+    plan: pd.DataFrame
+    results: pd.DataFrame
+    summary: pd.DataFrame
+    complete: bool
+    wall_s: float
+
+    def table(self) -> str:
+        return format_table(self.summary)
+
+
+def settings_of(config) -> ChunkSettings:
+    return ChunkSettings(
+        ts=config.campaign.ts_s,
+        pressure_sensor=config.campaign.pressure_sensor,
+        required_time_s=dict(config.requirements.detection_time_s),
+        window_s=config.requirements.detection_window_s,
+    )
+
+
+def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
+        backend: str = "loky", log=None) -> CampaignResult:
+    """Run *config* into directory *out* (resuming what it already holds).
+
+    Parameters
+    ----------
+    config : campaign.config.CampaignConfig
+    out : output directory (created; must be empty or hold this same campaign)
+    jobs : worker processes (1 runs in-process)
+    chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``)
+    backend : joblib backend (``"loky"`` processes by default, ``"threading"``)
+    """
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    t_start = time.perf_counter()
+    cdir = CampaignDir(out)
+    resumed = cdir.open(config.to_json())
+    chunk_size = int(chunk_size or config.runner.chunk_size)
+    settings = settings_of(config)
+
+    plan = build_plan(config)
+    plan_path = cdir.root / "plan.parquet"
+    if not plan_path.exists():
+        write_parquet(plan, plan_path, config.to_json(), kind="plan")
+    detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
+
+    done = cdir.done_run_ids() if resumed else set()
+    todo = plan[~plan["run_id"].isin(done)]
+    if resumed:
+        log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
+    chunks = [todo.iloc[s:s + chunk_size] for s in range(0, len(todo), chunk_size)]
+    bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
+    complete = False
+    try:
+        if chunks:
+            tasks = (delayed(run_chunk)(c, detectors, settings) for c in chunks)
+            if jobs == 1:
+                results = (run_chunk(c, detectors, settings) for c in chunks)
+            else:
+                results = Parallel(n_jobs=jobs, backend=backend,
+                                   return_as="generator_unordered")(tasks)
+            for frame in results:
+                write_parquet(frame, cdir.next_shard_path(), config.to_json(), kind="results")
+                bar.update(frame["run_id"].nunique())
+        complete = True
+    except KeyboardInterrupt:
+        bar.close()
+        log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
+            "command again to resume")
+    finally:
+        bar.close()
+    return finalize(cdir, config, plan, complete, time.perf_counter() - t_start)
+
+
+def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
+             wall_s: float) -> CampaignResult:
+    """Gather the shards in plan order and write ``summary.parquet``."""
+    results = cdir.read_results()
+    if not results.empty:
+        order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
+        results = (results.assign(_o=results["run_id"].map(order))
+                   .sort_values(["_o", "detector"], kind="stable")
+                   .drop(columns="_o").reset_index(drop=True))
+        summary = summarize(results)
+    else:
+        summary = pd.DataFrame()
+    write_parquet(summary, cdir.root / "summary.parquet", config.to_json(), kind="summary",
+                  complete=complete, runs_done=int(results["run_id"].nunique())
+                  if not results.empty else 0, runs_planned=len(plan))
+    return CampaignResult(out=cdir.root, plan=plan, results=results, summary=summary,
+                          complete=complete, wall_s=wall_s)
+
+
+def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``."""
+    cdir = CampaignDir(out)
+    summary_path = cdir.root / "summary.parquet"
+    if not summary_path.exists():
+        raise CampaignSetupError(f"{cdir.root} holds no summary.parquet: is it a campaign "
+                                 "directory written by 'fdd-campaign run'?")
+    import pyarrow.parquet as pq
+
+    return cdir.read_results(), pq.read_table(summary_path).to_pandas(), read_metadata(summary_path)

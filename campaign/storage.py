@@ -1,0 +1,153 @@
+"""The campaign directory: Parquet files written atomically, resume by replaying shards.
+
+Layout (DESIGN.md, Outputs)::
+
+    DIR/campaign.json         the frozen configuration this directory belongs to
+    DIR/plan.parquet          the run table
+    DIR/learning.parquet      the learning-set run table
+    DIR/fitted/LABEL.pkl      each fitted detector (and LABEL.json: its learned values)
+    DIR/runs/part-NNNNNN.parquet  result rows, one shard per finished chunk
+    DIR/summary.parquet       rates, bounds, DTP statistics
+
+Every file is written under a temporary name and moved into place with ``os.replace``, so a
+crash or a kill leaves either the old file or the new one, never a torn one; leftover
+temporary files are removed when the directory is opened again. Every Parquet file carries
+the campaign configuration, the engine version and its row count in its schema metadata.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import tempfile
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+METADATA_KEY = b"fdd_campaign"
+SHARD_GLOB = "part-*.parquet"
+
+
+def engine_version() -> str:
+    try:
+        return version("fdd-campaign")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        return "0+unknown"
+
+
+class CampaignDirError(ValueError):
+    """The output directory cannot be used for this campaign (message says why and how)."""
+
+
+def _atomic_write_bytes(path: Path, write) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_parquet(df: pd.DataFrame, path: Path, config_json: str, **extra) -> None:
+    """Write *df* to *path* atomically with the campaign metadata in the schema."""
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    meta = dict(table.schema.metadata or {})
+    meta[METADATA_KEY] = json.dumps({
+        "engine_version": engine_version(), "rows": len(df),
+        "config": json.loads(config_json), **extra,
+    }).encode()
+    table = table.replace_schema_metadata(meta)
+    _atomic_write_bytes(Path(path), lambda tmp: pq.write_table(table, tmp))
+
+
+def read_metadata(path: Path) -> dict:
+    """The campaign metadata stored in a Parquet file by :func:`write_parquet`."""
+    meta = pq.read_schema(path).metadata or {}
+    return json.loads(meta.get(METADATA_KEY, b"{}"))
+
+
+def write_text(path: Path, text: str) -> None:
+    _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_text(text))
+
+
+def write_pickle(path: Path, obj) -> None:
+    _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_bytes(pickle.dumps(obj)))
+
+
+class CampaignDir:
+    """One campaign's output directory."""
+
+    def __init__(self, root):
+        self.root = Path(root)
+        self.runs = self.root / "runs"
+        self.fitted = self.root / "fitted"
+
+    # ---- identity ---------------------------------------------------------------------
+    def open(self, config_json: str) -> bool:
+        """Create the directory, or check that it holds this same campaign.
+
+        Returns True when earlier results exist (a resume). Raises
+        :class:`CampaignDirError` when the directory holds a different campaign.
+        """
+        stored = self.root / "campaign.json"
+        if self.root.exists() and not self.root.is_dir():
+            raise CampaignDirError(f"{self.root} exists and is not a directory")
+        if stored.exists():
+            if json.loads(stored.read_text()) != json.loads(config_json):
+                raise CampaignDirError(
+                    f"{self.root} holds the results of a different campaign (its campaign.json "
+                    "differs from this configuration); choose another --out directory, or "
+                    "delete this one to start again"
+                )
+        elif self.root.exists() and any(self.root.iterdir()):
+            raise CampaignDirError(
+                f"{self.root} is not empty and holds no campaign.json; choose an empty or new "
+                "--out directory"
+            )
+        self.runs.mkdir(parents=True, exist_ok=True)
+        self.fitted.mkdir(parents=True, exist_ok=True)
+        for leftover in list(self.root.rglob(".*.tmp")):
+            leftover.unlink()
+        if not stored.exists():
+            write_text(stored, config_json)
+        return any(self.runs.glob(SHARD_GLOB))
+
+    # ---- shards -----------------------------------------------------------------------
+    def shard_paths(self) -> list[Path]:
+        return sorted(self.runs.glob(SHARD_GLOB))
+
+    def next_shard_path(self) -> Path:
+        paths = self.shard_paths()
+        last = int(paths[-1].stem.split("-")[1]) if paths else -1
+        return self.runs / f"part-{last + 1:06d}.parquet"
+
+    def read_results(self) -> pd.DataFrame:
+        """Every result row, the latest written row of each (run_id, detector) kept."""
+        paths = self.shard_paths()
+        if not paths:
+            return pd.DataFrame()
+        frames = []
+        for seq, path in enumerate(paths):
+            df = pq.read_table(path).to_pandas()
+            df["_seq"] = seq
+            frames.append(df)
+        df = pd.concat(frames, ignore_index=True)
+        df = df.sort_values("_seq", kind="stable").drop_duplicates(["run_id", "detector"],
+                                                                   keep="last")
+        return df.drop(columns="_seq").reset_index(drop=True)
+
+    def done_run_ids(self) -> set[str]:
+        """Runs whose every result row has status ``ok`` (errors are retried on resume)."""
+        df = self.read_results()
+        if df.empty:
+            return set()
+        bad = set(df.loc[df["status"] != "ok", "run_id"])
+        return set(df["run_id"]) - bad
