@@ -25,6 +25,7 @@ ENTRY_POINT_GROUP = "fdd_campaign.detectors"
 #: Built-in detectors: name → "module:Class".
 BUILTIN: dict[str, str] = {
     "position-monitor": "detectors.position_monitor:PositionMonitor",
+    "comb-interval": "detectors.interval_detector:IntervalDetector",
 }
 
 

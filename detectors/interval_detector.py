@@ -1,0 +1,432 @@
+"""The set-membership interval detector of [COMB] (Combastel, Thabet, Raïssi, Zolghadri,
+Gucik): an interval predictor absorbs the imprecision of the servo-loop model, a dead-zone
+residual keeps only what the interval cannot explain, and a threshold learned from the
+variability of that residual (moving-average bounds λ_q) decides, after a first-order
+residual filter.
+
+Model ([COMB] eq. 3–4, 19)
+--------------------------
+The rod position follows the first-order LPV model
+
+    x_{k+1} = g_k·x_k + (1 − g_k)·h_k·u_k,   g_k ∈ g_k^c ± g_k^r,   h_k ∈ h^c ± h^r,
+
+with, at the *measured* flight point (``Signals.schedule``) and the *nominal* actuator
+(``Signals.actuator``), the centre of eq. 19
+
+    g_k^c = 1 − γ(u_k, y_k, θ)·T,   h^c = 1,
+
+where γ = ẋ/(u − y) is the loop gain of the nominal servo-loop evaluated at the measured
+position y ([COMB] eq. 1–2: "substituting y for x in γ"). γ is computed with the plant's own
+rate law (:func:`scenarios.servo.rod_rate`, current sat(K·(u − y)), hinge load at y), so it
+includes the current saturation the paper's eq. 2 leaves out. The radius of g is
+g_k^r = min(κ1 + κ2·|u_k − x_k^c|, κ3) ([COMB] §4). Measurement y_k is the COM rod
+acquisition by default (``sensor``); the FCC's one-period transport delay is not in the
+model: the mismatch it creates during transients is covered by g^r (see ``kappa``).
+
+Interval predictor ([COMB] Proposition 3)
+-----------------------------------------
+Centre (eq. 14) and radius (eq. 15)::
+
+    x_{k+1}^c = g^c·x^c + (1 − g^c)·h^c·u
+    x_{k+1}^r = (|g^c| + g^r)·x^r + g^r·|x^c − h^c·u| + (|1 − g^c| + g^r)·h^r·|u|
+
+Reading implemented: the extracted text of eq. 15 shows "g_k^c |x_k^c − h_k^c u_k|" and
+"h_k^r u_k"; the appendix proof gives x^r_{k+1} = |w_k|·1 with w_k = [g^c·x^r,
+g^r·(x^c − h^c·u), g^r·x^r, (1 − g^c)·h^r·u, −g^r·h^r·u], i.e. the factor of |x^c − h^c·u|
+is g^r (not g^c) and u enters through |u|. That is the form above (it reduces to a
+guaranteed enclosure; with g^c in place of g^r the radius would not vanish in the LTI case).
+Stability (eq. 17): |g^c| + g^r < 1, checked by :meth:`IntervalDetector.fit` over the flight
+envelope (:func:`stability_margin`).
+
+Residual, filter and threshold ([COMB] §3.1–3.3)
+------------------------------------------------
+* dead-zone residual (eq. 18): r_k = dz(y_k, x_k^c ± x_k^r);
+* filter F_a (eq. 8–9 with b = 1 − a, c = 1): ε_k = a·ε_{k−1} + (1 − a)·r_k, ε_0 = r_0
+  (the initial condition of Corollary 2's proof, μ_0 = λ_1);
+* noise characterisation (eq. 6): λ_q = ς·max_k |r_{k/q}| over the learning set, q = 1…q̄,
+  r_{k/q} the moving average of the q last residuals of one run;
+* threshold: eq. 11 for k < q̄ (τ_k = τ_{k,k} with μ = λ_1), eq. 13 (constant) for k ≥ q̄,
+  from eq. 10::
+
+      τ_{k,r} = a^r·λ_1 + (1 − a)·( r·a^{r−1}·λ_r + Σ_{q=1}^{r−1} q·(a^{q−1} − a^q)·λ_q )
+
+* decision: alarm from the first step with |ε_k| > τ_k, latched. One detector variant per
+  pole a (``"a=0.9"``); the normalised residual is |ε_k|/τ_k.
+
+Also learned and stored ([COMB] §3.1.1): the power-law bound λ_q ≤ α·q^γ + β (memory
+compression; ``use_power_law`` makes the threshold use it) and the variability measure
+v(u) = Σ_{q=2}^{q̄} (1 − λ_q/λ_1)/q² / (ζ(2) − 1), here truncated at q̄ (a lower bound of
+the paper's infinite sum, in [0, 1)).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.params import ActuatorParams, param
+from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rate
+from scenarios.signals import Signals
+
+from .base import Capabilities, Detection, Detector
+
+#: Default residual-filter poles ([COMB] §4, Table 1).
+DEFAULT_POLES: tuple[float, ...] = (0.6, 0.8, 0.9, 0.95, 0.99)
+
+#: Measurements the detector can use as y_k [mm] (surface converted by x = r·sin δ).
+SENSORS = ("rod_com", "rod_mon", "surface")
+
+
+@dataclass(frozen=True)
+class IntervalNumerics:
+    """Numerical constants of the detector (not physical parameters)."""
+
+    gain_eps_mm: float = param("mm", "numerical", "|u − y| below which γ is evaluated at "
+                               "±this error (the limit ẋ/(u − y) as u − y → 0)")
+    stability_grid_deflections: int = param("-", "numerical", "deflections per flight point "
+                                            "of the eq. 17 check")
+    stability_grid_errors: int = param("-", "numerical", "loop errors u − y per deflection "
+                                       "of the eq. 17 check")
+
+
+NUMERICS = IntervalNumerics(gain_eps_mm=1e-6, stability_grid_deflections=31,
+                            stability_grid_errors=41)
+
+
+# ----------------------------------------------------------------------------------------
+# Equations (pure functions, vectorised; tested one by one)
+# ----------------------------------------------------------------------------------------
+def loop_gain(u_mm, y_mm, plant: PlantArrays, eps_mm: float = NUMERICS.gain_eps_mm):
+    """γ(u, y, θ) = ẋ/(u − y) [1/s] of the nominal loop at the measured position y
+    ([COMB] eq. 2 with y substituted for x; current sat(K·(u − y)) as in PHYSICS §3)."""
+    e = np.asarray(u_mm, float) - np.asarray(y_mm, float)
+    e = np.where(np.abs(e) < eps_mm, np.where(e < 0.0, -eps_mm, eps_mm), e)
+    i_mA = np.clip(plant.K * e, -plant.i_max, plant.i_max)
+    return rod_rate(y_mm, i_mA, plant, True) / e
+
+
+def g_center(u_mm, y_mm, plant: PlantArrays, ts: float):
+    """g^c = 1 − γ(u, y, θ)·T ([COMB] eq. 19)."""
+    return 1.0 - loop_gain(u_mm, y_mm, plant) * ts
+
+
+def g_radius(u_mm, xc_mm, kappa):
+    """g^r = min(κ1 + κ2·|u − x^c|, κ3) ([COMB] §4); κ2 in 1/mm."""
+    k1, k2, k3 = kappa
+    return np.minimum(k1 + k2 * np.abs(np.asarray(u_mm) - np.asarray(xc_mm)), k3)
+
+
+def predictor_step(xc, xr, u, gc, gr, hc: float = 1.0, hr: float = 0.0):
+    """One step of the interval predictor: ([COMB] eq. 14, eq. 15 as derived in the
+    appendix proof, see the module docstring). Returns (x^c_{k+1}, x^r_{k+1})."""
+    xc_next = gc * xc + (1.0 - gc) * hc * u
+    xr_next = ((np.abs(gc) + gr) * xr + gr * np.abs(xc - hc * u)
+               + (np.abs(1.0 - gc) + gr) * hr * np.abs(u))
+    return xc_next, xr_next
+
+
+def dead_zone(y, lower, upper):
+    """Interval residual r = dz(y, [lower, upper]) ([COMB] eq. 18)."""
+    return np.where(y > upper, y - upper, np.where(y < lower, y - lower, 0.0))
+
+
+def moving_average_bounds(r: np.ndarray, q_max: int, safety: float) -> np.ndarray:
+    """λ_q = ς·max_k |r_{k/q}|, q = 1…q_max ([COMB] eq. 6), over every run (row) of *r*.
+
+    Moving averages are taken within a run only (windows never span two runs).
+    Returns an array of length q_max (index q − 1).
+    """
+    r = np.atleast_2d(np.asarray(r, float))
+    T = r.shape[1]
+    if q_max > T:
+        raise ValueError(f"q_max = {q_max} exceeds the length of the learning runs "
+                         f"({T} steps); lower q_max or use longer learning runs")
+    c = np.concatenate([np.zeros((r.shape[0], 1)), np.cumsum(r, axis=1)], axis=1)
+    lam = np.empty(q_max)
+    for q in range(1, q_max + 1):
+        lam[q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q])) / q
+    return safety * lam
+
+
+def filter_threshold(lam: np.ndarray, a: float, r: int, mu: float | None = None) -> float:
+    """τ_{k,r} of [COMB] eq. 10 with b = 1 − a, c = 1 (unit static gain), μ_{k−r} = *mu*
+    (default λ_1, Corollary 2). ``lam[q − 1]`` = λ_q; 0 ≤ r ≤ len(lam)."""
+    lam = np.asarray(lam, float)
+    mu = lam[0] if mu is None else mu
+    if r == 0:
+        return float(mu)
+    q = np.arange(1, r)
+    tail = np.sum(q * (a ** (q - 1) - a ** q) * lam[:r - 1]) if r > 1 else 0.0
+    return float(a ** r * mu + (1.0 - a) * (r * a ** (r - 1) * lam[r - 1] + tail))
+
+
+def threshold_schedule(lam: np.ndarray, a: float) -> np.ndarray:
+    """τ_k for k = 0…q̄: eq. 11 (k < q̄) then the constant of eq. 12/13 (index q̄)."""
+    q_bar = len(lam)
+    return np.array([filter_threshold(lam, a, k) for k in range(q_bar + 1)])
+
+
+def power_law_bound(lam: np.ndarray) -> tuple[float, float, float]:
+    """(α, γ, β) with α·q^γ + β ≥ λ_q for every q ([COMB] §3.1.1, memory compression).
+
+    α, γ: least squares of log(λ_q − β0) on log q with β0 just below min λ_q; β then
+    raised by the largest shortfall so the curve bounds every λ_q.
+    """
+    lam = np.asarray(lam, float)
+    q = np.arange(1, len(lam) + 1, dtype=float)
+    beta0 = 0.5 * float(lam.min())
+    excess = np.maximum(lam - beta0, 1e-12 * max(float(lam.max()), 1e-300))
+    gamma, log_alpha = np.polyfit(np.log(q), np.log(excess), 1)
+    alpha = float(np.exp(log_alpha))
+    fit = alpha * q ** gamma + beta0
+    beta = beta0 + max(float(np.max(lam - fit)), 0.0)
+    return alpha, float(gamma), beta
+
+
+def variability(lam: np.ndarray) -> float:
+    """v(u) = Σ_{q=2}^{q̄} (1 − λ_q/λ_1)/q² / (ζ(2) − 1) ([COMB] §3.1.1 remark, truncated
+    at q̄); 0 for a signal without variability, < 1."""
+    lam = np.asarray(lam, float)
+    q = np.arange(1, len(lam) + 1, dtype=float)
+    zeta2 = math.pi ** 2 / 6.0
+    return float(np.sum((1.0 - lam / lam[0]) / q ** 2) / (zeta2 - 1.0))
+
+
+def stability_margin(kappa, act: ActuatorParams, ts: float, max_error_mm: float,
+                     points=None) -> tuple[float, dict]:
+    """max(|g^c| + g^r) of [COMB] eq. 17 over the flight envelope, and where it occurs.
+
+    Domain: every point of *points* (default: the [CHEN] Table-1 grid) × deflections
+    within the authority of that point (:func:`scenarios.servo.authority_limits`) × loop
+    errors |u − y| ≤ *max_error_mm*, with x^c = y. Eq. 17 holds when the value is < 1.
+    """
+    from scenarios import envelope
+
+    pts = envelope.grid_points() if points is None else points
+    fc = envelope.flight_condition(pts["alt_ft"].to_numpy(float), pts["vcas_kt"].to_numpy(float),
+                                   pts["mass_t"].to_numpy(float), pts["cg_pct"].to_numpy(float))
+    plant = plant_arrays(act, qbar_pa=fc["qbar_pa"], alpha_deg=fc["alpha_deg"], mach=fc["mach"])
+    lo, hi = authority_limits(plant, act)
+    nd, ne = NUMERICS.stability_grid_deflections, NUMERICS.stability_grid_errors
+    frac = np.linspace(0.0, 1.0, nd)
+    defl = lo[:, None] + (hi - lo)[:, None] * frac[None, :]                  # (P, D)
+    y = act.r_mm * np.sin(np.radians(defl))[:, :, None]                        # (P, D, 1)
+    err = np.linspace(-max_error_mm, max_error_mm, ne)[None, None, :]          # (1, 1, E)
+    col = PlantArrays(**{k: np.asarray(v)[:, None, None] for k, v in vars(plant).items()})
+    gc = g_center(y + err, y, col, ts)
+    gr = g_radius(y + err, y, kappa)
+    total = np.abs(gc) + gr
+    p, d, e = np.unravel_index(int(np.argmax(total)), total.shape)
+    where = {"alt_ft": float(pts["alt_ft"].iloc[p]), "vcas_kt": float(pts["vcas_kt"].iloc[p]),
+             "deflection_deg": float(defl[p, d]), "error_mm": float(err[0, 0, e]),
+             "g_c": float(gc[p, d, e]), "g_r": float(gr[p, d, e])}
+    return float(total[p, d, e]), where
+
+
+# ----------------------------------------------------------------------------------------
+# The detector
+# ----------------------------------------------------------------------------------------
+class IntervalDetector(Detector):
+    """Set-membership interval detector of [COMB] (see the module docstring).
+
+    Parameters
+    ----------
+    poles : sequence of float
+        Residual-filter poles a, 0 < a < 1; each is reported as its own variant
+        ``"a=<pole>"`` ([COMB] Table 1: 0.6, 0.8, 0.9, 0.95, 0.99).
+    safety : float
+        Safety factor ς > 1 of the noise characterisation ([COMB] eq. 6; §4: 1.2).
+    kappa : (κ1 [-], κ2 [1/mm], κ3 [-])
+        g^r = min(κ1 + κ2·|u − x^c|, κ3) ([COMB] §4); positive, and eq. 17 must hold
+        over the envelope (checked by ``fit``). Tuned (est.) to cover the nominal model's
+        mismatch on this simulator: Kci/supply/hinge-moment/scheduling errors (≈ 10 % of
+        γ·T ≈ 0.1–0.15) and the unmodelled FCC transport delay during transients.
+    h_radius : float
+        h^r ≥ 0, radius of the static gain h ∈ 1 ± h^r ([COMB] eq. 4; 0: the loop has no
+        static error, §3.3).
+    q_max : int
+        q̄, longest moving-average window of λ_q [steps] (≥ 2).
+    x0_radius_mm : float
+        Radius x_0^r of the initial state around the first measurement [mm] (≥ 0).
+    sensor : str
+        Measurement y: ``"rod_com"`` (the loop's own acquisition, default), ``"rod_mon"``
+        or ``"surface"`` (surface sensor converted by x = r·sin δ; [COMB] used it).
+    use_power_law : bool
+        Compute the threshold from the power-law bound α·q^γ + β instead of λ_q.
+    floor_mm : float
+        Smallest λ_q [mm] (guards against a learning set whose residual is all zero).
+    """
+
+    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
+
+    def __init__(self, poles=DEFAULT_POLES, safety=1.2, kappa=(0.02, 0.02, 0.06),
+                 h_radius=0.0, q_max=300, x0_radius_mm=0.5, sensor="rod_com",
+                 use_power_law=False, floor_mm=1e-4):
+        self.poles = poles
+        self.safety = safety
+        self.kappa = kappa
+        self.h_radius = h_radius
+        self.q_max = q_max
+        self.x0_radius_mm = x0_radius_mm
+        self.sensor = sensor
+        self.use_power_law = use_power_law
+        self.floor_mm = floor_mm
+
+    # ---- parameters --------------------------------------------------------------------
+    def validate_params(self) -> None:
+        def number(v):
+            return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+        poles = [self.poles] if number(self.poles) else self.poles
+        if not (isinstance(poles, (list, tuple)) and poles
+                and all(number(a) and 0.0 < a < 1.0 for a in poles)):
+            raise ValueError(f"poles must be a non-empty list of filter poles 0 < a < 1, got "
+                             f"{self.poles!r}")
+        if len(set(float(a) for a in poles)) != len(poles):
+            raise ValueError(f"poles must not repeat a value, got {self.poles!r}")
+        if not (number(self.safety) and self.safety > 1.0):
+            raise ValueError(f"safety (ς of [COMB] eq. 6) must be a number > 1, got "
+                             f"{self.safety!r}")
+        if not (isinstance(self.kappa, (list, tuple)) and len(self.kappa) == 3
+                and all(number(k) and k > 0.0 for k in self.kappa)):
+            raise ValueError(f"kappa must be three positive numbers [κ1, κ2 (1/mm), κ3], got "
+                             f"{self.kappa!r}")
+        if not (number(self.h_radius) and self.h_radius >= 0.0):
+            raise ValueError(f"h_radius must be ≥ 0, got {self.h_radius!r}")
+        if not (isinstance(self.q_max, int) and not isinstance(self.q_max, bool)
+                and self.q_max >= 2):
+            raise ValueError(f"q_max must be an integer ≥ 2 (steps), got {self.q_max!r}")
+        if not (number(self.x0_radius_mm) and self.x0_radius_mm >= 0.0):
+            raise ValueError(f"x0_radius_mm must be ≥ 0 mm, got {self.x0_radius_mm!r}")
+        if self.sensor not in SENSORS:
+            raise ValueError(f"sensor must be one of {list(SENSORS)}, got {self.sensor!r}")
+        if not isinstance(self.use_power_law, bool):
+            raise ValueError(f"use_power_law must be true or false, got {self.use_power_law!r}")
+        if not (number(self.floor_mm) and self.floor_mm > 0.0):
+            raise ValueError(f"floor_mm must be > 0 mm, got {self.floor_mm!r}")
+
+    def _poles(self) -> tuple[float, ...]:
+        if isinstance(self.poles, (int, float)):
+            return (float(self.poles),)
+        return tuple(float(a) for a in self.poles)
+
+    @staticmethod
+    def variant_name(a: float) -> str:
+        """Name of the variant of pole *a* (``"a=0.9"``)."""
+        return f"a={a:g}"
+
+    def check_signals(self, signals: Signals) -> None:
+        super().check_signals(signals)
+        if self.sensor == "surface" and not signals.has_surface_sensor:
+            raise ValueError("IntervalDetector(sensor='surface') needs a surface position "
+                             "sensor, but this surface has none (surface signal is NaN); use "
+                             "sensor='rod_com' or 'rod_mon'")
+        if signals.actuator is None:
+            raise ValueError("IntervalDetector needs the nominal actuator parameters "
+                             "(Signals.actuator is None)")
+
+    # ---- the interval predictor and residual ------------------------------------------
+    def measurement(self, signals: Signals) -> np.ndarray:
+        """y_k [mm], shape (n_runs, n_steps)."""
+        if self.sensor == "surface":
+            return signals.actuator.r_mm * np.sin(np.radians(signals.surface))
+        return np.asarray(getattr(signals, self.sensor), float)
+
+    def predict(self, signals: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(y, x^c, x^r) [mm], each (n_runs, n_steps): the interval prediction x^c ± x^r of
+        [COMB] eq. 14–15 at every step (time loop only; vectorised over runs)."""
+        sch = signals.schedule
+        plant = plant_arrays(signals.actuator, qbar_pa=sch["qbar_pa"],
+                             alpha_deg=sch["alpha_deg"], mach=sch["mach"])
+        y = self.measurement(signals)
+        u = np.asarray(signals.command, float)
+        n, T = u.shape
+        # g^c depends on the measured (u_k, y_k) only, not on the recursion: all steps at once
+        columns = PlantArrays(**{k: np.asarray(v)[:, None] for k, v in vars(plant).items()})
+        gc_all = g_center(u, y, columns, signals.ts)
+        xc_all = np.empty((n, T))
+        xr_all = np.empty((n, T))
+        xc = y[:, 0].copy()
+        xr = np.full(n, float(self.x0_radius_mm))
+        kappa = tuple(float(k) for k in self.kappa)
+        hr = float(self.h_radius)
+        for k in range(T):
+            xc_all[:, k] = xc
+            xr_all[:, k] = xr
+            gr = g_radius(u[:, k], xc, kappa)
+            xc, xr = predictor_step(xc, xr, u[:, k], gc_all[:, k], gr, 1.0, hr)
+        return y, xc_all, xr_all
+
+    def interval_residual(self, signals: Signals) -> np.ndarray:
+        """r_k = dz(y_k, x_k^c ± x_k^r) [mm] ([COMB] eq. 18), shape (n_runs, n_steps)."""
+        y, xc, xr = self.predict(signals)
+        return dead_zone(y, xc - xr, xc + xr)
+
+    @staticmethod
+    def filtered(r: np.ndarray, a: float) -> np.ndarray:
+        """ε_k = a·ε_{k−1} + (1 − a)·r_k, ε_0 = r_0 ([COMB] eq. 8–9, unit static gain)."""
+        from scipy.signal import lfilter
+
+        r = np.asarray(r, float)
+        # initial state chosen so that ε_0 = r_0 (Corollary 2: filter state starts in the
+        # range of its input): ε_0 = a·ε_{−1} + (1 − a)·r_0 = r_0  ⇔  ε_{−1} = r_0
+        zi = (a * r[:, :1])
+        out, _ = lfilter([1.0 - a], [1.0, -a], r, axis=1, zi=zi)
+        return out
+
+    # ---- contract ----------------------------------------------------------------------
+    def _fit(self, signals: Signals) -> None:
+        self.validate_params()
+        r = self.interval_residual(signals)
+        if signals.n_steps < self.q_max:
+            raise ValueError(f"q_max = {self.q_max} steps is longer than the learning runs "
+                             f"({signals.n_steps} steps); lower q_max or lengthen the "
+                             "learning runs")
+        max_error = float(np.max(np.abs(signals.command - self.measurement(signals))))
+        margin, where = stability_margin(tuple(float(k) for k in self.kappa),
+                                         signals.actuator, signals.ts, max_error)
+        if not margin < 1.0:
+            raise ValueError(
+                f"kappa = {list(self.kappa)} violates the stability condition |g^c| + g^r < 1 "
+                f"of [COMB] eq. 17 over the envelope: {margin:.4f} at altitude "
+                f"{where['alt_ft']:g} ft, VCAS {where['vcas_kt']:g} kt, deflection "
+                f"{where['deflection_deg']:.1f}°, loop error {where['error_mm']:.2f} mm "
+                f"(g^c = {where['g_c']:.4f}, g^r = {where['g_r']:.4f}); fix: lower κ3 "
+                f"below {1.0 - abs(where['g_c']):.4f} (and κ1 with it)")
+        lam = np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
+                         float(self.floor_mm))
+        alpha, gamma, beta = power_law_bound(lam)
+        self.lambda_q_ = lam
+        self.power_law_ = {"alpha": alpha, "gamma": gamma, "beta": beta}
+        self.variability_ = variability(lam)
+        self.stability_margin_ = margin
+        self.max_loop_error_mm_ = max_error
+        basis = self._threshold_basis()
+        self.thresholds_ = {self.variant_name(a): threshold_schedule(basis, a)
+                            for a in self._poles()}
+        self.learning_runs_ = int(signals.n_runs)
+
+    def _threshold_basis(self) -> np.ndarray:
+        if self.use_power_law:
+            q = np.arange(1, len(self.lambda_q_) + 1, dtype=float)
+            p = self.power_law_
+            return p["alpha"] * q ** p["gamma"] + p["beta"]
+        return self.lambda_q_
+
+    def _detect(self, signals: Signals) -> dict[str, Detection]:
+        r = self.interval_residual(signals)
+        T = signals.n_steps
+        k = np.minimum(np.arange(T), int(self.q_max))
+        out = {}
+        for a in self._poles():
+            name = self.variant_name(a)
+            if name not in self.thresholds_:
+                raise ValueError(f"pole {a:g} has no learned threshold: the detector was "
+                                 f"fitted with poles {sorted(self.thresholds_)}; fit again")
+            tau = self.thresholds_[name][k][None, :]
+            norm = np.abs(self.filtered(r, a)) / tau
+            alarm = np.logical_or.accumulate(norm > 1.0, axis=1)
+            out[name] = Detection(alarm=alarm, residual=norm)
+        return out
