@@ -8,11 +8,16 @@ Any third party can test a plugin with::
 It simulates a small batch of fault-free learning runs and mixed evaluation runs, then
 checks, on any detector (DESIGN.md, Contracts):
 
-* ``detect`` before ``fit`` raises :class:`~detectors.NotFittedError` (when it needs fit);
+* ``detect`` before ``fit`` raises :class:`~detectors.NotFittedError` (when it needs fit),
+  with a message that says to call ``fit``;
+* ``__init__`` stores its parameters unchanged: rebuilding the detector from
+  ``get_params()`` gives the same parameters, and the defaults pass ``validate_params``;
 * ``fit`` returns ``self`` and stores learned state only in attributes ending in ``_``;
-  ``__init__`` stored its parameters unchanged (``get_params``);
+  it leaves ``get_params`` unchanged; neither ``fit`` nor ``detect`` modifies the signals
+  it is given;
 * shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite;
-* determinism: detecting twice gives identical output;
+* determinism: detecting twice gives identical output, and so does a second detector
+  fitted afresh on the same learning set;
 * batch invariance: a run's result does not depend on the other runs of the batch;
 * causality: truncating the future never changes past alarms or residuals;
 * picklability: a fitted detector survives a pickle round trip with identical output
@@ -24,10 +29,13 @@ A failed check raises :class:`DetectorCheckError` naming the check and what diff
 from __future__ import annotations
 
 import copy
+import functools
 import pickle
 
 import numpy as np
 import pandas as pd
+
+from scenarios.signals import SIGNAL_UNITS
 
 from .base import Detection, Detector, NotFittedError, as_variants
 
@@ -37,6 +45,12 @@ class DetectorCheckError(AssertionError):
 
 
 def _batch(surface: str, duration_s: float) -> tuple:
+    """Fresh copies of the (cached) learning and evaluation signals."""
+    return tuple(copy.deepcopy(s) for s in _simulated_batch(surface, float(duration_s)))
+
+
+@functools.lru_cache(maxsize=4)
+def _simulated_batch(surface: str, duration_s: float) -> tuple:
     from scenarios.simulate import simulate, single_run
 
     learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
@@ -78,17 +92,34 @@ def check_detector(detector: Detector, *, surface: str = "elevator",
     if not isinstance(detector, Detector):
         raise DetectorCheckError(f"{type(detector).__name__} does not subclass detectors.Detector")
     params = detector.get_params()
+    try:
+        rebuilt = type(detector)(**params)
+    except TypeError as exc:
+        raise DetectorCheckError(f"__init__ must accept its own get_params() as keywords: {exc}")
+    if rebuilt.get_params() != params:
+        raise DetectorCheckError("__init__ must store its keyword parameters unchanged "
+                                 "(type(det)(**det.get_params()).get_params() differs)")
+    try:
+        rebuilt.validate_params()
+    except ValueError as exc:
+        raise DetectorCheckError(f"validate_params() rejects the detector's own parameters: {exc}")
     learn, ev = _batch(surface, duration_s)
     det = copy.deepcopy(detector)
 
     if det.capabilities.needs_fit:
         try:
             det.detect(ev)
-        except NotFittedError:
-            pass
+        except NotFittedError as exc:
+            if "fit" not in str(exc):
+                raise DetectorCheckError("the NotFittedError of detect() before fit() must say "
+                                         f"to call fit(); got: {exc}")
         else:
             raise DetectorCheckError("detect() before fit() must raise NotFittedError")
+    before = {name: np.array(getattr(learn, name), copy=True) for name in SIGNAL_UNITS}
     returned = det.fit(learn)
+    for name, arr in before.items():
+        if not np.array_equal(arr, getattr(learn, name), equal_nan=True):
+            raise DetectorCheckError(f"fit() modified the learning signals ({name})")
     if returned is not det:
         raise DetectorCheckError("fit() must return self")
     if det.get_params() != params:
@@ -96,7 +127,11 @@ def check_detector(detector: Detector, *, surface: str = "elevator",
     if det.capabilities.needs_fit and not det.fitted_state():
         raise DetectorCheckError("fit() stored no learned attribute ending in '_'")
 
+    before = {name: np.array(getattr(ev, name), copy=True) for name in SIGNAL_UNITS}
     out = _variants(det, ev)
+    for name, arr in before.items():
+        if not np.array_equal(arr, getattr(ev, name), equal_nan=True):
+            raise DetectorCheckError(f"detect() modified the signals it was given ({name})")
     for name, d in out.items():
         if d.alarm.dtype != np.bool_ or d.alarm.shape != ev.command.shape:
             raise DetectorCheckError(f"{name}: alarm must be bool of shape {ev.command.shape}")
@@ -104,6 +139,8 @@ def check_detector(detector: Detector, *, surface: str = "elevator",
             raise DetectorCheckError(f"{name}: residual must be finite floats")
 
     _same(out, _variants(det, ev), "determinism")
+    refit = copy.deepcopy(detector).fit(learn)
+    _same(out, _variants(refit, ev), "determinism (fitted again on the same learning set)")
 
     for j in range(ev.n_runs):
         alone = _variants(det, ev.take([j]))
