@@ -310,6 +310,9 @@ FAULT_MAGNITUDE_KEY: dict[str, tuple[str, str]] = {
 }
 #: Fault types with a sampled oscillation frequency.
 OFC_FAULTS: tuple[str, ...] = ("ofc_liquid", "ofc_solid")
+#: Fault types with a direction (sign of the magnitude), and the names of a fixed sign.
+SIGNED_FAULTS: tuple[str, ...] = ("runaway", "hardover", "liquid_jam")
+SIGNED_FAULT_DIRECTIONS: tuple[str, ...] = ("positive", "negative")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -336,6 +339,14 @@ class GroupSpec:
     freq_hz: float | None = key("float", "fixed OFC frequency (ofc_liquid, ofc_solid only)",
                                 unit="Hz", lo=0.0, lo_open=True, hi=20.0, optional=True,
                                 default_doc="sampled from [faults]", example=1.0)
+    sign: str | None = key("choice", "fixed direction of the fault (runaway, hardover, "
+                           "liquid_jam only): positive or negative deflection",
+                           choices=SIGNED_FAULT_DIRECTIONS, optional=True,
+                           default_doc="random", example="negative")
+    manoeuvre_start_s: float | None = key(
+        "float", "fixed start time of the manoeuvre instead of the sampled one (places its "
+        "transients, e.g. [COMB] §4 D_V2; before the end of the run)", unit="s", lo=0.0,
+        hi=600.0, optional=True, default_doc="sampled per run", example=14.3)
     alt_ft: float | None = _fixed_point_key("alt_ft", "altitude", 28000.0)
     vcas_kt: float | None = _fixed_point_key("vcas_kt", "calibrated airspeed", 220.0)
     mass_t: float | None = _fixed_point_key("mass_t", "mass", 180.0)
@@ -899,7 +910,7 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
         fault = g["fault"]
         if _ok(fault):
             if fault == "none":
-                for k in ("onset_s", "magnitude", "freq_hz"):
+                for k in ("onset_s", "magnitude", "freq_hz", "sign"):
                     if g[k] is not None and _ok(g[k]):
                         errors.append(f"{p}.{k}: a fault-free group (fault = \"none\") has "
                                       f"no {k}; fix: remove it")
@@ -917,6 +928,9 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
                         errors.append(f"{p}.magnitude: {_num(g['magnitude'])} is out of range "
                                       f"for {fault}; allowed: "
                                       f"{_range_text(spec, 'magnitude')}")
+                if fault not in SIGNED_FAULTS and g["sign"] is not None and _ok(g["sign"]):
+                    errors.append(f"{p}.sign: fault {fault!r} has no direction; allowed only "
+                                  f"with: {', '.join(SIGNED_FAULTS)}; fix: remove it")
                 if fault not in OFC_FAULTS and g["freq_hz"] is not None and _ok(g["freq_hz"]):
                     errors.append(f"{p}.freq_hz: only for {', '.join(OFC_FAULTS)}; fix: "
                                   "remove it")
@@ -925,6 +939,11 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
                     errors.append(f"{p}.onset_s: {_num(g['onset_s'])} s is not before the end "
                                   f"of the run; allowed: 0 ≤ onset_s < duration_s = "
                                   f"{_num(duration)} s")
+        start = g["manoeuvre_start_s"]
+        if _ok(start, duration) and start is not None and start >= duration:
+            errors.append(f"{p}.manoeuvre_start_s: {_num(start)} s is not before the end of "
+                          f"the run; allowed: 0 ≤ manoeuvre_start_s < duration_s = "
+                          f"{_num(duration)} s")
         name = g["name"]
         if name is not None and _ok(name):
             if name in explicit:

@@ -47,14 +47,21 @@ _DIMS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct") + envelope.DRAW_COLUMNS + (
 PLAN_COLUMNS = (
     "run_id", "group", "surface", "manoeuvre", "fault", "onset_s", "magnitude", "freq_hz",
     "alt_ft", "vcas_kt", "mass_t", "cg_pct", "level", "realistic", "point",
-    *envelope.DRAW_COLUMNS, "seed", "stream", "duration_s",
+    *envelope.DRAW_COLUMNS, "seed", "stream", "duration_s", "manoeuvre_start_s",
 )
+
+#: Columns left out of the run id while they hold NaN (their default), so adding them
+#: did not change the identity of runs that do not use them.
+_OPTIONAL_ID_COLUMNS = ("manoeuvre_start_s",)
 
 
 def run_id(row: dict) -> str:
     """Hash of the canonical JSON of a run row (without its id) and the model version."""
     payload = {k: (None if isinstance(v, float) and math.isnan(v) else v)
                for k, v in row.items() if k != "run_id"}
+    for k in _OPTIONAL_ID_COLUMNS:
+        if payload.get(k, 0) is None:
+            del payload[k]
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256((MODEL_VERSION + "|" + text).encode()).hexdigest()[:20]
 
@@ -120,6 +127,10 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
         mag = np.full(n, float(group.magnitude))
     if getattr(group, "freq_hz", None) is not None:
         freq = np.full(n, float(group.freq_hz))
+    direction = getattr(group, "sign", None)
+    if direction is not None and group.fault != "none":
+        mag = np.abs(mag) * (-1.0 if direction == "negative" else 1.0)
+    start = getattr(group, "manoeuvre_start_s", None)
     out = frame.copy()
     out.insert(0, "group", group.name)
     out["surface"] = config.campaign.surface
@@ -129,6 +140,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     out["magnitude"] = mag
     out["freq_hz"] = freq
     out["duration_s"] = duration
+    out["manoeuvre_start_s"] = np.nan if start is None else float(start)
     for key in ("alt_ft", "vcas_kt", "mass_t", "cg_pct"):
         fixed = getattr(group, key, None)
         if fixed is not None:

@@ -40,7 +40,9 @@ left so that it ends ``tail_s`` before the end of the record. With the default t
 longest manoeuvre (pitch protection at the lowest q̄, ≤ 14.6 s) fits between lead_s and
 tail_s of a ``min_duration_s`` (20 s) record, so runs of 20–60 s all contain the whole
 manoeuvre. (With a table whose manoeuvre does not fit, it starts at lead_s and is cut by the
-end of the record.)
+end of the record.) A fixed start time ``start_s`` (the run-table column ``manoeuvre_start_s``,
+e.g. to place a transient at a given time as in [COMB] §4 D_V2) replaces the sampled one; the
+start uniform is still drawn, so the rest of the run's draws do not change.
 
 Random numbers come from the run's generator in a fixed order, whatever the manoeuvre,
 surface or duration: first :data:`N_SHAPE_DRAWS` uniforms (start time, then the shape
@@ -272,6 +274,21 @@ def _check_actuator(surface: str, actuator) -> None:
         raise ValueError(f"actuator is for surface {actuator.surface!r} but surface={surface!r}")
 
 
+def _check_start(start_s, where: str = "") -> float | None:
+    """A fixed manoeuvre start [s] (None/NaN: sampled); must be ≥ 0."""
+    if start_s is None:
+        return None
+    try:
+        value = float(start_s)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}start_s must be a number of seconds, got {start_s!r}") from None
+    if math.isnan(value):
+        return None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f"{where}start_s must be a finite time ≥ 0 s, got {start_s!r}")
+    return value
+
+
 # ---- the profiles ------------------------------------------------------------------------
 def _lerp(bounds: tuple[float, float], u: float) -> float:
     """Map a uniform draw u ∈ [0, 1) to U(lo, hi)."""
@@ -351,7 +368,7 @@ def _sequential(steps: list[tuple[float, float, float]]) -> list[tuple[float, fl
 
 def _order(manoeuvre: str, surface: str, t_rel: np.ndarray, ts: float, flight: dict[str, float],
            rng: np.random.Generator, actuator: ActuatorParams, p: ManoeuvreParams,
-           turbulence: DrydenParams) -> np.ndarray:
+           turbulence: DrydenParams, start_s: float | None = None) -> np.ndarray:
     """One run's order from validated inputs (see :func:`surface_order_deg`)."""
     u = rng.random(N_SHAPE_DRAWS).tolist()
     scale = amplitude_scale(flight["qbar_pa"], p)
@@ -372,6 +389,8 @@ def _order(manoeuvre: str, surface: str, t_rel: np.ndarray, ts: float, flight: d
         length = steps[-1][0] + steps[-1][2]
         room = t_rel.size * ts - p.tail_s - p.lead_s - length
         t0 = p.lead_s + u[0] * min(p.start_spread_s, max(room, 0.0))
+        if start_s is not None and math.isfinite(start_s):
+            t0 = float(start_s)
         for start, size, dur in steps:
             i0, i1 = np.searchsorted(t_rel, (t0 + start, t0 + start + dur)).tolist()
             order[done:i0] += trim + level
@@ -387,7 +406,8 @@ def _order(manoeuvre: str, surface: str, t_rel: np.ndarray, ts: float, flight: d
 def surface_order_deg(manoeuvre: str, surface: str, t, flight: Mapping[str, float],
                       rng: np.random.Generator, actuator: ActuatorParams, *,
                       params: ManoeuvreParams = MANOEUVRE_PARAMS,
-                      turbulence: DrydenParams = MODERATE) -> np.ndarray:
+                      turbulence: DrydenParams = MODERATE,
+                      start_s: float | None = None) -> np.ndarray:
     """One run's surface-deflection order [deg] at the times ``t``, shape (n_steps,).
 
     Parameters
@@ -407,6 +427,8 @@ def surface_order_deg(manoeuvre: str, surface: str, t, flight: Mapping[str, floa
         Gives the electrical deflection limits.
     params, turbulence : keyword-only
         Manoeuvre and turbulence tables.
+    start_s : float, keyword-only
+        Fixed start of the manoeuvre [s] from t[0] (≥ 0); None or NaN: sampled.
     """
     check_name("manoeuvre", manoeuvre, MANOEUVRES)
     check_name("surface", surface, SURFACES)
@@ -415,18 +437,20 @@ def surface_order_deg(manoeuvre: str, surface: str, t, flight: Mapping[str, floa
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     t_rel, ts = _check_time(t, params)
     return _order(manoeuvre, surface, t_rel, ts, _check_flight(flight), rng, actuator, params,
-                  turbulence)
+                  turbulence, _check_start(start_s))
 
 
 def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
                     rngs: Sequence[np.random.Generator], actuator: ActuatorParams, *,
                     params: ManoeuvreParams = MANOEUVRE_PARAMS,
-                    turbulence: DrydenParams = MODERATE) -> np.ndarray:
+                    turbulence: DrydenParams = MODERATE,
+                    start_s: Sequence[float] | None = None) -> np.ndarray:
     """Orders [deg] of a batch of runs, shape (n_runs, n_steps).
 
     Run i is exactly ``surface_order_deg(manoeuvres[i], surface, t, {k: flight[k][i]},
     rngs[i], actuator)``: it never depends on the other runs of the batch. ``flight`` maps
-    each of :data:`FLIGHT_KEYS` to an array of shape (n_runs,).
+    each of :data:`FLIGHT_KEYS` to an array of shape (n_runs,). ``start_s`` (n_runs,), when
+    given, fixes each run's manoeuvre start [s] (NaN: sampled).
     """
     if isinstance(manoeuvres, str):
         raise ValueError("manoeuvres must be a sequence of names, one per run, not a single string")
@@ -454,6 +478,7 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
         if not isinstance(rngs[i], np.random.Generator):
             raise TypeError(f"{where}rng must be a numpy.random.Generator, got {type(rngs[i]).__name__}")
         run_flight = _check_flight({k: c[i] for k, c in columns.items()}, where)
+        start = None if start_s is None else _check_start(start_s[i], where)
         orders[i] = _order(manoeuvres[i], surface, t_rel, ts, run_flight, rngs[i], actuator,
-                           params, turbulence)
+                           params, turbulence, start)
     return orders

@@ -59,6 +59,11 @@ RUN_COLUMNS: dict[str, tuple[str, str]] = {
     "duration_s": ("s", "run duration"),
 }
 
+#: Optional columns of a run row (absent or NaN: the default behaviour).
+OPTIONAL_RUN_COLUMNS: dict[str, tuple[str, str]] = {
+    "manoeuvre_start_s": ("s", "fixed start of the manoeuvre (NaN: sampled per run)"),
+}
+
 #: Physical ranges accepted for run rows (inclusive): column → (low, high).
 RUN_RANGES: dict[str, tuple[float, float]] = {
     "alt_ft": (0.0, 45000.0),
@@ -121,6 +126,12 @@ def validate_runs(runs: pd.DataFrame) -> None:
     bad_freq = ofc & ~(np.isfinite(freq) & (freq > 0))
     if bad_freq.any():
         errors.append(f"freq_hz: {int(bad_freq.sum())} OFC run(s) need a positive frequency")
+    if "manoeuvre_start_s" in runs.columns:
+        start = pd.to_numeric(runs["manoeuvre_start_s"], errors="coerce").to_numpy(float)
+        bad_start = ~np.isnan(start) & ~((start >= 0) & (start < dur))
+        if bad_start.any():
+            errors.append(f"manoeuvre_start_s: {int(bad_start.sum())} run(s) with a start "
+                          f"outside [0, duration_s) (first: {start[bad_start][0]!r} s)")
     if errors:
         raise RunSpecError(errors)
 
@@ -199,7 +210,9 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
             list(col["manoeuvre"].astype(str)), act.surface, t,
             {k: flight_true[k] for k in ("qbar_pa", "tas_ms", "alt_ft", "alpha_deg", "cg_pct",
                                          "mach")},
-            [g[0] for g in gens], act)
+            [g[0] for g in gens], act,
+            start_s=(runs["manoeuvre_start_s"].to_numpy(float)
+                     if "manoeuvre_start_s" in runs.columns else None))
         lo, hi = authority_limits(plant, act)
         order_deg = np.clip(order_deg, lo[:, None], hi[:, None])
     else:
