@@ -35,7 +35,25 @@ def cmd_run(args) -> int:
           f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
     if not result.summary.empty:
         print(result.table())
+    _detection_times(result, config)
     return EXIT_OK if result.complete else EXIT_INTERRUPTED
+
+
+def _detection_times(result, config) -> None:
+    """Fixed-scenario campaigns (every faulty group with one onset, e.g. comb-table1):
+    print the first alarm times laid out like [COMB] Table 1 and store them as
+    ``detection-times.parquet``."""
+    from reports.detection_times import (detection_time_table, fixed_onset_campaign,
+                                         format_detection_times)
+
+    from .storage import write_parquet
+
+    if result.results.empty or not fixed_onset_campaign(result.plan):
+        return
+    times = detection_time_table(result.plan, result.results)
+    write_parquet(times, Path(result.out) / "detection-times.parquet", config.to_json(),
+                  kind="detection_times")
+    print(format_detection_times(times))
 
 
 def cmd_plan(args) -> int:
