@@ -3,7 +3,8 @@
 Everything is measured in one process run so that ratios are comparable on a shared, noisy
 machine: the vectorised chunked simulation of N runs on the requested workers, and a few
 runs of the straightforward per-run reference (:mod:`scenarios.reference`, ``solve_ivp`` in
-a Python loop) whose per-run time is extrapolated to N.
+a Python loop) whose per-run time is extrapolated to N; then the per-step cost of every
+registered detector's ``detect`` on one chunk (:func:`detector_costs`).
 """
 
 from __future__ import annotations
@@ -82,4 +83,32 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     echo(f"  per-run reference     : {ref_per_run:8.2f} s per run (solve_ivp, {reference_runs} "
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
+    figures["detector_ns_per_run_step"] = detector_costs(min(chunk_size, n_runs), duration_s,
+                                                         echo=echo)
     return figures
+
+
+def detector_costs(n_runs: int = 100, duration_s: float = 60.0, learning_runs: int = 12,
+                   echo=print) -> dict[str, float]:
+    """Per-step cost of every registered detector's ``detect`` on one chunk of *n_runs*
+    (in this process, one after the other, so the figures compare): ns per run-step."""
+    from detectors import available_detectors, make_detector
+
+    runs = bench_runs(n_runs, duration_s)
+    signals, _ = simulate(runs)
+    learn_rows = bench_runs(learning_runs, duration_s, seed=2)
+    learn_rows["fault"], learn_rows["onset_s"] = "none", np.nan
+    learn_rows["magnitude"] = np.nan
+    learning, _ = simulate(learn_rows)
+    costs = {}
+    for name in available_detectors():
+        det = make_detector(name)
+        if det.capabilities.needs_fit:
+            det.fit(learning)
+        t0 = time.perf_counter()
+        det.detect(signals)
+        costs[name] = (time.perf_counter() - t0) / (signals.n_runs * signals.n_steps) * 1e9
+    echo(f"  detector cost         : per run-step of detect(), chunk of {n_runs} runs")
+    for name, ns in costs.items():
+        echo(f"    {name:<20}: {ns:8.0f} ns")
+    return costs

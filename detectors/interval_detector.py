@@ -393,8 +393,9 @@ class IntervalDetector(Detector):
                 f"of [COMB] eq. 17 over the envelope: {margin:.4f} at altitude "
                 f"{where['alt_ft']:g} ft, VCAS {where['vcas_kt']:g} kt, deflection "
                 f"{where['deflection_deg']:.1f}°, loop error {where['error_mm']:.2f} mm "
-                f"(g^c = {where['g_c']:.4f}, g^r = {where['g_r']:.4f}); fix: lower κ3 "
-                f"below {1.0 - abs(where['g_c']):.4f} (and κ1 with it)")
+                f"(g^c = {where['g_c']:.4f}, g^r = {where['g_r']:.4f}); fix: choose kappa so "
+                f"that g^r = min(κ1 + κ2·|u − x^c|, κ3) stays below 1 − |g^c| = "
+                f"{1.0 - abs(where['g_c']):.4f} there (κ3 below it is enough)")
         lam = np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
                          float(self.floor_mm))
         alpha, gamma, beta = power_law_bound(lam)

@@ -71,3 +71,13 @@ class _ChangesParams(Detector):
 def test_check_detector_names_the_broken_rule(cls, check):
     with pytest.raises(DetectorCheckError, match=check):
         check_detector(cls(), duration_s=20.0)
+
+
+def test_bench_reports_the_cost_of_every_registered_detector():
+    from campaign.bench import detector_costs
+
+    lines = []
+    costs = detector_costs(n_runs=2, duration_s=20.0, learning_runs=2, echo=lines.append)
+    assert set(costs) == set(available_detectors())
+    assert all(np.isfinite(v) and v > 0 for v in costs.values())
+    assert any("comb-interval" in line for line in lines)
