@@ -333,7 +333,7 @@ class GroupSpec:
                                 default_doc="sampled from [faults]", example=30.0)
     magnitude: float | None = key("float", "fixed magnitude in the unit of its [faults.*] "
                                   "range (runaway deg/s, liquid_jam %, ofc_liquid mA, "
-                                  "ofc_solid mm); sign stays random", lo=0.0, lo_open=True,
+                                  "ofc_solid mm); sign random unless sign is given", lo=0.0, lo_open=True,
                                   optional=True, default_doc="sampled from [faults]",
                                   example=5.0)
     freq_hz: float | None = key("float", "fixed OFC frequency (ofc_liquid, ofc_solid only)",
