@@ -229,7 +229,8 @@ def inspect_fmu(spec: FmuSpec, faults=()) -> FmuInfo:
     for pname, _value in spec.parameters:
         if pname not in params:
             problems.append(f"parameter override {pname!r}: {name} has no settable real "
-                            f"parameter {pname!r}{suggest(pname, list(params))}")
+                            f"parameter {pname!r}{suggest(pname, list(params))}; its real "
+                            f"parameters: {', '.join(params) or 'none'}")
     if problems:
         raise FmuError("; ".join(problems) if len(problems) == 1 else
                        f"{name}: {len(problems)} problems:\n  - " + "\n  - ".join(problems))
@@ -410,7 +411,7 @@ _CACHE: dict = {}
 def _key(spec: FmuSpec):
     p = Path(spec.path).resolve()
     st = p.stat()
-    return (str(p), st.st_mtime_ns, st.st_size, spec.variables)
+    return (str(p), st.st_mtime_ns, st.st_size, spec)
 
 
 def instance(spec: FmuSpec, faults=()) -> tuple[FmuInfo, _Instance]:
@@ -422,7 +423,7 @@ def instance(spec: FmuSpec, faults=()) -> tuple[FmuInfo, _Instance]:
         raise
     if key not in _CACHE:
         info = inspect_fmu(spec, faults)
-        for old in [k for k in _CACHE if k[0] == key[0]]:  # a rebuilt file replaces the old
+        for old in [k for k in _CACHE if k[0] == key[0] and k[1:3] != key[1:3]]:  # rebuilt
             _CACHE.pop(old)[1].close()
         cwd = os.getcwd()
         try:
