@@ -161,11 +161,11 @@ def cmd_fmu(args) -> int:
     from scenarios.fmu_build import FmuBuildError, build_servo_fmu
 
     try:
-        out = build_servo_fmu(args.out, surface=args.surface,
+        out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,
                               log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
     except FmuBuildError as exc:
         raise UsageError(str(exc)) from None
-    print(f"built and validated {out} (FMI 2.0 co-simulation, {args.surface} defaults); run a "
+    print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); run a "
           f"campaign on it with: fdd-campaign run smoke --plant {out} --out results/")
     return EXIT_OK
 
@@ -270,6 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="servo.fmu", help="FMU file to write (default servo.fmu)")
     p.add_argument("--surface", default="elevator", choices=SURFACES,
                    help="surface whose parameters are the FMU's start values")
+    p.add_argument("--fmi", default="2", choices=["2", "3"], help="FMI version (default 2)")
     p.add_argument("--verbose", action="store_true", help="print the compiler command")
     return parser
 

@@ -37,6 +37,7 @@ the campaign records the run with ``status="error"`` and goes on.
 from __future__ import annotations
 
 import atexit
+import ctypes
 import math
 import os
 import shutil
@@ -172,12 +173,16 @@ def inspect_fmu(spec: FmuSpec, faults=()) -> FmuInfo:
     version = "2.0" if md.fmiVersion == "2.0" else "3.0"
     ident = md.coSimulation.modelIdentifier
     plat = fmpy.platform if version == "2.0" else fmpy.platform_tuple
-    from fmpy import supported_platforms
+    import zipfile
 
-    platforms = supported_platforms(str(path))
-    if plat not in platforms:
-        raise FmuError(f"{name}: no binary for this platform ({plat}); it has: "
-                       f"{', '.join(platforms) or 'none'}; fix: export the FMU for {plat}")
+    with zipfile.ZipFile(path) as zf:
+        members = zf.namelist()
+    binary = f"binaries/{plat}/{ident}{fmpy.sharedLibraryExtension}"
+    if binary not in members:
+        found = sorted({m.split("/")[1] for m in members
+                        if m.startswith("binaries/") and m.count("/") >= 2})
+        raise FmuError(f"{name}: no binary for this platform ({binary} is missing; it has: "
+                       f"{', '.join(found) or 'no binaries'}); fix: export the FMU for {plat}")
 
     by_name = {v.name: v for v in md.modelVariables}
     problems = []
@@ -307,7 +312,12 @@ class _Instance:
                 *[vr[s] for s in self._out_sig])
             self._val_out = (fmi2Real * len(self._out_sig))()
         else:
-            from fmpy.fmi3 import fmi3Float64, fmi3ValueReference
+            from fmpy.fmi3 import fmi3Boolean, fmi3Float64, fmi3ValueReference
+
+            self._event, self._terminate = fmi3Boolean(), fmi3Boolean()
+            self._early, self._last_time = fmi3Boolean(), fmi3Float64()
+            self._step_out = [ctypes.byref(v) for v in (self._event, self._terminate,
+                                                        self._early, self._last_time)]
 
             self._vr_in = (fmi3ValueReference * 1)(vr["current"])
             self._val_in = (fmi3Float64 * 1)()
@@ -373,8 +383,8 @@ class _Instance:
             if current is not None:
                 self._val_in[0] = current
                 s.fmi3SetFloat64(s.component, self._vr_in, 1, self._val_in, 1)
-            _, terminate, early, _ = s.doStep(t, h)
-            if terminate or early:
+            s.fmi3DoStep(s.component, t, h, True, *self._step_out)
+            if self._terminate.value or self._early.value:
                 raise FmuRunError(f"FMU {self.info.path}: fmi3DoStep at t = {t:.2f} s "
                                   "asked to terminate or returned early")
 

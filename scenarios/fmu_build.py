@@ -1,12 +1,15 @@
-"""Build the built-in servo-loop plant (PHYSICS §3) as an FMI 2.0 co-simulation FMU.
+"""Build the built-in servo-loop plant (PHYSICS §3) as an FMI 2.0 (default) or FMI 3.0
+co-simulation FMU.
 
-The C sources and the model-description template ship in ``scenarios/fmu_src``. The build
+The C sources and the model-description templates ship in ``scenarios/fmu_src``: the model
+(``servo_model.c``) and one interface file per FMI version (``fmi2_servo.c``,
+``fmi3_servo.c``). The build
 fills the parameter start values from :mod:`scenarios.params` (the same table the built-in
 plant uses), compiles the sources with the machine's C compiler against the FMI headers that
 fmpy ships (``fmpy/c-code``), zips the standard FMU layout::
 
     modelDescription.xml
-    binaries/<platform>/fdd_servo.so
+    binaries/<platform>/fdd_servo.so       (FMI 2.0: linux64; FMI 3.0: x86_64-linux)
     sources/*.c, *.h
 
 and checks the result with fmpy (``fmpy.validation.validate_fmu``, then one instantiation
@@ -34,9 +37,12 @@ from pathlib import Path
 import numpy as np
 
 MODEL_IDENTIFIER = "fdd_servo"
-SOURCE_FILES = ("servo_model.c", "fmi2_servo.c")
+#: FMI version → (C sources, model-description template).
+VERSIONS = {
+    "2": (("servo_model.c", "fmi2_servo.c"), "modelDescription.xml.in"),
+    "3": (("servo_model.c", "fmi3_servo.c"), "modelDescription3.xml.in"),
+}
 HEADER_FILES = ("servo_model.h",)
-TEMPLATE = "modelDescription.xml.in"
 
 #: FMU parameter → macro of the generated ``servo_start.h`` (start values).
 START_MACROS = {
@@ -127,14 +133,18 @@ def _version() -> str:
 
 
 def build_servo_fmu(out: str | os.PathLike = "servo.fmu", *, surface: str = "elevator",
-                    ts: float = 0.01, validate: bool = True, log=None) -> Path:
-    """Compile and zip the servo-loop FMU into *out*; returns its path.
+                    fmi: str = "2", ts: float = 0.01, validate: bool = True, log=None) -> Path:
+    """Compile and zip the servo-loop FMU (FMI version *fmi*: "2" or "3") into *out*;
+    returns its path.
 
     Raises :class:`FmuBuildError` with the compiler output or the validation problems.
     """
     out = Path(out)
     if out.suffix != ".fmu":
         raise ValueError(f"--out {out}: an FMU file name must end in .fmu, e.g. servo.fmu")
+    if str(fmi) not in VERSIONS:
+        raise ValueError(f"FMI version {fmi!r} is not supported; allowed: 2, 3")
+    SOURCE_FILES, TEMPLATE = VERSIONS[str(fmi)]
     src = source_dir()
     values = start_values(surface)
     digest = hashlib.sha256()
@@ -156,10 +166,10 @@ def build_servo_fmu(out: str | os.PathLike = "servo.fmu", *, surface: str = "ele
             guid=guid, version=_version(), surface=surface, ts=repr(ts),
             **{k: repr(v) for k, v in values.items()})
         (root / "modelDescription.xml").write_text(xml, encoding="utf-8")
-        bindir = root / "binaries" / fmpy.platform
+        bindir = root / "binaries" / (fmpy.platform if str(fmi) == "2" else fmpy.platform_tuple)
         bindir.mkdir(parents=True)
         lib = bindir / (MODEL_IDENTIFIER + fmpy.sharedLibraryExtension)
-        cmd = [find_compiler(), *CFLAGS, f"-I{fmi_header_dir('2')}", f"-I{sources}",
+        cmd = [find_compiler(), *CFLAGS, f"-I{fmi_header_dir(str(fmi))}", f"-I{sources}",
                "-o", str(lib), *[str(sources / f) for f in SOURCE_FILES], "-lm"]
         if log:
             log(" ".join(cmd))
@@ -184,7 +194,10 @@ def validate_fmu_file(path: str | os.PathLike) -> None:
     instantiation and step); raises :class:`FmuBuildError` listing the problems."""
     from fmpy.validation import validate_fmu
 
-    problems = validate_fmu(str(path))
+    try:
+        problems = validate_fmu(str(path))
+    except Exception as exc:  # noqa: BLE001 - fmpy raises on unreadable descriptions
+        problems = [f"{type(exc).__name__}: {exc}"]
     if problems:
         raise FmuBuildError(f"FMU {path} does not validate:\n  - " + "\n  - ".join(problems))
     from .fmu import FmuSpec, probe

@@ -8,6 +8,7 @@ import shutil
 import zipfile
 from pathlib import Path
 
+import fmpy
 import numpy as np
 import pandas as pd
 import pytest
@@ -36,6 +37,12 @@ TOL_DEG = 1e-9
 def servo_fmu(tmp_path_factory) -> Path:
     """The built-in servo-loop FMU, built once per test session from the shipped sources."""
     return build_servo_fmu(tmp_path_factory.mktemp("fmu") / "servo.fmu")
+
+
+@pytest.fixture(scope="session")
+def servo_fmu3(tmp_path_factory) -> Path:
+    """The same servo-loop as an FMI 3.0 co-simulation FMU."""
+    return build_servo_fmu(tmp_path_factory.mktemp("fmu3") / "servo3.fmu", fmi="3")
 
 
 def _zip_with(src: Path, dst: Path, replace: dict) -> Path:
@@ -83,8 +90,19 @@ def test_built_fmu_validates_and_carries_the_parameter_table(servo_fmu):
     assert names["i_mA"].causality == "input" and names["x_mm"].causality == "output"
     with zipfile.ZipFile(servo_fmu) as z:
         members = set(z.namelist())
-    assert {"modelDescription.xml", "binaries/linux64/fdd_servo.so", "sources/servo_model.c",
+    assert {"modelDescription.xml", f"binaries/{fmpy.platform}/fdd_servo.so", "sources/servo_model.c",
             "sources/fmi2_servo.c"} <= members
+
+
+def test_fmi3_build_validates(servo_fmu3):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(servo_fmu3)) == []
+    md = read_model_description(str(servo_fmu3))
+    assert md.fmiVersion == "3.0" and md.coSimulation is not None
+    with zipfile.ZipFile(servo_fmu3) as z:
+        assert f"binaries/{fmpy.platform_tuple}/fdd_servo.so" in z.namelist()
 
 
 def test_fmu_build_command(tmp_path, capsys):
@@ -102,10 +120,13 @@ def test_fmu_build_command(tmp_path, capsys):
 # ---------------------------------------------------------------------------------------
 # cross-check against the built-in plant
 # ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("surface", ["elevator", "aileron"])
-def test_fmu_matches_builtin_plant_for_every_fault(servo_fmu, surface):
+@pytest.mark.parametrize("surface, fmi", [("elevator", "2"), ("aileron", "2"),
+                                          ("elevator", "3")])
+def test_fmu_matches_builtin_plant_for_every_fault(request, surface, fmi):
+    fmu = request.getfixturevalue("servo_fmu" if fmi == "2" else "servo_fmu3")
     runs = _runs(surface)
-    spec = FmuSpec.of(servo_fmu)
+    spec = FmuSpec.of(fmu)
+    assert inspect_fmu(spec).version == f"{fmi}.0"
     sig_b, tru_b = simulate(runs)
     sig_f, tru_f = simulate(runs, plant=spec)
     assert set(tru_b.fault) == set(FAULTS)
@@ -218,7 +239,7 @@ def test_unmapped_and_wrong_variables_are_named(servo_fmu):
 def test_fmu_that_fails_to_instantiate(servo_fmu, tmp_path, breakage):
     if breakage == "binary":   # not a shared library at all
         bad = _zip_with(servo_fmu, tmp_path / "b.fmu",
-                        {"binaries/linux64/fdd_servo.so": b"\x7fELF broken"})
+                        {f"binaries/{fmpy.platform}/fdd_servo.so": b"\x7fELF broken"})
     else:                      # fmi2Instantiate refuses (returns NULL)
         bad = _zip_with(servo_fmu, tmp_path / "b.fmu", {"modelDescription.xml": lambda x: re.sub(
             rb'guid="[^"]+"', b'guid="{00000000-0000-0000-0000-000000000000}"', x)})
