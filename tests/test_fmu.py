@@ -4,7 +4,6 @@ cross-checked against the built-in Python plant, and the clear failures of bad F
 from __future__ import annotations
 
 import re
-import shutil
 import zipfile
 from pathlib import Path
 
@@ -275,3 +274,29 @@ def test_nan_mid_run_is_a_per_run_error(servo_fmu):
     err = res.loc[bad["run_id"][0]]
     assert err["status"] == "error" and "'x_mm' (rod) is nan" in err["error"]
     assert "servo.fmu" in err["error"]
+
+
+def test_campaign_file_plant_section(servo_fmu, tmp_path):
+    from campaign.config import ConfigError
+
+    base = """
+[campaign]
+name = "t"
+[[group]]
+fault = "none"
+count = 1
+[[detector]]
+name = "position-monitor"
+"""
+    # an FMU key without an FMU is an error, not silently ignored
+    f = tmp_path / "a.toml"
+    f.write_text(base + '[plant.variables]\nrod = "pos"\n')
+    with pytest.raises(ConfigError, match=r"plant\.variables\.rod: only used with an FMU"):
+        load_config(f)
+    # a wrong variable in the file is refused before anything is written
+    f.write_text(base + f'[plant]\nfmu = "{servo_fmu}"\n[plant.variables]\nrod = "pos"\n')
+    config = load_config(f)
+    assert settings_of(config).plant.mapping["rod"] == "pos"
+    with pytest.raises(FmuError, match=r"rod = 'pos'.*no variable 'pos'"):
+        run(config, tmp_path / "out", jobs=1, progress=False, log=lambda m: None)
+    assert not (tmp_path / "out").exists()
