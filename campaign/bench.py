@@ -67,9 +67,9 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     plant's."""
     spec = None
     if plant is not None:
-        from scenarios.fmu import FmuSpec, probe
+        from scenarios.fmu import FmuPlant, probe
 
-        spec = FmuSpec.of(str(__import__("pathlib").Path(plant).resolve()))
+        spec = FmuPlant.of(str(__import__("pathlib").Path(plant).resolve()))
         probe(spec, faults={"disconnection"})
     runs = bench_runs(n_runs, duration_s)
     chunks = [runs.iloc[s:s + chunk_size] for s in range(0, n_runs, chunk_size)]

@@ -45,7 +45,7 @@ class ChunkSettings:
     pressure_sensor: bool
     required_time_s: dict
     window_s: float | None
-    plant: object = None          # None: built-in plant; scenarios.fmu.FmuSpec: an FMU
+    plant: object = None          # None: built-in plant; scenarios.fmu.FmuPlant: an FMU
 
 
 def _error_rows(rows: pd.DataFrame, detector: str, message: str) -> pd.DataFrame:

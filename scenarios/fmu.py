@@ -79,6 +79,16 @@ PUSHED_PARAMETERS: tuple[str, ...] = ("Kci", "SdP", "SdP_ref", "Ka", "r_mm", "x_
                                       "hm_delta", "hm_0", "stop_min_rad", "stop_max_rad")
 
 
+def plant_parameters(pl, act, j: int) -> dict[str, float]:
+    """The pushed parameters of run *j* of a batch: :data:`PUSHED_PARAMETERS` from the
+    PlantArrays *pl* (true per-run values) and the stops [rad] of ActuatorParams *act*."""
+    out = {name: float(np.asarray(getattr(pl, name))[j]) for name in PUSHED_PARAMETERS
+           if hasattr(pl, name)}
+    out["stop_min_rad"] = float(np.radians(act.stop_min_deg))
+    out["stop_max_rad"] = float(np.radians(act.stop_max_deg))
+    return out
+
+
 class FmuError(ValueError):
     """An FMU that cannot be used for a campaign (checked before any run)."""
 
@@ -88,8 +98,9 @@ class FmuRunError(RuntimeError):
 
 
 @dataclass(frozen=True)
-class FmuSpec:
-    """Which FMU to run and how its variables map to the engine (picklable, hashable).
+class FmuPlant:
+    """A plant back end: which FMU to run and how its variables map to the engine
+    (picklable, hashable; ``simulate(runs, plant=FmuPlant.of("servo.fmu"))``).
 
     path : the .fmu file.
     variables : (engine signal, FMU variable) pairs; an empty name leaves a signal unmapped.
@@ -110,7 +121,7 @@ class FmuSpec:
 
     @classmethod
     def of(cls, path, variables: dict | None = None, push_parameters: bool = True,
-           parameters: dict | None = None) -> "FmuSpec":
+           parameters: dict | None = None) -> "FmuPlant":
         """Build a spec; *variables* entries replace the servo-FMU defaults."""
         merged = dict(SERVO_VARIABLES)
         merged.update(variables or {})
@@ -150,7 +161,7 @@ def _md_of(path: Path):
                        "give a .fmu archive exported for co-simulation") from None
 
 
-def inspect_fmu(spec: FmuSpec, faults=()) -> FmuInfo:
+def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
     """Check *spec* against its FMU without running it; raises :class:`FmuError` listing
     every problem (each naming the FMU and the variable). *faults* are the fault types the
     campaign will run (disconnection needs a mapped input)."""
@@ -243,7 +254,7 @@ def inspect_fmu(spec: FmuSpec, faults=()) -> FmuInfo:
                    vr=vr, vtype=vtype, parameters=params)
 
 
-def probe(spec: FmuSpec, faults=()) -> FmuInfo:
+def probe(spec: FmuPlant, faults=()) -> FmuInfo:
     """:func:`inspect_fmu`, then instantiate, initialise and step the FMU once in this
     process; raises :class:`FmuError` naming the FMU when it fails to."""
     info = inspect_fmu(spec, faults)
@@ -271,7 +282,7 @@ def probe(spec: FmuSpec, faults=()) -> FmuInfo:
 class _Instance:
     """An extracted, instantiated FMU: start / step / outputs, reset between runs."""
 
-    def __init__(self, info: FmuInfo, spec: FmuSpec):
+    def __init__(self, info: FmuInfo, spec: FmuPlant):
         from fmpy import extract
 
         self.info, self.spec = info, spec
@@ -418,13 +429,13 @@ class _Instance:
 _CACHE: dict = {}
 
 
-def _key(spec: FmuSpec):
+def _key(spec: FmuPlant):
     p = Path(spec.path).resolve()
     st = p.stat()
     return (str(p), st.st_mtime_ns, st.st_size, spec)
 
 
-def instance(spec: FmuSpec, faults=()) -> tuple[FmuInfo, _Instance]:
+def instance(spec: FmuPlant, faults=()) -> tuple[FmuInfo, _Instance]:
     """The process's loaded instance of *spec* (loaded and checked on first use)."""
     try:
         key = _key(spec)
@@ -446,7 +457,7 @@ def instance(spec: FmuSpec, faults=()) -> tuple[FmuInfo, _Instance]:
     return _CACHE[key]
 
 
-def _evict(spec: FmuSpec) -> None:
+def _evict(spec: FmuPlant) -> None:
     """Close and forget the loaded instance of *spec* (after a failed run)."""
     try:
         key = _key(spec)
@@ -466,7 +477,7 @@ def _close_all() -> None:
 # ---------------------------------------------------------------------------------------
 # The closed loop with an FMU plant
 # ---------------------------------------------------------------------------------------
-def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuSpec | None = None):
+def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = None):
     """Same closed loop as :func:`scenarios.simulate.integrate`, with the plant advanced by
     the FMU of *spec* (one run at a time, one ``doStep`` of Ts per FCC period).
 
@@ -479,11 +490,10 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuSpec | None = Non
     numpy versions cost ~60 µs per step on length-1 arrays); the operations and their order
     are the same, so both back ends round alike (checked in tests/test_fmu.py).
     """
-    from .fmu_build import plant_parameters
     from .simulate import Trajectory
 
     if spec is None:
-        raise ValueError("integrate_fmu needs an FmuSpec (which FMU to run)")
+        raise ValueError("integrate_fmu needs an FmuPlant (which FMU to run)")
     faults = {"disconnection"} if (p.faults.k_disc < NEVER).any() else set()
     info, inst = instance(spec, faults)
     n, T = p.u.shape
@@ -566,8 +576,8 @@ def _bad(inst: _Instance, signal: str, value: float, t: float):
                       f"({signal}) is {value!r} at t = {t:.2f} s; the run is stopped")
 
 
-def spec_of_config(config) -> FmuSpec | None:
-    """The FmuSpec of a campaign's ``[plant]`` section (None: the built-in plant). The
+def spec_of_config(config) -> FmuPlant | None:
+    """The FmuPlant of a campaign's ``[plant]`` section (None: the built-in plant). The
     path is made absolute against the working directory."""
     section = getattr(config, "plant", None)
     if section is None or section.fmu is None:
@@ -575,5 +585,5 @@ def spec_of_config(config) -> FmuSpec | None:
     from dataclasses import fields
 
     variables = {f.name: getattr(section.variables, f.name) for f in fields(section.variables)}
-    return FmuSpec.of(Path(section.fmu).expanduser().resolve(), variables,
+    return FmuPlant.of(Path(section.fmu).expanduser().resolve(), variables,
                       push_parameters=section.push_parameters)

@@ -101,16 +101,9 @@ def start_values(surface: str = "elevator") -> dict[str, float]:
     pt = {k: np.array([v]) for k, v in DEFAULT_POINT.items()}
     fc = envelope.flight_condition(pt["alt_ft"], pt["vcas_kt"], pt["mass_t"], pt["cg_pct"])
     pl = plant_arrays(act, qbar_pa=fc["qbar_pa"], alpha_deg=fc["alpha_deg"], mach=fc["mach"])
+    from .fmu import plant_parameters
+
     return plant_parameters(pl, act, 0)
-
-
-def plant_parameters(pl, act, j: int) -> dict[str, float]:
-    """The FMU parameters of run *j* of a batch (PlantArrays *pl*, ActuatorParams *act*)."""
-    out = {name: float(np.asarray(getattr(pl, name))[j]) for name in START_MACROS
-           if hasattr(pl, name)}
-    out["stop_min_rad"] = float(np.radians(act.stop_min_deg))
-    out["stop_max_rad"] = float(np.radians(act.stop_max_deg))
-    return out
 
 
 def _start_header(values: dict[str, float], guid: str) -> str:
@@ -200,9 +193,9 @@ def validate_fmu_file(path: str | os.PathLike) -> None:
         problems = [f"{type(exc).__name__}: {exc}"]
     if problems:
         raise FmuBuildError(f"FMU {path} does not validate:\n  - " + "\n  - ".join(problems))
-    from .fmu import FmuSpec, probe
+    from .fmu import FmuPlant, probe
 
-    probe(FmuSpec(path=str(path)))
+    probe(FmuPlant(path=str(path)))
 
 
 def main(argv=None) -> int:  # pragma: no cover - thin wrapper, the CLI is the entry point

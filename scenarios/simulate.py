@@ -334,7 +334,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
 
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
-    *plant*: None for the built-in plant, or a :class:`scenarios.fmu.FmuSpec` to advance
+    *plant*: None for the built-in plant, or a :class:`scenarios.fmu.FmuPlant` to advance
     the plant with an FMU (:mod:`scenarios.fmu`).
     """
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)

@@ -16,7 +16,7 @@ from campaign.cli import main
 from campaign.config import load_config, with_overrides
 from campaign.runner import ChunkSettings, run, run_chunk, settings_of
 from scenarios.catalog import FAULTS
-from scenarios.fmu import (_CACHE, FmuError, FmuRunError, FmuSpec, inspect_fmu, instance,
+from scenarios.fmu import (_CACHE, FmuError, FmuRunError, FmuPlant, inspect_fmu, instance,
                            probe)
 from scenarios.fmu_build import build_servo_fmu, start_values
 from scenarios.params import SENSORS
@@ -124,7 +124,7 @@ def test_fmu_build_command(tmp_path, capsys):
 def test_fmu_matches_builtin_plant_for_every_fault(request, surface, fmi):
     fmu = request.getfixturevalue("servo_fmu" if fmi == "2" else "servo_fmu3")
     runs = _runs(surface)
-    spec = FmuSpec.of(fmu)
+    spec = FmuPlant.of(fmu)
     assert inspect_fmu(spec).version == f"{fmi}.0"
     sig_b, tru_b = simulate(runs)
     sig_f, tru_f = simulate(runs, plant=spec)
@@ -150,15 +150,15 @@ def test_jam_emulated_by_the_engine_when_the_fmu_has_no_jam_input(servo_fmu):
     runs = _runs("elevator")
     runs = runs[runs["fault"] == "solid_jam"]
     p = prepare(runs)
-    with_input = simulate(runs, plant=FmuSpec.of(servo_fmu))[1]
-    emulated = simulate(runs, plant=FmuSpec.of(servo_fmu, {"jam": ""}))[1]
+    with_input = simulate(runs, plant=FmuPlant.of(servo_fmu))[1]
+    emulated = simulate(runs, plant=FmuPlant.of(servo_fmu, {"jam": ""}))[1]
     builtin = integrate(p, SENSORS)
     assert np.abs(emulated.rod_mm - with_input.rod_mm).max() <= TOL_MM
     assert np.abs(emulated.rod_mm - builtin.x).max() <= TOL_MM
 
 
 def test_one_instance_per_process_reset_between_runs(servo_fmu):
-    spec = FmuSpec.of(servo_fmu)
+    spec = FmuPlant.of(servo_fmu)
     runs = _runs("elevator")
     both = simulate(runs, plant=spec)[1]
     _, inst = instance(spec)
@@ -199,7 +199,7 @@ def test_run_cli_with_plant(servo_fmu, tmp_path, capsys):
 # ---------------------------------------------------------------------------------------
 def test_missing_fmu_file(tmp_path, capsys):
     with pytest.raises(FmuError, match=r"nothere\.fmu: file not found.*fmu build"):
-        inspect_fmu(FmuSpec.of(tmp_path / "nothere.fmu"))
+        inspect_fmu(FmuPlant.of(tmp_path / "nothere.fmu"))
     code = main(["run", "smoke", "--plant", str(tmp_path / "nothere.fmu"),
                  "--out", str(tmp_path / "r"), "--quiet"])
     assert code == 2 and "nothere.fmu: file not found" in capsys.readouterr().err
@@ -216,22 +216,22 @@ def test_model_exchange_only_fmu_is_refused(servo_fmu, tmp_path):
 
     bad = _zip_with(servo_fmu, tmp_path / "me.fmu", {"modelDescription.xml": to_me})
     with pytest.raises(FmuError, match=r"me\.fmu.*not a co-simulation FMU \(model exchange"):
-        inspect_fmu(FmuSpec.of(bad))
+        inspect_fmu(FmuPlant.of(bad))
 
 
 def test_unmapped_and_wrong_variables_are_named(servo_fmu):
     with pytest.raises(FmuError) as err:
-        inspect_fmu(FmuSpec.of(servo_fmu, {"rod": "x_pos", "current": "x_mm"}))
+        inspect_fmu(FmuPlant.of(servo_fmu, {"rod": "x_pos", "current": "x_mm"}))
     msg = str(err.value)
     assert "rod = 'x_pos'" in msg and "no variable 'x_pos'" in msg and "x_mm" in msg
     assert "current = 'x_mm'" in msg and "is a(n) output" in msg
     assert str(servo_fmu) in msg
     with pytest.raises(FmuError, match=r"current is not mapped.*i_mA"):
-        inspect_fmu(FmuSpec.of(servo_fmu, {"current": ""}))
+        inspect_fmu(FmuPlant.of(servo_fmu, {"current": ""}))
     with pytest.raises(FmuError, match=r"disconnect is not mapped.*disconnection runs"):
-        inspect_fmu(FmuSpec.of(servo_fmu, {"disconnect": ""}), faults={"disconnection"})
+        inspect_fmu(FmuPlant.of(servo_fmu, {"disconnect": ""}), faults={"disconnection"})
     with pytest.raises(FmuError, match=r"parameter override 'Kx'.*real parameters: .*Ka"):
-        inspect_fmu(FmuSpec.of(servo_fmu, parameters={"Kx": 1.0}))
+        inspect_fmu(FmuPlant.of(servo_fmu, parameters={"Kx": 1.0}))
 
 
 @pytest.mark.parametrize("breakage", ["binary", "guid"])
@@ -244,14 +244,14 @@ def test_fmu_that_fails_to_instantiate(servo_fmu, tmp_path, breakage):
             rb'guid="[^"]+"', b'guid="{00000000-0000-0000-0000-000000000000}"', x)})
     cwd = Path.cwd()
     with pytest.raises(FmuError, match=r"b\.fmu: fails to instantiate"):
-        probe(FmuSpec.of(bad))
+        probe(FmuPlant.of(bad))
     assert Path.cwd() == cwd  # fmpy's library loading did not leave us elsewhere
 
 
 def test_nan_mid_run_is_a_per_run_error(servo_fmu):
     # a negative damping coefficient makes the rod-speed denominator negative once the
     # current is large: the hardover at 3 s drives sqrt() of a negative number → NaN
-    spec = FmuSpec.of(servo_fmu, parameters={"Ka": -1000.0})
+    spec = FmuPlant.of(servo_fmu, parameters={"Ka": -1000.0})
     ok = single_run("elevator", "cruise", "none", seed=1, duration_s=20.0)
     bad = single_run("elevator", "cruise", "hardover", seed=2, onset_s=3.0, duration_s=20.0)
     with pytest.raises(FmuRunError, match=r"servo\.fmu: output 'x_mm' \(rod\) is nan at t = 3\.0"):
