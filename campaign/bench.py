@@ -53,9 +53,25 @@ def _simulate_chunk(rows):
     return sig.n_runs, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def _simulate_chunk_on(rows, plant):
+    sig, _ = simulate(rows, plant=plant)
+    return sig.n_runs, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
 def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_size: int = 275,
-          reference_runs: int = 2, echo=print) -> dict:
-    """Measure and print the figures; returns them as a dict."""
+          reference_runs: int = 2, echo=print, plant: str | None = None,
+          plant_runs: int = 40) -> dict:
+    """Measure and print the figures; returns them as a dict.
+
+    *plant*: an FMU file; its first *plant_runs* runs of the same load are also simulated on
+    the FMU back end (same workers) and its per-run cost is reported beside the built-in
+    plant's."""
+    spec = None
+    if plant is not None:
+        from scenarios.fmu import FmuPlant, probe
+
+        spec = FmuPlant.of(str(__import__("pathlib").Path(plant).resolve()))
+        probe(spec, faults={"disconnection"})
     runs = bench_runs(n_runs, duration_s)
     chunks = [runs.iloc[s:s + chunk_size] for s in range(0, n_runs, chunk_size)]
     echo(f"bench: {n_runs} runs x {duration_s:g} s at 100 Hz, {jobs} worker(s), "
@@ -83,6 +99,25 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     echo(f"  per-run reference     : {ref_per_run:8.2f} s per run (solve_ivp, {reference_runs} "
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
+    if spec is not None:
+        m = min(plant_runs, n_runs)
+        fmu_rows = runs.iloc[:m]
+        per = max(1, -(-m // jobs))
+        t2 = time.perf_counter()
+        Parallel(n_jobs=jobs, backend="loky")(
+            delayed(_simulate_chunk_on)(fmu_rows.iloc[s:s + per], spec) for s in range(0, m, per))
+        fmu_wall = time.perf_counter() - t2
+        builtin_per_run = wall / n_runs
+        fmu_per_run = fmu_wall / m
+        figures.update({
+            "fmu_runs": m, "fmu_wall_s": fmu_wall, "fmu_s_per_run": fmu_per_run,
+            "builtin_s_per_run": builtin_per_run,
+            "fmu_cost_ratio": fmu_per_run / builtin_per_run,
+        })
+        echo(f"  FMU plant ({plant}): {m} runs on {jobs} worker(s) in {fmu_wall:.2f} s")
+        echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
+             f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
+             "the built-in plant per run")
     figures["detector_ns_per_run_step"] = detector_costs(min(chunk_size, n_runs), duration_s,
                                                          echo=echo)
     return figures

@@ -27,6 +27,8 @@ def cmd_run(args) -> int:
     config = cfg.load_config(args.campaign)
     if args.seed is not None:
         config = cfg.with_overrides(config, seed=args.seed)
+    if args.plant is not None:
+        config = cfg.with_overrides(config, values={"plant.fmu": args.plant})
     if args.jobs < 1:
         raise UsageError("--jobs must be ≥ 1")
     result = run(config, args.out, jobs=args.jobs, chunk_size=args.chunk_size,
@@ -168,7 +170,21 @@ def cmd_bench(args) -> int:
     from .bench import bench
 
     bench(n_runs=args.runs, duration_s=args.duration, jobs=args.jobs,
-          chunk_size=args.chunk_size, reference_runs=args.reference_runs)
+          chunk_size=args.chunk_size, reference_runs=args.reference_runs,
+          plant=args.plant, plant_runs=args.plant_runs)
+    return EXIT_OK
+
+
+def cmd_fmu(args) -> int:
+    from scenarios.fmu_build import FmuBuildError, build_servo_fmu
+
+    try:
+        out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,
+                              log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
+    except FmuBuildError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); run a "
+          f"campaign on it with: fdd-campaign run smoke --plant {out} --out results/")
     return EXIT_OK
 
 
@@ -207,6 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", default="loky", choices=["loky", "threading"],
                    help="joblib backend (default loky: processes)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.add_argument("--plant", metavar="FMU", help="simulate on this co-simulation FMU instead "
+                   "of the built-in plant (sets [plant] fmu; see docs/fmu.md)")
 
     p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)
@@ -257,6 +275,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chunk-size", type=int, default=275)
     p.add_argument("--reference-runs", type=int, default=2,
                    help="runs timed with the solve_ivp reference (default 2)")
+    p.add_argument("--plant", metavar="FMU", help="also time this FMU plant (per-run cost "
+                   "beside the built-in plant)")
+    p.add_argument("--plant-runs", type=int, default=40,
+                   help="runs timed on the FMU plant (default 40)")
+
+    fmu = subs.add_parser("fmu", help="build the built-in servo-loop as an FMU",
+                          description="FMU tools")
+    fsubs = fmu.add_subparsers(dest="fmu_command", metavar="FMU_COMMAND", required=True)
+    p = _sub(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
+             "FMU and validate it with fmpy", "fdd-campaign fmu build --out servo.fmu", cmd_fmu)
+    p.add_argument("--out", default="servo.fmu", help="FMU file to write (default servo.fmu)")
+    p.add_argument("--surface", default="elevator", choices=SURFACES,
+                   help="surface whose parameters are the FMU's start values")
+    p.add_argument("--fmi", default="2", choices=["2", "3"], help="FMI version (default 2)")
+    p.add_argument("--verbose", action="store_true", help="print the compiler command")
     return parser
 
 

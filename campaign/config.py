@@ -54,6 +54,7 @@ __all__ = [
     "RequirementsSection",
     "LearningSection",
     "RunnerSection",
+    "PlantSection",
     "Key",
     "load_config",
     "list_presets",
@@ -416,6 +417,42 @@ class RunnerSection:
                           hi=10000)
 
 
+def _fmu_var(doc: str, default: str):
+    return key("str", doc + " (\"\" leaves it unmapped)", default,
+               source="scenarios/fmu.py SIGNALS")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantVariables:
+    current: str = key("str", "FMU input that receives the servo-valve current held over "
+                       "each period [mA]; required", "i_mA", nonempty=True,
+                       source="scenarios/fmu.py SIGNALS")
+    rod: str = key("str", "FMU output of the rod position [mm]; required", "x_mm",
+                   nonempty=True, source="scenarios/fmu.py SIGNALS")
+    surface: str = _fmu_var("FMU output of the surface deflection [deg]; unmapped: "
+                            "asin(rod/r), no disconnection runs", "delta_deg")
+    rod_start: str = _fmu_var("FMU parameter set to the trimmed start rod position [mm]",
+                              "x0")
+    jam: str = _fmu_var("FMU input set to 1 from a solid-jam onset; unmapped: the engine "
+                        "holds the FMU outputs from the onset", "jam")
+    disconnect: str = _fmu_var("FMU input set to 1 from a disconnection onset; required "
+                               "for disconnection runs", "disconnect")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantSection:
+    fmu: str | None = key("str", "FMI 2.0/3.0 co-simulation FMU that replaces the built-in "
+                          "servo-loop plant (path relative to the working directory; "
+                          "`fdd-campaign fmu build` makes the built-in one)", optional=True,
+                          default_doc="built-in plant", example="servo.fmu", nonempty=True)
+    push_parameters: bool = key("bool", "set each run's true plant parameters (Kci, SdP, "
+                                "SdP_ref, Ka, r_mm, x_min, x_max, hm_delta, hm_0, "
+                                "stop_min_rad, stop_max_rad) into the FMU parameters of the "
+                                "same names", True)
+    variables: PlantVariables = sub_table(PlantVariables, "FMU variable of each engine "
+                                          "signal (defaults: the built-in servo-loop FMU)")
+
+
 @dataclass(frozen=True, kw_only=True)
 class CampaignConfig:
     """A validated campaign (frozen, hashable). Build it with :func:`load_config` or
@@ -451,6 +488,10 @@ class CampaignConfig:
         "thresholds.")
     runner: RunnerSection = section(RunnerSection, "runner", "Execution (does not change "
                                     "any result).")
+    plant: PlantSection = section(
+        PlantSection, "plant", "The plant the runs are simulated on: the built-in servo-loop "
+        "(default) or an FMU (docs/fmu.md). The engine keeps the FCC, the sensors and the "
+        "command- and sensor-side faults; the FMU is the physical plant.")
     source: str = field(default="<dict>", compare=False, repr=False)
 
     # -- canonical forms ------------------------------------------------------------------
@@ -965,6 +1006,18 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
 
     # detectors
     _check_detectors(v["detectors"], camp, errors)
+
+    # plant: the FMU keys mean nothing without an FMU (defaults written out are harmless)
+    plant = v["plant"]
+    if plant["fmu"] is None:
+        given = [k for k in ("push_parameters",) if k in plant["__present__"]
+                 and plant[k] != PlantSection.__dataclass_fields__[k].default]
+        given += [f"variables.{f.name}" for f in _leaf_fields(PlantVariables)
+                  if f.name in plant["variables"]["__present__"]
+                  and plant["variables"][f.name] != f.default]
+        for k in given:
+            errors.append(f"plant.{k}: only used with an FMU plant; fix: set [plant] fmu = "
+                          "\"servo.fmu\" or remove it")
 
 
 def _spec(cls: type, sub: str, name: str) -> Key:

@@ -45,6 +45,7 @@ class ChunkSettings:
     pressure_sensor: bool
     required_time_s: dict
     window_s: float | None
+    plant: object = None          # None: built-in plant; scenarios.fmu.FmuPlant: an FMU
 
 
 def _error_rows(rows: pd.DataFrame, detector: str, message: str) -> pd.DataFrame:
@@ -73,7 +74,8 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
     others of its chunk down with it.
     """
     try:
-        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
+        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
+                                  plant=settings.plant)
     except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
         if len(rows) > 1:
             return pd.concat([run_chunk(rows.iloc[[j]], detectors, settings)
@@ -160,7 +162,7 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
     parts = []
     for start in range(0, len(plan), chunk_size):
         sig, _ = simulate(plan.iloc[start:start + chunk_size], ts=settings.ts,
-                          pressure_sensor=settings.pressure_sensor)
+                          pressure_sensor=settings.pressure_sensor, plant=settings.plant)
         parts.append(sig)
     return Signals.concat(parts)
 
@@ -226,12 +228,24 @@ class CampaignResult:
 
 
 def settings_of(config) -> ChunkSettings:
+    from scenarios.fmu import spec_of_config
+
     return ChunkSettings(
         ts=config.campaign.ts_s,
         pressure_sensor=config.campaign.pressure_sensor,
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
+        plant=spec_of_config(config),
     )
+
+
+def check_plant(config) -> None:
+    """Check an FMU plant and its variable map before anything runs (clear FmuError)."""
+    from scenarios.fmu import probe, spec_of_config
+
+    spec = spec_of_config(config)
+    if spec is not None:
+        probe(spec, faults={g.fault for g in config.groups})
 
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
@@ -248,6 +262,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
+    check_plant(config)
     cdir = CampaignDir(out)
     resumed = cdir.open(config.to_json())
     chunk_size = int(chunk_size or config.runner.chunk_size)

@@ -342,14 +342,21 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
 
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
-             orders_deg: np.ndarray | None = None) -> tuple[Signals, Truth]:
+             orders_deg: np.ndarray | None = None, plant=None) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* (one surface and duration per call).
 
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
+    *plant*: None for the built-in plant, or a :class:`scenarios.fmu.FmuPlant` to advance
+    the plant with an FMU (:mod:`scenarios.fmu`).
     """
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
-    traj = integrate(p, sensors)
+    if plant is None:
+        traj = integrate(p, sensors)
+    else:
+        from .fmu import integrate_fmu
+
+        traj = integrate_fmu(p, sensors, plant)
     act = p.act
     mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
                    sensors.rod_quant_mm)
