@@ -165,12 +165,6 @@ def float_step(delta_rad, p: PlantArrays, h: float, d_min_rad, d_max_rad) -> np.
     return np.clip(p.delta_float_rad + e_new, d_min_rad, d_max_rad)
 
 
-def float_rate(delta_rad, p: PlantArrays) -> np.ndarray:
-    """δ̇ [rad/s] of the floating surface (used by the reference integrator)."""
-    e = delta_rad - p.delta_float_rad
-    return -np.sign(e) * float_rate_coef(delta_rad, p) * np.sqrt(np.abs(e))
-
-
 def authority_limits(p: PlantArrays, act: ActuatorParams, n_grid: int = 721):
     """Deflections [deg] reachable in normal flight, per run: the widest interval around the
     floating angle, inside the electrical limits, where the hinge load stays below
