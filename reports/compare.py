@@ -1,7 +1,7 @@
 """What changed between two campaigns: rates with a significance test, DTP shifts, per cell.
 
 A cell is one detector × fault × manoeuvre (plus the fault's ``manoeuvre = "all"``
-aggregate when the fault was run in several manoeuvres). For each cell, from the scored
+aggregate when either campaign ran the fault in several manoeuvres). For each cell, from the scored
 (``status == "ok"``) result rows of campaign A and campaign B:
 
 * FA and MD rates of both with the two-sided Fisher exact test of the 2 × 2 table
@@ -60,11 +60,18 @@ def _scored(results: pd.DataFrame) -> pd.DataFrame:
     })
 
 
-def _cells(rows: pd.DataFrame) -> dict:
-    """(detector, fault, manoeuvre) → rows, with per-fault aggregates over manoeuvres."""
+def _several(rows: pd.DataFrame) -> set:
+    """(detector, fault) pairs run in more than one manoeuvre."""
+    n = rows.groupby(["detector", "fault"])["manoeuvre"].nunique()
+    return set(n[n > 1].index)
+
+
+def _cells(rows: pd.DataFrame, aggregate: set) -> dict:
+    """(detector, fault, manoeuvre) → rows, plus the aggregate over manoeuvres of the
+    (detector, fault) pairs in *aggregate*."""
     out = {k: g for k, g in rows.groupby(_KEYS, sort=True)}
     for (detector, fault), g in rows.groupby(["detector", "fault"], sort=True):
-        if g["manoeuvre"].nunique() > 1:
+        if (detector, fault) in aggregate:
             out[(detector, fault, ALL_MANOEUVRES)] = g
     return out
 
@@ -106,7 +113,9 @@ def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
     """
     if not 0.0 < float(alpha) < 1.0:
         raise ValueError(f"alpha must be a significance level in (0, 1), got {alpha}")
-    cells_a, cells_b = _cells(_scored(results_a)), _cells(_scored(results_b))
+    rows_a, rows_b = _scored(results_a), _scored(results_b)
+    aggregate = _several(rows_a) | _several(rows_b)
+    cells_a, cells_b = _cells(rows_a, aggregate), _cells(rows_b, aggregate)
     rows = []
     for key in sorted(set(cells_a) | set(cells_b)):
         ga, gb = cells_a.get(key), cells_b.get(key)

@@ -277,7 +277,7 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
         ax.set_ylabel(yl)
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7, loc="best")
+            ax.legend(fontsize=7, loc="upper right")
     cax = fig.add_axes([0.92, 0.14, 0.015, 0.74])
     fig.colorbar(sc, cax=cax, label=label)
     fig.suptitle(title, fontsize=10)

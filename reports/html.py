@@ -181,6 +181,14 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
                 ["Fault-free manoeuvre", "n", "err", "false alarms", "FA (%)", "FA 95 % CI",
                  "FA ≤95 (%)", "worst margin max |r|/τ", "verdict", "drill-down"], rows,
                 cls="verdict faultfree"))
+            tot = free[free["manoeuvre"] == ALL_MANOEUVRES]
+            if len(tot) and int(tot["n_runs"].iloc[0]):
+                r = tot.iloc[0]
+                k, n = int(r.fa_count), int(r.n_runs)
+                words = "No false alarm" if k == 0 else f"{k} false alarm{'s' * (k > 1)}"
+                out.append(f'<p class="bound">{words} in {n} fault-free runs: FA ≤ '
+                           f"{_pct(r.fa_upper95)} % at 95 % confidence (exact one-sided "
+                           "Clopper–Pearson bound).</p>")
         failed = [c for c in checks if not c.passed]
         if failed:
             items = "".join(f"<li>{_e(c.message)}</li>" for c in failed)
@@ -280,6 +288,7 @@ table.runlist td:last-child{text-align:left}
 .badge{display:inline-block;padding:1px 8px;border-radius:4px;font-weight:bold;color:#fff;
 font-size:12px}.pass{background:#2a8a3a}.fail{background:#c62828}.na{background:#999}
 .bad{color:#c62828;font-weight:bold}.note,.req{font-size:13px;color:#444}
+.bound{font-weight:bold}
 .scroll{max-height:360px;overflow:auto;border:1px solid #ddd;margin-bottom:1em}
 figure{display:inline-block;width:min-content;margin:.4em .8em .8em 0;vertical-align:top}
 figure img{border:1px solid #ddd}figcaption{font-size:12px}
