@@ -62,7 +62,7 @@ class ReportSettings:
         evenly spaced in plan order.
     worst_kept : see ``envelope_runs``
     examples_per_fault : example runs shown per fault type (the slowest or a missed one,
-        the median, the fastest)
+        the median, the fastest); 0 shows no example run at all
     """
 
     envelope_bins: int = 600
@@ -254,7 +254,9 @@ def _margin_check(env, results: pd.DataFrame) -> float:
 def _example_ids(results: pd.DataFrame, n_per_fault: int) -> list[tuple[str, str, str]]:
     """(fault, run_id, why) of the runs shown as examples: per fault type the slowest or a
     missed run, the median and the fastest (DTP worst over detectors); the fault-free run
-    of largest margin."""
+    of largest margin. None when *n_per_fault* is 0."""
+    if n_per_fault <= 0:
+        return []
     ok = results[results["status"] == "ok"]
     out = []
     free = ok[ok["fault"] == FAULT_FREE]

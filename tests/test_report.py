@@ -1,8 +1,15 @@
-"""The HTML campaign report, `show` (one run re-simulated from its id) and `compare`."""
+"""The HTML campaign report, `show` (one run re-simulated from its id) and `compare`.
+
+The report is also rendered in a real browser (headless Chromium, no network). Chromium
+comes from the Debian packages; the fixture installs it when it is missing (as root, with
+apt-get) and skips with the reason when that is impossible.
+"""
 
 import base64
+import os
 import re
 import shutil
+import subprocess
 from math import comb
 from pathlib import Path
 
@@ -128,10 +135,12 @@ def test_resimulated_margins_reproduce_the_stored_ones(report):
 def test_subsampled_envelopes_keep_the_worst_run(campaign_dir, report, tmp_path):
     _, page = report
     small_page = build_report(campaign_dir, jobs=1, out=tmp_path / "r.html", log=lambda _: None,
-                              settings=ReportSettings(envelope_runs=3, worst_kept=1)).read_text()
+                              settings=ReportSettings(envelope_runs=3, worst_kept=1,
+                                                      examples_per_fault=0)).read_text()
     assert "6 of 16: per manoeuvre at most 3" in small_page
     worst = re.findall(r"worst run (\w+) \(fdd-campaign", page)
     assert len(worst) == 2 and re.findall(r"worst run (\w+) \(fdd-campaign", small_page) == worst
+    assert "Example run" not in small_page
 
 
 def test_report_works_on_a_copied_directory(campaign_dir, report, tmp_path, capsys):
@@ -239,3 +248,66 @@ def test_bin_max_keeps_every_peak_and_ignores_nan():
     assert starts.tolist() == [0, 3, 6, 9]
     assert b[0].tolist() == [0.0, 0.0, 5.0, 0.0]
     assert np.isnan(b[1, 0]) and b[1, 1:].tolist() == [0.0, 0.0, 0.0]
+
+
+# ---- in a browser --------------------------------------------------------------------------
+CHROMIUM = Path("/usr/bin/chromium")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+@pytest.fixture(scope="session")
+def chromium():
+    if CHROMIUM.exists():
+        return CHROMIUM
+    if not shutil.which("apt-get"):
+        pytest.skip("chromium is not installed and apt-get is not available to install it")
+    if hasattr(os, "geteuid") and os.geteuid() != 0:
+        pytest.skip("chromium is not installed and installing it with apt-get needs root")
+    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
+    try:
+        for cmd in (["apt-get", "update"], ["apt-get", "install", "-y", "chromium"]):
+            done = subprocess.run(cmd, capture_output=True, text=True, timeout=900, env=env)
+            if done.returncode != 0:
+                pytest.skip(f"could not install chromium ({' '.join(cmd)} failed: "
+                            f"{done.stderr.strip()[-300:]})")
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        pytest.skip(f"could not install chromium: {exc}")
+    if not CHROMIUM.exists():
+        pytest.skip("apt-get installed chromium but /usr/bin/chromium is missing")
+    return CHROMIUM
+
+
+def _chromium(binary, profile, *args, timeout=120):
+    return subprocess.run([str(binary), *FLAGS, f"--user-data-dir={profile}", *args],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_report_dom_has_the_verdict_table_and_every_figure(chromium, report, tmp_path):
+    page_path, html = report
+    done = _chromium(chromium, tmp_path / "profile", "--dump-dom", page_path.as_uri())
+    assert done.returncode == 0, done.stderr[-2000:]
+    dom = done.stdout
+    assert re.search(r'<section id="verdict">.*?<table class="verdict faults">', dom, re.S)
+    assert "position-monitor" in dom and "Fault scenario" in dom
+    assert count_figures(dom) == count_figures(html) == 15
+    # every image is an embedded PNG (data URI), nothing to fetch
+    srcs = re.findall(r'<img [^>]*src="([^"]{0,30})', dom)
+    assert len(srcs) == 15 and all(s.startswith("data:image/png;base64,") for s in srcs)
+
+
+def test_report_screenshot_shows_a_rendered_page(chromium, report, tmp_path):
+    page_path = report[0]
+    shot = tmp_path / "report.png"
+    done = _chromium(chromium, tmp_path / "profile", f"--screenshot={shot}",
+                     "--window-size=1400,3000", page_path.as_uri())
+    assert done.returncode == 0 and shot.exists(), done.stderr[-2000:]
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(shot)
+    assert img.shape[:2] == (3000, 1400)
+    # a blank or unstyled page is almost uniform; the rendered report has text, tables,
+    # the green/red verdict badges and figures: many distinct colours and dark pixels
+    rgb = (img[..., :3] * 255).astype(np.uint8).reshape(-1, 3)
+    assert len(np.unique(rgb, axis=0)) > 500
+    assert np.mean(rgb.mean(axis=1) < 128) > 0.005
