@@ -120,6 +120,19 @@ class _quiet:
         return self._w.__exit__(*exc)
 
 
+def _hist(ax, x: np.ndarray, color: str) -> None:
+    """Histogram of *x*; a single bar when every value is the same (to rounding), so the
+    axis shows the value instead of an offset notation around it."""
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if hi - lo <= 1e-9 * max(1.0, abs(hi)):
+        width = max(abs(hi) * 0.2, 1e-3)
+        ax.bar([hi], [len(x)], width=width, color=color, alpha=0.8)
+        ax.set_xlim(hi - 3 * width, hi + 3 * width)
+    else:
+        ax.hist(x, bins=min(30, max(5, len(x) // 5)), color=color, alpha=0.8)
+    ax.ticklabel_format(axis="x", useOffset=False)
+
+
 def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: str,
                  max_dtp: float | None = None):
     """Distributions of detection delay [s] and DTP [-] of the detected runs of one fault
@@ -137,7 +150,7 @@ def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: 
     n_det = len(dtp)
     ax = axes[0]
     if n_det:
-        ax.hist(delay_s, bins=min(30, max(5, n_det // 5)), color="tab:blue", alpha=0.8)
+        _hist(ax, delay_s, "tab:blue")
     else:
         ax.text(0.5, 0.5, "no detected run", ha="center", va="center", transform=ax.transAxes)
     ax.set_xlabel("detection delay [s]")
@@ -145,7 +158,7 @@ def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: 
     ax.set_ylabel("runs")
     ax = axes[1]
     if n_det:
-        ax.hist(dtp, bins=min(30, max(5, n_det // 5)), color="tab:purple", alpha=0.8)
+        _hist(ax, dtp, "tab:purple")
         ax.set_title(f"DTP min/mean/max {np.min(dtp):.3g}/{np.mean(dtp):.3g}/"
                      f"{np.max(dtp):.3g}", fontsize=8)
     else:
@@ -183,9 +196,9 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     """
     plt = _plt()
     t = frame.index.to_numpy()
-    fig, axes = plt.subplots(4, 1, figsize=(8.0, 7.4), sharex=True,
+    fig, axes = plt.subplots(4, 1, figsize=(9.0, 7.4), sharex=True,
                              gridspec_kw={"height_ratios": [3, 2, 2, 3]})
-    fig.subplots_adjust(left=0.09, right=0.72, top=0.94, bottom=0.07, hspace=0.12)
+    fig.subplots_adjust(left=0.08, right=0.70, top=0.94, bottom=0.07, hspace=0.12)
     ax = axes[0]
     ax.plot(t, frame["command [mm]"], label="order u", lw=1.1)
     ax.plot(t, frame["rod_com [mm]"], label="rod COM", lw=0.8)
@@ -214,7 +227,8 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
             first = t[int(np.argmax(alarm))]
             ax.fill_between(t, 0, 1, where=alarm, step="post", color=line.get_color(),
                             alpha=0.15, transform=ax.get_xaxis_transform(),
-                            label=f"{name} alarm (first {first:.2f} s)")
+                            label=(f"{name} " if len(residuals) > 1 else "")
+                            + f"alarm, first at {first:.2f} s")
         if np.isfinite(res).any():
             top = max(top, float(np.nanmax(res)) * 1.08)
     ax.axhline(1.0, color=THRESHOLD_COLOUR, ls="--", lw=1.3, label="threshold")

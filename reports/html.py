@@ -199,7 +199,7 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
 
 
 # ---- drill-down ----------------------------------------------------------------------------
-_RUN_HEADER = ["run id", "manoeuvre", "alt [ft]", "VCAS [kt]", "mass [t]", "CG [% MAC]",
+_RUN_HEADER = ["run id", "alt [ft]", "VCAS [kt]", "mass [t]", "CG [% MAC]",
                "onset [s]", "status", "false alarm", "detected", "margin max |r|/τ",
                "delay [s]", "DTP", "re-simulate (in the campaign directory)"]
 
@@ -219,7 +219,7 @@ def _run_rows(runs: pd.DataFrame) -> list[list[str]]:
         status = _e(r.status) if ok else f'<span class="bad" title="{_e(r.error)}">' \
                                           f"{_e(r.status)}</span>"
         rows.append([
-            f"<code>{_e(r.run_id)}</code>", _e(r.manoeuvre), _num(r.alt_ft, ".0f"),
+            f"<code>{_e(r.run_id)}</code>", _num(r.alt_ft, ".0f"),
             _num(r.vcas_kt, ".0f"), _num(r.mass_t, ".1f"), _num(r.cg_pct, ".1f"),
             _num(r.onset_s, ".2f"), status, '<span class="bad">yes</span>' if fa else "no",
             detected, margin, _num(r.delay_s, ".3f"), _num(r.dtp, ".4g"),
