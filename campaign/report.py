@@ -48,6 +48,10 @@ POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude"
 #: Largest number of runs re-simulated together by one worker (about 30 arrays of
 #: MAX_CHUNK × n_steps floats: 0.9 GB for 60 s runs at 10 ms).
 MAX_CHUNK = 600
+#: Smallest batch worth a worker process of its own.
+MIN_CHUNK = 100
+#: Fewest figures worth drawing in worker processes.
+MIN_PARALLEL_FIGURES = 8
 
 
 @dataclass(frozen=True)
@@ -172,9 +176,10 @@ def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, detectors: di
     return env_rows["run_id"].to_numpy(), starts, env, examples
 
 
-def _run_tasks(tasks: list, jobs: int) -> list:
-    """Results of joblib ``delayed`` tasks, in order: in-process for one job, else loky."""
-    if jobs == 1 or len(tasks) <= 1:
+def _run_tasks(tasks: list, jobs: int, min_tasks: int = 2) -> list:
+    """Results of joblib ``delayed`` tasks, in order: in-process for one job or fewer than
+    *min_tasks* tasks (starting worker processes costs seconds), else in loky processes."""
+    if jobs == 1 or len(tasks) < max(2, min_tasks):
         return [f(*a, **k) for f, a, k in tasks]
     return Parallel(n_jobs=min(jobs, len(tasks)), backend="loky")(tasks)
 
@@ -215,10 +220,11 @@ def _chunks(free: pd.DataFrame, extra: pd.DataFrame, jobs: int) -> list:
     """(fault-free rows, example rows) per task.
 
     The time loops are vectorised over runs: a batch costs nearly the same for 50 or 600
-    runs, so the runs are split evenly over the jobs in batches of at most MAX_CHUNK runs
-    (which bounds a worker's memory); the example rows are dealt over the batches.
+    runs, so the runs are split evenly over the jobs in batches of at least MIN_CHUNK runs
+    (smaller ones are not worth a process) and at most MAX_CHUNK runs (which bounds a
+    worker's memory); the example rows are dealt over the batches.
     """
-    n_tasks = max(1, -(-len(free) // MAX_CHUNK), min(jobs, max(1, len(free))))
+    n_tasks = max(1, -(-len(free) // MAX_CHUNK), min(jobs, len(free) // MIN_CHUNK))
     size = max(1, -(-len(free) // n_tasks))
     env = [free.iloc[s:s + size] for s in range(0, len(free), size)] or [free.iloc[:0]]
     return [(e, extra.iloc[i::len(env)]) for i, e in enumerate(env)]
@@ -444,7 +450,8 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                  "highlight_above": req["max_dtp"], "missed": faulty[~hit]}))
     t1 = time.perf_counter()
     pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
-                       for *_, kind, args, kwargs in specs], jobs)
+                       for *_, kind, args, kwargs in specs], jobs,
+                      min_tasks=MIN_PARALLEL_FIGURES)
     figures = [ReportFigure(section, group, title, png, caption)
                for (section, group, title, caption, *_), png in zip(specs, pngs)]
     t_fig = time.perf_counter() - t1
