@@ -31,7 +31,7 @@ from reports.compare import compare_results, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
-from reports.metrics import FAULT_FREE
+from reports.metrics import FAULT_FREE, score_runs
 from scenarios.simulate import simulate
 
 from .config import CampaignConfig
@@ -479,6 +479,16 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
 
 
 # ---- show ----------------------------------------------------------------------------------
+def _score_text(r) -> str:
+    def num(x, fmt, unit=""):
+        x = float(x)
+        return "none" if not np.isfinite(x) else format(x, fmt) + unit
+
+    return (f"margin {num(r['margin'], '.6g')}, false alarm {bool(r['false_alarm'])}, "
+            f"first alarm {num(r['first_alarm_s'], '.4g', ' s')}, "
+            f"detected {bool(r['detected'])}, DTP {num(r['dtp'], '.4g')}")
+
+
 def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.DataFrame:
     """Re-simulate one run of a campaign from its run id and seed.
 
@@ -505,25 +515,24 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
         + f" (seed {row['seed']}, stream {row['stream']})")
     stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
         "detector")
+    settings = camp.settings
+    required = settings.required_time_s.get(str(row["fault"]), np.nan)
     residuals = {}
     for name, d in detections.items():
         res, alarm = np.asarray(d.residual[0], float), np.asarray(d.alarm[0], bool)
         residuals[name] = (res, alarm)
         frame[f"{name} |r|/tau [-]"] = res
         frame[f"{name} alarm"] = alarm
-        t = signals.time
-        before = t < onset - 1e-9 if np.isfinite(onset) else np.ones_like(t, bool)
-        valid = before & ~np.isnan(res)
-        margin = float(np.max(res[valid])) if valid.any() else float("nan")
-        first = float(t[np.argmax(alarm)]) if alarm.any() else float("nan")
+        # scored again with the campaign's own rules (reports.metrics.score_runs)
+        again = score_runs(run_id=[str(run_id)], fault=truth.fault[:1], onset_s=truth.onset_s[:1],
+                           alarm=alarm[None, :], residual=res[None, :], ts=settings.ts,
+                           required_time_s=[required], window_s=settings.window_s).iloc[0]
+        now = _score_text(again)
         if name in stored.index:
-            s = stored.loc[name]
-            log(f"  {name}: stored margin {s['margin']:.6g}, first alarm "
-                f"{s['first_alarm_s']:.4g} s, detected {s['detected']}, DTP {s['dtp']:.4g} | "
-                f"re-simulated margin {margin:.6g}, first alarm {first:.4g} s")
+            log(f"  {name}: stored {_score_text(stored.loc[name])}")
+            log(f"  {' ' * len(name)}  re-simulated {now}")
         else:
-            log(f"  {name}: no stored result; re-simulated margin {margin:.6g}, first alarm "
-                f"{first:.4g} s")
+            log(f"  {name}: no stored result; re-simulated {now}")
     if out:
         import pyarrow as pa
         import pyarrow.parquet as pq

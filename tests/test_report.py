@@ -177,7 +177,11 @@ def test_show_resimulates_one_run_from_its_id(campaign_dir, tmp_path, capsys):
     # are reproduced exactly
     assert np.max(res[t < onset]) == row.margin
     assert t[np.argmax(alarm & (t >= onset))] == pytest.approx(row.first_alarm_s, abs=1e-12)
-    assert "stored margin" in capsys.readouterr().out
+    # the run is scored again by the campaign's rules and printed beside the stored row
+    out = capsys.readouterr().out
+    stored = re.search(r"position-monitor: stored (.*)", out).group(1)
+    again = re.search(r"re-simulated (.*)", out).group(1)
+    assert stored == again and "detected True" in stored
 
 
 def test_show_and_report_refuse_bad_input_with_exit_2(campaign_dir, tmp_path, capsys):
