@@ -218,7 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-html", action="store_true", help="only print the table")
     p.add_argument("--html", help="HTML file to write (default DIR/report.html)")
     p.add_argument("--jobs", type=int, default=2,
-                   help="processes re-simulating the fault-free runs (default 2)")
+                   help="processes re-simulating runs and drawing figures (default 2)")
     p.add_argument("--envelope-runs", type=int,
                    help="re-simulate at most this many fault-free runs per manoeuvre for the "
                         "envelopes (default all; the worst-margin runs are always kept)")
