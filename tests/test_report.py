@@ -161,6 +161,29 @@ def test_report_works_on_a_copied_directory(campaign_dir, report, tmp_path, caps
     assert not (tmp_path / "x.html").exists()
 
 
+def test_report_of_an_interrupted_campaign_says_so(campaign_dir, tmp_path):
+    from campaign.runner import finalize
+    from campaign.storage import CampaignDir, write_parquet
+
+    copy = tmp_path / "partial"
+    shutil.copytree(campaign_dir, copy)
+    cdir = CampaignDir(copy)
+    camp = load_campaign(copy)
+    # as if the campaign had been stopped after its first runs
+    for path in cdir.shard_paths():
+        path.unlink()
+    first = camp.plan["run_id"].iloc[:20]
+    write_parquet(camp.results[camp.results["run_id"].isin(first)], cdir.next_shard_path(),
+                  camp.config.to_json(), kind="results")
+    finalize(cdir, camp.config, camp.plan, False, 0.0)
+    page = build_report(copy, jobs=1, log=lambda _: None,
+                        settings=ReportSettings(examples_per_fault=0)).read_text()
+    assert f"The campaign is incomplete: 20 of {len(camp.plan)} runs" in page
+    # the runs that were not done are in no list
+    missing = set(camp.plan["run_id"]) - set(load_campaign(copy).results["run_id"])
+    assert missing and not any(f"<code>{rid}</code>" in page for rid in missing)
+
+
 def test_show_resimulates_one_run_from_its_id(campaign_dir, tmp_path, capsys):
     camp = load_campaign(campaign_dir)
     row = camp.results[camp.results.fault == "solid_jam"].iloc[0]
