@@ -150,7 +150,7 @@ def _run_margin(residual: np.ndarray) -> np.ndarray:
     return np.where(finite.any(axis=1), peak, np.nan)
 
 
-def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, detectors: dict,
+def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors: dict,
                  settings: ChunkSettings, n_bins: int, example_ids: frozenset):
     """Worker: re-simulate fault-free runs (binned |r|/τ and margin per detector variant)
     together with some example runs (full traces).
@@ -361,8 +361,9 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     plan = camp.plan.set_index("run_id", drop=False)
     extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
     settings = camp.settings
-    parts = _run_tasks([delayed(_trace_chunk)(e, x, detectors, settings, cfg.envelope_bins,
-                                              example_ids)
+    parts = _run_tasks([delayed(_trace_chunk)(e, x, detectors=detectors, settings=settings,
+                                              n_bins=cfg.envelope_bins,
+                                              example_ids=example_ids)
                         for e, x in _chunks(free, extra, jobs)], jobs)
     t_sim = time.perf_counter() - t0
     env = _gather_envelopes(parts, free, settings)
