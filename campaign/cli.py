@@ -224,7 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "envelopes (default all; the worst-margin runs are always kept)")
 
     p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
-             "fdd-campaign show results/ mc-none-cruise-0007 --plot run.png --out run.parquet",
+             "fdd-campaign show results/ 2e961155651f65ed16c7 --plot run.png --out run.parquet",
              cmd_show)
     p.add_argument("dir")
     p.add_argument("run_id")
