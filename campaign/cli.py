@@ -110,7 +110,23 @@ def cmd_report(args) -> int:
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
     print(format_table(summary))
+    if not args.no_html:
+        from .report import write_html_report
+
+        write_html_report(args)
     return EXIT_OK
+
+
+def cmd_show(args) -> int:
+    from .report import cmd_show as show
+
+    return show(args)
+
+
+def cmd_compare(args) -> int:
+    from .report import cmd_compare as compare
+
+    return compare(args)
 
 
 def cmd_presets(args) -> int:
@@ -232,9 +248,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     p.add_argument("--seed", type=int)
 
-    p = _sub(subs, "report", "print the summary of a campaign directory",
-             "fdd-campaign report results/", cmd_report)
+    p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
+             "report (DIR/report.html)", "fdd-campaign report results/", cmd_report)
     p.add_argument("dir")
+    p.add_argument("--no-html", action="store_true", help="only print the table")
+    p.add_argument("--html", help="HTML file to write (default DIR/report.html)")
+    p.add_argument("--jobs", type=int, default=2,
+                   help="processes re-simulating runs and drawing figures (default 2)")
+    p.add_argument("--envelope-runs", type=int,
+                   help="re-simulate at most this many fault-free runs per manoeuvre for the "
+                        "envelopes (default all; the worst-margin runs are always kept)")
+
+    p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
+             "fdd-campaign show results/ 2e961155651f65ed16c7 --plot run.png --out run.parquet",
+             cmd_show)
+    p.add_argument("dir")
+    p.add_argument("run_id")
+    p.add_argument("--plot", help="PNG file: signals, |r|/τ and alarms of every detector")
+    p.add_argument("--out", help="Parquet file for the traces")
+
+    p = _sub(subs, "compare", "what changed between two campaigns: rates with a significance "
+             "test, DTP shifts, per cell", "fdd-campaign compare results-v1/ results-v2/",
+             cmd_compare)
+    p.add_argument("dir_a")
+    p.add_argument("dir_b")
+    p.add_argument("--alpha", type=float, default=0.01,
+                   help="significance level of the worse/better flags (default 0.01)")
 
     p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)

@@ -1,0 +1,585 @@
+"""The HTML report, the re-simulation of single runs and the comparison of two campaigns.
+
+Everything here starts from what a campaign directory holds — ``campaign.json``,
+``plan.parquet``, ``runs/part-*.parquet``, ``summary.parquet`` and ``fitted/*.pkl`` — and
+never from the memory of the process that ran it, so a directory copied to another machine
+gives the same report. Traces that are not stored (residuals of every fault-free run, the
+signals of example runs) are re-simulated on demand from the plan rows (run id, seed and
+stream fix every random draw, DESIGN.md Determinism) and fed to the stored fitted
+detectors; the margins of the re-simulated runs are checked against the stored ones.
+
+Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``), ``show DIR RUN_ID``
+and ``compare DIR_A DIR_B``.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import sys
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from joblib import Parallel, delayed
+
+from detectors import as_variants
+from reports.compare import compare_results, format_compare
+from reports.figures import bin_max, figure_png, render_png, run_figure
+from reports.gate import evaluate_gate
+from reports.html import ReportFigure, render_report, show_command
+from reports.metrics import FAULT_FREE, score_runs
+from scenarios.simulate import simulate
+
+from .config import CampaignConfig
+from .runner import CampaignSetupError, ChunkSettings, load_results, settings_of
+from .storage import write_text
+
+__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs",
+           "load_campaign", "resimulate", "show_run"]
+
+#: Flight-point columns of the plan shown with every run and used by the envelope maps.
+POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude")
+
+
+#: Largest number of runs re-simulated together by one worker (about 30 arrays of
+#: MAX_CHUNK × n_steps floats: 0.9 GB for 60 s runs at 10 ms).
+MAX_CHUNK = 600
+#: Smallest batch worth a worker process of its own.
+MIN_CHUNK = 100
+#: Fewest figures worth drawing in worker processes.
+MIN_PARALLEL_FIGURES = 8
+
+
+@dataclass(frozen=True)
+class ReportSettings:
+    """How the report is drawn (none of it changes a number of the verdict).
+
+    envelope_bins : time bins of the envelope figures; each bin shows the per-run maximum
+        of |r|/τ in it (max-pooling: no peak is hidden)
+    envelope_runs : largest number of fault-free runs re-simulated per manoeuvre (None: all
+        of them). When fewer than the campaign has, the ``worst_kept`` runs of largest
+        stored margin of every detector are always kept and the rest is filled with runs
+        evenly spaced in plan order.
+    worst_kept : see ``envelope_runs``
+    examples_per_fault : example runs shown per fault type (the slowest or a missed one,
+        the median, the fastest); 0 shows no example run at all
+    """
+
+    envelope_bins: int = 600
+    envelope_runs: int | None = None
+    worst_kept: int = 10
+    examples_per_fault: int = 3
+
+
+@dataclass
+class LoadedCampaign:
+    """A campaign directory read back: everything the report needs."""
+
+    root: Path
+    config: CampaignConfig
+    plan: pd.DataFrame
+    results: pd.DataFrame
+    summary: pd.DataFrame
+    meta: dict
+
+    @property
+    def settings(self) -> ChunkSettings:
+        return settings_of(self.config)
+
+    def detectors(self) -> dict:
+        """The fitted detectors stored in ``fitted/LABEL.pkl``: label → Detector."""
+        out = {}
+        for label in self.config.detector_labels:
+            path = self.root / "fitted" / f"{label}.pkl"
+            if not path.exists():
+                raise CampaignSetupError(
+                    f"{path} is missing: the fitted detector {label!r} is needed to "
+                    "re-simulate runs; copy the whole campaign directory (fitted/ included) "
+                    "or rerun 'fdd-campaign run' into it")
+            out[label] = pickle.loads(path.read_bytes())
+        return out
+
+
+def load_campaign(directory) -> LoadedCampaign:
+    """Read a campaign directory; :class:`CampaignSetupError` (exit 2) when it is not one."""
+    root = Path(directory)
+    if not root.is_dir():
+        raise CampaignSetupError(f"{root} is not a directory; give the --out directory of "
+                                 "'fdd-campaign run'")
+    for name in ("campaign.json", "plan.parquet", "summary.parquet"):
+        if not (root / name).exists():
+            raise CampaignSetupError(
+                f"{root} is not a campaign directory: it holds no {name}; give the --out "
+                "directory of a finished 'fdd-campaign run' (rerun it to finish an "
+                "interrupted one)")
+    try:
+        config = CampaignConfig.from_dict(json.loads((root / "campaign.json").read_text()),
+                                          source=str(root / "campaign.json"))
+    except json.JSONDecodeError as exc:
+        raise CampaignSetupError(f"{root / 'campaign.json'} is not valid JSON ({exc}); the "
+                                 "directory is damaged: rerun the campaign") from None
+    results, summary, meta = load_results(root)
+    plan = pd.read_parquet(root / "plan.parquet")
+    return LoadedCampaign(root=root, config=config, plan=plan, results=results,
+                          summary=summary, meta=meta)
+
+
+# ---- re-simulation -------------------------------------------------------------------------
+def resimulate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
+    """Simulate plan *rows* and run every fitted detector on them.
+
+    Returns ``(signals, truth, detections)`` with ``detections`` = {variant name →
+    :class:`detectors.base.Detection`} (the names of the result rows).
+    """
+    signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
+    detections = {}
+    for label, det in detectors.items():
+        detections.update(as_variants(label, det.detect(signals)))
+    return signals, truth, detections
+
+
+def _run_margin(residual: np.ndarray) -> np.ndarray:
+    """max |r|/τ over a whole run, NaN samples ignored (the margin of a fault-free run,
+    reports.metrics.score_runs)."""
+    finite = ~np.isnan(residual)
+    peak = np.where(finite, residual, -np.inf).max(axis=1)
+    return np.where(finite.any(axis=1), peak, np.nan)
+
+
+def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors: dict,
+                 settings: ChunkSettings, n_bins: int, example_ids: frozenset):
+    """Worker: re-simulate fault-free runs (binned |r|/τ and margin per detector variant)
+    together with some example runs (full traces).
+
+    The example runs ride along in the same batch: the time loops are vectorised over runs,
+    so extra rows cost almost nothing.
+    """
+    rows = pd.concat([env_rows, extra_rows], ignore_index=True)
+    signals, truth, detections = resimulate(rows, detectors, settings)
+    n_env = len(env_rows)
+    env, starts = {}, None
+    if n_env:
+        for name, d in detections.items():
+            res = np.asarray(d.residual[:n_env], dtype=float)
+            starts, binned = bin_max(res, n_bins)
+            env[name] = (binned, _run_margin(res))
+    examples = {}
+    for i, rid in enumerate(rows["run_id"].astype(str)):
+        if rid in example_ids and rid not in examples:
+            examples[rid] = (_run_frame(signals, truth, i),
+                             {n: (d.residual[i], d.alarm[i]) for n, d in detections.items()},
+                             float(truth.onset_s[i]))
+    return env_rows["run_id"].to_numpy(), starts, env, examples
+
+
+def _run_tasks(tasks: list, jobs: int, min_tasks: int = 2) -> list:
+    """Results of joblib ``delayed`` tasks, in order: in-process for one job or fewer than
+    *min_tasks* tasks (starting worker processes costs seconds), else in loky processes."""
+    if jobs == 1 or len(tasks) < max(2, min_tasks):
+        return [f(*a, **k) for f, a, k in tasks]
+    return Parallel(n_jobs=min(jobs, len(tasks)), backend="loky")(tasks)
+
+
+def _envelope_subset(free: pd.DataFrame, results: pd.DataFrame, cfg: ReportSettings):
+    """The fault-free plan rows to re-simulate (see :class:`ReportSettings`)."""
+    if cfg.envelope_runs is None:
+        return free
+    keep = []
+    margins = results[results["fault"] == FAULT_FREE].pivot_table(
+        index="run_id", columns="detector", values="margin", aggfunc="max")
+    for _, rows in free.groupby("manoeuvre", sort=False):
+        if len(rows) <= cfg.envelope_runs:
+            keep.append(rows)
+            continue
+        ids = set()
+        m = margins.reindex(rows["run_id"])
+        for det in m.columns:
+            ids |= set(m[det].nlargest(cfg.worst_kept).index)
+        rest = rows[~rows["run_id"].isin(ids)]
+        n_fill = max(0, cfg.envelope_runs - len(ids))
+        pick = np.unique(np.linspace(0, len(rest) - 1, n_fill).round().astype(int)) \
+            if n_fill and len(rest) else np.array([], int)
+        ids |= set(rest["run_id"].iloc[pick])
+        keep.append(rows[rows["run_id"].isin(ids)])
+    return pd.concat(keep) if keep else free.iloc[:0]
+
+
+
+def _envelope_runs(camp: LoadedCampaign, cfg: ReportSettings):
+    """(fault-free plan rows to re-simulate, number of fault-free runs scored ok)."""
+    ok_ids = set(camp.results.loc[camp.results["status"] == "ok", "run_id"])
+    free = camp.plan[(camp.plan["fault"] == FAULT_FREE) & camp.plan["run_id"].isin(ok_ids)]
+    return _envelope_subset(free, camp.results, cfg), len(free)
+
+
+def _chunks(free: pd.DataFrame, extra: pd.DataFrame, jobs: int) -> list:
+    """(fault-free rows, example rows) per task.
+
+    The time loops are vectorised over runs: a batch costs nearly the same for 50 or 600
+    runs, so the runs are split evenly over the jobs in batches of at least MIN_CHUNK runs
+    (smaller ones are not worth a process) and at most MAX_CHUNK runs (which bounds a
+    worker's memory); the example rows are dealt over the batches.
+    """
+    n_tasks = max(1, -(-len(free) // MAX_CHUNK), min(jobs, len(free) // MIN_CHUNK))
+    size = max(1, -(-len(free) // n_tasks))
+    env = [free.iloc[s:s + size] for s in range(0, len(free), size)] or [free.iloc[:0]]
+    return [(e, extra.iloc[i::len(env)]) for i, e in enumerate(env)]
+
+
+def _gather_envelopes(parts: list, free: pd.DataFrame, settings: ChunkSettings):
+    parts = [p for p in parts if len(p[0])]
+    if not parts:
+        return None
+    run_ids = np.concatenate([p[0] for p in parts])
+    names = list(parts[0][2])
+    return {"run_ids": run_ids, "t_s": parts[0][1] * settings.ts,
+            "binned": {n: np.concatenate([p[2][n][0] for p in parts]) for n in names},
+            "margin": {n: np.concatenate([p[2][n][1] for p in parts]) for n in names},
+            "manoeuvre": free.set_index("run_id").loc[run_ids, "manoeuvre"].to_numpy()}
+
+
+def _margin_check(env, results: pd.DataFrame) -> float:
+    """Largest |re-simulated margin − stored margin| over the re-simulated runs."""
+    worst = 0.0
+    for name, m in env["margin"].items():
+        stored = (results[(results["detector"] == name) & (results["status"] == "ok")]
+                  .set_index("run_id")["margin"].reindex(env["run_ids"]).to_numpy(float))
+        both = np.isfinite(stored) & np.isfinite(m)
+        if (np.isfinite(stored) != np.isfinite(m)).any():
+            return np.inf
+        if both.any():
+            worst = max(worst, float(np.max(np.abs(stored[both] - m[both]))))
+    return worst
+
+
+# ---- example runs --------------------------------------------------------------------------
+def _example_ids(results: pd.DataFrame, n_per_fault: int) -> list[tuple[str, str, str]]:
+    """(fault, run_id, why) of the runs shown as examples: per fault type the slowest or a
+    missed run, the median and the fastest (DTP worst over detectors); the fault-free run
+    of largest margin. None when *n_per_fault* is 0."""
+    if n_per_fault <= 0:
+        return []
+    ok = results[results["status"] == "ok"]
+    out = []
+    free = ok[ok["fault"] == FAULT_FREE]
+    if len(free):
+        m = free.groupby("run_id")["margin"].max()
+        if m.notna().any():
+            out.append((FAULT_FREE, m.idxmax(), f"largest margin {m.max():.3f}"))
+    for fault, g in ok[ok["fault"] != FAULT_FREE].groupby("fault", sort=True):
+        dtp = np.where(g["detected"].astype(bool), g["dtp"].astype(float), np.inf)
+        per_run = pd.Series(dtp, index=g["run_id"].to_numpy()).groupby(level=0).max()
+        per_run = per_run.sort_values(kind="stable")
+        picks = [(per_run.index[-1], "missed" if np.isinf(per_run.iloc[-1])
+                  else f"slowest, DTP {per_run.iloc[-1]:.3g}")]
+        if len(per_run) > 2:
+            mid = len(per_run) // 2
+            picks.append((per_run.index[mid], f"median, DTP {per_run.iloc[mid]:.3g}"
+                          if np.isfinite(per_run.iloc[mid]) else "median (missed)"))
+        if len(per_run) > 1:
+            picks.append((per_run.index[0], f"fastest, DTP {per_run.iloc[0]:.3g}"
+                          if np.isfinite(per_run.iloc[0]) else "missed"))
+        seen = set()
+        for rid, why in picks[:n_per_fault]:
+            if rid not in seen:
+                seen.add(rid)
+                out.append((fault, rid, why))
+    return out
+
+
+def _run_frame(signals, truth, i: int) -> pd.DataFrame:
+    frame = signals.to_pandas(i)
+    frame["true_rod [mm]"] = truth.rod_mm[i]
+    frame["true_surface [deg]"] = truth.surface_deg[i]
+    frame["true_current [mA]"] = truth.current_mA[i]
+    return frame
+
+
+def _point_text(row) -> str:
+    return (f"{row['alt_ft']:.0f} ft, {row['vcas_kt']:.0f} kt, {row['mass_t']:.1f} t, "
+            f"CG {row['cg_pct']:.1f} %")
+
+
+# ---- report --------------------------------------------------------------------------------
+def _requirements(config: CampaignConfig) -> dict:
+    r = config.requirements
+    return {"max_fa_rate": r.max_fa_rate, "max_md_rate": r.max_md_rate, "max_dtp": r.max_dtp}
+
+
+def runs_table(camp: LoadedCampaign) -> pd.DataFrame:
+    """Result rows with the flight point of each run (one row per run × detector)."""
+    point = camp.plan[["run_id", *POINT_COLUMNS]]
+    return camp.results.merge(point, on="run_id", how="left", validate="many_to_one")
+
+
+
+def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings | None = None,
+                 log=None) -> Path:
+    """Write the HTML report of a campaign directory; returns its path.
+
+    Two parallel phases over *jobs* processes: (1) re-simulate the fault-free runs (for the
+    envelopes) with the example runs riding along, (2) draw every figure.
+
+    Parameters
+    ----------
+    directory : a campaign directory (``fdd-campaign run --out``)
+    out : HTML file (default ``DIR/report.html``)
+    jobs : worker processes
+    settings : :class:`ReportSettings`
+    """
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    cfg = settings or ReportSettings()
+    if jobs < 1:
+        raise ValueError(f"--jobs must be ≥ 1, got {jobs}")
+    if cfg.envelope_runs is not None and cfg.envelope_runs < 1:
+        raise ValueError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
+                         f"{cfg.envelope_runs}")
+    t0 = time.perf_counter()
+    camp = load_campaign(directory)
+    if camp.results.empty:
+        raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
+    detectors = camp.detectors()
+    req = _requirements(camp.config)
+    gate = evaluate_gate(camp.summary, max_fa=req["max_fa_rate"], max_md=req["max_md_rate"],
+                         max_dtp=req["max_dtp"])
+    runs = runs_table(camp)
+    notes: list[str] = []
+    warnings: list[str] = []
+    if camp.meta.get("complete") is False:
+        warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "
+                        f"{camp.meta.get('runs_planned')} runs; rerun 'fdd-campaign run' into "
+                        "this directory to finish it.")
+
+    # phase 1: re-simulation of the fault-free runs and of the example runs
+    free, n_free = _envelope_runs(camp, cfg)
+    examples = _example_ids(camp.results, cfg.examples_per_fault)
+    example_ids = frozenset(rid for _, rid, _ in examples)
+    plan = camp.plan.set_index("run_id", drop=False)
+    extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
+    settings = camp.settings
+    parts = _run_tasks([delayed(_trace_chunk)(e, x, detectors=detectors, settings=settings,
+                                              n_bins=cfg.envelope_bins,
+                                              example_ids=example_ids)
+                        for e, x in _chunks(free, extra, jobs)], jobs)
+    t_sim = time.perf_counter() - t0
+    env = _gather_envelopes(parts, free, settings)
+    traces = {rid: tr for p in parts for rid, tr in p[3].items()}
+
+    # phase 2: the figures, as (section, group, title, caption, kind, args, kwargs)
+    specs: list[tuple] = []
+    if env is not None:
+        n_sim = len(env["run_ids"])
+        delta = _margin_check(env, camp.results)
+        rule = ("all of them" if n_sim == n_free else
+                f"{n_sim} of {n_free}: per manoeuvre at most {cfg.envelope_runs}, always the "
+                f"{cfg.worst_kept} runs of largest stored margin of each detector, the rest "
+                "evenly spaced in plan order")
+        notes.append(f"Residual envelopes: the fault-free runs were re-simulated from "
+                     f"plan.parquet with the stored fitted detectors ({rule}); each curve is "
+                     f"the largest |r|/τ of a run in each of {len(env['t_s'])} time bins, so "
+                     "no peak is hidden.")
+        if delta <= 1e-9:
+            notes.append(f"The re-simulated margins reproduce the stored ones of all {n_sim} "
+                         f"runs (largest difference {delta:.1e}).")
+        else:
+            warnings.append(f"The re-simulated margins differ from the stored ones by up to "
+                            f"{delta:.3g}: the simulator or a detector changed since the "
+                            "campaign ran; the envelopes show the current code, the tables "
+                            "the stored results.")
+        for name in env["binned"]:
+            for man in dict.fromkeys(env["manoeuvre"]):
+                sel = env["manoeuvre"] == man
+                b = env["binned"][name][sel]
+                m = env["margin"][name][sel]
+                worst = int(np.nanargmax(m)) if np.isfinite(m).any() else 0
+                wid = env["run_ids"][sel][worst]
+                specs.append((
+                    "envelope", name, f"Residual envelope — {name} — {man}",
+                    f"|r|/τ of {len(b)} fault-free runs; threshold at 1; worst run {wid} "
+                    f"({show_command(wid)}).", "envelope", (env["t_s"], b, worst),
+                    {"title": f"{name} — {man}: {len(b)} fault-free runs",
+                     "worst_label": f"worst run {wid} (margin {m[worst]:.3f})"}))
+
+    ok = runs[runs["status"] == "ok"]
+    for fault, g in ok[ok["fault"] != FAULT_FREE].groupby("fault", sort=True):
+        for name, gd in g.groupby("detector", sort=True):
+            hit = gd["detected"].astype(bool).to_numpy()
+            specs.append((
+                "fault", fault, f"Detection of {fault} — {name}",
+                f"{int(hit.sum())} detected, {int((~hit).sum())} missed (the missed runs are "
+                "the red bar, not part of the delay and DTP histograms).", "fault",
+                (gd["delay_s"].to_numpy(float)[hit], gd["dtp"].to_numpy(float)[hit],
+                 int((~hit).sum())),
+                {"title": f"{name} — {fault}: {len(gd)} runs", "max_dtp": req["max_dtp"]}))
+    for fault, rid, why in examples:
+        frame, residuals, onset = traces[rid]
+        row = plan.loc[rid]
+        label = "fault-free" if fault == FAULT_FREE else fault
+        specs.append((
+            "fault", label, f"Example run {rid} — {label} ({why})",
+            f"{row['manoeuvre']} at {_point_text(row)}; re-simulated from its run id and seed: "
+            f"{show_command(rid)}", "run", (frame, residuals),
+            {"onset_s": onset, "title": f"{rid}: {label}, {row['manoeuvre']} ({why})"}))
+    if examples:
+        notes.append(f"Example runs ({len(examples)}) were re-simulated from their plan rows: "
+                     "per fault type the slowest (or a missed) run, the median and the fastest "
+                     "by the worst DTP over the detectors, and the fault-free run of largest "
+                     "margin.")
+
+    for name, gd in ok.groupby("detector", sort=True):
+        free_runs = gd[gd["fault"] == FAULT_FREE]
+        if len(free_runs):
+            specs.append((
+                "map", name, f"Margin to false alarm — {name}",
+                "Each dot is a fault-free run at its true flight point; dots ringed in red "
+                "crossed the threshold (|r|/τ > 1).", "map", (free_runs, "margin"),
+                {"title": f"{name}: margin max |r|/τ of {len(free_runs)} fault-free runs",
+                 "label": "margin |r|/τ", "highlight_above": 1.0}))
+        faulty = gd[gd["fault"] != FAULT_FREE]
+        if len(faulty):
+            hit = faulty["detected"].astype(bool)
+            specs.append((
+                "map", name, f"Detection time performance — {name}",
+                "Each dot is a detected faulty run coloured by its DTP; black crosses are "
+                "missed detections; red rings exceed the DTP requirement.", "map",
+                (faulty[hit], "dtp"),
+                {"title": f"{name}: DTP of {len(faulty)} faulty runs", "label": "DTP",
+                 "highlight_above": req["max_dtp"], "missed": faulty[~hit]}))
+    t1 = time.perf_counter()
+    pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
+                       for *_, kind, args, kwargs in specs], jobs,
+                      min_tasks=MIN_PARALLEL_FIGURES)
+    figures = [ReportFigure(section, group, title, png, caption)
+               for (section, group, title, caption, *_), png in zip(specs, pngs)]
+    t_fig = time.perf_counter() - t1
+    notes.append(f"Report made with {jobs} job(s): re-simulation {t_sim:.1f} s, "
+                 f"{len(figures)} figures {t_fig:.1f} s.")
+
+    c = camp.config.campaign
+    meta = {
+        "name": c.name, "description": c.description, "directory": str(camp.root),
+        "surface": c.surface, "seed": c.seed, "run duration [s]": c.duration_s,
+        "runs done / planned": f"{camp.meta.get('runs_done')} / {camp.meta.get('runs_planned')}",
+        "complete": camp.meta.get("complete"),
+        "detectors": ", ".join(sorted(camp.results["detector"].unique())),
+        "engine version": camp.meta.get("engine_version"),
+        "report written (UTC)": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
+    }
+    page = render_report(meta=meta, summary=camp.summary, gate=gate, requirements=req,
+                         runs=runs, figures=figures, notes=notes, warnings=warnings)
+    path = Path(out) if out else camp.root / "report.html"
+    write_text(path, page)
+    log(f"report: {len(figures)} figures, {len(page) / 1e6:.1f} MB in "
+        f"{time.perf_counter() - t0:.1f} s (re-simulation {t_sim:.1f} s, figures "
+        f"{t_fig:.1f} s, {jobs} job(s))")
+    return path
+
+
+# ---- show ----------------------------------------------------------------------------------
+def _score_text(r) -> str:
+    def num(x, fmt, unit=""):
+        x = float(x)
+        return "none" if not np.isfinite(x) else format(x, fmt) + unit
+
+    return (f"margin {num(r['margin'], '.6g')}, false alarm {bool(r['false_alarm'])}, "
+            f"first alarm {num(r['first_alarm_s'], '.4g', ' s')}, "
+            f"detected {bool(r['detected'])}, DTP {num(r['dtp'], '.4g')}")
+
+
+def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.DataFrame:
+    """Re-simulate one run of a campaign from its run id and seed.
+
+    Prints the stored result rows next to the re-simulated margin and first alarm, writes
+    the traces (signals, truth, |r|/τ and alarm of every detector) to *out* (Parquet) and a
+    figure to *plot* (PNG). Returns the traces.
+    """
+    camp = load_campaign(directory)
+    match = camp.plan[camp.plan["run_id"].astype(str) == str(run_id)]
+    if match.empty:
+        from scenarios.catalog import suggest
+
+        ids = camp.plan["run_id"].astype(str).tolist()
+        raise CampaignSetupError(f"run id {run_id!r} is not in {camp.root / 'plan.parquet'}"
+                                 f"{suggest(str(run_id), ids)}; the run ids are listed in "
+                                 "report.html (e.g. " + ", ".join(ids[:3]) + ")")
+    detectors = camp.detectors()
+    signals, truth, detections = resimulate(match, detectors, camp.settings)
+    row = match.iloc[0]
+    frame = _run_frame(signals, truth, 0)
+    onset = float(truth.onset_s[0])
+    log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)}"
+        + (f", onset {onset:.2f} s" if np.isfinite(onset) else "")
+        + f" (seed {row['seed']}, stream {row['stream']})")
+    stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
+        "detector")
+    settings = camp.settings
+    required = settings.required_time_s.get(str(row["fault"]), np.nan)
+    residuals = {}
+    for name, d in detections.items():
+        res, alarm = np.asarray(d.residual[0], float), np.asarray(d.alarm[0], bool)
+        residuals[name] = (res, alarm)
+        frame[f"{name} |r|/tau [-]"] = res
+        frame[f"{name} alarm"] = alarm
+        # scored again with the campaign's own rules (reports.metrics.score_runs)
+        again = score_runs(run_id=[str(run_id)], fault=truth.fault[:1], onset_s=truth.onset_s[:1],
+                           alarm=alarm[None, :], residual=res[None, :], ts=settings.ts,
+                           required_time_s=[required], window_s=settings.window_s).iloc[0]
+        now = _score_text(again)
+        if name in stored.index:
+            log(f"  {name}: stored {_score_text(stored.loc[name])}")
+            log(f"  {' ' * len(name)}  re-simulated {now}")
+        else:
+            log(f"  {name}: no stored result; re-simulated {now}")
+    if out:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(frame.reset_index())
+        table = table.replace_schema_metadata({
+            **(table.schema.metadata or {}),
+            b"fdd_campaign": match.to_json(orient="records").encode()})
+        pq.write_table(table, out)
+        log(f"traces written to {out}")
+    if plot:
+        fig = run_figure(frame, residuals, onset_s=onset,
+                         title=f"{run_id}: {row['fault']}, {row['manoeuvre']}")
+        Path(plot).write_bytes(figure_png(fig, dpi=110))
+        log(f"plot written to {plot}")
+    return frame
+
+
+# ---- compare -------------------------------------------------------------------------------
+def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
+    """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
+    and print the table; returns it."""
+    a, b = load_campaign(dir_a), load_campaign(dir_b)
+    ca, cb = a.config.to_dict(), b.config.to_dict()
+    differ = [k for k in sorted(set(ca) | set(cb)) if ca.get(k) != cb.get(k)]
+    log(f"A: {a.root} ({a.config.campaign.name}, {a.results['run_id'].nunique()} runs)")
+    log(f"B: {b.root} ({b.config.campaign.name}, {b.results['run_id'].nunique()} runs)")
+    log("the campaign files differ in: " + (", ".join(differ) if differ else "nothing"))
+    table = compare_results(a.results, b.results, alpha=alpha)
+    log(format_compare(table, alpha=alpha))
+    return table
+
+
+# ---- command-line entry points (wired in campaign/cli.py) ----------------------------------
+def cmd_show(args) -> int:
+    show_run(args.dir, args.run_id, plot=args.plot, out=args.out)
+    return 0
+
+
+def cmd_compare(args) -> int:
+    compare_dirs(args.dir_a, args.dir_b, alpha=args.alpha)
+    return 0
+
+
+def write_html_report(args) -> None:
+    """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
+    path = build_report(args.dir, out=args.html, jobs=args.jobs,
+                        settings=ReportSettings(envelope_runs=args.envelope_runs))
+    print(f"HTML report written to {path}")

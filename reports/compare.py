@@ -1,0 +1,204 @@
+"""What changed between two campaigns: rates with a significance test, DTP shifts, per cell.
+
+A cell is one detector × fault × manoeuvre (plus the fault's ``manoeuvre = "all"``
+aggregate when either campaign ran the fault in several manoeuvres). For each cell, from the scored
+(``status == "ok"``) result rows of campaign A and campaign B:
+
+* FA and MD rates of both with the two-sided Fisher exact test of the 2 × 2 table
+  (``scipy.stats.fisher_exact``): is the rate of B different from the rate of A?
+* the DTP distributions of the detected runs with the two-sided Mann–Whitney U test
+  (``scipy.stats.mannwhitneyu``) and the shift of the median;
+* a flag: ``worse`` when some test has p < α and B is the worse side (more false alarms,
+  more misses, larger DTP), else ``better`` when some test has p < α the other way, else
+  ``unchanged``; ``only in A`` / ``only in B`` for cells one campaign lacks.
+
+Each test is read on its own at level α (no correction for the number of cells: the flag
+is a pointer to look at, the table prints every p-value).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from .metrics import FAULT_FREE
+from .summary import ALL_MANOEUVRES
+
+__all__ = ["COMPARE_COLUMNS", "compare_results", "format_compare"]
+
+#: Default significance level of the flags.
+ALPHA = 0.01
+
+COMPARE_COLUMNS: tuple[str, ...] = (
+    "detector", "fault", "manoeuvre", "n_a", "n_b",
+    "fa_a", "fa_b", "fa_rate_a", "fa_rate_b", "fa_p",
+    "md_a", "md_b", "md_rate_a", "md_rate_b", "md_p",
+    "dtp_median_a", "dtp_median_b", "dtp_shift", "dtp_p",
+    "flag", "reasons",
+)
+
+_KEYS = ["detector", "fault", "manoeuvre"]
+
+
+def _scored(results: pd.DataFrame) -> pd.DataFrame:
+    need = ["detector", "fault", "manoeuvre", "status", "false_alarm", "detected", "dtp"]
+    missing = [c for c in need if c not in results.columns]
+    if missing:
+        raise ValueError(f"results lack column(s) {', '.join(missing)}; pass the result rows "
+                         "of a campaign (reports.metrics.RESULT_COLUMNS)")
+    ok = results[results["status"].astype(str) == "ok"]
+    return pd.DataFrame({
+        "detector": ok["detector"].astype(str), "fault": ok["fault"].astype(str),
+        "manoeuvre": ok["manoeuvre"].astype(str),
+        "fa": ok["false_alarm"].astype("boolean").fillna(False).astype(bool),
+        "det": ok["detected"].astype("boolean").fillna(False).astype(bool),
+        "dtp": pd.to_numeric(ok["dtp"], errors="coerce"),
+    })
+
+
+def _several(rows: pd.DataFrame) -> set:
+    """(detector, fault) pairs run in more than one manoeuvre."""
+    n = rows.groupby(["detector", "fault"])["manoeuvre"].nunique()
+    return set(n[n > 1].index)
+
+
+def _cells(rows: pd.DataFrame, aggregate: set) -> dict:
+    """(detector, fault, manoeuvre) → rows, plus the aggregate over manoeuvres of the
+    (detector, fault) pairs in *aggregate*."""
+    out = {k: g for k, g in rows.groupby(_KEYS, sort=True)}
+    for (detector, fault), g in rows.groupby(["detector", "fault"], sort=True):
+        if (detector, fault) in aggregate:
+            out[(detector, fault, ALL_MANOEUVRES)] = g
+    return out
+
+
+def _fisher(k_a: int, n_a: int, k_b: int, n_b: int) -> float:
+    if n_a == 0 or n_b == 0:
+        return math.nan
+    return float(stats.fisher_exact([[k_a, n_a - k_a], [k_b, n_b - k_b]])[1])
+
+
+def _mannwhitney(a: np.ndarray, b: np.ndarray) -> float:
+    if len(a) == 0 or len(b) == 0:
+        return math.nan
+    if np.all(a == a[0]) and np.all(b == a[0]):
+        return 1.0  # identical constant samples: no shift at all
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return float(stats.mannwhitneyu(a, b, alternative="two-sided").pvalue)
+
+
+def _rate(k: int, n: int) -> float:
+    return k / n if n else math.nan
+
+
+def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
+                    alpha: float = ALPHA) -> pd.DataFrame:
+    """Compare the result rows of two campaigns cell by cell (see the module docstring).
+
+    Parameters
+    ----------
+    results_a, results_b : result rows (:data:`reports.metrics.RESULT_COLUMNS`)
+    alpha : significance level of the flags, in (0, 1)
+
+    Returns
+    -------
+    DataFrame with :data:`COMPARE_COLUMNS`, one row per cell, sorted by detector, fault,
+    manoeuvre. Rates are fractions; ``dtp_shift`` is median(B) − median(A) over detected
+    runs; p-values are NaN where a test has no data.
+    """
+    if not 0.0 < float(alpha) < 1.0:
+        raise ValueError(f"alpha must be a significance level in (0, 1), got {alpha}")
+    rows_a, rows_b = _scored(results_a), _scored(results_b)
+    aggregate = _several(rows_a) | _several(rows_b)
+    cells_a, cells_b = _cells(rows_a, aggregate), _cells(rows_b, aggregate)
+    rows = []
+    for key in sorted(set(cells_a) | set(cells_b)):
+        ga, gb = cells_a.get(key), cells_b.get(key)
+        row = dict(zip(_KEYS, key))
+        if ga is None or gb is None:
+            only = "only in B" if ga is None else "only in A"
+            g = gb if ga is None else ga
+            side = "b" if ga is None else "a"
+            row.update({f"n_{side}": len(g), "flag": only,
+                        "reasons": f"cell {only}: the other campaign has no scored run here"})
+            rows.append(row)
+            continue
+        faulty = key[1] != FAULT_FREE
+        n_a, n_b = len(ga), len(gb)
+        fa_a, fa_b = int(ga["fa"].sum()), int(gb["fa"].sum())
+        row.update(n_a=n_a, n_b=n_b, fa_a=fa_a, fa_b=fa_b, fa_rate_a=_rate(fa_a, n_a),
+                   fa_rate_b=_rate(fa_b, n_b), fa_p=_fisher(fa_a, n_a, fa_b, n_b))
+        worse, better = [], []
+
+        def judge(name, p, a, b):
+            if np.isfinite(p) and p < alpha and a != b:
+                (worse if b > a else better).append(f"{name} {a:.4g} → {b:.4g} (p = {p:.2g})")
+
+        judge("FA rate", row["fa_p"], row["fa_rate_a"], row["fa_rate_b"])
+        if faulty:
+            md_a, md_b = int((~ga["det"]).sum()), int((~gb["det"]).sum())
+            da = ga.loc[ga["det"], "dtp"].dropna().to_numpy(float)
+            db = gb.loc[gb["det"], "dtp"].dropna().to_numpy(float)
+            med_a = float(np.median(da)) if len(da) else math.nan
+            med_b = float(np.median(db)) if len(db) else math.nan
+            row.update(md_a=md_a, md_b=md_b, md_rate_a=_rate(md_a, n_a),
+                       md_rate_b=_rate(md_b, n_b), md_p=_fisher(md_a, n_a, md_b, n_b),
+                       dtp_median_a=med_a, dtp_median_b=med_b, dtp_shift=med_b - med_a,
+                       dtp_p=_mannwhitney(da, db))
+            judge("MD rate", row["md_p"], row["md_rate_a"], row["md_rate_b"])
+            judge("median DTP", row["dtp_p"], med_a, med_b)
+        row["flag"] = "worse" if worse else ("better" if better else "unchanged")
+        row["reasons"] = "; ".join(
+            ([f"worse: {', '.join(worse)}"] if worse else [])
+            + ([f"better: {', '.join(better)}"] if better else []))
+        rows.append(row)
+    out = pd.DataFrame(rows, columns=list(COMPARE_COLUMNS))
+    for c in ("n_a", "n_b", "fa_a", "fa_b", "md_a", "md_b"):
+        out[c] = out[c].astype("Int64")
+    return out
+
+
+def _f(x, fmt):
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return "-"
+    return "-" if not math.isfinite(x) else format(x, fmt)
+
+
+def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA) -> str:
+    """Fixed-width text of :func:`compare_results` output, with a count of flags."""
+    if table.empty:
+        return "no cell to compare"
+    header = ["detector", "fault", "manoeuvre", "n A/B", "FA % A→B", "p(FA)", "MD % A→B",
+              "p(MD)", "med DTP A→B", "p(DTP)", "flag"]
+    body = []
+    for r in table.itertuples(index=False):
+        n = f"{'-' if pd.isna(r.n_a) else r.n_a}/{'-' if pd.isna(r.n_b) else r.n_b}"
+        body.append([r.detector, r.fault, r.manoeuvre, n,
+                     f"{_f(100 * r.fa_rate_a, '.2f')}→{_f(100 * r.fa_rate_b, '.2f')}",
+                     _f(r.fa_p, '.2g'),
+                     f"{_f(100 * r.md_rate_a, '.2f')}→{_f(100 * r.md_rate_b, '.2f')}"
+                     if r.fault != FAULT_FREE else "",
+                     _f(r.md_p, '.2g'),
+                     f"{_f(r.dtp_median_a, '.4g')}→{_f(r.dtp_median_b, '.4g')}"
+                     if r.fault != FAULT_FREE else "",
+                     _f(r.dtp_p, '.2g'), r.flag])
+    widths = [max(len(str(c)) for c in col) for col in zip(header, *body)]
+    lines = ["  ".join(str(c).ljust(w) for c, w in zip(line, widths)).rstrip()
+             for line in [header, ["-" * w for w in widths], *body]]
+    counts = table["flag"].value_counts()
+    lines.append("")
+    lines.append(f"{len(table)} cells: " + ", ".join(f"{int(counts.get(k, 0))} {k}" for k in
+                 ("worse", "better", "unchanged", "only in A", "only in B")
+                 if counts.get(k, 0)) + f" (two-sided tests at p < {alpha:g}: Fisher exact "
+                 "for FA/MD rates, Mann–Whitney U for DTP)")
+    for r in table.itertuples(index=False):
+        if r.flag in ("worse", "better") and r.reasons:
+            lines.append(f"  {r.detector} / {r.fault} / {r.manoeuvre}: {r.reasons}")
+    return "\n".join(lines)

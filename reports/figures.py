@@ -1,0 +1,311 @@
+"""Figures of the campaign report, drawn from plain arrays and DataFrames (matplotlib, Agg).
+
+Every function returns a matplotlib Figure; :func:`figure_png` turns one into PNG bytes.
+Nothing here knows how a campaign is run or stored: the caller passes the numbers.
+
+* :func:`envelope_figure` — |r|/τ of fault-free runs over time, band of runs, worst run,
+  threshold line at 1 (the presentation of [CHEN] Figs. 3–8);
+* :func:`fault_figure` — detection delay and DTP distributions of one fault type with the
+  missed runs counted beside them ([CHEN] §5 DTP; [CHEN] Table 4);
+* :func:`run_figure` — one run: order, rod, surface, current, every detector's |r|/τ and
+  alarm, fault onset (the presentation of [CHEN] Figs. 9–11, [COMB] Figs. 3–5);
+* :func:`envelope_map_figure` — a per-run value (margin, DTP) over altitude × VCAS and
+  mass × CG, misses marked.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["bin_max", "envelope_figure", "envelope_map_figure", "fault_figure",
+           "figure_png", "render_png", "run_figure"]
+
+#: Colour of the threshold line |r|/τ = 1 (green, as in [CHEN] Figs. 3–8).
+THRESHOLD_COLOUR = "tab:green"
+#: Colour of the worst run / the onset marker.
+WORST_COLOUR = "tab:red"
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_png(fig, dpi: int = 80) -> bytes:
+    """PNG bytes of *fig*; the figure is closed."""
+    plt = _plt()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def bin_max(values: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """Largest value of each run in *n_bins* consecutive time bins, NaN ignored.
+
+    Parameters
+    ----------
+    values : ndarray (n_runs, n_steps)
+    n_bins : wanted number of bins (fewer when there are fewer steps)
+
+    Returns
+    -------
+    (starts, binned): ``starts`` (n_b,) index of each bin's first step; ``binned``
+    (n_runs, n_b) float32, NaN where a bin holds only NaN. Max-pooling keeps every peak, so
+    no threshold crossing is hidden by the reduction.
+    """
+    values = np.asarray(values, dtype=float)
+    n_steps = values.shape[1]
+    step = max(1, int(np.ceil(n_steps / max(1, n_bins))))
+    starts = np.arange(0, n_steps, step)
+    filled = np.where(np.isnan(values), -np.inf, values)
+    binned = np.maximum.reduceat(filled, starts, axis=1) if n_steps else filled
+    binned = np.where(np.isneginf(binned), np.nan, binned)
+    return starts, binned.astype(np.float32)
+
+
+def envelope_figure(t_s: np.ndarray, binned: np.ndarray, worst: int, *, title: str,
+                    worst_label: str):
+    """Normalised residual of fault-free runs over time.
+
+    Parameters
+    ----------
+    t_s : ndarray (n_b,) [s] start time of each bin
+    binned : ndarray (n_runs, n_b) [-] per-run max of |r|/τ in each bin (:func:`bin_max`)
+    worst : index of the run to highlight (the largest margin)
+    """
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.2, 3.3))
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.91, bottom=0.32)
+    with np.errstate(all="ignore"), _quiet():
+        lo, hi = np.nanmin(binned, axis=0), np.nanmax(binned, axis=0)
+        p05, p50, p95 = np.nanpercentile(binned, [5, 50, 95], axis=0)
+    ax.fill_between(t_s, lo, hi, step="post", color="tab:blue", alpha=0.18, lw=0,
+                    label=f"all {binned.shape[0]} runs (min–max)")
+    ax.fill_between(t_s, p05, p95, step="post", color="tab:blue", alpha=0.35, lw=0,
+                    label="5–95 % of runs")
+    ax.step(t_s, p50, where="post", color="tab:blue", lw=0.8, label="median")
+    ax.step(t_s, binned[worst], where="post", color=WORST_COLOUR, lw=1.0, label=worst_label)
+    ax.axhline(1.0, color=THRESHOLD_COLOUR, lw=1.5, ls="--", label="threshold |r|/τ = 1")
+    top = float(np.nanmax(binned)) if np.isfinite(binned).any() else 1.0
+    ax.set_ylim(0.0, max(1.15, 1.08 * top))
+    ax.set_xlim(t_s[0], t_s[-1] + (t_s[1] - t_s[0] if len(t_s) > 1 else 1.0))
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("|r|/τ [-]")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize=7, ncol=3,
+              frameon=False)
+    return fig
+
+
+class _quiet:
+    """Silence numpy's all-NaN-slice warnings inside a block."""
+
+    def __enter__(self):
+        import warnings
+
+        self._w = warnings.catch_warnings()
+        self._w.__enter__()
+        warnings.simplefilter("ignore", RuntimeWarning)
+
+    def __exit__(self, *exc):
+        return self._w.__exit__(*exc)
+
+
+def _hist(ax, x: np.ndarray, color: str) -> None:
+    """Histogram of *x*; a single bar when every value is the same (to rounding), so the
+    axis shows the value instead of an offset notation around it."""
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if hi - lo <= 1e-9 * max(1.0, abs(hi)):
+        width = max(abs(hi) * 0.2, 1e-3)
+        ax.bar([hi], [len(x)], width=width, color=color, alpha=0.8)
+        ax.set_xlim(hi - 3 * width, hi + 3 * width)
+    else:
+        ax.hist(x, bins=min(30, max(5, len(x) // 5)), color=color, alpha=0.8)
+    ax.ticklabel_format(axis="x", useOffset=False)
+
+
+def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: str,
+                 max_dtp: float | None = None):
+    """Distributions of detection delay [s] and DTP [-] of the detected runs of one fault
+    type, with the missed runs as their own bar beside (never dropped).
+
+    Parameters
+    ----------
+    delay_s, dtp : ndarray (n_detected,) of the detected runs
+    n_missed : number of scored runs of this fault type without detection
+    max_dtp : required DTP limit drawn as a line (1 = the required detection time)
+    """
+    plt = _plt()
+    fig, axes = plt.subplots(1, 3, figsize=(9.0, 2.8), gridspec_kw={"width_ratios": [3, 3, 1.3]})
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.17, wspace=0.28)
+    n_det = len(dtp)
+    ax = axes[0]
+    if n_det:
+        _hist(ax, delay_s, "tab:blue")
+    else:
+        ax.text(0.5, 0.5, "no detected run", ha="center", va="center", transform=ax.transAxes)
+    ax.set_xlabel("detection delay [s]")
+    ax.set_title(f"{n_det} detected runs", fontsize=8)
+    ax.set_ylabel("runs")
+    ax = axes[1]
+    if n_det:
+        _hist(ax, dtp, "tab:purple")
+        ax.set_title(f"DTP min/mean/max {np.min(dtp):.3g}/{np.mean(dtp):.3g}/"
+                     f"{np.max(dtp):.3g}", fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no detected run", ha="center", va="center", transform=ax.transAxes)
+    if max_dtp is not None and (not n_det or np.max(dtp) > 0.5 * max_dtp):
+        ax.axvline(max_dtp, color=WORST_COLOUR, ls="--", lw=1.2, label=f"DTP limit {max_dtp:g}")
+        ax.legend(fontsize=7, loc="center right")
+    ax.set_xlabel("DTP = delay / required time [-]")
+    ax = axes[2]
+    late = int(np.sum(dtp > max_dtp)) if max_dtp is not None else 0
+    counts = [n_det - late, late, n_missed]
+    bars = ax.bar(["in time", "late", "missed"], counts,
+                  color=["tab:green", "tab:orange", WORST_COLOUR])
+    for b, c in zip(bars, counts):
+        ax.text(b.get_x() + b.get_width() / 2, b.get_height(), str(c), ha="center",
+                va="bottom", fontsize=8)
+    ax.set_ylim(0, max(counts + [1]) * 1.2)
+    ax.tick_params(axis="x", labelsize=7)
+    ax.set_title("runs", fontsize=8)
+    for a in axes:
+        a.grid(alpha=0.3)
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: str):
+    """One run: signals, every detector's |r|/τ with the threshold, alarms, fault onset.
+
+    Parameters
+    ----------
+    frame : :meth:`scenarios.Signals.to_pandas` output (time index [s], columns with units),
+        optionally with ``true_*`` columns
+    residuals : {detector: (residual (n_steps,) [-], alarm (n_steps,) bool)}
+    onset_s : fault onset [s] (NaN for a fault-free run)
+    """
+    plt = _plt()
+    t = frame.index.to_numpy()
+    fig, axes = plt.subplots(4, 1, figsize=(9.0, 7.4), sharex=True,
+                             gridspec_kw={"height_ratios": [3, 2, 2, 3]})
+    fig.subplots_adjust(left=0.08, right=0.70, top=0.94, bottom=0.07, hspace=0.12)
+    ax = axes[0]
+    ax.plot(t, frame["command [mm]"], label="order u", lw=1.1)
+    ax.plot(t, frame["rod_com [mm]"], label="rod COM", lw=0.8)
+    ax.plot(t, frame["rod_mon [mm]"], label="rod MON", lw=0.8, alpha=0.8)
+    if "true_rod [mm]" in frame:
+        ax.plot(t, frame["true_rod [mm]"], "k--", label="true rod", lw=0.7)
+    ax.set_ylabel("rod [mm]")
+    ax = axes[1]
+    if np.isfinite(frame["surface [deg]"]).any():
+        ax.plot(t, frame["surface [deg]"], label="surface sensor", lw=0.8)
+    if "true_surface [deg]" in frame:
+        ax.plot(t, frame["true_surface [deg]"], "k--", label="true surface", lw=0.7)
+    ax.set_ylabel("surface [deg]")
+    ax = axes[2]
+    ax.plot(t, frame["current [mA]"], label="current order", lw=0.8)
+    if "true_current [mA]" in frame:
+        ax.plot(t, frame["true_current [mA]"], "k--", label="current flowing", lw=0.7)
+    ax.set_ylabel("current [mA]")
+    ax = axes[3]
+    top = 1.15
+    for k, (name, (res, alarm)) in enumerate(residuals.items()):
+        res = np.asarray(res, dtype=float)
+        line, = ax.plot(t, res, lw=0.9, label=f"{name} |r|/τ")
+        alarm = np.asarray(alarm, dtype=bool)
+        if alarm.any():
+            first = t[int(np.argmax(alarm))]
+            ax.fill_between(t, 0, 1, where=alarm, step="post", color=line.get_color(),
+                            alpha=0.15, transform=ax.get_xaxis_transform(),
+                            label=(f"{name} " if len(residuals) > 1 else "")
+                            + f"alarm, first at {first:.2f} s")
+        if np.isfinite(res).any():
+            top = max(top, float(np.nanmax(res)) * 1.08)
+    ax.axhline(1.0, color=THRESHOLD_COLOUR, ls="--", lw=1.3, label="threshold")
+    ax.set_ylim(0, min(top, 50.0))
+    ax.set_ylabel("|r|/τ [-]")
+    ax.set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if np.isfinite(onset_s):
+            ax.axvline(onset_s, color=WORST_COLOUR, ls=":", lw=1.2)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
+    fig.suptitle(title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s)
+                          else ""), x=0.01, ha="left", fontsize=10)
+    return fig
+
+
+def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: str,
+                        highlight_above: float | None = None, missed: pd.DataFrame | None = None):
+    """A per-run value over altitude × VCAS and mass × CG (two panels).
+
+    Parameters
+    ----------
+    points : DataFrame with ``alt_ft, vcas_kt, mass_t, cg_pct`` and the column *value*
+    value : column to colour by (e.g. ``margin`` [-], ``dtp`` [-])
+    highlight_above : runs with value above this are ringed in red (e.g. 1: false alarm
+        territory for a margin, the DTP limit for a DTP)
+    missed : runs drawn as black crosses (missed detections: no DTP to colour)
+    """
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(9.6, 3.6))
+    fig.subplots_adjust(left=0.08, right=0.9, top=0.88, bottom=0.14, wspace=0.25)
+    v = points[value].to_numpy(dtype=float)
+    finite = np.isfinite(v)
+    vmax = float(np.nanmax(v)) if finite.any() else 1.0
+    vmin = float(np.nanmin(v)) if finite.any() else 0.0
+    if highlight_above is not None:
+        vmax = max(vmax, highlight_above)
+    order = np.argsort(np.where(finite, v, -np.inf))  # largest drawn last, on top
+    pts = points.iloc[order]
+    vv = v[order]
+    sc = None
+    for ax, (x, y, xl, yl) in zip(axes, [("vcas_kt", "alt_ft", "VCAS [kt]", "altitude [ft]"),
+                                         ("cg_pct", "mass_t", "CG [% MAC]", "mass [t]")]):
+        sc = ax.scatter(pts[x], pts[y], c=vv, cmap="YlOrRd", vmin=vmin, vmax=vmax, s=16,
+                        edgecolors="0.4", linewidths=0.3)
+        if highlight_above is not None:
+            over = vv > highlight_above
+            if over.any():
+                ax.scatter(pts[x][over], pts[y][over], s=70, facecolors="none",
+                           edgecolors=WORST_COLOUR, linewidths=1.2,
+                           label=f"{label} > {highlight_above:g} ({int(over.sum())})")
+        if missed is not None and len(missed):
+            ax.scatter(missed[x], missed[y], marker="x", c="k", s=40, linewidths=1.2,
+                       label=f"missed ({len(missed)})")
+        if finite.any():
+            i = order[-1]
+            ax.annotate(f"worst {v[i]:.3g}", (points[x].iloc[i], points[y].iloc[i]),
+                        xytext=(6, 6), textcoords="offset points", fontsize=7)
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="upper right")
+    cax = fig.add_axes([0.92, 0.14, 0.015, 0.74])
+    fig.colorbar(sc, cax=cax, label=label)
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+#: Figure kinds drawn by :func:`render_png`.
+FIGURES = {"envelope": envelope_figure, "fault": fault_figure, "run": run_figure,
+           "map": envelope_map_figure}
+
+
+def render_png(kind: str, args: tuple, kwargs: dict, dpi: int = 80) -> bytes:
+    """PNG bytes of the figure *kind* (a key of :data:`FIGURES`) drawn with *args* and
+    *kwargs* — a picklable unit of work, so figures can be drawn in worker processes."""
+    if kind not in FIGURES:
+        raise ValueError(f"unknown figure kind {kind!r}; use one of {sorted(FIGURES)}")
+    return figure_png(FIGURES[kind](*args, **kwargs), dpi=dpi)
