@@ -14,17 +14,17 @@ from __future__ import annotations
 import sys
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
-
 from detectors import as_variants, make_detector
 from reports.metrics import RESULT_COLUMNS, score_runs
 from reports.summary import summarize
 from reports.table import format_table
+from scenarios import kernels
 from scenarios.params import ACTUATORS
 from scenarios.signals import Signals
 from scenarios.simulate import simulate
@@ -45,14 +45,16 @@ class ChunkSettings:
     pressure_sensor: bool
     required_time_s: dict
     window_s: float | None
+    engine: str = "compiled"
 
 
-def _error_rows(rows: pd.DataFrame, detector: str, message: str) -> pd.DataFrame:
+def _error_rows(rows: pd.DataFrame, detector: str, message: str,
+                status: str = "error") -> pd.DataFrame:
     n = len(rows)
     return pd.DataFrame({
         "run_id": rows["run_id"].to_numpy(), "detector": detector,
         "fault": rows["fault"].to_numpy(), "manoeuvre": rows["manoeuvre"].to_numpy(),
-        "status": "error", "error": message,
+        "status": status, "error": message,
         "false_alarm": np.zeros(n, bool), "pre_onset_alarm": np.zeros(n, bool),
         "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
         "dtp": np.nan, "margin": np.nan,
@@ -70,13 +72,18 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
 
     Never raises for a bad run or a failing detector: those rows get ``status="error"``.
     A chunk whose simulation fails is retried run by run, so one bad run does not take the
-    others of its chunk down with it.
+    others of its chunk down with it. The kernels are those of ``settings.engine``.
     """
+    with kernels.use_engine(settings.engine):
+        return _run_chunk(rows, detectors, settings)
+
+
+def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
     try:
         signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
     except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
         if len(rows) > 1:
-            return pd.concat([run_chunk(rows.iloc[[j]], detectors, settings)
+            return pd.concat([_run_chunk(rows.iloc[[j]], detectors, settings)
                               for j in range(len(rows))], ignore_index=True)
         return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
                           for label in detectors], ignore_index=True)
@@ -231,59 +238,105 @@ def settings_of(config) -> ChunkSettings:
         pressure_sensor=config.campaign.pressure_sensor,
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
+        engine=config.runner.engine,
     )
 
 
+def failure_rows(rows: pd.DataFrame, labels, status: str, message: str) -> pd.DataFrame:
+    """Result rows of runs that could not be run (*status* ``error`` or ``timeout``)."""
+    return pd.concat([_error_rows(rows, label, message, status) for label in labels],
+                     ignore_index=True)[list(RESULT_COLUMNS)]
+
+
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
-        backend: str = "loky", log=None) -> CampaignResult:
+        backend: str = "loky", log=None, scheduler: str | None = None,
+        engine: str | None = None) -> CampaignResult:
     """Run *config* into directory *out* (resuming what it already holds).
 
     Parameters
     ----------
     config : campaign.config.CampaignConfig
     out : output directory (created; must be empty or hold this same campaign)
-    jobs : worker processes (1 runs in-process)
+    jobs : local workers (1 runs in-process)
     chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``)
-    backend : joblib backend (``"loky"`` processes by default, ``"threading"``)
+    backend : local workers: ``"loky"`` processes (default) or ``"threading"``
+    scheduler : address ``tcp://HOST:PORT`` of a dask.distributed scheduler; the chunks then
+        run on its workers (*jobs* and *backend* are not used)
+    engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
+
+    Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
+    as per-run status rows; see :mod:`campaign.execute`.
     """
+    from .execute import LocalPool, connect, run_local, run_on_cluster
+
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
+    settings = settings_of(config)
+    if engine is not None:
+        settings = replace(settings, engine=kernels.check_engine(engine))
+    client = connect(scheduler) if scheduler else None   # fail fast, before any work
     cdir = CampaignDir(out)
     resumed = cdir.open(config.to_json())
     chunk_size = int(chunk_size or config.runner.chunk_size)
-    settings = settings_of(config)
+    if settings.engine == "compiled":
+        kernels.warm_up(log)
+    pool = None
+    if client is None and jobs > 1:
+        pool = LocalPool(backend, jobs)
+        pool.start()              # workers start while the learning set is simulated here
 
-    plan = build_plan(config)
-    plan_path = cdir.root / "plan.parquet"
-    if not plan_path.exists():
-        write_parquet(plan, plan_path, config.to_json(), kind="plan")
-    detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
-
-    done = cdir.done_run_ids() if resumed else set()
-    todo = plan[~plan["run_id"].isin(done)]
-    if resumed:
-        log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
-    chunks = [todo.iloc[s:s + chunk_size] for s in range(0, len(todo), chunk_size)]
-    bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
-    complete = False
     try:
-        if chunks:
-            tasks = (delayed(run_chunk)(c, detectors, settings) for c in chunks)
-            if jobs == 1:
-                results = (run_chunk(c, detectors, settings) for c in chunks)
-            else:
-                results = Parallel(n_jobs=jobs, backend=backend,
-                                   return_as="generator_unordered")(tasks)
-            for frame in results:
-                write_parquet(frame, cdir.next_shard_path(), config.to_json(), kind="results")
-                bar.update(frame["run_id"].nunique())
-        complete = True
-    except KeyboardInterrupt:
-        bar.close()
-        log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
-            "command again to resume")
+        plan = build_plan(config)
+        plan_path = cdir.root / "plan.parquet"
+        if not plan_path.exists():
+            write_parquet(plan, plan_path, config.to_json(), kind="plan")
+        with kernels.use_engine(settings.engine):
+            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
+
+        done = cdir.done_run_ids() if resumed else set()
+        todo = plan[~plan["run_id"].isin(done)]
+        if resumed:
+            log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already "
+                "done")
+        chunks = [todo.iloc[s:s + chunk_size] for s in range(0, len(todo), chunk_size)]
+        bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
+        labels = list(detectors)
+        complete = False
+
+        def store(frame: pd.DataFrame) -> None:
+            write_parquet(frame, cdir.next_shard_path(), config.to_json(), kind="results")
+            bar.update(frame["run_id"].nunique())
+
+        def fail(rows, status, message):
+            return failure_rows(rows, labels, status, message)
+
+        try:
+            if chunks and client is not None:
+                run_on_cluster(client, chunks, run_chunk, detectors, settings, fail, store,
+                               log=log)
+            elif chunks and pool is None:
+                if config.runner.run_timeout_s is not None:
+                    log("note: run_timeout_s is enforced on worker processes only (--jobs ≥ 2 "
+                        "with the loky backend, or a dask cluster); running in-process "
+                        "without a limit")
+                for c in chunks:
+                    store(run_chunk(c, detectors, settings))
+            elif chunks:
+                run_local(chunks, partial(run_chunk, detectors=detectors, settings=settings),
+                          fail, store, jobs=jobs, backend=backend,
+                          run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
+            complete = True
+        except KeyboardInterrupt:
+            bar.close()
+            log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
+                "command again to resume")
+        finally:
+            bar.close()
     finally:
-        bar.close()
+        if pool is not None:
+            pool.stop(kill=True)
+        if client is not None:
+            client.close()
     return finalize(cdir, config, plan, complete, time.perf_counter() - t_start)
 
 

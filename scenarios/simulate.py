@@ -29,6 +29,7 @@ from . import envelope, manoeuvres
 from .catalog import FAULTS, MANOEUVRES, SURFACES, suggest
 from .faults import (FAULT_DEFAULTS, NEVER, FaultArrays, default_magnitude, fault_arrays,
                      required_magnitude)
+from .kernels import integrate_compiled, resolve_engine
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from .signals import Signals, Truth
@@ -329,14 +330,20 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
 
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
-             orders_deg: np.ndarray | None = None) -> tuple[Signals, Truth]:
+             orders_deg: np.ndarray | None = None,
+             engine: str | None = None) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* (one surface and duration per call).
 
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
+    *engine*: ``"compiled"`` (numba kernels, :mod:`scenarios.kernels`) or ``"numpy"`` (the
+    reference :func:`integrate`); default :func:`scenarios.kernels.current_engine`.
     """
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
-    traj = integrate(p, sensors)
+    if resolve_engine(engine) == "compiled":
+        traj = integrate_compiled(p, sensors)
+    else:
+        traj = integrate(p, sensors)
     act = p.act
     mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
                    sensors.rod_quant_mm)
