@@ -30,7 +30,8 @@ def cmd_run(args) -> int:
     if args.jobs < 1:
         raise UsageError("--jobs must be ≥ 1")
     result = run(config, args.out, jobs=args.jobs, chunk_size=args.chunk_size,
-                 progress=not args.quiet, backend=args.backend)
+                 progress=not args.quiet, backend=args.backend, scheduler=args.scheduler,
+                 engine=args.engine)
     print(f"campaign {config.campaign.name!r}: {result.results['run_id'].nunique() if not result.results.empty else 0}"
           f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
     if not result.summary.empty:
@@ -189,6 +190,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", default="loky", choices=["loky", "threading"],
                    help="joblib backend (default loky: processes)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run the chunks on this dask.distributed scheduler's workers "
+                        "(needs the [dask] extra; see docs/distributed.md)")
+    p.add_argument("--engine", choices=["compiled", "numpy"],
+                   help="time-loop kernels (default: the campaign file's [runner] engine)")
 
     p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)

@@ -63,13 +63,21 @@ class Task:
         return [Task(self.rows.iloc[[j]], alone=True, single=True) for j in range(self.n)]
 
 
-def _worker_ready() -> int:
-    """First task of every worker: import the engine and load the compiled kernels."""
-    import os
-
+def _worker_init() -> None:
+    """Start-up of every worker process: import the engine, load the compiled kernels."""
     from scenarios import kernels
 
+    from . import runner  # noqa: F401  (the imports of a chunk, done before any chunk)
+
     kernels.warm_up()
+
+
+def _worker_pid(pause_s: float) -> int:
+    """A warm-up task: the id of the worker process that ran it (after *pause_s* [s], so
+    that the tasks of one round spread over the workers)."""
+    import os
+
+    time.sleep(pause_s)
     return os.getpid()
 
 
@@ -89,12 +97,12 @@ class LocalPool:
         return self.backend == "loky"
 
     def start(self) -> None:
-        """Start the workers and their warm-up (returns at once; :meth:`ready` waits)."""
+        """Start the workers (returns at once; :meth:`ready` waits for them)."""
         if self.backend == "loky":
             from joblib.externals.loky import ProcessPoolExecutor
 
-            self.executor = ProcessPoolExecutor(max_workers=self.jobs)
-            self._warm = [self.executor.submit(_worker_ready) for _ in range(self.jobs)]
+            self.executor = ProcessPoolExecutor(max_workers=self.jobs, initializer=_worker_init)
+            self._warm = [self.executor.submit(_worker_pid, 0.05) for _ in range(self.jobs)]
         else:
             self.executor = ThreadPoolExecutor(max_workers=self.jobs,
                                                thread_name_prefix="fdd-chunk")
@@ -102,15 +110,21 @@ class LocalPool:
         self.restarts += 1
 
     def ready(self) -> None:
-        """Wait until the workers started (so that time limits count only chunk work)."""
+        """Wait until every worker has started (so that time limits count chunk work only)."""
         if self.executor is None:
             self.start()
-        done, pending = wait(self._warm, timeout=POOL_START_TIMEOUT_S)
-        for fut in done:
-            fut.result()  # a worker that cannot even start is a setup problem: raise it
-        if pending:
-            raise RuntimeError(f"worker processes did not start within "
-                               f"{POOL_START_TIMEOUT_S:g} s")
+        t_end = time.perf_counter() + POOL_START_TIMEOUT_S
+        pids: set[int] = set()
+        for _ in range(20):
+            if not self._warm:
+                break
+            done, pending = wait(self._warm, timeout=max(0.0, t_end - time.perf_counter()))
+            if pending:
+                raise RuntimeError(f"worker processes did not start within "
+                                   f"{POOL_START_TIMEOUT_S:g} s")
+            pids.update(f.result() for f in done)  # a worker that cannot start: raise it
+            missing = self.jobs - len(pids)
+            self._warm = [self.executor.submit(_worker_pid, 0.05) for _ in range(missing)]
         self._warm = []
 
     def submit(self, fn, *args):
@@ -184,6 +198,11 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
             while queue and len(inflight) < jobs and not alone_inflight:
                 submit(queue.popleft())
             if not queue and not inflight and isolated:
+                if pool.jobs > 1:    # retries run one at a time: one worker is enough
+                    pool.stop()
+                    pool = LocalPool(backend, 1)
+                    pool.start()
+                    pool.ready()
                 submit(isolated.popleft())
             deadlines = [d for _, d in inflight.values() if d is not None]
             wait_s = None if not deadlines else max(0.0, min(deadlines) - time.perf_counter())
@@ -231,7 +250,7 @@ def _short(exc: BaseException, limit: int = 300) -> str:
 
 # ---- dask.distributed ------------------------------------------------------------------------
 #: Seconds to wait for the dask scheduler before giving up (a clear error, exit code 2).
-CONNECT_TIMEOUT_S = 10.0
+CONNECT_TIMEOUT_S = 5.0
 
 
 class ClusterError(ValueError):

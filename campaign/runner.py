@@ -71,8 +71,9 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
     """Simulate, detect and score one chunk of runs; returns its result rows.
 
     Never raises for a bad run or a failing detector: those rows get ``status="error"``.
-    A chunk whose simulation fails is retried run by run, so one bad run does not take the
-    others of its chunk down with it. The kernels are those of ``settings.engine``.
+    A chunk whose simulation fails, or a detector that raises on a chunk, is retried run by
+    run, so one bad run does not take the others of its chunk down with it. The kernels
+    are those of ``settings.engine``.
     """
     with kernels.use_engine(settings.engine):
         return _run_chunk(rows, detectors, settings)
@@ -91,21 +92,39 @@ def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> 
     frames = []
     for label, det in detectors.items():
         try:
-            variants = as_variants(label, det.detect(signals))
-            for name, detection in variants.items():
-                scored = score_runs(
-                    run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
-                    alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
-                    required_time_s=required, window_s=settings.window_s)
-                scored.insert(1, "detector", name)
-                scored.insert(2, "fault", truth.fault)
-                scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
-                scored.insert(4, "status", "ok")
-                scored.insert(5, "error", "")
-                frames.append(scored)
+            frames.extend(_detect_and_score(label, det, signals, truth, rows, required,
+                                            settings))
         except Exception as exc:  # noqa: BLE001
-            frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+            if len(rows) == 1:
+                frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+                continue
+            # run by run, so that only the runs the detector fails on are recorded as errors
+            for j in range(len(rows)):
+                try:
+                    frames.extend(_detect_and_score(
+                        label, det, signals.take([j]), truth.take([j]), rows.iloc[[j]],
+                        required[[j]], settings))
+                except Exception as exc_j:  # noqa: BLE001
+                    frames.append(_error_rows(rows.iloc[[j]], label,
+                                              f"detector failed: {_describe(exc_j)}"))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _detect_and_score(label, det, signals, truth, rows, required, settings) -> list:
+    frames = []
+    variants = as_variants(label, det.detect(signals))
+    for name, detection in variants.items():
+        scored = score_runs(
+            run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
+            alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
+            required_time_s=required, window_s=settings.window_s)
+        scored.insert(1, "detector", name)
+        scored.insert(2, "fault", truth.fault)
+        scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
+        scored.insert(4, "status", "ok")
+        scored.insert(5, "error", "")
+        frames.append(scored)
+    return frames
 
 
 class Progress:
