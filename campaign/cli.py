@@ -150,8 +150,10 @@ def cmd_simulate(args) -> int:
 def cmd_bench(args) -> int:
     from .bench import bench
 
+    campaign = None if args.campaign == "none" else args.campaign
     bench(n_runs=args.runs, duration_s=args.duration, jobs=args.jobs,
-          chunk_size=args.chunk_size, reference_runs=args.reference_runs)
+          chunk_size=args.chunk_size, reference_runs=args.reference_runs,
+          campaign=campaign, detectors=not args.no_detectors, cold=not args.no_cold)
     return EXIT_OK
 
 
@@ -187,8 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--seed", type=int, help="override the campaign seed")
     p.add_argument("--chunk-size", type=int, help="runs per chunk (default: campaign file)")
-    p.add_argument("--backend", default="loky", choices=["loky", "threading"],
-                   help="joblib backend (default loky: processes)")
+    p.add_argument("--backend", choices=["threading", "loky"],
+                   help="local workers: threading (default; measured faster and lighter) or "
+                        "loky processes (survive a dying worker; default when [runner] "
+                        "run_timeout_s is set)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run the chunks on this dask.distributed scheduler's workers "
@@ -245,6 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chunk-size", type=int, default=275)
     p.add_argument("--reference-runs", type=int, default=2,
                    help="runs timed with the solve_ivp reference (default 2)")
+    p.add_argument("--campaign", default="addsafe-mc",
+                   help="campaign run whole in a subprocess (default addsafe-mc; none: skip)")
+    p.add_argument("--no-cold", action="store_true",
+                   help="skip the first campaign run with an empty compile cache")
+    p.add_argument("--no-detectors", action="store_true",
+                   help="skip the per-detector cost per run-step")
     return parser
 
 

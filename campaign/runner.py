@@ -11,6 +11,7 @@ message; it never stops the campaign, and a rerun retries it.
 
 from __future__ import annotations
 
+import copy
 import sys
 import time
 import traceback
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
 from detectors import as_variants, make_detector
 from reports.metrics import RESULT_COLUMNS, score_runs
 from reports.summary import summarize
@@ -108,6 +110,11 @@ def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> 
                     frames.append(_error_rows(rows.iloc[[j]], label,
                                               f"detector failed: {_describe(exc_j)}"))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _run_chunk_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
+    """:func:`run_chunk` on private copies of the detectors (chunks run in threads)."""
+    return run_chunk(rows, copy.deepcopy(detectors), settings)
 
 
 def _detect_and_score(label, det, signals, truth, rows, required, settings) -> list:
@@ -268,7 +275,7 @@ def failure_rows(rows: pd.DataFrame, labels, status: str, message: str) -> pd.Da
 
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
-        backend: str = "loky", log=None, scheduler: str | None = None,
+        backend: str | None = None, log=None, scheduler: str | None = None,
         engine: str | None = None) -> CampaignResult:
     """Run *config* into directory *out* (resuming what it already holds).
 
@@ -278,7 +285,10 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     out : output directory (created; must be empty or hold this same campaign)
     jobs : local workers (1 runs in-process)
     chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``)
-    backend : local workers: ``"loky"`` processes (default) or ``"threading"``
+    backend : local workers: ``"threading"`` (threads in this process; the compiled kernels
+        release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
+        ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
+        campaign sets ``run_timeout_s`` (a thread cannot be stopped).
     scheduler : address ``tcp://HOST:PORT`` of a dask.distributed scheduler; the chunks then
         run on its workers (*jobs* and *backend* are not used)
     engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
@@ -299,6 +309,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     chunk_size = int(chunk_size or config.runner.chunk_size)
     if settings.engine == "compiled":
         kernels.warm_up(log)
+    if backend is None:
+        backend = "threading" if config.runner.run_timeout_s is None else "loky"
     pool = None
     if client is None and jobs > 1:
         pool = LocalPool(backend, jobs)
@@ -341,7 +353,11 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
                 for c in chunks:
                     store(run_chunk(c, detectors, settings))
             elif chunks:
-                run_local(chunks, partial(run_chunk, detectors=detectors, settings=settings),
+                if backend == "threading":   # threads share memory: one detector copy each
+                    call = partial(_run_chunk_copy, detectors=detectors, settings=settings)
+                else:
+                    call = partial(run_chunk, detectors=detectors, settings=settings)
+                run_local(chunks, call,
                           fail, store, jobs=jobs, backend=backend,
                           run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
             complete = True

@@ -339,8 +339,9 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     *engine*: ``"compiled"`` (numba kernels, :mod:`scenarios.kernels`) or ``"numpy"`` (the
     reference :func:`integrate`); default :func:`scenarios.kernels.current_engine`.
     """
+    engine = resolve_engine(engine)
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
-    if resolve_engine(engine) == "compiled":
+    if engine == "compiled":
         traj = integrate_compiled(p, sensors)
     else:
         traj = integrate(p, sensors)

@@ -61,7 +61,7 @@ def test_a_worker_killed_by_a_run_ends_as_an_error_row_and_a_rerun_completes(
     victim = plan["run_id"].iloc[7]
     mark(marker, [victim])
     out = tmp_path / "out"
-    res = run(cfg, out, jobs=2, progress=False, log=lambda m: None)
+    res = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
     check_complete_once(res, len(plan))
     by_run = res.results.set_index("run_id")
     assert by_run.loc[victim, "status"] == "error"
@@ -70,7 +70,7 @@ def test_a_worker_killed_by_a_run_ends_as_an_error_row_and_a_rerun_completes(
     assert (by_run.drop(index=victim)["status"] == "ok").all()
 
     marker.unlink()                                      # the fault is gone: rerun
-    again = run(cfg, out, jobs=2, progress=False, log=lambda m: None)
+    again = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
     check_complete_once(again, len(plan))
     assert (again.results["status"] == "ok").all()
 
@@ -86,7 +86,7 @@ def test_a_run_over_its_time_limit_is_recorded_as_timeout_and_a_rerun_completes(
     victim = plan["run_id"].iloc[3]
     mark(marker, [victim])
     out = tmp_path / "out"
-    res = run(cfg, out, jobs=2, progress=False, log=lambda m: None)
+    res = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
     check_complete_once(res, len(plan))
     by_run = res.results.set_index("run_id")
     assert by_run.loc[victim, "status"] == "timeout"
@@ -96,7 +96,7 @@ def test_a_run_over_its_time_limit_is_recorded_as_timeout_and_a_rerun_completes(
     assert not meta_status.empty
 
     marker.unlink()
-    again = run(cfg, out, jobs=2, progress=False, log=lambda m: None)
+    again = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
     check_complete_once(again, len(plan))
     assert (again.results["status"] == "ok").all()
 
