@@ -196,7 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run the chunks on this dask.distributed scheduler's workers "
-                        "(needs the [dask] extra; see docs/distributed.md)")
+                        "(needs the [dask] extra; see docs/execution.md)")
     p.add_argument("--engine", choices=["compiled", "numpy"],
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
 

@@ -273,7 +273,7 @@ def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S):
         raise ClusterError(f"cannot reach the dask scheduler at {address} within "
                            f"{timeout_s:g} s ({type(exc).__name__}: {exc}); start one with "
                            "'dask scheduler --host 127.0.0.1' and workers with "
-                           "'dask worker tcp://127.0.0.1:8786' (docs/distributed.md)") from exc
+                           "'dask worker tcp://127.0.0.1:8786' (docs/execution.md)") from exc
 
 
 def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_result,
