@@ -10,7 +10,8 @@ overlaps them); a run computed alone equals the same run inside any block.
 
 Same equations, same order of floating-point operations as the NumPy reference
 (:mod:`scenarios.servo`, :mod:`scenarios.simulate`): no ``fastmath`` (it would reorder
-sums and contract multiply–adds), ``x ** 3`` written as ``x ** 3.0`` so that both call the
+sums and contract multiply–adds), ``error_model="numpy"`` (a division by zero gives ±inf or
+NaN as in NumPy instead of raising, and costs no check per division), ``x ** 3`` written as ``x ** 3.0`` so that both call the
 C library ``pow``, and the stops and saturations as ``min(max(·))`` like ``np.clip``. The
 tests check compiled against NumPy bit for bit (tests/test_kernels.py).
 
@@ -23,7 +24,7 @@ campaign file). When numba cannot be imported, ``"compiled"`` falls back to NumP
 
 Adding a detector recursion
 ---------------------------
-A detector with its own recursion writes it as an ``@njit(nogil=True, cache=True)`` function
+A detector with its own recursion writes it as an ``@njit(nogil=True, cache=True, error_model="numpy")`` function
 of plain arrays in its own module, calls the scalar plant functions of this module from it
 (:func:`rod_rate_1`, :func:`rk4_step_1`) with the parameter vector of :func:`plant_matrix`,
 keeps its NumPy version as the reference, dispatches on :func:`current_engine` and lists
@@ -103,12 +104,12 @@ def plant_matrix(plant) -> np.ndarray:
 
 
 # ---- scalar plant functions (PHYSICS §3; scenarios.servo holds the NumPy reference) --------
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _clip(v, lo, hi):
     return min(max(v, lo), hi)
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _sign(v):
     if v > 0.0:
         return 1.0
@@ -117,7 +118,7 @@ def _sign(v):
     return v  # ±0 (and NaN) like np.sign
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def rod_rate_1(x, i, p, loaded):
     """Rod speed ẋ [mm/s] of one run ([COMB] eq. 2, [CHEN] eq. 11, as
     :func:`scenarios.servo.rod_rate`); *p* is one row of :func:`plant_matrix`."""
@@ -142,7 +143,7 @@ def rod_rate_1(x, i, p, loaded):
     return v
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def rk4_step_1(x, i, p, loaded, h):
     """One RK4 step of the rod over *h* [s] with the current *i* [mA] held, inside the
     stops (as :func:`scenarios.servo.rk4_step`)."""
@@ -154,7 +155,7 @@ def rk4_step_1(x, i, p, loaded, h):
     return _clip(x_new, p[P_XMIN], p[P_XMAX])
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def float_step_1(delta, p, h, d_min, d_max):
     """Floating surface after a disconnection over *h* [s] (closed form of
     :func:`scenarios.servo.float_step`, PHYSICS §5); angles [rad]."""
@@ -170,13 +171,13 @@ def float_step_1(delta, p, h, d_min, d_max):
     return _clip(d_f + e_new, d_min, d_max)
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _quantize(v, q):
     return q * np.rint(v / q)
 
 
 # ---- the closed-loop time loop (scenarios.simulate.integrate) --------------------------------
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, com_osc, k_osc,
                     cur_add, cur_force, k_jam, k_disc, flags, ts, d_min, d_max, rod_quant,
                     xs, ds, icmd, iapp, ycom):
@@ -274,7 +275,7 @@ def integrate_compiled(p, sensors):
 
 
 # ---- nominal servo-loop model of the position monitor ----------------------------------------
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def servo_model_block(u, x0, plant, ts, out):
     """Nominal closed loop driven by the order *u* (n, T) [mm] from rod position *x0* (n,)
     [mm] (PHYSICS §2–3, as :meth:`detectors.position_monitor.PositionMonitor.model_output`):
