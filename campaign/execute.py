@@ -189,6 +189,9 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
 
     try:
         while queue or isolated or inflight:
+            if not queue and not inflight and isolated and pool.jobs > 1:
+                pool.stop()          # retries run one at a time: one worker is enough
+                pool = LocalPool(backend, 1)
             if pool.executor is None:
                 pool.start()
             if pool._warm:
@@ -198,11 +201,6 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
             while queue and len(inflight) < jobs and not alone_inflight:
                 submit(queue.popleft())
             if not queue and not inflight and isolated:
-                if pool.jobs > 1:    # retries run one at a time: one worker is enough
-                    pool.stop()
-                    pool = LocalPool(backend, 1)
-                    pool.start()
-                    pool.ready()
                 submit(isolated.popleft())
             deadlines = [d for _, d in inflight.values() if d is not None]
             wait_s = None if not deadlines else max(0.0, min(deadlines) - time.perf_counter())

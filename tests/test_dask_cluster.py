@@ -39,7 +39,7 @@ def _stop(procs) -> None:
             os.kill(proc.pid, signal.SIGTERM)
     for proc in reversed(procs):
         try:
-            proc.wait(timeout=5)
+            proc.wait(timeout=3)
         except subprocess.TimeoutExpired:
             os.kill(proc.pid, signal.SIGKILL)
             proc.wait(timeout=10)

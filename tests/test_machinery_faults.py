@@ -54,11 +54,11 @@ def check_complete_once(res, n_runs, n_detectors=1) -> None:
 def test_a_worker_killed_by_a_run_ends_as_an_error_row_and_a_rerun_completes(
         tmp_path, misbehaving):
     marker = tmp_path / "marked.json"
-    cfg = config(marker, "kill")
+    cfg = config(marker, "kill", chunk_size=4)
     plan = build_plan(cfg)
-    # third of four chunks (3 + 3 + 3 + 1 runs): it dies next to another chunk in flight,
-    # dies again alone, then alone as a single run; runs 6 and 8 of its chunk are saved
-    victim = plan["run_id"].iloc[7]
+    # last run of the last chunk (4 + 4 + 2 runs): its chunk dies next to another chunk in
+    # flight, dies again alone, is split, and the run dies alone; run 8 of its chunk is saved
+    victim = plan["run_id"].iloc[9]
     mark(marker, [victim])
     out = tmp_path / "out"
     res = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
@@ -66,11 +66,10 @@ def test_a_worker_killed_by_a_run_ends_as_an_error_row_and_a_rerun_completes(
     by_run = res.results.set_index("run_id")
     assert by_run.loc[victim, "status"] == "error"
     assert "worker process died" in by_run.loc[victim, "error"]
-    # the other runs of the victim's chunk and of the chunk in flight next to it are done
     assert (by_run.drop(index=victim)["status"] == "ok").all()
 
-    marker.unlink()                                      # the fault is gone: rerun
-    again = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
+    marker.unlink()                      # the fault is gone: rerun (in-process is enough)
+    again = run(cfg, out, jobs=1, progress=False, log=lambda m: None)
     check_complete_once(again, len(plan))
     assert (again.results["status"] == "ok").all()
 
@@ -78,12 +77,12 @@ def test_a_worker_killed_by_a_run_ends_as_an_error_row_and_a_rerun_completes(
 def test_a_run_over_its_time_limit_is_recorded_as_timeout_and_a_rerun_completes(
         tmp_path, misbehaving):
     marker = tmp_path / "marked.json"
-    # the marked run sleeps 60 s against a limit of 3 s; the others take ~0.05 s each (20 s
+    # the marked run sleeps 60 s against a limit of 2 s; the others take ~0.05 s each (20 s
     # runs, trivial detector), far below the limit even on a loaded machine. The worker
     # running the marked run is stopped at its limit, not after 60 s.
-    cfg = config(marker, "sleep", chunk_size=1, sleep_s=60.0, runner={"run_timeout_s": 3.0})
+    cfg = config(marker, "sleep", chunk_size=1, sleep_s=60.0, runner={"run_timeout_s": 2.0})
     plan = build_plan(cfg)
-    victim = plan["run_id"].iloc[3]
+    victim = plan["run_id"].iloc[8]
     mark(marker, [victim])
     out = tmp_path / "out"
     res = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
@@ -92,11 +91,9 @@ def test_a_run_over_its_time_limit_is_recorded_as_timeout_and_a_rerun_completes(
     assert by_run.loc[victim, "status"] == "timeout"
     assert "run_timeout_s" in by_run.loc[victim, "error"]
     assert (by_run.drop(index=victim)["status"] == "ok").all()
-    meta_status = pd.read_parquet(out / "summary.parquet")
-    assert not meta_status.empty
 
     marker.unlink()
-    again = run(cfg, out, jobs=2, backend="loky", progress=False, log=lambda m: None)
+    again = run(cfg, out, jobs=1, progress=False, log=lambda m: None)
     check_complete_once(again, len(plan))
     assert (again.results["status"] == "ok").all()
 
