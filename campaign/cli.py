@@ -186,7 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
              "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--out", required=True, help="output directory (rerun into it to resume)")
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--jobs", type=int, default=2,
+                   help="local workers (default 2; threads or processes, see --backend)")
     p.add_argument("--seed", type=int, help="override the campaign seed")
     p.add_argument("--chunk-size", type=int, help="runs per chunk (default: campaign file)")
     p.add_argument("--backend", choices=["threading", "loky"],

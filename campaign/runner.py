@@ -6,7 +6,9 @@ only result rows come back. Results stream back as chunks finish and each chunk 
 at once as a Parquet shard (atomically), so a crash, a kill or Ctrl-C loses at most the
 chunks in flight; rerunning into the same directory skips the runs already done.
 A run that fails (bad row, detector exception) is recorded with ``status="error"`` and its
-message; it never stops the campaign, and a rerun retries it.
+message; it never stops the campaign, and a rerun retries it. Where the chunks run (threads,
+worker processes, a dask cluster) and how a dying worker or a run over its time limit ends
+as per-run status is :mod:`campaign.execute`.
 """
 
 from __future__ import annotations
