@@ -156,15 +156,23 @@ def run_streams(seed, stream) -> tuple[np.random.Generator, np.random.Generator]
     return np.random.default_rng(man), np.random.default_rng(sens)
 
 
-def _sensor_draws(rng: np.random.Generator, T: int, s: SensorParams, dP: float):
-    """One run's sensor errors, drawn in a fixed order (never depends on the batch)."""
-    u = rng.uniform(-1.0, 1.0, size=5)
-    noise = rng.standard_normal((4, T))
+def _sensor_draws(rngs, T: int, s: SensorParams, dP: float):
+    """The sensor errors of every run of a batch, each stacked over the runs (n, …).
+
+    Run i draws from its own generator ``rngs[i]`` in a fixed order (5 uniforms, then 4·T
+    normals), so its draws never depend on the batch; the scaling is elementwise.
+    """
+    n = len(rngs)
+    u = np.empty((n, 5))
+    noise = np.empty((n, 4, T))
+    for i, rng in enumerate(rngs):
+        u[i] = rng.uniform(-1.0, 1.0, size=5)
+        rng.standard_normal(out=noise[i])
     return (
-        u[0] * s.rod_bias_mm, u[1] * s.rod_scale, noise[0] * s.rod_noise_mm,
-        u[2] * s.rod_bias_mm, u[3] * s.rod_scale, noise[1] * s.rod_noise_mm,
-        u[4] * s.surface_bias_deg, noise[2] * s.surface_noise_deg,
-        noise[3] * s.pressure_noise_frac * dP,
+        u[:, 0] * s.rod_bias_mm, u[:, 1] * s.rod_scale, noise[:, 0] * s.rod_noise_mm,
+        u[:, 2] * s.rod_bias_mm, u[:, 3] * s.rod_scale, noise[:, 1] * s.rod_noise_mm,
+        u[:, 4] * s.surface_bias_deg, noise[:, 2] * s.surface_noise_deg,
+        noise[:, 3] * s.pressure_noise_frac * dP,
     )
 
 
@@ -210,8 +218,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
                                 f"(runs × duration_s/ts), got {order_deg.shape}"])
     u = act.r_mm * np.sin(np.radians(order_deg))
 
-    draws = [_sensor_draws(g[1], T, sensors, act.dP_Pa) for g in gens]
-    stack = [np.array([d[j] for d in draws]) for j in range(9)]
+    stack = _sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
                           order_deg, act, ts, plant.i_max)
