@@ -1,16 +1,27 @@
 """``fdd-campaign bench``: simulation speed, memory, and the ratio to the per-run reference.
 
-Everything is measured in one process run so that ratios are comparable on a shared, noisy
+Everything is measured in one command run so that ratios are comparable on a shared, noisy
 machine: the vectorised chunked simulation of N runs on the requested workers, and a few
 runs of the straightforward per-run reference (:mod:`scenarios.reference`, ``solve_ivp`` in
-a Python loop) whose per-run time is extrapolated to N; then the per-step cost of every
-registered detector's ``detect`` on one chunk (:func:`detector_costs`).
+a Python loop) whose per-run time is extrapolated to N; with ``--plant FMU`` the same
+load's first runs on that FMU, per-run cost beside the built-in plant. With a campaign
+(default ``addsafe-mc``) it also runs the whole campaign as ``fdd-campaign run`` in a
+subprocess — simulation, every detector, scoring and Parquet — first with an empty
+compile cache, then with the cache warm, and reports wall time, peak memory of the
+process tree and the ratio to the per-run reference; and the cost of each built-in
+detector per run-step.
 """
 
 from __future__ import annotations
 
+import os
 import resource
+import subprocess
+import sys
+import tempfile
+import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -59,13 +70,15 @@ def _simulate_chunk_on(rows, plant):
 
 
 def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_size: int = 275,
-          reference_runs: int = 2, echo=print, plant: str | None = None,
-          plant_runs: int = 40) -> dict:
-    """Measure and print the figures; returns them as a dict.
-
-    *plant*: an FMU file; its first *plant_runs* runs of the same load are also simulated on
-    the FMU back end (same workers) and its per-run cost is reported beside the built-in
-    plant's."""
+          reference_runs: int = 2, echo=print, campaign: str | None = "addsafe-mc",
+          detectors: bool = True, cold: bool = True, backend: str = "threading",
+          plant: str | None = None, plant_runs: int = 40) -> dict:
+    """Measure and print the figures; returns them as a dict. *campaign*: preset or file run
+    whole (None: skip); *detectors*: time each built-in detector; *cold*: also time a first
+    campaign run with an empty compile cache; *backend*: joblib backend of the simulation
+    part ("threading", like ``fdd-campaign run``, or "loky"); *plant*: an FMU file whose
+    first *plant_runs* runs of the same load are also simulated on the FMU back end, its
+    per-run cost reported beside the built-in plant's."""
     spec = None
     if plant is not None:
         from scenarios.fmu import FmuPlant, probe
@@ -74,10 +87,13 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
         probe(spec, faults={"disconnection"})
     runs = bench_runs(n_runs, duration_s)
     chunks = [runs.iloc[s:s + chunk_size] for s in range(0, n_runs, chunk_size)]
-    echo(f"bench: {n_runs} runs x {duration_s:g} s at 100 Hz, {jobs} worker(s), "
+    echo(f"bench: {n_runs} runs x {duration_s:g} s at 100 Hz, {jobs} {backend} worker(s), "
          f"chunks of {chunk_size}")
     t0 = time.perf_counter()
-    out = Parallel(n_jobs=jobs, backend="loky")(delayed(_simulate_chunk)(c) for c in chunks)
+    from scenarios import kernels
+
+    kernels.warm_up(echo)                  # compile (or load) outside the timing
+    out = Parallel(n_jobs=jobs, backend=backend)(delayed(_simulate_chunk)(c) for c in chunks)
     wall = time.perf_counter() - t0
     worker_peak = max(m for _, m in out)
 
@@ -95,7 +111,8 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     }
     echo(f"  vectorised simulation : {wall:8.2f} s wall  "
          f"({figures['run_seconds_per_wall_second']:,.0f} simulated s per wall s)")
-    echo(f"  peak memory           : {worker_peak:8.0f} MB per worker process")
+    echo(f"  peak memory           : {worker_peak:8.0f} MB "
+         + ("per worker process" if backend == "loky" else "(this process)"))
     echo(f"  per-run reference     : {ref_per_run:8.2f} s per run (solve_ivp, {reference_runs} "
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
@@ -118,32 +135,128 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
         echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
              f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
              "the built-in plant per run")
-    figures["detector_ns_per_run_step"] = detector_costs(min(chunk_size, n_runs), duration_s,
-                                                         echo=echo)
+    if detectors:
+        costs = detector_costs(duration_s=duration_s)
+        figures["detectors"] = costs
+        for c in costs:
+            echo(f"  detector {c['detector']:<13s}: {c['ns_per_run_step']:8.1f} ns per run-step "
+                 f"({c['engine']})")
+    if campaign:
+        figures.update(bench_campaign(campaign, jobs, reference_s_per_run=ref_per_run,
+                                      cold=cold, echo=echo))
     return figures
 
 
-def detector_costs(n_runs: int = 100, duration_s: float = 60.0, learning_runs: int = 12,
-                   echo=print) -> dict[str, float]:
-    """Per-step cost of every registered detector's ``detect`` on one chunk of *n_runs*
-    (in this process, one after the other, so the figures compare): ns per run-step."""
-    from detectors import available_detectors, make_detector
+# ---- whole campaign in a subprocess ------------------------------------------------------------
+def _tree_rss_kb(pid: int) -> int:
+    """Resident memory [kB] of process *pid* and all its descendants (Linux /proc)."""
+    total, stack, seen = 0, [pid], set()
+    while stack:
+        p = stack.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        try:
+            for line in Path(f"/proc/{p}/status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    total += int(line.split()[1])
+            for task in Path(f"/proc/{p}/task").iterdir():
+                stack += [int(c) for c in (task / "children").read_text().split()]
+        except (OSError, ValueError):
+            continue
+    return total
 
-    runs = bench_runs(n_runs, duration_s)
-    signals, _ = simulate(runs)
-    learn_rows = bench_runs(learning_runs, duration_s, seed=2)
-    learn_rows["fault"], learn_rows["onset_s"] = "none", np.nan
-    learn_rows["magnitude"] = np.nan
-    learning, _ = simulate(learn_rows)
-    costs = {}
-    for name in available_detectors():
-        det = make_detector(name)
-        if det.capabilities.needs_fit:
-            det.fit(learning)
+
+def run_campaign_process(campaign: str, jobs: int, cache_dir: Path | None = None,
+                         poll_s: float = 0.02) -> dict:
+    """Run ``fdd-campaign run CAMPAIGN`` in a subprocess; wall time [s], peak memory [MB] of
+    its process tree (sampled every *poll_s*), and its output. *cache_dir* points numba's
+    compile cache there (an empty directory: a first run without a cache)."""
+    env = dict(os.environ)
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = str(cache_dir)
+    with tempfile.TemporaryDirectory(prefix="fdd-bench-") as tmp:
+        cmd = [sys.executable, "-m", "campaign.cli", "run", campaign, "--out",
+               str(Path(tmp) / "out"), "--jobs", str(jobs), "--quiet"]
         t0 = time.perf_counter()
-        det.detect(signals)
-        costs[name] = (time.perf_counter() - t0) / (signals.n_runs * signals.n_steps) * 1e9
-    echo(f"  detector cost         : per run-step of detect(), chunk of {n_runs} runs")
-    for name, ns in costs.items():
-        echo(f"    {name:<20}: {ns:8.0f} ns")
-    return costs
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        peak = [0]
+
+        def sample():
+            while proc.poll() is None:
+                peak[0] = max(peak[0], _tree_rss_kb(proc.pid))
+                time.sleep(poll_s)
+
+        sampler = threading.Thread(target=sample, daemon=True)
+        sampler.start()
+        stdout, stderr = proc.communicate()
+        wall = time.perf_counter() - t0
+        sampler.join()
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed with exit code {proc.returncode}:\n{stderr}")
+    return {"wall_s": wall, "peak_rss_mb": peak[0] / 1024.0, "stdout": stdout,
+            "stderr": stderr}
+
+
+# ---- detectors per run-step --------------------------------------------------------------------
+def detector_costs(n_runs: int = 200, duration_s: float = 60.0, learning_runs: int = 24,
+                   engines=("compiled", "numpy")) -> list[dict]:
+    """Seconds per run-step of ``detect`` for each built-in detector and engine (fitted on
+    *learning_runs* fault-free runs; timed on *n_runs* runs in one block)."""
+    from detectors.registry import BUILTIN, make_detector
+    from scenarios import kernels
+
+    runs = bench_runs(n_runs, duration_s, seed=2)
+    learn = bench_runs(learning_runs, duration_s, seed=3).assign(fault="none", onset_s=np.nan,
+                                                                  magnitude=np.nan)
+    learn["run_id"] = [f"learn-{i}" for i in range(learning_runs)]
+    signals, _ = simulate(runs)
+    learning, _ = simulate(learn)
+    kernels.warm_up()
+    out = []
+    for name in BUILTIN:
+        for engine in engines:
+            with kernels.use_engine(engine):
+                det = make_detector(name)
+                if det.capabilities.needs_fit:
+                    det.fit(learning)
+                det.detect(signals.take(slice(0, 2)))      # first call outside the timing
+                t0 = time.perf_counter()
+                det.detect(signals)
+                dt = time.perf_counter() - t0
+            out.append({"detector": name, "engine": engine,
+                        "ns_per_run_step": 1e9 * dt / (signals.n_runs * signals.n_steps)})
+    return out
+
+
+def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_run=None,
+                   cold: bool = True, echo=print) -> dict:
+    """Whole-campaign figures (see the module docstring)."""
+    from .config import load_config
+    from .design import build_plan
+
+    plan = build_plan(load_config(campaign))
+    figures = {"campaign": campaign, "campaign_runs": len(plan)}
+    if cold:
+        with tempfile.TemporaryDirectory(prefix="fdd-numba-cache-") as cache:
+            first = run_campaign_process(campaign, jobs, cache_dir=Path(cache))
+            warm = run_campaign_process(campaign, jobs, cache_dir=Path(cache))
+        figures["cold_wall_s"] = first["wall_s"]
+        figures["cold_peak_rss_mb"] = first["peak_rss_mb"]
+        echo(f"  {campaign} first run  : {first['wall_s']:8.2f} s wall, peak "
+             f"{first['peak_rss_mb']:.0f} MB (empty compile cache: "
+             f"{'compiling' in first['stderr'] and 'compiled' or 'no compile message!'})")
+    else:
+        warm = run_campaign_process(campaign, jobs)
+    figures["wall_s_campaign"] = warm["wall_s"]
+    figures["peak_rss_mb_campaign"] = warm["peak_rss_mb"]
+    echo(f"  {campaign} warm cache : {warm['wall_s']:8.2f} s wall, peak "
+         f"{warm['peak_rss_mb']:.0f} MB for the process tree ({len(plan)} runs, every "
+         f"detector, scoring and Parquet; {jobs} worker(s))")
+    if reference_s_per_run:
+        ref_total = reference_s_per_run * len(plan)
+        figures["campaign_speedup_vs_reference"] = ref_total / warm["wall_s"]
+        echo(f"  campaign vs per-run   : {figures['campaign_speedup_vs_reference']:8.0f} x "
+             f"(reference: simulation only, {ref_total:,.0f} s for {len(plan)} runs)")
+    return figures

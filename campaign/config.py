@@ -415,6 +415,14 @@ class LearningSection:
 class RunnerSection:
     chunk_size: int = key("int", "runs simulated together by one worker task", 100, lo=1,
                           hi=10000)
+    engine: str = key("choice", "implementation of the time loops: compiled (numba kernels) "
+                      "or numpy (the reference they are tested against; last-bit differences "
+                      "from transcendental functions)", "compiled", choices=("compiled", "numpy"))
+    run_timeout_s: float | None = key("float", "time limit of one run on a worker process "
+                                      "(a chunk gets this times its runs); a run exceeding it "
+                                      "is recorded with status \"timeout\" and retried by a "
+                                      "rerun", unit="s", lo=0.0, lo_open=True, hi=86400.0,
+                                      optional=True, default_doc="no limit", example=60.0)
 
 
 def _fmu_var(doc: str, default: str):

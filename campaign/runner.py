@@ -6,25 +6,29 @@ only result rows come back. Results stream back as chunks finish and each chunk 
 at once as a Parquet shard (atomically), so a crash, a kill or Ctrl-C loses at most the
 chunks in flight; rerunning into the same directory skips the runs already done.
 A run that fails (bad row, detector exception) is recorded with ``status="error"`` and its
-message; it never stops the campaign, and a rerun retries it.
+message; it never stops the campaign, and a rerun retries it. Where the chunks run (threads,
+worker processes, a dask cluster) and how a dying worker or a run over its time limit ends
+as per-run status is :mod:`campaign.execute`.
 """
 
 from __future__ import annotations
 
+import copy
 import sys
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
 
 from detectors import as_variants, make_detector
 from reports.metrics import RESULT_COLUMNS, score_runs
 from reports.summary import summarize
 from reports.table import format_table
+from scenarios import kernels
 from scenarios.params import ACTUATORS
 from scenarios.signals import Signals
 from scenarios.simulate import simulate
@@ -46,14 +50,16 @@ class ChunkSettings:
     required_time_s: dict
     window_s: float | None
     plant: object = None          # None: built-in plant; scenarios.fmu.FmuPlant: an FMU
+    engine: str = "compiled"
 
 
-def _error_rows(rows: pd.DataFrame, detector: str, message: str) -> pd.DataFrame:
+def _error_rows(rows: pd.DataFrame, detector: str, message: str,
+                status: str = "error") -> pd.DataFrame:
     n = len(rows)
     return pd.DataFrame({
         "run_id": rows["run_id"].to_numpy(), "detector": detector,
         "fault": rows["fault"].to_numpy(), "manoeuvre": rows["manoeuvre"].to_numpy(),
-        "status": "error", "error": message,
+        "status": status, "error": message,
         "false_alarm": np.zeros(n, bool), "pre_onset_alarm": np.zeros(n, bool),
         "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
         "dtp": np.nan, "margin": np.nan,
@@ -70,15 +76,21 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
     """Simulate, detect and score one chunk of runs; returns its result rows.
 
     Never raises for a bad run or a failing detector: those rows get ``status="error"``.
-    A chunk whose simulation fails is retried run by run, so one bad run does not take the
-    others of its chunk down with it.
+    A chunk whose simulation fails, or a detector that raises on a chunk, is retried run by
+    run, so one bad run does not take the others of its chunk down with it. The kernels
+    are those of ``settings.engine``.
     """
+    with kernels.use_engine(settings.engine):
+        return _run_chunk(rows, detectors, settings)
+
+
+def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
     try:
         signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
                                   plant=settings.plant)
     except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
         if len(rows) > 1:
-            return pd.concat([run_chunk(rows.iloc[[j]], detectors, settings)
+            return pd.concat([_run_chunk(rows.iloc[[j]], detectors, settings)
                               for j in range(len(rows))], ignore_index=True)
         return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
                           for label in detectors], ignore_index=True)
@@ -86,21 +98,44 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
     frames = []
     for label, det in detectors.items():
         try:
-            variants = as_variants(label, det.detect(signals))
-            for name, detection in variants.items():
-                scored = score_runs(
-                    run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
-                    alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
-                    required_time_s=required, window_s=settings.window_s)
-                scored.insert(1, "detector", name)
-                scored.insert(2, "fault", truth.fault)
-                scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
-                scored.insert(4, "status", "ok")
-                scored.insert(5, "error", "")
-                frames.append(scored)
+            frames.extend(_detect_and_score(label, det, signals, truth, rows, required,
+                                            settings))
         except Exception as exc:  # noqa: BLE001
-            frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+            if len(rows) == 1:
+                frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+                continue
+            # run by run, so that only the runs the detector fails on are recorded as errors
+            for j in range(len(rows)):
+                try:
+                    frames.extend(_detect_and_score(
+                        label, det, signals.take([j]), truth.take([j]), rows.iloc[[j]],
+                        required[[j]], settings))
+                except Exception as exc_j:  # noqa: BLE001
+                    frames.append(_error_rows(rows.iloc[[j]], label,
+                                              f"detector failed: {_describe(exc_j)}"))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _run_chunk_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
+    """:func:`run_chunk` on private copies of the detectors (chunks run in threads)."""
+    return run_chunk(rows, copy.deepcopy(detectors), settings)
+
+
+def _detect_and_score(label, det, signals, truth, rows, required, settings) -> list:
+    frames = []
+    variants = as_variants(label, det.detect(signals))
+    for name, detection in variants.items():
+        scored = score_runs(
+            run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
+            alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
+            required_time_s=required, window_s=settings.window_s)
+        scored.insert(1, "detector", name)
+        scored.insert(2, "fault", truth.fault)
+        scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
+        scored.insert(4, "status", "ok")
+        scored.insert(5, "error", "")
+        frames.append(scored)
+    return frames
 
 
 class Progress:
@@ -236,6 +271,7 @@ def settings_of(config) -> ChunkSettings:
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
         plant=spec_of_config(config),
+        engine=config.runner.engine,
     )
 
 
@@ -248,57 +284,111 @@ def check_plant(config) -> None:
         probe(spec, faults={g.fault for g in config.groups})
 
 
+def failure_rows(rows: pd.DataFrame, labels, status: str, message: str) -> pd.DataFrame:
+    """Result rows of runs that could not be run (*status* ``error`` or ``timeout``)."""
+    return pd.concat([_error_rows(rows, label, message, status) for label in labels],
+                     ignore_index=True)[list(RESULT_COLUMNS)]
+
+
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
-        backend: str = "loky", log=None) -> CampaignResult:
+        backend: str | None = None, log=None, scheduler: str | None = None,
+        engine: str | None = None) -> CampaignResult:
     """Run *config* into directory *out* (resuming what it already holds).
 
     Parameters
     ----------
     config : campaign.config.CampaignConfig
     out : output directory (created; must be empty or hold this same campaign)
-    jobs : worker processes (1 runs in-process)
+    jobs : local workers (1 runs in-process)
     chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``)
-    backend : joblib backend (``"loky"`` processes by default, ``"threading"``)
+    backend : local workers: ``"threading"`` (threads in this process; the compiled kernels
+        release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
+        ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
+        campaign sets ``run_timeout_s`` (a thread cannot be stopped).
+    scheduler : address ``tcp://HOST:PORT`` of a dask.distributed scheduler; the chunks then
+        run on its workers (*jobs* and *backend* are not used)
+    engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
+
+    Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
+    as per-run status rows; see :mod:`campaign.execute`.
     """
+    from .execute import LocalPool, connect, run_local, run_on_cluster
+
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
     check_plant(config)
+    settings = settings_of(config)
+    if engine is not None:
+        settings = replace(settings, engine=kernels.check_engine(engine))
+    client = connect(scheduler) if scheduler else None   # fail fast, before any work
     cdir = CampaignDir(out)
     resumed = cdir.open(config.to_json())
     chunk_size = int(chunk_size or config.runner.chunk_size)
-    settings = settings_of(config)
+    if settings.engine == "compiled":
+        kernels.warm_up(log)
+    if backend is None:
+        backend = "threading" if config.runner.run_timeout_s is None else "loky"
+    pool = None
+    if client is None and jobs > 1:
+        pool = LocalPool(backend, jobs)
+        pool.start()              # workers start while the learning set is simulated here
 
-    plan = build_plan(config)
-    plan_path = cdir.root / "plan.parquet"
-    if not plan_path.exists():
-        write_parquet(plan, plan_path, config.to_json(), kind="plan")
-    detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
-
-    done = cdir.done_run_ids() if resumed else set()
-    todo = plan[~plan["run_id"].isin(done)]
-    if resumed:
-        log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
-    chunks = [todo.iloc[s:s + chunk_size] for s in range(0, len(todo), chunk_size)]
-    bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
-    complete = False
     try:
-        if chunks:
-            tasks = (delayed(run_chunk)(c, detectors, settings) for c in chunks)
-            if jobs == 1:
-                results = (run_chunk(c, detectors, settings) for c in chunks)
-            else:
-                results = Parallel(n_jobs=jobs, backend=backend,
-                                   return_as="generator_unordered")(tasks)
-            for frame in results:
-                write_parquet(frame, cdir.next_shard_path(), config.to_json(), kind="results")
-                bar.update(frame["run_id"].nunique())
-        complete = True
-    except KeyboardInterrupt:
-        bar.close()
-        log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
-            "command again to resume")
+        plan = build_plan(config)
+        plan_path = cdir.root / "plan.parquet"
+        if not plan_path.exists():
+            write_parquet(plan, plan_path, config.to_json(), kind="plan")
+        with kernels.use_engine(settings.engine):
+            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
+
+        done = cdir.done_run_ids() if resumed else set()
+        todo = plan[~plan["run_id"].isin(done)]
+        if resumed:
+            log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already "
+                "done")
+        chunks = [todo.iloc[s:s + chunk_size] for s in range(0, len(todo), chunk_size)]
+        bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
+        labels = list(detectors)
+        complete = False
+
+        def store(frame: pd.DataFrame) -> None:
+            write_parquet(frame, cdir.next_shard_path(), config.to_json(), kind="results")
+            bar.update(frame["run_id"].nunique())
+
+        def fail(rows, status, message):
+            return failure_rows(rows, labels, status, message)
+
+        try:
+            if chunks and client is not None:
+                run_on_cluster(client, chunks, run_chunk, detectors, settings, fail, store,
+                               log=log)
+            elif chunks and pool is None:
+                if config.runner.run_timeout_s is not None:
+                    log("note: run_timeout_s is enforced on worker processes only (--jobs ≥ 2 "
+                        "with the loky backend, or a dask cluster); running in-process "
+                        "without a limit")
+                for c in chunks:
+                    store(run_chunk(c, detectors, settings))
+            elif chunks:
+                if backend == "threading":   # threads share memory: one detector copy each
+                    call = partial(_run_chunk_copy, detectors=detectors, settings=settings)
+                else:
+                    call = partial(run_chunk, detectors=detectors, settings=settings)
+                run_local(chunks, call,
+                          fail, store, jobs=jobs, backend=backend,
+                          run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
+            complete = True
+        except KeyboardInterrupt:
+            bar.close()
+            log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
+                "command again to resume")
+        finally:
+            bar.close()
     finally:
-        bar.close()
+        if pool is not None:
+            pool.stop(kill=True)
+        if client is not None:
+            client.close()
     return finalize(cdir, config, plan, complete, time.perf_counter() - t_start)
 
 

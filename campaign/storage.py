@@ -130,7 +130,10 @@ class CampaignDir:
         return self.runs / f"part-{last + 1:06d}.parquet"
 
     def read_results(self) -> pd.DataFrame:
-        """Every result row, the latest written row of each (run_id, detector) kept."""
+        """Every result row; of a run written more than once (a rerun retrying its error or
+        timeout rows), only the rows of its latest shard are kept: a chunk writes all the
+        rows of its runs at once, and failure rows name the detector label where the rows
+        of a successful run may name its variants."""
         paths = self.shard_paths()
         if not paths:
             return pd.DataFrame()
@@ -140,6 +143,8 @@ class CampaignDir:
             df["_seq"] = seq
             frames.append(df)
         df = pd.concat(frames, ignore_index=True)
+        latest = df.groupby("run_id", sort=False)["_seq"].transform("max")
+        df = df[df["_seq"] == latest]
         df = df.sort_values("_seq", kind="stable").drop_duplicates(["run_id", "detector"],
                                                                    keep="last")
         return df.drop(columns="_seq").reset_index(drop=True)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from scenarios.kernels import resolve_engine, servo_model
 from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
 
@@ -77,12 +78,18 @@ class PositionMonitor(Detector):
         return checks
 
     @staticmethod
-    def model_output(signals: Signals) -> np.ndarray:
-        """Nominal closed-loop servo model driven by the order (PHYSICS §2–3) [mm]."""
+    def model_output(signals: Signals, engine: str | None = None) -> np.ndarray:
+        """Nominal closed-loop servo model driven by the order (PHYSICS §2–3) [mm].
+
+        *engine*: ``"compiled"`` (:func:`scenarios.kernels.servo_model`) or ``"numpy"`` (the
+        reference loop below); default :func:`scenarios.kernels.current_engine`.
+        """
         act = signals.actuator
         sch = signals.schedule
         plant = plant_arrays(act, qbar_pa=sch["qbar_pa"], alpha_deg=sch["alpha_deg"],
                              mach=sch["mach"])
+        if resolve_engine(engine) == "compiled":
+            return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts)
         n, T = signals.command.shape
         out = np.empty((n, T))
         x = signals.rod_com[:, 0].astype(float).copy()

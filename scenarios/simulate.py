@@ -29,6 +29,7 @@ from . import envelope, manoeuvres
 from .catalog import FAULTS, MANOEUVRES, SURFACES, suggest
 from .faults import (FAULT_DEFAULTS, NEVER, FaultArrays, default_magnitude, fault_arrays,
                      required_magnitude)
+from .kernels import integrate_compiled, resolve_engine
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from .signals import Signals, Truth
@@ -166,15 +167,23 @@ def run_streams(seed, stream) -> tuple[np.random.Generator, np.random.Generator]
     return np.random.default_rng(man), np.random.default_rng(sens)
 
 
-def _sensor_draws(rng: np.random.Generator, T: int, s: SensorParams, dP: float):
-    """One run's sensor errors, drawn in a fixed order (never depends on the batch)."""
-    u = rng.uniform(-1.0, 1.0, size=5)
-    noise = rng.standard_normal((4, T))
+def _sensor_draws(rngs, T: int, s: SensorParams, dP: float):
+    """The sensor errors of every run of a batch, each stacked over the runs (n, …).
+
+    Run i draws from its own generator ``rngs[i]`` in a fixed order (5 uniforms, then 4·T
+    normals), so its draws never depend on the batch; the scaling is elementwise.
+    """
+    n = len(rngs)
+    u = np.empty((n, 5))
+    noise = np.empty((n, 4, T))
+    for i, rng in enumerate(rngs):
+        u[i] = rng.uniform(-1.0, 1.0, size=5)
+        rng.standard_normal(out=noise[i])
     return (
-        u[0] * s.rod_bias_mm, u[1] * s.rod_scale, noise[0] * s.rod_noise_mm,
-        u[2] * s.rod_bias_mm, u[3] * s.rod_scale, noise[1] * s.rod_noise_mm,
-        u[4] * s.surface_bias_deg, noise[2] * s.surface_noise_deg,
-        noise[3] * s.pressure_noise_frac * dP,
+        u[:, 0] * s.rod_bias_mm, u[:, 1] * s.rod_scale, noise[:, 0] * s.rod_noise_mm,
+        u[:, 2] * s.rod_bias_mm, u[:, 3] * s.rod_scale, noise[:, 1] * s.rod_noise_mm,
+        u[:, 4] * s.surface_bias_deg, noise[:, 2] * s.surface_noise_deg,
+        noise[:, 3] * s.pressure_noise_frac * dP,
     )
 
 
@@ -222,8 +231,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
                                 f"(runs × duration_s/ts), got {order_deg.shape}"])
     u = act.r_mm * np.sin(np.radians(order_deg))
 
-    draws = [_sensor_draws(g[1], T, sensors, act.dP_Pa) for g in gens]
-    stack = [np.array([d[j] for d in draws]) for j in range(9)]
+    stack = _sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
                           order_deg, act, ts, plant.i_max)
@@ -342,21 +350,27 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
 
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
-             orders_deg: np.ndarray | None = None, plant=None) -> tuple[Signals, Truth]:
+             orders_deg: np.ndarray | None = None, plant=None,
+             engine: str | None = None) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* (one surface and duration per call).
 
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
     *plant*: None for the built-in plant, or a :class:`scenarios.fmu.FmuPlant` to advance
     the plant with an FMU (:mod:`scenarios.fmu`).
+    *engine*: ``"compiled"`` (numba kernels, :mod:`scenarios.kernels`) or ``"numpy"`` (the
+    reference :func:`integrate`); default :func:`scenarios.kernels.current_engine`.
     """
+    engine = resolve_engine(engine)
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
-    if plant is None:
-        traj = integrate(p, sensors)
-    else:
+    if plant is not None:
         from .fmu import integrate_fmu
 
         traj = integrate_fmu(p, sensors, plant)
+    elif engine == "compiled":
+        traj = integrate_compiled(p, sensors)
+    else:
+        traj = integrate(p, sensors)
     act = p.act
     mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
                    sensors.rod_quant_mm)

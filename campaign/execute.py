@@ -1,0 +1,310 @@
+"""Run the chunks of a campaign on workers and survive faults in the machinery.
+
+Three ways to run the chunks, one contract: every chunk ends as result rows handed to
+``on_result`` as soon as it finishes (the runner writes each as a Parquet shard), and every
+run of the plan ends either done or recorded with a status and its message:
+
+* in-process (``jobs == 1``), one chunk after the other;
+* a pool of local workers: ``"loky"`` processes (joblib's process executor) or
+  ``"threading"`` threads (the compiled kernels release the GIL);
+* a dask.distributed cluster (:func:`run_on_cluster`, ``--scheduler tcp://HOST:PORT``).
+
+Faults in the machinery (TimeEval-style per-run status)
+-------------------------------------------------------
+* **A worker process dies** (killed, out of memory, a crash in native code): loky fails
+  every task in flight on the broken pool. The finished chunks are already stored; the
+  chunks that were in flight are retried once, each *alone* in a fresh pool so that a
+  second death points at its chunk. A chunk that kills its worker again is split into
+  single runs, each tried alone; a run that still kills its worker is recorded with
+  ``status="error"`` and the reason. On dask the scheduler reschedules the tasks of a lost
+  worker itself and gives up with ``KilledWorker`` after its ``allowed-failures``; such a
+  chunk is recorded as ``error``.
+* **A detector raises** on some runs: :func:`campaign.runner.run_chunk` records those runs
+  with ``status="error"`` (never fatal).
+* **A run exceeds** ``[runner] run_timeout_s`` (worker processes only): a chunk gets that
+  limit times its number of runs, counted from the moment it is handed to an idle worker
+  (one chunk per worker at a time, in pools whose workers have already started). A chunk
+  over its limit has its pool stopped; it is split into single runs, each tried alone with
+  the per-run limit; a run over it is recorded with ``status="timeout"``. Chunks that were
+  merely in flight next to it are resubmitted unchanged.
+
+A rerun into the same directory retries exactly the runs whose rows are not all ``ok``.
+Splitting never changes a result: a run simulated alone equals the same run in any chunk.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from dataclasses import dataclass
+
+import pandas as pd
+
+BACKENDS = ("loky", "threading")
+
+#: Seconds a fresh pool may take to start its workers (imports, kernels from the cache).
+POOL_START_TIMEOUT_S = 300.0
+
+
+@dataclass
+class Task:
+    """A chunk of runs and what happened to it so far."""
+
+    rows: pd.DataFrame
+    alone: bool = False     # must run with nothing else in flight (retry after a failure)
+    single: bool = False    # one run split out of a chunk that failed twice
+
+    @property
+    def n(self) -> int:
+        return len(self.rows)
+
+    def split(self) -> list["Task"]:
+        return [Task(self.rows.iloc[[j]], alone=True, single=True) for j in range(self.n)]
+
+
+def _worker_init() -> None:
+    """Start-up of every worker process: import the engine, load the compiled kernels."""
+    from scenarios import kernels
+
+    from . import runner  # noqa: F401  (the imports of a chunk, done before any chunk)
+
+    kernels.warm_up()
+
+
+def _worker_pid(pause_s: float) -> int:
+    """A warm-up task: the id of the worker process that ran it (after *pause_s* [s], so
+    that the tasks of one round spread over the workers)."""
+    import os
+
+    time.sleep(pause_s)
+    return os.getpid()
+
+
+class LocalPool:
+    """A loky process pool or a thread pool, restartable after a failure."""
+
+    def __init__(self, backend: str, jobs: int):
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+        self.backend, self.jobs = backend, jobs
+        self.executor = None
+        self._warm = []
+        self.restarts = -1
+
+    @property
+    def can_stop_a_task(self) -> bool:
+        return self.backend == "loky"
+
+    def start(self) -> None:
+        """Start the workers (returns at once; :meth:`ready` waits for them)."""
+        if self.backend == "loky":
+            from joblib.externals.loky import ProcessPoolExecutor
+
+            self.executor = ProcessPoolExecutor(max_workers=self.jobs, initializer=_worker_init)
+            self._warm = [self.executor.submit(_worker_pid, 0.05) for _ in range(self.jobs)]
+        else:
+            self.executor = ThreadPoolExecutor(max_workers=self.jobs,
+                                               thread_name_prefix="fdd-chunk")
+            self._warm = []
+        self.restarts += 1
+
+    def ready(self) -> None:
+        """Wait until every worker has started (so that time limits count chunk work only)."""
+        if self.executor is None:
+            self.start()
+        t_end = time.perf_counter() + POOL_START_TIMEOUT_S
+        pids: set[int] = set()
+        for _ in range(20):
+            if not self._warm:
+                break
+            done, pending = wait(self._warm, timeout=max(0.0, t_end - time.perf_counter()))
+            if pending:
+                raise RuntimeError(f"worker processes did not start within "
+                                   f"{POOL_START_TIMEOUT_S:g} s")
+            pids.update(f.result() for f in done)  # a worker that cannot start: raise it
+            missing = self.jobs - len(pids)
+            self._warm = [self.executor.submit(_worker_pid, 0.05) for _ in range(missing)]
+        self._warm = []
+
+    def submit(self, fn, *args):
+        return self.executor.submit(fn, *args)
+
+    def stop(self, kill: bool = False) -> None:
+        if self.executor is None:
+            return
+        if self.backend == "loky":
+            self.executor.shutdown(wait=True, kill_workers=kill)
+        else:
+            self.executor.shutdown(wait=True, cancel_futures=True)
+        self.executor = None
+
+
+def _is_pool_failure(exc: BaseException) -> bool:
+    from concurrent.futures import BrokenExecutor
+
+    return isinstance(exc, BrokenExecutor)
+
+
+def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
+              run_timeout_s: float | None, pool: LocalPool | None = None, log=print) -> dict:
+    """Run *chunks* (DataFrames of runs) with ``call(rows) -> result rows`` on *jobs*
+    workers; ``fail(rows, status, message)`` makes the rows of runs that could not be run.
+
+    Returns counts of what happened: ``{"pool_failures", "timeouts", "retried_chunks"}``.
+    """
+    stats = {"pool_failures": 0, "timeouts": 0, "retried_chunks": 0}
+    queue = deque(Task(c) for c in chunks)
+    isolated: deque[Task] = deque()
+    if pool is None:
+        pool = LocalPool(backend, jobs)
+    limit = run_timeout_s if pool.can_stop_a_task else None
+    if run_timeout_s is not None and limit is None:
+        log(f"note: run_timeout_s = {run_timeout_s:g} s is enforced on worker processes only "
+            f"(backend {backend!r} cannot stop a running chunk); running without a limit")
+    inflight: dict = {}  # future -> (task, deadline)
+
+    def submit(task: Task) -> None:
+        deadline = None if limit is None else time.perf_counter() + limit * task.n
+        inflight[pool.submit(call, task.rows)] = (task, deadline)
+
+    def after_pool_failure(task: Task, exc: BaseException) -> None:
+        if not task.alone:
+            stats["retried_chunks"] += 1
+            isolated.append(Task(task.rows, alone=True))
+        elif task.n > 1:
+            isolated.extend(task.split())
+        else:
+            what = "this run" if task.single else "the chunk of this run"
+            on_result(fail(task.rows, "error", f"worker process died running {what} twice "
+                                               f"(retried alone in a fresh pool): {_short(exc)}"))
+
+    def after_timeout(task: Task) -> None:
+        stats["timeouts"] += 1
+        if task.n > 1:
+            isolated.extend(task.split())
+        else:
+            on_result(fail(task.rows, "timeout", f"run exceeded the time limit of "
+                                                 f"{limit:g} s ([runner] run_timeout_s)"))
+
+    try:
+        while queue or isolated or inflight:
+            if not queue and not inflight and isolated and pool.jobs > 1:
+                pool.stop()          # retries run one at a time: one worker is enough
+                pool = LocalPool(backend, 1)
+            if pool.executor is None:
+                pool.start()
+            if pool._warm:
+                pool.ready()
+            # fill the free workers: normal chunks first, then isolated retries one by one
+            alone_inflight = any(t.alone for t, _ in inflight.values())
+            while queue and len(inflight) < jobs and not alone_inflight:
+                submit(queue.popleft())
+            if not queue and not inflight and isolated:
+                submit(isolated.popleft())
+            deadlines = [d for _, d in inflight.values() if d is not None]
+            wait_s = None if not deadlines else max(0.0, min(deadlines) - time.perf_counter())
+            done, _ = wait(list(inflight), timeout=wait_s, return_when=FIRST_COMPLETED)
+            broken = None
+            for fut in done:
+                task, _ = inflight.pop(fut)
+                try:
+                    frame = fut.result()
+                except Exception as exc:  # noqa: BLE001 - sorted below, never lost
+                    if _is_pool_failure(exc):
+                        broken = exc
+                        after_pool_failure(task, exc)
+                        continue
+                    frame = fail(task.rows, "error", f"chunk failed: {_short(exc)}")
+                on_result(frame)
+            if broken is not None:
+                stats["pool_failures"] += 1
+                for task, _ in inflight.values():   # every task in flight died with the pool
+                    after_pool_failure(task, broken)
+                inflight.clear()
+                pool.stop(kill=True)
+                log(f"a worker process died ({_short(broken)}); finished chunks are kept, "
+                    "the chunks in flight are retried alone in a fresh pool")
+                continue
+            now = time.perf_counter()
+            late = [f for f, (_, d) in inflight.items() if d is not None and now > d]
+            if late:
+                for fut in late:
+                    task, _ = inflight.pop(fut)
+                    after_timeout(task)
+                for task, _ in inflight.values():   # innocent neighbours: resubmit unchanged
+                    (isolated if task.alone else queue).appendleft(task)
+                inflight.clear()
+                pool.stop(kill=True)
+    finally:
+        pool.stop(kill=bool(inflight))
+    return stats
+
+
+def _short(exc: BaseException, limit: int = 300) -> str:
+    text = f"{type(exc).__name__}: {exc}".replace("\n", " ")
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
+# ---- dask.distributed ------------------------------------------------------------------------
+#: Seconds to wait for the dask scheduler before giving up (a clear error, exit code 2).
+CONNECT_TIMEOUT_S = 5.0
+
+
+class ClusterError(ValueError):
+    """The dask cluster cannot be used (not installed, unreachable, bad address)."""
+
+
+def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S):
+    """A ``distributed.Client`` connected to the scheduler at *address* (``tcp://HOST:PORT``)."""
+    if not isinstance(address, str) or "://" not in address or ":" not in address.split("://", 1)[1]:
+        raise ClusterError(f"scheduler address {address!r} is not of the form tcp://HOST:PORT "
+                           "(e.g. tcp://127.0.0.1:8786)")
+    try:
+        from distributed import Client
+    except ImportError as exc:
+        raise ClusterError("--scheduler needs dask.distributed, which is not installed: "
+                           "pip install 'fdd-campaign[dask]'") from exc
+    try:
+        return Client(address, timeout=timeout_s)
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"cannot reach the dask scheduler at {address} within "
+                           f"{timeout_s:g} s ({type(exc).__name__}: {exc}); start one with "
+                           "'dask scheduler --host 127.0.0.1' and workers with "
+                           "'dask worker tcp://127.0.0.1:8786' (docs/execution.md)") from exc
+
+
+def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_result,
+                   log=print) -> dict:
+    """Run *chunks* as dask futures, ``chunk_fn(rows, detectors, settings)`` each, handing
+    results to *on_result* as they complete (``as_completed``)."""
+    from distributed import as_completed
+
+    try:
+        from distributed.scheduler import KilledWorker
+    except ImportError:  # pragma: no cover - older layout
+        from distributed import KilledWorker
+
+    stats = {"killed_chunks": 0}
+    det_future = client.scatter([detectors], broadcast=True, hash=False)[0]
+    futures = {}
+    for rows in chunks:
+        fut = client.submit(chunk_fn, rows, det_future, settings, pure=False)
+        futures[fut] = rows
+    try:
+        for fut in as_completed(list(futures)):
+            rows = futures.pop(fut)
+            try:
+                frame = fut.result()
+            except KilledWorker as exc:
+                stats["killed_chunks"] += 1
+                frame = fail(rows, "error", f"dask workers died running this chunk: "
+                                            f"{_short(exc)}")
+            except Exception as exc:  # noqa: BLE001
+                frame = fail(rows, "error", f"chunk failed on the cluster: {_short(exc)}")
+            on_result(frame)
+            fut.release()
+    finally:
+        for fut in futures:
+            fut.cancel()
+    return stats

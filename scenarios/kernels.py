@@ -1,0 +1,356 @@
+"""Compiled kernels of the hot loops (numba), with the NumPy code as their reference.
+
+The closed-loop time loop of :func:`scenarios.simulate.integrate` and the nominal-model
+recursion of the position monitor advance every run step by step; in NumPy each step is a
+few dozen array operations on arrays of shape ``(n_runs,)``, so the interpreter overhead
+dominates. The kernels here run the same recursions compiled (``@njit(nogil=True,
+cache=True)``), on a block of runs at once: the outer loop goes over the steps, the inner
+loop over the runs of the block, whose computations are independent (so the processor
+overlaps them); a run computed alone equals the same run inside any block.
+
+Same equations, same order of floating-point operations as the NumPy reference
+(:mod:`scenarios.servo`, :mod:`scenarios.simulate`): no ``fastmath`` (it would reorder
+sums and contract multiply–adds), ``error_model="numpy"`` (a division by zero gives ±inf or
+NaN as in NumPy instead of raising, and costs no check per division), ``x ** 3`` written as ``x ** 3.0`` so that both call the
+C library ``pow``, and the stops and saturations as ``min(max(·))`` like ``np.clip``. The
+tests check compiled against NumPy bit for bit (tests/test_kernels.py).
+
+Engine selection
+----------------
+``"compiled"`` (default) or ``"numpy"`` (the reference). :func:`simulate` takes an explicit
+``engine=`` argument; detectors read :func:`current_engine`, which the campaign runner sets
+for the duration of a chunk with :func:`use_engine` (from the ``[runner] engine`` key of the
+campaign file). When numba cannot be imported, ``"compiled"`` falls back to NumPy.
+
+Adding a detector recursion
+---------------------------
+A detector with its own recursion writes it as an ``@njit(nogil=True, cache=True, error_model="numpy")`` function
+of plain arrays in its own module, calls the scalar plant functions of this module from it
+(:func:`rod_rate_1`, :func:`rk4_step_1`) with the parameter vector of :func:`plant_matrix`,
+keeps its NumPy version as the reference, dispatches on :func:`current_engine` and lists
+its kernel with :func:`register_warmup` so that :func:`warm_up` compiles it before the
+campaign starts.
+"""
+
+from __future__ import annotations
+
+import contextvars
+import math
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+try:  # numba is a core dependency; the guard only keeps the NumPy reference usable without it
+    from numba import njit
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised only on installations without numba
+    HAVE_NUMBA = False
+
+    def njit(*args, **kwargs):
+        def wrap(func):
+            return func
+        return wrap(args[0]) if args and callable(args[0]) else wrap
+
+ENGINES = ("compiled", "numpy")
+_ENGINE: contextvars.ContextVar[str] = contextvars.ContextVar("fdd_engine", default="compiled")
+
+_MM_PER_M = 1000.0
+
+#: Order of the per-run plant parameters in :func:`plant_matrix` (fields of PlantArrays).
+PLANT_FIELDS = ("K", "Kci", "i_max", "SdP", "SdP_ref", "Ka", "r_mm", "x_min", "x_max",
+                "hm_delta", "hm_0")
+(P_K, P_KCI, P_IMAX, P_SDP, P_SDPREF, P_KA, P_R, P_XMIN, P_XMAX, P_HMD, P_HM0) = range(11)
+
+
+def check_engine(engine: str) -> str:
+    """Return *engine* if known, else raise ``ValueError`` naming the choices."""
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
+    return engine
+
+
+def current_engine() -> str:
+    """The engine in effect: ``"compiled"`` unless :func:`use_engine` says otherwise (and
+    ``"numpy"`` when numba is not installed)."""
+    engine = _ENGINE.get()
+    return engine if HAVE_NUMBA else "numpy"
+
+
+def resolve_engine(engine: str | None) -> str:
+    """*engine* when given (checked), else :func:`current_engine`."""
+    if engine is None:
+        return current_engine()
+    check_engine(engine)
+    return engine if HAVE_NUMBA else "numpy"
+
+
+@contextmanager
+def use_engine(engine: str):
+    """Make *engine* the default of :func:`current_engine` inside the ``with`` block."""
+    token = _ENGINE.set(check_engine(engine))
+    try:
+        yield
+    finally:
+        _ENGINE.reset(token)
+
+
+def plant_matrix(plant) -> np.ndarray:
+    """Per-run plant parameters as one C-contiguous (n_runs, 11) array, columns in the
+    order of :data:`PLANT_FIELDS` (units as in :class:`scenarios.servo.PlantArrays`)."""
+    return np.ascontiguousarray(np.stack([np.asarray(getattr(plant, f), dtype=float)
+                                          for f in PLANT_FIELDS], axis=1))
+
+
+# ---- scalar plant functions (PHYSICS §3; scenarios.servo holds the NumPy reference) --------
+@njit(nogil=True, cache=True, error_model="numpy")
+def _clip(v, lo, hi):
+    return min(max(v, lo), hi)
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def _sign(v):
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return v  # ±0 (and NaN) like np.sign
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def rod_rate_1(x, i, p, loaded):
+    """Rod speed ẋ [mm/s] of one run ([COMB] eq. 2, [CHEN] eq. 11, as
+    :func:`scenarios.servo.rod_rate`); *p* is one row of :func:`plant_matrix`."""
+    v0 = p[P_KCI] * i
+    if loaded:
+        r = p[P_R]
+        s = _clip(x / r, -0.999, 0.999)
+        cos_d = math.sqrt(1.0 - s * s)
+        hm = p[P_HM0] + p[P_HMD] * math.asin(s)             # hinge moment [N·m]
+        f_aero = -hm / (r / _MM_PER_M * cos_d)               # rod force [N]
+        ka = p[P_KA]
+    else:
+        f_aero = 0.0
+        ka = 0.0
+    num = p[P_SDP] - _sign(i) * f_aero
+    num = _clip(num, 0.0, 2.0 * p[P_SDP])                    # stall at 0; aiding load capped
+    v = v0 * math.sqrt(num / (p[P_SDPREF] + ka * v0 * v0))
+    if x >= p[P_XMAX] and v > 0.0:                           # no motion further into a stop
+        v = 0.0
+    if x <= p[P_XMIN] and v < 0.0:
+        v = 0.0
+    return v
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def rk4_step_1(x, i, p, loaded, h):
+    """One RK4 step of the rod over *h* [s] with the current *i* [mA] held, inside the
+    stops (as :func:`scenarios.servo.rk4_step`)."""
+    k1 = rod_rate_1(x, i, p, loaded)
+    k2 = rod_rate_1(x + 0.5 * h * k1, i, p, loaded)
+    k3 = rod_rate_1(x + 0.5 * h * k2, i, p, loaded)
+    k4 = rod_rate_1(x + h * k3, i, p, loaded)
+    x_new = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return _clip(x_new, p[P_XMIN], p[P_XMAX])
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def float_step_1(delta, p, h, d_min, d_max):
+    """Floating surface after a disconnection over *h* [s] (closed form of
+    :func:`scenarios.servo.float_step`, PHYSICS §5); angles [rad]."""
+    d_f = -p[P_HM0] / p[P_HMD]
+    e = delta - d_f
+    r_m = p[P_R] / _MM_PER_M
+    ka_si = p[P_KA] * _MM_PER_M ** 2.0
+    cos_d = math.cos(delta)
+    c = math.sqrt(abs(p[P_HMD]) / (ka_si * r_m ** 3.0 * cos_d ** 3.0))
+    root = math.sqrt(abs(e)) - 0.5 * h * c
+    m = max(root, 0.0)
+    e_new = _sign(e) * (m * m)
+    return _clip(d_f + e_new, d_min, d_max)
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def _quantize(v, q):
+    return q * np.rint(v / q)
+
+
+# ---- the closed-loop time loop (scenarios.simulate.integrate) --------------------------------
+@njit(nogil=True, cache=True, error_model="numpy")
+def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, com_osc, k_osc,
+                    cur_add, cur_force, k_jam, k_disc, flags, ts, d_min, d_max, rod_quant,
+                    xs, ds, icmd, iapp, ycom):
+    """Closed loop of a block of runs (PHYSICS §2: acquire, i_k = sat(K·(u_k − y_k)), hold
+    over the next period; RK4 plant step; faults of PHYSICS §5 at step boundaries).
+
+    *x0* (n,) is the initial rod order [mm]; the other inputs are (n, T) or (n,) as in
+    :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
+    says the block has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
+    Writes the outputs *xs*, *ds* [rad], *icmd*, *iapp*, *ycom* (n, T) in place.
+    """
+    n, T = u_loop.shape
+    has_com_add, has_com_osc, has_cur_add, has_cur_force, any_jam, any_disc = (
+        flags[0], flags[1], flags[2], flags[3], flags[4], flags[5])
+    x = np.empty(n)
+    delta = np.empty(n)
+    i_prev = np.zeros(n)
+    y_hold = np.zeros(n)
+    for r in range(n):
+        x[r] = _clip(x0[r], plant[r, P_XMIN], plant[r, P_XMAX])  # trimmed: x(0) = order
+        delta[r] = math.asin(x[r] / plant[r, P_R])
+    # steps outside, runs inside: the runs of the block are independent, so the processor
+    # overlaps their (latency-bound) step computations; each run's arithmetic is unchanged
+    for k in range(T):
+        for r in range(n):
+            p = plant[r]
+            xr = x[r]
+            # COM acquisition (acquire_com)
+            y = _quantize(xr * (1.0 + com_scale[r]) + com_bias[r] + com_noise[r, k], rod_quant)
+            if has_com_add:
+                y = y + com_add[r, k]
+            if has_com_osc:
+                if k == k_osc[r]:
+                    y_hold[r] = y
+                if k >= k_osc[r]:
+                    osc = com_osc[r, k]
+                    y = y_hold[r] + (0.0 if math.isnan(osc) else osc)
+            i_new = _clip(p[P_K] * (u_loop[r, k] - y), -p[P_IMAX], p[P_IMAX])
+            # applied current (applied_current)
+            i_app = i_prev[r]
+            if has_cur_add:
+                i_app = i_app + cur_add[r, k]
+            if has_cur_force:
+                force = cur_force[r, k]
+                if math.isfinite(force):
+                    i_app = force
+            xs[r, k] = xr
+            ds[r, k] = delta[r]
+            icmd[r, k] = i_new
+            iapp[r, k] = i_app
+            ycom[r, k] = y
+            loaded = True
+            if any_disc:
+                loaded = k < k_disc[r]
+            x_next = rk4_step_1(xr, i_app, p, loaded, ts)
+            if any_jam and k >= k_jam[r]:
+                x_next = xr
+            if any_disc and not loaded:
+                delta[r] = float_step_1(delta[r], p, ts, d_min, d_max)
+            else:
+                delta[r] = math.asin(x_next / p[P_R])
+            x[r] = x_next
+            i_prev[r] = i_new
+
+
+def integrate_compiled(p, sensors):
+    """:func:`scenarios.simulate.integrate` through :func:`integrate_block`; returns the
+    same :class:`scenarios.simulate.Trajectory`."""
+    from .faults import NEVER
+    from .simulate import Trajectory
+
+    n, T = p.u.shape
+    fa, act = p.faults, p.act
+    empty = np.zeros((0, 0))
+    xs = np.empty((n, T)); ds = np.empty((n, T)); icmd = np.empty((n, T))
+    iapp = np.empty((n, T)); ycom = np.empty((n, T))
+
+    def arr2(a):
+        return empty if a is None else np.ascontiguousarray(a, dtype=float)
+
+    flags = np.array([fa.com_add is not None, fa.com_osc is not None, fa.cur_add is not None,
+                      fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
+                      bool((fa.k_disc < NEVER).any())])
+    integrate_block(
+        np.ascontiguousarray(p.u[:, 0], dtype=float), np.ascontiguousarray(fa.u_loop, dtype=float), plant_matrix(p.plant),
+        np.ascontiguousarray(p.com_scale, dtype=float),
+        np.ascontiguousarray(p.com_bias, dtype=float),
+        np.ascontiguousarray(p.com_noise, dtype=float), arr2(fa.com_add), arr2(fa.com_osc),
+        np.ascontiguousarray(fa.k_osc, dtype=np.int64), arr2(fa.cur_add), arr2(fa.cur_force),
+        np.ascontiguousarray(fa.k_jam, dtype=np.int64),
+        np.ascontiguousarray(fa.k_disc, dtype=np.int64), flags, float(p.ts),
+        float(np.radians(act.stop_min_deg)), float(np.radians(act.stop_max_deg)),
+        float(sensors.rod_quant_mm), xs, ds, icmd, iapp, ycom)
+    return Trajectory(x=xs, delta=ds, i_cmd=icmd, i_app=iapp, y_com=ycom)
+
+
+# ---- nominal servo-loop model of the position monitor ----------------------------------------
+@njit(nogil=True, cache=True, error_model="numpy")
+def servo_model_block(u, x0, plant, ts, out):
+    """Nominal closed loop driven by the order *u* (n, T) [mm] from rod position *x0* (n,)
+    [mm] (PHYSICS §2–3, as :meth:`detectors.position_monitor.PositionMonitor.model_output`):
+    out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period."""
+    n, T = u.shape
+    x = x0.copy()
+    i_prev = np.zeros(n)
+    for k in range(T):
+        for r in range(n):
+            p = plant[r]
+            xr = x[r]
+            out[r, k] = xr
+            i_new = _clip(p[P_K] * (u[r, k] - xr), -p[P_IMAX], p[P_IMAX])
+            x[r] = rk4_step_1(xr, i_prev[r], p, True, ts)
+            i_prev[r] = i_new
+
+
+def servo_model(u, x0, plant, ts: float) -> np.ndarray:
+    """(n, T) output [mm] of :func:`servo_model_block` for *plant* (PlantArrays)."""
+    u = np.ascontiguousarray(u, dtype=float)
+    out = np.empty(u.shape)
+    servo_model_block(u, np.ascontiguousarray(x0, dtype=float), plant_matrix(plant),
+                      float(ts), out)
+    return out
+
+
+# ---- compile / load from the cache before a campaign -----------------------------------------
+_WARMUPS: list = []
+
+
+def register_warmup(func) -> None:
+    """Add *func* (no arguments; calls its kernels once on tiny inputs) to :func:`warm_up`."""
+    if func not in _WARMUPS:
+        _WARMUPS.append(func)
+
+
+def _warm_simulation() -> None:
+    n, T = 1, 2
+    z2, z1, zi = np.zeros((n, T)), np.zeros(n), np.zeros(n, dtype=np.int64)
+    plant = np.ones((n, len(PLANT_FIELDS)))
+    plant[:, P_XMIN] = -1.0
+    outs = [np.zeros((n, T)) for _ in range(5)]
+    integrate_block(z1, z2, plant, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
+                    np.zeros((0, 0)), np.zeros((0, 0)), zi, zi, np.zeros(6, dtype=np.bool_),
+                    0.01, -0.5, 0.5, 0.01, *outs)
+    servo_model_block(z2, z1, plant, 0.01, outs[0])
+
+
+register_warmup(_warm_simulation)
+
+_KERNELS = ("integrate_block", "servo_model_block")
+
+
+def _cache_is_warm() -> bool:
+    """Whether numba's on-disk cache holds this module's kernels for the current source
+    (best effort: numba's cache index, whose stamp goes stale when the source changes)."""
+    try:
+        return all(bool(globals()[name]._cache._cache_file._load_index())
+                   for name in _KERNELS)
+    except (AttributeError, KeyError, TypeError, OSError):  # a numba without these internals
+        return False
+
+
+def warm_up(log=None) -> float:
+    """Compile every registered kernel (or load it from numba's cache) now; returns the
+    seconds it took. Says so on *log* when the cache is cold (first use)."""
+    if not HAVE_NUMBA:
+        return 0.0
+    t0 = time.perf_counter()
+    cold = not _cache_is_warm()
+    if cold and log is not None:
+        log("compiling kernels (first use; numba caches them for the next runs)…")
+    for func in list(_WARMUPS):
+        func()
+    elapsed = time.perf_counter() - t0
+    if cold and log is not None:
+        log(f"kernels compiled in {elapsed:.1f} s")
+    return elapsed
