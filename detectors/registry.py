@@ -26,6 +26,7 @@ ENTRY_POINT_GROUP = "fdd_campaign.detectors"
 BUILTIN: dict[str, str] = {
     "position-monitor": "detectors.position_monitor:PositionMonitor",
     "comb-interval": "detectors.interval_detector:IntervalDetector",
+    "chen-local": "detectors.chen_estimator:ChenLocalEstimator",
 }
 
 

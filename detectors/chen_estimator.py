@@ -1,0 +1,315 @@
+"""The LPV H−/H∞ fault estimator of [CHEN] at the local actuator level: liquid and solid
+jamming of a control-surface servo-loop (``chen-local``).
+
+Model ([CHEN] eq. 24): the quasi-LPV actuator model of eq. 12–14
+(:mod:`detectors.chen_local_model`, identified on the nonlinear servo-loop over the
+envelope) with an additive rod-sensor fault::
+
+    ẋ = −K(ρ̃)·x + K(ρ̃)·u + δ_l,    y = x + f_jam,    ρ̃ = [ρ, x, sign ẋ]
+
+In the form of eq. 15: A = −K, B = K, C = 1, D = 0, F = 0, H = 1 (+ ε of Remark 4.1),
+M = 1 (δ_l enters the rod speed [mm/s]), N = 0. A is affine in the scalar K, so the
+scheduling polytope of eq. 8 is the interval [K_min, K_max] that bounds K over the
+envelope (r = 2 vertices): K is evaluated on a dense grid — every realistic point of the
+[CHEN] Table-1 grid seen through every corner of the Table-2 measurement errors (widened by
+``schedule_margin``), × rod positions across that point's authority, × both directions of
+motion — and the extremes are widened by :data:`NUMERICS`.polytope_margin (K is not
+multi-affine in ρ: C1·C2 is quadratic, hence the grid). Online, ρ is clipped to the box of
+that grid and K to [K_min, K_max], so the estimator never leaves the certified polytope.
+
+Estimator ([CHEN] eq. 16, gains eq. 20–21, LMIs eq. 23 solved by
+:func:`detectors.lpv_synthesis.synthesise`): with one rod measurement and one fault, H⊥ is
+empty, so L1(ρ) = −F·H† = 0 and L2 = H† = 1/(1 + ε): the design freedom Z1, Z2 vanishes
+and the LMIs certify the estimator's stability at the vertices and give γ, the H∞ bound from
+δ_l [mm/s] to the estimation error [mm] (γ = 1/K_min [s] for ε = 0). The estimator runs the
+model on the order and schedules it on its own state x̂ (sign ẋ = sign(u − x̂), eq. 14),
+discretised at Ts with K frozen over a period by the bilinear transform of the model
+(:func:`detectors.chen_local_model.tustin_pole`; stable for every point of the polytope)::
+
+    x̂_{k+1} = x̂*_k + (x̂_k − x̂*_k)·φ(K_k − L1),   x̂*_k = (K_k·u_{k−d} − L1·y_k)/(K_k − L1),
+    f̂_k = L2·(y_k − x̂_k),
+
+with K_k held inside the polytope [K_min, K_max] (scheduling data projected onto it).
+
+Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free learning set:
+
+* ``solid``: |f̂| against τ_sol = ``safety``·max |f̂| (a seized rod leaves y frozen while
+  the model follows the order), confirmed over ``solid_confirm_s``;
+* ``liquid``: f̂ through the post-filter T(s) = (s + 1)/(s + 5) of §6.2 (it keeps the
+  amplitude of the fast estimate, which the servo-loop makes transient: the loop re-centres
+  the biased acquisition on the order, so f̂ appears and disappears as in [CHEN] Fig. 9c,
+  and divides slow fault-free model mismatch by five), then an integrator that "maintains
+  the effect of the fault bias till the end of the simulation". Reading implemented: the
+  integrator accumulates the time the filtered estimate spends beyond τ_liq =
+  ``safety``·max |T f̂| (it never resets), and the liquid alarm is raised once it reaches
+  ``liquid_confirm_s``. Integrating T f̂ itself would accumulate the per-run sensor
+  bias and noise of the fault-free runs without bound, which no constant threshold can
+  separate from a transient of ~f·τ.
+
+The synthesis and the model identification run once in ``fit`` (cached per actuator and
+period) and are stored in the fitted state; ``detect`` is a few multiply-adds and one
+division per run and step, vectorised over runs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.params import param
+from scenarios.signals import Signals
+
+from . import chen_local_model as lm
+from .base import Capabilities, Detection, Detector, confirm
+
+#: Measurements the estimator can use as the rod sensor output y of [CHEN] eq. 24.
+SENSORS = ("rod_com", "rod_mon")
+
+#: Residual variants, in output order.
+VARIANTS = ("liquid", "solid")
+
+
+@dataclass(frozen=True)
+class PostFilter:
+    """The liquid-jam post-filter T(s) = (s + z)/(s + p) of [CHEN] §6.2."""
+
+    zero_rad_s: float = param("rad/s", "[CHEN] §6.2", "zero z of T(s)")
+    pole_rad_s: float = param("rad/s", "[CHEN] §6.2", "pole p of T(s)")
+
+
+POST_FILTER = PostFilter(zero_rad_s=1.0, pole_rad_s=5.0)
+
+
+@dataclass(frozen=True)
+class LocalNumerics:
+    """Numerical constants of the local design (not physical parameters)."""
+
+    polytope_margin: float = param("-", "numerical", "relative widening of [K_min, K_max] "
+                                   "beyond the dense-grid extremes (K is quadratic in ρ)")
+    grid_rho: int = param("-", "numerical", "grid values per scheduling variable of the "
+                          "polytope and stability checks")
+    grid_x: int = param("-", "numerical", "rod positions of the polytope and stability grid")
+
+
+NUMERICS = LocalNumerics(polytope_margin=0.05, grid_rho=7, grid_x=41)
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def discrete_post_filter(ts: float, pf: PostFilter = POST_FILTER) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of T(s) discretised at *ts* by zero-order hold (scipy ``cont2discrete``)."""
+    from scipy.signal import cont2discrete
+
+    num, den, _ = cont2discrete(([1.0, pf.zero_rad_s], [1.0, pf.pole_rad_s]), ts, method="zoh")
+    return np.ravel(num), np.ravel(den)
+
+
+class ChenLocalEstimator(Detector):
+    """[CHEN] H−/H∞ LPV fault estimator at the actuator level (see the module docstring).
+
+    Parameters
+    ----------
+    sensor : str
+        Rod measurement y: ``"rod_com"`` (the acquisition the loop closes on; default) or
+        ``"rod_mon"``.
+    safety : float
+        Threshold = safety × the largest fault-free residual of the learning set (> 1).
+    liquid_confirm_s : float
+        Integrated time beyond τ_liq that raises the liquid alarm [s] (≥ 0; 0: first step).
+    solid_confirm_s : float
+        Consecutive time beyond τ_sol that raises the solid alarm [s] (≥ 0).
+    schedule_margin : float
+        Relative widening of the [CHEN] Table-2 measurement-error widths (±10 % VCAS, h,
+        m, Xcg) over which the polytope of eq. 8 is computed (0.25: errors up to ±12.5 %);
+        scheduling data outside its box are clipped to it.
+    h_perturbation : float
+        ε of [CHEN] Remark 4.1: H = 1 + ε (H already has full column rank here; ≥ 0).
+    floor_mm : float
+        Smallest threshold [mm] (> 0).
+    """
+
+    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
+
+    def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
+                 solid_confirm_s=0.1, schedule_margin=0.25, h_perturbation=0.0,
+                 floor_mm=0.05):
+        self.sensor = sensor
+        self.safety = safety
+        self.liquid_confirm_s = liquid_confirm_s
+        self.solid_confirm_s = solid_confirm_s
+        self.schedule_margin = schedule_margin
+        self.h_perturbation = h_perturbation
+        self.floor_mm = floor_mm
+
+    # ---- parameters --------------------------------------------------------------------
+    def validate_params(self) -> None:
+        if self.sensor not in SENSORS:
+            raise ValueError(f"sensor must be one of {list(SENSORS)}, got {self.sensor!r}")
+        if not (_number(self.safety) and self.safety > 1.0):
+            raise ValueError(f"safety must be a number > 1, got {self.safety!r}")
+        for name in ("liquid_confirm_s", "solid_confirm_s", "schedule_margin",
+                     "h_perturbation"):
+            v = getattr(self, name)
+            if not (_number(v) and v >= 0.0):
+                raise ValueError(f"{name} must be a number ≥ 0, got {v!r}")
+        if not (_number(self.floor_mm) and self.floor_mm > 0.0):
+            raise ValueError(f"floor_mm must be a number > 0 mm, got {self.floor_mm!r}")
+
+    def check_signals(self, signals: Signals) -> None:
+        super().check_signals(signals)
+        if signals.actuator is None:
+            raise ValueError("ChenLocalEstimator needs the nominal actuator parameters "
+                             "(Signals.actuator is None)")
+        lm.scheduling_vector(signals.schedule)        # names the missing scheduling data
+
+    # ---- design (fit) ------------------------------------------------------------------
+    def _polytope(self, model: lm.LocalModelFit, act) -> tuple[np.ndarray, np.ndarray,
+                                                                np.ndarray]:
+        """Scheduling box (lo, hi) and the values of K on the dense grid of the envelope.
+
+        Grid: every realistic point of the [CHEN] Table-1 grid, seen through each
+        combination of the Table-2 measurement errors (δVCAS, δh, δm, δXcg each at −w, 0,
+        +w, widened by ``schedule_margin`` relative to w), × rod positions across that
+        point's authority (orders never leave it, :func:`scenarios.servo.authority_limits`)
+        × sign ẋ ∈ {−1, 0, 1}.
+        """
+        import itertools
+
+        from scenarios import envelope
+        from scenarios.servo import authority_limits, plant_arrays
+
+        pts = envelope.realistic_points()
+        pts = pts[pts["realistic"]]
+        true = {c: pts[c].to_numpy(float) for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")}
+        fc = envelope.flight_condition(*true.values())
+        plant = plant_arrays(act, qbar_pa=fc["qbar_pa"], alpha_deg=fc["alpha_deg"],
+                             mach=fc["mach"])
+        d_lo, d_hi = authority_limits(plant, act)
+        frac = np.linspace(0.0, 1.0, NUMERICS.grid_x)
+        x = act.r_mm * np.sin(np.radians(d_lo[:, None] + (d_hi - d_lo)[:, None] * frac))
+        w = envelope.UNCERTAINTY
+        scale = 1.0 + float(self.schedule_margin)
+        rhos = []
+        for dv, dh, dm, dc in itertools.product(*[(-1.0, 0.0, 1.0)] * 4):
+            meas = envelope.measured_schedule(true["alt_ft"], true["vcas_kt"], true["mass_t"],
+                                              true["cg_pct"], dh * w.alt * scale,
+                                              dv * w.vcas * scale, dm * w.mass * scale,
+                                              dc * w.cg * scale)
+            rhos.append(lm.scheduling_vector(meas))
+        rho = np.stack(rhos, axis=1)                                   # (P, 81, nρ)
+        c0, c1, c2 = lm.coefficients(model.theta, rho)                 # (P, 81)
+        s = np.array([-1.0, 0.0, 1.0])
+        K = lm.gain(c0[:, :, None, None], c1[:, :, None, None], c2[:, :, None, None],
+                    x[:, None, :, None], s[None, None, None, :])
+        flat = rho.reshape(-1, rho.shape[-1])
+        return flat.min(axis=0), flat.max(axis=0), K
+
+    def _fit(self, signals: Signals) -> None:
+        from .lpv_synthesis import VertexSystem, synthesise
+
+        self.validate_params()
+        act = signals.actuator
+        ts = float(signals.ts)
+        model = lm.fit_local_model(act, ts)
+        lo, hi, K = self._polytope(model, act)
+        k_min, k_max = float(K.min()), float(K.max())
+        if not k_min > 0.0:
+            raise ValueError(
+                f"the identified actuator model has K = {k_min:.3g} 1/s ≤ 0 inside the "
+                f"scheduling box (schedule_margin = {self.schedule_margin}): the quasi-LPV "
+                "model of [CHEN] eq. 12 is not a stable first-order lag there; lower "
+                "schedule_margin")
+        m = NUMERICS.polytope_margin
+        vertex_k = (k_min * (1.0 - m), k_max * (1.0 + m))
+        vertices = [VertexSystem.make(A=[[-k]], B=[[k]], C=[[1.0]], D=[[0.0]], F=[[0.0]],
+                                      H=[[1.0]], M=[[1.0]], N=[[0.0]]) for k in vertex_k]
+        design = synthesise(vertices, h_perturbation=float(self.h_perturbation))
+        L1 = float(design.L1(np.zeros((1, 1)))[0, 0])
+        L2 = float(design.L2[0, 0])
+        # stability of the estimator: at the vertices and on the dense grid inside
+        a_vertex = np.array([design.stability_margin(v) for v in design.vertices])
+        a_grid = -K + L1
+        phi_grid = np.abs(lm.tustin_pole(-a_grid, ts))
+        if not (a_vertex.max() < 0.0 and a_grid.max() < 0.0 and phi_grid.max() < 1.0):
+            raise ValueError(
+                f"the estimator is not stable over the scheduling polytope (largest pole "
+                f"{max(a_vertex.max(), a_grid.max()):.3g} 1/s); [CHEN] §4 notes the gains "
+                "of eq. 20–21 need not stabilise it; narrow the polytope (schedule_margin)")
+        for v in design.vertices:
+            if not abs(lm.tustin_pole(-(v.A + L1 * v.C)[0, 0], ts)) < 1.0:
+                raise ValueError("the discretised estimator is unstable at a vertex")
+
+        self.model_ = model.as_dict()
+        self.model_rms_mm_ = model.rms_mm
+        self.gamma_ = design.gamma
+        self.design_ = {"P": design.P, "S": design.S, "Z1": design.Z1, "Z2": design.Z2,
+                        "H": design.H, "L1": L1, "L2": L2, "vertex_K": vertex_k,
+                        "solver_status": design.solver_status}
+        self.stability_ = {"vertex_max_real_pole": float(a_vertex.max()),
+                           "grid_max_real_pole": float(a_grid.max()),
+                           "grid_max_discrete_modulus": float(phi_grid.max()),
+                           "grid_points": int(K.size)}
+        self.schedule_box_ = (lo, hi)
+        self.theta_ = model.theta
+        self.delay_ = model.delay
+        self.x_range_mm_ = (act.x_min_mm, act.x_max_mm)
+        self.k_range_ = (k_min, k_max)
+        self.post_filter_ = discrete_post_filter(ts)
+        f_hat, g = self._residuals(signals)
+        self.thresholds_ = {
+            "liquid": max(float(self.safety) * float(np.max(np.abs(g))), float(self.floor_mm)),
+            "solid": max(float(self.safety) * float(np.max(np.abs(f_hat))), float(self.floor_mm)),
+        }
+        self.learning_runs_ = int(signals.n_runs)
+
+    # ---- online part -------------------------------------------------------------------
+    def estimate(self, signals: Signals) -> np.ndarray:
+        """Fault estimate f̂ [mm] of [CHEN] eq. 16, shape (n_runs, n_steps)."""
+        lo, hi = self.schedule_box_
+        rho = np.clip(lm.scheduling_vector(signals.schedule), lo, hi)
+        c0, c1, c2 = lm.coefficients(self.theta_, rho)
+        y = np.asarray(getattr(signals, self.sensor), float)
+        u = np.asarray(signals.command, float)
+        n, T = u.shape
+        L1, L2 = self.design_["L1"], self.design_["L2"]
+        d = int(self.delay_)
+        x_lo, x_hi = self.x_range_mm_
+        k_lo, k_hi = self.design_["vertex_K"]
+        ts = float(signals.ts)
+        f_hat = np.empty((n, T))
+        xh = y[:, 0].copy()
+        for k in range(T):
+            f_hat[:, k] = L2 * (y[:, k] - xh)
+            v = u[:, max(k - d, 0)]
+            xs = np.clip(xh, x_lo, x_hi)
+            K = c0 + c1 * np.sign(v - xh) * (xs + c2)      # [CHEN] eq. 13–14
+            K = np.clip(K, k_lo, k_hi)                     # inside the polytope (eq. 8)
+            a = K - L1
+            target = (K * v - L1 * y[:, k]) / a
+            xh = target + (xh - target) * lm.tustin_pole(a, ts)
+        return f_hat
+
+    def _residuals(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
+        from scipy.signal import lfilter
+
+        f_hat = self.estimate(signals)
+        b, a = self.post_filter_
+        return f_hat, lfilter(b, a, f_hat, axis=1)
+
+    def _detect(self, signals: Signals) -> dict[str, Detection]:
+        f_hat, g = self._residuals(signals)
+        ts = float(signals.ts)
+        norm_liq = np.abs(g) / self.thresholds_["liquid"]
+        norm_sol = np.abs(f_hat) / self.thresholds_["solid"]
+        # liquid: integrator of the time beyond the threshold (never reset, §6.2)
+        held = np.cumsum(norm_liq > 1.0, axis=1) * ts
+        need = max(float(self.liquid_confirm_s), ts)
+        alarm_liq = held >= need - 0.5 * ts
+        n_sol = max(int(round(float(self.solid_confirm_s) / ts)), 1)
+        alarm_sol = confirm(norm_sol > 1.0, n_sol)
+        return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq),
+                "solid": Detection(alarm=alarm_sol, residual=norm_sol)}

@@ -1,0 +1,155 @@
+"""The local-level [CHEN] estimator (detectors.chen_estimator, ``chen-local``): the
+identified quasi-LPV actuator model, the gains and γ of its LMI design, the fault estimate
+on the model itself, and detection of liquid and solid jams on simulated runs."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from detectors import make_detector
+from detectors import chen_local_model as lm
+from detectors.chen_estimator import ChenLocalEstimator
+from detectors.lpv_synthesis import hinf_sweep
+from scenarios.catalog import MANOEUVRES
+from scenarios.faults import default_magnitude
+from scenarios.params import ELEVATOR, SENSORS
+from scenarios.simulate import simulate, single_run
+
+DURATION_S = 30.0
+#: (alt_ft, vcas_kt, mass_t, cg_pct) realistic points of the [CHEN] Table-1 grid
+POINTS = [(28000.0, 300.0, 180.0, 30.0), (8000.0, 220.0, 120.0, 17.0),
+          (18000.0, 300.0, 233.0, 41.0), (38000.0, 220.0, 120.0, 30.0)]
+
+
+def _rows(specs, seed):
+    """specs: (manoeuvre, fault, onset_s, point index, d_vcas) → one run table."""
+    out = []
+    for j, (man, fault, onset, p, d_vcas) in enumerate(specs):
+        alt, vcas, mass, cg = POINTS[p]
+        out.append(single_run("elevator", man, fault, seed=seed, onset_s=onset,
+                              duration_s=DURATION_S, alt_ft=alt, vcas_kt=vcas, mass_t=mass,
+                              cg_pct=cg, d_vcas=d_vcas, d_alt=-d_vcas, d_kci=0.03,
+                              d_hinge=-0.1).assign(stream=j, run_id=f"r{j}"))
+    return pd.concat(out, ignore_index=True)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    # the learning set spans the manoeuvres and the points (as a campaign's learning set
+    # spans the envelope), with its own seed and other scheduling-measurement errors
+    learn = _rows([(m, "none", 0.0, p, d) for m in MANOEUVRES
+                   for p, d in ((0, 0.05), (1, -0.05), (2, -0.05), (3, 0.05))], seed=1)
+    signals, _ = simulate(learn)
+    return make_detector("chen-local").fit(signals)
+
+
+def test_local_model_fit_error_is_reported_and_bounded(fitted):
+    # Output-error RMS over the identification runs (53 realistic points, rate-limited moves
+    # across each point's authority). Measured 0.068 mm (max 0.30 mm) on the elevator. It is
+    # above the rod-sensor noise σ = 0.03 mm because eq. 13 is a first-order law, affine in
+    # x: it cannot follow the square-root hinge-load law near the authority limits (60 % of
+    # the stall force) nor the second mode the FCC transport delay adds to the loop. Bound:
+    # 0.08 mm (≈ 0.1 % of the 80 mm rod range, ≈ 2 % of the ~4 mm tracking lag of a 25 °/s
+    # move), and the output-error fit must improve on the linearised physical coefficients.
+    model = fitted.model_
+    assert fitted.model_rms_mm_ == model["rms_mm"]
+    assert model["rms_mm"] < 0.08
+    assert model["max_abs_mm"] < 0.4
+    assert model["rms_mm"] < 0.6 * model["rms_initial_mm"]
+    assert model["n_points"] == 53
+
+
+def test_gains_satisfy_eq_20_21_at_every_vertex(fitted):
+    d = fitted.design_
+    H = d["H"]
+    assert len(d["vertex_K"]) == 2
+    for k in d["vertex_K"]:
+        F = np.zeros((1, 1))                     # a rod-sensor fault: F = 0 (eq. 24)
+        np.testing.assert_allclose(F + d["L1"] * H, 0.0, atol=1e-12)       # eq. 20
+        np.testing.assert_allclose(d["L2"] * H, 1.0, atol=1e-12)           # eq. 21
+        assert k > 0.0
+
+
+def test_gamma_is_confirmed_by_a_frequency_sweep_at_the_vertices(fitted):
+    d = fitted.design_
+    omega = np.logspace(-4, 4, 2000)
+    peaks = []
+    for k in d["vertex_K"]:
+        A = np.array([[-k + d["L1"]]])
+        peaks.append(hinf_sweep(A, np.eye(1), np.array([[d["L2"]]]), np.zeros((1, 1)),
+                                omega).max())
+    # certificate: no vertex exceeds γ (solver tolerance 1e-4); and for this scalar design
+    # the bound is tight (γ = L2/K_min, reached at ω → 0; the sweep starts at 1e-4 rad/s,
+    # far below K_min ≈ 5 1/s, so it sees the peak to within 1e-3)
+    assert max(peaks) <= fitted.gamma_ * (1.0 + 1e-4)
+    assert max(peaks) >= fitted.gamma_ * (1.0 - 1e-3)
+    assert fitted.gamma_ == pytest.approx(1.0 / min(d["vertex_K"]), rel=1e-4)
+
+
+def test_estimator_is_stable_at_the_vertices_and_on_the_grid(fitted):
+    st = fitted.stability_
+    assert st["vertex_max_real_pole"] < 0.0
+    assert st["grid_max_real_pole"] < 0.0
+    assert st["grid_max_discrete_modulus"] < 1.0
+    assert st["grid_points"] > 100_000
+
+
+def test_fault_estimate_converges_to_a_constant_fault_on_the_model(fitted):
+    # The plant is the identified quasi-LPV model itself, y = x + f with f = 0.8 mm from
+    # 10 s: eq. 16 with F + L1·H = 0 and L2·H = 1 reconstructs f with unit static gain.
+    sig, _ = simulate(_rows([("nose_up", "none", 0.0, 0, 0.0)], seed=3))
+    lo, hi = fitted.schedule_box_
+    rho = np.clip(lm.scheduling_vector(sig.schedule), lo, hi)
+    x = lm.simulate_model(fitted.theta_, rho, sig.command, sig.ts, sig.command[:, 0],
+                          fitted.delay_)
+    k0 = int(10.0 / sig.ts)
+    f = np.where(np.arange(sig.n_steps) >= k0, 0.8, 0.0)[None, :]
+    # the K of eq. 13 stays inside the polytope here, so the estimator runs the same model
+    f_hat = fitted.estimate(dataclasses.replace(sig, rod_com=x + f))
+    np.testing.assert_allclose(f_hat[:, k0:], 0.8, atol=1e-9)
+    np.testing.assert_allclose(f_hat[:, :k0], 0.0, atol=1e-9)
+
+
+def test_liquid_and_solid_jams_are_detected_and_fault_free_runs_are_quiet(fitted):
+    liquid = default_magnitude("liquid_jam", ELEVATOR)          # 1.3 % of the range [mm]
+    specs = ([(m, "none", 0.0, p, 0.03) for m, p in zip(MANOEUVRES, (2, 3, 2, 3, 2, 3))]
+             + [("cruise", "liquid_jam", t, p, -0.03) for t, p in ((12.0, 2), (20.0, 3))]
+             + [("nose_up", "liquid_jam", 15.0, 0, 0.0)]
+             + [("nose_up", "solid_jam", t, p, 0.0) for t, p in ((8.0, 2), (11.0, 3))]
+             + [("aoa_protection", "solid_jam", 9.0, 0, 0.0)])
+    runs = _rows(specs, seed=5)
+    runs.loc[runs["fault"] == "liquid_jam", "magnitude"] = liquid
+    sig, truth = simulate(runs)
+    out = fitted.detect(sig)
+    none = truth.fault == "none"
+    for name in ("liquid", "solid"):
+        assert not out[name].alarm[none].any(), f"false alarm of {name} on a fault-free run"
+    onset = np.rint(truth.onset_s / sig.ts)
+    # liquid: the transient estimate has the size of the bias (1.2 mm, above τ_liq ≈ 0.94 mm
+    # learned here) at the first step after onset: detected within 0.1 s. solid: the seized
+    # rod is seen once the order has moved away from it by more than τ_sol (≈ 1.8 mm here):
+    # measured 0.92 s and 6.71 s after jams before/early in a nose-up (the order must
+    # first move) and 0.27 s during an AoA-protection excursion; the bound is the rest of
+    # the run (no missed detection).
+    for fault, variant, within_s in (("liquid_jam", "liquid", 0.1),
+                                     ("solid_jam", "solid", DURATION_S)):
+        rows = np.flatnonzero(truth.fault == fault)
+        alarm = out[variant].alarm[rows]
+        assert alarm.any(axis=1).all(), f"{fault} missed by the {variant} residual"
+        delay = (alarm.argmax(axis=1) - onset[rows]) * sig.ts
+        assert (delay >= 0.0).all() and (delay <= within_s).all(), (fault, delay)
+    # the liquid jam does not trigger the solid residual (its estimate is transient)
+    assert not out["solid"].alarm[truth.fault == "liquid_jam"].any()
+
+
+def test_bad_parameters_are_named():
+    for kwargs, match in (({"sensor": "surface"}, "sensor"), ({"safety": 1.0}, "safety"),
+                          ({"liquid_confirm_s": -1.0}, "liquid_confirm_s"),
+                          ({"floor_mm": 0.0}, "floor_mm")):
+        with pytest.raises(ValueError, match=match):
+            ChenLocalEstimator(**kwargs).validate_params()
+    assert SENSORS.rod_noise_mm == 0.03        # the noise the fit bound above refers to
