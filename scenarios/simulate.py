@@ -82,15 +82,16 @@ class RunSpecError(ValueError):
         return (type(self), (self.errors,))
 
 
-def validate_runs(runs: pd.DataFrame) -> None:
-    """Raise :class:`RunSpecError` listing every problem of *runs* (names, ranges, onsets)."""
+def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> None:
+    """Raise :class:`RunSpecError` listing every problem of *runs* (names, ranges, onsets);
+    *surfaces* are the allowed surface names (the aircraft plant has its own)."""
     errors = []
     missing = [c for c in RUN_COLUMNS if c not in runs.columns]
     if missing:
         raise RunSpecError([f"missing column(s) {missing}; a run row needs {list(RUN_COLUMNS)}"])
     if len(runs) == 0:
         raise RunSpecError(["the run table is empty"])
-    for col, allowed in (("surface", SURFACES), ("manoeuvre", MANOEUVRES), ("fault", FAULTS)):
+    for col, allowed in (("surface", surfaces), ("manoeuvre", MANOEUVRES), ("fault", FAULTS)):
         bad = sorted(set(runs[col].astype(str)) - set(allowed))
         for value in bad:
             errors.append(f"{col}: unknown value {value!r}{suggest(value, allowed)}; "
@@ -329,12 +330,22 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
 
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
-             orders_deg: np.ndarray | None = None) -> tuple[Signals, Truth]:
+             orders_deg: np.ndarray | None = None,
+             plant: str = "actuator") -> tuple[Signals, Truth]:
     """Simulate every run of *runs* (one surface and duration per call).
+
+    *plant* ``"aircraft"`` simulates the aircraft in the loop
+    (:func:`scenarios.aircraft.loop.simulate_aircraft`; the run rows' ``surface`` is then
+    the monitored aircraft surface).
 
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
     """
+    if plant == "aircraft":
+        from .aircraft.loop import simulate_aircraft
+        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor)
+    if plant != "actuator":
+        raise ValueError(f"unknown plant level {plant!r}; allowed: actuator, aircraft")
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
     traj = integrate(p, sensors)
     act = p.act

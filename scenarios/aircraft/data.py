@@ -203,12 +203,15 @@ class LawParams:
     yaw_damping: float = param("1/s", "est.", "yaw damper: added −∂ṙ/∂r")
     sideslip_gain: float = param("1/s²", "est.", "sideslip feedback: added ∂ṙ/∂β")
     sideslip_integral: float = param("1/s³", "est.", "sideslip integral (turn coordination)")
+    hinge_load_limit: float = param(
+        "-", "est. (PHYSICS §3: no stall in normal flight; like a rudder travel limiter)",
+        "orders stay where the hinge load is below this share of the stall force S·ΔP")
 
 
 LAWS = LawParams(
     pitch_omega=2.0, pitch_zeta=0.7, pitch_integral=1.0,
     roll_bandwidth=3.0, bank_gain=0.75, bank_max_deg=33.0,
-    yaw_damping=1.0, sideslip_gain=0.5, sideslip_integral=0.1,
+    yaw_damping=1.0, sideslip_gain=0.5, sideslip_integral=0.1, hinge_load_limit=0.9,
 )
 
 
