@@ -82,4 +82,7 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     echo(f"  per-run reference     : {ref_per_run:8.2f} s per run (solve_ivp, {reference_runs} "
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
+    from .plant_bench import plant_cost
+
+    figures.update(plant_cost(runs.iloc[:min(n_runs, chunk_size)], echo=echo))
     return figures

@@ -27,6 +27,8 @@ def cmd_run(args) -> int:
     config = cfg.load_config(args.campaign)
     if args.seed is not None:
         config = cfg.with_overrides(config, seed=args.seed)
+    if args.plant is not None:
+        config = cfg.with_overrides(config, values={"campaign.plant": args.plant})
     if args.jobs < 1:
         raise UsageError("--jobs must be ≥ 1")
     result = run(config, args.out, jobs=args.jobs, chunk_size=args.chunk_size,
@@ -115,14 +117,26 @@ def cmd_init(args) -> int:
 def cmd_simulate(args) -> int:
     from scenarios.simulate import simulate, single_run
 
-    runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
-                      onset_s=args.onset, duration_s=args.duration,
-                      **({} if args.magnitude is None else {"magnitude": args.magnitude}))
-    signals, truth = simulate(runs, pressure_sensor=args.pressure)
+    if args.plant == "aircraft":
+        from .aircraft_cli import aircraft_single_run
+
+        runs = aircraft_single_run(args)
+    else:
+        from scenarios.catalog import SURFACES
+
+        if args.surface not in SURFACES:
+            raise UsageError(f"--surface {args.surface} is an aircraft surface; use "
+                             f"--plant aircraft, or one of {', '.join(SURFACES)}")
+        runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
+                          onset_s=args.onset, duration_s=args.duration,
+                          **({} if args.magnitude is None else {"magnitude": args.magnitude}))
+    signals, truth = simulate(runs, pressure_sensor=args.pressure, plant=args.plant)
     frame = signals.to_pandas(0)
     frame["true_rod [mm]"] = truth.rod_mm[0]
     frame["true_surface [deg]"] = truth.surface_deg[0]
     frame["true_current [mA]"] = truth.current_mA[0]
+    for name, series in (truth.surfaces_deg or {}).items():
+        frame[f"true_{name} [deg]"] = series[0]
     onset = float(truth.onset_s[0])
     print(f"{args.surface} / {args.manoeuvre} / fault {args.fault}"
           + (f" at {onset:.2f} s" if onset == onset else "")
@@ -137,7 +151,13 @@ def cmd_simulate(args) -> int:
             b"fdd_campaign": runs.to_json(orient="records").encode()})
         pq.write_table(table, args.out)
         print(f"signals and truth written to {args.out}")
-    if args.plot:
+    if args.plot and args.plant == "aircraft":
+        from reports.aircraft_plot import plot_aircraft_run
+
+        plot_aircraft_run(frame, onset_s=onset, path=args.plot, monitored=str(runs["surface"].iloc[0]),
+                          title=f"{runs['surface'].iloc[0]} — {args.manoeuvre} — {args.fault}")
+        print(f"plot written to {args.plot}")
+    elif args.plot:
         from reports.plots import plot_run
 
         plot_run(frame, onset_s=onset, title=f"{args.surface} — {args.manoeuvre} — {args.fault}",
@@ -164,6 +184,7 @@ def _sub(subs, name, help_, example, func):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from scenarios.aircraft.data import AIRCRAFT_SURFACES, PLANTS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
 
     parser = argparse.ArgumentParser(
@@ -189,6 +210,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", default="loky", choices=["loky", "threading"],
                    help="joblib backend (default loky: processes)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.add_argument("--plant", choices=PLANTS,
+                   help="override the campaign's plant level ([campaign] plant)")
 
     p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)
@@ -212,7 +235,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
              "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
-    p.add_argument("--surface", default="elevator", choices=SURFACES)
+    p.add_argument("--surface", default="elevator", choices=SURFACES + AIRCRAFT_SURFACES,
+                   help="surface (with --plant aircraft: the monitored one; elevator → "
+                   "left_elevator, aileron → left_inboard_aileron)")
+    p.add_argument("--plant", default="actuator", choices=PLANTS,
+                   help="actuator: the servo-loop alone; aircraft: aircraft, laws and every "
+                   "surface in the loop")
     p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES)
     p.add_argument("--fault", default="none", choices=FAULTS)
     p.add_argument("--seed", type=int, default=0)

@@ -25,11 +25,11 @@ from detectors import as_variants, make_detector
 from reports.metrics import RESULT_COLUMNS, score_runs
 from reports.summary import summarize
 from reports.table import format_table
-from scenarios.params import ACTUATORS
 from scenarios.signals import Signals
 from scenarios.simulate import simulate
 
 from .design import build_learning_plan, build_plan
+from .plant import run_actuator
 from .storage import CampaignDir, read_metadata, write_parquet, write_pickle, write_text
 
 
@@ -45,6 +45,7 @@ class ChunkSettings:
     pressure_sensor: bool
     required_time_s: dict
     window_s: float | None
+    plant: str = "actuator"
 
 
 def _error_rows(rows: pd.DataFrame, detector: str, message: str) -> pd.DataFrame:
@@ -73,7 +74,8 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
     others of its chunk down with it.
     """
     try:
-        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
+        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
+                                  plant=settings.plant)
     except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
         if len(rows) > 1:
             return pd.concat([run_chunk(rows.iloc[[j]], detectors, settings)
@@ -136,7 +138,7 @@ class Progress:
 
 
 def _check_compatibility(config, detectors: dict) -> None:
-    act = ACTUATORS[config.campaign.surface]
+    act = run_actuator(config.campaign)
     problems = []
     for label, det in detectors.items():
         caps = det.capabilities
@@ -160,7 +162,7 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
     parts = []
     for start in range(0, len(plan), chunk_size):
         sig, _ = simulate(plan.iloc[start:start + chunk_size], ts=settings.ts,
-                          pressure_sensor=settings.pressure_sensor)
+                          pressure_sensor=settings.pressure_sensor, plant=settings.plant)
         parts.append(sig)
     return Signals.concat(parts)
 
@@ -231,6 +233,7 @@ def settings_of(config) -> ChunkSettings:
         pressure_sensor=config.campaign.pressure_sensor,
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
+        plant=config.campaign.plant,
     )
 
 

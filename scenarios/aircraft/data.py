@@ -269,3 +269,10 @@ AIRCRAFT_SIGNALS: dict[str, str] = {
     "p": "deg/s", "q": "deg/s", "r": "deg/s", "phi": "deg", "theta": "deg",
     "nz": "g", "ny": "g", "beta": "deg",
 }
+
+#: Plant levels a campaign can simulate (``[campaign] plant``).
+PLANTS: tuple[str, ...] = ("actuator", "aircraft")
+
+#: Monitored aircraft surface when a campaign names only the actuator-level surface.
+DEFAULT_MONITORED: dict[str, str] = {"elevator": "left_elevator",
+                                     "aileron": "left_inboard_aileron"}
