@@ -125,8 +125,9 @@ def cmd_simulate(args) -> int:
         from scenarios.catalog import SURFACES
 
         if args.surface not in SURFACES:
-            raise UsageError(f"--surface {args.surface} is an aircraft surface; use "
-                             f"--plant aircraft, or one of {', '.join(SURFACES)}")
+            raise UsageError(f"invalid choice --surface {args.surface} at the actuator plant "
+                             f"level: it is an aircraft surface; use --plant aircraft, or one "
+                             f"of {', '.join(SURFACES)}")
         runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
                           onset_s=args.onset, duration_s=args.duration,
                           **({} if args.magnitude is None else {"magnitude": args.magnitude}))

@@ -22,7 +22,7 @@ def _tiny(**campaign):
         ],
         "detector": [{"name": "position-monitor"}],
         "learning": {"runs_per_manoeuvre": 2},
-        "runner": {"chunk_size": 4},
+        "runner": {"chunk_size": 12},          # one batch per set: fast
     }
     return CampaignConfig.from_dict(data)
 

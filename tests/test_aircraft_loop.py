@@ -8,9 +8,9 @@ import pytest
 from scenarios import envelope
 from scenarios.aircraft import lpv
 from scenarios.aircraft.data import AIRCRAFT_SURFACES, LAYOUT
-from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS, prepare_aircraft, simulate_aircraft
+from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS, simulate_aircraft
 from scenarios.catalog import MANOEUVRES
-from scenarios.servo import PlantArrays, aero_force
+from scenarios.servo import PlantArrays, aero_force, plant_arrays
 from scenarios.signals import Signals
 from scenarios.simulate import RunSpecError, simulate, single_run
 
@@ -79,14 +79,15 @@ def test_surfaces_within_limits_and_never_stall(envelope_batch):
     0.5 % and noise on which the loop closes) and its hinge load stays below the stall
     force S·ΔP (PHYSICS §3: no stall in normal flight)."""
     runs, _, truth = envelope_batch
-    p = prepare_aircraft(runs)
-    n = len(runs)
-    for j, (name, kind) in enumerate(zip(LAYOUT.names, LAYOUT.actuator)):
+    fl = truth.flight
+    draws = {c: runs[c].to_numpy(float) for c in ("d_aero", "d_hinge", "d_supply", "d_kci")}
+    for name, kind in zip(LAYOUT.names, LAYOUT.actuator):
         act = AIRCRAFT_ACTUATORS[kind]
         d = truth.surfaces_deg[name]
         assert d.min() >= act.delta_min_deg - 0.3 and d.max() <= act.delta_max_deg + 0.3, name
-        col = PlantArrays(**{k: np.asarray(v)[j * n:(j + 1) * n, None]
-                             for k, v in vars(p.plant).items()})
+        pl = plant_arrays(act, qbar_pa=fl["qbar_pa"], alpha_deg=fl["alpha_deg"],
+                          mach=fl["mach"], **draws)
+        col = PlantArrays(**{k: np.asarray(v)[:, None] for k, v in vars(pl).items()})
         load = np.abs(aero_force(col.r_mm * np.sin(np.radians(d)), col)) / col.SdP
         assert load.max() < 1.0, (name, load.max())
 

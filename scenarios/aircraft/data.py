@@ -211,7 +211,7 @@ class LawParams:
 LAWS = LawParams(
     pitch_omega=2.0, pitch_zeta=0.7, pitch_integral=1.0,
     roll_bandwidth=3.0, bank_gain=0.75, bank_max_deg=33.0,
-    yaw_damping=1.0, sideslip_gain=0.5, sideslip_integral=0.1, hinge_load_limit=0.9,
+    yaw_damping=1.0, sideslip_gain=1.0, sideslip_integral=0.5, hinge_load_limit=0.9,
 )
 
 

@@ -82,6 +82,7 @@ class AircraftPrepared:
     step_matrix: np.ndarray       # (n, 7, 17) ZOH [Φ Γ] on [x; u]
     load_matrix: np.ndarray       # (n, 2, 17) load factors [C D] on [x; u]
     gains: laws.Gains
+    law_params: laws.LawParams
     nz_c: np.ndarray              # (n, T) pilot orders
     p_c: np.ndarray
     beta_c: np.ndarray
@@ -155,7 +156,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
     measured = {"mass_t": schedule["mass_t"], "cg_pct": schedule["cg_pct"],
                 "mach": schedule["mach"], "qbar_pa": schedule["qbar_pa"],
                 "tas_ms": tas_from_mach(schedule["mach"], schedule["alt_ft"])}
-    gains = laws.gains(lpv.run_models(measured, np.zeros(n)))
+    gains = laws.gains(lpv.run_models(measured, np.zeros(n)), law_params)
 
     t = np.arange(T) * ts
     gens = [run_streams(s, k) for s, k in zip(col["seed"], col["stream"])]
@@ -193,7 +194,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
         ts=ts, n=n, T=T, monitored=m_idx, acts=acts, plant=_stack(plants), plant_m=plants[m_idx],
         lo_deg=lo, hi_deg=hi, trim_deg=trim, step_matrix=np.concatenate([phi, gam], axis=2),
         load_matrix=np.concatenate([model.C, model.D], axis=2),
-        gains=gains, nz_c=nz_c, p_c=p_c, beta_c=beta_c, gust_alpha=gust_alpha,
+        gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c, gust_alpha=gust_alpha,
         gust_beta=gust_beta, com_bias=com_bias.ravel(), com_scale=com_scale.ravel(),
         com_noise=com_noise.reshape(n_s * n, T), mon_bias=mon[0], mon_scale=mon[1],
         mon_noise=mon_noise[0], surf_bias=mon[2], surf_noise=mon_noise[1],
@@ -272,9 +273,9 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
                    - trim_rad[_ELEVATORS]).mean(axis=0)
         meas["de"] = de_meas
         # laws and surface orders
-        nz_c = p.nz_c[:, k] + laws.turn_load_factor(meas["phi"])
+        nz_c = p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
         de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
-                               pitch_clipped)
+                               pitch_clipped, p.law_params)
         raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
                                       + _YAW[:, None] * dr)
         order = np.clip(raw, p.lo_deg, p.hi_deg)
@@ -321,13 +322,15 @@ STATE_UNITS = {"alpha": "deg", "q": "deg/s", "theta": "deg", "beta": "deg", "p":
 
 def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
                       pressure_sensor: bool = False,
-                      turbulence: DrydenParams | None = MODERATE) -> tuple[Signals, Truth]:
+                      turbulence: DrydenParams | None = MODERATE,
+                      law_params: laws.LawParams = laws.LAWS) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
     :func:`scenarios.simulate.simulate`."""
     from ..simulate import Trajectory, chamber_pressure, quantize
 
-    p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence)
+    p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
+                         law_params=law_params)
     traj = integrate_aircraft(p, sensors)
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
     mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
