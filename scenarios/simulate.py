@@ -343,6 +343,10 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     """
     if plant == "aircraft":
         from .aircraft.loop import simulate_aircraft
+
+        if actuators is not None or orders_deg is not None:
+            raise ValueError("actuators and orders_deg apply to the actuator plant only; the "
+                             "aircraft plant computes its orders with its control laws")
         return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor)
     if plant != "actuator":
         raise ValueError(f"unknown plant level {plant!r}; allowed: actuator, aircraft")

@@ -96,3 +96,32 @@ def test_zero_state_is_an_equilibrium():
     for _ in range(100):
         x = np.einsum("nij,nj->ni", phi, x) + np.einsum("nij,nj->ni", gam, np.zeros((len(phi), 10)))
     assert np.abs(x).max() == 0.0
+
+
+def test_pilot_inputs_of_the_manoeuvres():
+    """The six manoeuvres as stick/pedal inputs: cruise none; the turn's roll-rate order
+    integrates to its bank angle then back to wings level (to 1e-6 rad: the smoothed edges
+    keep each pulse's area), at the 15 °/s of PHYSICS §7; pulls/pushes within their drawn
+    ranges; inputs end before the record does."""
+    from scenarios.aircraft.data import PILOT
+    from scenarios.aircraft.pilot import pilot_inputs
+
+    t = np.arange(0, 40, 0.01)
+    u = np.array([0.5, 0.7, 0.2, 0.4, 0.1, 0.0, 0.0, 0.0])
+    nz, p, beta = pilot_inputs("cruise", t, u)
+    assert not (nz.any() or p.any() or beta.any())
+    _, p, _ = pilot_inputs("turn_coordination", t, u)
+    bank = np.cumsum(p) * 0.01
+    want = np.radians(PILOT.turn_bank_deg[0] + 0.7 * np.ptp(PILOT.turn_bank_deg))
+    assert abs(bank).max() == pytest.approx(want, abs=1e-3)
+    assert abs(bank[-1]) < 1e-6 and np.degrees(abs(p).max()) == pytest.approx(15.0)
+    nz, _, _ = pilot_inputs("pitch_protection", t, u)
+    assert PILOT.pitch_g[0] <= nz.max() <= PILOT.pitch_g[1]
+    assert -PILOT.pitch_g[1] <= nz.min() <= -PILOT.pitch_g[0]
+    _, _, beta = pilot_inputs("yaw_angle_mode", t, u)
+    assert np.degrees(abs(beta).max()) == pytest.approx(2.0 + 0.7 * 2.0)
+    for man in ("nose_up", "aoa_protection", "pitch_protection", "yaw_angle_mode"):
+        assert not np.any(pilot_inputs(man, t, u)[0][-100:]) and not np.any(
+            pilot_inputs(man, t, u)[2][-100:])
+    with pytest.raises(ValueError, match="allowed"):
+        pilot_inputs("barrel_roll", t, u)

@@ -161,6 +161,8 @@ class SurfaceLayout:
 
     names: tuple[str, ...] = param("-", "PHYSICS §7, issue 8", "surfaces, in array order")
     actuator: tuple[str, ...] = param("-", "scenarios.params", "actuator table of each surface")
+    elevator_share: float = param("-", "est. (two equal elevators)",
+                                  "share of the elevator derivatives per elevator")
     inboard_share: float = param("-", "est.", "share of the aileron derivatives per inboard pair")
     outboard_share: float = param("-", "est.", "share of the aileron derivatives per outboard pair")
     aileron_factor: float = param("-", "est. (747 cruise: outboard ailerons locked out)",
@@ -174,7 +176,7 @@ LAYOUT = SurfaceLayout(
     names=("left_elevator", "right_elevator", "left_inboard_aileron", "right_inboard_aileron",
            "left_outboard_aileron", "right_outboard_aileron", "rudder"),
     actuator=("elevator", "elevator", "aileron", "aileron", "aileron", "aileron", "rudder"),
-    inboard_share=0.5, outboard_share=0.5,
+    elevator_share=0.5, inboard_share=0.5, outboard_share=0.5,
     aileron_factor=3.0, spoiler_factor=1.0,
 )
 
@@ -230,6 +232,7 @@ class PilotParams:
     aoa_hold_s: tuple[float, float] = param("s", "est.", "time held")
     pitch_g: tuple[float, float] = param("g", "est. (PHYSICS §7 pitch_protection)", "pull/push")
     pitch_hold_s: tuple[float, float] = param("s", "est.", "time held at each peak")
+    pitch_gap_s: float = param("s", "est.", "pause between the pull and the push")
     yaw_beta_deg: tuple[float, float] = param("deg", "est. (PHYSICS §7 yaw_angle_mode)",
                                               "pedal sideslip order")
     yaw_hold_s: tuple[float, float] = param("s", "PHYSICS §7", "time held")
@@ -243,7 +246,7 @@ PILOT = PilotParams(
     start_s=(3.0, 8.0),
     nose_up_g=(0.15, 0.3), nose_up_hold_s=(5.0, 10.0),
     aoa_g=(0.2, 0.35), aoa_ramp_s=(2.0, 4.0), aoa_hold_s=(2.0, 5.0),
-    pitch_g=(0.3, 0.45), pitch_hold_s=(1.0, 2.0),
+    pitch_g=(0.3, 0.45), pitch_hold_s=(1.0, 2.0), pitch_gap_s=2.0,
     yaw_beta_deg=(2.0, 4.0), yaw_hold_s=(5.0, 10.0),
     turn_rate_deg_s=15.0, turn_bank_deg=(25.0, 33.0), turn_hold_s=(4.0, 7.0),
     smooth_s=0.5,
@@ -263,12 +266,6 @@ class AircraftSensorParams:
 AIRCRAFT_SENSORS = AircraftSensorParams(
     rate_noise_deg_s=0.02, attitude_noise_deg=0.02, load_noise_g=0.003, sideslip_noise_deg=0.1,
 )
-
-#: Aircraft-level signals given to detectors, with units (order of the sensor arrays).
-AIRCRAFT_SIGNALS: dict[str, str] = {
-    "p": "deg/s", "q": "deg/s", "r": "deg/s", "phi": "deg", "theta": "deg",
-    "nz": "g", "ny": "g", "beta": "deg",
-}
 
 #: Plant levels a campaign can simulate (``[campaign] plant``).
 PLANTS: tuple[str, ...] = ("actuator", "aircraft")

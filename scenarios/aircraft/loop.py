@@ -40,10 +40,10 @@ from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays
 from ..manoeuvres import elevator_trim_deg
 from ..params import AILERON, ELEVATOR, RUDDER, SENSORS, TS_S, ActuatorParams, SensorParams
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
-from ..signals import Signals, Truth
+from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
 from . import laws, lpv, pilot
-from .data import AIRCRAFT_SENSORS, AIRCRAFT_SIGNALS, AIRCRAFT_SURFACES, LAYOUT, AircraftSensorParams
+from .data import AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, LAYOUT, AircraftSensorParams
 
 #: Actuator parameter table of each kind of surface.
 AIRCRAFT_ACTUATORS: dict[str, ActuatorParams] = {
@@ -110,7 +110,8 @@ def _stack(plants: list[PlantArrays]) -> PlantArrays:
 
 
 def _aircraft_noise_sigmas(s: AircraftSensorParams) -> np.ndarray:
-    """σ of the sensors of :data:`AIRCRAFT_SIGNALS` in SI units (rad, rad/s, g)."""
+    """σ of the sensors of :data:`scenarios.signals.AIRCRAFT_SIGNAL_UNITS` (in that order) in
+    SI units (rad, rad/s, g)."""
     rate, att = np.radians(s.rate_noise_deg_s), np.radians(s.attitude_noise_deg)
     return np.array([rate, rate, rate, att, att, s.load_noise_g, s.load_noise_g,
                      np.radians(s.sideslip_noise_deg)])
@@ -217,7 +218,7 @@ class AircraftTrajectory:
     rods: np.ndarray          # (7, n, T) COM acquisitions of every surface [mm]
     surfaces: np.ndarray      # (7, n, T) true deflections [rad]
     states: np.ndarray        # (7, n, T) aircraft perturbation state (lpv.STATES)
-    sensors: np.ndarray       # (8, n, T) aircraft sensors (AIRCRAFT_SIGNALS, SI: rad, rad/s, g)
+    sensors: np.ndarray       # (8, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
 
 
 def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
@@ -313,7 +314,7 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
                               u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec)
 
 
-#: Conversion of the recorded aircraft sensors (SI) to the units of AIRCRAFT_SIGNALS.
+#: Conversion of the recorded aircraft sensors (SI) to the units of AIRCRAFT_SIGNAL_UNITS.
 _TO_UNITS = {"deg/s": np.degrees, "deg": np.degrees, "g": lambda v: v}
 #: Units of the truth aircraft states.
 STATE_UNITS = {"alpha": "deg", "q": "deg/s", "theta": "deg", "beta": "deg", "p": "deg/s",
@@ -349,7 +350,7 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
     else:
         pressure = np.full_like(surface_deg, np.nan)
     aircraft = {name: _TO_UNITS[unit](traj.sensors[j])
-                for j, (name, unit) in enumerate(AIRCRAFT_SIGNALS.items())}
+                for j, (name, unit) in enumerate(AIRCRAFT_SIGNAL_UNITS.items())}
     signals = Signals(
         ts=ts, command=traj.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
         surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,

@@ -113,7 +113,7 @@ def _surface_columns(layout: SurfaceLayout) -> dict[str, np.ndarray]:
     elev = np.zeros(n_in); ail = np.zeros(n_in); rud = np.zeros(n_in)
     for j, (name, kind) in enumerate(zip(layout.names, layout.actuator)):
         if kind == "elevator":
-            elev[j] = 0.5
+            elev[j] = layout.elevator_share
         elif kind == "aileron":
             share = layout.inboard_share if "inboard" in name else layout.outboard_share
             side = 1.0 if name.startswith("right") else -1.0

@@ -53,7 +53,7 @@ def pilot_inputs(manoeuvre: str, t: np.ndarray, u: np.ndarray, params: PilotPara
         nz = _lerp(params.aoa_g, u[1]) * (_smooth(t, t0, ramp) - _smooth(t, t0 + ramp + hold, ramp))
     elif manoeuvre == "pitch_protection":
         hold = _lerp(params.pitch_hold_s, u[2])
-        t1 = t0 + 2 * r + hold + 2.0
+        t1 = t0 + 2 * r + hold + params.pitch_gap_s
         nz = (_lerp(params.pitch_g, u[1]) * (_smooth(t, t0, r) - _smooth(t, t0 + r + hold, r))
               - _lerp(params.pitch_g, u[3]) * (_smooth(t, t1, r) - _smooth(t, t1 + r + hold, r)))
     elif manoeuvre == "yaw_angle_mode":
