@@ -8,8 +8,9 @@ FCC (every Ts, PHYSICS §2) acquires the aircraft sensors and every COM rod posi
 computes the laws of :mod:`.laws` and every surface's current i = sat(K·(u − y), ±i_max),
 held over the next period (one Ts of transport delay, as at the actuator level); the
 spoilers follow the roll order of the previous period (fixed coupling, no servo-loop). The
-aircraft state advances with its exact ZOH over the period, with the surface deflections of
-t_k and the gust angles of the Dryden turbulence (:mod:`scenarios.turbulence`).
+aircraft state advances exactly over the period (linear model), with the surface deflections of
+t_k, their motion to t_k+1 as a ramp (first-order hold) and the gust angles of the Dryden
+turbulence (:mod:`scenarios.turbulence`).
 
 The fault of a run (PHYSICS §5) acts on the *monitored* surface (column ``surface`` of the
 run rows, one of :data:`scenarios.aircraft.data.AIRCRAFT_SURFACES`) through the
@@ -79,7 +80,7 @@ class AircraftPrepared:
                                   # load ≤ LawParams.hinge_load_limit × stall force
     hi_deg: np.ndarray
     trim_deg: np.ndarray          # (7, n) trimmed deflections
-    step_matrix: np.ndarray       # (n, 7, 17) ZOH [Φ Γ] on [x; u]
+    step_matrix: np.ndarray       # (n, 7, 24) [Φ Γ Γ₁] on [x; u; Δδ] (lpv.discretise_ramp)
     load_matrix: np.ndarray       # (n, 2, 17) load factors [C D] on [x; u]
     gains: laws.Gains
     law_params: laws.LawParams
@@ -153,7 +154,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
     trim = np.clip(trim, lo, hi)
 
     model = lpv.run_models(flight_true, f["d_aero"])
-    phi, gam = lpv.discretise(model, ts)
+    phi, gam, ramp = lpv.discretise_ramp(model, ts)
     measured = {"mass_t": schedule["mass_t"], "cg_pct": schedule["cg_pct"],
                 "mach": schedule["mach"], "qbar_pa": schedule["qbar_pa"],
                 "tas_ms": tas_from_mach(schedule["mach"], schedule["alt_ft"])}
@@ -193,7 +194,8 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
     ramp_deg = np.degrees(np.arcsin(np.clip(faults.u_loop / act_m.r_mm, -1.0, 1.0)))
     return AircraftPrepared(
         ts=ts, n=n, T=T, monitored=m_idx, acts=acts, plant=_stack(plants), plant_m=plants[m_idx],
-        lo_deg=lo, hi_deg=hi, trim_deg=trim, step_matrix=np.concatenate([phi, gam], axis=2),
+        lo_deg=lo, hi_deg=hi, trim_deg=trim,
+        step_matrix=np.concatenate([phi, gam, ramp], axis=2),
         load_matrix=np.concatenate([model.C, model.D], axis=2),
         gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c, gust_alpha=gust_alpha,
         gust_beta=gust_beta, com_bias=com_bias.ravel(), com_scale=com_scale.ravel(),
@@ -219,6 +221,7 @@ class AircraftTrajectory:
     surfaces: np.ndarray      # (7, n, T) true deflections [rad]
     states: np.ndarray        # (7, n, T) aircraft perturbation state (lpv.STATES)
     sensors: np.ndarray       # (8, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
 
 
 def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
@@ -240,14 +243,17 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
     rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
     states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
     xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+    sp_rec = np.empty((n, T))
 
     x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
     delta = np.arcsin(x / r_flat)
     i_prev = np.zeros(n * n_s)
     y_hold = np.zeros(n)
-    xu = np.zeros((n, lpv.N_STATES + lpv.N_INPUTS, 1))     # [x; u] of the aircraft
-    xa = xu[:, :lpv.N_STATES, 0]                              # views
-    u_air = xu[:, lpv.N_STATES:, 0]
+    nx_u = lpv.N_STATES + lpv.N_INPUTS
+    xu = np.zeros((n, nx_u + n_s, 1))       # [x; u; Δδ] of the aircraft step
+    xa = xu[:, :lpv.N_STATES, 0]            # views
+    u_air = xu[:, lpv.N_STATES:nx_u, 0]
+    d_surf = xu[:, nx_u:, 0]
     state = laws.LawState.zeros(n)
     pitch_clipped = np.zeros(n, dtype=bool)
     da_prev = np.zeros(n)
@@ -262,7 +268,7 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
         u_air[:, lpv.I_SPOILER] = da_prev
         u_air[:, lpv.I_GUST_ALPHA] = p.gust_alpha[:, k]
         u_air[:, lpv.I_GUST_BETA] = p.gust_beta[:, k]
-        loads = (p.load_matrix @ xu)[:, :, 0].T
+        loads = (p.load_matrix @ xu[:, :nx_u])[:, :, 0].T
         meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
                 "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
                 "theta": xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
@@ -295,6 +301,7 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
                              1.0 + meas["dnz"], meas["ny"], meas["beta"])
         xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        sp_rec[:, k] = da_prev
         # advance the surfaces over [t_k, t_k+1)
         if any_disc:
             loaded[mon] = k < fa.k_disc
@@ -306,12 +313,15 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
             with np.errstate(invalid="ignore", divide="ignore"):
                 floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
             delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
-        # advance the aircraft over [t_k, t_k+1) (exact ZOH of the inputs of t_k)
+        # advance the aircraft over [t_k, t_k+1): inputs of t_k held, the surfaces' motion to
+        # t_k+1 as a ramp (exact, lpv.discretise_ramp)
+        d_surf[:] = (delta_next - delta).reshape(n_s, n).T
         xa[:] = (p.step_matrix @ xu)[:, :, 0]
         x, delta, i_prev = x_next, delta_next, i_new
         da_prev = np.clip(da, -roll_lim, roll_lim)
     return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
-                              u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec)
+                              u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
+                              spoiler=sp_rec)
 
 
 #: Conversion of the recorded aircraft sensors (SI) to the units of AIRCRAFT_SIGNAL_UNITS.

@@ -26,7 +26,8 @@ blowing down lowers the angle of attack). Load factors at the CG (positive up an
 
 Discretisation: exact zero-order hold at Ts, Φ = e^{A·Ts}, Γ = ∫₀^Ts e^{A·s} ds·B, from the
 exponential of the augmented matrix [[A, B], [0, 0]]·Ts, batched over runs
-(``scipy.linalg.expm`` on an (n, 17, 17) stack).
+(``scipy.linalg.expm`` on an (n, 17, 17) stack); the closed loop adds the exact ramp term of
+the surfaces, which move during the period (:func:`discretise_ramp`).
 """
 
 from __future__ import annotations
@@ -204,6 +205,21 @@ def discretise(model: ContinuousModel, ts: float) -> tuple[np.ndarray, np.ndarra
     aug[:, :N_STATES, N_STATES:] = model.B * ts
     ex = expm(aug)
     return ex[:, :N_STATES, :N_STATES], ex[:, :N_STATES, N_STATES:]
+
+
+def discretise_ramp(model: ContinuousModel, ts: float, n_ramp: int = N_SURFACES):
+    """(Φ, Γ, Γ₁) of every run: inputs held at u_k over the period plus, for the first
+    *n_ramp* inputs (the surfaces), a ramp to u_{k+1} (first-order hold):
+    x_{k+1} = Φ·x_k + Γ·u_k + Γ₁·(u_{k+1} − u_k)[:n_ramp]. Exact, from the exponential of
+    [[A, B, 0], [0, 0, I/Ts], [0, 0, 0]]·Ts = [[Φ, Γ, Γ₁], [0, I, I], [0, 0, I]]."""
+    n = model.A.shape[0]
+    ns, ni = N_STATES, N_INPUTS
+    aug = np.zeros((n, ns + ni + n_ramp, ns + ni + n_ramp))
+    aug[:, :ns, :ns] = model.A * ts
+    aug[:, :ns, ns:ns + ni] = model.B * ts
+    aug[:, ns:ns + n_ramp, ns + ni:] = np.eye(n_ramp)
+    ex = expm(aug)
+    return ex[:, :ns, :ns], ex[:, :ns, ns:ns + ni], ex[:, :ns, ns + ni:]
 
 
 def run_models(flight: dict, d_aero, *, aircraft: AircraftParams = A330) -> ContinuousModel:
