@@ -25,7 +25,8 @@ SIGNAL_UNITS: dict[str, str] = {
 }
 
 #: Units of the optional aircraft-level signals (``Signals.aircraft``, aircraft plant only):
-#: inertial rates and attitudes, load factors at the CG and sideslip, all with sensor noise.
+#: inertial rates and attitudes (θ absolute: trimmed α plus its change; φ from wings level),
+#: load factors at the CG (n_z = 1 in level flight) and sideslip, all with sensor noise.
 AIRCRAFT_SIGNAL_UNITS: dict[str, str] = {
     "p": "deg/s", "q": "deg/s", "r": "deg/s", "phi": "deg", "theta": "deg",
     "nz": "g", "ny": "g", "beta": "deg",

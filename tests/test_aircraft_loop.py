@@ -174,6 +174,10 @@ def test_monitored_surface_fills_actuator_fields_and_aircraft_signals():
     assert set(sig.rods) == set(AIRCRAFT_SURFACES)
     # the nose-up pull shows in the measured load factor (≥ 0.1 g above 1 g)
     assert sig.aircraft["nz"][1].max() > 1.1 and abs(np.median(sig.aircraft["nz"][0]) - 1) < 0.05
+    # the measured pitch attitude is absolute: the trimmed α of level flight at the start
+    # (first 0.5 s: turbulence has not moved it by more than 0.2° yet)
+    assert np.median(sig.aircraft["theta"][0, :50]) == pytest.approx(
+        truth.flight["alpha_deg"][0], abs=0.2)
     both = Signals.concat([sig.take([0]), sig.take([1])])
     np.testing.assert_array_equal(both.aircraft["q"], sig.aircraft["q"])
     assert sig.truncate(50).rods["rudder"].shape == (2, 50)

@@ -262,6 +262,7 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
     any_disc = bool((fa.k_disc < NEVER).any())
     roll_lim = np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)
     nse = p.ac_noise
+    theta0 = np.radians(p.flight_true["alpha_deg"])     # trimmed level flight: θ0 = α0
     for k in range(T):
         # aircraft sensors at t_k
         u_air[:, :n_s] = (delta.reshape(n_s, n) - trim_rad).T
@@ -271,7 +272,7 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
         loads = (p.load_matrix @ xu[:, :nx_u])[:, :, 0].T
         meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
                 "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
-                "theta": xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
+                "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
                 "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + nse[7, :, k]}
         # servo-loops: COM acquisitions at t_k
         y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
