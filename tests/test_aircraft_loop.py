@@ -220,7 +220,7 @@ def test_aircraft_step_matches_a_tight_reference_integration(surface, fault, man
 
     from scenarios.aircraft.loop import integrate_aircraft, prepare_aircraft
 
-    runs = _rows(surface, fault, manoeuvre, duration_s=16.0, onset_s=6.0, alt_ft=18000.0,
+    runs = _rows(surface, fault, manoeuvre, duration_s=10.0, onset_s=5.0, alt_ft=18000.0,
                  vcas_kt=220.0)
     p = prepare_aircraft(runs)
     tr = integrate_aircraft(p)
