@@ -24,7 +24,7 @@ def test_reference_modes_reproduced(mode):
 
     Tolerance 1 % of |λ| (2 % for the spiral, a small number published to 4 digits): the
     published short period comes from the 4-state model with speed, ours from the 2-state
-    short-period block (the difference is 0.3 %); everything else is the same equations and
+    short-period block (the difference is 0.13 %); everything else is the same equations and
     data, so a sign or scaling error shows as tens of per cent.
     """
     got = lpv.modes(lpv.reference_model())[mode][0]
