@@ -135,6 +135,9 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
         echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
              f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
              "the built-in plant per run")
+    from .plant_bench import plant_cost
+
+    figures.update(plant_cost(runs.iloc[:min(n_runs, chunk_size)], echo=echo))
     if detectors:
         costs = detector_costs(duration_s=duration_s)
         figures["detectors"] = costs

@@ -28,7 +28,10 @@ def cmd_run(args) -> int:
     if args.seed is not None:
         config = cfg.with_overrides(config, seed=args.seed)
     if args.plant is not None:
-        config = cfg.with_overrides(config, values={"plant.fmu": args.plant})
+        from scenarios.aircraft.data import PLANTS
+
+        key = "campaign.plant" if args.plant in PLANTS else "plant.fmu"
+        config = cfg.with_overrides(config, values={key: args.plant})
     if args.jobs < 1:
         raise UsageError("--jobs must be ≥ 1")
     result = run(config, args.out, jobs=args.jobs, chunk_size=args.chunk_size,
@@ -152,14 +155,27 @@ def cmd_init(args) -> int:
 def cmd_simulate(args) -> int:
     from scenarios.simulate import simulate, single_run
 
-    runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
-                      onset_s=args.onset, duration_s=args.duration,
-                      **({} if args.magnitude is None else {"magnitude": args.magnitude}))
-    signals, truth = simulate(runs, pressure_sensor=args.pressure)
+    if args.plant == "aircraft":
+        from .aircraft_cli import aircraft_single_run
+
+        runs = aircraft_single_run(args)
+    else:
+        from scenarios.catalog import SURFACES
+
+        if args.surface not in SURFACES:
+            raise UsageError(f"invalid choice --surface {args.surface} at the actuator plant "
+                             f"level: it is an aircraft surface; use --plant aircraft, or one "
+                             f"of {', '.join(SURFACES)}")
+        runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
+                          onset_s=args.onset, duration_s=args.duration,
+                          **({} if args.magnitude is None else {"magnitude": args.magnitude}))
+    signals, truth = simulate(runs, pressure_sensor=args.pressure, plant=args.plant)
     frame = signals.to_pandas(0)
     frame["true_rod [mm]"] = truth.rod_mm[0]
     frame["true_surface [deg]"] = truth.surface_deg[0]
     frame["true_current [mA]"] = truth.current_mA[0]
+    for name, series in (truth.surfaces_deg or {}).items():
+        frame[f"true_{name} [deg]"] = series[0]
     onset = float(truth.onset_s[0])
     print(f"{args.surface} / {args.manoeuvre} / fault {args.fault}"
           + (f" at {onset:.2f} s" if onset == onset else "")
@@ -174,7 +190,13 @@ def cmd_simulate(args) -> int:
             b"fdd_campaign": runs.to_json(orient="records").encode()})
         pq.write_table(table, args.out)
         print(f"signals and truth written to {args.out}")
-    if args.plot:
+    if args.plot and args.plant == "aircraft":
+        from reports.aircraft_plot import plot_aircraft_run
+
+        plot_aircraft_run(frame, onset_s=onset, path=args.plot, monitored=str(runs["surface"].iloc[0]),
+                          title=f"{runs['surface'].iloc[0]} — {args.manoeuvre} — {args.fault}")
+        print(f"plot written to {args.plot}")
+    elif args.plot:
         from reports.plots import plot_run
 
         plot_run(frame, onset_s=onset, title=f"{args.surface} — {args.manoeuvre} — {args.fault}",
@@ -217,6 +239,7 @@ def _sub(subs, name, help_, example, func):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from scenarios.aircraft.data import AIRCRAFT_SURFACES, PLANTS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
 
     parser = argparse.ArgumentParser(
@@ -245,8 +268,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "loky processes (survive a dying worker; default when [runner] "
                         "run_timeout_s is set)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.add_argument("--plant", metavar="FMU", help="simulate on this co-simulation FMU instead "
-                   "of the built-in plant (sets [plant] fmu; see docs/fmu.md)")
+    p.add_argument("--plant", metavar="LEVEL|FMU",
+                   help="actuator or aircraft (overrides [campaign] plant; see docs/aircraft.md), "
+                        "or a co-simulation FMU file to simulate the actuator on (sets [plant] fmu; "
+                        "see docs/fmu.md)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run the chunks on this dask.distributed scheduler's workers "
                         "(needs the [dask] extra; see docs/execution.md)")
@@ -298,7 +323,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
              "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
-    p.add_argument("--surface", default="elevator", choices=SURFACES)
+    p.add_argument("--surface", default="elevator", choices=SURFACES + AIRCRAFT_SURFACES,
+                   help="surface (with --plant aircraft: the monitored one; elevator → "
+                   "left_elevator, aileron → left_inboard_aileron)")
+    p.add_argument("--plant", default="actuator", choices=PLANTS,
+                   help="actuator: the servo-loop alone; aircraft: aircraft, laws and every "
+                   "surface in the loop")
     p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES)
     p.add_argument("--fault", default="none", choices=FAULTS)
     p.add_argument("--seed", type=int, default=0)

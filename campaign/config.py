@@ -32,6 +32,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
+from scenarios.aircraft.data import AIRCRAFT_SURFACES, DEFAULT_MONITORED, PLANTS
 from scenarios.catalog import (
     FAULT_TYPES,
     FAULTS,
@@ -222,6 +223,15 @@ class CampaignSection:
                                "envelope rule (PHYSICS §6), for grid and mc", True)
     pressure_sensor: bool = key("bool", "simulate the actuator chamber ΔP sensor",
                                 False)
+    plant: str = key("choice", "plant level: actuator (the servo-loop of `surface` alone, "
+                     "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
+                     "control laws and every primary surface with its own servo-loop; "
+                     "PHYSICS §7 phase 2)", "actuator", choices=PLANTS)
+    monitored_surface: str | None = key(
+        "choice", "aircraft plant only: the surface whose servo-loop signals the detectors "
+        "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
+        default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
+        example="left_inboard_aileron")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -938,6 +948,11 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
 
     only_mc(camp, "campaign", CampaignSection)
 
+    # plant level: the monitored surface belongs to the aircraft plant
+    if camp["plant"] == "actuator" and camp.get("monitored_surface") is not None:
+        errors.append("campaign.monitored_surface: only used with plant = \"aircraft\"; fix: "
+                      "remove it or set plant = \"aircraft\"")
+
     # onset window
     if _ok(duration, faults["onset_min_s"], faults["onset_before_end_s"]):
         latest = duration - faults["onset_before_end_s"]
@@ -1026,6 +1041,10 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
         for k in given:
             errors.append(f"plant.{k}: only used with an FMU plant; fix: set [plant] fmu = "
                           "\"servo.fmu\" or remove it")
+    elif camp.get("plant") == "aircraft":
+        errors.append("plant.fmu: an FMU replaces the single actuator servo-loop, but "
+                      "[campaign] plant = \"aircraft\"; fix: set [campaign] plant = "
+                      "\"actuator\" or remove [plant] fmu")
 
 
 def _spec(cls: type, sub: str, name: str) -> Key:
@@ -1079,6 +1098,11 @@ def _check_detectors(dets: list[dict], camp: dict, errors: list[str]) -> None:
             from scenarios.params import ACTUATORS
 
             act = ACTUATORS.get(surface)
+            if camp["plant"] == "aircraft" and _ok(camp["monitored_surface"]):
+                from scenarios.aircraft.loop import surface_actuator
+
+                surface = camp["monitored_surface"] or DEFAULT_MONITORED.get(surface, "")
+                act = surface_actuator(surface) if surface else None
             if act is not None and not act.has_surface_sensor:
                 errors.append(f"{p}.name: detector {name!r} needs a surface position sensor, "
                               f"which the {surface} has none of; fix: choose another "

@@ -28,7 +28,8 @@ from scipy.stats import qmc
 from scenarios import envelope
 from scenarios.catalog import MANOEUVRES
 from scenarios.faults import liquid_jam_bias_mm
-from scenarios.params import ACTUATORS
+
+from .plant import run_actuator, run_surface
 
 #: Version of the simulated models: part of every run id, so a model change never reuses
 #: results computed with the previous model.
@@ -110,7 +111,7 @@ def _scale(u, values) -> np.ndarray:
 def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray,
                duration: float) -> pd.DataFrame:
     """Add fault, onset and fixed-point columns to the flight-point rows of one cell."""
-    act = ACTUATORS[config.campaign.surface]
+    act = run_actuator(config.campaign)
     ts = config.campaign.ts_s
     n = len(frame)
     fl = config.faults
@@ -133,7 +134,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     start = getattr(group, "manoeuvre_start_s", None)
     out = frame.copy()
     out.insert(0, "group", group.name)
-    out["surface"] = config.campaign.surface
+    out["surface"] = run_surface(config.campaign)
     out["manoeuvre"] = manoeuvre
     out["fault"] = group.fault
     out["onset_s"] = onset

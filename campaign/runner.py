@@ -29,11 +29,11 @@ from reports.metrics import RESULT_COLUMNS, score_runs
 from reports.summary import summarize
 from reports.table import format_table
 from scenarios import kernels
-from scenarios.params import ACTUATORS
 from scenarios.signals import Signals
 from scenarios.simulate import simulate
 
 from .design import build_learning_plan, build_plan
+from .plant import run_actuator
 from .storage import CampaignDir, read_metadata, write_parquet, write_pickle, write_text
 
 
@@ -49,7 +49,7 @@ class ChunkSettings:
     pressure_sensor: bool
     required_time_s: dict
     window_s: float | None
-    plant: object = None          # None: built-in plant; scenarios.fmu.FmuPlant: an FMU
+    plant: object = "actuator"  # "actuator", "aircraft", or a scenarios.fmu.FmuPlant
     engine: str = "compiled"
 
 
@@ -173,7 +173,7 @@ class Progress:
 
 
 def _check_compatibility(config, detectors: dict) -> None:
-    act = ACTUATORS[config.campaign.surface]
+    act = run_actuator(config.campaign)
     problems = []
     for label, det in detectors.items():
         caps = det.capabilities
@@ -270,7 +270,7 @@ def settings_of(config) -> ChunkSettings:
         pressure_sensor=config.campaign.pressure_sensor,
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
-        plant=spec_of_config(config),
+        plant=spec_of_config(config) or config.campaign.plant,
         engine=config.runner.engine,
     )
 

@@ -183,6 +183,35 @@ AILERON = ActuatorParams(
 
 ACTUATORS: dict[str, ActuatorParams] = {"elevator": ELEVATOR, "aileron": AILERON}
 
+#: Rudder servo-loop of the aircraft-level plant (scenarios.aircraft; not an actuator-level
+#: surface). All est. for an A330-class fin: deflection ±30° (A330 rudder travel at low
+#: speed, limited further by the hinge-moment authority at high q̄), rudder ≈ 30 % of the
+#: 47.6 m² fin; sign positive trailing edge left (Etkin & Reid). The fin sees the sideslip,
+#: not the trimmed angle of attack, so Chα is 0 in level flight.
+RUDDER = ActuatorParams(
+    surface="rudder",
+    delta_min_deg=-30.0,
+    delta_max_deg=30.0,
+    stop_margin_deg=1.5,
+    r_mm=110.0,
+    dP_Pa=20.68e6,
+    dP_ref_Pa=20.68e6,
+    S_m2=50e-4,
+    K_mA_per_mm=1.6,
+    Kci_mm_s_per_mA=10.0,
+    i_max_mA=10.0,
+    Ka_N_per_mm_s2=1.55,
+    Sc_m2=14.0,
+    cc_m=1.8,
+    Ch_delta=-0.30,
+    Ch_alpha=0.0,
+    Ch0=0.0,
+    downwash=0.0,
+    mach_compress_cap=0.75,
+    has_surface_sensor=True,
+    order_load_limit=0.6,
+)
+
 
 @dataclass(frozen=True)
 class SensorParams:

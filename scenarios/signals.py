@@ -24,6 +24,16 @@ SIGNAL_UNITS: dict[str, str] = {
     "pressure": "Pa",     # actuator chamber differential pressure (NaN when not fitted)
 }
 
+#: Units of the optional aircraft-level signals (``Signals.aircraft``, aircraft plant only):
+#: inertial rates and attitudes (θ absolute: trimmed α plus its change; φ from wings level),
+#: load factors at the CG (n_z = 1 in level flight) and sideslip, all with sensor noise.
+AIRCRAFT_SIGNAL_UNITS: dict[str, str] = {
+    "p": "deg/s", "q": "deg/s", "r": "deg/s", "phi": "deg", "theta": "deg",
+    "nz": "g", "ny": "g", "beta": "deg",
+}
+#: Unit of every surface's COM rod position (``Signals.rods``, aircraft plant only).
+ROD_UNIT: str = "mm"
+
 #: Units of the per-run scheduling data, by name.
 SCHEDULE_UNITS: dict[str, str] = {
     "vcas_kt": "kt",
@@ -52,6 +62,11 @@ class Signals:
         The *nominal* actuator parameters (a model-based detector's knowledge).
     run_ids : ndarray (n_runs,) of str
         Identity of each run (for error messages and tracing only).
+    aircraft : dict[str, ndarray (n_runs, n_steps)] or None
+        Aircraft sensors (:data:`AIRCRAFT_SIGNAL_UNITS`); None at the actuator plant level.
+    rods : dict[str, ndarray (n_runs, n_steps)] or None
+        COM rod position [mm] of every primary surface, by surface name; None at the
+        actuator plant level.
     """
 
     ts: float
@@ -64,6 +79,8 @@ class Signals:
     schedule: dict = field(default_factory=dict)
     actuator: ActuatorParams | None = None
     run_ids: np.ndarray | None = None
+    aircraft: dict | None = None
+    rods: dict | None = None
 
     @property
     def n_runs(self) -> int:
@@ -97,6 +114,8 @@ class Signals:
             schedule={k: np.asarray(v)[index] for k, v in self.schedule.items()},
             actuator=self.actuator,
             run_ids=None if self.run_ids is None else np.asarray(self.run_ids)[index],
+            aircraft=_map(self.aircraft, lambda v: v[index]),
+            rods=_map(self.rods, lambda v: v[index]),
         )
 
     def truncate(self, n_steps: int) -> "Signals":
@@ -107,6 +126,8 @@ class Signals:
             schedule=dict(self.schedule),
             actuator=self.actuator,
             run_ids=self.run_ids,
+            aircraft=_map(self.aircraft, lambda v: v[:, :n_steps]),
+            rods=_map(self.rods, lambda v: v[:, :n_steps]),
         )
 
     @classmethod
@@ -120,6 +141,10 @@ class Signals:
             actuator=first.actuator,
             run_ids=None if first.run_ids is None
             else np.concatenate([p.run_ids for p in parts]),
+            aircraft=None if first.aircraft is None else
+            {k: np.concatenate([p.aircraft[k] for p in parts]) for k in first.aircraft},
+            rods=None if first.rods is None else
+            {k: np.concatenate([p.rods[k] for p in parts]) for k in first.rods},
         )
 
     def to_pandas(self, run: int = 0):
@@ -127,6 +152,10 @@ class Signals:
         import pandas as pd
 
         data = {f"{name} [{unit}]": getattr(self, name)[run] for name, unit in SIGNAL_UNITS.items()}
+        for name, series in (self.aircraft or {}).items():
+            data[f"{name} [{AIRCRAFT_SIGNAL_UNITS.get(name, '')}]"] = series[run]
+        for name, series in (self.rods or {}).items():
+            data[f"rod_{name} [{ROD_UNIT}]"] = series[run]
         return pd.DataFrame(data, index=pd.Index(self.time, name="time [s]"))
 
 
@@ -146,6 +175,11 @@ class Truth:
     magnitude : ndarray (n_runs,)
         Fault magnitude in the unit of its type (runaway: deg/s; liquid_jam: mm; hardover:
         ±1 direction; OFC: amplitude). NaN where it does not apply.
+    aircraft : dict[str, ndarray (n_runs, n_steps)] or None
+        True aircraft perturbation states (alpha, q, theta, beta, p, r, phi in deg, deg/s)
+        at the aircraft plant level.
+    surfaces_deg : dict[str, ndarray (n_runs, n_steps)] or None
+        True deflection [deg] of every primary surface at the aircraft plant level.
     """
 
     rod_mm: np.ndarray
@@ -155,6 +189,8 @@ class Truth:
     onset_s: np.ndarray
     magnitude: np.ndarray
     flight: dict = field(default_factory=dict)
+    aircraft: dict | None = None
+    surfaces_deg: dict | None = None
 
     def take(self, index) -> "Truth":
         return Truth(
@@ -165,7 +201,14 @@ class Truth:
             onset_s=np.asarray(self.onset_s)[index],
             magnitude=np.asarray(self.magnitude)[index],
             flight={k: np.asarray(v)[index] for k, v in self.flight.items()},
+            aircraft=_map(self.aircraft, lambda v: v[index]),
+            surfaces_deg=_map(self.surfaces_deg, lambda v: v[index]),
         )
+
+
+def _map(series: dict | None, fn) -> dict | None:
+    """Apply *fn* to every array of an optional dict of series (None stays None)."""
+    return None if series is None else {k: fn(v) for k, v in series.items()}
 
 
 def assert_same_shape(signals: Signals) -> None:

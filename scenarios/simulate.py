@@ -88,15 +88,16 @@ class RunSpecError(ValueError):
         return (type(self), (self.errors,))
 
 
-def validate_runs(runs: pd.DataFrame) -> None:
-    """Raise :class:`RunSpecError` listing every problem of *runs* (names, ranges, onsets)."""
+def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> None:
+    """Raise :class:`RunSpecError` listing every problem of *runs* (names, ranges, onsets);
+    *surfaces* are the allowed surface names (the aircraft plant has its own)."""
     errors = []
     missing = [c for c in RUN_COLUMNS if c not in runs.columns]
     if missing:
         raise RunSpecError([f"missing column(s) {missing}; a run row needs {list(RUN_COLUMNS)}"])
     if len(runs) == 0:
         raise RunSpecError(["the run table is empty"])
-    for col, allowed in (("surface", SURFACES), ("manoeuvre", MANOEUVRES), ("fault", FAULTS)):
+    for col, allowed in (("surface", surfaces), ("manoeuvre", MANOEUVRES), ("fault", FAULTS)):
         bad = sorted(set(runs[col].astype(str)) - set(allowed))
         for value in bad:
             errors.append(f"{col}: unknown value {value!r}{suggest(value, allowed)}; "
@@ -350,23 +351,38 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
 
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
-             orders_deg: np.ndarray | None = None, plant=None,
+             orders_deg: np.ndarray | None = None, plant="actuator",
              engine: str | None = None) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* (one surface and duration per call).
 
+    *plant* ``"aircraft"`` simulates the aircraft in the loop
+    (:func:`scenarios.aircraft.loop.simulate_aircraft`; the run rows' ``surface`` is then
+    the monitored aircraft surface).
+
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
-    *plant*: None for the built-in plant, or a :class:`scenarios.fmu.FmuPlant` to advance
-    the plant with an FMU (:mod:`scenarios.fmu`).
+    *plant* may also be a :class:`scenarios.fmu.FmuPlant`: the actuator plant is then
+    advanced by that FMU (:mod:`scenarios.fmu`).
     *engine*: ``"compiled"`` (numba kernels, :mod:`scenarios.kernels`) or ``"numpy"`` (the
     reference :func:`integrate`); default :func:`scenarios.kernels.current_engine`.
     """
+    if plant == "aircraft":
+        from .aircraft.loop import simulate_aircraft
+
+        if actuators is not None or orders_deg is not None:
+            raise ValueError("actuators and orders_deg apply to the actuator plant only; the "
+                             "aircraft plant computes its orders with its control laws")
+        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor)
+    fmu = None if plant in (None, "actuator") else plant
+    if isinstance(fmu, str):
+        raise ValueError(f"unknown plant {plant!r}; allowed: actuator, aircraft, or a "
+                         "scenarios.fmu.FmuPlant")
     engine = resolve_engine(engine)
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
-    if plant is not None:
+    if fmu is not None:
         from .fmu import integrate_fmu
 
-        traj = integrate_fmu(p, sensors, plant)
+        traj = integrate_fmu(p, sensors, fmu)
     elif engine == "compiled":
         traj = integrate_compiled(p, sensors)
     else:

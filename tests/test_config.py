@@ -187,6 +187,10 @@ def test_init_text_loads_and_documents_every_key(tmp_path):
 # bad files: each error names its path and how to fix it
 # ---------------------------------------------------------------------------------------
 BAD_FILES = {
+    "fmu on the aircraft plant": (
+        BASE.replace('name = "t"', 'name = "t"\nplant = "aircraft"') + '\n[plant]\nfmu = "servo.fmu"\n',
+        "plant.fmu: an FMU replaces the single actuator servo-loop",
+        'fix: set [campaign] plant = "actuator" or remove [plant] fmu'),
     "unknown section": (
         BASE + "\n[envelop]\nalt_ft = [10000]\n",
         "envelop: unknown section", "did you mean 'envelope'?"),

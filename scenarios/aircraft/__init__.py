@@ -1,0 +1,12 @@
+"""Aircraft in the loop (PHYSICS §7 phase 2): rigid-body LPV dynamics, normal-law-like
+control laws, every primary surface with its own servo-loop and aircraft-level sensors.
+
+- :mod:`.data` — parameter tables: the Boeing 747 stability derivatives of the reference
+  flight condition, the A330-class mass/inertia scaling, the surface layout, the laws'
+  tuning and the aircraft sensors;
+- :mod:`.lpv` — linear models built at each run's flight point and their exact ZOH
+  discretisation, batched over runs;
+- :mod:`.laws` — pitch (load factor with integral action), roll (roll-rate command with
+  bank hold) and yaw (damper and turn coordination) laws at Ts;
+- :mod:`.loop` — the closed loop of a batch of runs (``simulate_aircraft``).
+"""

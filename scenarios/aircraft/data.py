@@ -1,0 +1,275 @@
+"""Parameter tables of the aircraft level (PHYSICS §7 phase 2). Every number used by the
+rigid-body model, the surface layout, the control laws, the pilot inputs and the aircraft
+sensors lives here with its unit and provenance ("(est.)" marks engineering estimates).
+
+Aerodynamic data: the Boeing 747 non-dimensional stability derivatives of Etkin & Reid,
+*Dynamics of Flight: Stability and Control* (3rd ed., 1996), Boeing 747 flight condition at
+40 000 ft and M 0.8 (data after Heffley & Jewell, NASA CR-2144, 1972), stability axes.
+Longitudinal set: Cz, Cm of α, q, α̇ and the elevator's CLδe, Cmδe; lateral set: the β, p,
+r derivatives and the control derivatives Clδa, Cnδa, Cyδr, Clδr, Cnδr, all of that one
+flight condition (Etkin & Reid, chapters 6–7, Boeing 747 tables and worked examples). The
+published eigenvalues of that condition (same worked examples) are kept in
+:data:`B747_REFERENCE_MODES` and the tests reproduce them.
+
+Rescaling to the A330 class (:class:`ScalingParams`): the non-dimensional derivatives are
+kept (similar transport configuration), the dimensional ones are rebuilt with the A330
+wing area and MAC of :data:`scenarios.envelope.A330`, the span and inertias below, the
+run's mass, CG, dynamic pressure, true airspeed and Mach.
+
+Sign conventions (Etkin & Reid): elevator and ailerons positive trailing edge down, rudder
+positive trailing edge left; β positive nose left of the wind (wind from the right), p
+right wing down, r nose right, φ right wing down.
+"""
+
+from __future__ import annotations
+
+import types
+from dataclasses import dataclass
+
+from ..params import param
+
+
+@dataclass(frozen=True)
+class StabilityDerivatives:
+    """Non-dimensional stability and control derivatives (per rad), stability axes.
+
+    Dimensionalisation (Etkin & Reid Tables 4.4 and 4.5): forces with q̄·S, pitching
+    moment with q̄·S·c̄, rolling/yawing moments with q̄·S·b; rate derivatives with
+    the non-dimensional rates q·c̄/(2V), p·b/(2V), r·b/(2V), α̇·c̄/(2V).
+    """
+
+    Cz_alpha: float = param("1/rad", "Etkin & Reid B747 longitudinal table (40 kft, M 0.8)", "Czα")
+    Cz_q: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Czq")
+    Cz_alphadot: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Czα̇")
+    Cm_alpha: float = param("1/rad", "Etkin & Reid B747 longitudinal table (CG at cg_ref_pct)", "Cmα")
+    Cm_q: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Cmq")
+    Cm_alphadot: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Cmα̇")
+    Cz_de: float = param("1/rad", "Etkin & Reid B747 control derivatives (CLδe = 0.3648)", "Czδe = −CLδe")
+    Cm_de: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cmδe")
+    Cy_beta: float = param("1/rad", "Etkin & Reid B747 lateral table (40 kft, M 0.8)", "Cyβ")
+    Cl_beta: float = param("1/rad", "Etkin & Reid B747 lateral table", "Clβ")
+    Cn_beta: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cnβ")
+    Cy_p: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cyp")
+    Cl_p: float = param("1/rad", "Etkin & Reid B747 lateral table", "Clp")
+    Cn_p: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cnp")
+    Cy_r: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cyr")
+    Cl_r: float = param("1/rad", "Etkin & Reid B747 lateral table", "Clr")
+    Cn_r: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cnr")
+    Cl_da: float = param("1/rad", "Etkin & Reid B747 control derivatives (δa = antisymmetric aileron angle)", "Clδa")
+    Cn_da: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cnδa")
+    Cy_dr: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cyδr")
+    Cl_dr: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Clδr")
+    Cn_dr: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cnδr")
+
+
+B747_DERIVATIVES = StabilityDerivatives(
+    Cz_alpha=-4.920, Cz_q=-5.921, Cz_alphadot=5.896,
+    Cm_alpha=-1.023, Cm_q=-23.92, Cm_alphadot=-6.314,
+    Cz_de=-0.3648, Cm_de=-1.444,
+    Cy_beta=-0.8771, Cl_beta=-0.2797, Cn_beta=0.1946,
+    Cy_p=0.0, Cl_p=-0.3295, Cn_p=-0.04073,
+    Cy_r=0.0, Cl_r=0.3040, Cn_r=-0.2737,
+    Cl_da=-1.368e-2, Cn_da=-1.973e-4,
+    Cy_dr=0.1146, Cl_dr=6.976e-3, Cn_dr=-0.1257,
+)
+
+
+@dataclass(frozen=True)
+class AirframeData:
+    """Geometry, mass and inertia of an airframe at a flight condition (SI units)."""
+
+    name: str = param("-", "-", "airframe")
+    wing_area_m2: float = param("m²", "see instance", "reference wing area S")
+    mac_m: float = param("m", "see instance", "mean aerodynamic chord c̄")
+    span_m: float = param("m", "see instance", "wing span b")
+    length_m: float = param("m", "see instance", "fuselage length (inertia scaling only)")
+    mass_kg: float = param("kg", "see instance", "mass")
+    Ix_kgm2: float = param("kg·m²", "see instance", "rolling moment of inertia")
+    Iy_kgm2: float = param("kg·m²", "see instance", "pitching moment of inertia")
+    Iz_kgm2: float = param("kg·m²", "see instance", "yawing moment of inertia")
+    Izx_kgm2: float = param("kg·m²", "see instance", "product of inertia")
+    cg_ref_pct: float = param("% MAC", "see instance", "CG of the derivative set")
+
+
+#: The Boeing 747 of the reference flight condition (Etkin & Reid, B747 data table:
+#: W = 2.83176e6 N, S = 511 m², c̄ = 8.324 m, b = 59.64 m, inertias in body axes; length
+#: 70.6 m (Boeing 747-100 published length).
+B747 = AirframeData(
+    name="Boeing 747 (Etkin & Reid, 40 kft, M 0.8)",
+    wing_area_m2=511.0, mac_m=8.324, span_m=59.64, length_m=70.6,
+    mass_kg=2.83176e6 / 9.80665,
+    Ix_kgm2=0.247e8, Iy_kgm2=0.449e8, Iz_kgm2=0.673e8, Izx_kgm2=-0.212e7,
+    cg_ref_pct=25.0,
+)
+
+
+@dataclass(frozen=True)
+class ReferenceCondition:
+    """The flight condition of the derivative set (Etkin & Reid, B747 case)."""
+
+    alt_ft: float = param("ft", "Etkin & Reid (B747 case)", "altitude")
+    mach: float = param("-", "Etkin & Reid (B747 case)", "Mach number")
+    tas_ms: float = param("m/s", "Etkin & Reid (B747 case: u0 = 235.9 m/s)", "true airspeed u0")
+    rho_kgm3: float = param("kg/m³", "Etkin & Reid (B747 case)", "air density")
+
+
+B747_CONDITION = ReferenceCondition(alt_ft=40000.0, mach=0.8, tas_ms=235.9, rho_kgm3=0.3045)
+
+#: Published eigenvalues [1/s] of the reference condition (Etkin & Reid, B747 examples):
+#: the short period of the longitudinal model and the three lateral modes.
+B747_REFERENCE_MODES = types.MappingProxyType({
+    "short_period": complex(-0.3719, 0.8875),
+    "dutch_roll": complex(-0.03313, 0.9470),
+    "roll": -0.5630,
+    "spiral": -0.007297,
+})
+
+
+@dataclass(frozen=True)
+class ScalingParams:
+    """How the reference derivative set is carried to an A330-class flight point (est.).
+
+    - inertias: I = I_747·(m/m_747)·(d/d_747)² with d the span (Ix, Izx), the length (Iy)
+      or sqrt(b² + l²) (Iz) — mass distributed like the reference airframe's (est.);
+    - Mach: every derivative scales with the Prandtl–Glauert factor 1/sqrt(1 − M²) relative
+      to the reference Mach, M held at ``mach_cap`` (as CLα in :mod:`scenarios.envelope`);
+    - CG: Cmα and Cmδe move with the CG, Cm_cg = Cm_ref + CLx·(h − h_ref) (Etkin & Reid
+      §2.3), CLx = −Czx;
+    - aerodynamic uncertainty: every derivative times (1 + d_aero) ([CHEN] Table 2).
+    """
+
+    span_m: float = param("m", "A330-300 published span", "wing span b")
+    length_m: float = param("m", "A330-300 published length", "fuselage length")
+    mach_cap: float = param("-", "as scenarios.envelope.A330.cl_alpha_mach_cap (est.)",
+                            "Prandtl–Glauert scaling held above this Mach")
+
+
+A330_SCALING = ScalingParams(span_m=60.3, length_m=63.7, mach_cap=0.75)
+
+
+@dataclass(frozen=True)
+class SurfaceLayout:
+    """The primary surfaces and their share of the control derivatives (est.).
+
+    Elevators: each moves half of the elevator derivatives. Ailerons: δa = (δ_right −
+    δ_left)/2 (Etkin & Reid), shared between the inboard and outboard pairs; the 747 set
+    at M 0.8 has its outboard ailerons locked out, so the A330 roll power (four active
+    ailerons) is ``aileron_factor`` times it. Spoilers: a fixed coupling to the roll order
+    that adds ``spoiler_factor`` times the aileron roll and yaw moments of that order
+    (spoilers are not monitored and have no servo-loop here). Rudder: the whole δr set.
+    """
+
+    names: tuple[str, ...] = param("-", "PHYSICS §7, issue 8", "surfaces, in array order")
+    actuator: tuple[str, ...] = param("-", "scenarios.params", "actuator table of each surface")
+    elevator_share: float = param("-", "est. (two equal elevators)",
+                                  "share of the elevator derivatives per elevator")
+    inboard_share: float = param("-", "est.", "share of the aileron derivatives per inboard pair")
+    outboard_share: float = param("-", "est.", "share of the aileron derivatives per outboard pair")
+    aileron_factor: float = param("-", "est. (747 cruise: outboard ailerons locked out)",
+                                  "A330 aileron roll power relative to the 747 Clδa, Cnδa")
+    spoiler_factor: float = param("-", "est. (roll spoilers 2–6)",
+                                  "spoiler roll/yaw moment per unit aileron roll order, "
+                                  "relative to the ailerons'")
+
+
+LAYOUT = SurfaceLayout(
+    names=("left_elevator", "right_elevator", "left_inboard_aileron", "right_inboard_aileron",
+           "left_outboard_aileron", "right_outboard_aileron", "rudder"),
+    actuator=("elevator", "elevator", "aileron", "aileron", "aileron", "aileron", "rudder"),
+    elevator_share=0.5, inboard_share=0.5, outboard_share=0.5,
+    aileron_factor=3.0, spoiler_factor=1.0,
+)
+
+#: Surfaces of the aircraft plant, in array order.
+AIRCRAFT_SURFACES: tuple[str, ...] = LAYOUT.names
+
+
+@dataclass(frozen=True)
+class LawParams:
+    """Normal-law-like control laws (est.; structure after Goupil 2011 / PHYSICS §7).
+
+    Pitch: load-factor command with integral action; gains placed on the short-period
+    model of the *measured* flight point so that the closed loop has a short-period pair
+    (ω, ζ) and an integral pole a. Roll: roll-rate command with bank hold through a
+    nominal-model inversion of the roll subsidence. Yaw: yaw damper on r − r_turn and
+    sideslip feedback; turn coordination r_turn = g·sin φ/V.
+    """
+
+    pitch_omega: float = param("rad/s", "est. (transport C* response)", "closed-loop short-period ω")
+    pitch_zeta: float = param("-", "est.", "closed-loop short-period damping")
+    pitch_integral: float = param("rad/s", "est.", "integral pole a")
+    roll_bandwidth: float = param("rad/s", "est.", "roll-rate loop bandwidth ω_p")
+    bank_gain: float = param("1/s", "est. (ζ = 1 with ω_p = 3)", "bank hold gain k_φ")
+    bank_max_deg: float = param("deg", "A330 normal law (bank protection 33° stick free)",
+                                "bank angle used by the turn compensation at most")
+    yaw_damping: float = param("1/s", "est.", "yaw damper: added −∂ṙ/∂r")
+    sideslip_gain: float = param("1/s²", "est.", "sideslip feedback: added ∂ṙ/∂β")
+    sideslip_integral: float = param("1/s³", "est.", "sideslip integral (turn coordination)")
+    hinge_load_limit: float = param(
+        "-", "est. (PHYSICS §3: no stall in normal flight; like a rudder travel limiter)",
+        "orders stay where the hinge load is below this share of the stall force S·ΔP")
+
+
+LAWS = LawParams(
+    pitch_omega=2.0, pitch_zeta=0.7, pitch_integral=1.0,
+    roll_bandwidth=3.0, bank_gain=0.75, bank_max_deg=33.0,
+    yaw_damping=1.0, sideslip_gain=1.0, sideslip_integral=0.5, hinge_load_limit=0.9,
+)
+
+
+@dataclass(frozen=True)
+class PilotParams:
+    """Pilot inputs of the six manoeuvres (PHYSICS §7 shapes flown through the laws; est.).
+
+    Ranges (lo, hi) are sampled per run from the manoeuvre stream.
+    """
+
+    start_s: tuple[float, float] = param("s", "est.", "time of the first input")
+    nose_up_g: tuple[float, float] = param("g", "est. (PHYSICS §7 nose_up)", "load-factor step")
+    nose_up_hold_s: tuple[float, float] = param("s", "PHYSICS §7", "time held")
+    aoa_g: tuple[float, float] = param("g", "est. (PHYSICS §7 aoa_protection: slow)", "pull")
+    aoa_ramp_s: tuple[float, float] = param("s", "est.", "ramp in and out")
+    aoa_hold_s: tuple[float, float] = param("s", "est.", "time held")
+    pitch_g: tuple[float, float] = param("g", "est. (PHYSICS §7 pitch_protection)", "pull/push")
+    pitch_hold_s: tuple[float, float] = param("s", "est.", "time held at each peak")
+    pitch_gap_s: float = param("s", "est.", "pause between the pull and the push")
+    yaw_beta_deg: tuple[float, float] = param("deg", "est. (PHYSICS §7 yaw_angle_mode)",
+                                              "pedal sideslip order")
+    yaw_hold_s: tuple[float, float] = param("s", "PHYSICS §7", "time held")
+    turn_rate_deg_s: float = param("deg/s", "PHYSICS §7 (15 °/s)", "roll-rate order")
+    turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank of the turn")
+    turn_hold_s: tuple[float, float] = param("s", "est.", "time in the turn")
+    smooth_s: float = param("s", "est.", "rise time of every stick/pedal input")
+
+
+PILOT = PilotParams(
+    start_s=(3.0, 8.0),
+    nose_up_g=(0.15, 0.3), nose_up_hold_s=(5.0, 10.0),
+    aoa_g=(0.2, 0.35), aoa_ramp_s=(2.0, 4.0), aoa_hold_s=(2.0, 5.0),
+    pitch_g=(0.3, 0.45), pitch_hold_s=(1.0, 2.0), pitch_gap_s=2.0,
+    yaw_beta_deg=(2.0, 4.0), yaw_hold_s=(5.0, 10.0),
+    turn_rate_deg_s=15.0, turn_bank_deg=(25.0, 33.0), turn_hold_s=(4.0, 7.0),
+    smooth_s=0.5,
+)
+
+
+@dataclass(frozen=True)
+class AircraftSensorParams:
+    """Aircraft-level sensors (inertial reference and air data; est. white-noise σ)."""
+
+    rate_noise_deg_s: float = param("deg/s", "est. (ADIRU gyro)", "σ of p, q, r")
+    attitude_noise_deg: float = param("deg", "est. (ADIRU)", "σ of φ, θ")
+    load_noise_g: float = param("g", "est. (ADIRU accelerometer)", "σ of nz, ny")
+    sideslip_noise_deg: float = param("deg", "est. (air data)", "σ of β")
+
+
+AIRCRAFT_SENSORS = AircraftSensorParams(
+    rate_noise_deg_s=0.02, attitude_noise_deg=0.02, load_noise_g=0.003, sideslip_noise_deg=0.1,
+)
+
+#: Plant levels a campaign can simulate (``[campaign] plant``).
+PLANTS: tuple[str, ...] = ("actuator", "aircraft")
+
+#: Monitored aircraft surface when a campaign names only the actuator-level surface.
+DEFAULT_MONITORED: dict[str, str] = {"elevator": "left_elevator",
+                                     "aileron": "left_inboard_aileron"}

@@ -1,0 +1,379 @@
+"""The aircraft-level closed loop of a batch of runs: ``simulate_aircraft(runs)``.
+
+Plant: the rigid-body LPV model of :mod:`.lpv` at each run's true flight point, driven by
+the seven primary surfaces, each with its own nonlinear servo-loop — the servo plant of
+:mod:`scenarios.servo` (``plant_arrays``, ``rk4_step``, ``float_step``) stacked along a
+surface axis: the arrays of the loop have shape (7·n,), surface-major (index s·n + i). The
+FCC (every Ts, PHYSICS §2) acquires the aircraft sensors and every COM rod position at t_k,
+computes the laws of :mod:`.laws` and every surface's current i = sat(K·(u − y), ±i_max),
+held over the next period (one Ts of transport delay, as at the actuator level); the
+spoilers follow the roll order of the previous period (fixed coupling, no servo-loop). The
+aircraft state advances exactly over the period (linear model), with the surface deflections of
+t_k, their motion to t_k+1 as a ramp (first-order hold) and the gust angles of the Dryden
+turbulence (:mod:`scenarios.turbulence`).
+
+The fault of a run (PHYSICS §5) acts on the *monitored* surface (column ``surface`` of the
+run rows, one of :data:`scenarios.aircraft.data.AIRCRAFT_SURFACES`) through the
+actuator-level injection arrays (:func:`scenarios.faults.fault_arrays`) and the same COM
+acquisition and current functions as :mod:`scenarios.simulate`; the laws see its effect on
+the aircraft and move the other surfaces. The monitored surface's signals fill the
+actuator-level fields of :class:`Signals` (command, current, rod_com, rod_mon, surface,
+pressure), so actuator-level detectors run unchanged; ``Signals.aircraft`` adds the
+aircraft sensors and ``Signals.rods`` every surface's COM rod position.
+
+Determinism: run i draws only from its own streams (:func:`scenarios.simulate.run_streams`):
+the manoeuvre stream gives the pilot inputs then the turbulence; the sensor stream gives the
+monitored surface's sensor errors (same draws as at the actuator level), then the other
+surfaces' COM errors, then the aircraft sensor noise.
+"""
+
+from __future__ import annotations
+
+import types
+from dataclasses import dataclass, fields
+
+import numpy as np
+import pandas as pd
+
+from .. import envelope
+from ..atmosphere import tas_ms as tas_from_mach
+from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays
+from ..manoeuvres import elevator_trim_deg
+from ..params import AILERON, ELEVATOR, RUDDER, SENSORS, TS_S, ActuatorParams, SensorParams
+from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
+from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
+from ..turbulence import MODERATE, DrydenParams, dryden_gusts
+from . import laws, lpv, pilot
+from .data import AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, LAYOUT, AircraftSensorParams
+
+#: Actuator parameter table of each kind of surface.
+AIRCRAFT_ACTUATORS: dict[str, ActuatorParams] = {
+    "elevator": ELEVATOR, "aileron": AILERON, "rudder": RUDDER}
+
+#: Sign of the pitch, roll and yaw orders on each surface (array order of LAYOUT).
+_PITCH = np.array([1.0 if k == "elevator" else 0.0 for k in LAYOUT.actuator])
+_ROLL = laws.ROLL_DISTRIBUTION[:len(LAYOUT.names)]
+_YAW = np.array([1.0 if k == "rudder" else 0.0 for k in LAYOUT.actuator])
+_ELEVATORS = _PITCH > 0
+
+
+def surface_actuator(surface: str) -> ActuatorParams:
+    """The nominal actuator table of an aircraft surface (named after that surface)."""
+    if surface not in AIRCRAFT_SURFACES:
+        raise ValueError(f"unknown aircraft surface {surface!r}; allowed: {', '.join(AIRCRAFT_SURFACES)}")
+    kind = LAYOUT.actuator[AIRCRAFT_SURFACES.index(surface)]
+    return AIRCRAFT_ACTUATORS[kind].replace(surface=surface)
+
+
+@dataclass(frozen=True)
+class AircraftPrepared:
+    """Everything the aircraft loop needs, computed before it."""
+
+    ts: float
+    n: int
+    T: int
+    monitored: int                # index of the monitored surface
+    acts: tuple                   # ActuatorParams of each surface
+    plant: PlantArrays            # stacked (7·n,)
+    plant_m: PlantArrays          # monitored surface (n,)
+    lo_deg: np.ndarray            # (7, n) order limits [deg]: electrical limits and hinge
+                                  # load ≤ LawParams.hinge_load_limit × stall force
+    hi_deg: np.ndarray
+    trim_deg: np.ndarray          # (7, n) trimmed deflections
+    step_matrix: np.ndarray       # (n, 7, 24) [Φ Γ Γ₁] on [x; u; Δδ] (lpv.discretise_ramp)
+    load_matrix: np.ndarray       # (n, 2, 17) load factors [C D] on [x; u]
+    gains: laws.Gains
+    law_params: laws.LawParams
+    nz_c: np.ndarray              # (n, T) pilot orders
+    p_c: np.ndarray
+    beta_c: np.ndarray
+    gust_alpha: np.ndarray        # (n, T) [rad]
+    gust_beta: np.ndarray
+    com_bias: np.ndarray          # (7·n,)
+    com_scale: np.ndarray
+    com_noise: np.ndarray         # (7·n, T)
+    mon_bias: np.ndarray          # (n,) monitored surface only
+    mon_scale: np.ndarray
+    mon_noise: np.ndarray
+    surf_bias: np.ndarray
+    surf_noise: np.ndarray
+    pres_noise: np.ndarray
+    ac_noise: np.ndarray          # (8, n, T) in SI (rad, rad/s, g)
+    faults: object                # FaultArrays of the monitored surface
+    ramp_deg: np.ndarray          # (n, T) runaway ramp of the monitored order
+    flight_true: dict
+    schedule: dict
+
+
+def _stack(plants: list[PlantArrays]) -> PlantArrays:
+    return PlantArrays(**{f.name: np.concatenate([getattr(p, f.name) for p in plants])
+                          for f in fields(PlantArrays)})
+
+
+def _aircraft_noise_sigmas(s: AircraftSensorParams) -> np.ndarray:
+    """σ of the sensors of :data:`scenarios.signals.AIRCRAFT_SIGNAL_UNITS` (in that order) in
+    SI units (rad, rad/s, g)."""
+    rate, att = np.radians(s.rate_noise_deg_s), np.radians(s.attitude_noise_deg)
+    return np.array([rate, rate, rate, att, att, s.load_noise_g, s.load_noise_g,
+                     np.radians(s.sideslip_noise_deg)])
+
+
+def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
+                     aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS,
+                     turbulence: DrydenParams | None = MODERATE,
+                     law_params: laws.LawParams = laws.LAWS) -> AircraftPrepared:
+    """Validate *runs* and compute every open-loop input of the batch (*turbulence* None:
+    calm air)."""
+    from ..simulate import _sensor_draws, run_streams, validate_runs, RUN_COLUMNS, RUN_RANGES
+
+    validate_runs(runs, surfaces=AIRCRAFT_SURFACES)
+    n = len(runs)
+    T = int(round(float(runs["duration_s"].iloc[0]) / ts))
+    col = {c: runs[c].to_numpy() for c in RUN_COLUMNS}
+    f = {c: np.asarray(col[c], dtype=float) for c in RUN_RANGES}
+    m_idx = AIRCRAFT_SURFACES.index(str(runs["surface"].iloc[0]))
+    acts = tuple(AIRCRAFT_ACTUATORS[k] for k in LAYOUT.actuator)
+    act_m = acts[m_idx]
+
+    flight = envelope.flight_condition(f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"])
+    flight_true = {"alt_ft": f["alt_ft"], "vcas_kt": f["vcas_kt"], "mass_t": f["mass_t"],
+                   "cg_pct": f["cg_pct"], **{k: np.asarray(v, float) for k, v in flight.items()}}
+    schedule = envelope.measured_schedule(
+        f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"],
+        f["d_alt"], f["d_vcas"], f["d_mass"], f["d_cg"])
+    plants = [plant_arrays(a, qbar_pa=flight_true["qbar_pa"], alpha_deg=flight_true["alpha_deg"],
+                           mach=flight_true["mach"], d_aero=f["d_aero"], d_hinge=f["d_hinge"],
+                           d_supply=f["d_supply"], d_kci=f["d_kci"]) for a in acts]
+    limits = [authority_limits(pl, a.replace(order_load_limit=law_params.hinge_load_limit))
+              for pl, a in zip(plants, acts)]
+    lo = np.array([lim[0] for lim in limits]); hi = np.array([lim[1] for lim in limits])
+    trim = np.zeros((len(acts), n))
+    e_trim = np.array([elevator_trim_deg(a, c, ELEVATOR)
+                       for a, c in zip(flight_true["alpha_deg"], f["cg_pct"])])
+    trim[_ELEVATORS] = e_trim
+    trim = np.clip(trim, lo, hi)
+
+    model = lpv.run_models(flight_true, f["d_aero"])
+    phi, gam, ramp = lpv.discretise_ramp(model, ts)
+    measured = {"mass_t": schedule["mass_t"], "cg_pct": schedule["cg_pct"],
+                "mach": schedule["mach"], "qbar_pa": schedule["qbar_pa"],
+                "tas_ms": tas_from_mach(schedule["mach"], schedule["alt_ft"])}
+    gains = laws.gains(lpv.run_models(measured, np.zeros(n)), law_params)
+
+    t = np.arange(T) * ts
+    gens = [run_streams(s, k) for s, k in zip(col["seed"], col["stream"])]
+    nz_c, p_c, beta_c = pilot.inputs_for_runs(col["manoeuvre"].astype(str), t, [g[0] for g in gens])
+    tas = flight_true["tas_ms"]
+    if turbulence is None:
+        gusts = np.zeros((n, 3, T))
+    else:
+        gusts = np.array([dryden_gusts(T, ts, v, h, g[0], turbulence)
+                          for v, h, g in zip(tas, f["alt_ft"], gens)])
+    gust_alpha = -gusts[:, 2] / tas[:, None]
+    gust_beta = -gusts[:, 1] / tas[:, None]
+
+    n_s = len(acts)
+    sig = _aircraft_noise_sigmas(aircraft_sensors)
+    com_bias = np.empty((n_s, n)); com_scale = np.empty((n_s, n)); com_noise = np.empty((n_s, n, T))
+    mon = np.empty((3, n)); mon_noise = np.empty((3, n, T)); ac_noise = np.empty((len(sig), n, T))
+    others = [j for j in range(n_s) if j != m_idx]
+    for i, g in enumerate(gens):
+        d = [x[0] for x in _sensor_draws([g[1]], T, sensors, act_m.dP_Pa)]   # run i's own stream
+        com_bias[m_idx, i], com_scale[m_idx, i], com_noise[m_idx, i] = d[0], d[1], d[2]
+        mon[:, i] = d[3], d[4], d[6]
+        mon_noise[0, i], mon_noise[1, i], mon_noise[2, i] = d[5], d[7], d[8]
+        u = g[1].uniform(-1.0, 1.0, size=(len(others), 2))
+        z = g[1].standard_normal((len(others), T))
+        com_bias[others, i] = u[:, 0] * sensors.rod_bias_mm
+        com_scale[others, i] = u[:, 1] * sensors.rod_scale
+        com_noise[others, i] = z * sensors.rod_noise_mm
+        ac_noise[:, i] = g[1].standard_normal((len(sig), T)) * sig[:, None]
+
+    faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
+                          np.zeros((n, T)), act_m, ts, plants[m_idx].i_max)
+    ramp_deg = np.degrees(np.arcsin(np.clip(faults.u_loop / act_m.r_mm, -1.0, 1.0)))
+    return AircraftPrepared(
+        ts=ts, n=n, T=T, monitored=m_idx, acts=acts, plant=_stack(plants), plant_m=plants[m_idx],
+        lo_deg=lo, hi_deg=hi, trim_deg=trim,
+        step_matrix=np.concatenate([phi, gam, ramp], axis=2),
+        load_matrix=np.concatenate([model.C, model.D], axis=2),
+        gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c, gust_alpha=gust_alpha,
+        gust_beta=gust_beta, com_bias=com_bias.ravel(), com_scale=com_scale.ravel(),
+        com_noise=com_noise.reshape(n_s * n, T), mon_bias=mon[0], mon_scale=mon[1],
+        mon_noise=mon_noise[0], surf_bias=mon[2], surf_noise=mon_noise[1],
+        pres_noise=mon_noise[2], ac_noise=ac_noise, faults=faults, ramp_deg=ramp_deg,
+        flight_true=flight_true, schedule=schedule,
+    )
+
+
+@dataclass(frozen=True)
+class AircraftTrajectory:
+    """Closed-loop result: the monitored surface as at the actuator level, (n, T) each, plus
+    every surface and the aircraft."""
+
+    x: np.ndarray             # monitored rod position [mm]
+    delta: np.ndarray         # monitored surface deflection [rad]
+    i_cmd: np.ndarray         # monitored current order [mA]
+    i_app: np.ndarray         # monitored current flowing [mA]
+    y_com: np.ndarray         # monitored COM acquisition [mm]
+    u: np.ndarray             # monitored fault-free rod order [mm]
+    rods: np.ndarray          # (7, n, T) COM acquisitions of every surface [mm]
+    surfaces: np.ndarray      # (7, n, T) true deflections [rad]
+    states: np.ndarray        # (7, n, T) aircraft perturbation state (lpv.STATES)
+    sensors: np.ndarray       # (8, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
+
+
+def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
+    """The closed-loop time loop, vectorised over runs and surfaces."""
+    from ..simulate import acquire_com, applied_current, quantize
+
+    n, T, ts, m = p.n, p.T, p.ts, p.monitored
+    n_s = len(p.acts)
+    pl, fa = p.plant, p.faults
+    mon = slice(m * n, (m + 1) * n)
+    act_m = p.acts[m]
+    d_min, d_max = np.radians(act_m.stop_min_deg), np.radians(act_m.stop_max_deg)
+    run_margin = FAULT_DEFAULTS.runaway_margin_deg
+    pm = types.SimpleNamespace(faults=fa, com_scale=p.com_scale[mon], com_bias=p.com_bias[mon],
+                               com_noise=p.com_noise[mon])
+    trim_rad = np.radians(p.trim_deg)
+    r_flat = pl.r_mm
+
+    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+    sp_rec = np.empty((n, T))
+
+    x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
+    delta = np.arcsin(x / r_flat)
+    i_prev = np.zeros(n * n_s)
+    y_hold = np.zeros(n)
+    nx_u = lpv.N_STATES + lpv.N_INPUTS
+    xu = np.zeros((n, nx_u + n_s, 1))       # [x; u; Δδ] of the aircraft step
+    xa = xu[:, :lpv.N_STATES, 0]            # views
+    u_air = xu[:, lpv.N_STATES:nx_u, 0]
+    d_surf = xu[:, nx_u:, 0]
+    state = laws.LawState.zeros(n)
+    pitch_clipped = np.zeros(n, dtype=bool)
+    da_prev = np.zeros(n)
+    loaded = np.ones(n * n_s, dtype=bool)
+    any_jam = bool((fa.k_jam < NEVER).any())
+    any_disc = bool((fa.k_disc < NEVER).any())
+    roll_lim = np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)
+    nse = p.ac_noise
+    theta0 = np.radians(p.flight_true["alpha_deg"])     # trimmed level flight: θ0 = α0
+    for k in range(T):
+        # aircraft sensors at t_k
+        u_air[:, :n_s] = (delta.reshape(n_s, n) - trim_rad).T
+        u_air[:, lpv.I_SPOILER] = da_prev
+        u_air[:, lpv.I_GUST_ALPHA] = p.gust_alpha[:, k]
+        u_air[:, lpv.I_GUST_BETA] = p.gust_beta[:, k]
+        loads = (p.load_matrix @ xu[:, :nx_u])[:, :, 0].T
+        meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
+                "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
+                "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
+                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + nse[7, :, k]}
+        # servo-loops: COM acquisitions at t_k
+        y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
+        y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
+        de_meas = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[_ELEVATORS]
+                   - trim_rad[_ELEVATORS]).mean(axis=0)
+        meas["de"] = de_meas
+        # laws and surface orders
+        nz_c = p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
+        de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
+                               pitch_clipped, p.law_params)
+        raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
+                                      + _YAW[:, None] * dr)
+        order = np.clip(raw, p.lo_deg, p.hi_deg)
+        pitch_clipped = (order[_ELEVATORS] != raw[_ELEVATORS]).any(axis=0)
+        u_free_m = act_m.r_mm * np.sin(np.radians(order[m]))
+        order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
+                           act_m.stop_max_deg + run_margin)
+        u_loop = r_flat * np.sin(np.radians(order.ravel()))
+        # servo-loops: currents
+        i_new = np.clip(pl.K * (u_loop - y), -pl.i_max, pl.i_max)
+        i_app = i_prev.copy()
+        i_app[mon] = applied_current(i_prev[mon], k, pm)
+        # record t_k
+        rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
+        states[:, :, k] = xa.T
+        meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
+                             1.0 + meas["dnz"], meas["ny"], meas["beta"])
+        xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        sp_rec[:, k] = da_prev
+        # advance the surfaces over [t_k, t_k+1)
+        if any_disc:
+            loaded[mon] = k < fa.k_disc
+        x_next = rk4_step(x, i_app, pl, loaded, ts)
+        if any_jam:
+            x_next[mon] = np.where(k >= fa.k_jam, x[mon], x_next[mon])
+        delta_next = np.arcsin(x_next / r_flat)
+        if any_disc:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
+            delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
+        # advance the aircraft over [t_k, t_k+1): inputs of t_k held, the surfaces' motion to
+        # t_k+1 as a ramp (exact, lpv.discretise_ramp)
+        d_surf[:] = (delta_next - delta).reshape(n_s, n).T
+        xa[:] = (p.step_matrix @ xu)[:, :, 0]
+        x, delta, i_prev = x_next, delta_next, i_new
+        da_prev = np.clip(da, -roll_lim, roll_lim)
+    return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
+                              u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
+                              spoiler=sp_rec)
+
+
+#: Conversion of the recorded aircraft sensors (SI) to the units of AIRCRAFT_SIGNAL_UNITS.
+_TO_UNITS = {"deg/s": np.degrees, "deg": np.degrees, "g": lambda v: v}
+#: Units of the truth aircraft states.
+STATE_UNITS = {"alpha": "deg", "q": "deg/s", "theta": "deg", "beta": "deg", "p": "deg/s",
+               "r": "deg/s", "phi": "deg"}
+
+
+def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
+                      pressure_sensor: bool = False,
+                      turbulence: DrydenParams | None = MODERATE,
+                      law_params: laws.LawParams = laws.LAWS) -> tuple[Signals, Truth]:
+    """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
+    one duration per call); returns (:class:`Signals`, :class:`Truth`) like
+    :func:`scenarios.simulate.simulate`."""
+    from ..simulate import Trajectory, chamber_pressure, quantize
+
+    p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
+                         law_params=law_params)
+    traj = integrate_aircraft(p, sensors)
+    act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
+    mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
+                   sensors.rod_quant_mm)
+    surface_deg = np.degrees(traj.delta)
+    if act.has_surface_sensor:
+        surface = quantize(surface_deg + p.surf_bias[:, None] + p.surf_noise,
+                           sensors.surface_quant_deg)
+    else:
+        surface = np.full_like(surface_deg, np.nan)
+    if pressure_sensor:
+        view = types.SimpleNamespace(plant=p.plant_m, faults=p.faults, ts=ts, act=act)
+        pressure = chamber_pressure(Trajectory(x=traj.x, delta=traj.delta, i_cmd=traj.i_cmd,
+                                               i_app=traj.i_app, y_com=traj.y_com), view)
+        pressure = pressure + p.pres_noise
+    else:
+        pressure = np.full_like(surface_deg, np.nan)
+    aircraft = {name: _TO_UNITS[unit](traj.sensors[j])
+                for j, (name, unit) in enumerate(AIRCRAFT_SIGNAL_UNITS.items())}
+    signals = Signals(
+        ts=ts, command=traj.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
+        surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,
+        run_ids=runs["run_id"].astype(str).to_numpy(),
+        aircraft=aircraft, rods={s: traj.rods[j] for j, s in enumerate(AIRCRAFT_SURFACES)},
+    )
+    truth = Truth(
+        rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
+        fault=runs["fault"].astype(str).to_numpy(),
+        onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
+        flight=p.flight_true,
+        aircraft={s: np.degrees(traj.states[j]) for j, s in enumerate(lpv.STATES)},
+        surfaces_deg={s: np.degrees(traj.surfaces[j]) for j, s in enumerate(AIRCRAFT_SURFACES)},
+    )
+    return signals, truth
