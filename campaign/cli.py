@@ -91,7 +91,11 @@ def cmd_gate(args) -> int:
     _, summary, meta = load_results(args.dir)
     req = (meta.get("config") or {}).get("requirements", {})
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
-    result = evaluate_gate(summary, max_fa=max_fa, max_md=args.max_md, max_dtp=args.max_dtp,
+    max_md, max_dtp = args.max_md, args.max_dtp
+    if args.all_requirements:        # the campaign file's MD and DTP limits too (as the report)
+        max_md = max_md if max_md is not None else req.get("max_md_rate")
+        max_dtp = max_dtp if max_dtp is not None else req.get("max_dtp")
+    result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
                            allow_errors=args.allow_errors)
     if meta.get("complete") is False:
         print(f"note: the campaign is incomplete ({meta.get('runs_done')} of "
@@ -315,8 +319,13 @@ def build_parser() -> argparse.ArgumentParser:
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)
     p.add_argument("dir")
     p.add_argument("--max-fa", type=float, help="largest false-alarm rate (default: campaign file)")
-    p.add_argument("--max-md", type=float, help="largest missed-detection rate (default: unchecked)")
-    p.add_argument("--max-dtp", type=float, help="largest DTP (default: unchecked)")
+    p.add_argument("--max-md", type=float, help="largest missed-detection rate (default: "
+                   "unchecked, or the campaign file's with --all-requirements)")
+    p.add_argument("--max-dtp", type=float, help="largest DTP (default: unchecked, or the "
+                   "campaign file's with --all-requirements)")
+    p.add_argument("--all-requirements", action="store_true",
+                   help="also check the campaign file's max_md_rate and max_dtp (the verdict "
+                        "of report.html); without it only false alarms and errors are gated")
     p.add_argument("--allow-errors", action="store_true", help="do not fail on runs in error")
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 

@@ -191,6 +191,19 @@ def test_gate_passes_on_defaults_and_fails_on_an_oversensitive_detector(tmp_path
     assert "FAIL" in capsys.readouterr().out
 
 
+def test_gate_checks_the_files_md_and_dtp_limits_only_with_all_requirements(tmp_path, capsys):
+    # a DTP limit no detector can meet (delay ≥ one 10 ms step, required ≥ 0.5 s → DTP ≥ 0.02)
+    out = tmp_path / "strict"
+    run(tiny(requirements={"max_dtp": 0.001}), out, jobs=1, progress=False)
+    assert main(["gate", str(out), "--max-fa", "0"]) == 0
+    capsys.readouterr()
+    assert main(["gate", str(out), "--max-fa", "0", "--all-requirements"]) == 1
+    text = capsys.readouterr().out
+    assert "FAIL" in text and "DTP" in text
+    # an explicit flag still wins over the file
+    assert main(["gate", str(out), "--all-requirements", "--max-dtp", "1000"]) == 0
+
+
 @pytest.mark.parametrize("argv, needle", [
     (["run", "no-such-preset", "--out", "x"], "preset"),
     (["simulate", "--surface", "rudder"], "invalid choice"),
