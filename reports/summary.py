@@ -24,6 +24,8 @@ Counting rules
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pandas as pd
 
@@ -99,8 +101,20 @@ def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return out.reset_index()
 
 
+_NUMBER = re.compile(r"\d+(?:\.\d+)?")
+
+
+def _natural(name: str) -> str:
+    """*name* with each number zero-padded, so variants sort by value (a=0.9 before a=0.95,
+    a=0.95 before a=0.99)."""
+    return _NUMBER.sub(lambda m: f"{float(m.group()):024.9f}", name)
+
+
 def _sort_key(column: pd.Series) -> pd.Series:
-    """Order: fault-free first, fault types alphabetically, aggregates last."""
+    """Order: detectors by name with numbers by value; fault-free first, fault types
+    alphabetically, aggregates last."""
+    if column.name == "detector":
+        return column.map(_natural)
     if column.name == "fault":
         rank = np.select([column == FAULT_FREE, column == ALL_FAULTS], [0, 2], 1)
     elif column.name == "manoeuvre":

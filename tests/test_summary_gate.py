@@ -165,6 +165,13 @@ def test_summary_several_detectors_and_empty_input():
         summarize(res.drop(columns=["dtp"]))
 
 
+def test_detector_variants_sort_by_the_value_of_their_numbers():
+    poles = ["0.99", "0.9", "0.6", "0.95", "0.8"]
+    res = pd.concat([fault_free("cruise", 2, detector=f"comb[a={a}]") for a in poles])
+    order = list(dict.fromkeys(summarize(res).detector))
+    assert order == [f"comb[a={a}]" for a in ("0.6", "0.8", "0.9", "0.95", "0.99")]
+
+
 # ---- gate ----------------------------------------------------------------------------------
 
 def test_gate_passes_on_clean_summary():
