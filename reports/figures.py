@@ -196,8 +196,9 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     """
     plt = _plt()
     t = frame.index.to_numpy()
-    fig, axes = plt.subplots(4, 1, figsize=(9.0, 7.4), sharex=True,
-                             gridspec_kw={"height_ratios": [3, 2, 2, 3]})
+    ratios = [3, 2, 2, 3] if residuals else [3, 2, 2]
+    fig, axes = plt.subplots(len(ratios), 1, figsize=(9.0, 1.85 * sum(ratios) / 2.5),
+                             sharex=True, gridspec_kw={"height_ratios": ratios})
     fig.subplots_adjust(left=0.08, right=0.70, top=0.94, bottom=0.07, hspace=0.12)
     ax = axes[0]
     ax.plot(t, frame["command [mm]"], label="order u", lw=1.1)
@@ -217,7 +218,21 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     if "true_current [mA]" in frame:
         ax.plot(t, frame["true_current [mA]"], "k--", label="current flowing", lw=0.7)
     ax.set_ylabel("current [mA]")
-    ax = axes[3]
+    if residuals:
+        _residual_panel(axes[3], t, residuals)
+    axes[-1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if np.isfinite(onset_s):
+            ax.axvline(onset_s, color=WORST_COLOUR, ls=":", lw=1.2)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
+    fig.suptitle(title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s)
+                          else ""), x=0.01, ha="left", fontsize=10)
+    return fig
+
+
+def _residual_panel(ax, t: np.ndarray, residuals: dict) -> None:
+    """Every detector's |r|/τ against the threshold line, its alarm span shaded."""
     top = 1.15
     for k, (name, (res, alarm)) in enumerate(residuals.items()):
         res = np.asarray(res, dtype=float)
@@ -234,15 +249,6 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     ax.axhline(1.0, color=THRESHOLD_COLOUR, ls="--", lw=1.3, label="threshold")
     ax.set_ylim(0, min(top, 50.0))
     ax.set_ylabel("|r|/τ [-]")
-    ax.set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-        if np.isfinite(onset_s):
-            ax.axvline(onset_s, color=WORST_COLOUR, ls=":", lw=1.2)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
-    fig.suptitle(title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s)
-                          else ""), x=0.01, ha="left", fontsize=10)
-    return fig
 
 
 def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: str,
