@@ -199,7 +199,8 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     ratios = [3, 2, 2, 3] if residuals else [3, 2, 2]
     fig, axes = plt.subplots(len(ratios), 1, figsize=(9.0, 1.85 * sum(ratios) / 2.5),
                              sharex=True, gridspec_kw={"height_ratios": ratios})
-    fig.subplots_adjust(left=0.08, right=0.70, top=0.94, bottom=0.07, hspace=0.12)
+    fig.subplots_adjust(left=0.08, right=0.70, top=0.94, bottom=0.07 if residuals else 0.1,
+                        hspace=0.12)
     ax = axes[0]
     ax.plot(t, frame["command [mm]"], label="order u", lw=1.1)
     ax.plot(t, frame["rod_com [mm]"], label="rod COM", lw=0.8)
