@@ -34,15 +34,22 @@ realistic point of the [CHEN] Table-1 grid seen through the corners of the Table
 measurement errors widened by ``schedule_margin`` (2^r vertices).
 
 Uncertainty ([CHEN] §6: "δ_g mainly affects the channels of the roll rate and the yaw
-rate"): M_g = the unit vectors of the ṗ and ṙ rows, plus the β̇ row (gusts), N = 0.
+rate"): M_g = the unit vectors of the ṗ and ṙ rows, plus the β̇ row, N = 0. Gusts: a gust
+sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls the aircraft
+like tens of degrees of one inboard aileron; with ``gust_channel`` it is a second unknown
+input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a second column along
+r or φ), and f̂ is the first component of the estimate.
 
 Synthesis: :func:`detectors.lpv_synthesis.synthesise` (vertex LMIs of eq. 23, Z1 = P⁻¹S,
 gains of eq. 20–21, L1(ρ) = −F(ρ)H† + Z1H⊥ affine in ρ). It runs once in ``fit`` and its
 results are kept in the fitted state. The estimator's stability is checked at every vertex
 and on a dense grid of the box (continuous and discretised). Online, ρ is constant over a
-run (the schedule is per run), so each run's estimator is discretised once by zero-order
-hold at Ts; each step is then x̂ ← Φ x̂ + Γ_u u + Γ_y y and f̂ = L2 (y − C x̂): 4 × 13 + 3 + 3
-multiply-adds, vectorised over runs.
+run (the schedule is per run), so each run's estimator is discretised once, exactly, with
+the rods and the aircraft sensors as ramps over the period (first-order hold; the spoiler
+angle is held over the period in the plant, so it is held here): each step is then
+x̂ ← Φ x̂ + Γ [u; y] + Γ₁ Δ[u; y] and f̂ = L2 (y − C x̂), about 80 multiply-adds per run,
+vectorised over runs. (With y held instead, the fast observer poles turn the half-period
+lag of p during a roll-in into about 1° of f̂.)
 
 Decision: |f̂| (after a first-order low-pass of time constant ``filter_s`` against sensor
 noise) against τ = ``safety`` × its largest value on the fault-free learning set, confirmed
@@ -67,8 +74,8 @@ STATES = ("beta", "p", "r", "phi")
 OUTPUTS = ("phi", "p", "r")
 INPUT_SURFACES = ("left_inboard_aileron", "right_inboard_aileron", "left_outboard_aileron",
                   "right_outboard_aileron", "rudder")
-#: Name of the spoiler input (the last column of u_b).
-SPOILER = "spoilers"
+#: Signals.aircraft entry of the spoiler input (the last column of u_b) [deg].
+SPOILER = "spoiler"
 #: Rows of M_g (uncertainty distribution): states whose derivative carries δ_g.
 UNCERTAIN_STATES = ("beta", "p", "r")
 
@@ -283,7 +290,7 @@ class ChenGlobalEstimator(Detector):
             raise ValueError(f"{type(self).__name__} needs the aircraft sensors and every "
                              "surface's rod (Signals.aircraft/rods are None): it needs "
                              "[campaign] plant = \"aircraft\"")
-        missing = [k for k in OUTPUTS + ("spoiler",) if k not in signals.aircraft]
+        missing = [k for k in OUTPUTS + (SPOILER,) if k not in signals.aircraft]
         missing += [k for k in INPUT_SURFACES if k not in signals.rods]
         if missing:
             raise ValueError(f"{type(self).__name__} needs the signals {missing}")
@@ -393,7 +400,7 @@ class ChenGlobalEstimator(Detector):
             r = surface_actuator(s).r_mm
             out[j] = np.degrees(np.arcsin(np.clip(np.asarray(signals.rods[s], float) / r,
                                                   -1.0, 1.0)))
-        out[-1] = np.asarray(signals.aircraft["spoiler"], float)
+        out[-1] = np.asarray(signals.aircraft[SPOILER], float)
         return out
 
     def estimate(self, signals: Signals) -> np.ndarray:
