@@ -183,6 +183,9 @@ def _check_compatibility(config, detectors: dict) -> None:
         if caps.needs_pressure_sensor and not config.campaign.pressure_sensor:
             problems.append(f"detector {label!r} needs the chamber pressure sensor: set "
                             "[campaign] pressure_sensor = true")
+        if getattr(caps, "needs_aircraft", False) and config.campaign.plant != "aircraft":
+            problems.append(f"detector {label!r} reads the aircraft sensors and every "
+                            "surface's rod: it needs [campaign] plant = \"aircraft\"")
     if problems:
         raise CampaignSetupError("; ".join(problems))
 

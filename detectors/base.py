@@ -33,6 +33,9 @@ class Capabilities:
     needs_surface_sensor: bool = False
     needs_pressure_sensor: bool = False
     causal: bool = True
+    #: reads the aircraft-level signals (Signals.aircraft, Signals.rods): campaigns must set
+    #: [campaign] plant = "aircraft"
+    needs_aircraft: bool = False
 
 
 @dataclass(frozen=True)

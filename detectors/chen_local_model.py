@@ -237,6 +237,18 @@ def identification_runs(act: ActuatorParams, ts: float,
     plant = plant_arrays(act, qbar_pa=fc["qbar_pa"], alpha_deg=fc["alpha_deg"], mach=fc["mach"])
     lo, hi = authority_limits(plant, act)
     orders = excitation_orders(lo, hi, ts, settings)
+    # an aircraft-plant surface (e.g. left_inboard_aileron) is identified on the actuator-level
+    # servo-loop of its kind, with its own parameter table
+    from scenarios.params import ACTUATORS
+
+    kind = act.surface
+    if kind not in ACTUATORS:
+        from scenarios.aircraft.data import LAYOUT
+
+        if kind not in LAYOUT.names:
+            raise ValueError(f"no servo-loop to identify for surface {kind!r}")
+        kind = LAYOUT.actuator[LAYOUT.names.index(kind)]
+        act = act.replace(surface=kind)
     rows = pd.concat([single_run(act.surface, "cruise", "none", seed=0,
                                  duration_s=orders.shape[1] * ts,
                                  **{c: float(p[c]) for c in ("alt_ft", "vcas_kt", "mass_t",

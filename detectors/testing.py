@@ -44,9 +44,36 @@ class DetectorCheckError(AssertionError):
     """A detector broke its contract; the message names the check."""
 
 
-def _batch(surface: str, duration_s: float) -> tuple:
+def _batch(surface: str, duration_s: float, aircraft: bool = False) -> tuple:
     """Fresh copies of the (cached) learning and evaluation signals."""
-    return tuple(copy.deepcopy(s) for s in _simulated_batch(surface, float(duration_s)))
+    make = _aircraft_batch if aircraft else _simulated_batch
+    return tuple(copy.deepcopy(s) for s in make(surface, float(duration_s)))
+
+
+#: Monitored surface of the aircraft-level batch when the detector needs the aircraft plant.
+AIRCRAFT_SURFACE = "left_inboard_aileron"
+
+
+@functools.lru_cache(maxsize=2)
+def _aircraft_batch(surface: str, duration_s: float) -> tuple:
+    """Learning and evaluation signals at the aircraft plant level (monitored *surface*)."""
+    from scenarios.simulate import simulate, single_run
+
+    learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
+                       .assign(stream=j, run_id=f"learn-{j}")
+                       for j, m in enumerate(["cruise", "nose_up", "turn_coordination"])],
+                      ignore_index=True)
+    evaluation = pd.concat([
+        single_run(surface, "cruise", "none", seed=12, duration_s=duration_s, vcas_kt=220.0),
+        single_run(surface, "yaw_angle_mode", "none", seed=12, duration_s=duration_s),
+        single_run(surface, "cruise", "disconnection", seed=12, onset_s=8.0,
+                   duration_s=duration_s, alt_ft=18000.0),
+        single_run(surface, "aoa_protection", "solid_jam", seed=12, onset_s=6.0,
+                   duration_s=duration_s),
+    ], ignore_index=True)
+    evaluation["stream"] = np.arange(len(evaluation))
+    evaluation["run_id"] = [f"eval-{j}" for j in range(len(evaluation))]
+    return simulate(learn, plant="aircraft")[0], simulate(evaluation, plant="aircraft")[0]
 
 
 @functools.lru_cache(maxsize=4)
@@ -88,7 +115,11 @@ def _same(a: dict, b: dict, what: str, sl=slice(None), row: int | None = None) -
 
 def check_detector(detector: Detector, *, surface: str = "elevator",
                    duration_s: float = 20.0) -> None:
-    """Run every contract check on *detector*; raises :class:`DetectorCheckError`."""
+    """Run every contract check on *detector*; raises :class:`DetectorCheckError`.
+
+    A detector whose capabilities say ``needs_aircraft`` is checked on aircraft-plant
+    signals (monitored surface :data:`AIRCRAFT_SURFACE` unless *surface* names an aircraft
+    surface)."""
     if not isinstance(detector, Detector):
         raise DetectorCheckError(f"{type(detector).__name__} does not subclass detectors.Detector")
     params = detector.get_params()
@@ -103,7 +134,12 @@ def check_detector(detector: Detector, *, surface: str = "elevator",
         rebuilt.validate_params()
     except ValueError as exc:
         raise DetectorCheckError(f"validate_params() rejects the detector's own parameters: {exc}")
-    learn, ev = _batch(surface, duration_s)
+    aircraft = bool(getattr(detector.capabilities, "needs_aircraft", False))
+    if aircraft:
+        from scenarios.aircraft.data import AIRCRAFT_SURFACES
+
+        surface = surface if surface in AIRCRAFT_SURFACES else AIRCRAFT_SURFACE
+    learn, ev = _batch(surface, duration_s, aircraft)
     det = copy.deepcopy(detector)
 
     if det.capabilities.needs_fit:

@@ -170,7 +170,7 @@ def test_monitored_surface_fills_actuator_fields_and_aircraft_signals():
     sig, truth = simulate(runs, plant="aircraft")
     np.testing.assert_array_equal(sig.rod_com, sig.rods["left_elevator"])
     assert sig.actuator.surface == "left_elevator" and sig.has_surface_sensor
-    assert set(sig.aircraft) == {"p", "q", "r", "phi", "theta", "nz", "ny", "beta"}
+    assert set(sig.aircraft) == {"p", "q", "r", "phi", "theta", "nz", "ny", "beta", "spoiler"}
     assert set(sig.rods) == set(AIRCRAFT_SURFACES)
     # the nose-up pull shows in the measured load factor (≥ 0.1 g above 1 g)
     assert sig.aircraft["nz"][1].max() > 1.1 and abs(np.median(sig.aircraft["nz"][0]) - 1) < 0.05

@@ -360,8 +360,9 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
         pressure = pressure + p.pres_noise
     else:
         pressure = np.full_like(surface_deg, np.nan)
-    aircraft = {name: _TO_UNITS[unit](traj.sensors[j])
-                for j, (name, unit) in enumerate(AIRCRAFT_SIGNAL_UNITS.items())}
+    aircraft = {name: _TO_UNITS[unit](series)           # the eight sensors, then the spoilers
+                for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
+    aircraft["spoiler"] = np.degrees(traj.spoiler)
     signals = Signals(
         ts=ts, command=traj.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
         surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,

@@ -1,0 +1,193 @@
+"""The global level of [CHEN] (chen-global): lateral LPV model affine in the scheduling
+vector, vertex-LMI gains of eq. 20–23, unit static gain on the design model, and detection
+of the left inboard aileron's disconnection on simulated aircraft runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from detectors.chen_global import (INPUT_SURFACES, OUTPUTS, ChenGlobalEstimator,
+                                   lateral_models, output_matrix, scheduling_vector)
+from detectors.lpv_synthesis import discretise, hinf_sweep
+from scenarios.signals import Signals
+from scenarios.simulate import simulate, single_run
+
+MONITORED = "left_inboard_aileron"
+#: Flight points of the simulated runs (realistic points of the [CHEN] Table-1 grid).
+POINTS = {
+    "high_fast": dict(alt_ft=28000.0, vcas_kt=300.0, mass_t=180.0, cg_pct=30.0),
+    "low_slow": dict(alt_ft=8000.0, vcas_kt=160.0, mass_t=120.0, cg_pct=17.0),
+    "high_heavy": dict(alt_ft=38000.0, vcas_kt=220.0, mass_t=233.0, cg_pct=41.0),
+    "mid": dict(alt_ft=18000.0, vcas_kt=220.0, mass_t=180.0, cg_pct=30.0),
+}
+DURATION_S = 30.0
+ONSET_S = 10.0
+
+
+def _runs(specs):
+    rows = [single_run(MONITORED, m, f, seed=5, onset_s=ONSET_S, duration_s=DURATION_S,
+                       **POINTS[p]).assign(stream=j, run_id=f"{p}-{m}-{f}")
+            for j, (p, m, f) in enumerate(specs)]
+    return pd.concat(rows, ignore_index=True)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    """chen-global fitted on fault-free aircraft runs (the six manoeuvres at two points)."""
+    manoeuvres = ["cruise", "nose_up", "aoa_protection", "pitch_protection", "yaw_angle_mode",
+                  "turn_coordination"]
+    learn = _runs([(p, m, "none") for p in ("high_fast", "low_slow") for m in manoeuvres])
+    sig, _ = simulate(learn, plant="aircraft")
+    return ChenGlobalEstimator().fit(sig)
+
+
+def _vertices(det):
+    return det._vertices(det._model(), *det.schedule_box_, det.design_["column"])[0]
+
+
+def test_lateral_model_is_affine_in_the_scheduling_vector(fitted):
+    # the fit is exact to round-off (1e-9 of the largest entry) over the whole envelope grid
+    assert fitted.model_["affine_residual"] < 1e-9
+    sched = {"mach": np.array([0.5, 0.78]), "qbar_pa": np.array([9000.0, 14000.0]),
+             "alt_ft": np.array([12000.0, 33000.0]), "mass_t": np.array([150.0, 210.0]),
+             "cg_pct": np.array([25.0, 35.0])}
+    A, B = lateral_models(sched)
+    A2, B2 = fitted._model().matrices(scheduling_vector(sched))
+    # points not on the fitting grid: still exact (relative 1e-9)
+    assert np.abs(A2 - A).max() < 1e-9 * np.abs(A).max()
+    assert np.abs(B2 - B).max() < 1e-9 * np.abs(B).max()
+
+
+def test_gains_satisfy_eq_20_21_at_every_vertex(fitted):
+    d = fitted.design_
+    H = d["H"]
+    verts = _vertices(fitted)
+    assert len(verts) == 2 ** len(fitted.model_["keep"])
+    L2 = d["L2"]
+    # L2 H = I (eq. 21) to round-off
+    np.testing.assert_allclose(L2 @ H, np.eye(H.shape[1]), atol=1e-9)
+    for v in verts:
+        L1 = -v.F @ d["H_dagger"] + d["Z1"] @ d["H_perp"]                  # eq. 20
+        residual = v.F + L1 @ H
+        # F + L1 H = 0, relative to the size of F (round-off of the pseudo-inverse)
+        assert np.abs(residual).max() <= 1e-9 * np.abs(v.F).max()
+    # stability at the vertices and on the grid inside (checked in fit, stored)
+    assert fitted.stability_["vertex_max_real_pole"] < 0.0
+    assert fitted.stability_["grid_max_real_pole"] < 0.0
+    assert fitted.stability_["grid_max_discrete_modulus"] < 1.0
+
+
+def test_gamma_is_confirmed_by_a_frequency_sweep_at_the_vertices(fitted):
+    d = fitted.design_
+    C = output_matrix()
+    omega = np.logspace(-4, 4, 801)
+    peaks = []
+    for v in _vertices(fitted):
+        L1 = -v.F @ d["H_dagger"] + d["Z1"] @ d["H_perp"]
+        peaks.append(hinf_sweep(v.A + L1 @ C, v.M + L1 @ v.N, d["L2"] @ C, d["L2"] @ v.N,
+                                omega).max())
+    gamma = fitted.gamma_
+    # γ bounds the error system at every vertex (solver tolerance 1e-6 relative) …
+    assert max(peaks) <= gamma * (1.0 + 1e-6)
+    # … and is not a loose bound: one common P for all vertices costs little here
+    assert max(peaks) >= 0.9 * gamma
+
+
+def _linear_signals(det, f_deg: float, perturbed: bool, n_steps: int = 9000):
+    """Signals of the design's linear lateral model (rods and spoilers at zero deflection,
+    a constant disconnection effect f_deg from t = 0) at one realistic flight point."""
+    from scenarios import envelope
+    from scenarios.aircraft.loop import surface_actuator
+
+    ts = 0.01
+    sched = envelope.measured_schedule(np.array([28000.0]), np.array([300.0]),
+                                       np.array([180.0]), np.array([30.0]), 0.0, 0.0, 0.0, 0.0)
+    A, B = fitted_model_matrices(det, sched)
+    col = det.design_["column"]
+    Phi, Gam = discretise(A, B[:, [col]], ts)
+    C = output_matrix()
+    H = det.design_["H"][:, :1] if perturbed else np.zeros((3, 1))
+    x = np.zeros(4)
+    y = np.empty((3, n_steps))
+    for k in range(n_steps):
+        y[:, k] = C @ x + H[:, 0] * f_deg
+        x = Phi @ x + Gam[:, 0] * f_deg
+    zeros = np.zeros((1, n_steps))
+    aircraft = {name: y[OUTPUTS.index(name)][None] if name in OUTPUTS else zeros
+                for name in ("p", "q", "r", "phi", "theta", "nz", "ny", "beta", "spoiler")}
+    rods = {s: zeros for s in INPUT_SURFACES}
+    rods.update({s: zeros for s in ("left_elevator", "right_elevator")})
+    return Signals(ts=ts, command=zeros, current=zeros, rod_com=zeros, rod_mon=zeros,
+                   surface=np.full((1, n_steps), np.nan), pressure=np.full((1, n_steps), np.nan),
+                   schedule=sched, actuator=surface_actuator(MONITORED),
+                   run_ids=np.array(["linear"]), aircraft=aircraft, rods=rods)
+
+
+def fitted_model_matrices(det, sched):
+    A, B = det._model().matrices(scheduling_vector(sched))
+    return A[0], B[0]
+
+
+def test_fault_estimate_converges_to_a_constant_fault_on_the_linear_model(fitted):
+    f = 3.0                                                      # deg of aileron
+    est = fitted.estimate(_linear_signals(fitted, f, perturbed=True))
+    # design model (H = εE of Remark 4.1): G_f̂f = I, so f̂ → f once the transient of the
+    # estimator's initial state (x̂ = y, β̂ = 0) has decayed; its slowest pole at this point
+    # is a few 0.01 1/s, so after 90 s the error is a few 1e-5 of f and still shrinking
+    err = np.abs(est[0] - f)
+    assert err[-1] < 1e-4 * f
+    assert err[-1] < err[-1000] < err[-3000] < 0.1 * err[1]
+    # true model (H = 0): the static gain the fit reported (between its vertex extremes,
+    # and above 0.9 for the default ε = 0.03)
+    est0 = fitted.estimate(_linear_signals(fitted, f, perturbed=False))
+    gain = est0[0, -1] / f
+    lo, hi = fitted.static_gain_
+    assert lo - 1e-3 <= gain <= hi + 1e-3
+    assert gain > 0.9
+
+
+def test_detects_disconnection_and_stays_quiet_on_aircraft_runs(fitted):
+    runs = _runs([("mid", "cruise", "none"), ("high_heavy", "turn_coordination", "none"),
+                  ("low_slow", "yaw_angle_mode", "none"),
+                  ("low_slow", "cruise", "disconnection"), ("mid", "cruise", "disconnection"),
+                  ("high_heavy", "cruise", "disconnection")])
+    sig, truth = simulate(runs, plant="aircraft")
+    det = fitted.detect(sig)
+    faulty = truth.fault != "none"
+    assert not det.alarm[~faulty].any()
+    onset = int(ONSET_S / sig.ts)
+    assert not det.alarm[faulty, :onset].any()
+    assert det.alarm[faulty, onset:].any(axis=1).all()
+
+
+def test_needs_the_aircraft_plant():
+    sig, _ = simulate(single_run("aileron", "cruise", "none", duration_s=20.0))
+    with pytest.raises(ValueError, match='plant = "aircraft"'):
+        ChenGlobalEstimator().fit(sig)
+
+
+def test_runner_refuses_it_on_an_actuator_level_campaign():
+    from campaign.config import CampaignConfig
+    from campaign.runner import CampaignSetupError, _check_compatibility, build_detectors
+
+    config = CampaignConfig.from_dict({
+        "campaign": {"name": "x", "surface": "aileron", "duration_s": 20.0},
+        "group": [{"fault": "none", "manoeuvres": ["cruise"], "count": 1}],
+        "detector": [{"name": "chen-global"}],
+    })
+    with pytest.raises(CampaignSetupError, match='plant = \\\\?"aircraft'):
+        _check_compatibility(config, build_detectors(config))
+
+
+@pytest.mark.parametrize("params, needle", [
+    ({"h_perturbation": 0.0}, "h_perturbation"),
+    ({"h_output": "beta"}, "h_output"),
+    ({"safety": 1.0}, "safety"),
+    ({"gust_channel": 1}, "gust_channel"),
+])
+def test_bad_parameters_are_named(params, needle):
+    with pytest.raises(ValueError, match=needle):
+        ChenGlobalEstimator(**params).validate_params()
+
