@@ -325,6 +325,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     resumed = cdir.open(config.to_json())
     chunk_size = int(chunk_size or config.runner.chunk_size)
     if settings.engine == "compiled":
+        build_detectors(config)   # imports the detectors' modules, which register kernels
         kernels.warm_up(log)
     if backend is None:
         backend = "threading" if config.runner.run_timeout_s is None else "loky"
