@@ -94,6 +94,7 @@ def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> 
                               for j in range(len(rows))], ignore_index=True)
         return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
                           for label in detectors], ignore_index=True)
+    truth = _scoring_truth(truth)
     required = np.array([settings.required_time_s.get(f, np.nan) for f in truth.fault])
     frames = []
     for label, det in detectors.items():
@@ -114,6 +115,16 @@ def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> 
                     frames.append(_error_rows(rows.iloc[[j]], label,
                                               f"detector failed: {_describe(exc_j)}"))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _scoring_truth(truth):
+    """*truth* without its (n, T) true series, which scoring does not read (fault type and
+    onset only): their memory is freed before the detectors run. The series become
+    all-NaN read-only views of the same shape."""
+    shape = np.shape(truth.rod_mm)
+    nan = np.broadcast_to(np.nan, shape)
+    return replace(truth, rod_mm=nan, surface_deg=nan, current_mA=nan, aircraft=None,
+                   surfaces_deg=None)
 
 
 def _run_chunk_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
