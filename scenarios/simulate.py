@@ -189,7 +189,8 @@ def _sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = Tru
     noise[1] *= s.rod_noise_mm
     noise[2] *= s.surface_noise_deg
     if pressure:
-        noise[3] *= s.pressure_noise_frac * dP
+        noise[3] *= s.pressure_noise_frac    # (noise·frac)·ΔP, in that order
+        noise[3] *= dP
     return (
         u[:, 0] * s.rod_bias_mm, u[:, 1] * s.rod_scale, noise[0],
         u[:, 2] * s.rod_bias_mm, u[:, 3] * s.rod_scale, noise[1],
