@@ -12,7 +12,7 @@ SIGNALS = ("command", "current", "rod_com", "rod_mon", "surface")
 
 
 def _runs() -> pd.DataFrame:
-    rows = [single_run("elevator", man, f, seed=i, onset_s=4.0, duration_s=10.0)
+    rows = [single_run("elevator", man, f, seed=i, onset_s=5.0, duration_s=20.0)
             for i, (man, f) in enumerate([("cruise", "none"), ("nose_up", "liquid_jam"),
                                           ("cruise", "solid_jam"), ("nose_up", "runaway")])]
     frame = pd.concat(rows, ignore_index=True)
