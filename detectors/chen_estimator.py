@@ -118,9 +118,14 @@ def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ts,
     f̂ [mm] into *f_out* (n, T)."""
     n, T = u.shape
     half_ts = 0.5 * ts
-    for r in range(n):           # runs are independent: one run's whole recursion at a time
-        xh = y[r, 0]
-        for k in range(T):
+    xh_run = np.empty(n)
+    for r in range(n):
+        xh_run[r] = y[r, 0]
+    # steps outside, runs inside (as scenarios.kernels): the runs' recursions are
+    # independent, so the processor overlaps them; each run's arithmetic is unchanged
+    for k in range(T):
+        for r in range(n):
+            xh = xh_run[r]
             yk = y[r, k]
             f_out[r, k] = L2 * (yk - xh)
             v = u[r, max(k - delay, 0)]
@@ -131,7 +136,7 @@ def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ts,
             K = min(max(K, k_lo), k_hi)                              # inside the polytope
             a = K - L1
             target = (K * v - L1 * yk) / a
-            xh = target + (xh - target) * ((1.0 - half_ts * a) / (1.0 + half_ts * a))
+            xh_run[r] = target + (xh - target) * ((1.0 - half_ts * a) / (1.0 + half_ts * a))
 
 
 def _warm_kernels() -> None:

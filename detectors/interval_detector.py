@@ -245,13 +245,20 @@ def _predict_block(u, y, plant, ts, eps_mm, kappa, hr, x0_radius, xc_out, xr_out
     store_interval = xc_out.shape[0] == n and xc_out.shape[1] == T
     store_residual = r_out.shape[0] == n and r_out.shape[1] == T
     k1, k2, k3 = kappa[0], kappa[1], kappa[2]
-    for r in range(n):           # runs are independent: one run's whole recursion at a time
-        p = plant[r]
-        xc = y[r, 0]
-        xr = x0_radius
-        for k in range(T):
+    xc_run = np.empty(n)
+    xr_run = np.empty(n)
+    for r in range(n):
+        xc_run[r] = y[r, 0]
+        xr_run[r] = x0_radius
+    # steps outside, runs inside (as scenarios.kernels): the runs' recursions are
+    # independent, so the processor overlaps them; each run's arithmetic is unchanged
+    for k in range(T):
+        for r in range(n):
+            p = plant[r]
             uk = u[r, k]
             yk = y[r, k]
+            xc = xc_run[r]
+            xr = xr_run[r]
             if store_interval:
                 xc_out[r, k] = xc
                 xr_out[r, k] = xr
@@ -275,10 +282,9 @@ def _predict_block(u, y, plant, ts, eps_mm, kappa, hr, x0_radius, xc_out, xr_out
             if not gr < k3 and not math.isnan(gr):
                 gr = k3
             # eq. 14–15 (predictor_step with h^c = 1)
-            xc_next = gc * xc + (1.0 - gc) * 1.0 * uk
-            xr = ((abs(gc) + gr) * xr + gr * abs(xc - 1.0 * uk)
-                  + (abs(1.0 - gc) + gr) * hr * abs(uk))
-            xc = xc_next
+            xc_run[r] = gc * xc + (1.0 - gc) * 1.0 * uk
+            xr_run[r] = ((abs(gc) + gr) * xr + gr * abs(xc - 1.0 * uk)
+                         + (abs(1.0 - gc) + gr) * hr * abs(uk))
 
 
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
