@@ -203,8 +203,22 @@ def build_detectors(config) -> dict:
     return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
 
 
-def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int) -> Signals:
-    """Signals of every run of *plan* (used for the small learning set)."""
+def _simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
+    with kernels.use_engine(settings.engine):
+        return simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
+                        plant=settings.plant)[0]
+
+
+def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
+                    submit=None, workers: int = 1) -> Signals:
+    """Signals of every run of *plan* (used for the small learning set). *submit*
+    (an executor's ``submit``) runs the parts on *workers* threads, in parts of at most
+    *chunk_size* runs spread evenly over them; a run's signals never depend on its part."""
+    if submit is not None and workers > 1:
+        size = max(1, min(chunk_size, -(-len(plan) // workers)))
+        futures = [submit(_simulate_signals, plan.iloc[s:s + size], settings)
+                   for s in range(0, len(plan), size)]
+        return Signals.concat([f.result() for f in futures])
     parts = []
     for start in range(0, len(plan), chunk_size):
         sig, _ = simulate(plan.iloc[start:start + chunk_size], ts=settings.ts,
@@ -214,7 +228,7 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
 
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
-                  log=print) -> dict:
+                  log=print, submit=None, workers: int = 1) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it."""
     detectors = build_detectors(config)
     _check_compatibility(config, detectors)
@@ -232,7 +246,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
         if det.capabilities.needs_fit:
             if learning_signals is None:
                 log(f"learning set: simulating {len(learning)} fault-free runs")
-                learning_signals = simulate_chunks(learning, settings, chunk_size)
+                learning_signals = simulate_chunks(learning, settings, chunk_size,
+                                                   submit=submit, workers=workers)
             det.fit(learning_signals)
         write_pickle(path, det)
         write_text(cdir.fitted / f"{label}.json", _json_state(det))
@@ -351,7 +366,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         if not plan_path.exists():
             write_parquet(plan, plan_path, config.to_json(), kind="plan")
         with kernels.use_engine(settings.engine):
-            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
+            threads = pool is not None and backend == "threading"   # learning set on them
+            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log,
+                                      submit=pool.submit if threads else None, workers=jobs)
 
         done = cdir.done_run_ids() if resumed else set()
         todo = plan[~plan["run_id"].isin(done)]
