@@ -366,7 +366,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         if not plan_path.exists():
             write_parquet(plan, plan_path, config.to_json(), kind="plan")
         with kernels.use_engine(settings.engine):
-            threads = pool is not None and backend == "threading"   # learning set on them
+            # the learning set on the worker threads (the built-in plant's kernels release
+            # the GIL; an FMU plant is simulated here, one instance at a time)
+            threads = pool is not None and backend == "threading" and settings.plant == "actuator"
             detectors = fit_detectors(config, cdir, settings, chunk_size, log=log,
                                       submit=pool.submit if threads else None, workers=jobs)
 
