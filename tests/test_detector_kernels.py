@@ -134,3 +134,17 @@ def test_chen_run_alone_equals_the_same_run_in_a_block(batch, chen):
         block = chen.estimate(ev)
         for j in (0, 3, ev.n_runs - 1):
             np.testing.assert_array_equal(chen.estimate(ev.take([j]))[0], block[j])
+
+
+@pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("surface",), ("com_mon",)])
+def test_position_monitor_decision_is_bit_identical_to_numpy(batch, checks, libm_numpy):
+    # |r|/τ, the maximum over the checks and the confirmation counter: the same operations
+    # as the NumPy path; its nominal model agrees bit for bit with the same arcsin
+    # (tests/test_kernels.py)
+    learn, ev = batch
+    with kernels.use_engine("numpy"):
+        det = make_detector("position-monitor", {"checks": list(checks)}).fit(learn)
+    d0, d1 = _both(det, lambda d: d.detect(ev))
+    np.testing.assert_array_equal(d1.residual, d0.residual)
+    np.testing.assert_array_equal(d1.alarm, d0.alarm)
+    assert d0.alarm[:, -1].any() and not d0.alarm[:, -1].all()   # both outcomes compared
