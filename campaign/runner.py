@@ -94,6 +94,7 @@ def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> 
                               for j in range(len(rows))], ignore_index=True)
         return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
                           for label in detectors], ignore_index=True)
+    truth = _scoring_truth(truth)
     required = np.array([settings.required_time_s.get(f, np.nan) for f in truth.fault])
     frames = []
     for label, det in detectors.items():
@@ -114,6 +115,16 @@ def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> 
                     frames.append(_error_rows(rows.iloc[[j]], label,
                                               f"detector failed: {_describe(exc_j)}"))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _scoring_truth(truth):
+    """*truth* without its (n, T) true series, which scoring does not read (fault type and
+    onset only): their memory is freed before the detectors run. The series become
+    all-NaN read-only views of the same shape."""
+    shape = np.shape(truth.rod_mm)
+    nan = np.broadcast_to(np.nan, shape)
+    return replace(truth, rod_mm=nan, surface_deg=nan, current_mA=nan, aircraft=None,
+                   surfaces_deg=None)
 
 
 def _run_chunk_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
@@ -195,8 +206,22 @@ def build_detectors(config) -> dict:
     return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
 
 
-def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int) -> Signals:
-    """Signals of every run of *plan* (used for the small learning set)."""
+def _simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
+    with kernels.use_engine(settings.engine):
+        return simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
+                        plant=settings.plant)[0]
+
+
+def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
+                    submit=None, workers: int = 1) -> Signals:
+    """Signals of every run of *plan* (used for the small learning set). *submit*
+    (an executor's ``submit``) runs the parts on *workers* threads, in parts of at most
+    *chunk_size* runs spread evenly over them; a run's signals never depend on its part."""
+    if submit is not None and workers > 1:
+        size = max(1, min(chunk_size, -(-len(plan) // workers)))
+        futures = [submit(_simulate_signals, plan.iloc[s:s + size], settings)
+                   for s in range(0, len(plan), size)]
+        return Signals.concat([f.result() for f in futures])
     parts = []
     for start in range(0, len(plan), chunk_size):
         sig, _ = simulate(plan.iloc[start:start + chunk_size], ts=settings.ts,
@@ -206,7 +231,7 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
 
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
-                  log=print) -> dict:
+                  log=print, submit=None, workers: int = 1) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it."""
     detectors = build_detectors(config)
     _check_compatibility(config, detectors)
@@ -224,7 +249,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
         if det.capabilities.needs_fit:
             if learning_signals is None:
                 log(f"learning set: simulating {len(learning)} fault-free runs")
-                learning_signals = simulate_chunks(learning, settings, chunk_size)
+                learning_signals = simulate_chunks(learning, settings, chunk_size,
+                                                   submit=submit, workers=workers)
             det.fit(learning_signals)
         write_pickle(path, det)
         write_text(cdir.fitted / f"{label}.json", _json_state(det))
@@ -328,6 +354,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     resumed = cdir.open(config.to_json())
     chunk_size = int(chunk_size or config.runner.chunk_size)
     if settings.engine == "compiled":
+        build_detectors(config)   # imports the detectors' modules, which register kernels
         kernels.warm_up(log)
     if backend is None:
         backend = "threading" if config.runner.run_timeout_s is None else "loky"
@@ -342,7 +369,11 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         if not plan_path.exists():
             write_parquet(plan, plan_path, config.to_json(), kind="plan")
         with kernels.use_engine(settings.engine):
-            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log)
+            # the learning set on the worker threads (the built-in plant's kernels release
+            # the GIL; an FMU plant is simulated here, one instance at a time)
+            threads = pool is not None and backend == "threading" and settings.plant == "actuator"
+            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log,
+                                      submit=pool.submit if threads else None, workers=jobs)
 
         done = cdir.done_run_ids() if resumed else set()
         todo = plan[~plan["run_id"].isin(done)]

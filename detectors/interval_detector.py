@@ -66,6 +66,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios import kernels
 from scenarios.params import ActuatorParams, param
 from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rate
 from scenarios.signals import Signals
@@ -226,6 +227,107 @@ def stability_margin(kappa, act: ActuatorParams, ts: float, max_error_mm: float,
 
 
 # ----------------------------------------------------------------------------------------
+# Compiled recursions (numba; the NumPy code above and in IntervalDetector is the reference)
+# ----------------------------------------------------------------------------------------
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _predict_block(u, y, plant, ts, eps_mm, kappa, hr, x0_radius, xc_out, xr_out, r_out):
+    """Interval predictor and residual of a block of runs, compiled: per step g^c of
+    [COMB] eq. 19 (:func:`g_center`, with the scalar plant law
+    :func:`scenarios.kernels.rod_rate_1`), g^r (:func:`g_radius`), eq. 14–15
+    (:func:`predictor_step`, h^c = 1) and the dead-zone residual of eq. 18
+    (:func:`dead_zone`), in the NumPy reference's order of operations.
+
+    *u*, *y* (n, T) [mm]; *plant* (n, 11) rows of :func:`scenarios.kernels.plant_matrix`;
+    *kappa* (3,). Writes x^c, x^r [mm] into *xc_out*, *xr_out* when they are (n, T) (skipped
+    when they are empty) and r [mm] into *r_out* when it is (n, T).
+    """
+    n, T = u.shape
+    store_interval = xc_out.shape[0] == n and xc_out.shape[1] == T
+    store_residual = r_out.shape[0] == n and r_out.shape[1] == T
+    k1, k2, k3 = kappa[0], kappa[1], kappa[2]
+    xc_run = np.empty(n)
+    xr_run = np.empty(n)
+    for r in range(n):
+        xc_run[r] = y[r, 0]
+        xr_run[r] = x0_radius
+    # steps outside, runs inside (as scenarios.kernels): the runs' recursions are
+    # independent, so the processor overlaps them; each run's arithmetic is unchanged
+    for k in range(T):
+        for r in range(n):
+            p = plant[r]
+            uk = u[r, k]
+            yk = y[r, k]
+            xc = xc_run[r]
+            xr = xr_run[r]
+            if store_interval:
+                xc_out[r, k] = xc
+                xr_out[r, k] = xr
+            if store_residual:                       # eq. 18: dz(y, x^c ± x^r)
+                upper = xc + xr
+                lower = xc - xr
+                if yk > upper:
+                    r_out[r, k] = yk - upper
+                elif yk < lower:
+                    r_out[r, k] = yk - lower
+                else:
+                    r_out[r, k] = 0.0
+            # g^c = 1 − γ·T, γ = ẋ/(u − y) at the measured y (eq. 19, loop_gain)
+            e = uk - yk
+            if abs(e) < eps_mm:
+                e = -eps_mm if e < 0.0 else eps_mm
+            i_mA = min(max(p[kernels.P_K] * e, -p[kernels.P_IMAX]), p[kernels.P_IMAX])
+            gc = 1.0 - kernels.rod_rate_1(yk, i_mA, p, True) / e * ts
+            # g^r = min(κ1 + κ2·|u − x^c|, κ3) (§4; NaN propagates as in np.minimum)
+            gr = k1 + k2 * abs(uk - xc)
+            if not gr < k3 and not math.isnan(gr):
+                gr = k3
+            # eq. 14–15 (predictor_step with h^c = 1)
+            xc_run[r] = gc * xc + (1.0 - gc) * 1.0 * uk
+            xr_run[r] = ((abs(gc) + gr) * xr + gr * abs(xc - 1.0 * uk)
+                         + (abs(1.0 - gc) + gr) * hr * abs(uk))
+
+
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _decide_block(r, a, tau, norm_out, alarm_out):
+    """Filter F_a, normalised residual and latched alarm of one pole, compiled
+    ([COMB] eq. 8–9: ε_k = a·ε_{k−1} + (1 − a)·r_k, ε_0 = r_0; |ε_k|/τ_k with τ_k =
+    ``tau[min(k, len(tau) − 1)]``; alarm from the first |ε_k| > τ_k on).
+
+    The filter update is written as ``scipy.signal.lfilter`` evaluates it for this
+    first-order filter (state z = a·ε, output ε = z + (1 − a)·r), so both give the same
+    bits. Writes *norm_out* (n, T) and *alarm_out* (n, T) bool.
+    """
+    n, T = r.shape
+    b0 = 1.0 - a
+    last = tau.shape[0] - 1
+    for i in range(n):
+        z = a * r[i, 0]                  # initial state so that ε_0 = r_0 (Corollary 2)
+        latched = False
+        for k in range(T):
+            x = r[i, k]
+            eps = z + b0 * x
+            z = 0.0 * x - (-a) * eps
+            v = abs(eps) / tau[min(k, last)]
+            norm_out[i, k] = v
+            if v > 1.0:
+                latched = True
+            alarm_out[i, k] = latched
+
+
+def _warm_kernels() -> None:
+    """Compile (or load from the cache) the kernels of this module on tiny inputs."""
+    z2 = np.zeros((1, 2))
+    plant = np.ones((1, len(kernels.PLANT_FIELDS)))
+    plant[:, kernels.P_XMIN] = -1.0
+    empty = np.zeros((0, 0))
+    _predict_block(z2, z2, plant, 0.01, 1e-6, np.ones(3), 0.0, 0.5, empty, empty, np.zeros((1, 2)))
+    _decide_block(z2, 0.5, np.ones(2), np.zeros((1, 2)), np.zeros((1, 2), dtype=np.bool_))
+
+
+kernels.register_warmup(_warm_kernels, kernels=(_predict_block, _decide_block))
+
+
+# ----------------------------------------------------------------------------------------
 # The detector
 # ----------------------------------------------------------------------------------------
 class IntervalDetector(Detector):
@@ -334,12 +436,37 @@ class IntervalDetector(Detector):
             return signals.actuator.r_mm * np.sin(np.radians(signals.surface))
         return np.asarray(getattr(signals, self.sensor), float)
 
+    def _plant(self, signals: Signals) -> PlantArrays:
+        sch = signals.schedule
+        return plant_arrays(signals.actuator, qbar_pa=sch["qbar_pa"],
+                            alpha_deg=sch["alpha_deg"], mach=sch["mach"])
+
+    def _compiled(self, signals: Signals, interval: bool, residual: bool):
+        """(y, x^c, x^r, r) of :func:`_predict_block`; x^c, x^r (or r) are None when not
+        asked for."""
+        y = np.ascontiguousarray(self.measurement(signals), dtype=float)
+        u = np.ascontiguousarray(signals.command, dtype=float)
+        n, T = u.shape
+        empty = np.zeros((0, 0))
+        xc = np.empty((n, T)) if interval else empty
+        xr = np.empty((n, T)) if interval else empty
+        r = np.empty((n, T)) if residual else empty
+        _predict_block(u, y, kernels.plant_matrix(self._plant(signals)), float(signals.ts),
+                       float(NUMERICS.gain_eps_mm),
+                       np.array([float(k) for k in self.kappa]), float(self.h_radius),
+                       float(self.x0_radius_mm), xc, xr, r)
+        return (y, xc if interval else None, xr if interval else None,
+                r if residual else None)
+
     def predict(self, signals: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(y, x^c, x^r) [mm], each (n_runs, n_steps): the interval prediction x^c ± x^r of
-        [COMB] eq. 14–15 at every step (time loop only; vectorised over runs)."""
-        sch = signals.schedule
-        plant = plant_arrays(signals.actuator, qbar_pa=sch["qbar_pa"],
-                             alpha_deg=sch["alpha_deg"], mach=sch["mach"])
+        [COMB] eq. 14–15 at every step (time loop only; vectorised over runs). Compiled
+        (:func:`_predict_block`) or the NumPy loop below, as
+        :func:`scenarios.kernels.current_engine` says."""
+        if kernels.current_engine() == "compiled":
+            y, xc, xr, _ = self._compiled(signals, interval=True, residual=False)
+            return y, xc, xr
+        plant = self._plant(signals)
         y = self.measurement(signals)
         u = np.asarray(signals.command, float)
         n, T = u.shape
@@ -361,6 +488,8 @@ class IntervalDetector(Detector):
 
     def interval_residual(self, signals: Signals) -> np.ndarray:
         """r_k = dz(y_k, x_k^c ± x_k^r) [mm] ([COMB] eq. 18), shape (n_runs, n_steps)."""
+        if kernels.current_engine() == "compiled":    # fused: no (n, T) x^c, x^r kept
+            return self._compiled(signals, interval=False, residual=True)[3]
         y, xc, xr = self.predict(signals)
         return dead_zone(y, xc - xr, xc + xr)
 
@@ -420,12 +549,20 @@ class IntervalDetector(Detector):
         r = self.interval_residual(signals)
         T = signals.n_steps
         k = np.minimum(np.arange(T), int(self.q_max))
+        compiled = kernels.current_engine() == "compiled"
         out = {}
         for a in self._poles():
             name = self.variant_name(a)
             if name not in self.thresholds_:
                 raise ValueError(f"pole {a:g} has no learned threshold: the detector was "
                                  f"fitted with poles {sorted(self.thresholds_)}; fit again")
+            if compiled:
+                norm = np.empty(r.shape)
+                alarm = np.empty(r.shape, dtype=bool)
+                _decide_block(r, float(a), np.ascontiguousarray(self.thresholds_[name],
+                                                                dtype=float), norm, alarm)
+                out[name] = Detection(alarm=alarm, residual=norm)
+                continue
             tau = self.thresholds_[name][k][None, :]
             norm = np.abs(self.filtered(r, a)) / tau
             alarm = np.logical_or.accumulate(norm > 1.0, axis=1)

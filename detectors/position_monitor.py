@@ -24,8 +24,11 @@ once it has been ≥ 1 for ``confirm_s`` and is then latched.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from scenarios import kernels
 from scenarios.kernels import resolve_engine, servo_model
 from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
@@ -33,6 +36,52 @@ from scenarios.signals import Signals
 from .base import Capabilities, Detection, Detector, confirm
 
 CHECKS = ("loop", "com_mon", "surface")
+
+
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _decide_block(rod_com, model, rod_mon, surface_mm, tau, active, n_confirm, norm_out,
+                  alarm_out):
+    """Normalised residual and confirmed alarm of a block of runs, compiled (the NumPy
+    reference is :meth:`PositionMonitor._detect` with :func:`detectors.base.confirm`).
+
+    norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
+    loop, com_mon, surface; NaN propagates as in ``np.maximum``),
+    r_loop = y_COM − model, r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
+    alarm once norm ≥ 1 for *n_confirm* consecutive steps, latched. Writes *norm_out*,
+    *alarm_out* (n, T).
+    """
+    n, T = rod_com.shape
+    use_loop, use_cm, use_surf = active[0], active[1], active[2]
+    for r in range(n):
+        count = 0
+        latched = False
+        for k in range(T):
+            v = 0.0
+            if use_loop:
+                c = abs(rod_com[r, k] - model[r, k]) / tau[0]
+                v = c if (c > v or math.isnan(c)) else v
+            if use_cm and not math.isnan(v):
+                c = abs(rod_com[r, k] - rod_mon[r, k]) / tau[1]
+                v = c if (c > v or math.isnan(c)) else v
+            if use_surf and not math.isnan(v):
+                c = abs(surface_mm[r, k] - rod_mon[r, k]) / tau[2]
+                v = c if (c > v or math.isnan(c)) else v
+            norm_out[r, k] = v
+            count = count + 1 if v >= 1.0 else 0
+            if count >= n_confirm:
+                latched = True
+            alarm_out[r, k] = latched
+
+
+def _warm_kernels() -> None:
+    """Compile (or load from the cache) the kernel of this module on tiny inputs."""
+    z2 = np.zeros((1, 2))
+    _decide_block(z2, z2, z2, np.zeros((0, 0)), np.ones(3),
+                  np.array([True, True, False]), 1, np.zeros((1, 2)),
+                  np.zeros((1, 2), dtype=np.bool_))
+
+
+kernels.register_warmup(_warm_kernels, kernels=(_decide_block,))
 
 
 class PositionMonitor(Detector):
@@ -127,14 +176,38 @@ class PositionMonitor(Detector):
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> Detection:
-        res = self.residuals(signals)
-        missing = sorted(set(res) - set(self.thresholds_mm_))
+        checks = self._active_checks(signals)
+        missing = sorted(set(checks) - set(self.thresholds_mm_))
         if missing:
             raise ValueError(f"no learned threshold for check(s) {missing}: the learning set "
                              "lacked the signals these checks need")
+        if resolve_engine(None) == "compiled":
+            return self._detect_compiled(signals, checks)
+        res = self.residuals(signals)
         norm = np.zeros((signals.n_runs, signals.n_steps))
         for name, r in res.items():
             np.maximum(norm, np.abs(r) / self.thresholds_mm_[name], out=norm)
         n_confirm = int(round(self.confirm_s / signals.ts)) + 1
         alarm = confirm(norm >= 1.0, n_confirm)
+        return Detection(alarm=alarm, residual=norm)
+
+    def _detect_compiled(self, signals: Signals, checks: list[str]) -> Detection:
+        """:meth:`_detect` through :func:`_decide_block` (same values; no (n, T) residual,
+        absolute value or confirmation counter arrays)."""
+        empty = np.zeros((0, 0))
+
+        def c(a):
+            return np.ascontiguousarray(a, dtype=float)
+
+        rod_com = c(signals.rod_com)
+        model = self.model_output(signals) if "loop" in checks else empty
+        rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
+        surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
+                   if "surface" in checks else empty)
+        tau = np.array([self.thresholds_mm_.get(name, 1.0) for name in CHECKS])
+        norm = np.empty(rod_com.shape)
+        alarm = np.empty(rod_com.shape, dtype=bool)
+        n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
+        active = np.array([name in checks for name in CHECKS])
+        _decide_block(rod_com, model, rod_mon, surface, tau, active, n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)

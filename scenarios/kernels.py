@@ -28,8 +28,10 @@ A detector with its own recursion writes it as an ``@njit(nogil=True, cache=True
 of plain arrays in its own module, calls the scalar plant functions of this module from it
 (:func:`rod_rate_1`, :func:`rk4_step_1`) with the parameter vector of :func:`plant_matrix`,
 keeps its NumPy version as the reference, dispatches on :func:`current_engine` and lists
-its kernel with :func:`register_warmup` so that :func:`warm_up` compiles it before the
-campaign starts.
+its kernel with :func:`register_warmup` (with ``kernels=`` its compiled functions) so that
+:func:`warm_up` compiles it before the campaign starts and says so when its cache is cold.
+Importing the detector module registers it (the built-in detectors are imported by the
+registry).
 """
 
 from __future__ import annotations
@@ -304,12 +306,16 @@ def servo_model(u, x0, plant, ts: float) -> np.ndarray:
 
 # ---- compile / load from the cache before a campaign -----------------------------------------
 _WARMUPS: list = []
+_CACHED: list = []   # compiled functions of other modules whose cache state warm_up reports
 
 
-def register_warmup(func) -> None:
-    """Add *func* (no arguments; calls its kernels once on tiny inputs) to :func:`warm_up`."""
+def register_warmup(func, kernels=()) -> None:
+    """Add *func* (no arguments; calls its kernels once on tiny inputs) to :func:`warm_up`;
+    *kernels*: the compiled functions it calls, so that :func:`warm_up` says when their
+    cache is cold too."""
     if func not in _WARMUPS:
         _WARMUPS.append(func)
+    _CACHED.extend(k for k in kernels if k not in _CACHED)
 
 
 def _warm_simulation() -> None:
@@ -333,8 +339,8 @@ def _cache_is_warm() -> bool:
     """Whether numba's on-disk cache holds this module's kernels for the current source
     (best effort: numba's cache index, whose stamp goes stale when the source changes)."""
     try:
-        return all(bool(globals()[name]._cache._cache_file._load_index())
-                   for name in _KERNELS)
+        return all(bool(func._cache._cache_file._load_index())
+                   for func in [globals()[name] for name in _KERNELS] + _CACHED)
     except (AttributeError, KeyError, TypeError, OSError):  # a numba without these internals
         return False
 

@@ -20,7 +20,7 @@ A run simulated alone equals the same run inside any batch, bit for bit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -156,7 +156,7 @@ class Prepared:
     mon_noise: np.ndarray
     surf_bias: np.ndarray
     surf_noise: np.ndarray      # (n, T) [deg]
-    pres_noise: np.ndarray      # (n, T) [Pa]
+    pres_noise: np.ndarray | None   # (n, T) [Pa]; None when the pressure sensor is off
     flight_true: dict
     schedule: dict
 
@@ -168,32 +168,45 @@ def run_streams(seed, stream) -> tuple[np.random.Generator, np.random.Generator]
     return np.random.default_rng(man), np.random.default_rng(sens)
 
 
-def _sensor_draws(rngs, T: int, s: SensorParams, dP: float):
+def _sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = True):
     """The sensor errors of every run of a batch, each stacked over the runs (n, …).
 
     Run i draws from its own generator ``rngs[i]`` in a fixed order (5 uniforms, then 4·T
-    normals), so its draws never depend on the batch; the scaling is elementwise.
+    normals: COM, MON, surface, pressure noise), so its draws never depend on the batch; the
+    scaling is elementwise. *pressure* False skips the pressure noise (the last T normals
+    of the run's sensor stream, which nothing draws after) and returns None for it.
     """
     n = len(rngs)
+    rows = 4 if pressure else 3
     u = np.empty((n, 5))
-    noise = np.empty((n, 4, T))
+    noise = np.empty((rows, n, T))       # each noise series one contiguous (n, T) block
+    buf = np.empty((rows, T))
     for i, rng in enumerate(rngs):
         u[i] = rng.uniform(-1.0, 1.0, size=5)
-        rng.standard_normal(out=noise[i])
+        rng.standard_normal(out=buf)
+        noise[:, i] = buf
+    noise[0] *= s.rod_noise_mm           # scaled in place: no second copy of the noise
+    noise[1] *= s.rod_noise_mm
+    noise[2] *= s.surface_noise_deg
+    if pressure:
+        noise[3] *= s.pressure_noise_frac    # (noise·frac)·ΔP, in that order
+        noise[3] *= dP
     return (
-        u[:, 0] * s.rod_bias_mm, u[:, 1] * s.rod_scale, noise[:, 0] * s.rod_noise_mm,
-        u[:, 2] * s.rod_bias_mm, u[:, 3] * s.rod_scale, noise[:, 1] * s.rod_noise_mm,
-        u[:, 4] * s.surface_bias_deg, noise[:, 2] * s.surface_noise_deg,
-        noise[:, 3] * s.pressure_noise_frac * dP,
+        u[:, 0] * s.rod_bias_mm, u[:, 1] * s.rod_scale, noise[0],
+        u[:, 2] * s.rod_bias_mm, u[:, 3] * s.rod_scale, noise[1],
+        u[:, 4] * s.surface_bias_deg, noise[2],
+        noise[3] if pressure else None,
     )
 
 
 def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
-            actuators: dict | None = None, orders_deg: np.ndarray | None = None) -> Prepared:
+            actuators: dict | None = None, orders_deg: np.ndarray | None = None,
+            pressure_sensor: bool = True) -> Prepared:
     """Validate *runs* and compute every open-loop input of the batch.
 
     *orders_deg* (n_runs, n_steps), when given, replaces the manoeuvre-generated surface
     orders [deg] (recorded flight-test orders, or the test signals of the physics checks).
+    *pressure_sensor* False leaves ``pres_noise`` None (not drawn; no other draw changes).
     """
     validate_runs(runs)
     actuators = actuators or ACTUATORS
@@ -232,7 +245,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
                                 f"(runs × duration_s/ts), got {order_deg.shape}"])
     u = act.r_mm * np.sin(np.radians(order_deg))
 
-    stack = _sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa)
+    stack = _sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
                           order_deg, act, ts, plant.i_max)
@@ -248,6 +261,13 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
 def quantize(v, q: float):
     """Round to the acquisition step *q*."""
     return q * np.rint(v / q)
+
+
+def _quantize_inplace(v: np.ndarray, q: float) -> None:
+    """:func:`quantize` of the float array *v* written into *v* (the same operations)."""
+    np.divide(v, q, out=v)
+    np.rint(v, out=v)
+    np.multiply(v, q, out=v)
 
 
 @dataclass(frozen=True)
@@ -378,7 +398,8 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         raise ValueError(f"unknown plant {plant!r}; allowed: actuator, aircraft, or a "
                          "scenarios.fmu.FmuPlant")
     engine = resolve_engine(engine)
-    p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg)
+    p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg,
+                pressure_sensor=pressure_sensor)
     if fmu is not None:
         from .fmu import integrate_fmu
 
@@ -388,18 +409,24 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     else:
         traj = integrate(p, sensors)
     act = p.act
-    mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
-                   sensors.rod_quant_mm)
+    p = replace(p, order_deg=None, com_noise=None)   # read by the time loop only: free them
+    # MON and surface acquisitions: the operations of quantize(x·(1 + s) + b + noise), in
+    # place in one array each (same values, no temporaries)
+    mon = np.multiply(traj.x, 1.0 + p.mon_scale[:, None])
+    mon += p.mon_bias[:, None]
+    mon += p.mon_noise
+    _quantize_inplace(mon, sensors.rod_quant_mm)
     surface_deg = np.degrees(traj.delta)
     if act.has_surface_sensor:
-        surface = quantize(surface_deg + p.surf_bias[:, None] + p.surf_noise,
-                           sensors.surface_quant_deg)
+        surface = np.add(surface_deg, p.surf_bias[:, None])
+        surface += p.surf_noise
+        _quantize_inplace(surface, sensors.surface_quant_deg)
     else:
-        surface = np.full_like(surface_deg, np.nan)
+        surface = np.broadcast_to(np.nan, surface_deg.shape)   # all-NaN, read-only, no memory
     if pressure_sensor:
         pressure = chamber_pressure(traj, p) + p.pres_noise
     else:
-        pressure = np.full_like(surface_deg, np.nan)
+        pressure = np.broadcast_to(np.nan, surface_deg.shape)
     signals = Signals(
         ts=ts, command=p.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
         surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,
