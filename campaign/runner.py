@@ -333,7 +333,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     backend : local workers: ``"threading"`` (threads in this process; the compiled kernels
         release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
         ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
-        campaign sets ``run_timeout_s`` (a thread cannot be stopped).
+        campaign sets ``run_timeout_s`` (a thread cannot be stopped) or runs an FMU plant
+        (one FMU instance per worker process).
     scheduler : address ``tcp://HOST:PORT`` of a dask.distributed scheduler; the chunks then
         run on its workers (*jobs* and *backend* are not used)
     engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
@@ -349,6 +350,14 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     settings = settings_of(config)
     if engine is not None:
         settings = replace(settings, engine=kernels.check_engine(engine))
+    fmu_plant = not isinstance(settings.plant, str)
+    if backend is None:   # processes where threads cannot serve: time limits, FMU instances
+        backend = ("threading" if config.runner.run_timeout_s is None and not fmu_plant
+                   else "loky")
+    elif backend == "threading" and fmu_plant and jobs > 1:
+        raise CampaignSetupError(
+            "an FMU plant is loaded once per worker process and is not safe to share between "
+            "threads: use --backend loky (the default with an FMU plant) or --jobs 1")
     client = connect(scheduler) if scheduler else None   # fail fast, before any work
     cdir = CampaignDir(out)
     resumed = cdir.open(config.to_json())
@@ -356,8 +365,6 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     if settings.engine == "compiled":
         build_detectors(config)   # imports the detectors' modules, which register kernels
         kernels.warm_up(log)
-    if backend is None:
-        backend = "threading" if config.runner.run_timeout_s is None else "loky"
     pool = None
     if client is None and jobs > 1:
         pool = LocalPool(backend, jobs)

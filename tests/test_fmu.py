@@ -188,6 +188,16 @@ def test_smoke_campaign_identical_on_both_back_ends(servo_fmu, tmp_path):
     assert faulty["detected"].any()
 
 
+def test_fmu_plant_runs_on_worker_processes_never_shared_threads(servo_fmu, tmp_path):
+    from campaign.runner import CampaignSetupError
+
+    fmu_cfg = with_overrides(load_config("smoke"), values={"plant.fmu": str(servo_fmu)})
+    with pytest.raises(CampaignSetupError, match="--backend loky"):
+        run(fmu_cfg, tmp_path / "t", jobs=2, backend="threading", progress=False,
+            log=lambda m: None)
+    assert not (tmp_path / "t").exists()   # refused before anything was written
+
+
 def test_run_cli_with_plant(servo_fmu, tmp_path, capsys):
     assert main(["run", "smoke", "--plant", str(servo_fmu), "--out", str(tmp_path / "r"),
                  "--jobs", "1", "--quiet"]) == 0
