@@ -369,6 +369,45 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
     return PlantArrays(**{k: np.asarray(v)[:, None] for k, v in vars(pl).items()})
 
 
+def acquire(traj, p, act: ActuatorParams, sensors: SensorParams, pressure_sensor: bool,
+            plant: PlantArrays | None = None):
+    """The MON rod, surface and chamber-pressure acquisitions of a trajectory (PHYSICS §4).
+
+    *p* carries the per-run sensor errors (``mon_*``, ``surf_*``, ``pres_noise``) and the
+    fault arrays; *plant* replaces ``p.plant`` for the pressure (the monitored surface's
+    plant at the aircraft level). Returns (mon [mm], true surface [deg], surface sensor
+    [deg], pressure [Pa]); absent sensors are all-NaN read-only views (no memory).
+    Each acquisition is quantize(x·(1 + s) + b + noise), computed in place in one array.
+    """
+    mon = np.multiply(traj.x, 1.0 + p.mon_scale[:, None])
+    mon += p.mon_bias[:, None]
+    mon += p.mon_noise
+    _quantize_inplace(mon, sensors.rod_quant_mm)
+    surface_deg = np.degrees(traj.delta)
+    if act.has_surface_sensor:
+        surface = np.add(surface_deg, p.surf_bias[:, None])
+        surface += p.surf_noise
+        _quantize_inplace(surface, sensors.surface_quant_deg)
+    else:
+        surface = np.broadcast_to(np.nan, surface_deg.shape)
+    if pressure_sensor:
+        source = p if plant is None else _PressureSource(plant, p.faults, p.ts, act)
+        pressure = chamber_pressure(traj, source) + p.pres_noise
+    else:
+        pressure = np.broadcast_to(np.nan, surface_deg.shape)
+    return mon, surface_deg, surface, pressure
+
+
+@dataclass(frozen=True)
+class _PressureSource:
+    """What :func:`chamber_pressure` reads besides the trajectory."""
+
+    plant: PlantArrays
+    faults: FaultArrays
+    ts: float
+    act: ActuatorParams
+
+
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
              orders_deg: np.ndarray | None = None, plant="actuator",
@@ -410,23 +449,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         traj = integrate(p, sensors)
     act = p.act
     p = replace(p, order_deg=None, com_noise=None)   # read by the time loop only: free them
-    # MON and surface acquisitions: the operations of quantize(x·(1 + s) + b + noise), in
-    # place in one array each (same values, no temporaries)
-    mon = np.multiply(traj.x, 1.0 + p.mon_scale[:, None])
-    mon += p.mon_bias[:, None]
-    mon += p.mon_noise
-    _quantize_inplace(mon, sensors.rod_quant_mm)
-    surface_deg = np.degrees(traj.delta)
-    if act.has_surface_sensor:
-        surface = np.add(surface_deg, p.surf_bias[:, None])
-        surface += p.surf_noise
-        _quantize_inplace(surface, sensors.surface_quant_deg)
-    else:
-        surface = np.broadcast_to(np.nan, surface_deg.shape)   # all-NaN, read-only, no memory
-    if pressure_sensor:
-        pressure = chamber_pressure(traj, p) + p.pres_noise
-    else:
-        pressure = np.broadcast_to(np.nan, surface_deg.shape)
+    mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor)
     signals = Signals(
         ts=ts, command=p.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
         surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,

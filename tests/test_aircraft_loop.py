@@ -33,6 +33,20 @@ def _twins(surface, fault, manoeuvre, **point):
     return sig, truth, diff, dsurf, runs
 
 
+def test_monitored_surface_pressure_sensor_sees_the_jam():
+    # PHYSICS §4: the chamber pressure of the monitored actuator; a solid jam blocks the
+    # piston and the valve drives it towards ±ΔP (the blocked-piston law of
+    # scenarios.simulate.chamber_pressure), far beyond the flying load of a few % of ΔP.
+    runs = _rows("left_elevator", "solid_jam", "nose_up", duration_s=20.0, onset_s=8.0)
+    sig, _ = simulate(runs, plant="aircraft", pressure_sensor=True)
+    dp = sig.actuator.dP_Pa
+    t = sig.time
+    before = np.abs(sig.pressure[0, (t > 1.0) & (t < 8.0)])
+    assert np.isfinite(sig.pressure).all()
+    assert before.max() < 0.6 * dp        # non-stalling flight loads (PHYSICS §3)
+    assert np.abs(sig.pressure[0, t > 12.0]).max() > before.max()
+
+
 # ---- the realistic envelope: 159 cases × 6 manoeuvres ---------------------------------
 @pytest.fixture(scope="module")
 def envelope_batch():

@@ -339,27 +339,14 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
     :func:`scenarios.simulate.simulate`."""
-    from ..simulate import Trajectory, chamber_pressure, quantize
+    from ..simulate import acquire
 
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
                          law_params=law_params)
     traj = integrate_aircraft(p, sensors)
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
-    mon = quantize(traj.x * (1.0 + p.mon_scale[:, None]) + p.mon_bias[:, None] + p.mon_noise,
-                   sensors.rod_quant_mm)
-    surface_deg = np.degrees(traj.delta)
-    if act.has_surface_sensor:
-        surface = quantize(surface_deg + p.surf_bias[:, None] + p.surf_noise,
-                           sensors.surface_quant_deg)
-    else:
-        surface = np.full_like(surface_deg, np.nan)
-    if pressure_sensor:
-        view = types.SimpleNamespace(plant=p.plant_m, faults=p.faults, ts=ts, act=act)
-        pressure = chamber_pressure(Trajectory(x=traj.x, delta=traj.delta, i_cmd=traj.i_cmd,
-                                               i_app=traj.i_app, y_com=traj.y_com), view)
-        pressure = pressure + p.pres_noise
-    else:
-        pressure = np.full_like(surface_deg, np.nan)
+    mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
+                                                  plant=p.plant_m)
     aircraft = {name: _TO_UNITS[unit](series)           # the eight sensors, then the spoilers
                 for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
     aircraft["spoiler"] = np.degrees(traj.spoiler)
