@@ -183,6 +183,9 @@ def _check_compatibility(config, detectors: dict) -> None:
         if caps.needs_pressure_sensor and not config.campaign.pressure_sensor:
             problems.append(f"detector {label!r} needs the chamber pressure sensor: set "
                             "[campaign] pressure_sensor = true")
+        if getattr(caps, "needs_aircraft", False) and config.campaign.plant != "aircraft":
+            problems.append(f"detector {label!r} needs the aircraft plant level: set "
+                            "[campaign] plant = \"aircraft\" (or --plant aircraft)")
     if problems:
         raise CampaignSetupError("; ".join(problems))
 

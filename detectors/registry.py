@@ -27,6 +27,7 @@ BUILTIN: dict[str, str] = {
     "position-monitor": "detectors.position_monitor:PositionMonitor",
     "comb-interval": "detectors.interval_detector:IntervalDetector",
     "chen-local": "detectors.chen_estimator:ChenLocalEstimator",
+    "vanek-geometric": "detectors.vanek_geometric:VanekGeometric",
 }
 
 

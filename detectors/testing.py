@@ -5,7 +5,8 @@ Any third party can test a plugin with::
     from detectors.testing import check_detector
     check_detector(MyDetector())
 
-It simulates a small batch of fault-free learning runs and mixed evaluation runs, then
+It simulates a small batch of fault-free learning runs and mixed evaluation runs (with the
+aircraft in the loop for a detector whose capabilities declare ``needs_aircraft``), then
 checks, on any detector (DESIGN.md, Contracts):
 
 * ``detect`` before ``fit`` raises :class:`~detectors.NotFittedError` (when it needs fit),
@@ -44,14 +45,23 @@ class DetectorCheckError(AssertionError):
     """A detector broke its contract; the message names the check."""
 
 
-def _batch(surface: str, duration_s: float) -> tuple:
+def _batch(surface: str, duration_s: float, plant: str = "actuator") -> tuple:
     """Fresh copies of the (cached) learning and evaluation signals."""
-    return tuple(copy.deepcopy(s) for s in _simulated_batch(surface, float(duration_s)))
+    return tuple(copy.deepcopy(s) for s in _simulated_batch(surface, float(duration_s), plant))
 
 
 @functools.lru_cache(maxsize=4)
-def _simulated_batch(surface: str, duration_s: float) -> tuple:
+def _simulated_batch(surface: str, duration_s: float, plant: str = "actuator") -> tuple:
+    """*plant* "aircraft": the same runs with the aircraft in the loop, the left surface of
+    *surface* monitored (detectors that declare ``needs_aircraft``)."""
     from scenarios.simulate import simulate, single_run
+
+    if plant == "aircraft":
+        from scenarios.aircraft.data import DEFAULT_MONITORED
+
+        monitored = DEFAULT_MONITORED[surface]
+        single_run = functools.partial(_aircraft_run, single_run, monitored)
+        simulate = functools.partial(simulate, plant="aircraft")
 
     learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
                        .assign(stream=j, run_id=f"learn-{j}")
@@ -67,6 +77,13 @@ def _simulated_batch(surface: str, duration_s: float) -> tuple:
     evaluation["stream"] = np.arange(len(evaluation))
     evaluation["run_id"] = [f"eval-{j}" for j in range(len(evaluation))]
     return simulate(learn)[0], simulate(evaluation)[0]
+
+
+def _aircraft_run(single_run, monitored: str, surface: str, *args, **kwargs):
+    """One run row of *surface*'s actuator type with the aircraft surface *monitored*."""
+    row = single_run(surface, *args, **kwargs)
+    row["surface"] = monitored
+    return row
 
 
 def _variants(det, signals) -> dict[str, Detection]:
@@ -103,7 +120,8 @@ def check_detector(detector: Detector, *, surface: str = "elevator",
         rebuilt.validate_params()
     except ValueError as exc:
         raise DetectorCheckError(f"validate_params() rejects the detector's own parameters: {exc}")
-    learn, ev = _batch(surface, duration_s)
+    plant = "aircraft" if getattr(detector.capabilities, "needs_aircraft", False) else "actuator"
+    learn, ev = _batch(surface, duration_s, plant)
     det = copy.deepcopy(detector)
 
     if det.capabilities.needs_fit:
