@@ -128,3 +128,11 @@ def test_aileron_faults_cross_the_threshold_after_onset():
         assert np.all(first > 10.0), (variant, first)          # never before the onset
     # the LPV filter, designed at the measured point, sees both faults more clearly
     assert np.all(peaks["lpv"] > peaks["lti"]), peaks
+
+
+def test_comparison_command_refuses_a_bad_noise_scale(capsys):
+    from detectors.vanek_compare import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--noise-scale", "0"])
+    assert exc.value.code == 2 and "--noise-scale must be > 0" in capsys.readouterr().err
