@@ -136,3 +136,17 @@ def test_comparison_command_refuses_a_bad_noise_scale(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--noise-scale", "0"])
     assert exc.value.code == 2 and "--noise-scale must be > 0" in capsys.readouterr().err
+
+
+def test_a_campaign_at_the_actuator_level_is_refused_before_it_starts():
+    from campaign.config import CampaignConfig, load_config
+    from campaign.runner import CampaignSetupError, _check_compatibility, build_detectors
+
+    cfg = load_config("vanek-scenarios")
+    _check_compatibility(cfg, build_detectors(cfg))       # aircraft plant: accepted
+    actuator = cfg.to_dict()
+    actuator["campaign"]["plant"] = "actuator"
+    actuator["campaign"].pop("monitored_surface")
+    actuator = CampaignConfig.from_dict(actuator)
+    with pytest.raises(CampaignSetupError, match='vanek-geometric.*plant = "aircraft"'):
+        _check_compatibility(actuator, build_detectors(actuator))
