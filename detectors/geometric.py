@@ -243,7 +243,16 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
             f"the LMI of [VANEK] eq. 3–4 is {prob.status}: no output injection places the "
             f"filter poles in Re λ ≤ −{decay} and |λ| ≤ {radius}; lower the decay rate or "
             "widen the radius, or check that (M, Â) is detectable")
-    return np.linalg.solve(np.asarray(X.value), np.asarray(K.value))
+    G = np.linalg.solve(np.asarray(X.value), np.asarray(K.value))
+    eig = np.linalg.eigvals(A_hat + G @ M)
+    # an "optimal_inaccurate" solver answer is kept only when the poles are where eq. 3–4
+    # put them (tolerance 1e-3 relative: far below any design meaning of decay and radius)
+    if eig.real.max() > -decay * (1.0 - 1e-3) or np.abs(eig).max() > radius * (1.0 + 1e-3):
+        raise GeometricDesignError(
+            f"the LMI solution of [VANEK] eq. 3–4 ({prob.status}) leaves filter poles "
+            f"{np.round(eig, 4).tolist()} outside Re λ ≤ −{decay}, |λ| ≤ {radius}; "
+            "lower the decay rate or widen the radius")
+    return G
 
 
 def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: float = RTOL,
