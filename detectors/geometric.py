@@ -45,8 +45,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import threading
+
 import numpy as np
-import scipy.signal
 
 #: Default relative rank tolerance of every subspace routine (module docstring).
 RTOL = 1e-9
@@ -215,41 +216,62 @@ class ResidualGenerator:
         return np.array([Ccl @ np.linalg.solve(1j * w * I - Acl, Bcl) for w in omega])
 
 
+def _lmi_problem(k: int, q: int, decay: float, radius: float):
+    """The LMI problem of :func:`injection_lmi` for Â (k, k), M (q, k), with Â and M as cvxpy
+    parameters (DPP: compiled once per shape and region, re-solved with new values)."""
+    import cvxpy as cp
+
+    A_hat = cp.Parameter((k, k)); M = cp.Parameter((q, k))
+    X = cp.Variable((k, k), symmetric=True)
+    K = cp.Variable((k, q))
+    XA = X @ A_hat + K @ M
+    lyap = XA + XA.T + 2.0 * decay * X
+    disk = cp.bmat([[-radius * X, XA], [XA.T, -radius * X]])
+    cons = [X >> np.eye(k), 0.5 * (lyap + lyap.T) << 0, 0.5 * (disk + disk.T) << 0]
+    return cp.Problem(cp.Minimize(cp.norm(K, "fro")), cons), A_hat, M, X, K
+
+
+_LMI_CACHE: dict = {}
+_LMI_LOCK = threading.Lock()
+
+
 def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL") -> np.ndarray:
     """G̃ = X⁻¹K from the LMI of [VANEK] eq. 3–4 with decay rate *decay* [1/s] and the disk
-    |λ| ≤ *radius* [rad/s] (module docstring); N = Â + G̃ M then has its eigenvalues in
-    {Re λ ≤ −decay, |λ| ≤ radius}. Raises :class:`GeometricDesignError` when infeasible
-    ((M, Â) not detectable, or a region too tight)."""
+    |λ| ≤ *radius* [rad/s] (module docstring), minimising ‖K‖_F; N = Â + G̃ M then has its
+    eigenvalues in {Re λ ≤ −decay, |λ| ≤ radius}. Raises :class:`GeometricDesignError` when
+    infeasible ((M, Â) not detectable, or a region too tight)."""
     import cvxpy as cp
 
     A_hat = np.atleast_2d(np.asarray(A_hat, float)); M = np.atleast_2d(np.asarray(M, float))
     k, q = A_hat.shape[0], M.shape[0]
     if k == 0:
         return np.zeros((0, q))
-    X = cp.Variable((k, k), symmetric=True)
-    K = cp.Variable((k, q))
-    XA = X @ A_hat + K @ M
-    lyap = XA + XA.T + 2.0 * decay * X
-    disk = cp.bmat([[-radius * X, XA], [XA.T, -radius * X]])
-    cons = [X >> np.eye(k), 0.5 * (lyap + lyap.T) << 0,
-            0.5 * (disk + disk.T) << 0]
-    prob = cp.Problem(cp.Minimize(cp.norm(K, "fro")), cons)
-    try:
-        prob.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise GeometricDesignError(f"the LMI of [VANEK] eq. 3–4 failed in {solver}: {exc}") from exc
-    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or X.value is None:
+    key = (k, q, float(decay), float(radius))
+    with _LMI_LOCK:                       # one cached problem, shared by threads: serialise
+        if key not in _LMI_CACHE:
+            _LMI_CACHE[key] = _lmi_problem(k, q, float(decay), float(radius))
+        prob, pA, pM, X, K = _LMI_CACHE[key]
+        pA.value, pM.value = A_hat, M
+        try:
+            prob.solve(solver=solver)
+        except cp.error.SolverError as exc:
+            raise GeometricDesignError(f"the LMI of [VANEK] eq. 3–4 failed in {solver}: "
+                                       f"{exc}") from exc
+        status = prob.status
+        Xv = None if X.value is None else np.array(X.value)
+        Kv = None if K.value is None else np.array(K.value)
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Xv is None:
         raise GeometricDesignError(
-            f"the LMI of [VANEK] eq. 3–4 is {prob.status}: no output injection places the "
+            f"the LMI of [VANEK] eq. 3–4 is {status}: no output injection places the "
             f"filter poles in Re λ ≤ −{decay} and |λ| ≤ {radius}; lower the decay rate or "
             "widen the radius, or check that (M, Â) is detectable")
-    G = np.linalg.solve(np.asarray(X.value), np.asarray(K.value))
+    G = np.linalg.solve(Xv, Kv)
     eig = np.linalg.eigvals(A_hat + G @ M)
     # an "optimal_inaccurate" solver answer is kept only when the poles are where eq. 3–4
     # put them (tolerance 1e-3 relative: far below any design meaning of decay and radius)
     if eig.real.max() > -decay * (1.0 - 1e-3) or np.abs(eig).max() > radius * (1.0 + 1e-3):
         raise GeometricDesignError(
-            f"the LMI solution of [VANEK] eq. 3–4 ({prob.status}) leaves filter poles "
+            f"the LMI solution of [VANEK] eq. 3–4 ({status}) leaves filter poles "
             f"{np.round(eig, 4).tolist()} outside Re λ ≤ −{decay}, |λ| ≤ {radius}; "
             "lower the decay rate or widen the radius")
     return G
@@ -295,9 +317,16 @@ def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: f
 
 def bilinear(gen: ResidualGenerator, ts: float) -> tuple[np.ndarray, ...]:
     """The filter (input [u; y], output r) discretised at *ts* [s] by the bilinear (Tustin)
-    transform, as in [VANEK] §5: (Ad, Bd, Cd, Dd)."""
-    Ad, Bd, Cd, Dd, _ = scipy.signal.cont2discrete(gen.state_space(), ts, method="bilinear")
-    return Ad, Bd, Cd, Dd
+    transform, as in [VANEK] §5: (Ad, Bd, Cd, Dd) with a = ts/2,
+    Ad = (I − aN)⁻¹(I + aN), Bd = (I − aN)⁻¹ B ts, Cd = C (I − aN)⁻¹, Dd = D + C Bd / 2
+    (the realisation of scipy.signal.cont2discrete, method "bilinear")."""
+    A, B, C, D = gen.state_space()
+    a = 0.5 * float(ts)
+    ima = np.eye(A.shape[0]) - a * A
+    Ad = np.linalg.solve(ima, np.eye(A.shape[0]) + a * A)
+    Bd = np.linalg.solve(ima, ts * B)
+    Cd = np.linalg.solve(ima.T, C.T).T
+    return Ad, Bd, Cd, D + 0.5 * C @ Bd
 
 
 def dc_gain(gen: ResidualGenerator) -> np.ndarray:

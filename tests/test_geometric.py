@@ -141,3 +141,11 @@ def test_friend_refuses_a_subspace_that_is_not_conditioned_invariant():
     # ⟨e2⟩ of example 1: A e2 = e1 − 2e2 leaves it, and C e2 = 0 gives no injection to fix it
     with pytest.raises(geo.GeometricDesignError, match="not"):
         geo.friend(A1, C1, E[:, [1]])
+
+
+def test_bilinear_matches_scipy():
+    A, B, C, L1, L2 = _random_plant(4)
+    gen = geo.design(A, B, C, L1, L2, decay=0.5, radius=30.0)
+    ref = scipy.signal.cont2discrete(gen.state_space(), 0.01, method="bilinear")[:4]
+    for mine, theirs in zip(geo.bilinear(gen, 0.01), ref):
+        assert np.allclose(mine, theirs, rtol=1e-12, atol=1e-14)
