@@ -317,10 +317,14 @@ def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: f
 
 def bilinear(gen: ResidualGenerator, ts: float) -> tuple[np.ndarray, ...]:
     """The filter (input [u; y], output r) discretised at *ts* [s] by the bilinear (Tustin)
-    transform, as in [VANEK] §5: (Ad, Bd, Cd, Dd) with a = ts/2,
-    Ad = (I − aN)⁻¹(I + aN), Bd = (I − aN)⁻¹ B ts, Cd = C (I − aN)⁻¹, Dd = D + C Bd / 2
+    transform, as in [VANEK] §5: (Ad, Bd, Cd, Dd) (:func:`bilinear_ss`)."""
+    return bilinear_ss(*gen.state_space(), ts)
+
+
+def bilinear_ss(A, B, C, D, ts: float) -> tuple[np.ndarray, ...]:
+    """Tustin discretisation of (A, B, C, D) at *ts* [s] with a = ts/2:
+    Ad = (I − aA)⁻¹(I + aA), Bd = (I − aA)⁻¹ B ts, Cd = C (I − aA)⁻¹, Dd = D + C Bd / 2
     (the realisation of scipy.signal.cont2discrete, method "bilinear")."""
-    A, B, C, D = gen.state_space()
     a = 0.5 * float(ts)
     ima = np.eye(A.shape[0]) - a * A
     Ad = np.linalg.solve(ima, np.eye(A.shape[0]) + a * A)
@@ -337,4 +341,4 @@ def dc_gain(gen: ResidualGenerator) -> np.ndarray:
 __all__ = ["RTOL", "GeometricDesignError", "ResidualGenerator", "basis", "kernel", "complement",
            "subspace_sum", "intersection", "preimage", "contains", "same_subspace",
            "conditioned_invariant", "unobservability_subspace", "friend", "injection_lmi",
-           "design", "bilinear", "dc_gain"]
+           "design", "bilinear", "bilinear_ss", "dc_gain"]

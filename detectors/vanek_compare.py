@@ -9,6 +9,8 @@
   required detection time of the campaign defaults ([VANEK]: LTI 0.00725, LPV 0.00508);
 * fault-free cruise in moderate turbulence — peak residual / threshold.
 
+Variants lti and lpv, and lti-hinf when python-control and slycot are installed.
+
 Each scenario is fitted on its own fault-free cruise learning set (same monitored surface,
 moderate turbulence, :data:`LEARNING_POINTS`). ``noise_scale`` multiplies the σ of every
 aircraft sensor (:class:`scenarios.aircraft.data.AircraftSensorParams`).
@@ -50,7 +52,14 @@ def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
     from scenarios.aircraft.data import AIRCRAFT_SENSORS
     from scenarios.aircraft.loop import simulate_aircraft
 
-    from .vanek_geometric import VanekGeometric
+    from .vanek_geometric import HINF_VARIANTS, VARIANTS, VanekGeometric
+
+    try:                                  # the H∞ post-filter variant when its extra is there
+        import control  # noqa: F401
+        import slycot  # noqa: F401
+        variants = VARIANTS + HINF_VARIANTS
+    except ImportError:
+        variants = VARIANTS
 
     if not noise_scale > 0.0:
         raise ValueError(f"noise_scale must be > 0, got {noise_scale!r}")
@@ -71,7 +80,7 @@ def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
         if surface not in fitted:
             learn = pd.concat([_rows(surface, "none", seed + 100 + i, v, h, stream=i)
                                for i, (v, h) in enumerate(LEARNING_POINTS)], ignore_index=True)
-            fitted[surface] = VanekGeometric().fit(simulate_aircraft(learn,
+            fitted[surface] = VanekGeometric(variants=variants).fit(simulate_aircraft(learn,
                                                                      aircraft_sensors=sensors)[0])
         det = fitted[surface]
         sig, _ = simulate_aircraft(row, aircraft_sensors=sensors)

@@ -66,6 +66,9 @@ from . import geometric as geo
 from .base import Capabilities, Detection, Detector, confirm
 
 VARIANTS = ("lti", "lpv")
+#: Optional variant: the LTI filter followed by the H∞ post-filter of [VANEK] §3
+#: (:mod:`detectors.vanek_hinf`; needs the optional extra ``hinf``).
+HINF_VARIANTS = ("lti-hinf",)
 #: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §5.
 OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
 FAULT_SURFACE = "left_inboard_aileron"
@@ -166,7 +169,8 @@ class VanekGeometric(Detector):
     smoothing_s : float
         Time constant of the low-pass on r̂ [s] (≥ 0; 0: none).
     variants : sequence of str
-        Any of ``"lti"``, ``"lpv"``.
+        Any of ``"lti"``, ``"lpv"`` and, with the optional extra ``hinf``, ``"lti-hinf"``
+        (the LTI filter followed by the H∞ post-filter of [VANEK] §3, no low-pass).
     """
 
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
@@ -195,10 +199,17 @@ class VanekGeometric(Detector):
         if not (isinstance(self.smoothing_s, (int, float)) and self.smoothing_s >= 0.0):
             raise ValueError(f"smoothing_s must be ≥ 0 s, got {self.smoothing_s!r}")
         v = [self.variants] if isinstance(self.variants, str) else list(self.variants)
-        bad = [x for x in v if x not in VARIANTS]
+        bad = [x for x in v if x not in VARIANTS + HINF_VARIANTS]
         if bad or not v:
-            raise ValueError(f"variants must be a non-empty list of {list(VARIANTS)}, "
-                             f"got {self.variants!r}")
+            raise ValueError(f"variants must be a non-empty list of "
+                             f"{list(VARIANTS + HINF_VARIANTS)}, got {self.variants!r}")
+        if any(x in HINF_VARIANTS for x in v):
+            try:
+                import control  # noqa: F401
+                import slycot  # noqa: F401
+            except ImportError as exc:
+                raise ValueError(f"variant 'lti-hinf' needs python-control and slycot ({exc}):"
+                                 " pip install 'fdd-campaign[hinf]'") from exc
 
     def _variant_list(self) -> list[str]:
         return [self.variants] if isinstance(self.variants, str) else list(self.variants)
@@ -210,18 +221,26 @@ class VanekGeometric(Detector):
             raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
 
     # ---- design ------------------------------------------------------------------------
-    def _design(self, point: dict, ts: float) -> _Filter:
+    def _design(self, point: dict, ts: float, hinf: bool = False) -> _Filter:
         cache = self.__dict__.setdefault("_cache", {})
-        key = (round(float(ts), 9),) + tuple(round(float(point[k][0]), 6) for k in sorted(point))
+        key = (hinf, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+                                                  for k in sorted(point))
         if key not in cache:
-            cache[key] = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
-                                       decay=float(self.decay), radius=float(self.radius))[1]
+            gen, f = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
+                                   decay=float(self.decay), radius=float(self.radius))
+            if hinf:
+                from .vanek_hinf import cascade, post_filter, sensor_sigmas
+
+                q = post_filter(gen, sensor_sigmas() * np.sqrt(ts))
+                Ad, Bd, Cd, Dd = geo.bilinear_ss(*cascade(gen, q), ts)
+                f = _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=np.ones(1))
+            cache[key] = f
         return cache[key]
 
     def _filters(self, variant: str, signals: Signals) -> list[_Filter]:
-        if variant == "lti":
+        if variant in ("lti", "lti-hinf"):
             f = self._design(_point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t,
-                                    NOMINAL.cg_pct), signals.ts)
+                                    NOMINAL.cg_pct), signals.ts, hinf=variant == "lti-hinf")
             return [f] * signals.n_runs
         s = signals.schedule
         return [self._design(_point(s["vcas_kt"][i], s["alt_ft"][i], s["mass_t"][i],
@@ -289,7 +308,7 @@ class VanekGeometric(Detector):
                 ws[:, k] = w
                 w = np.einsum("nij,nj->ni", Ad, w) + bv[:, k]
             r = np.einsum("ni,nti->nt", cC, ws) + np.einsum("ni,nti->nt", cD, v)
-            if self.smoothing_s > 0.0:
+            if self.smoothing_s > 0.0 and variant not in HINF_VARIANTS:
                 b, a = scipy.signal.bilinear([1.0], [float(self.smoothing_s), 1.0],
                                              fs=1.0 / signals.ts)
                 r = scipy.signal.lfilter(b, a, r, axis=1)
