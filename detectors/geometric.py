@@ -248,11 +248,17 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
         return np.zeros((0, q))
     key = (k, q, float(decay), float(radius))
     with _LMI_LOCK:                       # one cached problem, shared by threads: serialise
-        if key not in _LMI_CACHE:
+        fresh = key not in _LMI_CACHE
+        if fresh:
             _LMI_CACHE[key] = _lmi_problem(k, q, float(decay), float(radius))
         prob, pA, pM, X, K = _LMI_CACHE[key]
         pA.value, pM.value = A_hat, M
         try:
+            if fresh:
+                # the first solve compiles the parametric problem and its data differ from
+                # the cached path's in the last bits: solve every design through the cached
+                # path, so a design does not depend on what the process solved before
+                prob.solve(solver=solver)
             prob.solve(solver=solver)
         except cp.error.SolverError as exc:
             raise GeometricDesignError(f"the LMI of [VANEK] eq. 3–4 failed in {solver}: "

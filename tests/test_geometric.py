@@ -149,3 +149,14 @@ def test_bilinear_matches_scipy():
     ref = scipy.signal.cont2discrete(gen.state_space(), 0.01, method="bilinear")[:4]
     for mine, theirs in zip(geo.bilinear(gen, 0.01), ref):
         assert np.allclose(mine, theirs, rtol=1e-12, atol=1e-14)
+
+
+def test_lmi_design_does_not_depend_on_what_was_solved_before():
+    # campaign workers solve designs in any order: the same data must give the same bits
+    A, B, C, L1, L2 = _random_plant(5)
+    gen = geo.design(A, B, C, L1, L2, decay=0.5, radius=30.0)
+    geo._LMI_CACHE.clear()
+    first = geo.injection_lmi(gen.A_hat, gen.M, 0.5, 30.0)
+    other = geo.design(*_random_plant(6), decay=0.5, radius=30.0)
+    geo.injection_lmi(other.A_hat, other.M, 0.5, 30.0)
+    assert np.array_equal(first, geo.injection_lmi(gen.A_hat, gen.M, 0.5, 30.0))
