@@ -267,7 +267,6 @@ class VanekGeometric(Detector):
             r = AIRCRAFT_ACTUATORS[LAYOUT.actuator[names.index(name)]].r_mm
             return np.arcsin(np.clip(x_mm / r, -1.0, 1.0))
 
-        cols = []
         delta = {}
         for j in known[:-1]:
             name = names[j]
@@ -283,7 +282,9 @@ class VanekGeometric(Detector):
             others = [n for n, k in zip(names, LAYOUT.actuator) if k == "aileron"
                       and n != FAULT_SURFACE]
             da = np.mean([ROLL_DISTRIBUTION[names.index(n)] * delta[n] for n in others], axis=0)
-        spoiler = np.empty_like(da)                      # one period late (fixed coupling)
+        lim = np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)
+        da = np.clip(da, -lim, lim)                      # spoiler roll order: limited like
+        spoiler = np.empty_like(da)                      # the ailerons', one period late
         spoiler[:, 0] = da[:, 0]
         spoiler[:, 1:] = da[:, :-1]
         cols = [delta[names[j]] for j in known[:-1]] + [spoiler]
