@@ -206,7 +206,9 @@ def run_campaign_process(campaign: str, jobs: int, cache_dir: Path | None = None
 def detector_costs(n_runs: int = 200, duration_s: float = 60.0, learning_runs: int = 24,
                    engines=("compiled", "numpy")) -> list[dict]:
     """Seconds per run-step of ``detect`` for each built-in detector and engine (fitted on
-    *learning_runs* fault-free runs; timed on *n_runs* runs in one block)."""
+    *learning_runs* fault-free runs; timed on *n_runs* runs in one block; a detector that
+    needs the aircraft plant gets the same runs simulated with the aircraft in the loop,
+    the left inboard aileron monitored)."""
     from detectors.registry import BUILTIN, make_detector
     from scenarios import kernels
 

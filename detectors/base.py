@@ -128,6 +128,12 @@ class Detector:
                 f"{type(self).__name__} needs the chamber pressure sensor; enable it in the "
                 "campaign file ([campaign] pressure_sensor = true)"
             )
+        if caps.needs_aircraft and (signals.aircraft is None or signals.rods is None):
+            raise ValueError(
+                f"{type(self).__name__} needs the aircraft-level signals (Signals.aircraft and "
+                "Signals.rods), which only the aircraft plant gives: set [campaign] plant = "
+                "\"aircraft\" in the campaign file (or run with --plant aircraft)"
+            )
 
     def _fit(self, signals: Signals) -> None:  # pragma: no cover - overridden when needed
         return None

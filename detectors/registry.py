@@ -28,6 +28,7 @@ BUILTIN: dict[str, str] = {
     "comb-interval": "detectors.interval_detector:IntervalDetector",
     "chen-local": "detectors.chen_estimator:ChenLocalEstimator",
     "chen-global": "detectors.chen_global:ChenGlobalEstimator",
+    "vanek-geometric": "detectors.vanek_geometric:VanekGeometric",
 }
 
 

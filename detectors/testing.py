@@ -5,7 +5,8 @@ Any third party can test a plugin with::
     from detectors.testing import check_detector
     check_detector(MyDetector())
 
-It simulates a small batch of fault-free learning runs and mixed evaluation runs, then
+It simulates a small batch of fault-free learning runs and mixed evaluation runs (with the
+aircraft in the loop for a detector whose capabilities declare ``needs_aircraft``), then
 checks, on any detector (DESIGN.md, Contracts):
 
 * ``detect`` before ``fit`` raises :class:`~detectors.NotFittedError` (when it needs fit),

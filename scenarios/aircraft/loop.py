@@ -335,14 +335,16 @@ STATE_UNITS = {"alpha": "deg", "q": "deg/s", "theta": "deg", "beta": "deg", "p":
 def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
                       pressure_sensor: bool = False,
                       turbulence: DrydenParams | None = MODERATE,
-                      law_params: laws.LawParams = laws.LAWS) -> tuple[Signals, Truth]:
+                      law_params: laws.LawParams = laws.LAWS,
+                      aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS
+                      ) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
     :func:`scenarios.simulate.simulate`."""
     from ..simulate import acquire
 
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
-                         law_params=law_params)
+                         law_params=law_params, aircraft_sensors=aircraft_sensors)
     traj = integrate_aircraft(p, sensors)
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,

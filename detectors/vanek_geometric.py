@@ -1,0 +1,338 @@
+"""The geometric (fundamental problem of residual generation) aileron fault filter of
+[VANEK] §2 and §5 on the aircraft plant level: ``vanek-geometric``.
+
+Design model: the rigid-body linear model of :mod:`scenarios.aircraft.lpv` (states α, q, θ,
+β, p, r, φ in rad) at a flight point, outputs y = (q, θ, β, p, r, φ) — the load factors are
+left out as in [VANEK] §5 (their direct feed-through complicates the synthesis). Fault
+directions ([VANEK] §5: "successive input directions from the B matrix"):
+
+* L1 — the left inboard aileron's column of B (the fault to detect);
+* L2 — the left elevator's and the rudder's columns (the faults to isolate from), and, with
+  ``decouple_gusts``, the gust-sideslip column too (the gust angle of attack acts along the
+  short-period directions, already inside S*, so it is decoupled in any case).
+
+Known inputs u: the other surfaces' COM rod positions converted to deflections
+(δ = asin(x/r)), the spoilers' roll order and the left inboard aileron's *expected*
+deflection, so that f1 is that aileron's departure from what the flight control computer
+expects of it. Expected deflection: when the left inboard aileron is the monitored surface,
+the nominal servo-loop model driven by its order (as :class:`PositionMonitor` ``loop``);
+otherwise its COM rod. Spoiler order (fixed coupling to the roll order, one period late):
+from the monitored aileron's order when that is the left inboard aileron (exact), otherwise
+from the mean roll order seen on the three other ailerons' rods. Every signal is taken
+relative to its first sample (the runs start trimmed), so the filter starts at w = 0.
+
+Filter: :func:`detectors.geometric.design` (W*, S*, P, H, M, Ĝ, LMI of eq. 3–4) then the
+bilinear transform at Ts ([VANEK] §5). Its residual r (one component per row of H) is
+reduced to one signal, the least-squares reconstruction of the aileron fault at steady
+state, r̂ = g⁺ r with g = M N⁻¹ P L1 the DC gain from f1 to r, so r̂ → f1 [deg] for a
+constant fault. r̂ is then low-passed (first order, time constant ``smoothing_s``, bilinear
+at Ts): the residual's direct feed-through −H y carries the sensors' white noise unfiltered,
+and [VANEK] §5 tracks the fault only in a limited band (T_id). This low-pass is a plain
+stand-in for that band limit, not the H∞ post-filter of [VANEK] §3.
+
+Sensitivity (measured, docs/vanek-geometric.md): the left inboard aileron's rolling moment is
+small beside what a sideslip gust or the rudder produces, and the decoupled residual tells
+them apart only through the weak side-force terms of the sideslip equation; the β sensor
+noise and the turbulence therefore set a floor of several degrees of aileron-equivalent
+residual in fault-free flight, so only faults of that size are detected.
+
+Variants (both computed by one ``detect``):
+
+``lti``
+    designed once at the nominal flight point :data:`NOMINAL` ([VANEK] §4.2–5);
+``lpv``
+    the same algebraic construction (subspaces, friend and the LMI of eq. 3–4) repeated at
+    each run's *measured* flight point (``Signals.schedule``), the flight point of a run
+    being constant here; designs are cached by flight point. ([VANEK] §5 writes the LPV
+    filter affine in VCAS and altitude; this frozen-point form gives the filter of the
+    measured point exactly, so the affine approximation is not needed.)
+
+Thresholds ([VANEK] §5): τ = ``safety`` × the largest |r̂| over the fault-free learning
+runs, per variant; normalised residual |r̂|/τ; alarm once it has stayed ≥ 1 for
+``confirm_s``, then latched.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from scenarios.params import param
+from scenarios.signals import Signals
+
+from . import geometric as geo
+from .base import Capabilities, Detection, Detector, confirm
+
+VARIANTS = ("lti", "lpv")
+#: Optional variant: the LTI filter followed by the H∞ post-filter of [VANEK] §3
+#: (:mod:`detectors.vanek_hinf`; needs the optional extra ``hinf``).
+HINF_VARIANTS = ("lti-hinf",)
+#: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §5.
+OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
+FAULT_SURFACE = "left_inboard_aileron"
+ISOLATED_SURFACES = ("left_elevator", "rudder")
+
+
+@dataclass(frozen=True)
+class NominalPoint:
+    """Design point of the LTI variant ([VANEK] §4.1–4.2 cruise, §5 mass and CG)."""
+
+    vcas_kt: float = param("kt", "[VANEK] §4.1 (cruise speed 240 kt)", "calibrated airspeed")
+    alt_ft: float = param("ft", "[VANEK] §4.2 (9144 m)", "altitude")
+    mass_t: float = param("t", "[VANEK] §5 (200 000 kg)", "mass")
+    cg_pct: float = param("% MAC", "[VANEK] §5 (x_cg = 0.3)", "centre of gravity")
+
+
+NOMINAL = NominalPoint(vcas_kt=240.0, alt_ft=30000.0, mass_t=200.0, cg_pct=30.0)
+
+
+@dataclass(frozen=True)
+class _Filter:
+    """One discretised filter: w' = Ad w + Bd v, r̂ = c (Cd w + Dd v), v = [u; y]."""
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    Cd: np.ndarray
+    Dd: np.ndarray
+    c: np.ndarray
+
+
+def _model(point: dict):
+    """(A, B) of the aircraft model at a flight point (arrays of one run)."""
+    from scenarios.aircraft import lpv
+
+    m = lpv.run_models(point, np.zeros(1))
+    return m.A[0], m.B[0]
+
+
+def _columns():
+    from scenarios.aircraft import lpv
+    from scenarios.aircraft.data import LAYOUT
+
+    names = LAYOUT.names
+    i1 = names.index(FAULT_SURFACE)
+    i2 = [names.index(s) for s in ISOLATED_SURFACES]
+    known = [j for j in range(len(names)) if j not in i2] + [lpv.I_SPOILER]
+    return i1, i2, known
+
+
+def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
+                  radius: float = 20.0) -> tuple[geo.ResidualGenerator, _Filter]:
+    """The geometric filter at *point* (``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``,
+    ``tas_ms`` arrays of one element), continuous and discretised at *ts* [s]. Input order
+    of the discrete filter: the known surfaces of :func:`_columns` [rad], then
+    :data:`OUTPUTS` [rad, rad/s]."""
+    from scenarios.aircraft import lpv
+
+    A, B = _model(point)
+    i1, i2, known = _columns()
+    out = [lpv.STATES.index(s) for s in OUTPUTS]
+    C = np.eye(lpv.N_STATES)[out]
+    L2 = B[:, i2 + ([lpv.I_GUST_BETA] if decouple_gusts else [])]
+    gen = geo.design(A, B[:, known], C, B[:, [i1]], L2, decay=decay, radius=radius,
+                     names1=[FAULT_SURFACE])
+    Ad, Bd, Cd, Dd = geo.bilinear(gen, ts)
+    g = geo.dc_gain(gen)[:, 0]
+    c = g / float(g @ g)                    # least-squares reconstruction r̂ = g⁺ r
+    return gen, _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=c)
+
+
+def _point(vcas_kt, alt_ft, mass_t, cg_pct, mach=None, qbar_pa=None) -> dict:
+    from scenarios import envelope
+    from scenarios.atmosphere import tas_ms
+
+    one = lambda v: np.atleast_1d(np.asarray(v, float))  # noqa: E731
+    if mach is None:
+        fc = envelope.flight_condition(one(alt_ft), one(vcas_kt), one(mass_t), one(cg_pct))
+        mach, qbar_pa = fc["mach"], fc["qbar_pa"]
+    return {"mass_t": one(mass_t), "cg_pct": one(cg_pct), "mach": one(mach),
+            "qbar_pa": one(qbar_pa), "tas_ms": tas_ms(one(mach), one(alt_ft))}
+
+
+class VanekGeometric(Detector):
+    """Geometric aileron fault filter of [VANEK], LTI and LPV (module docstring).
+
+    Parameters
+    ----------
+    safety : float
+        Threshold = safety × largest fault-free |r̂| of the learning set (> 1; [VANEK] §5: 1.5).
+    confirm_s : float
+        Confirmation time [s] (≥ 0).
+    decay : float
+        Decay rate imposed on the filter poles by the LMI of [VANEK] eq. 3–4 [1/s] (> 0).
+    radius : float
+        Largest filter pole modulus [rad/s] (> decay; well below π/Ts for the bilinear map).
+    decouple_gusts : bool
+        Also decouple the lateral gust direction (module docstring).
+    smoothing_s : float
+        Time constant of the low-pass on r̂ [s] (≥ 0; 0: none).
+    variants : sequence of str
+        Any of ``"lti"``, ``"lpv"`` and, with the optional extra ``hinf``, ``"lti-hinf"``
+        (the LTI filter followed by the H∞ post-filter of [VANEK] §3, no low-pass).
+    """
+
+    capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
+
+    def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
+                 smoothing_s=2.0, variants=VARIANTS):
+        self.safety = safety
+        self.confirm_s = confirm_s
+        self.decay = decay
+        self.radius = radius
+        self.decouple_gusts = decouple_gusts
+        self.smoothing_s = smoothing_s
+        self.variants = variants
+
+    def validate_params(self) -> None:
+        if not (isinstance(self.safety, (int, float)) and self.safety > 1.0):
+            raise ValueError(f"safety must be a number > 1, got {self.safety!r}")
+        if not (isinstance(self.confirm_s, (int, float)) and self.confirm_s >= 0.0):
+            raise ValueError(f"confirm_s must be ≥ 0 s, got {self.confirm_s!r}")
+        if not (isinstance(self.decay, (int, float)) and self.decay > 0.0):
+            raise ValueError(f"decay must be > 0 1/s, got {self.decay!r}")
+        if not (isinstance(self.radius, (int, float)) and self.radius > self.decay):
+            raise ValueError(f"radius must be > decay ({self.decay!r}) rad/s, got {self.radius!r}")
+        if not isinstance(self.decouple_gusts, bool):
+            raise ValueError(f"decouple_gusts must be true or false, got {self.decouple_gusts!r}")
+        if not (isinstance(self.smoothing_s, (int, float)) and self.smoothing_s >= 0.0):
+            raise ValueError(f"smoothing_s must be ≥ 0 s, got {self.smoothing_s!r}")
+        v = [self.variants] if isinstance(self.variants, str) else list(self.variants)
+        bad = [x for x in v if x not in VARIANTS + HINF_VARIANTS]
+        if bad or not v:
+            raise ValueError(f"variants must be a non-empty list of "
+                             f"{list(VARIANTS + HINF_VARIANTS)}, got {self.variants!r}")
+        if any(x in HINF_VARIANTS for x in v):
+            try:
+                import control  # noqa: F401
+                import slycot  # noqa: F401
+            except ImportError as exc:
+                raise ValueError(f"variant 'lti-hinf' needs python-control and slycot ({exc}):"
+                                 " pip install 'fdd-campaign[hinf]'") from exc
+
+    def _variant_list(self) -> list[str]:
+        return [self.variants] if isinstance(self.variants, str) else list(self.variants)
+
+    def check_signals(self, signals: Signals) -> None:
+        super().check_signals(signals)              # needs_aircraft: Signals.aircraft, .rods
+        missing = [s for s in OUTPUTS if s not in signals.aircraft]
+        if missing:
+            raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
+
+    # ---- design ------------------------------------------------------------------------
+    def _design(self, point: dict, ts: float, hinf: bool = False) -> _Filter:
+        cache = self.__dict__.setdefault("_cache", {})
+        key = (hinf, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+                                                  for k in sorted(point))
+        if key not in cache:
+            gen, f = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
+                                   decay=float(self.decay), radius=float(self.radius))
+            if hinf:
+                from .vanek_hinf import cascade, post_filter, sensor_sigmas
+
+                q = post_filter(gen, sensor_sigmas() * np.sqrt(ts))
+                Ad, Bd, Cd, Dd = geo.bilinear_ss(*cascade(gen, q), ts)
+                f = _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=np.ones(1))
+            cache[key] = f
+        return cache[key]
+
+    def _filters(self, variant: str, signals: Signals) -> list[_Filter]:
+        if variant in ("lti", "lti-hinf"):
+            f = self._design(_point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t,
+                                    NOMINAL.cg_pct), signals.ts, hinf=variant == "lti-hinf")
+            return [f] * signals.n_runs
+        s = signals.schedule
+        return [self._design(_point(s["vcas_kt"][i], s["alt_ft"][i], s["mass_t"][i],
+                                    s["cg_pct"][i], s["mach"][i], s["qbar_pa"][i]), signals.ts)
+                for i in range(signals.n_runs)]
+
+    # ---- signals -----------------------------------------------------------------------
+    @staticmethod
+    def filter_inputs(signals: Signals) -> np.ndarray:
+        """v = [u; y] of every run and step, shape (n_runs, n_steps, n_inputs), in rad and
+        rad/s, relative to the first sample (module docstring)."""
+        from scenarios.aircraft.data import LAYOUT
+        from scenarios.aircraft.laws import ROLL_DISTRIBUTION
+        from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
+
+        from .position_monitor import PositionMonitor
+
+        names = LAYOUT.names
+        _, _, known = _columns()
+        act = signals.actuator
+        monitored = getattr(act, "surface", None)
+
+        def deflection(name, x_mm):
+            r = AIRCRAFT_ACTUATORS[LAYOUT.actuator[names.index(name)]].r_mm
+            return np.arcsin(np.clip(x_mm / r, -1.0, 1.0))
+
+        delta = {}
+        for j in known[:-1]:
+            name = names[j]
+            if name == FAULT_SURFACE and monitored == FAULT_SURFACE:
+                x = PositionMonitor.model_output(signals)   # expected rod from the order
+            else:
+                x = signals.rods[name]
+            delta[name] = deflection(name, x)
+        if monitored == FAULT_SURFACE:
+            roll = ROLL_DISTRIBUTION[names.index(FAULT_SURFACE)]
+            da = deflection(FAULT_SURFACE, signals.command) / roll
+        else:
+            others = [n for n, k in zip(names, LAYOUT.actuator) if k == "aileron"
+                      and n != FAULT_SURFACE]
+            da = np.mean([ROLL_DISTRIBUTION[names.index(n)] * delta[n] for n in others], axis=0)
+        lim = np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)
+        da = np.clip(da, -lim, lim)                      # spoiler roll order: limited like
+        spoiler = np.empty_like(da)                      # the ailerons', one period late
+        spoiler[:, 0] = da[:, 0]
+        spoiler[:, 1:] = da[:, :-1]
+        cols = [delta[names[j]] for j in known[:-1]] + [spoiler]
+        cols += [np.radians(signals.aircraft[s]) for s in OUTPUTS]
+        v = np.stack(cols, axis=2)
+        return v - v[:, :1, :]
+
+    def estimates(self, signals: Signals) -> dict[str, np.ndarray]:
+        """r̂ [deg] of each variant, shape (n_runs, n_steps): the reconstructed departure of
+        the left inboard aileron from its expected deflection (module docstring)."""
+        v = self.filter_inputs(signals)
+        n, T, _ = v.shape
+        out = {}
+        for variant in self._variant_list():
+            fl = self._filters(variant, signals)
+            Ad = np.stack([f.Ad for f in fl]); Bd = np.stack([f.Bd for f in fl])
+            cC = np.stack([f.c @ f.Cd for f in fl]); cD = np.stack([f.c @ f.Dd for f in fl])
+            bv = np.einsum("nij,ntj->nti", Bd, v)             # (n, T, nw)
+            w = np.zeros((n, Ad.shape[1]))
+            ws = np.empty((n, T, Ad.shape[1]))
+            for k in range(T):                                # vectorised over runs
+                ws[:, k] = w
+                w = np.einsum("nij,nj->ni", Ad, w) + bv[:, k]
+            r = np.einsum("ni,nti->nt", cC, ws) + np.einsum("ni,nti->nt", cD, v)
+            if self.smoothing_s > 0.0 and variant not in HINF_VARIANTS:
+                b, a = scipy.signal.bilinear([1.0], [float(self.smoothing_s), 1.0],
+                                             fs=1.0 / signals.ts)
+                r = scipy.signal.lfilter(b, a, r, axis=1)
+            out[variant] = np.degrees(r)
+        return out
+
+    # ---- contract ----------------------------------------------------------------------
+    def _fit(self, signals: Signals) -> None:
+        self.validate_params()
+        est = self.estimates(signals)
+        self.thresholds_deg_ = {k: float(self.safety * np.max(np.abs(r))) for k, r in est.items()}
+        self.learning_runs_ = int(signals.n_runs)
+
+    def _detect(self, signals: Signals) -> dict[str, Detection]:
+        est = self.estimates(signals)
+        n_confirm = int(round(self.confirm_s / signals.ts)) + 1
+        out = {}
+        for k, r in est.items():
+            norm = np.abs(r) / self.thresholds_deg_[k]
+            out[k] = Detection(alarm=confirm(norm >= 1.0, n_confirm), residual=norm)
+        return out
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state.pop("_cache", None)             # designs are rebuilt on demand
+        return state

@@ -1,0 +1,162 @@
+"""The geometric residual-generator routines of detectors.geometric ([VANEK] §2) on small
+systems whose subspaces are known by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from detectors import geometric as geo
+
+E = np.eye(3)
+
+
+def _span(*cols):
+    return np.column_stack(cols)
+
+
+# Example 1: x1' = −x1 + x2, x2' = −2x2 + f2, x3' = −3x3 + x1 + f1, y = (x1, x3).
+# By hand: W0 = ⟨e2⟩ ⊆ Ker C, A e2 = e1 − 2e2 → W* = ⟨e1, e2⟩; Z1 = W* + Ker C = ⟨e1, e2⟩ and
+# A⁻¹Z1 ∩ Ker C = ⟨e2⟩ → S* = ⟨e1, e2⟩; H annihilates C S* = ⟨(1, 0)⟩ → H = ±(0, 1).
+A1 = np.array([[-1.0, 1.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, -3.0]])
+C1 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+# Example 2 (S* larger than W*): x1' = −x1 + f2, x2' = −2x2 + f1, x3' = −3x3 + x1, y = (x1, x2).
+# W0 = ⟨e1⟩, W0 ∩ Ker C = 0 → W* = ⟨e1⟩; Z1 = ⟨e1, e3⟩, A⁻¹Z1 ∩ Ker C = ⟨e3⟩ → S* = ⟨e1, e3⟩
+# (the mode x3, unobservable once x1 is discarded, joins the unobservability subspace).
+A2 = np.array([[-1.0, 0.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, -3.0]])
+C2 = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+# Example 3 (no solution): the integrator chain x1' = x2, x2' = x3, x3' = f2, y = x1:
+# W* = S* = the whole space.
+A3 = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+C3 = np.array([[1.0, 0.0, 0.0]])
+
+
+def test_subspace_primitives():
+    V = _span(E[0], E[1]); W = _span(E[1], E[2])
+    assert geo.same_subspace(geo.intersection(V, W), E[:, [1]])
+    assert geo.same_subspace(geo.subspace_sum(V, W), E)
+    assert geo.same_subspace(geo.kernel(C1), E[:, [1]])
+    # A3 maps e3 → e2, e2 → e1, e1 → 0: A3⁻¹⟨e1⟩ = ⟨e1, e2⟩
+    assert geo.same_subspace(geo.preimage(A3, E[:, [0]]), V)
+    # a direction at 1e-12 of the others is rank-deficient at RTOL = 1e-9, kept at 1e-14
+    near = _span(E[0], E[0] + 1e-12 * E[1])
+    assert geo.basis(near).shape[1] == 1 and geo.basis(near, rtol=1e-14).shape[1] == 2
+
+
+def test_example_1_subspaces_and_matrices():
+    assert geo.same_subspace(geo.conditioned_invariant(A1, C1, E[:, [1]]), _span(E[0], E[1]))
+    S = geo.unobservability_subspace(A1, C1, E[:, [1]])
+    assert geo.same_subspace(S, _span(E[0], E[1]))
+    gen = geo.design(A1, np.zeros((3, 1)), C1, E[:, [2]], E[:, [1]], decay=1.0, radius=20.0)
+    assert gen.P.shape == (1, 3) and abs(abs(gen.P[0, 2]) - 1.0) < 1e-12   # X/S* ≅ x3
+    assert np.allclose(np.abs(gen.H), [[0.0, 1.0]], atol=1e-12)
+    assert np.allclose(gen.M @ gen.P, gen.H @ C1, atol=1e-12)           # M P = H C
+    # (A + Ĝ C) S* ⊆ S*
+    assert np.linalg.norm(gen.P @ (A1 + gen.G_hat @ C1) @ S) < 1e-12
+    eig = np.linalg.eigvals(gen.N)
+    assert np.all(eig.real <= -1.0 + 1e-6) and np.all(np.abs(eig) <= 20.0 + 1e-6)
+
+
+def test_example_2_unobservability_subspace_exceeds_conditioned_invariant():
+    L2 = E[:, [0]]
+    assert geo.same_subspace(geo.conditioned_invariant(A2, C2, L2), L2)
+    S = geo.unobservability_subspace(A2, C2, L2)
+    assert geo.same_subspace(S, _span(E[0], E[2]))
+    gen = geo.design(A2, np.zeros((3, 1)), C2, E[:, [1]], L2)
+    assert gen.N.shape == (1, 1)
+    assert np.allclose(np.abs(gen.H), [[0.0, 1.0]], atol=1e-12)
+
+
+def test_unsolvable_problems_name_the_fault_direction():
+    assert geo.same_subspace(geo.unobservability_subspace(A3, C3, E[:, [2]]), E)
+    with pytest.raises(geo.GeometricDesignError, match="whole state space"):
+        geo.design(A3, np.zeros((3, 1)), C3, E[:, [0]], E[:, [2]])
+    with pytest.raises(geo.GeometricDesignError, match=r"S\* ∩ L1 ≠ 0.*left_inboard_aileron"):
+        geo.design(A1, np.zeros((3, 1)), C1, (E[0] + E[1])[:, None], E[:, [1]],
+                   names1=["left_inboard_aileron"])
+
+
+def _random_plant(seed):
+    """A stable 6-state plant, 3 outputs, 2 inputs, one fault of each kind."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((6, 6))
+    A -= (np.max(np.linalg.eigvals(A).real) + 0.5) * np.eye(6)
+    return (A, rng.standard_normal((6, 2)), rng.standard_normal((3, 6)),
+            rng.standard_normal((6, 1)), rng.standard_normal((6, 1)))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_decoupling_and_sensitivity_frequency_sweep(seed):
+    A, B, C, L1, L2 = _random_plant(seed)
+    gen = geo.design(A, B, C, L1, L2, decay=0.5, radius=30.0)
+    omega = np.logspace(-3, 3, 61)
+    g2 = np.abs(gen.fault_to_residual(A, B, C, L2, omega)).max()
+    g1 = np.abs(gen.fault_to_residual(A, B, C, L1, omega)).max(axis=(1, 2))
+    # exact decoupling: only round-off (unit-norm data, κ ≲ 1e4) may leak from f2
+    assert g2 < 1e-9 * g1.max()
+    # sensitivity: a non-zero steady-state gain from f1 ([VANEK] §2: r ≠ 0 when f1 ≠ 0)
+    dc = geo.dc_gain(gen)
+    assert np.linalg.norm(dc) > 1e-3
+    assert np.allclose(gen.fault_to_residual(A, B, C, L1, [0.0])[0].real, dc, rtol=1e-8,
+                       atol=1e-12)
+
+
+def test_decoupling_in_simulation_with_the_bilinear_filter():
+    A, B, C, L1, L2 = _random_plant(3)
+    ts = 0.01
+    gen = geo.design(A, B, C, L1, L2, decay=0.5, radius=30.0)
+    Ad, Bd, Cd, Dd = geo.bilinear(gen, ts)
+    # plant discretised exactly with inputs [u, f1, f2] held (zero-order hold)
+    E_all = np.hstack([B, L1, L2])
+    Ap, Bp, *_ = scipy.signal.cont2discrete((A, E_all, C, np.zeros((3, 4))), ts, method="zoh")
+    T = 3000
+    t = np.arange(T) * ts
+    u = np.column_stack([np.sin(0.7 * t), np.sign(np.sin(0.3 * t))])
+    f2 = np.where(t > 5.0, 1.0 + 0.5 * np.sin(2.0 * t), 0.0)[:, None]
+    f1 = np.where(t > 20.0, 1.0, 0.0)[:, None]
+
+    def residual(f1_on: bool):
+        x = np.zeros(6); w = np.zeros(Ad.shape[0]); out = np.empty((T, Cd.shape[0]))
+        for k in range(T):
+            y = C @ x
+            inp = np.concatenate([u[k], y])
+            out[k] = Cd @ w + Dd @ inp
+            w = Ad @ w + Bd @ inp
+            x = Ap @ x + Bp @ np.concatenate([u[k], f1[k] if f1_on else [0.0], f2[k]])
+        return out
+
+    r = residual(False)
+    # f2 and u alone: the residual stays at the Tustin/ZOH mismatch of the known input u,
+    # O(ts²) relative, far below the f1 signature (a unit step gives |r| ~ |dc gain|)
+    r1 = residual(True)
+    dc = np.linalg.norm(geo.dc_gain(gen))
+    assert np.abs(r).max() < 1e-2 * dc
+    assert np.linalg.norm(r1[-1]) > 0.5 * dc
+
+
+def test_friend_refuses_a_subspace_that_is_not_conditioned_invariant():
+    # ⟨e2⟩ of example 1: A e2 = e1 − 2e2 leaves it, and C e2 = 0 gives no injection to fix it
+    with pytest.raises(geo.GeometricDesignError, match="not"):
+        geo.friend(A1, C1, E[:, [1]])
+
+
+def test_bilinear_matches_scipy():
+    A, B, C, L1, L2 = _random_plant(4)
+    gen = geo.design(A, B, C, L1, L2, decay=0.5, radius=30.0)
+    ref = scipy.signal.cont2discrete(gen.state_space(), 0.01, method="bilinear")[:4]
+    for mine, theirs in zip(geo.bilinear(gen, 0.01), ref):
+        assert np.allclose(mine, theirs, rtol=1e-12, atol=1e-14)
+
+
+def test_lmi_design_does_not_depend_on_what_was_solved_before():
+    # campaign workers solve designs in any order: the same data must give the same bits
+    A, B, C, L1, L2 = _random_plant(5)
+    gen = geo.design(A, B, C, L1, L2, decay=0.5, radius=30.0)
+    geo._LMI_CACHE.clear()
+    first = geo.injection_lmi(gen.A_hat, gen.M, 0.5, 30.0)
+    other = geo.design(*_random_plant(6), decay=0.5, radius=30.0)
+    geo.injection_lmi(other.A_hat, other.M, 0.5, 30.0)
+    assert np.array_equal(first, geo.injection_lmi(gen.A_hat, gen.M, 0.5, 30.0))
