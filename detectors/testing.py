@@ -55,46 +55,49 @@ def _batch(surface: str, duration_s: float, aircraft: bool = False) -> tuple:
 AIRCRAFT_SURFACE = "left_inboard_aileron"
 
 
-@functools.lru_cache(maxsize=2)
-def _aircraft_batch(surface: str, duration_s: float) -> tuple:
-    """Learning and evaluation signals at the aircraft plant level (monitored *surface*)."""
+#: Manoeuvres of the fault-free learning runs of the conformance batches.
+LEARNING_MANOEUVRES = ("cruise", "nose_up", "turn_coordination")
+
+#: Evaluation runs: (manoeuvre, fault, keywords of single_run).
+ACTUATOR_CASES = (
+    ("cruise", "none", {"vcas_kt": 220.0}),
+    ("nose_up", "runaway", {"onset_s": 8.0}),
+    ("aoa_protection", "solid_jam", {"onset_s": 6.0, "alt_ft": 18000.0}),
+    ("cruise", "liquid_jam", {"onset_s": 9.0}),
+)
+AIRCRAFT_CASES = (
+    ("cruise", "none", {"vcas_kt": 220.0}),
+    ("yaw_angle_mode", "none", {}),
+    ("cruise", "disconnection", {"onset_s": 8.0, "alt_ft": 18000.0}),
+    ("aoa_protection", "solid_jam", {"onset_s": 6.0}),
+)
+
+
+def _signals_of(surface: str, duration_s: float, cases, plant: str) -> tuple:
+    """Learning and evaluation signals: fault-free learning runs of
+    :data:`LEARNING_MANOEUVRES` (seed 11), evaluation runs of *cases* (seed 12)."""
     from scenarios.simulate import simulate, single_run
 
     learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
                        .assign(stream=j, run_id=f"learn-{j}")
-                       for j, m in enumerate(["cruise", "nose_up", "turn_coordination"])],
-                      ignore_index=True)
-    evaluation = pd.concat([
-        single_run(surface, "cruise", "none", seed=12, duration_s=duration_s, vcas_kt=220.0),
-        single_run(surface, "yaw_angle_mode", "none", seed=12, duration_s=duration_s),
-        single_run(surface, "cruise", "disconnection", seed=12, onset_s=8.0,
-                   duration_s=duration_s, alt_ft=18000.0),
-        single_run(surface, "aoa_protection", "solid_jam", seed=12, onset_s=6.0,
-                   duration_s=duration_s),
-    ], ignore_index=True)
+                       for j, m in enumerate(LEARNING_MANOEUVRES)], ignore_index=True)
+    evaluation = pd.concat([single_run(surface, m, fault, seed=12, duration_s=duration_s, **kw)
+                            for m, fault, kw in cases], ignore_index=True)
     evaluation["stream"] = np.arange(len(evaluation))
     evaluation["run_id"] = [f"eval-{j}" for j in range(len(evaluation))]
-    return simulate(learn, plant="aircraft")[0], simulate(evaluation, plant="aircraft")[0]
+    return simulate(learn, plant=plant)[0], simulate(evaluation, plant=plant)[0]
+
+
+@functools.lru_cache(maxsize=2)
+def _aircraft_batch(surface: str, duration_s: float) -> tuple:
+    """Learning and evaluation signals at the aircraft plant level (monitored *surface*)."""
+    return _signals_of(surface, duration_s, AIRCRAFT_CASES, "aircraft")
 
 
 @functools.lru_cache(maxsize=4)
 def _simulated_batch(surface: str, duration_s: float) -> tuple:
-    from scenarios.simulate import simulate, single_run
-
-    learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
-                       .assign(stream=j, run_id=f"learn-{j}")
-                       for j, m in enumerate(["cruise", "nose_up", "turn_coordination"])],
-                      ignore_index=True)
-    evaluation = pd.concat([
-        single_run(surface, "cruise", "none", seed=12, duration_s=duration_s, vcas_kt=220.0),
-        single_run(surface, "nose_up", "runaway", seed=12, onset_s=8.0, duration_s=duration_s),
-        single_run(surface, "aoa_protection", "solid_jam", seed=12, onset_s=6.0,
-                   duration_s=duration_s, alt_ft=18000.0),
-        single_run(surface, "cruise", "liquid_jam", seed=12, onset_s=9.0, duration_s=duration_s),
-    ], ignore_index=True)
-    evaluation["stream"] = np.arange(len(evaluation))
-    evaluation["run_id"] = [f"eval-{j}" for j in range(len(evaluation))]
-    return simulate(learn)[0], simulate(evaluation)[0]
+    """Learning and evaluation signals at the actuator level."""
+    return _signals_of(surface, duration_s, ACTUATOR_CASES, "actuator")
 
 
 def _variants(det, signals) -> dict[str, Detection]:

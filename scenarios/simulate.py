@@ -199,6 +199,19 @@ def _sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = Tru
     )
 
 
+def flight_of(f: dict) -> tuple[dict, dict]:
+    """The true flight condition of each run (Mach, q̄, TAS, trimmed α …) and the scheduling
+    data a detector sees (measured/estimated, [CHEN] Table 2), from the run columns *f*
+    (float arrays: alt_ft, vcas_kt, mass_t, cg_pct and the d_* deviations)."""
+    flight = envelope.flight_condition(f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"])
+    flight_true = {"alt_ft": f["alt_ft"], "vcas_kt": f["vcas_kt"], "mass_t": f["mass_t"],
+                   "cg_pct": f["cg_pct"], **{k: np.asarray(v, float) for k, v in flight.items()}}
+    schedule = envelope.measured_schedule(
+        f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"],
+        f["d_alt"], f["d_vcas"], f["d_mass"], f["d_cg"])
+    return flight_true, schedule
+
+
 def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
             actuators: dict | None = None, orders_deg: np.ndarray | None = None,
             pressure_sensor: bool = True) -> Prepared:
@@ -216,12 +229,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     col = {c: runs[c].to_numpy() for c in RUN_COLUMNS}
     f = {c: np.asarray(col[c], dtype=float) for c in RUN_RANGES}
 
-    flight = envelope.flight_condition(f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"])
-    flight_true = {"alt_ft": f["alt_ft"], "vcas_kt": f["vcas_kt"], "mass_t": f["mass_t"],
-                   "cg_pct": f["cg_pct"], **{k: np.asarray(v, float) for k, v in flight.items()}}
-    schedule = envelope.measured_schedule(
-        f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"],
-        f["d_alt"], f["d_vcas"], f["d_mass"], f["d_cg"])
+    flight_true, schedule = flight_of(f)
     plant = plant_arrays(act, qbar_pa=flight_true["qbar_pa"], alpha_deg=flight_true["alpha_deg"],
                          mach=flight_true["mach"], d_aero=f["d_aero"], d_hinge=f["d_hinge"],
                          d_supply=f["d_supply"], d_kci=f["d_kci"])
@@ -478,6 +486,13 @@ def single_run(surface: str = "elevator", manoeuvre: str = "cruise", fault: str 
         raise ValueError(f"unknown run field(s) {unknown}; allowed: "
                          f"{sorted(DEFAULT_POINT) + [c for c in RUN_COLUMNS if c.startswith('d_')]}")
     act = ACTUATORS.get(surface)
+    if act is None:                       # an aircraft surface: its own actuator table
+        from .aircraft.data import AIRCRAFT_SURFACES
+
+        if surface in AIRCRAFT_SURFACES:
+            from .aircraft.loop import surface_actuator
+
+            act = surface_actuator(surface)
     row = {
         "run_id": f"{surface}-{manoeuvre}-{fault}-{seed}", "surface": surface,
         "manoeuvre": manoeuvre, "fault": fault,

@@ -256,3 +256,14 @@ def test_aircraft_step_matches_a_tight_reference_integration(surface, fault, man
                     max_step=ts)
     err = np.degrees(np.abs(sol.y - tr.states[:, 0, :])).max(axis=1)
     assert err.max() < 0.002, dict(zip(lpv.STATES, err))
+
+
+def test_single_run_of_an_aircraft_surface_gets_its_actuators_default_fault_magnitude():
+    from scenarios.faults import default_magnitude
+    from scenarios.params import ACTUATORS
+    from scenarios.simulate import single_run
+
+    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel, PHYSICS §5)
+    row = single_run("left_inboard_aileron", "cruise", "liquid_jam")
+    assert row["magnitude"].iloc[0] == default_magnitude("liquid_jam", ACTUATORS["aileron"])
+    assert np.isfinite(single_run("rudder", "cruise", "runaway")["magnitude"].iloc[0])

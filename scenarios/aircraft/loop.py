@@ -35,7 +35,6 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pandas as pd
 
-from .. import envelope
 from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays
 from ..manoeuvres import elevator_trim_deg
@@ -124,7 +123,8 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
                      law_params: laws.LawParams = laws.LAWS) -> AircraftPrepared:
     """Validate *runs* and compute every open-loop input of the batch (*turbulence* None:
     calm air)."""
-    from ..simulate import _sensor_draws, run_streams, validate_runs, RUN_COLUMNS, RUN_RANGES
+    from ..simulate import (RUN_COLUMNS, RUN_RANGES, _sensor_draws, flight_of, run_streams,
+                            validate_runs)
 
     validate_runs(runs, surfaces=AIRCRAFT_SURFACES)
     n = len(runs)
@@ -135,12 +135,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
     acts = tuple(AIRCRAFT_ACTUATORS[k] for k in LAYOUT.actuator)
     act_m = acts[m_idx]
 
-    flight = envelope.flight_condition(f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"])
-    flight_true = {"alt_ft": f["alt_ft"], "vcas_kt": f["vcas_kt"], "mass_t": f["mass_t"],
-                   "cg_pct": f["cg_pct"], **{k: np.asarray(v, float) for k, v in flight.items()}}
-    schedule = envelope.measured_schedule(
-        f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"],
-        f["d_alt"], f["d_vcas"], f["d_mass"], f["d_cg"])
+    flight_true, schedule = flight_of(f)
     plants = [plant_arrays(a, qbar_pa=flight_true["qbar_pa"], alpha_deg=flight_true["alpha_deg"],
                            mach=flight_true["mach"], d_aero=f["d_aero"], d_hinge=f["d_hinge"],
                            d_supply=f["d_supply"], d_kci=f["d_kci"]) for a in acts]
