@@ -27,7 +27,6 @@ def test_dask_not_installed_is_named_with_the_extra_to_install(tmp_path, capsys,
 
 
 def test_an_unreachable_scheduler_fails_within_the_connect_timeout():
-    pytest.importorskip("distributed")
     with socket.socket() as s:                    # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]

@@ -15,9 +15,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-pytest.importorskip("distributed")
+import distributed  # noqa: F401  (the [dask] extra, part of the [test] extra)
 
-from campaign import run  # noqa: E402
+from campaign import run
 from campaign.cli import main  # noqa: E402
 from campaign.config import CampaignConfig, load_config  # noqa: E402
 from campaign.design import build_plan  # noqa: E402
