@@ -3,14 +3,13 @@ reference (detectors/interval_detector.py, detectors/chen_estimator.py)."""
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from detectors.registry import make_detector
-from scenarios import kernels, servo
+from scenarios import kernels
 from scenarios.catalog import MANOEUVRES
 from scenarios.simulate import simulate, single_run
 
@@ -33,20 +32,6 @@ def batch():
     learn["stream"] = np.arange(len(learn))
     learn["run_id"] = [f"l{i}" for i in range(len(learn))]
     return simulate(learn)[0], simulate(ev)[0]
-
-
-@pytest.fixture
-def libm_numpy(monkeypatch):
-    """The NumPy reference with arcsin and cos from the C library, as the kernels use (see
-    tests/test_kernels.py: NumPy's own SIMD routines may differ in the last bit)."""
-    class LibmNumpy:
-        def __getattr__(self, name):
-            return getattr(np, name)
-
-        arcsin = staticmethod(np.vectorize(math.asin, otypes=[float]))
-        cos = staticmethod(np.vectorize(math.cos, otypes=[float]))
-
-    monkeypatch.setattr(servo, "np", LibmNumpy())
 
 
 def _both(det, call):

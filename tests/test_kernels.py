@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pandas as pd
@@ -10,7 +9,7 @@ import pytest
 
 from campaign.bench import bench_runs
 from detectors.position_monitor import PositionMonitor
-from scenarios import kernels, servo
+from scenarios import kernels
 from scenarios import simulate as sim
 from scenarios.params import SENSORS
 from scenarios.simulate import prepare, simulate, single_run
@@ -32,21 +31,11 @@ def every_fault_batch() -> pd.DataFrame:
 
 
 @pytest.fixture
-def libm_numpy(monkeypatch):
-    """The NumPy reference with arcsin and cos from the C library, as the kernels use.
+def libm_numpy(libm_numpy, monkeypatch):
+    """The conftest fixture (scenarios.servo on the C library's arcsin/cos), and the time loop
+    of scenarios.simulate too."""
+    from conftest import LibmNumpy
 
-    NumPy evaluates arcsin/cos with its own SIMD routines on CPUs that have them (here: x86
-    AVX-512), which differ from the C library in the last bit for some arguments; with the
-    same library functions the arithmetic of both implementations is the same, operation
-    for operation, so the results must be bit-identical."""
-    class LibmNumpy:
-        def __getattr__(self, name):
-            return getattr(np, name)
-
-        arcsin = staticmethod(np.vectorize(math.asin, otypes=[float]))
-        cos = staticmethod(np.vectorize(math.cos, otypes=[float]))
-
-    monkeypatch.setattr(servo, "np", LibmNumpy())
     monkeypatch.setattr(sim, "np", LibmNumpy())
 
 
