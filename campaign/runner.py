@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from detectors import as_variants, make_detector
+from detectors.registry import load_detector_class
 from reports.metrics import RESULT_COLUMNS, score_runs
 from reports.summary import summarize
 from reports.table import format_table
@@ -363,7 +364,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     resumed = cdir.open(config.to_json())
     chunk_size = int(chunk_size or config.runner.chunk_size)
     if settings.engine == "compiled":
-        build_detectors(config)   # imports the detectors' modules, which register kernels
+        for spec in config.detectors:   # import their modules: they register their kernels
+            load_detector_class(spec.name)
         kernels.warm_up(log)
     pool = None
     if client is None and jobs > 1:
