@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from . import table
 from .gate import GateResult
 from .metrics import FAULT_FREE, clopper_pearson
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
@@ -69,15 +70,11 @@ def _e(x) -> str:
 
 
 def _num(x, fmt: str = ".3g") -> str:
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return "–"
-    return "–" if not math.isfinite(x) else format(x, fmt)
+    return table._num(x, fmt, missing="–")
 
 
 def _pct(x) -> str:
-    return _num(100.0 * float(x) if x is not None else float("nan"), ".2f")
+    return table._pct(x, missing="–")
 
 
 def _ci(k, n) -> str:

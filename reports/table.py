@@ -17,16 +17,18 @@ from .summary import ALL_FAULTS, ALL_MANOEUVRES
 __all__ = ["format_table"]
 
 
-def _num(x, fmt: str) -> str:
+def _num(x, fmt: str, missing: str = "-") -> str:
+    """*x* formatted with *fmt*, or *missing* for None, NaN, inf or a non-number."""
     try:
         x = float(x)
     except (TypeError, ValueError):
-        return "-"
-    return "-" if not math.isfinite(x) else format(x, fmt)
+        return missing
+    return missing if not math.isfinite(x) else format(x, fmt)
 
 
-def _pct(x) -> str:
-    return _num(100 * x if x is not None else None, ".2f")
+def _pct(x, missing: str = "-") -> str:
+    """A rate in [0, 1] as a percentage with two decimals."""
+    return _num(100 * x if x is not None else None, ".2f", missing)
 
 
 def _dtp(row) -> str:
