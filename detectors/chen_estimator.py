@@ -1,40 +1,46 @@
 """The LPV H−/H∞ fault estimator of [CHEN] at the local actuator level: liquid and solid
 jamming of a control-surface servo-loop (``chen-local``).
 
-Model ([CHEN] eq. 24): the quasi-LPV actuator model of eq. 12–14
-(:mod:`detectors.chen_local_model`, identified on the nonlinear servo-loop over the
-envelope) with an additive rod-sensor fault::
+Model ([CHEN] eq. 24): the quasi-LPV actuator model of eq. 12–14 with the current limit
+and the damping neighbour of eq. 11 (:mod:`detectors.chen_local_model`, identified on the
+nonlinear servo-loop over the envelope) with an additive rod-sensor fault::
 
-    ẋ = −K(ρ̃)·x + K(ρ̃)·u + δ_l,    y = x + f_jam,    ρ̃ = [ρ, x, sign ẋ]
+    ẋ = −K̃(ρ̃)·x + K̃(ρ̃)·u + δ_l,    y = x + f_jam,    K̃ = K·σ·D,    ρ̃ = [ρ, x, sign ẋ, u − x]
 
-In the form of eq. 15: A = −K, B = K, C = 1, D = 0, F = 0, H = 1 (+ ε of Remark 4.1),
-M = 1 (δ_l enters the rod speed [mm/s]), N = 0. A is affine in the scalar K, so the
-scheduling polytope of eq. 8 is the interval [K_min, K_max] that bounds K over the
-envelope (r = 2 vertices): K is evaluated on a dense grid — every realistic point of the
+In the form of eq. 15: A = −K̃, B = K̃, C = 1, D = 0, F = 0, H = 1 (+ ε of Remark 4.1),
+M = 1 (δ_l enters the rod speed [mm/s]), N = 0. A is affine in the scalar K̃, so the
+scheduling polytope of eq. 8 is the interval [K_min·σ_min·D_min, K_max] that bounds K̃ over
+the envelope (r = 2 vertices; σ_min = e_sat over the order range, D_min at the saturated
+no-load speed): K is evaluated on a dense grid — every realistic point of the
 [CHEN] Table-1 grid seen through every corner of the Table-2 measurement errors (widened by
 ``schedule_margin``), × rod positions across that point's authority, × both directions of
 motion — and the extremes are widened by :data:`NUMERICS`.polytope_margin (K is not
 multi-affine in ρ: C1·C2 is quadratic, hence the grid). Online, ρ is clipped to the box of
-that grid and K to [K_min, K_max], so the estimator never leaves the certified polytope.
+that grid, K to [K_min, K_max] and K̃ to the polytope, so the estimator never leaves it.
 
 Estimator ([CHEN] eq. 16, gains eq. 20–21, LMIs eq. 23 solved by
 :func:`detectors.lpv_synthesis.synthesise`): with one rod measurement and one fault, H⊥ is
 empty, so L1(ρ) = −F·H† = 0 and L2 = H† = 1/(1 + ε): the design freedom Z1, Z2 vanishes
 and the LMIs certify the estimator's stability at the vertices and give γ, the H∞ bound from
-δ_l [mm/s] to the estimation error [mm] (γ = 1/K_min [s] for ε = 0). The estimator runs the
-model on the order and schedules it on its own state x̂ (sign ẋ = sign(u − x̂), eq. 14),
-discretised at Ts with K frozen over a period by the bilinear transform of the model
+δ_l [mm/s] to the estimation error [mm] (γ = 1/K̃_min [s] for ε = 0). The estimator runs
+the model on the order and schedules it on its own state x̂ (sign ẋ = sign(u − x̂), eq. 14,
+and σ, D on u − x̂), discretised at Ts with K̃ frozen over a period by the bilinear transform of the model
 (:func:`detectors.chen_local_model.tustin_pole`; stable for every point of the polytope)::
 
-    x̂_{k+1} = x̂*_k + (x̂_k − x̂*_k)·φ(K_k − L1),   x̂*_k = (K_k·u_{k−d} − L1·y_k)/(K_k − L1),
+    x̂_{k+1} = x̂*_k + (x̂_k − x̂*_k)·φ(K̃_k − L1),   x̂*_k = (K̃_k·u_{k−d} − L1·y_k)/(K̃_k − L1),
     f̂_k = L2·(y_k − x̂_k),
 
-with K_k held inside the polytope [K_min, K_max] (scheduling data projected onto it).
+with K̃_k held inside the polytope (scheduling data projected onto it).
 
 Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free learning set:
 
-* ``solid``: |f̂| against τ_sol = ``safety``·max |f̂| (a seized rod leaves y frozen while
-  the model follows the order), confirmed over ``solid_confirm_s``;
+* ``solid``: a seized rod leaves y frozen while the model follows the order, so |f̂| grows
+  and stays. The statistic is the least |f̂| over the last ``solid_confirm_s`` (the alarm
+  needs |f̂| beyond the threshold over the whole window), and the threshold is learned on
+  that same statistic: τ_sol = ``safety``·max over the learning set. Fault-free model
+  mismatch comes in transients shorter than the window (a loaded roll-in lasts about a
+  second), which the least value over the window ignores; learning τ on the raw |f̂| would
+  let the largest of those transients set the threshold;
 * ``liquid``: f̂ through the post-filter T(s) = (s + 1)/(s + 5) of §6.2 (it keeps the
   amplitude of the fast estimate, which the servo-loop makes transient: the loop re-centres
   the biased acquisition on the order, so f̂ appears and disappears as in [CHEN] Fig. 9c,
@@ -63,7 +69,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from . import chen_local_model as lm
-from .base import Capabilities, Detection, Detector, confirm
+from .base import Capabilities, Detection, Detector
 
 #: Measurements the estimator can use as the rod sensor output y of [CHEN] eq. 24.
 SENSORS = ("rod_com", "rod_mon")
@@ -110,12 +116,13 @@ def discrete_post_filter(ts: float, pf: PostFilter = POST_FILTER) -> tuple[np.nd
 
 
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
-def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ts, f_out):
+def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ke_lo, ke_hi,
+                    e_sat, kappa, ts, f_out):
     """The estimator recursion of :meth:`ChenLocalEstimator.estimate`, compiled ([CHEN]
-    eq. 13–14 and 16 with the bilinear step of
-    :func:`detectors.chen_local_model.tustin_pole`), in the NumPy reference's order of
-    operations. *u*, *y* (n, T) [mm]; *c0*, *c1*, *c2* (n,) model coefficients; writes
-    f̂ [mm] into *f_out* (n, T)."""
+    eq. 13–14 and 16 with the current saturation, the damping factor and the bilinear step
+    of :mod:`detectors.chen_local_model`), in the NumPy reference's order of operations.
+    *u*, *y* (n, T) [mm]; *c0*, *c1*, *c2* (n,) model coefficients; writes f̂ [mm] into
+    *f_out* (n, T)."""
     n, T = u.shape
     half_ts = 0.5 * ts
     xh_run = np.empty(n)
@@ -134,6 +141,12 @@ def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ts,
             s = 1.0 if d > 0.0 else (-1.0 if d < 0.0 else d)         # np.sign
             K = c0[r] + c1[r] * s * (xs + c2[r])                     # [CHEN] eq. 13–14
             K = min(max(K, k_lo), k_hi)                              # inside the polytope
+            ad = abs(d)
+            sig = e_sat / ad if ad > e_sat else 1.0                  # current saturation
+            w = sig * d
+            v0 = c0[r] * w
+            K = K * sig * (1.0 / np.sqrt(1.0 + kappa * v0 * v0))     # damping neighbour
+            K = min(max(K, ke_lo), ke_hi)
             a = K - L1
             target = (K * v - L1 * yk) / a
             xh_run[r] = target + (xh - target) * ((1.0 - half_ts * a) / (1.0 + half_ts * a))
@@ -142,8 +155,8 @@ def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ts,
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2, z1 = np.zeros((1, 2)), np.ones(1)
-    _estimate_block(z2, z2, z1, z1, z1, 0.0, 1.0, 1, -1.0, 1.0, 1.0, 2.0, 0.01,
-                    np.zeros((1, 2)))
+    _estimate_block(z2, z2, z1, z1, z1, 0.0, 1.0, 1, -1.0, 1.0, 1.0, 2.0, 0.5, 2.0, 1.0, 0.0,
+                    0.01, np.zeros((1, 2)))
 
 
 kernels.register_warmup(_warm_kernels, kernels=(_estimate_block,))
@@ -162,7 +175,8 @@ class ChenLocalEstimator(Detector):
     liquid_confirm_s : float
         Integrated time beyond τ_liq that raises the liquid alarm [s] (≥ 0; 0: first step).
     solid_confirm_s : float
-        Consecutive time beyond τ_sol that raises the solid alarm [s] (≥ 0).
+        Window of the solid statistic: time |f̂| must stay beyond τ_sol [s] (≥ 0; 0: one
+        step).
     schedule_margin : float
         Relative widening of the [CHEN] Table-2 measurement-error widths (±10 % VCAS, h,
         m, Xcg) over which the polytope of eq. 8 is computed (0.25: errors up to ±12.5 %);
@@ -171,13 +185,18 @@ class ChenLocalEstimator(Detector):
         ε of [CHEN] Remark 4.1: H = 1 + ε (H already has full column rank here; ≥ 0).
     floor_mm : float
         Smallest threshold [mm] (> 0).
+    post_filter_zero_rad_s, post_filter_pole_rad_s : float
+        Zero z and pole p of the liquid-jam post-filter T(s) = (s + z)/(s + p) [rad/s]
+        (0 < z < p); default [CHEN] §6.2's (s + 1)/(s + 5). T keeps the high-frequency gain
+        1 (a jam's estimate is a step) and divides slow model mismatch by p/z.
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
 
     def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
-                 solid_confirm_s=0.1, schedule_margin=0.25, h_perturbation=0.0,
-                 floor_mm=0.05):
+                 solid_confirm_s=1.0, schedule_margin=0.25, h_perturbation=0.0,
+                 floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
+                 post_filter_pole_rad_s=POST_FILTER.pole_rad_s):
         self.sensor = sensor
         self.safety = safety
         self.liquid_confirm_s = liquid_confirm_s
@@ -185,6 +204,8 @@ class ChenLocalEstimator(Detector):
         self.schedule_margin = schedule_margin
         self.h_perturbation = h_perturbation
         self.floor_mm = floor_mm
+        self.post_filter_zero_rad_s = post_filter_zero_rad_s
+        self.post_filter_pole_rad_s = post_filter_pole_rad_s
 
     # ---- parameters --------------------------------------------------------------------
     def validate_params(self) -> None:
@@ -199,6 +220,10 @@ class ChenLocalEstimator(Detector):
                 raise ValueError(f"{name} must be a number ≥ 0, got {v!r}")
         if not (_number(self.floor_mm) and self.floor_mm > 0.0):
             raise ValueError(f"floor_mm must be a number > 0 mm, got {self.floor_mm!r}")
+        z, p = self.post_filter_zero_rad_s, self.post_filter_pole_rad_s
+        if not (_number(z) and _number(p) and 0.0 < z < p):
+            raise ValueError("the post-filter needs 0 < post_filter_zero_rad_s < "
+                             f"post_filter_pole_rad_s, got zero {z!r}, pole {p!r}")
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -258,6 +283,12 @@ class ChenLocalEstimator(Detector):
         model = lm.fit_local_model(act, ts)
         lo, hi, K = self._polytope(model, act)
         k_min, k_max = float(K.min()), float(K.max())
+        # K·σ·D (module docstring of chen_local_model): σ ≥ e_sat / (largest order–rod
+        # error, the order range), D ≥ its value at the saturated no-load speed
+        th0 = np.asarray(model.theta, float).reshape(3, -1)[0]      # C0 affine in ρ: its
+        c0_max = float(th0[0] + np.maximum(th0[1:] * lo, th0[1:] * hi).sum())   # box max
+        sig_min = min(1.0, model.e_sat_mm / (act.u_max_mm - act.u_min_mm))
+        d_min = float(lm.damping_factor(c0_max * model.e_sat_mm, model.kappa))
         if not k_min > 0.0:
             raise ValueError(
                 f"the identified actuator model has K = {k_min:.3g} 1/s ≤ 0 inside the "
@@ -265,7 +296,7 @@ class ChenLocalEstimator(Detector):
                 "model of [CHEN] eq. 12 is not a stable first-order lag there; lower "
                 "schedule_margin")
         m = NUMERICS.polytope_margin
-        vertex_k = (k_min * (1.0 - m), k_max * (1.0 + m))
+        vertex_k = (k_min * sig_min * d_min * (1.0 - m), k_max * (1.0 + m))
         vertices = [VertexSystem.make(A=[[-k]], B=[[k]], C=[[1.0]], D=[[0.0]], F=[[0.0]],
                                       H=[[1.0]], M=[[1.0]], N=[[0.0]]) for k in vertex_k]
         design = synthesise(vertices, h_perturbation=float(self.h_perturbation))
@@ -273,7 +304,7 @@ class ChenLocalEstimator(Detector):
         L2 = float(design.L2[0, 0])
         # stability of the estimator: at the vertices and on the dense grid inside
         a_vertex = np.array([design.stability_margin(v) for v in design.vertices])
-        a_grid = -K + L1
+        a_grid = -np.concatenate([K.ravel(), K.ravel() * sig_min * d_min]) + L1
         phi_grid = np.abs(lm.tustin_pole(-a_grid, ts))
         if not (a_vertex.max() < 0.0 and a_grid.max() < 0.0 and phi_grid.max() < 1.0):
             raise ValueError(
@@ -299,11 +330,16 @@ class ChenLocalEstimator(Detector):
         self.delay_ = model.delay
         self.x_range_mm_ = (act.x_min_mm, act.x_max_mm)
         self.k_range_ = (k_min, k_max)
-        self.post_filter_ = discrete_post_filter(ts)
+        self.saturation_ = {"e_sat_mm": model.e_sat_mm, "kappa": model.kappa,
+                            "sigma_min": sig_min, "damping_min": d_min}
+        self.post_filter_ = discrete_post_filter(ts, PostFilter(
+            zero_rad_s=float(self.post_filter_zero_rad_s),
+            pole_rad_s=float(self.post_filter_pole_rad_s)))
         f_hat, g = self._residuals(signals)
         self.thresholds_ = {
             "liquid": max(float(self.safety) * float(np.max(np.abs(g))), float(self.floor_mm)),
-            "solid": max(float(self.safety) * float(np.max(np.abs(f_hat))), float(self.floor_mm)),
+            "solid": max(float(self.safety) * float(np.max(self._solid_statistic(f_hat, ts))),
+                         float(self.floor_mm)),
         }
         self.learning_runs_ = int(signals.n_runs)
 
@@ -321,7 +357,10 @@ class ChenLocalEstimator(Detector):
         L1, L2 = self.design_["L1"], self.design_["L2"]
         d = int(self.delay_)
         x_lo, x_hi = self.x_range_mm_
-        k_lo, k_hi = self.design_["vertex_K"]
+        k_lo, k_hi = self.k_range_
+        ke_lo, ke_hi = self.design_["vertex_K"]
+        sat = self.saturation_
+        e_sat, kappa = float(sat["e_sat_mm"]), float(sat["kappa"])
         ts = float(signals.ts)
         f_hat = np.empty((n, T))
         if kernels.current_engine() == "compiled":
@@ -330,19 +369,34 @@ class ChenLocalEstimator(Detector):
 
             _estimate_block(np.ascontiguousarray(u), np.ascontiguousarray(y), flat(c0),
                             flat(c1), flat(c2), float(L1), float(L2), d, float(x_lo),
-                            float(x_hi), float(k_lo), float(k_hi), ts, f_hat)
+                            float(x_hi), float(k_lo), float(k_hi), float(ke_lo), float(ke_hi),
+                            e_sat, kappa, ts, f_hat)
             return f_hat
         xh = y[:, 0].copy()
         for k in range(T):
             f_hat[:, k] = L2 * (y[:, k] - xh)
             v = u[:, max(k - d, 0)]
             xs = np.clip(xh, x_lo, x_hi)
-            K = c0 + c1 * np.sign(v - xh) * (xs + c2)      # [CHEN] eq. 13–14
+            e = v - xh
+            K = lm.gain(c0, c1, c2, xs, np.sign(e))        # [CHEN] eq. 13–14
             K = np.clip(K, k_lo, k_hi)                     # inside the polytope (eq. 8)
+            sig = lm.saturation_factor(e, e_sat)
+            K = K * sig * lm.damping_factor(c0 * (sig * e), kappa)
+            K = np.clip(K, ke_lo, ke_hi)
             a = K - L1
             target = (K * v - L1 * y[:, k]) / a
             xh = target + (xh - target) * lm.tustin_pole(a, ts)
         return f_hat
+
+    def _solid_statistic(self, f_hat: np.ndarray, ts: float) -> np.ndarray:
+        """Least |f̂| [mm] over the last ``solid_confirm_s`` at each step (causal; 0 until a
+        full window exists)."""
+        from scipy.ndimage import minimum_filter1d
+
+        n = max(int(round(float(self.solid_confirm_s) / ts)), 1)
+        # the window [k − n + 1, k]: origin (n − 1)//2 shifts the centred window left
+        return minimum_filter1d(np.abs(f_hat), n, axis=1, mode="constant", cval=0.0,
+                                origin=(n - 1) // 2)
 
     def _residuals(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
         from scipy.signal import lfilter
@@ -355,12 +409,11 @@ class ChenLocalEstimator(Detector):
         f_hat, g = self._residuals(signals)
         ts = float(signals.ts)
         norm_liq = np.abs(g) / self.thresholds_["liquid"]
-        norm_sol = np.abs(f_hat) / self.thresholds_["solid"]
+        norm_sol = self._solid_statistic(f_hat, ts) / self.thresholds_["solid"]
         # liquid: integrator of the time beyond the threshold (never reset, §6.2)
         held = np.cumsum(norm_liq > 1.0, axis=1) * ts
         need = max(float(self.liquid_confirm_s), ts)
         alarm_liq = held >= need - 0.5 * ts
-        n_sol = max(int(round(float(self.solid_confirm_s) / ts)), 1)
-        alarm_sol = confirm(norm_sol > 1.0, n_sol)
+        alarm_sol = norm_sol > 1.0        # beyond τ_sol over the whole window
         return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq),
                 "solid": Detection(alarm=alarm_sol, residual=norm_sol)}

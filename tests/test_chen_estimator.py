@@ -48,19 +48,44 @@ def fitted():
 
 
 def test_local_model_fit_error_is_reported_and_bounded(fitted):
-    # Output-error RMS over the identification runs (53 realistic points, rate-limited moves
-    # across each point's authority). Measured 0.068 mm (max 0.30 mm) on the elevator. It is
-    # above the rod-sensor noise σ = 0.03 mm because eq. 13 is a first-order law, affine in
-    # x: it cannot follow the square-root hinge-load law near the authority limits (60 % of
-    # the stall force) nor the second mode the FCC transport delay adds to the loop. Bound:
-    # 0.08 mm (≈ 0.1 % of the 80 mm rod range, ≈ 2 % of the ~4 mm tracking lag of a 25 °/s
-    # move), and the output-error fit must improve on the linearised physical coefficients.
+    # Output-error RMS over the identification runs (53 realistic points; slow moves across
+    # each point's authority, then moves fast enough to saturate the current). Measured
+    # 0.128 mm (max 0.92 mm) on the elevator, above the rod-sensor noise σ = 0.03 mm: eq. 13
+    # is a first-order law affine in x, which follows neither the square-root hinge-load law
+    # near the authority limits (60 % of the stall force) nor the second mode the FCC
+    # transport delay adds to the loop. Bounds: 0.15 mm RMS (≈ 0.2 % of the 80 mm rod range)
+    # and 1.2 mm at worst (the start of a saturated move), and the output-error fit must
+    # improve on the linearised physical coefficients (0.26 mm).
     model = fitted.model_
     assert fitted.model_rms_mm_ == model["rms_mm"]
-    assert model["rms_mm"] < 0.08
-    assert model["max_abs_mm"] < 0.4
+    assert model["rms_mm"] < 0.15
+    assert model["max_abs_mm"] < 1.2
     assert model["rms_mm"] < 0.6 * model["rms_initial_mm"]
     assert model["n_points"] == 53
+
+
+def test_current_saturation_and_damping_terms_follow_fast_moves(fitted):
+    # The identification runs' steps where the order is farther from the rod than e_sat =
+    # i_max/K_s (6.7 mm for the elevator): the rod moves at the saturated rate. Measured
+    # output-error RMS on those steps: 0.38 mm with σ and D, 1.6 mm without the damping
+    # neighbour D, 8.9 mm without the saturation σ (the model then runs ahead of the rod by
+    # up to 30 mm). Bounds at about 1.5× the measured values, and an order of magnitude
+    # between them, so dropping either term fails.
+    schedule, u, x = lm.identification_runs(ELEVATOR, 0.01)
+    rho = lm.scheduling_vector(schedule)
+    sat = np.abs(u - x) > lm.saturation_mm(ELEVATOR)
+    assert 0.01 < sat.mean() < 0.05               # a few per cent of the steps saturate
+    theta, d = fitted.theta_, fitted.delay_
+    e_sat, kappa = lm.saturation_mm(ELEVATOR), lm.damping_coefficient(ELEVATOR)
+
+    def rms_saturated(**kw):
+        xm = lm.simulate_model(theta, rho, u, 0.01, x[:, 0], d, **kw)
+        return float(np.sqrt(np.mean((xm - x)[sat] ** 2)))
+
+    full = rms_saturated(e_sat=e_sat, kappa=kappa)
+    assert full < 0.6
+    assert rms_saturated(e_sat=e_sat) > 1.0          # no damping neighbour
+    assert rms_saturated(kappa=kappa) > 5.0          # no current saturation
 
 
 def test_gains_satisfy_eq_20_21_at_every_vertex(fitted):
@@ -104,11 +129,12 @@ def test_fault_estimate_converges_to_a_constant_fault_on_the_model(fitted):
     sig, _ = simulate(_rows([("nose_up", "none", 0.0, 0, 0.0)], seed=3))
     lo, hi = fitted.schedule_box_
     rho = np.clip(lm.scheduling_vector(sig.schedule), lo, hi)
+    sat = fitted.saturation_
     x = lm.simulate_model(fitted.theta_, rho, sig.command, sig.ts, sig.command[:, 0],
-                          fitted.delay_)
+                          fitted.delay_, e_sat=sat["e_sat_mm"], kappa=sat["kappa"])
     k0 = int(10.0 / sig.ts)
     f = np.where(np.arange(sig.n_steps) >= k0, 0.8, 0.0)[None, :]
-    # the K of eq. 13 stays inside the polytope here, so the estimator runs the same model
+    # K of eq. 13 and K·σ·D stay inside the polytope here: the estimator runs this model
     f_hat = fitted.estimate(dataclasses.replace(sig, rod_com=x + f))
     np.testing.assert_allclose(f_hat[:, k0:], 0.8, atol=1e-9)
     np.testing.assert_allclose(f_hat[:, :k0], 0.0, atol=1e-9)
