@@ -101,7 +101,7 @@ def test_zero_state_is_an_equilibrium():
 def test_pilot_inputs_of_the_manoeuvres():
     """The six manoeuvres as stick/pedal inputs: cruise none; the turn's roll-rate order
     integrates to its bank angle then back to wings level (to 1e-6 rad: the smoothed edges
-    keep each pulse's area), at the 15 °/s of PHYSICS §7; pulls/pushes within their drawn
+    keep each pulse's area), at the roll rate of the pilot table; pulls/pushes within their drawn
     ranges; inputs end before the record does."""
     from scenarios.aircraft.data import PILOT
     from scenarios.aircraft.pilot import pilot_inputs
@@ -114,7 +114,8 @@ def test_pilot_inputs_of_the_manoeuvres():
     bank = np.cumsum(p) * 0.01
     want = np.radians(PILOT.turn_bank_deg[0] + 0.7 * np.ptp(PILOT.turn_bank_deg))
     assert abs(bank).max() == pytest.approx(want, abs=1e-3)
-    assert abs(bank[-1]) < 1e-6 and np.degrees(abs(p).max()) == pytest.approx(15.0)
+    assert abs(bank[-1]) < 1e-6
+    assert np.degrees(abs(p).max()) == pytest.approx(PILOT.turn_rate_deg_s)
     nz, _, _ = pilot_inputs("pitch_protection", t, u)
     assert PILOT.pitch_g[0] <= nz.max() <= PILOT.pitch_g[1]
     assert -PILOT.pitch_g[1] <= nz.min() <= -PILOT.pitch_g[0]

@@ -236,10 +236,18 @@ class PilotParams:
     yaw_beta_deg: tuple[float, float] = param("deg", "est. (PHYSICS §7 yaw_angle_mode)",
                                               "pedal sideslip order")
     yaw_hold_s: tuple[float, float] = param("s", "PHYSICS §7", "time held")
-    turn_rate_deg_s: float = param("deg/s", "PHYSICS §7 (15 °/s)", "roll-rate order")
+    turn_rate_deg_s: float = param(
+        "deg/s", "est. (airline and autopilot roll-in rates are 3–8 °/s; PHYSICS §7's 15 °/s "
+        "is the normal law's full-stick rate: with it, at the low-q̄ corner of the envelope "
+        "the law drives the ailerons to their authority limits and saturates the servo-valve "
+        "current in every turn, against PHYSICS §7's ±5–10° aileron transients)",
+        "roll-rate order")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the turn")
-    smooth_s: float = param("s", "est.", "rise time of every stick/pedal input")
+    smooth_s: float = param("s", "est.", "rise time of every stick/pedal input but the turn's")
+    turn_smooth_s: float = param("s", "est. (a gentle roll-in: no servo-valve current "
+                                 "saturation in the turns of the realistic envelope)",
+                                 "rise and fall time of the turn's roll-rate order")
 
 
 PILOT = PilotParams(
@@ -248,8 +256,8 @@ PILOT = PilotParams(
     aoa_g=(0.2, 0.35), aoa_ramp_s=(2.0, 4.0), aoa_hold_s=(2.0, 5.0),
     pitch_g=(0.3, 0.45), pitch_hold_s=(1.0, 2.0), pitch_gap_s=2.0,
     yaw_beta_deg=(2.0, 4.0), yaw_hold_s=(5.0, 10.0),
-    turn_rate_deg_s=15.0, turn_bank_deg=(25.0, 33.0), turn_hold_s=(4.0, 7.0),
-    smooth_s=0.5,
+    turn_rate_deg_s=7.5, turn_bank_deg=(25.0, 33.0), turn_hold_s=(4.0, 7.0),
+    smooth_s=0.5, turn_smooth_s=1.5,
 )
 
 

@@ -10,7 +10,8 @@ manoeuvre stream first, whatever the manoeuvre, so the draws never depend on the
 - ``aoa_protection``: a slow pull (ramp ``aoa_ramp_s``) held, then released;
 - ``pitch_protection``: a pull then a push of ``pitch_g``, each held ``pitch_hold_s``;
 - ``yaw_angle_mode``: a pedal sideslip order held ``yaw_hold_s``;
-- ``turn_coordination``: a roll-in at 15 °/s to the bank angle, a turn, a roll-out.
+- ``turn_coordination``: a roll-in at ``turn_rate_deg_s`` to the bank angle, a turn, a
+  roll-out, each edge smoothed over ``turn_smooth_s``.
 """
 
 from __future__ import annotations
@@ -67,9 +68,10 @@ def pilot_inputs(manoeuvre: str, t: np.ndarray, u: np.ndarray, params: PilotPara
         hold = _lerp(params.turn_hold_s, u[2])
         sign = 1.0 if u[4] < 0.5 else -1.0
         t1 = t0 + t_roll + hold
+        rt = params.turn_smooth_s
         # a rate pulse of width t_roll (smoothed edges keep its area: rate·t_roll)
-        p = sign * rate * ((_smooth(t, t0, r) - _smooth(t, t0 + t_roll, r))
-                           - (_smooth(t, t1, r) - _smooth(t, t1 + t_roll, r)))
+        p = sign * rate * ((_smooth(t, t0, rt) - _smooth(t, t0 + t_roll, rt))
+                           - (_smooth(t, t1, rt) - _smooth(t, t1 + t_roll, rt)))
     return nz, p, beta
 
 
