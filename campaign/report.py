@@ -32,6 +32,7 @@ from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE, score_runs
+from scenarios import kernels
 from scenarios.simulate import simulate
 
 from .config import CampaignConfig
@@ -135,10 +136,13 @@ def resimulate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
     Returns ``(signals, truth, detections)`` with ``detections`` = {variant name →
     :class:`detectors.base.Detection`} (the names of the result rows).
     """
-    signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
-    detections = {}
-    for label, det in detectors.items():
-        detections.update(as_variants(label, det.detect(signals)))
+    # the plant level and engine of the campaign, as the runner's chunks (runner.run_chunk)
+    with kernels.use_engine(settings.engine):
+        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
+                                  plant=settings.plant)
+        detections = {}
+        for label, det in detectors.items():
+            detections.update(as_variants(label, det.detect(signals)))
     return signals, truth, detections
 
 

@@ -70,3 +70,15 @@ def test_simulate_command_aircraft_plant(tmp_path, capsys):
     assert png.stat().st_size > 10_000
     assert main(["simulate", "--surface", "left_elevator"]) == 2
     assert "--plant aircraft" in capsys.readouterr().err
+
+
+def test_report_resimulates_an_aircraft_campaign_on_its_plant(tmp_path):
+    """The report re-simulates runs on the campaign's plant level: on the actuator level
+    instead, an aircraft campaign's margins would differ (other orders, other noise draws)."""
+    from campaign.report import build_report
+
+    out = tmp_path / "out"
+    run(_tiny(plant="aircraft"), out, jobs=1, progress=False)
+    page = build_report(out, jobs=1, log=lambda _: None).read_text()
+    assert "reproduce the stored ones of all 4 runs (largest difference 0.0e+00)" in page
+    assert 'class="warn"' not in page
