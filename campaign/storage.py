@@ -82,6 +82,22 @@ def write_pickle(path: Path, obj) -> None:
     _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_bytes(pickle.dumps(obj)))
 
 
+#: ``[runner]`` keys that do not change any result (rows are bit-identical across chunk
+#: sizes; a time limit only decides which runs are retried), so a directory resumed with
+#: other values still holds the same campaign. ``engine`` is not among them: the two
+#: engines may differ in the last bit.
+RESULT_NEUTRAL_RUNNER_KEYS: tuple[str, ...] = ("chunk_size", "run_timeout_s")
+
+
+def campaign_identity(config: dict) -> dict:
+    """The part of a campaign's JSON form that decides its results."""
+    out = dict(config)
+    runner = {k: v for k, v in (out.get("runner") or {}).items()
+              if k not in RESULT_NEUTRAL_RUNNER_KEYS}
+    out["runner"] = runner
+    return out
+
+
 class CampaignDir:
     """One campaign's output directory."""
 
@@ -101,11 +117,13 @@ class CampaignDir:
         if self.root.exists() and not self.root.is_dir():
             raise CampaignDirError(f"{self.root} exists and is not a directory")
         if stored.exists():
-            if json.loads(stored.read_text()) != json.loads(config_json):
+            if (campaign_identity(json.loads(stored.read_text()))
+                    != campaign_identity(json.loads(config_json))):
                 raise CampaignDirError(
                     f"{self.root} holds the results of a different campaign (its campaign.json "
-                    "differs from this configuration); choose another --out directory, or "
-                    "delete this one to start again"
+                    "differs from this configuration beyond [runner] chunk_size and "
+                    "run_timeout_s); choose another --out directory, or delete this one to "
+                    "start again"
                 )
         elif self.root.exists() and any(self.root.iterdir()):
             raise CampaignDirError(

@@ -17,6 +17,7 @@ from campaign.cli import main
 from campaign.config import CampaignConfig, load_config
 from campaign.design import LEARNING_STREAM_BASE, build_learning_plan, build_plan
 from campaign.runner import ChunkSettings, run_chunk
+from campaign.storage import CampaignDirError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -170,6 +171,18 @@ def test_rerun_into_a_directory_of_another_campaign_is_refused(tmp_path, capsys)
                      '[[detector]]\nname = "position-monitor"\n')
     assert main(["run", str(other), "--out", str(out), "--quiet"]) == 2
     assert "different campaign" in capsys.readouterr().err
+
+
+def test_resume_with_another_chunk_size_continues_the_same_campaign(tmp_path):
+    # chunk_size and run_timeout_s do not change any result row, so they do not make another
+    # campaign; the engine does (last-bit differences) and is still refused
+    out = tmp_path / "out"
+    first = run(tiny(), out, jobs=1, progress=False)
+    again = run(tiny(runner={"chunk_size": 3, "run_timeout_s": 600.0}), out, jobs=1,
+                progress=False)
+    pd.testing.assert_frame_equal(_rows(again), _rows(first), check_exact=True)
+    with pytest.raises(CampaignDirError, match="different campaign"):
+        run(tiny(runner={"chunk_size": 4, "engine": "numpy"}), out, jobs=1, progress=False)
 
 
 def test_gate_passes_on_defaults_and_fails_on_an_oversensitive_detector(tmp_path, capsys):
