@@ -4,13 +4,27 @@ A cell is one detector × fault × manoeuvre (plus the fault's ``manoeuvre = "al
 aggregate when either campaign ran the fault in several manoeuvres). For each cell, from the scored
 (``status == "ok"``) result rows of campaign A and campaign B:
 
-* FA and MD rates of both with the two-sided Fisher exact test of the 2 × 2 table
-  (``scipy.stats.fisher_exact``): is the rate of B different from the rate of A?
-* the DTP distributions of the detected runs with the two-sided Mann–Whitney U test
-  (``scipy.stats.mannwhitneyu``) and the shift of the median;
-* a flag: ``worse`` when some test has p < α and B is the worse side (more false alarms,
-  more misses, larger DTP), else ``better`` when some test has p < α the other way, else
-  ``unchanged``; ``only in A`` / ``only in B`` for cells one campaign lacks.
+* FA and MD rates of both, and a two-sided test of "is the rate of B different from the
+  rate of A?";
+* the DTP distributions of the detected runs, a two-sided test of a shift, and the shift of
+  the median;
+
+The tests depend on whether the two cells hold the same runs (the same ``run_id`` set: the
+same plan, e.g. a detector change rerun on one campaign file):
+
+* **paired** (same runs): exact McNemar test on the discordant runs (alarm in one campaign
+  only; ``scipy.stats.binomtest`` of the B-only count among them at ½) for FA and MD, and the
+  Wilcoxon signed-rank test (``scipy.stats.wilcoxon``) on the DTP of the runs detected in
+  both. Runs that agree carry no evidence of a change, so a few changed outcomes among
+  hundreds of shared runs are not drowned in the cell's sampling spread;
+* **independent** (other runs): Fisher exact test of the 2 × 2 table
+  (``scipy.stats.fisher_exact``) for FA and MD, Mann–Whitney U (``scipy.stats.mannwhitneyu``)
+  for DTP.
+
+Then a flag: ``worse`` when some test has p < α and B is the worse side (more false alarms,
+more misses, larger DTP), else ``better`` when some test has p < α the other way, else
+``unchanged``; ``only in A`` / ``only in B`` for cells one campaign lacks. The column
+``test`` says which tests a cell got.
 
 Each test is read on its own at level α (no correction for the number of cells: the flag
 is a pointer to look at, the table prints every p-value).
@@ -38,7 +52,7 @@ COMPARE_COLUMNS: tuple[str, ...] = (
     "fa_a", "fa_b", "fa_rate_a", "fa_rate_b", "fa_p",
     "md_a", "md_b", "md_rate_a", "md_rate_b", "md_p",
     "dtp_median_a", "dtp_median_b", "dtp_shift", "dtp_p",
-    "flag", "reasons",
+    "test", "flag", "reasons",
 )
 
 _KEYS = ["detector", "fault", "manoeuvre"]
@@ -51,8 +65,10 @@ def _scored(results: pd.DataFrame) -> pd.DataFrame:
         raise ValueError(f"results lack column(s) {', '.join(missing)}; pass the result rows "
                          "of a campaign (reports.metrics.RESULT_COLUMNS)")
     ok = results[results["status"].astype(str) == "ok"]
+    run_id = (ok["run_id"].astype(str) if "run_id" in ok.columns
+              else pd.Series([f"row{i}" for i in range(len(ok))], index=ok.index))
     return pd.DataFrame({
-        "detector": ok["detector"].astype(str), "fault": ok["fault"].astype(str),
+        "run_id": run_id, "detector": ok["detector"].astype(str), "fault": ok["fault"].astype(str),
         "manoeuvre": ok["manoeuvre"].astype(str),
         "fa": ok["false_alarm"].astype("boolean").fillna(False).astype(bool),
         "det": ok["detected"].astype("boolean").fillna(False).astype(bool),
@@ -80,6 +96,31 @@ def _fisher(k_a: int, n_a: int, k_b: int, n_b: int) -> float:
     if n_a == 0 or n_b == 0:
         return math.nan
     return float(stats.fisher_exact([[k_a, n_a - k_a], [k_b, n_b - k_b]])[1])
+
+
+def _mcnemar(only_a: int, only_b: int) -> float:
+    """Exact McNemar p-value (two-sided) from the discordant counts."""
+    n = only_a + only_b
+    if n == 0:
+        return 1.0            # every run agrees: no evidence of a change
+    return float(stats.binomtest(only_b, n, 0.5).pvalue)
+
+
+def _wilcoxon(a: np.ndarray, b: np.ndarray) -> float:
+    """Two-sided Wilcoxon signed-rank p-value of the paired differences b − a."""
+    if len(a) == 0:
+        return math.nan
+    if np.all(a == b):
+        return 1.0            # no run changed its DTP
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", (RuntimeWarning, UserWarning))
+        return float(stats.wilcoxon(b, a, alternative="two-sided").pvalue)
+
+
+def _paired(ga: pd.DataFrame, gb: pd.DataFrame) -> bool:
+    """Whether two cells hold the same runs, each once."""
+    return (ga["run_id"].is_unique and gb["run_id"].is_unique and len(ga) == len(gb)
+            and set(ga["run_id"]) == set(gb["run_id"]))
 
 
 def _mannwhitney(a: np.ndarray, b: np.ndarray) -> float:
@@ -130,9 +171,21 @@ def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
             continue
         faulty = key[1] != FAULT_FREE
         n_a, n_b = len(ga), len(gb)
+        paired = _paired(ga, gb)
+        if paired:
+            gb = gb.set_index("run_id").loc[ga["run_id"]].reset_index()   # A's run order
         fa_a, fa_b = int(ga["fa"].sum()), int(gb["fa"].sum())
+
+        def rate_p(x_a, x_b):
+            """p-value of a change of a per-run outcome (bool arrays, A and B)."""
+            if paired:
+                return _mcnemar(int((x_a & ~x_b).sum()), int((x_b & ~x_a).sum()))
+            return _fisher(int(x_a.sum()), n_a, int(x_b.sum()), n_b)
+
+        fa_x_a, fa_x_b = ga["fa"].to_numpy(bool), gb["fa"].to_numpy(bool)
         row.update(n_a=n_a, n_b=n_b, fa_a=fa_a, fa_b=fa_b, fa_rate_a=_rate(fa_a, n_a),
-                   fa_rate_b=_rate(fa_b, n_b), fa_p=_fisher(fa_a, n_a, fa_b, n_b))
+                   fa_rate_b=_rate(fa_b, n_b), fa_p=rate_p(fa_x_a, fa_x_b),
+                   test="paired" if paired else "independent")
         worse, better = [], []
 
         def judge(name, p, a, b):
@@ -141,15 +194,22 @@ def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
 
         judge("FA rate", row["fa_p"], row["fa_rate_a"], row["fa_rate_b"])
         if faulty:
-            md_a, md_b = int((~ga["det"]).sum()), int((~gb["det"]).sum())
+            det_a, det_b = ga["det"].to_numpy(bool), gb["det"].to_numpy(bool)
+            md_a, md_b = int((~det_a).sum()), int((~det_b).sum())
             da = ga.loc[ga["det"], "dtp"].dropna().to_numpy(float)
             db = gb.loc[gb["det"], "dtp"].dropna().to_numpy(float)
             med_a = float(np.median(da)) if len(da) else math.nan
             med_b = float(np.median(db)) if len(db) else math.nan
+            if paired:
+                both = det_a & det_b & ga["dtp"].notna().to_numpy() & gb["dtp"].notna().to_numpy()
+                dtp_p = _wilcoxon(ga["dtp"].to_numpy(float)[both],
+                                  gb["dtp"].to_numpy(float)[both])
+            else:
+                dtp_p = _mannwhitney(da, db)
             row.update(md_a=md_a, md_b=md_b, md_rate_a=_rate(md_a, n_a),
-                       md_rate_b=_rate(md_b, n_b), md_p=_fisher(md_a, n_a, md_b, n_b),
+                       md_rate_b=_rate(md_b, n_b), md_p=rate_p(~det_a, ~det_b),
                        dtp_median_a=med_a, dtp_median_b=med_b, dtp_shift=med_b - med_a,
-                       dtp_p=_mannwhitney(da, db))
+                       dtp_p=dtp_p)
             judge("MD rate", row["md_p"], row["md_rate_a"], row["md_rate_b"])
             judge("median DTP", row["dtp_p"], med_a, med_b)
         row["flag"] = "worse" if worse else ("better" if better else "unchanged")
@@ -196,8 +256,9 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA) -> str:
     lines.append("")
     lines.append(f"{len(table)} cells: " + ", ".join(f"{int(counts.get(k, 0))} {k}" for k in
                  ("worse", "better", "unchanged", "only in A", "only in B")
-                 if counts.get(k, 0)) + f" (two-sided tests at p < {alpha:g}: Fisher exact "
-                 "for FA/MD rates, Mann–Whitney U for DTP)")
+                 if counts.get(k, 0)) + f" (two-sided tests at p < {alpha:g}; same runs: "
+                 "exact McNemar for FA/MD, Wilcoxon signed-rank for DTP; other runs: Fisher "
+                 "exact, Mann–Whitney U)")
     for r in table.itertuples(index=False):
         if r.flag in ("worse", "better") and r.reasons:
             lines.append(f"  {r.detector} / {r.fault} / {r.manoeuvre}: {r.reasons}")

@@ -240,18 +240,24 @@ def test_compare_flags_a_degraded_detector_and_not_an_identical_campaign(
     assert "liquid_jam / cruise: worse: MD rate" in out
 
 
+def _compare_rows(detector, fault, manoeuvre, fa, n, dtp=None, ids="", missed=()):
+    dtp = np.full(n, np.nan) if dtp is None else np.array(dtp, float)     # a copy
+    dtp[list(missed)] = np.nan
+    return pd.DataFrame({
+        "run_id": [f"{ids}{fault}{i}" for i in range(n)], "detector": detector,
+        "fault": fault, "manoeuvre": manoeuvre, "status": "ok",
+        "false_alarm": np.arange(n) < fa, "detected": np.isfinite(dtp), "dtp": dtp})
+
+
 def test_compare_counts_and_p_values():
-    def rows(detector, fault, manoeuvre, fa, n, dtp=None):
-        dtp = np.full(n, np.nan) if dtp is None else np.asarray(dtp, float)
-        return pd.DataFrame({
-            "run_id": [f"{fault}{i}" for i in range(n)], "detector": detector,
-            "fault": fault, "manoeuvre": manoeuvre, "status": "ok",
-            "false_alarm": np.arange(n) < fa, "detected": np.isfinite(dtp), "dtp": dtp})
-    a = pd.concat([rows("d", "none", "cruise", 0, 20),
-                   rows("d", "solid_jam", "cruise", 0, 7, np.linspace(0.1, 0.2, 7))])
-    b = pd.concat([rows("d", "none", "cruise", 10, 20),
-                   rows("d", "solid_jam", "cruise", 0, 7, np.linspace(0.5, 0.6, 7))])
+    # two campaigns of other runs (other run ids): independent-sample tests
+    rows = _compare_rows
+    a = pd.concat([rows("d", "none", "cruise", 0, 20, ids="a"),
+                   rows("d", "solid_jam", "cruise", 0, 7, np.linspace(0.1, 0.2, 7), ids="a")])
+    b = pd.concat([rows("d", "none", "cruise", 10, 20, ids="b"),
+                   rows("d", "solid_jam", "cruise", 0, 7, np.linspace(0.5, 0.6, 7), ids="b")])
     t = compare_results(a, b).set_index("fault")
+    assert (t["test"] == "independent").all()
     # Fisher exact, 0/20 vs 10/20: the 10 alarms of 40 runs all in B or all in A are the
     # only tables as extreme, each of hypergeometric probability C(30,20)/C(40,20)
     assert t.loc["none", "fa_p"] == pytest.approx(2 * comb(30, 20) / comb(40, 20), rel=1e-9)
@@ -265,6 +271,28 @@ def test_compare_counts_and_p_values():
     assert (back["flag"] == "better").all()
     with pytest.raises(ValueError, match="alpha"):
         compare_results(a, b, alpha=1.5)
+
+
+def test_compare_pairs_the_runs_of_a_shared_plan():
+    rows = _compare_rows
+    # the same 300 runs in both (B's rows in another order); B misses 9 runs A detected and
+    # detects none A missed: the exact McNemar test sees 9 discordant runs, all one way,
+    # p = 2·2⁻⁹ ≈ 0.0039 < 0.01; with 6 B-only misses, p = 2·2⁻⁶ ≈ 0.031
+    dtp = np.linspace(0.1, 0.9, 300)
+    a = rows("d", "solid_jam", "cruise", 0, 300, dtp)
+    b = rows("d", "solid_jam", "cruise", 0, 300, dtp, missed=range(9)).sample(frac=1.0,
+                                                                             random_state=1)
+    t = compare_results(a, b).iloc[0]
+    assert t["test"] == "paired"
+    assert t["md_p"] == pytest.approx(2 * 0.5 ** 9, rel=1e-12) and t["flag"] == "worse"
+    assert t["dtp_p"] == 1.0               # every run detected in both has the same DTP
+    b6 = rows("d", "solid_jam", "cruise", 0, 300, dtp, missed=range(6))
+    assert compare_results(a, b6).iloc[0]["md_p"] == pytest.approx(2 * 0.5 ** 6)
+    # DTP of the shared detected runs all 0.01 later in B: Wilcoxon signed-rank on 300
+    # positive differences (normal approximation), p far below 1e-6
+    later = rows("d", "solid_jam", "cruise", 0, 300, dtp + 0.01)
+    t = compare_results(a, later).iloc[0]
+    assert t["dtp_p"] < 1e-6 and t["flag"] == "worse" and t["md_p"] == 1.0
 
 
 def test_bin_max_keeps_every_peak_and_ignores_nan():
