@@ -88,6 +88,17 @@ def test_closed_loop_bounded_at_all_realistic_cases(envelope_batch):
         assert np.isfinite(sig.aircraft[name]).all()
 
 
+def test_turns_never_saturate_the_monitored_aileron_current(envelope_batch):
+    """PHYSICS §7: the turn's aileron transients are moderate. At every realistic case and
+    uncertainty level the monitored inboard aileron's servo-valve current stays inside its
+    ±i_max limit through the turn (at 15 °/s with 0.5 s edges it saturated in every turn)."""
+    runs, sig, _ = envelope_batch
+    turn = (runs["manoeuvre"] == "turn_coordination").to_numpy()
+    i_max = AIRCRAFT_ACTUATORS["aileron"].i_max_mA
+    assert turn.sum() == 159
+    assert np.abs(sig.current[turn]).max() < i_max
+
+
 def test_surfaces_within_limits_and_never_stall(envelope_batch):
     """Every surface stays inside its electrical limits (plus 0.3°: COM bias 0.1 mm, scale
     0.5 % and noise on which the loop closes) and its hinge load stays below the stall
