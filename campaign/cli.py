@@ -20,21 +20,24 @@ def _err(msg: str) -> None:
 
 
 # ---- commands ------------------------------------------------------------------------------
-def cmd_run(args) -> int:
+def _overridden(config, args):
+    """*config* with the command line's --seed and --plant."""
     from . import config as cfg
-    from .runner import run
 
-    config = cfg.load_config(args.campaign)
     if args.seed is not None:
         config = cfg.with_overrides(config, seed=args.seed)
-    if args.plant is not None:
+    if getattr(args, "plant", None) is not None:
         from scenarios.aircraft.data import PLANTS
 
         key = "campaign.plant" if args.plant in PLANTS else "plant.fmu"
         config = cfg.with_overrides(config, values={key: args.plant})
-    if args.jobs < 1:
-        raise UsageError("--jobs must be ≥ 1")
-    result = run(config, args.out, jobs=args.jobs, chunk_size=args.chunk_size,
+    return config
+
+
+def _run_campaign(config, out, args):
+    from .runner import run
+
+    result = run(config, out, jobs=args.jobs, chunk_size=args.chunk_size,
                  progress=not args.quiet, backend=args.backend, scheduler=args.scheduler,
                  engine=args.engine)
     print(f"campaign {config.campaign.name!r}: {result.results['run_id'].nunique() if not result.results.empty else 0}"
@@ -42,7 +45,31 @@ def cmd_run(args) -> int:
     if not result.summary.empty:
         print(result.table())
     _detection_times(result, config)
-    return EXIT_OK if result.complete else EXIT_INTERRUPTED
+    return result
+
+
+def cmd_run(args) -> int:
+    from .suite import Suite, load_spec, write_suite_json
+
+    if args.jobs < 1:
+        raise UsageError("--jobs must be ≥ 1")
+    spec = load_spec(args.campaign)
+    if not isinstance(spec, Suite):
+        result = _run_campaign(_overridden(spec, args), args.out, args)
+        return EXIT_OK if result.complete else EXIT_INTERRUPTED
+    # a suite: every member validated (with the overrides) before the first one runs
+    configs = [_overridden(m.config, args) for m in spec.members]
+    complete = {}
+    write_suite_json(spec, args.out, complete)
+    for member, config in zip(spec.members, configs):
+        print(f"\n== {member.title} ==")
+        result = _run_campaign(config, Path(args.out) / member.name, args)
+        complete[member.name] = bool(result.complete)
+        write_suite_json(spec, args.out, complete)
+        if not result.complete:
+            return EXIT_INTERRUPTED
+    print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {args.out}")
+    return EXIT_OK
 
 
 def _detection_times(result, config) -> None:
@@ -63,15 +90,23 @@ def _detection_times(result, config) -> None:
 
 
 def cmd_plan(args) -> int:
-    from . import config as cfg
+    from .suite import Suite, load_spec
+
+    spec = load_spec(args.campaign)
+    if isinstance(spec, Suite):
+        for member in spec.members:
+            print(f"== {member.title} ==")
+            _plan_one(_overridden(member.config, args), Path(args.out) / member.name)
+        return EXIT_OK
+    _plan_one(_overridden(spec, args), Path(args.out))
+    return EXIT_OK
+
+
+def _plan_one(config, out: Path) -> None:
     from .design import build_learning_plan, build_plan, plan_counts
     from .storage import write_parquet
 
-    config = cfg.load_config(args.campaign)
-    if args.seed is not None:
-        config = cfg.with_overrides(config, seed=args.seed)
     plan = build_plan(config)
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_parquet(plan, out / "plan.parquet", config.to_json(), kind="plan")
     learning = build_learning_plan(config)
@@ -80,15 +115,47 @@ def cmd_plan(args) -> int:
     print(f"total: {len(plan)} runs ({int((plan['fault'] == 'none').sum())} fault-free, "
           f"{int((plan['fault'] != 'none').sum())} faulty); learning set: {len(learning)} runs")
     print(f"run table written to {out / 'plan.parquet'}")
-    return EXIT_OK
 
 
 def cmd_gate(args) -> int:
-    from reports.gate import evaluate_gate, write_junit
+    from reports.gate import write_junit
+
+    from .suite import is_suite_dir, suite_members
+
+    if not is_suite_dir(args.dir):
+        result, complete = _gate_one(args.dir, args)
+        if args.junit:
+            write_junit(result, args.junit)
+            print(f"JUnit report written to {args.junit}")
+        return EXIT_OK if (result.passed and complete) else EXIT_GATE
+    results, ok = [], True
+    for title, member in suite_members(args.dir):
+        print(f"== {title} ==")
+        result, complete = _gate_one(member, args)
+        results.append((member.name, result))
+        ok = ok and result.passed and complete
+    print(f"suite gate {'PASSED' if ok else 'FAILED'}: "
+          f"{sum(r.passed for _, r in results)} of {len(results)} campaigns passed")
+    if args.junit:
+        write_junit_suite(results, args.junit)
+        print(f"JUnit report written to {args.junit}")
+    return EXIT_OK if ok else EXIT_GATE
+
+
+def write_junit_suite(results, path) -> None:
+    """One JUnit file for a suite: a ``<testsuite>`` per member campaign."""
+    from reports.gate import junit_tree, write_junit_tree
+
+    trees = [junit_tree(result, f"fdd-campaign gate {name}") for name, result in results]
+    write_junit_tree(trees, path)
+
+
+def _gate_one(directory, args):
+    from reports.gate import evaluate_gate
 
     from .runner import load_results
 
-    _, summary, meta = load_results(args.dir)
+    _, summary, meta = load_results(directory)
     req = (meta.get("config") or {}).get("requirements", {})
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
     max_md, max_dtp = args.max_md, args.max_dtp
@@ -101,14 +168,25 @@ def cmd_gate(args) -> int:
         print(f"note: the campaign is incomplete ({meta.get('runs_done')} of "
               f"{meta.get('runs_planned')} runs); rerun 'fdd-campaign run' to finish it")
     print(result.format())
-    if args.junit:
-        write_junit(result, args.junit)
-        print(f"JUnit report written to {args.junit}")
-    complete = meta.get("complete", True)
-    return EXIT_OK if (result.passed and complete) else EXIT_GATE
+    return result, meta.get("complete", True)
 
 
 def cmd_report(args) -> int:
+    from .suite import is_suite_dir, suite_members
+
+    if not is_suite_dir(args.dir):
+        _report_one(args)
+        return EXIT_OK
+    if args.html:
+        raise UsageError("--html names one file; a suite directory gets one report.html per "
+                         "campaign (DIR/<campaign>/report.html): leave --html out")
+    for title, member in suite_members(args.dir):
+        print(f"== {title} ==")
+        _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}))
+    return EXIT_OK
+
+
+def _report_one(args) -> None:
     from reports.table import format_table
 
     from .runner import load_results
@@ -122,7 +200,6 @@ def cmd_report(args) -> int:
         from .report import write_html_report
 
         write_html_report(args)
-    return EXIT_OK
 
 
 def cmd_show(args) -> int:
@@ -139,9 +216,12 @@ def cmd_compare(args) -> int:
 
 def cmd_presets(args) -> int:
     from .config import list_presets
+    from .suite import list_suites
 
     for name, description in list_presets().items():
         print(f"{name:16s} {description}")
+    for name, description in list_suites().items():
+        print(f"{name:16s} (suite) {description}")
     return EXIT_OK
 
 

@@ -1205,6 +1205,11 @@ def load_config(spec: str | Path) -> CampaignConfig:
     if not looks_like_path and not Path(text).is_file():
         names = _preset_names()
         if text not in names:
+            from .suite import list_suites
+
+            if text in list_suites():
+                raise ConfigError([f"{text}: a suite of campaigns, not one campaign; run it "
+                                   "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], text)
             raise ConfigError([f"{text}: unknown preset{suggest(text, names)}; allowed: "
                                f"{', '.join(names)}, or a path to a .toml file"], text)
         path = preset_path(text)
@@ -1216,7 +1221,11 @@ def load_config(spec: str | Path) -> CampaignConfig:
             what = "is a directory" if path.is_dir() else "file not found"
             raise ConfigError([f"{path}: {what}; fix: check the path, or use a preset: "
                                f"{', '.join(_preset_names())}"], source)
-    return _validate(_read_toml(path, source), source)
+    data = _read_toml(path, source)
+    if isinstance(data, dict) and "suite" in data:
+        raise ConfigError([f"{path}: a suite file ([suite] table), not a campaign file; run it "
+                           "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], source)
+    return _validate(data, source)
 
 
 def with_overrides(config: CampaignConfig, seed: int | None = None, *,

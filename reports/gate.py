@@ -29,7 +29,8 @@ import pandas as pd
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "write_junit"]
+__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "junit_tree", "write_junit",
+           "write_junit_tree"]
 
 _REQUIRED = ("detector", "fault", "manoeuvre", "n_runs", "n_errors", "fa_count",
              "md_count", "dtp_max")
@@ -249,17 +250,12 @@ def _error_checks(detector, rows, allow_errors) -> list[Check]:
                   f"(status != ok): {where}")]
 
 
-def write_junit(result: GateResult, path) -> None:
-    """Write the gate as JUnit XML: one testcase per check, a ``failure`` per failed check.
-
-    The root is ``<testsuites>`` holding one ``<testsuite name="fdd-campaign gate">`` with
-    ``tests`` and ``failures`` counts. The file is replaced atomically.
-    """
+def junit_tree(result: GateResult, name: str = "fdd-campaign gate") -> ET.Element:
+    """The gate as one JUnit ``<testsuite>`` named *name*: a testcase per check, a
+    ``failure`` per failed check."""
     failures = result.failures
     n, k = str(len(result.checks)), str(len(failures))
-    root = ET.Element("testsuites", name="fdd-campaign", tests=n, failures=k, errors="0")
-    suite = ET.SubElement(root, "testsuite", name="fdd-campaign gate", tests=n, failures=k,
-                          errors="0", skipped="0")
+    suite = ET.Element("testsuite", name=name, tests=n, failures=k, errors="0", skipped="0")
     for c in result.checks:
         case = ET.SubElement(suite, "testcase", classname=f"gate.{c.detector}",
                              name=f"{c.name}[{c.fault}/{c.manoeuvre}]")
@@ -268,6 +264,25 @@ def write_junit(result: GateResult, path) -> None:
             fail.text = c.message
         else:
             ET.SubElement(case, "system-out").text = c.message
+    return suite
+
+
+def write_junit(result: GateResult, path) -> None:
+    """Write the gate as JUnit XML: one testcase per check, a ``failure`` per failed check.
+
+    The root is ``<testsuites>`` holding one ``<testsuite name="fdd-campaign gate">`` with
+    ``tests`` and ``failures`` counts. The file is replaced atomically.
+    """
+    write_junit_tree([junit_tree(result)], path)
+
+
+def write_junit_tree(suites: list, path) -> None:
+    """Write ``<testsuites>`` holding *suites* (:func:`junit_tree`) to *path*, atomically."""
+    tests = sum(int(x.get("tests")) for x in suites)
+    failures = sum(int(x.get("failures")) for x in suites)
+    root = ET.Element("testsuites", name="fdd-campaign", tests=str(tests),
+                      failures=str(failures), errors="0")
+    root.extend(suites)
     tree = ET.ElementTree(root)
     ET.indent(tree)
     path = os.fspath(path)

@@ -1,0 +1,246 @@
+"""Campaign suites: several campaigns run one after the other, each into its own directory.
+
+A campaign file holds one design (a grid or a Monte Carlo sample), so a study that needs
+both — [CHEN] Table 3 (parametric sweep) and Table 4 (Monte Carlo) — is two campaigns. A
+suite file names them and gives each a title::
+
+    [suite]
+    name = "chen-tables"
+    description = "..."
+
+    [[member]]
+    campaign = "chen-sweep"        # a preset name, or a .toml path relative to this file
+    title = "[CHEN] Table 3 — parametric sweep"
+
+    [[member]]
+    campaign = "chen-mc"
+    title = "[CHEN] Table 4 — Monte Carlo campaign"
+
+``fdd-campaign run SUITE --out DIR`` runs every member with the campaign runner into
+``DIR/<member campaign name>`` and prints each member's table under its title; ``DIR``
+then holds ``suite.json`` (the suite, its members, their titles, directories and whether
+each is complete), written after each member. Rerunning resumes member by member; ``gate``,
+``report`` and ``plan`` accept a suite (its file or its directory) and act on every member.
+Shipped suites live in ``campaign/suites`` (``fdd-campaign presets`` lists them).
+
+Every problem of a suite file is reported at once (:class:`campaign.config.ConfigError`),
+including those of its members' campaign files, before any member runs.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from scenarios.catalog import suggest
+
+from .config import CampaignConfig, ConfigError, _read_toml, load_config
+
+__all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
+           "load_suite", "suite_members", "write_suite_json"]
+
+#: Name of the file that marks a suite's output directory.
+SUITE_FILE = "suite.json"
+#: Package folder of the shipped suites.
+SUITE_DIR = "suites"
+
+_SUITE_KEYS = ("name", "description")
+_MEMBER_KEYS = ("campaign", "title")
+
+
+@dataclass(frozen=True)
+class Member:
+    """One campaign of a suite: its validated configuration and its title."""
+
+    spec: str                 # as written in the suite file
+    title: str
+    config: CampaignConfig
+
+    @property
+    def name(self) -> str:
+        """The member's campaign name: its directory in the suite's output."""
+        return self.config.campaign.name
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A validated suite file."""
+
+    name: str
+    description: str
+    members: tuple[Member, ...]
+    source: str
+
+
+# ---- shipped suites -----------------------------------------------------------------------
+def _suite_dir():
+    return resources.files(__package__).joinpath(SUITE_DIR)
+
+
+def _suite_names() -> list[str]:
+    return sorted(p.name[:-5] for p in _suite_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def list_suites() -> dict[str, str]:
+    """Shipped suites: name → description (from their ``[suite] description``)."""
+    import tomllib
+
+    out = {}
+    for name in _suite_names():
+        with open(str(_suite_dir().joinpath(f"{name}.toml")), "rb") as fh:
+            out[name] = str(tomllib.load(fh).get("suite", {}).get("description", ""))
+    return out
+
+
+def _looks_like_path(text: str) -> bool:
+    return text.endswith(".toml") or "/" in text or "\\" in text
+
+
+def _suite_path(spec) -> Path | None:
+    """The suite file *spec* names (a shipped suite's name or a path to a suite file), or
+    None when *spec* is not a suite."""
+    text = str(spec)
+    if not isinstance(spec, Path) and not _looks_like_path(text) and not Path(text).is_file():
+        if text in _suite_names():
+            return Path(str(_suite_dir().joinpath(f"{text}.toml")))
+        return None
+    path = Path(text)
+    if not path.is_file():
+        return None
+    try:
+        data = _read_toml(path, str(path))
+    except ConfigError:
+        return None                    # load_config reports the file's syntax error
+    return path if isinstance(data, dict) and "suite" in data else None
+
+
+# ---- loading ------------------------------------------------------------------------------
+def load_suite(spec) -> Suite:
+    """Load and validate a suite: a shipped suite's name or a path to a suite file.
+
+    Raises :class:`ConfigError` listing every problem (the members' included)."""
+    path = _suite_path(spec)
+    if path is None:
+        names = _suite_names()
+        raise ConfigError([f"{spec}: not a suite (a file with a [suite] table) nor a shipped "
+                           f"suite{suggest(str(spec), names)}; shipped suites: "
+                           f"{', '.join(names)}"], str(spec))
+    source = str(path)
+    data = _read_toml(path, source)
+    errors: list[str] = []
+    for k in data:
+        if k not in ("suite", "member"):
+            errors.append(f"{k}: unknown section{suggest(k, ['suite', 'member'])}; a suite "
+                          "file has [suite] and [[member]] tables only")
+    head = data.get("suite")
+    if not isinstance(head, dict):
+        errors.append("suite: expected a table [suite] with name and description")
+        head = {}
+    for k in head:
+        if k not in _SUITE_KEYS:
+            errors.append(f"suite.{k}: unknown key{suggest(k, _SUITE_KEYS)}; allowed: "
+                          f"{', '.join(_SUITE_KEYS)}")
+    name = head.get("name")
+    if not (isinstance(name, str) and name.strip()):
+        errors.append("suite.name: required, a non-empty string (names the suite in reports)")
+    description = head.get("description", "")
+    if not isinstance(description, str):
+        errors.append("suite.description: expected a string")
+    raw = data.get("member", [])
+    if not isinstance(raw, list) or not raw:
+        errors.append("member: no [[member]] table; fix: add one [[member]] per campaign, "
+                      "each with campaign = \"<preset or file>\" and title = \"...\"")
+        raw = []
+    members: list[Member] = []
+    seen: dict[str, int] = {}
+    for j, m in enumerate(raw):
+        where = f"member[{j}]"
+        if not isinstance(m, dict):
+            errors.append(f"{where}: expected a table with campaign and title")
+            continue
+        for k in m:
+            if k not in _MEMBER_KEYS:
+                errors.append(f"{where}.{k}: unknown key{suggest(k, _MEMBER_KEYS)}; allowed: "
+                              f"{', '.join(_MEMBER_KEYS)}")
+        title = m.get("title")
+        if not (isinstance(title, str) and title.strip()):
+            errors.append(f"{where}.title: required, a non-empty string (printed above the "
+                          "member's table)")
+        spec_m = m.get("campaign")
+        if not (isinstance(spec_m, str) and spec_m.strip()):
+            errors.append(f"{where}.campaign: required, a preset name or a .toml path "
+                          "(relative to the suite file)")
+            continue
+        target = spec_m
+        if _looks_like_path(spec_m) and not Path(spec_m).is_absolute():
+            target = str(path.parent / spec_m)
+        if _suite_path(target) is not None:
+            errors.append(f"{where}.campaign: {spec_m!r} is itself a suite; a member must be "
+                          "a campaign (list that suite's members here instead)")
+            continue
+        try:
+            config = load_config(target)
+        except ConfigError as exc:
+            errors += [f"{where} ({spec_m}): {e}" for e in exc.errors]
+            continue
+        cname = config.campaign.name
+        if cname in seen:
+            errors.append(f"{where}.campaign: {spec_m!r} has the campaign name {cname!r} of "
+                          f"member[{seen[cname]}]; their output directories would collide "
+                          "(DIR/<campaign name>): give each member its own campaign name")
+            continue
+        seen[cname] = j
+        if isinstance(title, str):
+            members.append(Member(spec=spec_m, title=title.strip(), config=config))
+    if errors:
+        raise ConfigError(errors, source)
+    return Suite(name=name.strip(), description=description, members=tuple(members),
+                 source=source)
+
+
+def load_spec(spec) -> CampaignConfig | Suite:
+    """A campaign (:func:`campaign.config.load_config`) or, when *spec* names a suite, the
+    suite (:func:`load_suite`)."""
+    return load_suite(spec) if _suite_path(spec) is not None else load_config(spec)
+
+
+# ---- output directories -------------------------------------------------------------------
+def is_suite_dir(directory) -> bool:
+    """Whether *directory* is a suite's output directory (holds ``suite.json``)."""
+    return (Path(directory) / SUITE_FILE).is_file()
+
+
+def write_suite_json(suite: Suite, out, complete: dict[str, bool]) -> Path:
+    """Write ``out/suite.json`` atomically; *complete*: member name → finished."""
+    from .storage import write_text
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = {"suite": suite.name, "description": suite.description, "source": suite.source,
+           "members": [{"campaign": m.name, "spec": m.spec, "title": m.title,
+                        "directory": m.name, "complete": complete.get(m.name)}
+                       for m in suite.members]}
+    path = out / SUITE_FILE
+    write_text(path, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+    return path
+
+
+def suite_members(directory) -> list[tuple[str, Path]]:
+    """(title, member directory) of a suite's output directory, in the suite's order.
+
+    Raises :class:`ValueError` naming the problem when ``suite.json`` is damaged or a
+    member directory is missing."""
+    root = Path(directory)
+    try:
+        doc = json.loads((root / SUITE_FILE).read_text())
+        members = [(str(m["title"]), root / str(m["directory"])) for m in doc["members"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{root / SUITE_FILE} is damaged ({exc}); rerun 'fdd-campaign run' "
+                         "on the suite into this directory") from None
+    missing = [str(d) for _, d in members if not d.is_dir()]
+    if missing:
+        raise ValueError(f"{root} is a suite directory whose member(s) {', '.join(missing)} "
+                         "have not run yet; rerun 'fdd-campaign run' on the suite into it")
+    return members

@@ -1,0 +1,199 @@
+"""Campaign suites (campaign.suite): validation, run, resume, gate, report and plan of several
+campaigns run one after the other, and the shipped chen-tables suite."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import pandas as pd
+import pytest
+
+from campaign.cli import main
+from campaign.config import ConfigError, load_config
+from campaign.suite import is_suite_dir, list_suites, load_spec, load_suite
+
+CAMPAIGN = """\
+[campaign]
+name = "{name}"
+seed = {seed}
+duration_s = 20.0
+
+[faults]
+onset_min_s = 5.0
+onset_before_end_s = 5.0
+
+[[group]]
+name = "ff"
+fault = "none"
+manoeuvres = ["cruise", "nose_up"]
+count = 3
+
+[[group]]
+name = "ra"
+fault = "runaway"
+manoeuvres = ["cruise"]
+count = 2
+
+[[detector]]
+name = "position-monitor"
+{params}
+[learning]
+runs_per_manoeuvre = {learning}
+
+[runner]
+chunk_size = 8
+"""
+
+#: thresholds at 1.01 × the largest residual of 1 learning run, no confirmation: far too
+#: tight for 6 fault-free evaluation runs at other flight points (as in test_campaign)
+SENSITIVE = 'params = { safety = 1.01, confirm_s = 0.0 }\n'
+
+
+def _campaign(tmp_path, name, seed=7, sensitive=False):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(CAMPAIGN.format(name=name, seed=seed, params=SENSITIVE if sensitive else "",
+                                    learning=1 if sensitive else 2))
+    return path
+
+
+def _suite(tmp_path, members, name="two"):
+    text = f'[suite]\nname = "{name}"\ndescription = "two small campaigns"\n'
+    for campaign, title in members:
+        text += f'\n[[member]]\ncampaign = "{campaign}"\ntitle = "{title}"\n'
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def two(tmp_path):
+    _campaign(tmp_path, "first")
+    _campaign(tmp_path, "second", seed=8)
+    return _suite(tmp_path, [("first.toml", "Table A"), ("second.toml", "Table B")])
+
+
+def test_suite_loads_its_members_relative_to_its_file(two):
+    suite = load_spec(two)
+    assert suite.name == "two"
+    assert [m.name for m in suite.members] == ["first", "second"]
+    assert [m.title for m in suite.members] == ["Table A", "Table B"]
+    # a campaign file is still a campaign, and load_config refuses a suite with directions
+    assert load_spec(two.parent / "first.toml").campaign.name == "first"
+    with pytest.raises(ConfigError, match="a suite file"):
+        load_config(two)
+
+
+@pytest.mark.parametrize("members, extra, needles", [
+    ([], "", ["no [[member]] table"]),
+    ([("nowhere.toml", "A")], "", ["member[0] (nowhere.toml)", "file not found"]),
+    ([("smoek", "A")], "", ["member[0] (smoek)", "did you mean 'smoke'"]),
+    ([("first.toml", "A"), ("first.toml", "B")], "", ["has the campaign name 'first' of "
+                                                      "member[0]", "would collide"]),
+    ([("first.toml", "")], "", ["member[0].title: required"]),
+    ([("chen-tables", "A")], "", ["is itself a suite"]),
+    ([("first.toml", "A")], 'colour = "red"\n', ["suite.colour: unknown key"]),
+])
+def test_bad_suite_files_are_named_with_every_problem(tmp_path, members, extra, needles):
+    _campaign(tmp_path, "first")
+    path = _suite(tmp_path, members)
+    if extra:
+        path.write_text(path.read_text().replace('description = "two small campaigns"\n',
+                                                 'description = "two small campaigns"\n'
+                                                 + extra))
+    with pytest.raises(ConfigError) as info:
+        load_suite(path)
+    for needle in needles:
+        assert needle in str(info.value)
+
+
+def test_a_member_campaign_file_error_is_reported_with_the_member(tmp_path):
+    bad = _campaign(tmp_path, "first")
+    bad.write_text(bad.read_text().replace("duration_s = 20.0", "duration_s = 5.0"))
+    _campaign(tmp_path, "second")
+    with pytest.raises(ConfigError) as info:
+        load_suite(_suite(tmp_path, [("first.toml", "A"), ("second.toml", "B")]))
+    text = str(info.value)
+    assert "member[0] (first.toml)" in text and "duration_s" in text
+    assert "member[1]" not in text                     # the good member raises nothing
+
+
+def test_run_gate_report_and_plan_on_a_suite(two, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(two), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    # each member's table under its title, in the suite's order
+    assert printed.index("== Table A ==") < printed.index("campaign 'first'") \
+        < printed.index("== Table B ==") < printed.index("campaign 'second'")
+    assert is_suite_dir(out)
+    doc = json.loads((out / "suite.json").read_text())
+    assert [(m["campaign"], m["title"], m["complete"]) for m in doc["members"]] == [
+        ("first", "Table A", True), ("second", "Table B", True)]
+    first = pd.read_parquet(out / "first" / "runs")
+    assert len(first) == 8 and (first["status"] == "ok").all()
+
+    # resume: a rerun finds every run done and changes nothing
+    assert main(["run", str(two), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "first" / "runs"), first)
+
+    junit = tmp_path / "gate.xml"
+    assert main(["gate", str(out), "--max-fa", "0", "--junit", str(junit)]) == 0
+    printed = capsys.readouterr().out
+    assert "== Table A ==" in printed and "suite gate PASSED: 2 of 2" in printed
+    root = ET.parse(junit).getroot()
+    assert [s.get("name") for s in root] == ["fdd-campaign gate first",
+                                             "fdd-campaign gate second"]
+    assert int(root.get("tests")) == sum(int(s.get("tests")) for s in root) > 0
+
+    assert main(["report", str(out), "--no-html"]) == 0
+    printed = capsys.readouterr().out
+    assert "== Table B ==" in printed and "campaign 'second': 8 of 8 runs" in printed
+    assert main(["report", str(out), "--html", str(tmp_path / "r.html")]) == 2
+    assert "leave --html out" in capsys.readouterr().err
+
+    plans = tmp_path / "plans"
+    assert main(["plan", str(two), "--out", str(plans)]) == 0
+    assert len(pd.read_parquet(plans / "second" / "plan.parquet")) == 8
+
+
+def test_suite_gate_fails_when_one_member_fails(tmp_path, capsys):
+    _campaign(tmp_path, "good")
+    _campaign(tmp_path, "touchy", sensitive=True)
+    suite = _suite(tmp_path, [("good.toml", "Good"), ("touchy.toml", "Touchy")])
+    out = tmp_path / "out"
+    assert main(["run", str(suite), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["gate", str(out), "--max-fa", "0"]) == 1
+    printed = capsys.readouterr().out
+    assert "suite gate FAILED: 1 of 2 campaigns passed" in printed and "FAIL" in printed
+
+
+def test_gate_on_a_suite_directory_with_a_member_not_run_yet(two, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(two), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    import shutil
+
+    shutil.rmtree(out / "second")
+    capsys.readouterr()
+    assert main(["gate", str(out)]) == 2
+    assert "have not run yet" in capsys.readouterr().err
+
+
+def test_chen_tables_suite_is_shipped_and_listed(capsys):
+    assert "chen-tables" in list_suites()
+    suite = load_suite("chen-tables")
+    assert [m.name for m in suite.members] == ["chen-sweep", "chen-mc"]
+    assert "Table 3" in suite.members[0].title and "Table 4" in suite.members[1].title
+    assert main(["presets"]) == 0
+    assert "chen-tables      (suite)" in capsys.readouterr().out
+    with pytest.raises(ConfigError, match="a suite of campaigns"):
+        load_config("chen-tables")
+
+
+def test_show_and_compare_name_the_members_of_a_suite_directory(two, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(two), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(out), str(out / "first")]) == 2
+    err = capsys.readouterr().err
+    assert "suite of campaigns" in err and str(out / "second") in err
