@@ -18,8 +18,13 @@ expects of it. Expected deflection: when the left inboard aileron is the monitor
 the nominal servo-loop model driven by its order (as :class:`PositionMonitor` ``loop``);
 otherwise its COM rod. Spoiler order (fixed coupling to the roll order, one period late):
 from the monitored aileron's order when that is the left inboard aileron (exact), otherwise
-from the mean roll order seen on the three other ailerons' rods. Every signal is taken
-relative to its first sample (the runs start trimmed), so the filter starts at w = 0.
+from the mean roll order seen on the three other ailerons' rods. The runs start trimmed in
+straight, wings-level flight, so the filter starts at w = 0 with every signal taken as a
+perturbation from trim: the rates, the sideslip and the bank angle (:data:`ZERO_TRIM`) as
+measured, the pitch attitude and the surfaces relative to their first sample. (Referencing
+the rates and sideslip to their first, noisy, sample too put one noise sample — σ 0.02 °/s,
+0.1 ° — as a constant offset through the filter's large DC gain: 13–21 ° of fault-free
+aileron-equivalent residual, against 2–5 ° now.)
 
 Filter: :func:`detectors.geometric.design` (W*, S*, P, H, M, Ĝ, LMI of eq. 3–4) then the
 bilinear transform at Ts ([VANEK] §5). Its residual r (one component per row of H) is
@@ -72,6 +77,9 @@ HINF_VARIANTS = ("lti-hinf",)
 #: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §5.
 OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
 FAULT_SURFACE = "left_inboard_aileron"
+#: Outputs whose trim value is zero in the runs' trimmed, wings-level, straight flight
+#: (taken as measured, not relative to their first, noisy, sample).
+ZERO_TRIM = ("q", "beta", "p", "r", "phi")
 ISOLATED_SURFACES = ("left_elevator", "rudder")
 
 
@@ -290,7 +298,9 @@ class VanekGeometric(Detector):
         cols = [delta[names[j]] for j in known[:-1]] + [spoiler]
         cols += [np.radians(signals.aircraft[s]) for s in OUTPUTS]
         v = np.stack(cols, axis=2)
-        return v - v[:, :1, :]
+        ref = v[:, :1, :].copy()
+        ref[:, :, [v.shape[2] - len(OUTPUTS) + OUTPUTS.index(o) for o in ZERO_TRIM]] = 0.0
+        return v - ref
 
     def estimates(self, signals: Signals) -> dict[str, np.ndarray]:
         """r̂ [deg] of each variant, shape (n_runs, n_steps): the reconstructed departure of
