@@ -9,7 +9,7 @@
   required detection time of the campaign defaults ([VANEK]: LTI 0.00725, LPV 0.00508);
 * fault-free cruise in moderate turbulence — peak residual / threshold.
 
-Variants lti and lpv, and lti-hinf when python-control and slycot are installed.
+Variants lti and lpv, and lti-hinf and one-step when python-control and slycot are installed.
 
 Each scenario is fitted on its own fault-free cruise learning set (same monitored surface,
 moderate turbulence, :data:`LEARNING_POINTS`). ``noise_scale`` multiplies the σ of every

@@ -71,9 +71,10 @@ from . import geometric as geo
 from .base import Capabilities, Detection, Detector, confirm
 
 VARIANTS = ("lti", "lpv")
-#: Optional variant: the LTI filter followed by the H∞ post-filter of [VANEK] §3
-#: (:mod:`detectors.vanek_hinf`; needs the optional extra ``hinf``).
-HINF_VARIANTS = ("lti-hinf",)
+#: Optional variants (:mod:`detectors.vanek_hinf`; need the optional extra ``hinf``): the
+#: LTI filter followed by the H∞ post-filter of [VANEK] §3, and the one-step H∞ FDI filter
+#: of [VANEK] §3 designed at the same point, for comparison.
+HINF_VARIANTS = ("lti-hinf", "one-step")
 #: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §5.
 OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
 FAULT_SURFACE = "left_inboard_aileron"
@@ -147,6 +148,43 @@ def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay:
     return gen, _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=c)
 
 
+def one_step_design(point: dict, ts: float):
+    """The one-step H∞ FDI filter of [VANEK] §3 (:func:`detectors.vanek_hinf.one_step_filter`)
+    at *point*, and its discretisation as a :class:`_Filter` on the inputs of
+    :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
+    (a pure integrator with the speed held, which the filtering problem cannot have); the
+    filter ignores the measured θ. Noise: the aircraft sensors' σ and the rods' (0.03 mm
+    over the lever arm) for the known surfaces; the spoiler order is known exactly (a small
+    σ keeps the problem regular)."""
+    from scenarios.aircraft import lpv
+    from scenarios.aircraft.data import LAYOUT
+    from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
+    from scenarios.params import SENSORS
+
+    from .vanek_hinf import one_step_filter, sensor_sigmas
+
+    A, B = _model(point)
+    i1, i2, known = _columns()
+    keep = [j for j, name in enumerate(lpv.STATES) if name != "theta"]
+    outs = [o for o in OUTPUTS if o != "theta"]
+    A = A[np.ix_(keep, keep)]
+    B = B[keep]
+    names = [lpv.STATES[j] for j in keep]
+    C = np.eye(len(keep))[[names.index(o) for o in outs]]
+    sig_y = sensor_sigmas()[[OUTPUTS.index(o) for o in outs]]
+    sig_u = np.array([SENSORS.rod_noise_mm / AIRCRAFT_ACTUATORS[LAYOUT.actuator[j]].r_mm
+                      if j < len(LAYOUT.names) else 1e-6 for j in known])
+    f = one_step_filter(A, B, C, outs, i1, i2, known, [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA],
+                        sig_y, sig_u, ts)
+    Ad, Bd, Cd, Dd = geo.bilinear_ss(f.A, f.B, f.C, f.D, ts)
+    # inputs [u_known; outputs without θ] → [u_known; OUTPUTS] (θ column zero)
+    cols = list(range(len(known))) + [len(known) + OUTPUTS.index(o) for o in outs]
+    n_in = len(known) + len(OUTPUTS)
+    Bfull = np.zeros((Bd.shape[0], n_in)); Bfull[:, cols] = Bd
+    Dfull = np.zeros((Dd.shape[0], n_in)); Dfull[:, cols] = Dd
+    return f, _Filter(Ad=Ad, Bd=Bfull, Cd=Cd, Dd=Dfull, c=np.ones(1))
+
+
 def _point(vcas_kt, alt_ft, mass_t, cg_pct, mach=None, qbar_pa=None) -> dict:
     from scenarios import envelope
     from scenarios.atmosphere import tas_ms
@@ -178,7 +216,9 @@ class VanekGeometric(Detector):
         Time constant of the low-pass on r̂ [s] (≥ 0; 0: none).
     variants : sequence of str
         Any of ``"lti"``, ``"lpv"`` and, with the optional extra ``hinf``, ``"lti-hinf"``
-        (the LTI filter followed by the H∞ post-filter of [VANEK] §3, no low-pass).
+        (the LTI filter followed by the H∞ post-filter of [VANEK] §3, no low-pass) and
+        ``"one-step"`` (the one-step H∞ FDI filter of [VANEK] §3 at the LTI design point, no
+        low-pass; for comparison: no exact decoupling).
     """
 
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
@@ -216,8 +256,8 @@ class VanekGeometric(Detector):
                 import control  # noqa: F401
                 import slycot  # noqa: F401
             except ImportError as exc:
-                raise ValueError(f"variant 'lti-hinf' needs python-control and slycot ({exc}):"
-                                 " pip install 'fdd-campaign[hinf]'") from exc
+                raise ValueError(f"variants {list(HINF_VARIANTS)} need python-control and "
+                                 f"slycot ({exc}): pip install 'fdd-campaign[hinf]'") from exc
 
     def _variant_list(self) -> list[str]:
         return [self.variants] if isinstance(self.variants, str) else list(self.variants)
@@ -229,10 +269,13 @@ class VanekGeometric(Detector):
             raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
 
     # ---- design ------------------------------------------------------------------------
-    def _design(self, point: dict, ts: float, hinf: bool = False) -> _Filter:
+    def _design(self, point: dict, ts: float, hinf: bool = False,
+                one_step: bool = False) -> _Filter:
         cache = self.__dict__.setdefault("_cache", {})
-        key = (hinf, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
-                                                  for k in sorted(point))
+        key = (hinf, one_step, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+                                                            for k in sorted(point))
+        if key not in cache and one_step:
+            cache[key] = one_step_design(point, ts)[1]
         if key not in cache:
             gen, f = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
                                    decay=float(self.decay), radius=float(self.radius))
@@ -246,9 +289,10 @@ class VanekGeometric(Detector):
         return cache[key]
 
     def _filters(self, variant: str, signals: Signals) -> list[_Filter]:
-        if variant in ("lti", "lti-hinf"):
+        if variant in ("lti",) + HINF_VARIANTS:
             f = self._design(_point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t,
-                                    NOMINAL.cg_pct), signals.ts, hinf=variant == "lti-hinf")
+                                    NOMINAL.cg_pct), signals.ts, hinf=variant == "lti-hinf",
+                             one_step=variant == "one-step")
             return [f] * signals.n_runs
         s = signals.schedule
         return [self._design(_point(s["vcas_kt"][i], s["alt_ft"][i], s["mass_t"][i],

@@ -16,8 +16,12 @@ deviation σ sampled at Ts, Σ = σ·√Ts) and ε the small
 penalty on f̂ that [VANEK] §5 adds for well-posedness (W_p). Reading implemented: the
 uncertainty weight W_u, the Dryden weight W_dr and the fault-error weight W_e of [VANEK]
 Fig. 3 are left out (W_e = 1; the lateral gust is decoupled exactly by the geometric filter
-here), so this is the nominal post-filter; the one-step H∞ design of [VANEK] §3 is not
-implemented.
+here), so this is the nominal post-filter.
+
+The one-step H∞ FDI filter of [VANEK] §3 (:func:`one_step_filter`), for comparison: no
+geometric pre-filter; one H∞ synthesis on the aircraft model weighs fault tracking against
+the elevator and rudder faults, the Dryden gusts and the sensor noise together, so the
+isolation is approximate (attenuation, not decoupling).
 
 Synthesis with python-control's ``hinfsyn`` (SLICOT through slycot): the optional extra
 ``hinf`` (``pip install fdd-campaign[hinf]``), imported only here, at design time; the
@@ -133,3 +137,107 @@ def cascade(gen: ResidualGenerator, q: PostFilter):
     C = np.hstack([q.D @ Cf, q.C])
     D = q.D @ Df
     return A, B, C, D
+
+
+@dataclass(frozen=True)
+class OneStepWeights:
+    """Scales of the one-step H∞ design ([VANEK] Fig. 3 weights; est.)."""
+
+    fault_rad: float = 0.0524         # aileron fault to track, 3° (the [VANEK] jam's size)
+    isolated_rad: float = 0.0873      # elevator / rudder faults to reject, 5°
+    known_rad: float = 0.0873         # known surface deflections, 5°
+    gust_rad: float = 0.0175          # Dryden gust angles, σ 1° (moderate turbulence)
+    gust_bandwidth: float = 0.2       # Dryden forming-filter pole V/L [rad/s] (est. at cruise)
+    omega_id: float = 1.0             # T_id bandwidth [rad/s]
+    eps: float = 0.1                  # penalty on f̂ (W_p of [VANEK])
+    max_pole: float = 100.0           # faster filter modes residualised [rad/s]
+
+
+ONE_STEP = OneStepWeights()
+
+
+@dataclass(frozen=True)
+class OneStepFilter:
+    """The one-step filter (A, B, C, D): input [u_known; y] (y in the order of the design
+    outputs, pitch attitude excluded), output f̂ [rad]; ``gamma`` the achieved H∞ bound;
+    ``plant`` the weighted interconnection and ``full`` the unreduced filter (for checks)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    gamma: float
+    plant: object
+    full: object
+    outputs: tuple
+
+
+def one_step_filter(A, B, C, outputs, i1: int, i2: list, known: list, i_gust: list,
+                    sigma_y, sigma_u, ts: float, w: OneStepWeights = ONE_STEP) -> OneStepFilter:
+    """The one-step H∞ FDI filter of [VANEK] §3 for the model (A, B, C) [rad, rad/s].
+
+    Weighted interconnection (states: aircraft x, ideal tracking x_id, gust filters x_g)::
+
+        ẋ = A x + B[:, i1] f_s w_f + B[:, i2] d_s w_d + B[:, i_gust] x_g + B[:, known] u_s w_u
+        ẋ_id = −ω_id x_id + ω_id f_s w_f           (T_id)
+        ẋ_g = −ω_g x_g + g_s √(2ω_g) w_g           (first-order Dryden shaping, W_dr)
+        z = [(x_id − f̂)/f_s;  ε f̂/f_s]
+        m = [u_s w_u + Σ_u n_u;  C x + Σ_y n_y]     (measured: known inputs, then outputs)
+
+    w = [w_f, w_d, w_g, n_y, w_u, n_u], all unit-size; Σ the sensor σ·√Ts (white noise
+    sampled at Ts). The known inputs are exogenous and measured, so the filter learns to
+    cancel their effect; the elevator and rudder faults and the gusts are attenuated, not
+    decoupled. *C* must make the plant stable for the filtering problem: states that are
+    pure integrators (the pitch attitude with speed held) must be left out by the caller.
+    python-control's ``hinfsyn`` (SLICOT) at design time only.
+    """
+    try:
+        import control
+        import slycot  # noqa: F401
+    except ImportError as exc:
+        raise HinfUnavailableError(
+            f"the one-step H∞ filter needs python-control and slycot ({exc}); install the "
+            "optional extra: pip install 'fdd-campaign[hinf]'") from exc
+    if np.linalg.eigvals(A).real.max() >= 0.0:
+        raise ValueError("the one-step H∞ filter needs a stable design model; leave out "
+                         "integrator states (e.g. the pitch attitude with speed held)")
+    n, p, m, ng = A.shape[0], C.shape[0], len(known), len(i_gust)
+    N = n + 1 + ng
+    Sy = np.diag(np.asarray(sigma_y, float) * np.sqrt(ts))
+    Su = np.diag(np.asarray(sigma_u, float) * np.sqrt(ts))
+    nw = 1 + len(i2) + ng + p + m + m
+    Aa = np.zeros((N, N))
+    Aa[:n, :n] = A
+    Aa[:n, n + 1:] = B[:, i_gust]
+    Aa[n, n] = -w.omega_id
+    Aa[n + 1:, n + 1:] = -w.gust_bandwidth * np.eye(ng)
+    B1 = np.zeros((N, nw))
+    c = 0
+    B1[:n, c] = B[:, i1] * w.fault_rad
+    B1[n, c] = w.omega_id * w.fault_rad
+    c += 1
+    B1[:n, c:c + len(i2)] = B[:, i2] * w.isolated_rad
+    c += len(i2)
+    B1[n + 1:, c:c + ng] = w.gust_rad * np.sqrt(2.0 * w.gust_bandwidth) * np.eye(ng)
+    c += ng
+    iy = c
+    c += p
+    B1[:n, c:c + m] = B[:, known] * w.known_rad
+    iu = c
+    c += m
+    C1 = np.zeros((2, N))
+    C1[0, n] = 1.0 / w.fault_rad
+    D12 = np.array([[-1.0 / w.fault_rad], [w.eps / w.fault_rad]])
+    C2 = np.zeros((m + p, N))
+    C2[m:, :n] = C
+    D21 = np.zeros((m + p, nw))
+    D21[m:, iy:iy + p] = Sy
+    D21[:m, iu:iu + m] = np.eye(m) * w.known_rad
+    D21[:m, iu + m:] = Su
+    plant = control.ss(Aa, np.hstack([B1, np.zeros((N, 1))]), np.vstack([C1, C2]),
+                       np.block([[np.zeros((2, nw)), D12], [D21, np.zeros((m + p, 1))]]))
+    K, _, gamma, _ = control.hinfsyn(plant, m + p, 1)
+    Ar, Br, Cr, Dr = residualise(np.asarray(K.A), np.asarray(K.B), np.asarray(K.C),
+                                 np.asarray(K.D), w.max_pole)
+    return OneStepFilter(A=Ar, B=Br, C=Cr, D=Dr, gamma=float(gamma), plant=plant, full=K,
+                         outputs=tuple(outputs))

@@ -211,3 +211,47 @@ def test_fault_free_residual_floor_at_the_default_sensor_noise():
     sig, _ = simulate_aircraft(rows)                       # default aircraft sensors
     for variant, r in VanekGeometric().estimates(sig).items():
         assert np.abs(r).max() < 9.0, (variant, np.abs(r).max(axis=1))
+
+
+def test_one_step_hinf_filter_gamma_tracking_and_approximate_isolation():
+    # [VANEK] §3's one-step H∞ FDI filter (variant "one-step"): γ of the weighted
+    # interconnection confirmed by a frequency sweep of the closed loop; the fault is tracked
+    # at steady state; elevator and rudder faults are attenuated, not decoupled (contrast
+    # with the geometric filter's < 1e-9 in test_elevator_rudder_and_gust_are_decoupled…).
+    from detectors.vanek_geometric import one_step_design
+
+    point = _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0)
+    f, filt = one_step_design(point, 0.01)
+    cl = f.plant.lft(f.full)
+    w = np.logspace(-4, 4, 2000)
+    resp = cl(1j * w)
+    peak = max(np.linalg.svd(resp[:, :, k], compute_uv=False)[0] for k in range(len(w)))
+    # the central H∞ filter's closed loop stays below γ (solver tolerance); for this
+    # design the bound is nearly reached (measured peak/γ ≈ 1 − 2e-9)
+    assert peak <= f.gamma * (1.0 + 1e-6) and peak >= 0.95 * f.gamma
+    # fault → f̂ and isolated faults → f̂ through the aircraft model (θ left out)
+    A, B, C = _aircraft(point)
+    keep = [j for j, s in enumerate(lpv.STATES) if s != "theta"]
+    A, B = A[np.ix_(keep, keep)], B[keep]
+    names = [lpv.STATES[j] for j in keep]
+    C = np.eye(len(keep))[[names.index(o) for o in f.outputs]]
+    i1, i2, known = _columns()
+    m = len(known)
+
+    def transfer(col, s):
+        n, nk = A.shape[0], f.A.shape[0]
+        Acl = np.block([[A, np.zeros((n, nk))], [f.B[:, m:] @ C, f.A]])
+        Bcl = np.vstack([B[:, [col]], np.zeros((nk, 1))])
+        Ccl = np.hstack([f.D[:, m:] @ C, f.C])
+        return abs((Ccl @ np.linalg.solve(s * np.eye(n + nk) - Acl, Bcl))[0, 0])
+
+    # steady-state fault gain: the one H∞ problem trades tracking (T_id(0) = 1) against the
+    # elevator, rudder and gust rejection; with γ ≈ 0.65 of the weighted fault size the
+    # tracking error is of that order: measured 0.37 (the geometric filter + post-filter:
+    # 0.96, test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling)
+    dc = transfer(i1, 1e-4j)
+    assert 0.25 < dc < 0.6, dc
+    leak = [max(transfer(j, 1j * x) for x in OMEGA) for j in i2]
+    assert max(leak) > 1e-3 * dc, leak               # not decoupled
+    assert filt.Bd.shape[1] == len(known) + 6        # the detector's inputs, θ ignored
+    assert np.all(filt.Bd[:, len(known) + 1] == 0.0)
