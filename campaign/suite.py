@@ -117,6 +117,11 @@ def _suite_path(spec) -> Path | None:
 
 
 # ---- loading ------------------------------------------------------------------------------
+def _unknown_keys(where: str, table: dict, allowed: tuple[str, ...]) -> list[str]:
+    return [f"{where}.{k}: unknown key{suggest(k, allowed)}; allowed: {', '.join(allowed)}"
+            for k in table if k not in allowed]
+
+
 def load_suite(spec) -> Suite:
     """Load and validate a suite: a shipped suite's name or a path to a suite file.
 
@@ -138,10 +143,7 @@ def load_suite(spec) -> Suite:
     if not isinstance(head, dict):
         errors.append("suite: expected a table [suite] with name and description")
         head = {}
-    for k in head:
-        if k not in _SUITE_KEYS:
-            errors.append(f"suite.{k}: unknown key{suggest(k, _SUITE_KEYS)}; allowed: "
-                          f"{', '.join(_SUITE_KEYS)}")
+    errors += _unknown_keys("suite", head, _SUITE_KEYS)
     name = head.get("name")
     if not (isinstance(name, str) and name.strip()):
         errors.append("suite.name: required, a non-empty string (names the suite in reports)")
@@ -160,10 +162,7 @@ def load_suite(spec) -> Suite:
         if not isinstance(m, dict):
             errors.append(f"{where}: expected a table with campaign and title")
             continue
-        for k in m:
-            if k not in _MEMBER_KEYS:
-                errors.append(f"{where}.{k}: unknown key{suggest(k, _MEMBER_KEYS)}; allowed: "
-                              f"{', '.join(_MEMBER_KEYS)}")
+        errors += _unknown_keys(where, m, _MEMBER_KEYS)
         title = m.get("title")
         if not (isinstance(title, str) and title.strip()):
             errors.append(f"{where}.title: required, a non-empty string (printed above the "
