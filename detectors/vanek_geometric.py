@@ -161,7 +161,7 @@ def one_step_design(point: dict, ts: float):
     from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
     from scenarios.params import SENSORS
 
-    from .vanek_hinf import one_step_filter, sensor_sigmas
+    from .vanek_hinf import ONE_STEP, one_step_filter, sensor_sigmas
 
     A, B = _model(point)
     i1, i2, known = _columns()
@@ -173,7 +173,7 @@ def one_step_design(point: dict, ts: float):
     C = np.eye(len(keep))[[names.index(o) for o in outs]]
     sig_y = sensor_sigmas()[[OUTPUTS.index(o) for o in outs]]
     sig_u = np.array([SENSORS.rod_noise_mm / AIRCRAFT_ACTUATORS[LAYOUT.actuator[j]].r_mm
-                      if j < len(LAYOUT.names) else 1e-6 for j in known])
+                      if j < len(LAYOUT.names) else ONE_STEP.exact_sigma_rad for j in known])
     f = one_step_filter(A, B, C, outs, i1, i2, known, [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA],
                         sig_y, sig_u, ts)
     Ad, Bd, Cd, Dd = geo.bilinear_ss(f.A, f.B, f.C, f.D, ts)

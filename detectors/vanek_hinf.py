@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios.params import param
+
 from .geometric import ResidualGenerator
 
 
@@ -141,19 +143,29 @@ def cascade(gen: ResidualGenerator, q: PostFilter):
 
 @dataclass(frozen=True)
 class OneStepWeights:
-    """Scales of the one-step H∞ design ([VANEK] Fig. 3 weights; est.)."""
+    """Scales of the one-step H∞ design ([VANEK] §3, Fig. 3 weights)."""
 
-    fault_rad: float = 0.0524         # aileron fault to track, 3° (the [VANEK] jam's size)
-    isolated_rad: float = 0.0873      # elevator / rudder faults to reject, 5°
-    known_rad: float = 0.0873         # known surface deflections, 5°
-    gust_rad: float = 0.0175          # Dryden gust angles, σ 1° (moderate turbulence)
-    gust_bandwidth: float = 0.2       # Dryden forming-filter pole V/L [rad/s] (est. at cruise)
-    omega_id: float = 1.0             # T_id bandwidth [rad/s]
-    eps: float = 0.1                  # penalty on f̂ (W_p of [VANEK])
-    max_pole: float = 100.0           # faster filter modes residualised [rad/s]
+    fault_rad: float = param("rad", "est. (3°: the size of [VANEK]'s liquid jam)",
+                             "aileron fault to track (scale of w_f)")
+    isolated_rad: float = param("rad", "est. (5°)", "elevator and rudder faults to reject")
+    known_rad: float = param("rad", "est. (5°)", "known surface deflections (exogenous)")
+    gust_rad: float = param("rad", "est. (σ 1°: moderate turbulence, PHYSICS §7)",
+                            "Dryden gust angles W_dr")
+    gust_bandwidth: float = param("rad/s", "est. (V/L at cruise)",
+                                  "pole of the first-order gust shaping filter")
+    omega_id: float = param("rad/s", "[VANEK] §5 (T_id; est. value)",
+                            "bandwidth of the ideal fault tracking T_id")
+    eps: float = param("-", "[VANEK] §5 (W_p; est. value)", "penalty on the filter output")
+    exact_sigma_rad: float = param("rad", "numerical", "noise σ given to inputs known exactly "
+                                   "(the spoiler order), so that D21 has full row rank")
+    max_pole: float = param("rad/s", "[VANEK] §5 (sampled at 0.01 s)",
+                            "faster filter modes are residualised")
 
 
-ONE_STEP = OneStepWeights()
+ONE_STEP = OneStepWeights(fault_rad=np.radians(3.0), isolated_rad=np.radians(5.0),
+                          known_rad=np.radians(5.0), gust_rad=np.radians(1.0),
+                          gust_bandwidth=0.2, omega_id=1.0, eps=0.1, exact_sigma_rad=1e-6,
+                          max_pole=100.0)
 
 
 @dataclass(frozen=True)
