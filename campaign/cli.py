@@ -59,6 +59,10 @@ def cmd_run(args) -> int:
         return EXIT_OK if result.complete else EXIT_INTERRUPTED
     # a suite: every member validated (with the overrides) before the first one runs
     configs = [_overridden(m.config, args) for m in spec.members]
+    if (Path(args.out) / "campaign.json").exists():
+        raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
+                         "campaigns into subdirectories of a directory of its own: choose "
+                         "another --out")
     complete = {}
     write_suite_json(spec, args.out, complete)
     for member, config in zip(spec.members, configs):

@@ -197,3 +197,13 @@ def test_show_and_compare_name_the_members_of_a_suite_directory(two, tmp_path, c
     assert main(["compare", str(out), str(out / "first")]) == 2
     err = capsys.readouterr().err
     assert "suite of campaigns" in err and str(out / "second") in err
+
+
+def test_a_suite_is_not_run_into_a_campaign_directory(two, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(tmp_path / "first.toml"), "--out", str(out), "--jobs", "1",
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["run", str(two), "--out", str(out), "--quiet"]) == 2
+    assert "directory of one campaign" in capsys.readouterr().err
+    assert not (out / "suite.json").exists()
