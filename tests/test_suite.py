@@ -207,3 +207,24 @@ def test_a_suite_is_not_run_into_a_campaign_directory(two, tmp_path, capsys):
     assert main(["run", str(two), "--out", str(out), "--quiet"]) == 2
     assert "directory of one campaign" in capsys.readouterr().err
     assert not (out / "suite.json").exists()
+
+
+def test_a_half_finished_suite_resumes_with_its_unfinished_member(two, tmp_path, capsys):
+    # the first member finished, the second never ran (as after a kill between members):
+    # a rerun keeps the first member's rows and runs the second, rows equal to a fresh run
+    import shutil
+
+    out, fresh = tmp_path / "out", tmp_path / "fresh"
+    assert main(["run", str(two), "--out", str(fresh), "--jobs", "1", "--quiet"]) == 0
+    shutil.copytree(fresh / "first", out / "first")
+    shards = {p: p.stat().st_mtime_ns for p in (out / "first" / "runs").glob("*.parquet")}
+    assert main(["run", str(two), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    # the finished member's shards are neither rewritten nor added to (nothing re-ran)
+    assert {p: p.stat().st_mtime_ns
+            for p in (out / "first" / "runs").glob("*.parquet")} == shards
+    key = ["run_id", "detector"]
+    again = pd.read_parquet(out / "second" / "runs").sort_values(key).reset_index(drop=True)
+    ref = pd.read_parquet(fresh / "second" / "runs").sort_values(key).reset_index(drop=True)
+    pd.testing.assert_frame_equal(again, ref[again.columns], check_exact=True)
+    doc = json.loads((out / "suite.json").read_text())
+    assert [m["complete"] for m in doc["members"]] == [True, True]
