@@ -269,30 +269,33 @@ class VanekGeometric(Detector):
             raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
 
     # ---- design ------------------------------------------------------------------------
-    def _design(self, point: dict, ts: float, hinf: bool = False,
-                one_step: bool = False) -> _Filter:
+    def _design(self, point: dict, ts: float, kind: str = "geometric") -> _Filter:
+        """The discretised filter of *kind* at *point* (cached): ``"geometric"`` (the
+        variants lti and lpv), ``"lti-hinf"`` or ``"one-step"``."""
         cache = self.__dict__.setdefault("_cache", {})
-        key = (hinf, one_step, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
-                                                            for k in sorted(point))
-        if key not in cache and one_step:
-            cache[key] = one_step_design(point, ts)[1]
-        if key not in cache:
+        key = (kind, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+                                                  for k in sorted(point))
+        if key in cache:
+            return cache[key]
+        if kind == "one-step":
+            f = one_step_design(point, ts)[1]
+        else:
             gen, f = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
                                    decay=float(self.decay), radius=float(self.radius))
-            if hinf:
+            if kind == "lti-hinf":
                 from .vanek_hinf import cascade, post_filter, sensor_sigmas
 
                 q = post_filter(gen, sensor_sigmas() * np.sqrt(ts))
                 Ad, Bd, Cd, Dd = geo.bilinear_ss(*cascade(gen, q), ts)
                 f = _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=np.ones(1))
-            cache[key] = f
-        return cache[key]
+        cache[key] = f
+        return f
 
     def _filters(self, variant: str, signals: Signals) -> list[_Filter]:
-        if variant in ("lti",) + HINF_VARIANTS:
+        kind = variant if variant in HINF_VARIANTS else "geometric"
+        if variant != "lpv":          # designed once, at the LTI design point
             f = self._design(_point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t,
-                                    NOMINAL.cg_pct), signals.ts, hinf=variant == "lti-hinf",
-                             one_step=variant == "one-step")
+                                    NOMINAL.cg_pct), signals.ts, kind)
             return [f] * signals.n_runs
         s = signals.schedule
         return [self._design(_point(s["vcas_kt"][i], s["alt_ft"][i], s["mass_t"][i],
