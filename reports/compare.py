@@ -59,16 +59,15 @@ _KEYS = ["detector", "fault", "manoeuvre"]
 
 
 def _scored(results: pd.DataFrame) -> pd.DataFrame:
-    need = ["detector", "fault", "manoeuvre", "status", "false_alarm", "detected", "dtp"]
+    need = ["run_id", "detector", "fault", "manoeuvre", "status", "false_alarm", "detected",
+            "dtp"]
     missing = [c for c in need if c not in results.columns]
     if missing:
         raise ValueError(f"results lack column(s) {', '.join(missing)}; pass the result rows "
                          "of a campaign (reports.metrics.RESULT_COLUMNS)")
     ok = results[results["status"].astype(str) == "ok"]
-    run_id = (ok["run_id"].astype(str) if "run_id" in ok.columns
-              else pd.Series([f"row{i}" for i in range(len(ok))], index=ok.index))
     return pd.DataFrame({
-        "run_id": run_id, "detector": ok["detector"].astype(str), "fault": ok["fault"].astype(str),
+        "run_id": ok["run_id"].astype(str), "detector": ok["detector"].astype(str), "fault": ok["fault"].astype(str),
         "manoeuvre": ok["manoeuvre"].astype(str),
         "fa": ok["false_alarm"].astype("boolean").fillna(False).astype(bool),
         "det": ok["detected"].astype("boolean").fillna(False).astype(bool),
