@@ -1194,15 +1194,18 @@ def _read_toml(path: Path, source: str) -> dict:
                            "quotes, brackets, commas and '=' on that line"], source) from None
 
 
+def looks_like_path(text: str) -> bool:
+    """Whether a campaign spec is written as a file path rather than a preset name."""
+    return text.endswith(".toml") or "/" in text or "\\" in text
+
+
 def load_config(spec: str | Path) -> CampaignConfig:
     """Load and validate a campaign: a preset name (``"smoke"``) or a path to a .toml file.
 
     Raises :class:`ConfigError` listing every problem of the file at once.
     """
     text = str(spec)
-    looks_like_path = isinstance(spec, Path) or text.endswith(".toml") or "/" in text \
-        or "\\" in text
-    if not looks_like_path and not Path(text).is_file():
+    if not isinstance(spec, Path) and not looks_like_path(text) and not Path(text).is_file():
         names = _preset_names()
         if text not in names:
             from .suite import list_suites

@@ -36,7 +36,7 @@ from pathlib import Path
 
 from scenarios.catalog import suggest
 
-from .config import CampaignConfig, ConfigError, _read_toml, load_config
+from .config import CampaignConfig, ConfigError, _read_toml, load_config, looks_like_path
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
            "load_suite", "suite_members", "write_suite_json"]
@@ -94,15 +94,11 @@ def list_suites() -> dict[str, str]:
     return out
 
 
-def _looks_like_path(text: str) -> bool:
-    return text.endswith(".toml") or "/" in text or "\\" in text
-
-
 def _suite_path(spec) -> Path | None:
     """The suite file *spec* names (a shipped suite's name or a path to a suite file), or
     None when *spec* is not a suite."""
     text = str(spec)
-    if not isinstance(spec, Path) and not _looks_like_path(text) and not Path(text).is_file():
+    if not isinstance(spec, Path) and not looks_like_path(text) and not Path(text).is_file():
         if text in _suite_names():
             return Path(str(_suite_dir().joinpath(f"{text}.toml")))
         return None
@@ -173,7 +169,7 @@ def load_suite(spec) -> Suite:
                           "(relative to the suite file)")
             continue
         target = spec_m
-        if _looks_like_path(spec_m) and not Path(spec_m).is_absolute():
+        if looks_like_path(spec_m) and not Path(spec_m).is_absolute():
             target = str(path.parent / spec_m)
         if _suite_path(target) is not None:
             errors.append(f"{where}.campaign: {spec_m!r} is itself a suite; a member must be "
