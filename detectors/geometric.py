@@ -205,15 +205,18 @@ class ResidualGenerator:
         D_f = np.hstack([np.zeros((self.M.shape[0], self.F.shape[1])), -self.H])
         return self.N, B_f, self.M, D_f
 
-    def fault_to_residual(self, A, B, C, E, omega) -> np.ndarray:
+    def fault_to_residual(self, A, B, C, E, omega, D=None) -> np.ndarray:
         """Frequency response (len(omega), q, k) [output unit per fault unit] of the plant
-        (A, B, C) with fault directions E (n, k) in series with this filter, omega [rad/s]."""
+        (A, B, C) with fault directions E (n, k) in series with this filter, omega [rad/s].
+        ``D`` (p, k): the faults' direct feed-through to the outputs, y = Cx + D f."""
         n, nw = A.shape[0], self.N.shape[0]
+        D = np.zeros((C.shape[0], E.shape[1])) if D is None else np.asarray(D, float)
         Acl = np.block([[A, np.zeros((n, nw))], [-self.G @ C, self.N]])
-        Bcl = np.vstack([E, np.zeros((nw, E.shape[1]))])
+        Bcl = np.vstack([E, -self.G @ D])
         Ccl = np.hstack([-self.H @ C, self.M])
         I = np.eye(n + nw)
-        return np.array([Ccl @ np.linalg.solve(1j * w * I - Acl, Bcl) for w in omega])
+        return np.array([Ccl @ np.linalg.solve(1j * w * I - Acl, Bcl) - self.H @ D
+                         for w in omega])
 
 
 def _lmi_problem(k: int, q: int, decay: float, radius: float):

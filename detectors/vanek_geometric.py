@@ -16,15 +16,19 @@ Known inputs u: the other surfaces' COM rod positions converted to deflections
 deflection, so that f1 is that aileron's departure from what the flight control computer
 expects of it. Expected deflection: when the left inboard aileron is the monitored surface,
 the nominal servo-loop model driven by its order (as :class:`PositionMonitor` ``loop``);
-otherwise its COM rod. Spoiler order (fixed coupling to the roll order, one period late):
-from the monitored aileron's order when that is the left inboard aileron (exact), otherwise
-from the mean roll order seen on the three other ailerons' rods. The runs start trimmed in
-straight, wings-level flight, so the filter starts at w = 0 with every signal taken as a
-perturbation from trim: the rates, the sideslip and the bank angle (:data:`ZERO_TRIM`) as
-measured, the pitch attitude and the surfaces relative to their first sample. (Referencing
-the rates and sideslip to their first, noisy, sample too put one noise sample — σ 0.02 °/s,
-0.1 ° — as a constant offset through the filter's large DC gain: 13–21 ° of fault-free
-aileron-equivalent residual, against 2–5 ° now.)
+otherwise its COM rod. Spoilers: their equivalent aileron angle as applied,
+``Signals.aircraft["spoiler"]`` (no servo-loop in this simulator; it stands for their rod
+measurements, as in ``chen-global``). The runs start trimmed in straight, wings-level
+flight, so the filter starts at w = 0 with every signal taken as a perturbation from trim:
+the rates, the sideslip, the bank angle (:data:`ZERO_TRIM`) and the spoiler angle (zero at
+trim) as measured, the pitch attitude and the surfaces relative to their first sample.
+
+Two earlier input errors, each measured on fault-free runs: referencing the rates and the
+sideslip to their first, noisy, sample put one noise sample through the filter's large DC
+gain (13–21° of aileron-equivalent residual); reconstructing the spoiler angle from the
+aileron order, referenced to its first value, put a constant 0.3° of spoiler on the filter
+(1.4° at 170 kt), and from the other ailerons' rods (when another surface is monitored) their
+servo lag and authority limits (up to 1° of spoiler error, 2.7° in a rudder runaway).
 
 Filter: :func:`detectors.geometric.design` (W*, S*, P, H, M, Ĝ, LMI of eq. 3–4) then the
 bilinear transform at Ts ([VANEK] §5). Its residual r (one component per row of H) is
@@ -127,6 +131,25 @@ def _columns():
     return i1, i2, known
 
 
+def gust_sideslip_direction(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The direction along which the gust sideslip β_g acts on the design model, whose β
+    output is the *air-relative* sideslip β_a = β + β_g (:mod:`scenarios.aircraft.loop`).
+
+    The aerodynamics see β_a, so the gust's column of B is the β column of A (B_g = A e_β;
+    checked here). In the state x̃ with β_a in place of β, x̃ = x + e_β β_g:
+    dx̃/dt = A x̃ + B u + (B_g − A e_β) β_g + e_β dβ_g/dt = A x̃ + B u + e_β dβ_g/dt, and
+    y = C x̃ with the same C. The gust is one unknown input along e_β (its rate), so the
+    design model keeps (A, B, C) and decouples e_β."""
+    from scenarios.aircraft import lpv
+
+    e_beta = np.eye(lpv.N_STATES)[:, lpv.IB]
+    b_g, a_b = B[:, lpv.I_GUST_BETA], A[:, lpv.IB]
+    if not np.allclose(b_g, a_b, rtol=1e-12, atol=1e-12 * np.abs(a_b).max()):
+        raise ValueError("the gust sideslip's column of B is not the β column of A: the "
+                         "model's aerodynamics do not act on the air-relative sideslip")
+    return e_beta
+
+
 def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
                   radius: float = 20.0) -> tuple[geo.ResidualGenerator, _Filter]:
     """The geometric filter at *point* (``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``,
@@ -139,7 +162,9 @@ def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay:
     i1, i2, known = _columns()
     out = [lpv.STATES.index(s) for s in OUTPUTS]
     C = np.eye(lpv.N_STATES)[out]
-    L2 = B[:, i2 + ([lpv.I_GUST_BETA] if decouple_gusts else [])]
+    L2 = B[:, i2]
+    if decouple_gusts:
+        L2 = np.column_stack([L2, gust_sideslip_direction(A, B)])
     gen = geo.design(A, B[:, known], C, B[:, [i1]], L2, decay=decay, radius=radius,
                      names1=[FAULT_SURFACE])
     Ad, Bd, Cd, Dd = geo.bilinear(gen, ts)
@@ -153,7 +178,8 @@ def one_step_design(point: dict, ts: float):
     at *point*, and its discretisation as a :class:`_Filter` on the inputs of
     :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
     (a pure integrator with the speed held, which the filtering problem cannot have); the
-    filter ignores the measured θ. Noise: the aircraft sensors' σ and the rods' (0.03 mm
+    filter ignores the measured θ. The gust sideslip reaches the β output directly (the
+    sensor reads the air-relative sideslip). Noise: the aircraft sensors' σ and the rods' (0.03 mm
     over the lever arm) for the known surfaces; the spoiler order is known exactly (a small
     σ keeps the problem regular)."""
     from scenarios.aircraft import lpv
@@ -174,8 +200,11 @@ def one_step_design(point: dict, ts: float):
     sig_y = sensor_sigmas()[[OUTPUTS.index(o) for o in outs]]
     sig_u = np.array([SENSORS.rod_noise_mm / AIRCRAFT_ACTUATORS[LAYOUT.actuator[j]].r_mm
                       if j < len(LAYOUT.names) else ONE_STEP.exact_sigma_rad for j in known])
-    f = one_step_filter(A, B, C, outs, i1, i2, known, [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA],
-                        sig_y, sig_u, ts)
+    gusts = [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA]
+    d_g = np.zeros((len(outs), len(gusts)))
+    d_g[outs.index("beta"), 0] = 1.0        # the sideslip sensor reads β + β_g
+    f = one_step_filter(A, B, C, outs, i1, i2, known, gusts, sig_y, sig_u, ts,
+                        gust_feedthrough=d_g)
     Ad, Bd, Cd, Dd = geo.bilinear_ss(f.A, f.B, f.C, f.D, ts)
     # inputs [u_known; outputs without θ] → [u_known; OUTPUTS] (θ column zero)
     cols = list(range(len(known))) + [len(known) + OUTPUTS.index(o) for o in outs]
@@ -308,7 +337,6 @@ class VanekGeometric(Detector):
         """v = [u; y] of every run and step, shape (n_runs, n_steps, n_inputs), in rad and
         rad/s, relative to the first sample (module docstring)."""
         from scenarios.aircraft.data import LAYOUT
-        from scenarios.aircraft.laws import ROLL_DISTRIBUTION
         from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
 
         from .position_monitor import PositionMonitor
@@ -330,23 +358,15 @@ class VanekGeometric(Detector):
             else:
                 x = signals.rods[name]
             delta[name] = deflection(name, x)
-        if monitored == FAULT_SURFACE:
-            roll = ROLL_DISTRIBUTION[names.index(FAULT_SURFACE)]
-            da = deflection(FAULT_SURFACE, signals.command) / roll
-        else:
-            others = [n for n, k in zip(names, LAYOUT.actuator) if k == "aileron"
-                      and n != FAULT_SURFACE]
-            da = np.mean([ROLL_DISTRIBUTION[names.index(n)] * delta[n] for n in others], axis=0)
-        lim = np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)
-        da = np.clip(da, -lim, lim)                      # spoiler roll order: limited like
-        spoiler = np.empty_like(da)                      # the ailerons', one period late
-        spoiler[:, 0] = da[:, 0]
-        spoiler[:, 1:] = da[:, :-1]
+        # the roll spoilers' equivalent angle as applied (no servo-loop here; it stands for
+        # their rod measurements, :data:`scenarios.signals.AIRCRAFT_SIGNAL_UNITS`)
+        spoiler = np.radians(signals.aircraft["spoiler"])
         cols = [delta[names[j]] for j in known[:-1]] + [spoiler]
         cols += [np.radians(signals.aircraft[s]) for s in OUTPUTS]
         v = np.stack(cols, axis=2)
         ref = v[:, :1, :].copy()
-        ref[:, :, [v.shape[2] - len(OUTPUTS) + OUTPUTS.index(o) for o in ZERO_TRIM]] = 0.0
+        n_u = v.shape[2] - len(OUTPUTS)
+        ref[:, :, [n_u - 1] + [n_u + OUTPUTS.index(o) for o in ZERO_TRIM]] = 0.0
         return v - ref
 
     def estimates(self, signals: Signals) -> dict[str, np.ndarray]:

@@ -185,7 +185,8 @@ class OneStepFilter:
 
 
 def one_step_filter(A, B, C, outputs, i1: int, i2: list, known: list, i_gust: list,
-                    sigma_y, sigma_u, ts: float, w: OneStepWeights = ONE_STEP) -> OneStepFilter:
+                    sigma_y, sigma_u, ts: float, w: OneStepWeights = ONE_STEP,
+                    gust_feedthrough=None) -> OneStepFilter:
     """The one-step H∞ FDI filter of [VANEK] §3 for the model (A, B, C) [rad, rad/s].
 
     Weighted interconnection (states: aircraft x, ideal tracking x_id, gust filters x_g)::
@@ -194,12 +195,14 @@ def one_step_filter(A, B, C, outputs, i1: int, i2: list, known: list, i_gust: li
         ẋ_id = −ω_id x_id + ω_id f_s w_f           (T_id)
         ẋ_g = −ω_g x_g + g_s √(2ω_g) w_g           (first-order Dryden shaping, W_dr)
         z = [(x_id − f̂)/f_s;  ε f̂/f_s]
-        m = [u_s w_u + Σ_u n_u;  C x + Σ_y n_y]     (measured: known inputs, then outputs)
+        m = [u_s w_u + Σ_u n_u;  C x + D_g x_g + Σ_y n_y]   (known inputs, then outputs)
 
     w = [w_f, w_d, w_g, n_y, w_u, n_u], all unit-size; Σ the sensor σ·√Ts (white noise
     sampled at Ts). The known inputs are exogenous and measured, so the filter learns to
     cancel their effect; the elevator and rudder faults and the gusts are attenuated, not
-    decoupled. *C* must make the plant stable for the filtering problem: states that are
+    decoupled. ``gust_feedthrough`` D_g (p, len(i_gust)): the gusts' direct effect on the
+    outputs (an air-relative sideslip sensor reads β + β_g); zero when None. *C* must make
+    the plant stable for the filtering problem: states that are
     pure integrators (the pitch attitude with speed held) must be left out by the caller.
     python-control's ``hinfsyn`` (SLICOT) at design time only.
     """
@@ -242,6 +245,8 @@ def one_step_filter(A, B, C, outputs, i1: int, i2: list, known: list, i_gust: li
     D12 = np.array([[-1.0 / w.fault_rad], [w.eps / w.fault_rad]])
     C2 = np.zeros((m + p, N))
     C2[m:, :n] = C
+    if gust_feedthrough is not None:
+        C2[m:, n + 1:] = np.asarray(gust_feedthrough, float).reshape(p, ng)
     D21 = np.zeros((m + p, nw))
     D21[m:, iy:iy + p] = Sy
     D21[:m, iu:iu + m] = np.eye(m) * w.known_rad

@@ -12,6 +12,12 @@ aircraft state advances exactly over the period (linear model), with the surface
 t_k, their motion to t_k+1 as a ramp (first-order hold) and the gust angles of the Dryden
 turbulence (:mod:`scenarios.turbulence`).
 
+Sensors: p, q, r, φ, θ, the load factors and the sideslip, each plus its white noise
+(:class:`scenarios.aircraft.data.AircraftSensorParams`). The sideslip is the *air-relative*
+angle β_a = β + β_g, what a vane aligned with the local flow (or a sideslip computed from
+the side force, which depends on β_a) gives, not the inertial β of the state; the rates,
+attitudes and load factors are inertial. The yaw law closes on that measured β_a.
+
 The fault of a run (PHYSICS §5) acts on the *monitored* surface (column ``surface`` of the
 run rows, one of :data:`scenarios.aircraft.data.AIRCRAFT_SURFACES`) through the
 actuator-level injection arrays (:func:`scenarios.faults.fault_arrays`) and the same COM
@@ -268,7 +274,7 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
         meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
                 "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
                 "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
-                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + nse[7, :, k]}
+                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k]}   # air-relative
         # servo-loops: COM acquisitions at t_k
         y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
         y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
