@@ -8,7 +8,8 @@ directions ([VANEK] §5: "successive input directions from the B matrix"):
 
 * L1 — the left inboard aileron's column of B (the fault to detect);
 * L2 — the left elevator's and the rudder's columns (the faults to isolate from), and, with
-  ``decouple_gusts``, the gust-sideslip column too (the gust angle of attack acts along the
+  ``decouple_gusts``, the gust sideslip's direction e_β (the β output is the air-relative
+  sideslip: :func:`gust_sideslip_direction`; the gust angle of attack acts along the
   short-period directions, already inside S*, so it is decoupled in any case).
 
 Known inputs u: the other surfaces' COM rod positions converted to deflections
@@ -39,11 +40,10 @@ at Ts): the residual's direct feed-through −H y carries the sensors' white noi
 and [VANEK] §5 tracks the fault only in a limited band (T_id). This low-pass is a plain
 stand-in for that band limit, not the H∞ post-filter of [VANEK] §3.
 
-Sensitivity (measured, docs/vanek-geometric.md): the left inboard aileron's rolling moment is
-small beside what a sideslip gust or the rudder produces, and the decoupled residual tells
-them apart only through the weak side-force terms of the sideslip equation; the β sensor
-noise and the turbulence therefore set a floor of several degrees of aileron-equivalent
-residual in fault-free flight, so only faults of that size are detected.
+Sensitivity (measured, docs/vanek-geometric.md): at the default sensors the fault-free floor
+is 0.2–0.3° of aileron-equivalent for the LPV variant and up to about 1° for the LTI variant
+off its design point, so the [VANEK]-size liquid jam (3.35°) is detected by both, the
+campaign's default one (0.69°) by the LPV variant.
 
 Variants (both computed by one ``detect``):
 
