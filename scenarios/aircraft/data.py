@@ -245,8 +245,9 @@ class PilotParams:
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the turn")
     smooth_s: float = param("s", "est.", "rise time of every stick/pedal input but the turn's")
-    turn_smooth_s: float = param("s", "est. (a gentle roll-in: no servo-valve current "
-                                 "saturation in the turns of the realistic envelope)",
+    turn_smooth_s: float = param("s", "est. (a gentle roll-in: the servo-valve current "
+                                 "touches its limit only for turbulence peaks of ≤ 20 ms in "
+                                 "the turns of the realistic envelope)",
                                  "rise and fall time of the turn's roll-rate order")
 
 
