@@ -190,6 +190,14 @@ def test_chen_tables_suite_is_shipped_and_listed(capsys):
         load_config("chen-tables")
 
 
+def test_vanek_section5_suite_names_its_three_campaigns():
+    suite = load_suite("vanek-section5")
+    assert [m.name for m in suite.members] == ["vanek-scenarios", "vanek-isolation",
+                                               "vanek-isolation-rudder"]
+    monitored = [load_config(m.name).campaign.monitored_surface for m in suite.members]
+    assert monitored == ["left_inboard_aileron", "left_elevator", "rudder"]
+
+
 def test_show_and_compare_name_the_members_of_a_suite_directory(two, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["run", str(two), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
