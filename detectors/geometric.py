@@ -35,6 +35,11 @@ Gahinet 1996 D-stability regions, linear in X and K like eq. 3)::
     [[−ρ X, X Â + K M], [(X Â + K M)ᵀ, −ρ X]] ⪯ 0,      (poles in |λ| ≤ ρ)
     X ⪰ I                                             (eq. 4, normalised)
 
+LPV ([VANEK] §5; Balas, Bokor & Szabó 2003): for a polytope of models A(θ) whose S* does
+not depend on θ, :func:`design_lpv` keeps S*, P, H, M fixed, computes the friend at each θ
+(linear in A, so affine when A is) and takes one G̃ from the LMI at every vertex with a
+common X (:func:`injection_lmi_common`): the pole region then holds on the whole polytope.
+
 Rank decisions use singular values: a singular value is counted as non-zero when it exceeds
 ``rtol × (largest singular value of the matrix tested, or 1 if that is zero)``; the default
 ``RTOL = 1e-9`` is far above double-precision round-off on well-scaled models of size ≤ 50
@@ -219,6 +224,17 @@ class ResidualGenerator:
                          for w in omega])
 
 
+def _lmi_region(X, K, A_hat, M, decay: float, radius: float) -> list:
+    """The constraints of [VANEK] eq. 3 with the decay rate and the disk (module docstring)
+    for one Â (cvxpy expressions or arrays)."""
+    import cvxpy as cp
+
+    XA = X @ A_hat + K @ M
+    lyap = XA + XA.T + 2.0 * decay * X
+    disk = cp.bmat([[-radius * X, XA], [XA.T, -radius * X]])
+    return [0.5 * (lyap + lyap.T) << 0, 0.5 * (disk + disk.T) << 0]
+
+
 def _lmi_problem(k: int, q: int, decay: float, radius: float):
     """The LMI problem of :func:`injection_lmi` for Â (k, k), M (q, k), with Â and M as cvxpy
     parameters (DPP: compiled once per shape and region, re-solved with new values)."""
@@ -227,10 +243,7 @@ def _lmi_problem(k: int, q: int, decay: float, radius: float):
     A_hat = cp.Parameter((k, k)); M = cp.Parameter((q, k))
     X = cp.Variable((k, k), symmetric=True)
     K = cp.Variable((k, q))
-    XA = X @ A_hat + K @ M
-    lyap = XA + XA.T + 2.0 * decay * X
-    disk = cp.bmat([[-radius * X, XA], [XA.T, -radius * X]])
-    cons = [X >> np.eye(k), 0.5 * (lyap + lyap.T) << 0, 0.5 * (disk + disk.T) << 0]
+    cons = [X >> np.eye(k)] + _lmi_region(X, K, A_hat, M, decay, radius)
     return cp.Problem(cp.Minimize(cp.norm(K, "fro")), cons), A_hat, M, X, K
 
 
@@ -275,14 +288,55 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
             f"filter poles in Re λ ≤ −{decay} and |λ| ≤ {radius}; lower the decay rate or "
             "widen the radius, or check that (M, Â) is detectable")
     G = np.linalg.solve(Xv, Kv)
-    eig = np.linalg.eigvals(A_hat + G @ M)
-    # an "optimal_inaccurate" solver answer is kept only when the poles are where eq. 3–4
-    # put them (tolerance 1e-3 relative: far below any design meaning of decay and radius)
+    _check_poles(A_hat + G @ M, status, decay, radius)
+    return G
+
+
+def _check_poles(N, status, decay: float, radius: float) -> None:
+    """An "optimal_inaccurate" solver answer is kept only when the poles of N are where
+    eq. 3–4 put them (tolerance 1e-3 relative: far below any design meaning of decay and
+    radius)."""
+    eig = np.linalg.eigvals(N)
     if eig.real.max() > -decay * (1.0 - 1e-3) or np.abs(eig).max() > radius * (1.0 + 1e-3):
         raise GeometricDesignError(
             f"the LMI solution of [VANEK] eq. 3–4 ({status}) leaves filter poles "
             f"{np.round(eig, 4).tolist()} outside Re λ ≤ −{decay}, |λ| ≤ {radius}; "
             "lower the decay rate or widen the radius")
+
+
+def injection_lmi_common(A_hats, M, decay: float, radius: float,
+                         solver: str = "CLARABEL") -> np.ndarray:
+    """One G̃ = X⁻¹K for every vertex Â_i of a polytope: the LMI of [VANEK] eq. 3–4 at every
+    vertex with a common X and K, minimising ‖K‖_F. The constraints are affine in Â, so they
+    then hold on the whole polytope: N(ρ) = Â(ρ) + G̃M has its poles in the region for every
+    Â(ρ) in the convex hull of the vertices (quadratic D-stability, Chilali & Gahinet 1996).
+    Raises :class:`GeometricDesignError` when infeasible."""
+    import cvxpy as cp
+
+    A_hats = [np.atleast_2d(np.asarray(a, float)) for a in A_hats]
+    M = np.atleast_2d(np.asarray(M, float))
+    k, q = A_hats[0].shape[0], M.shape[0]
+    if k == 0:
+        return np.zeros((0, q))
+    X = cp.Variable((k, k), symmetric=True)
+    K = cp.Variable((k, q))
+    cons = [X >> np.eye(k)]
+    for a in A_hats:
+        cons += _lmi_region(X, K, a, M, float(decay), float(radius))
+    prob = cp.Problem(cp.Minimize(cp.norm(K, "fro")), cons)
+    try:
+        prob.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        raise GeometricDesignError(f"the vertex LMI of [VANEK] eq. 3–4 failed in {solver}: "
+                                   f"{exc}") from exc
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or X.value is None:
+        raise GeometricDesignError(
+            f"the vertex LMI of [VANEK] eq. 3–4 is {prob.status}: no one output injection "
+            f"places the filter poles in Re λ ≤ −{decay} and |λ| ≤ {radius} at every vertex; "
+            "lower the decay rate, widen the radius or shrink the parameter box")
+    G = np.linalg.solve(np.array(X.value), np.array(K.value))
+    for a in A_hats:
+        _check_poles(a + G @ M, prob.status, decay, radius)
     return G
 
 
@@ -316,12 +370,67 @@ def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: f
             "([VANEK] §2); measure more outputs or decouple fewer faults")
     H = kernel((C @ S).T, rtol).T if S.shape[1] else np.eye(C.shape[0])
     M = H @ C @ P.T
+    A_hat = P @ (A + friend(A, C, S, rtol) @ C) @ P.T
+    return _generator(A, B, C, L1, L2, S, P, H, injection_lmi(A_hat, M, decay, radius, solver),
+                      rtol)
+
+
+def _generator(A, B, C, L1, L2, S, P, H, G_tilde, rtol: float = RTOL) -> ResidualGenerator:
+    """The residual generator for the model (A, B, C) on the subspaces S, P, H and the output
+    injection G̃ (the friend is computed here)."""
+    M = H @ C @ P.T
     G_hat = friend(A, C, S, rtol)
     A_hat = P @ (A + G_hat @ C) @ P.T
-    G_tilde = injection_lmi(A_hat, M, decay, radius, solver)
     return ResidualGenerator(S=S, P=P, H=H, M=M, G_hat=G_hat, A_hat=A_hat, G_tilde=G_tilde,
                              N=A_hat + G_tilde @ M, G=P @ G_hat + G_tilde @ H, F=P @ B,
                              L1=L1, L2=L2)
+
+
+@dataclass(frozen=True)
+class LPVResidualGenerator:
+    """The residual generator of a parameter-varying model whose S* does not depend on the
+    parameter (Balas, Bokor & Szabó 2003; [VANEK] §5): S, P, H, M fixed, one output
+    injection G̃ for the whole polytope (:func:`injection_lmi_common`); the friend
+    Ĝ(ρ) = :func:`friend` (A(ρ), C, S), linear in A, so that with A affine in ρ the filter
+    matrices N(ρ), G(ρ), F(ρ) are affine in ρ too. :meth:`at` gives the filter at one
+    parameter value."""
+
+    S: np.ndarray
+    P: np.ndarray
+    H: np.ndarray
+    G_tilde: np.ndarray
+    C: np.ndarray
+    rtol: float = RTOL
+
+    def at(self, A, B, L1, L2) -> ResidualGenerator:
+        """The filter for the model (A, B) of one parameter value (inside the design
+        polytope: the pole region is guaranteed there only)."""
+        return _generator(np.asarray(A, float), np.asarray(B, float), self.C,
+                          np.asarray(L1, float), np.asarray(L2, float), self.S, self.P,
+                          self.H, self.G_tilde, self.rtol)
+
+
+def design_lpv(As, C, L1s, L2s, *, decay: float = 1.0, radius: float = 20.0,
+               rtol: float = RTOL, names1=None, solver: str = "CLARABEL") -> LPVResidualGenerator:
+    """The LPV residual generator for the vertex models (A_i, L1_i, L2_i) of a polytope:
+    the construction of :func:`design` with the subspaces common to every vertex and the
+    output injection from the vertex LMI (:func:`injection_lmi_common`). Raises
+    :class:`GeometricDesignError` when S* differs between vertices (this construction needs
+    a parameter-independent S*) or any vertex fails the checks of :func:`design`."""
+    C = np.atleast_2d(np.asarray(C, float))
+    gens = [design(A, np.zeros((np.shape(A)[0], 0)), C, L1, L2, decay=decay, radius=radius,
+                   rtol=rtol, names1=names1, solver=solver) for A, L1, L2 in zip(As, L1s, L2s)]
+    S, P, H = gens[0].S, gens[0].P, gens[0].H
+    moved = [i for i, g in enumerate(gens) if not same_subspace(g.S, S, rtol)]
+    if moved:
+        raise GeometricDesignError(
+            f"S* at vertices {moved} differs from S* at vertex 0: the LPV construction needs a "
+            "parameter-independent smallest unobservability subspace; design per parameter "
+            "value instead")
+    M = H @ C @ P.T
+    A_hats = [P @ (np.asarray(A, float) + friend(A, C, S, rtol) @ C) @ P.T for A in As]
+    G_tilde = injection_lmi_common(A_hats, M, decay, radius, solver)
+    return LPVResidualGenerator(S=S, P=P, H=H, G_tilde=G_tilde, C=C, rtol=rtol)
 
 
 def bilinear(gen: ResidualGenerator, ts: float) -> tuple[np.ndarray, ...]:
@@ -347,7 +456,8 @@ def dc_gain(gen: ResidualGenerator) -> np.ndarray:
     return gen.M @ np.linalg.solve(gen.N, gen.P @ gen.L1)
 
 
-__all__ = ["RTOL", "GeometricDesignError", "ResidualGenerator", "basis", "kernel", "complement",
-           "subspace_sum", "intersection", "preimage", "contains", "same_subspace",
-           "conditioned_invariant", "unobservability_subspace", "friend", "injection_lmi",
-           "design", "bilinear", "bilinear_ss", "dc_gain"]
+__all__ = ["RTOL", "GeometricDesignError", "ResidualGenerator", "LPVResidualGenerator", "basis",
+           "kernel", "complement", "subspace_sum", "intersection", "preimage", "contains",
+           "same_subspace", "conditioned_invariant", "unobservability_subspace", "friend",
+           "injection_lmi", "injection_lmi_common", "design", "design_lpv", "bilinear",
+           "bilinear_ss", "dc_gain"]

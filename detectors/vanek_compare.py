@@ -9,7 +9,8 @@
   required detection time of the campaign defaults ([VANEK]: LTI 0.00725, LPV 0.00508);
 * fault-free cruise in moderate turbulence — peak residual / threshold.
 
-Variants lti and lpv, and lti-hinf and one-step when python-control and slycot are installed.
+Variants lti, lpv and lpv-affine, and lti-hinf and one-step when python-control and slycot are
+installed.
 
 Each scenario is fitted on its own fault-free cruise learning set (same monitored surface,
 moderate turbulence, :data:`LEARNING_POINTS`). ``noise_scale`` multiplies the σ of every
@@ -52,14 +53,15 @@ def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
     from scenarios.aircraft.data import AIRCRAFT_SENSORS
     from scenarios.aircraft.loop import simulate_aircraft
 
-    from .vanek_geometric import HINF_VARIANTS, VARIANTS, VanekGeometric
+    from .vanek_geometric import AFFINE_VARIANTS, HINF_VARIANTS, VARIANTS, VanekGeometric
 
-    try:                                  # the H∞ post-filter variant when its extra is there
+    variants = VARIANTS + AFFINE_VARIANTS
+    try:                                  # the H∞ variants when their extra is there
         import control  # noqa: F401
         import slycot  # noqa: F401
-        variants = VARIANTS + HINF_VARIANTS
+        variants += HINF_VARIANTS
     except ImportError:
-        variants = VARIANTS
+        pass
 
     if not noise_scale > 0.0:
         raise ValueError(f"noise_scale must be > 0, got {noise_scale!r}")

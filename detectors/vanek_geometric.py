@@ -45,16 +45,23 @@ is 0.2–0.3° of aileron-equivalent for the LPV variant and up to about 1° for
 off its design point, so the [VANEK]-size liquid jam (3.35°) is detected by both, the
 campaign's default one (0.69°) by the LPV variant.
 
-Variants (both computed by one ``detect``):
+Variants (those chosen, all computed by one ``detect``; default ``lti`` and ``lpv``):
 
 ``lti``
     designed once at the nominal flight point :data:`NOMINAL` ([VANEK] §4.2–5);
 ``lpv``
     the same algebraic construction (subspaces, friend and the LMI of eq. 3–4) repeated at
-    each run's *measured* flight point (``Signals.schedule``), the flight point of a run
-    being constant here; designs are cached by flight point. ([VANEK] §5 writes the LPV
-    filter affine in VCAS and altitude; this frozen-point form gives the filter of the
-    measured point exactly, so the affine approximation is not needed.)
+    each run's *measured* flight point (``Signals.schedule``: VCAS, altitude, mass, CG), the
+    flight point of a run being constant here; designs are cached by flight point. This
+    frozen-point form gives the filter of the measured point exactly;
+``lpv-affine``
+    the LPV filter of [VANEK] §5: the aircraft model affine in VCAS and altitude
+    (:func:`affine_model`, least squares over the realistic envelope at [VANEK]'s 200 t and
+    30 % CG; largest fit error 9 % of the largest entry), S* the same at every point (checked),
+    so S*, P, H, M are fixed, the friend Ĝ(VCAS, h) is linear in A and the filter affine in
+    (VCAS, h); one output injection for the whole box :data:`AFFINE_BOX`, from the LMI of
+    eq. 3–4 at its four corners with a common X (quadratic stability in the box). The filter
+    of a run is this family at its measured VCAS and altitude (clipped to the box).
 
 Thresholds ([VANEK] §5): τ = ``safety`` × the largest |r̂| over the fault-free learning
 runs, per variant; normalised residual |r̂|/τ; alarm once it has stayed ≥ 1 for
@@ -75,6 +82,8 @@ from . import geometric as geo
 from .base import Capabilities, Detection, Detector, confirm
 
 VARIANTS = ("lti", "lpv")
+#: Optional variant: [VANEK] §5's LPV filter affine in VCAS and altitude (module docstring).
+AFFINE_VARIANTS = ("lpv-affine",)
 #: Optional variants (:mod:`detectors.vanek_hinf`; need the optional extra ``hinf``): the
 #: LTI filter followed by the H∞ post-filter of [VANEK] §3, and the one-step H∞ FDI filter
 #: of [VANEK] §3 designed at the same point, for comparison.
@@ -110,6 +119,14 @@ class _Filter:
     Cd: np.ndarray
     Dd: np.ndarray
     c: np.ndarray
+
+
+def _discrete(gen: geo.ResidualGenerator, ts: float) -> _Filter:
+    """The generator discretised at *ts* [s] (bilinear, [VANEK] §5) with the least-squares
+    reconstruction r̂ = g⁺ r, g the steady-state gain from f1."""
+    Ad, Bd, Cd, Dd = geo.bilinear(gen, ts)
+    g = geo.dc_gain(gen)[:, 0]
+    return _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=g / float(g @ g))
 
 
 def _model(point: dict):
@@ -159,18 +176,99 @@ def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay:
     from scenarios.aircraft import lpv
 
     A, B = _model(point)
-    i1, i2, known = _columns()
+    _, _, known = _columns()
     out = [lpv.STATES.index(s) for s in OUTPUTS]
     C = np.eye(lpv.N_STATES)[out]
+    L1, L2 = _fault_columns(A, B, decouple_gusts)
+    gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
+                     names1=[FAULT_SURFACE])
+    return gen, _discrete(gen, ts)
+
+
+@dataclass(frozen=True)
+class AffineBox:
+    """Scheduling box of the ``lpv-affine`` variant (the realistic envelope's extent)."""
+
+    vcas_kt: tuple = param("kt", "scenarios.envelope: realistic VCAS 160–300 kt",
+                           "calibrated airspeed range")
+    alt_ft: tuple = param("ft", "scenarios.envelope: realistic altitudes 8 000–38 000 ft",
+                          "altitude range")
+
+
+AFFINE_BOX = AffineBox(vcas_kt=(160.0, 300.0), alt_ft=(8000.0, 38000.0))
+#: Scheduling variables of ``lpv-affine``, in order (names of ``Signals.schedule``).
+AFFINE_SCHEDULE = ("vcas_kt", "alt_ft")
+
+
+def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct):
+    """The aircraft model affine in VCAS [kt] and altitude [ft] ([VANEK] §5):
+    [A, B](v, h) = K0 + v·Kv + h·Kh, fitted by least squares on the exact models of the
+    realistic (VCAS, altitude) points of the envelope (``scenarios.envelope``) at *mass_t*
+    and *cg_pct*. Returns the function (v, h) → (A, B) and the largest fit error over those
+    points relative to the largest entry of each matrix. (Scheduling on mass and CG too, by
+    the same least squares over the 53 realistic points, fits to 14 % only: the dependence
+    on the mass is 1/m, far from affine over 120–233 t; in the three presets of the suite
+    vanek-section5, 17 of the 32 faulty runs then alarm before their onset.)"""
+    from scenarios import envelope
+
+    pts = envelope.realistic_points()
+    pts = pts[pts["realistic"]][list(AFFINE_SCHEDULE)].drop_duplicates().to_numpy(float)
+    models = [_model(_point(v, h, mass_t, cg_pct)) for v, h in pts]
+    AB = np.array([np.hstack(m) for m in models])                    # (k, n, n + m)
+    X = np.column_stack([np.ones(len(pts)), pts])                    # [1, v, h]
+    coef = np.linalg.lstsq(X, AB.reshape(len(pts), -1), rcond=None)[0]
+    coef = coef.reshape(X.shape[1], *AB.shape[1:])
+    n = models[0][0].shape[0]
+    fit = np.einsum("kc,cij->kij", X, coef)
+    err = max(float(np.abs(fit[:, :, sl] - AB[:, :, sl]).max() / np.abs(AB[:, :, sl]).max())
+              for sl in (slice(0, n), slice(n, None)))
+
+    def at(*theta):
+        m = coef[0] + np.tensordot(np.asarray(theta, float), coef[1:], axes=1)
+        return m[:, :n], m[:, n:]
+
+    return at, err
+
+
+def _fault_columns(A, B, decouple_gusts: bool):
+    """(L1, L2) of the design model (A, B) (module docstring)."""
+    i1, i2, _ = _columns()
     L2 = B[:, i2]
     if decouple_gusts:
         L2 = np.column_stack([L2, gust_sideslip_direction(A, B)])
-    gen = geo.design(A, B[:, known], C, B[:, [i1]], L2, decay=decay, radius=radius,
-                     names1=[FAULT_SURFACE])
-    Ad, Bd, Cd, Dd = geo.bilinear(gen, ts)
-    g = geo.dc_gain(gen)[:, 0]
-    c = g / float(g @ g)                    # least-squares reconstruction r̂ = g⁺ r
-    return gen, _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=c)
+    return B[:, [i1]], L2
+
+
+def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
+                  radius: float = 20.0):
+    """The ``lpv-affine`` filter family ([VANEK] §5): the aircraft model affine in VCAS and
+    altitude (:func:`affine_model`, at [VANEK]'s 200 t and 30 % CG), the LPV construction of
+    :func:`detectors.geometric.design_lpv` at the four corners of :data:`AFFINE_BOX` (S* is the
+    same at every point; one output injection for the box). Returns a function
+    θ → (the continuous residual generator, the :class:`_Filter` discretised at *ts*), θ the
+    values of :data:`AFFINE_SCHEDULE` (clipped to the box)."""
+    from scenarios.aircraft import lpv
+
+    model, _ = affine_model()
+    out = [lpv.STATES.index(s) for s in OUTPUTS]
+    C = np.eye(lpv.N_STATES)[out]
+    _, _, known = _columns()
+    ranges = [getattr(AFFINE_BOX, k) for k in AFFINE_SCHEDULE]
+    corners = np.array(np.meshgrid(*ranges, indexing="ij")).reshape(len(ranges), -1).T
+    As, L1s, L2s = [], [], []
+    for theta in corners:
+        A, B = model(*theta)
+        L1, L2 = _fault_columns(A, B, decouple_gusts)
+        As.append(A); L1s.append(L1); L2s.append(L2)
+    fam = geo.design_lpv(As, C, L1s, L2s, decay=decay, radius=radius, names1=[FAULT_SURFACE])
+
+    def at(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
+        A, B = model(*[float(np.clip(t, *r)) for t, r in zip(theta, ranges)])
+        L1, L2 = _fault_columns(A, B, decouple_gusts)
+        gen = fam.at(A, B[:, known], L1, L2)
+        return gen, _discrete(gen, ts)
+
+    return at
 
 
 def one_step_design(point: dict, ts: float):
@@ -244,7 +342,8 @@ class VanekGeometric(Detector):
     smoothing_s : float
         Time constant of the low-pass on r̂ [s] (≥ 0; 0: none).
     variants : sequence of str
-        Any of ``"lti"``, ``"lpv"`` and, with the optional extra ``hinf``, ``"lti-hinf"``
+        Any of ``"lti"``, ``"lpv"``, ``"lpv-affine"`` (module docstring) and, with the
+        optional extra ``hinf``, ``"lti-hinf"``
         (the LTI filter followed by the H∞ post-filter of [VANEK] §3, no low-pass) and
         ``"one-step"`` (the one-step H∞ FDI filter of [VANEK] §3 at the LTI design point, no
         low-pass; for comparison: no exact decoupling).
@@ -276,10 +375,11 @@ class VanekGeometric(Detector):
         if not (isinstance(self.smoothing_s, (int, float)) and self.smoothing_s >= 0.0):
             raise ValueError(f"smoothing_s must be ≥ 0 s, got {self.smoothing_s!r}")
         v = [self.variants] if isinstance(self.variants, str) else list(self.variants)
-        bad = [x for x in v if x not in VARIANTS + HINF_VARIANTS]
+        allowed = VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS
+        bad = [x for x in v if x not in allowed]
         if bad or not v:
-            raise ValueError(f"variants must be a non-empty list of "
-                             f"{list(VARIANTS + HINF_VARIANTS)}, got {self.variants!r}")
+            raise ValueError(f"variants must be a non-empty list of {list(allowed)}, got "
+                             f"{self.variants!r}")
         if any(x in HINF_VARIANTS for x in v):
             try:
                 import control  # noqa: F401
@@ -320,8 +420,25 @@ class VanekGeometric(Detector):
         cache[key] = f
         return f
 
+    def _affine(self, theta: tuple, ts: float) -> _Filter:
+        """The ``lpv-affine`` filter at θ (:data:`AFFINE_SCHEDULE`; family and filters
+        cached)."""
+        cache = self.__dict__.setdefault("_cache", {})
+        fam_key = ("affine-family", round(float(ts), 9))
+        if fam_key not in cache:
+            cache[fam_key] = design_affine(ts, decouple_gusts=self.decouple_gusts,
+                                           decay=float(self.decay), radius=float(self.radius))
+        key = ("affine", round(float(ts), 9)) + tuple(round(float(t), 6) for t in theta)
+        if key not in cache:
+            cache[key] = cache[fam_key](*theta)[1]
+        return cache[key]
+
     def _filters(self, variant: str, signals: Signals) -> list[_Filter]:
         kind = variant if variant in HINF_VARIANTS else "geometric"
+        if variant == "lpv-affine":
+            s = signals.schedule
+            return [self._affine(tuple(s[k][i] for k in AFFINE_SCHEDULE), signals.ts)
+                    for i in range(signals.n_runs)]
         if variant != "lpv":          # designed once, at the LTI design point
             f = self._design(_point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t,
                                     NOMINAL.cg_pct), signals.ts, kind)

@@ -84,7 +84,9 @@ def test_bench_reports_the_cost_of_every_registered_detector():
     assert all(np.isfinite(c["ns_per_run_step"]) and c["ns_per_run_step"] > 0 for c in costs)
 
 
-def test_vanek_hinf_variants_pass_check_detector():
-    # the optional variants of vanek-geometric (the [hinf] extra is part of [test]): the
-    # H∞ post-filter and the one-step H∞ filter of [VANEK] §3
-    check_detector(make_detector("vanek-geometric", {"variants": ["lti-hinf", "one-step"]}))
+def test_vanek_optional_variants_pass_check_detector():
+    # the optional variants of vanek-geometric (the [hinf] extra is part of [test]): the LPV
+    # filter affine in VCAS and altitude of [VANEK] §5, the H∞ post-filter and the one-step
+    # H∞ filter of [VANEK] §3
+    check_detector(make_detector("vanek-geometric",
+                                 {"variants": ["lpv-affine", "lti-hinf", "one-step"]}))

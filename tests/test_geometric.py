@@ -160,3 +160,39 @@ def test_lmi_design_does_not_depend_on_what_was_solved_before():
     other = geo.design(*_random_plant(6), decay=0.5, radius=30.0)
     geo.injection_lmi(other.A_hat, other.M, 0.5, 30.0)
     assert np.array_equal(first, geo.injection_lmi(gen.A_hat, gen.M, 0.5, 30.0))
+
+
+# An LPV family of example 1: x3' = a(ρ) x3 + b(ρ) x1 + f1 with a = −3 + 3.5ρ, b = 1 + ρ,
+# ρ ∈ [0, 1] (unstable x3 at ρ = 1). By hand, for every ρ: S* = ⟨e1, e2⟩, X/S* ≅ x3, M = ±1,
+# the friend removes b·x1 through y1, Â(ρ) = a(ρ); with decay 1 one injection for the whole
+# interval needs a(ρ) + G̃ ≤ −1, i.e. G̃ ≤ −1.5, and the least ‖K‖ (X = 1) gives G̃ = −1.5.
+def _A1(rho):
+    A = A1.copy()
+    A[2, 2] = -3.0 + 3.5 * rho
+    A[2, 0] = 1.0 + rho
+    return A
+
+
+def test_lpv_design_one_injection_for_the_polytope():
+    fam = geo.design_lpv([_A1(0.0), _A1(1.0)], C1, [E[:, [2]]] * 2, [E[:, [1]]] * 2,
+                         decay=1.0, radius=20.0)
+    assert geo.same_subspace(fam.S, _span(E[0], E[1]))
+    for rho in np.linspace(0.0, 1.0, 11):
+        gen = fam.at(_A1(rho), np.zeros((3, 1)), E[:, [2]], E[:, [1]])
+        # the injection (in the sign of M): N = a(ρ) − 1.5 (solver tolerance 1e-5)
+        assert gen.N[0, 0] == pytest.approx(-3.0 + 3.5 * rho - 1.5, abs=1e-5)
+        assert np.linalg.eigvals(gen.N).real.max() <= -1.0 + 1e-5
+        w = np.logspace(-2, 2, 9)
+        aileron = np.abs(gen.fault_to_residual(_A1(rho), np.zeros((3, 1)), C1, E[:, [2]], w))
+        leak = np.abs(gen.fault_to_residual(_A1(rho), np.zeros((3, 1)), C1, E[:, [1]], w))
+        assert aileron.min() > 1e-3 and leak.max() < 1e-12 * aileron.max()
+
+
+def test_lpv_design_refuses_a_parameter_dependent_unobservability_subspace():
+    # with x1' = −x1 (no x2 in it) at the second vertex, by hand W* = S* = ⟨e2⟩ there,
+    # against ⟨e1, e2⟩ at the first
+    B = _A1(0.0)
+    B[0, 1] = 0.0
+    assert geo.same_subspace(geo.unobservability_subspace(B, C1, E[:, [1]]), E[:, [1]])
+    with pytest.raises(geo.GeometricDesignError, match="S\\* at vertices \\[1\\] differs"):
+        geo.design_lpv([_A1(0.0), B], C1, [E[:, [2]]] * 2, [E[:, [1]]] * 2)
