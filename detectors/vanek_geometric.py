@@ -277,9 +277,9 @@ def one_step_design(point: dict, ts: float):
     :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
     (a pure integrator with the speed held, which the filtering problem cannot have); the
     filter ignores the measured θ. The gust sideslip reaches the β output directly (the
-    sensor reads the air-relative sideslip). Noise: the aircraft sensors' σ and the rods' (0.03 mm
-    over the lever arm) for the known surfaces; the spoiler order is known exactly (a small
-    σ keeps the problem regular)."""
+    sensor reads the air-relative sideslip). Noise: the aircraft sensors' σ and the rods'
+    (0.03 mm over the lever arm) for the known surfaces; the spoiler angle is known exactly
+    (a small σ keeps the problem regular)."""
     from scenarios.aircraft import lpv
     from scenarios.aircraft.data import LAYOUT
     from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
@@ -393,7 +393,7 @@ class VanekGeometric(Detector):
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)              # needs_aircraft: Signals.aircraft, .rods
-        missing = [s for s in OUTPUTS if s not in signals.aircraft]
+        missing = [s for s in OUTPUTS + ("spoiler",) if s not in signals.aircraft]
         if missing:
             raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
 

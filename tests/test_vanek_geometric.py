@@ -103,6 +103,16 @@ def test_actuator_level_signals_are_refused():
         VanekGeometric().fit(sig)
 
 
+def test_aircraft_signals_without_the_spoiler_angle_are_refused():
+    import dataclasses
+
+    rows = _rows("left_inboard_aileron", "none", 1, 240.0, 30000.0, duration_s=20.0)
+    sig, _ = simulate_aircraft(rows)
+    aircraft = {k: v for k, v in sig.aircraft.items() if k != "spoiler"}
+    with pytest.raises(ValueError, match="lacks \\['spoiler'\\]"):
+        VanekGeometric().check_signals(dataclasses.replace(sig, aircraft=aircraft))
+
+
 def test_parameters_are_checked():
     with pytest.raises(ValueError, match="safety"):
         VanekGeometric(safety=1.0).validate_params()
