@@ -256,8 +256,6 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
     |λ| ≤ *radius* [rad/s] (module docstring), minimising ‖K‖_F; N = Â + G̃ M then has its
     eigenvalues in {Re λ ≤ −decay, |λ| ≤ radius}. Raises :class:`GeometricDesignError` when
     infeasible ((M, Â) not detectable, or a region too tight)."""
-    import cvxpy as cp
-
     A_hat = np.atleast_2d(np.asarray(A_hat, float)); M = np.atleast_2d(np.asarray(M, float))
     k, q = A_hat.shape[0], M.shape[0]
     if k == 0:
@@ -269,39 +267,51 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
             _LMI_CACHE[key] = _lmi_problem(k, q, float(decay), float(radius))
         prob, pA, pM, X, K = _LMI_CACHE[key]
         pA.value, pM.value = A_hat, M
-        try:
-            if fresh:
-                # the first solve compiles the parametric problem and its data differ from
-                # the cached path's in the last bits: solve every design through the cached
-                # path, so a design does not depend on what the process solved before
-                prob.solve(solver=solver)
+        # the first solve compiles the parametric problem and its data differ from the
+        # cached path's in the last bits: solve every design through the cached path, so a
+        # design does not depend on what the process solved before
+        solution = _solve(prob, X, K, solver, "the LMI of [VANEK] eq. 3–4",
+                          times=2 if fresh else 1)
+    return _injection(solution, [A_hat], M, decay, radius,
+                      "no output injection places the filter poles in the region; lower the "
+                      "decay rate or widen the radius, or check that (M, Â) is detectable")
+
+
+def _solve(prob, X, K, solver: str, what: str, times: int = 1):
+    """Solve *prob* (*times* times); (status, X, K) as arrays (None when the solver gave
+    none). A solver failure is a :class:`GeometricDesignError` naming *what*."""
+    import cvxpy as cp
+
+    try:
+        for _ in range(times):
             prob.solve(solver=solver)
-        except cp.error.SolverError as exc:
-            raise GeometricDesignError(f"the LMI of [VANEK] eq. 3–4 failed in {solver}: "
-                                       f"{exc}") from exc
-        status = prob.status
-        Xv = None if X.value is None else np.array(X.value)
-        Kv = None if K.value is None else np.array(K.value)
-    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Xv is None:
-        raise GeometricDesignError(
-            f"the LMI of [VANEK] eq. 3–4 is {status}: no output injection places the "
-            f"filter poles in Re λ ≤ −{decay} and |λ| ≤ {radius}; lower the decay rate or "
-            "widen the radius, or check that (M, Â) is detectable")
-    G = np.linalg.solve(Xv, Kv)
-    _check_poles(A_hat + G @ M, status, decay, radius)
-    return G
+    except cp.error.SolverError as exc:
+        raise GeometricDesignError(f"{what} failed in {solver}: {exc}") from exc
+    return (prob.status, None if X.value is None else np.array(X.value),
+            None if K.value is None else np.array(K.value))
 
 
-def _check_poles(N, status, decay: float, radius: float) -> None:
-    """An "optimal_inaccurate" solver answer is kept only when the poles of N are where
+def _injection(solution, A_hats, M, decay: float, radius: float, hint: str) -> np.ndarray:
+    """G̃ = X⁻¹K from a solved LMI of eq. 3–4 (:func:`_solve`), checked at every Â of
+    *A_hats*: an "optimal_inaccurate" answer is kept only when the poles of Â + G̃M are where
     eq. 3–4 put them (tolerance 1e-3 relative: far below any design meaning of decay and
-    radius)."""
-    eig = np.linalg.eigvals(N)
-    if eig.real.max() > -decay * (1.0 - 1e-3) or np.abs(eig).max() > radius * (1.0 + 1e-3):
-        raise GeometricDesignError(
-            f"the LMI solution of [VANEK] eq. 3–4 ({status}) leaves filter poles "
-            f"{np.round(eig, 4).tolist()} outside Re λ ≤ −{decay}, |λ| ≤ {radius}; "
-            "lower the decay rate or widen the radius")
+    radius). *hint*: what to do when the LMI is infeasible."""
+    import cvxpy as cp
+
+    status, Xv, Kv = solution
+    region = f"Re λ ≤ −{decay}, |λ| ≤ {radius}"
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Xv is None:
+        raise GeometricDesignError(f"the LMI of [VANEK] eq. 3–4 ({region}) is {status}: "
+                                   f"{hint}")
+    G = np.linalg.solve(Xv, Kv)
+    for a in A_hats:
+        eig = np.linalg.eigvals(a + G @ M)
+        if eig.real.max() > -decay * (1.0 - 1e-3) or np.abs(eig).max() > radius * (1.0 + 1e-3):
+            raise GeometricDesignError(
+                f"the LMI solution of [VANEK] eq. 3–4 ({status}) leaves filter poles "
+                f"{np.round(eig, 4).tolist()} outside {region}; lower the decay rate or "
+                "widen the radius")
+    return G
 
 
 def injection_lmi_common(A_hats, M, decay: float, radius: float,
@@ -324,20 +334,11 @@ def injection_lmi_common(A_hats, M, decay: float, radius: float,
     for a in A_hats:
         cons += _lmi_region(X, K, a, M, float(decay), float(radius))
     prob = cp.Problem(cp.Minimize(cp.norm(K, "fro")), cons)
-    try:
-        prob.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise GeometricDesignError(f"the vertex LMI of [VANEK] eq. 3–4 failed in {solver}: "
-                                   f"{exc}") from exc
-    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or X.value is None:
-        raise GeometricDesignError(
-            f"the vertex LMI of [VANEK] eq. 3–4 is {prob.status}: no one output injection "
-            f"places the filter poles in Re λ ≤ −{decay} and |λ| ≤ {radius} at every vertex; "
-            "lower the decay rate, widen the radius or shrink the parameter box")
-    G = np.linalg.solve(np.array(X.value), np.array(K.value))
-    for a in A_hats:
-        _check_poles(a + G @ M, prob.status, decay, radius)
-    return G
+    solution = _solve(prob, X, K, solver, "the vertex LMI of [VANEK] eq. 3–4")
+    return _injection(solution, A_hats, M, decay, radius,
+                      "no one output injection places the filter poles in the region at "
+                      "every vertex; lower the decay rate, widen the radius or shrink the "
+                      "parameter box")
 
 
 def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: float = RTOL,
@@ -352,6 +353,16 @@ def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: f
     n = A.shape[0]
     B = np.asarray(B, float).reshape(n, -1)
     L1 = np.asarray(L1, float).reshape(n, -1); L2 = np.asarray(L2, float).reshape(n, -1)
+    S, P, H = _subspaces(A, C, L1, L2, rtol, names1)
+    A_hat = P @ (A + friend(A, C, S, rtol) @ C) @ P.T
+    G_tilde = injection_lmi(A_hat, H @ C @ P.T, decay, radius, solver)
+    return _generator(A, B, C, L1, L2, S, P, H, G_tilde, rtol)
+
+
+def _subspaces(A, C, L1, L2, rtol: float, names1=None):
+    """S* (basis), P and H of the construction, after the solvability checks (S* not the
+    whole space, S* ∩ L1 = 0; *names1* names the columns of L1 in the message)."""
+    n = A.shape[0]
     S = unobservability_subspace(A, C, L2, rtol)
     P = complement(S, rtol).T
     if P.shape[0] == 0:
@@ -369,10 +380,7 @@ def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: f
             f"(dim S* = {S.shape[1]} of {n}), so no residual blind to L2 can see them "
             "([VANEK] §2); measure more outputs or decouple fewer faults")
     H = kernel((C @ S).T, rtol).T if S.shape[1] else np.eye(C.shape[0])
-    M = H @ C @ P.T
-    A_hat = P @ (A + friend(A, C, S, rtol) @ C) @ P.T
-    return _generator(A, B, C, L1, L2, S, P, H, injection_lmi(A_hat, M, decay, radius, solver),
-                      rtol)
+    return S, P, H
 
 
 def _generator(A, B, C, L1, L2, S, P, H, G_tilde, rtol: float = RTOL) -> ResidualGenerator:
@@ -418,18 +426,19 @@ def design_lpv(As, C, L1s, L2s, *, decay: float = 1.0, radius: float = 20.0,
     :class:`GeometricDesignError` when S* differs between vertices (this construction needs
     a parameter-independent S*) or any vertex fails the checks of :func:`design`."""
     C = np.atleast_2d(np.asarray(C, float))
-    gens = [design(A, np.zeros((np.shape(A)[0], 0)), C, L1, L2, decay=decay, radius=radius,
-                   rtol=rtol, names1=names1, solver=solver) for A, L1, L2 in zip(As, L1s, L2s)]
-    S, P, H = gens[0].S, gens[0].P, gens[0].H
-    moved = [i for i, g in enumerate(gens) if not same_subspace(g.S, S, rtol)]
+    As = [np.atleast_2d(np.asarray(A, float)) for A in As]
+    subs = [_subspaces(A, C, np.asarray(L1, float).reshape(A.shape[0], -1),
+                       np.asarray(L2, float).reshape(A.shape[0], -1), rtol, names1)
+            for A, L1, L2 in zip(As, L1s, L2s)]
+    S, P, H = subs[0]
+    moved = [i for i, (Si, _, _) in enumerate(subs) if not same_subspace(Si, S, rtol)]
     if moved:
         raise GeometricDesignError(
             f"S* at vertices {moved} differs from S* at vertex 0: the LPV construction needs a "
             "parameter-independent smallest unobservability subspace; design per parameter "
             "value instead")
-    M = H @ C @ P.T
-    A_hats = [P @ (np.asarray(A, float) + friend(A, C, S, rtol) @ C) @ P.T for A in As]
-    G_tilde = injection_lmi_common(A_hats, M, decay, radius, solver)
+    A_hats = [P @ (A + friend(A, C, S, rtol) @ C) @ P.T for A in As]
+    G_tilde = injection_lmi_common(A_hats, H @ C @ P.T, decay, radius, solver)
     return LPVResidualGenerator(S=S, P=P, H=H, G_tilde=G_tilde, C=C, rtol=rtol)
 
 
