@@ -173,12 +173,9 @@ def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay:
     ``tas_ms`` arrays of one element), continuous and discretised at *ts* [s]. Input order
     of the discrete filter: the known surfaces of :func:`_columns` [rad], then
     :data:`OUTPUTS` [rad, rad/s]."""
-    from scenarios.aircraft import lpv
-
     A, B = _model(point)
     _, _, known = _columns()
-    out = [lpv.STATES.index(s) for s in OUTPUTS]
-    C = np.eye(lpv.N_STATES)[out]
+    C = _output_matrix()
     L1, L2 = _fault_columns(A, B, decouple_gusts)
     gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
                      names1=[FAULT_SURFACE])
@@ -230,6 +227,13 @@ def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct)
     return at, err
 
 
+def _output_matrix() -> np.ndarray:
+    """C of the design model: the states measured as :data:`OUTPUTS`."""
+    from scenarios.aircraft import lpv
+
+    return np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in OUTPUTS]]
+
+
 def _fault_columns(A, B, decouple_gusts: bool):
     """(L1, L2) of the design model (A, B) (module docstring)."""
     i1, i2, _ = _columns()
@@ -247,11 +251,8 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
     same at every point; one output injection for the box). Returns a function
     θ → (the continuous residual generator, the :class:`_Filter` discretised at *ts*), θ the
     values of :data:`AFFINE_SCHEDULE` (clipped to the box)."""
-    from scenarios.aircraft import lpv
-
     model, _ = affine_model()
-    out = [lpv.STATES.index(s) for s in OUTPUTS]
-    C = np.eye(lpv.N_STATES)[out]
+    C = _output_matrix()
     _, _, known = _columns()
     ranges = [getattr(AFFINE_BOX, k) for k in AFFINE_SCHEDULE]
     corners = np.array(np.meshgrid(*ranges, indexing="ij")).reshape(len(ranges), -1).T
