@@ -122,7 +122,7 @@ def _plan_one(config, out: Path) -> None:
 
 
 def cmd_gate(args) -> int:
-    from reports.gate import write_junit
+    from reports.gate import write_junit, write_junit_suite
 
     from .suite import is_suite_dir, suite_members
 
@@ -144,14 +144,6 @@ def cmd_gate(args) -> int:
         write_junit_suite(results, args.junit)
         print(f"JUnit report written to {args.junit}")
     return EXIT_OK if ok else EXIT_GATE
-
-
-def write_junit_suite(results, path) -> None:
-    """One JUnit file for a suite: a ``<testsuite>`` per member campaign."""
-    from reports.gate import junit_tree, write_junit_tree
-
-    trees = [junit_tree(result, f"fdd-campaign gate {name}") for name, result in results]
-    write_junit_tree(trees, path)
 
 
 def _gate_one(directory, args):

@@ -111,9 +111,9 @@ def load_campaign(directory) -> LoadedCampaign:
     if not root.is_dir():
         raise CampaignSetupError(f"{root} is not a directory; give the --out directory of "
                                  "'fdd-campaign run'")
-    from .suite import SUITE_FILE
+    from .suite import is_suite_dir
 
-    if (root / SUITE_FILE).is_file() and not (root / "campaign.json").exists():
+    if is_suite_dir(root) and not (root / "campaign.json").exists():
         members = sorted(p.name for p in root.iterdir() if (p / "campaign.json").exists())
         raise CampaignSetupError(f"{root} is the directory of a suite of campaigns; give one "
                                  f"of its campaign directories: "

@@ -67,8 +67,8 @@ def _scored(results: pd.DataFrame) -> pd.DataFrame:
                          "of a campaign (reports.metrics.RESULT_COLUMNS)")
     ok = results[results["status"].astype(str) == "ok"]
     return pd.DataFrame({
-        "run_id": ok["run_id"].astype(str), "detector": ok["detector"].astype(str), "fault": ok["fault"].astype(str),
-        "manoeuvre": ok["manoeuvre"].astype(str),
+        "run_id": ok["run_id"].astype(str), "detector": ok["detector"].astype(str),
+        "fault": ok["fault"].astype(str), "manoeuvre": ok["manoeuvre"].astype(str),
         "fa": ok["false_alarm"].astype("boolean").fillna(False).astype(bool),
         "det": ok["detected"].astype("boolean").fillna(False).astype(bool),
         "dtp": pd.to_numeric(ok["dtp"], errors="coerce"),

@@ -30,7 +30,7 @@ from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
 __all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "junit_tree", "write_junit",
-           "write_junit_tree"]
+           "write_junit_suite", "write_junit_tree"]
 
 _REQUIRED = ("detector", "fault", "manoeuvre", "n_runs", "n_errors", "fa_count",
              "md_count", "dtp_max")
@@ -274,6 +274,12 @@ def write_junit(result: GateResult, path) -> None:
     ``tests`` and ``failures`` counts. The file is replaced atomically.
     """
     write_junit_tree([junit_tree(result)], path)
+
+
+def write_junit_suite(results: list, path) -> None:
+    """One JUnit file for a suite of campaigns: a ``<testsuite>`` per (name, GateResult)."""
+    write_junit_tree([junit_tree(result, f"fdd-campaign gate {name}")
+                      for name, result in results], path)
 
 
 def write_junit_tree(suites: list, path) -> None:
