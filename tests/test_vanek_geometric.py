@@ -4,6 +4,8 @@ sensitivity to the left inboard aileron, isolation in closed-loop simulation."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -132,7 +134,10 @@ def _rows(surface, fault, seed, vcas, alt, magnitude=None, duration_s=30.0):
 
 # Closed loop at the default aircraft sensors (AIRCRAFT_SENSORS). Learning set: three cruise
 # points around the LTI design point.
+@functools.lru_cache(maxsize=None)
 def _fit(monitored):
+    """The detector fitted once per monitored surface and shared by the tests (detect does
+    not change a fitted detector)."""
     learn = pd.concat([_rows(monitored, "none", 100 + i, v, h)
                        for i, (v, h) in enumerate([(200.0, 26000.0), (240.0, 30000.0),
                                                    (280.0, 33000.0)])], ignore_index=True)
