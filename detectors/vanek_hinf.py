@@ -201,9 +201,9 @@ def one_step_filter(A, B, C, outputs, i1: int, i2: list, known: list, i_gust: li
     sampled at Ts). The known inputs are exogenous and measured, so the filter learns to
     cancel their effect; the elevator and rudder faults and the gusts are attenuated, not
     decoupled. ``gust_feedthrough`` D_g (p, len(i_gust)): the gusts' direct effect on the
-    outputs (an air-relative sideslip sensor reads β + β_g); zero when None. *C* must make
-    the plant stable for the filtering problem: states that are
-    pure integrators (the pitch attitude with speed held) must be left out by the caller.
+    outputs (an air-relative sideslip sensor reads β + β_g); zero when None. *A* must be
+    stable for the filtering problem: the caller leaves out pure integrator states (the
+    pitch attitude with speed held).
     python-control's ``hinfsyn`` (SLICOT) at design time only.
     """
     try:
