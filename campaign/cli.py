@@ -1,4 +1,4 @@
-"""``fdd-campaign``: the command line (DESIGN.md, Command line). Exit codes: 0 ok, 1 gate
+"""``fdd-campaign``: the command line (docs/design.md §7, Command line). Exit codes: 0 ok, 1 gate
 failed, 2 bad input, 130 interrupted."""
 
 from __future__ import annotations

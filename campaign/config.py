@@ -220,13 +220,13 @@ class CampaignSection:
                               "out with grid)", "sobol", choices=("sobol", "random"),
                               only="mc")
     realistic_only: bool = key("bool", "keep only flight points passing the realistic-"
-                               "envelope rule (PHYSICS §6), for grid and mc", True)
+                               "envelope rule (docs/physics.md §6), for grid and mc", True)
     pressure_sensor: bool = key("bool", "simulate the actuator chamber ΔP sensor",
                                 False)
     plant: str = key("choice", "plant level: actuator (the servo-loop of `surface` alone, "
                      "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
                      "control laws and every primary surface with its own servo-loop; "
-                     "PHYSICS §7 phase 2)", "actuator", choices=PLANTS)
+                     "docs/physics.md §7 phase 2)", "actuator", choices=PLANTS)
     monitored_surface: str | None = key(
         "choice", "aircraft plant only: the surface whose servo-loop signals the detectors "
         "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
@@ -257,9 +257,9 @@ class UncertaintySection:
 @dataclass(frozen=True, kw_only=True)
 class MismatchSection:
     enabled: bool = key("bool", "sample the plant/model mismatch below", True)
-    supply: float = _half_width("hydraulic supply pressure", 0.05, "est. (PHYSICS §6)")
-    kci: float = _half_width("servo-valve gain Kci", 0.05, "est. (PHYSICS §6)")
-    hinge: float = _half_width("hinge-moment coefficients", 0.20, "est. (PHYSICS §6)")
+    supply: float = _half_width("hydraulic supply pressure", 0.05, "est. (docs/physics.md §6)")
+    kci: float = _half_width("servo-valve gain Kci", 0.05, "est. (docs/physics.md §6)")
+    hinge: float = _half_width("hinge-moment coefficients", 0.20, "est. (docs/physics.md §6)")
 
 
 def _pair(doc: str, default: tuple[float, float], unit: str, hi: float, source: str):
@@ -270,7 +270,7 @@ def _pair(doc: str, default: tuple[float, float], unit: str, hi: float, source: 
 @dataclass(frozen=True, kw_only=True)
 class RunawayRanges:
     rate_deg_s: tuple[float, float] = _pair("runaway ramp rate", (1.0, 10.0), "deg/s", 100.0,
-                                            "PHYSICS §5, [COMB] D_V1")
+                                            "docs/physics.md §5, [COMB] D_V1")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -393,7 +393,7 @@ class RequirementsSection:
         "fault_seconds", "required detection time per fault type, the DTP denominator "
         "(entries given replace the defaults; ofc: 3 periods, value for 1 Hz)",
         tuple(REQUIRED_DETECTION_TIME_S.items()), unit="s", lo=0.0, lo_open=True,
-        choices=FAULT_TYPES, source="est. (PHYSICS §5)")
+        choices=FAULT_TYPES, source="est. (docs/physics.md §5)")
     max_fa_rate: float = key("float", "gate: highest accepted false-alarm rate", 0.0,
                              lo=0.0, hi=1.0)
     max_md_rate: float = key("float", "gate: highest accepted missed-detection rate", 0.0,
@@ -486,7 +486,7 @@ class CampaignConfig:
         "2), uniform: grid uses {−w, 0, +w}, mc samples U(−w, w).")
     mismatch: MismatchSection = section(
         MismatchSection, "mismatch", "Plant/model mismatch beyond [CHEN] Table 2 (est., "
-        "PHYSICS §6), uniform, sampled per run.")
+        "docs/physics.md §6), uniform, sampled per run.")
     faults: FaultsSection = section(
         FaultsSection, "faults", "Fault sampling: onset uniform in [onset_min_s, duration_s − "
         "onset_before_end_s] (must not be empty); magnitudes uniform in the [low, high] "

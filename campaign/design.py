@@ -1,4 +1,4 @@
-"""Expand a campaign configuration into its run table (DESIGN.md, data flow step 2).
+"""Expand a campaign configuration into its run table (docs/design.md §3, data flow step 2).
 
 Two designs, one signature (``build_plan(config) -> DataFrame``):
 

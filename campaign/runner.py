@@ -1,6 +1,6 @@
 """Run a campaign: plan, learn, simulate and score in parallel chunks, store as they finish.
 
-DESIGN.md, data flow steps 2–6. The run table is cut into chunks; a worker simulates a chunk
+docs/design.md §3, data flow steps 2–6. The run table is cut into chunks; a worker simulates a chunk
 (vectorised over its runs), hands the signals to every detector and scores the detections;
 only result rows come back. Results stream back as chunks finish and each chunk is written
 at once as a Parquet shard (atomically), so a crash, a kill or Ctrl-C loses at most the

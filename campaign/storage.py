@@ -1,6 +1,6 @@
 """The campaign directory: Parquet files written atomically, resume by replaying shards.
 
-Layout (DESIGN.md, Outputs)::
+Layout (docs/design.md §6, Outputs)::
 
     DIR/campaign.json         the frozen configuration this directory belongs to
     DIR/plan.parquet          the run table

@@ -1,4 +1,4 @@
-"""The detector contract (DESIGN.md, Contracts), in the manner of scikit-learn estimators.
+"""The detector contract (docs/design.md §4, Contracts), in the manner of scikit-learn estimators.
 
 * ``__init__`` stores keyword parameters only (no work, no validation side effects);
 * ``fit(signals)`` learns from fault-free learning runs, stores learned values in

@@ -28,14 +28,14 @@ K·σ·D stays in the interval [K_min·σ_min·D_min, K_max] the design of eq. 2
 identification runs equally well and follows the aircraft plant's loaded roll-ins worse:
 largest fault-free liquid residual in the turns 1.26 mm against 0.43 mm; eq. 13 is kept.)
 
-Why this structure fits the servo-loop (PHYSICS §3): linearising the square-root load
+Why this structure fits the servo-loop (docs/physics.md §3): linearising the square-root load
 factor of [CHEN] eq. 11 around a small load gives K ≈ Kci·K_s·(1 − sign(ẋ)·F_aero/(2·S·ΔP))
 with F_aero affine in δ ≈ x/r, i.e. C0 = Kci·K_s, C1 ∝ q̄·Chδ·PG(M) and C2 ∝ Chα·α/Chδ:
 q̄, Mach and α are the natural scheduling variables. :func:`physical_coefficients` gives
 these values, used as the starting point of the fit.
 
 Discretisation at Ts (the FCC period): K·σ·D frozen over a period, bilinear (Tustin)
-transform, the order entering one period late (the FCC transport delay, PHYSICS §2)::
+transform, the order entering one period late (the FCC transport delay, docs/physics.md §2)::
 
     x_{k+1} = v_k + (x_k − v_k)·φ(K_k·σ_k·D_k),   φ(K) = (1 − K·Ts/2)/(1 + K·Ts/2),   v_k = u_{k−d}
 
@@ -80,7 +80,7 @@ class IdentificationSettings:
     sine_amp_frac: float = param("-", "est.", "small sine added to the order, fraction of "
                                  "the authority interval (excites small-signal dynamics)")
     sine_hz: float = param("Hz", "est.", "frequency of that sine")
-    input_delay_steps: int = param("steps", "PHYSICS §2 (one Ts of transport delay)",
+    input_delay_steps: int = param("steps", "docs/physics.md §2 (one Ts of transport delay)",
                                    "delay d of the order in the discrete model")
     max_nfev: int = param("-", "numerical", "iteration budget of least_squares")
 
@@ -149,19 +149,19 @@ def gain(c0, c1, c2, x, s):
 
 def saturation_mm(act: ActuatorParams) -> float:
     """e_sat = i_max/K_s [mm]: the order–rod error beyond which the servo-valve current
-    saturates (PHYSICS §3)."""
+    saturates (docs/physics.md §3)."""
     return float(act.i_max_mA / act.K_mA_per_mm)
 
 
 def damping_coefficient(act: ActuatorParams) -> float:
     """κ = Ka/(S·ΔP_ref) [(s/mm)²]: the damping-mode neighbour's load F_damping = Ka·ẋ² of
-    [CHEN] eq. 11 relative to the reference force (PHYSICS §3, [COMB] eq. 2)."""
+    [CHEN] eq. 11 relative to the reference force (docs/physics.md §3, [COMB] eq. 2)."""
     return float(act.Ka_N_per_mm_s2 / (act.S_m2 * act.dP_ref_Pa))
 
 
 def damping_factor(v0, kappa: float):
     """D = 1/√(1 + κ·v0²) [-]: the rod speed's reduction by the damping-mode neighbour at the
-    no-load speed *v0* = C0·σ·(u − x) [mm/s] (the servo-loop's law, PHYSICS §3)."""
+    no-load speed *v0* = C0·σ·(u − x) [mm/s] (the servo-loop's law, docs/physics.md §3)."""
     return 1.0 / np.sqrt(1.0 + kappa * v0 * v0)
 
 

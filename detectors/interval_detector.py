@@ -101,7 +101,7 @@ NUMERICS = IntervalNumerics(gain_eps_mm=1e-6, stability_grid_deflections=31,
 # ----------------------------------------------------------------------------------------
 def loop_gain(u_mm, y_mm, plant: PlantArrays, eps_mm: float = NUMERICS.gain_eps_mm):
     """γ(u, y, θ) = ẋ/(u − y) [1/s] of the nominal loop at the measured position y
-    ([COMB] eq. 2 with y substituted for x; current sat(K·(u − y)) as in PHYSICS §3)."""
+    ([COMB] eq. 2 with y substituted for x; current sat(K·(u − y)) as in docs/physics.md §3)."""
     e = np.asarray(u_mm, float) - np.asarray(y_mm, float)
     e = np.where(np.abs(e) < eps_mm, np.where(e < 0.0, -eps_mm, eps_mm), e)
     i_mA = np.clip(plant.K * e, -plant.i_max, plant.i_max)

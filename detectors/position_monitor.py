@@ -6,12 +6,12 @@ threshold for a confirmation time. Three consistency checks, each optional:
 
 ``loop``
     the COM rod acquisition against the output of a *nominal* servo-loop model driven by the
-    order u — the model of PHYSICS §3 with the nominal actuator parameters, loaded by the
+    order u — the model of docs/physics.md §3 with the nominal actuator parameters, loaded by the
     hinge moment at the *measured* flight point (the monitor never sees the true one). It
     catches runaways (the rod leaves the order) and solid jams (the rod stops following it).
 ``com_mon``
     COM against MON rod acquisition. A liquid jam biases the acquisition the loop closes on:
-    the loop hides it on COM but MON keeps the offset (PHYSICS §5).
+    the loop hides it on COM but MON keeps the offset (docs/physics.md §5).
 ``surface``
     the surface sensor, converted to rod travel x = r·sin δ, against the MON rod position —
     a disconnection leaves the rod healthy while the surface floats away. Skipped when the
@@ -128,7 +128,7 @@ class PositionMonitor(Detector):
 
     @staticmethod
     def model_output(signals: Signals, engine: str | None = None) -> np.ndarray:
-        """Nominal closed-loop servo model driven by the order (PHYSICS §2–3) [mm].
+        """Nominal closed-loop servo model driven by the order (docs/physics.md §2–3) [mm].
 
         *engine*: ``"compiled"`` (:func:`scenarios.kernels.servo_model`) or ``"numpy"`` (the
         reference loop below); default :func:`scenarios.kernels.current_engine`.

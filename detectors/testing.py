@@ -7,7 +7,7 @@ Any third party can test a plugin with::
 
 It simulates a small batch of fault-free learning runs and mixed evaluation runs (with the
 aircraft in the loop for a detector whose capabilities declare ``needs_aircraft``), then
-checks, on any detector (DESIGN.md, Contracts):
+checks, on any detector (docs/design.md §4, Contracts):
 
 * ``detect`` before ``fit`` raises :class:`~detectors.NotFittedError` (when it needs fit),
   with a message that says to call ``fit``;

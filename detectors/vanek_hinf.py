@@ -149,7 +149,7 @@ class OneStepWeights:
                              "aileron fault to track (scale of w_f)")
     isolated_rad: float = param("rad", "est. (5°)", "elevator and rudder faults to reject")
     known_rad: float = param("rad", "est. (5°)", "known surface deflections (exogenous)")
-    gust_rad: float = param("rad", "est. (σ 1°: moderate turbulence, PHYSICS §7)",
+    gust_rad: float = param("rad", "est. (σ 1°: moderate turbulence, docs/physics.md §7)",
                             "Dryden gust angles W_dr")
     gust_bandwidth: float = param("rad/s", "est. (V/L at cruise)",
                                   "pole of the first-order gust shaping filter")

@@ -1,6 +1,6 @@
 """The acceptance gate: pass/fail checks on a summary, a human report and JUnit XML for CI.
 
-Requirements (DESIGN.md, Metrics; ADDSAFE's zero false alarm / zero missed detection / DTP
+Requirements (docs/design.md §5, Metrics; ADDSAFE's zero false alarm / zero missed detection / DTP
 targets, [CHEN] §5):
 
 * **false alarms** — checked on every finest-granularity summary row with scored runs

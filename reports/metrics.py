@@ -1,6 +1,6 @@
 """Run-level scoring of alarms: false alarm, missed detection, detection delay, DTP, margin.
 
-The definitions live here and nowhere else (DESIGN.md, Metrics; [CHEN] §5, the ADDSAFE
+The definitions live here and nowhere else (docs/design.md §5, Metrics; [CHEN] §5, the ADDSAFE
 industrial evaluation). Inputs are plain arrays: this module knows nothing of how the runs
 were simulated or which detector raised the alarms.
 
@@ -26,14 +26,14 @@ __all__ = [
     "upper_bound",
 ]
 
-#: Value of the ``fault`` column of a fault-free run (DESIGN.md, Command line).
+#: Value of the ``fault`` column of a fault-free run (docs/design.md §7, Command line).
 FAULT_FREE = "none"
 
 #: Tolerance [s] on time comparisons with the onset and the end of the detection window:
 #: far below any sampling period (ms), far above the rounding error of ``k * ts``.
 ONSET_TOL_S = 1e-9
 
-#: Columns of a result row: one row per run × detector (DESIGN.md, Command line minimum
+#: Columns of a result row: one row per run × detector (docs/design.md §7, Command line minimum
 #: columns, plus ``error`` and ``pre_onset_alarm``).
 RESULT_COLUMNS: tuple[str, ...] = (
     "run_id", "detector", "fault", "manoeuvre", "status", "error",
@@ -65,7 +65,7 @@ def _per_run(value, n: int, name: str) -> np.ndarray:
 
 def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
                window_s=None) -> pd.DataFrame:
-    """Score a batch of runs of one detector (DESIGN.md, Metrics).
+    """Score a batch of runs of one detector (docs/design.md §5, Metrics).
 
     Parameters
     ----------
@@ -206,7 +206,7 @@ def clopper_pearson(k, n, confidence: float = 0.95):
     """Exact (Clopper–Pearson) two-sided interval of a binomial rate k/n.
 
     ``lower = Beta⁻¹(α/2; k, n−k+1)`` (0 when k = 0), ``upper = Beta⁻¹(1−α/2; k+1, n−k)``
-    (1 when k = n), α = 1 − confidence (DESIGN.md, Metrics). Vectorised over ``k`` and
+    (1 when k = n), α = 1 − confidence (docs/design.md §5, Metrics). Vectorised over ``k`` and
     ``n``; ``n = 0`` gives NaN. Returns ``(lower, upper)`` as floats or arrays.
     """
     k, n, empty = _check_counts(k, n, confidence)
@@ -223,7 +223,7 @@ def upper_bound(k, n, confidence: float = 0.95):
     """Exact one-sided upper confidence bound of a binomial rate k/n.
 
     ``Beta⁻¹(confidence; k+1, n−k)`` (1 when k = n): with 0 false alarms in 1200 runs the
-    rate is ≤ 1 − 0.05^(1/1200) = 0.25 % at 95 % confidence (DESIGN.md, Metrics).
+    rate is ≤ 1 − 0.05^(1/1200) = 0.25 % at 95 % confidence (docs/design.md §5, Metrics).
     Vectorised; ``n = 0`` gives NaN.
     """
     k, n, empty = _check_counts(k, n, confidence)

@@ -1,6 +1,6 @@
 """Aggregate result rows into rates, exact confidence bounds and DTP statistics.
 
-One summary row per detector × fault × manoeuvre, plus aggregates (DESIGN.md, Metrics and
+One summary row per detector × fault × manoeuvre, plus aggregates (docs/design.md §5, Metrics and
 Outputs; the layout of [CHEN] Tables 3–4):
 
 * ``manoeuvre = "all"`` per detector × fault (e.g. the 1200 fault-free runs of a Monte Carlo
@@ -125,7 +125,7 @@ def _sort_key(column: pd.Series) -> pd.Series:
 
 
 def summarize(results: pd.DataFrame) -> pd.DataFrame:
-    """Summary table of result rows (DESIGN.md, Metrics; see the module docstring).
+    """Summary table of result rows (docs/design.md §5, Metrics; see the module docstring).
 
     Parameters
     ----------

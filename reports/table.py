@@ -1,7 +1,7 @@
 """Plain-text terminal table of a summary, laid out like [CHEN] Tables 3–4.
 
 Per detector: one row per fault type with FA (%), MD (%), Min/Mean/Max DTP ([CHEN] §5),
-each rate followed by its exact one-sided 95 % upper bound (DESIGN.md, Metrics), then the
+each rate followed by its exact one-sided 95 % upper bound (docs/design.md §5, Metrics), then the
 fault-free false alarms per manoeuvre as ``k/n, FA ≤ x %``.
 """
 

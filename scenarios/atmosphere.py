@@ -1,4 +1,4 @@
-"""International Standard Atmosphere and airspeed conversions (PHYSICS §6).
+"""International Standard Atmosphere and airspeed conversions (docs/physics.md §6).
 
 ISA troposphere (constant lapse rate) and isothermal lower stratosphere, valid from sea level
 to 65 000 ft (19 812 m, below the 20 km top of the isothermal layer). Altitudes are

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import difflib
 
-#: Control surfaces with a built-in servo-loop parameter set (PHYSICS §3).
+#: Control surfaces with a built-in servo-loop parameter set (docs/physics.md §3).
 SURFACES: tuple[str, ...] = ("elevator", "aileron")
 
-#: The six ADDSAFE fault-free manoeuvres ([CHEN] §6.1, PHYSICS §7).
+#: The six ADDSAFE fault-free manoeuvres ([CHEN] §6.1, docs/physics.md §7).
 MANOEUVRES: tuple[str, ...] = (
     "cruise",
     "nose_up",
@@ -21,7 +21,7 @@ MANOEUVRES: tuple[str, ...] = (
     "turn_coordination",
 )
 
-#: Fault types (PHYSICS §5). ``none`` marks a fault-free run.
+#: Fault types (docs/physics.md §5). ``none`` marks a fault-free run.
 FAULTS: tuple[str, ...] = (
     "none",
     "runaway",
@@ -36,7 +36,7 @@ FAULTS: tuple[str, ...] = (
 #: Faults that really are faults (everything but ``none``).
 FAULT_TYPES: tuple[str, ...] = FAULTS[1:]
 
-#: Required detection times [s], the DTP denominators (PHYSICS §5: est. defaults, the
+#: Required detection times [s], the DTP denominators (docs/physics.md §5: est. defaults, the
 #: ADDSAFE values are not public). OFC: 3 oscillation periods, resolved per run from the
 #: sampled frequency (the value here is the default for a 1 Hz oscillation).
 REQUIRED_DETECTION_TIME_S: dict[str, float] = {

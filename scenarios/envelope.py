@@ -1,4 +1,4 @@
-"""Flight envelope, uncertainty tables and the "realistic case" rule (PHYSICS §6).
+"""Flight envelope, uncertainty tables and the "realistic case" rule (docs/physics.md §6).
 
 - :data:`TABLE1` — the parametric grid of [CHEN] Table 1 (4 × 3 × 3 × 3 = 108 points);
 - :data:`A330` — the aircraft data the envelope rule and the trimmed flight condition need;
@@ -9,7 +9,7 @@
   of a flight point; :func:`measured_schedule` — what a detector sees of it;
 - :func:`realistic_rule` — which grid points are realistic, and why the others are not.
 
-Conventions (PHYSICS §1): VCAS in kt, altitude in ft (ISA pressure altitude), mass in t,
+Conventions (docs/physics.md §1): VCAS in kt, altitude in ft (ISA pressure altitude), mass in t,
 CG in % of the mean aerodynamic chord (MAC), angles in deg, pressures in Pa.
 """
 
@@ -73,7 +73,7 @@ TABLE1 = GridTable(
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class AircraftParams:
-    """Aircraft data for the envelope rule and the trimmed flight condition (PHYSICS §6).
+    """Aircraft data for the envelope rule and the trimmed flight condition (docs/physics.md §6).
 
     The wing lift balances the weight plus the tail load that trims the aircraft: with the
     wing-body lift acting at the aerodynamic centre x_ac and the tail lift at ``tail_arm_m``
@@ -86,27 +86,27 @@ class AircraftParams:
     """
 
     name: str = param("-", "-", "aircraft name")
-    wing_area_m2: float = param("m²", "PHYSICS §6 (A330 reference wing area)", "wing area S")
-    mac_m: float = param("m", "PHYSICS §6 (A330)", "mean aerodynamic chord")
-    tail_arm_m: float = param("m", "PHYSICS §6 (≈ 28 m, est.)",
+    wing_area_m2: float = param("m²", "docs/physics.md §6 (A330 reference wing area)", "wing area S")
+    mac_m: float = param("m", "docs/physics.md §6 (A330)", "mean aerodynamic chord")
+    tail_arm_m: float = param("m", "docs/physics.md §6 (≈ 28 m, est.)",
                               "distance from the wing-body aerodynamic centre to the tail's")
     x_ac_pct: float = param("% MAC", "est. (53-of-108 rule holds for 25–27 % MAC)",
                             "wing-body aerodynamic centre, slightly aft of the quarter chord")
-    mmo: float = param("-", "PHYSICS §6 (A330 MMO)", "maximum operating Mach number")
-    vmo_kt: float = param("kt", "PHYSICS §6 (A330 VMO)", "maximum operating speed (CAS)")
-    buffet_margin_g: float = param("g", "PHYSICS §6 (1.3 g buffet margin)",
+    mmo: float = param("-", "docs/physics.md §6 (A330 MMO)", "maximum operating Mach number")
+    vmo_kt: float = param("kt", "docs/physics.md §6 (A330 VMO)", "maximum operating speed (CAS)")
+    buffet_margin_g: float = param("g", "docs/physics.md §6 (1.3 g buffet margin)",
                                    "load factor the wing must sustain below buffet onset")
-    clb_mach: tuple[float, ...] = param("-", "PHYSICS §6 (est.)", "Mach breakpoints of C_Lb(M)")
-    clb: tuple[float, ...] = param("-", "PHYSICS §6 (est.)",
+    clb_mach: tuple[float, ...] = param("-", "docs/physics.md §6 (est.)", "Mach breakpoints of C_Lb(M)")
+    clb: tuple[float, ...] = param("-", "docs/physics.md §6 (est.)",
                                    "clean CLmax / buffet-onset lift coefficient C_Lb at clb_mach")
     cl_alpha_per_rad: float = param("1/rad", "est. (swept wing, aspect ratio ≈ 10)",
                                     "incompressible wing lift-curve slope CLα")
-    cl_alpha_mach_cap: float = param("-", "est. (as the hinge moments, PHYSICS §3)",
+    cl_alpha_mach_cap: float = param("-", "est. (as the hinge moments, docs/physics.md §3)",
                                      "Prandtl–Glauert scaling of CLα held above this Mach")
     cl0: float = param("-", "est.", "wing lift coefficient at zero angle of attack")
 
     def buffet_cl(self, mach) -> np.ndarray:
-        """C_Lb(M): linear interpolation of the table, held constant outside it (PHYSICS §6)."""
+        """C_Lb(M): linear interpolation of the table, held constant outside it (docs/physics.md §6)."""
         return np.interp(np.asarray(mach, dtype=float), self.clb_mach, self.clb)
 
     def lift_curve_slope(self, mach) -> np.ndarray:
@@ -142,7 +142,7 @@ A330 = AircraftParams(
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Uncertainty:
-    """Relative half-widths of the uniform uncertainties of [CHEN] Table 2 (PHYSICS §6)."""
+    """Relative half-widths of the uniform uncertainties of [CHEN] Table 2 (docs/physics.md §6)."""
 
     aero: float = param("-", "[CHEN] Table 2", "aerodynamic coefficients δCx…δCn (hinge moment)")
     vcas: float = param("-", "[CHEN] Table 2", "measured calibrated airspeed δVCAS")
@@ -153,16 +153,16 @@ class Uncertainty:
 
 @dataclass(frozen=True)
 class Mismatch:
-    """Plant/model mismatch beyond [CHEN] Table 2 (PHYSICS §6, est.), relative half-widths.
+    """Plant/model mismatch beyond [CHEN] Table 2 (docs/physics.md §6, est.), relative half-widths.
 
     The plant runs with the perturbed values while model-based detectors keep the nominal
     ones. ``enabled=False`` switches all of it off (half-widths 0).
     """
 
-    enabled: bool = param("-", "PHYSICS §6", "whether the mismatch is sampled")
-    supply: float = param("-", "est. (PHYSICS §6)", "hydraulic supply pressure ΔP")
-    kci: float = param("-", "est. (PHYSICS §6)", "servo-valve gain Kci")
-    hinge: float = param("-", "est. (PHYSICS §6)", "hinge-moment coefficients Ch0, Chα, Chδ")
+    enabled: bool = param("-", "docs/physics.md §6", "whether the mismatch is sampled")
+    supply: float = param("-", "est. (docs/physics.md §6)", "hydraulic supply pressure ΔP")
+    kci: float = param("-", "est. (docs/physics.md §6)", "servo-valve gain Kci")
+    hinge: float = param("-", "est. (docs/physics.md §6)", "hinge-moment coefficients Ch0, Chα, Chδ")
 
 
 UNCERTAINTY = Uncertainty(aero=0.05, vcas=0.10, alt=0.10, mass=0.10, cg=0.10)
@@ -248,7 +248,7 @@ def measured_schedule(alt_ft, vcas_kt, mass_t, cg_pct, d_alt, d_vcas, d_mass, d_
                       aircraft: AircraftParams = A330) -> dict[str, np.ndarray]:
     """Scheduling data a detector sees: measured/estimated values carrying the deviations.
 
-    measured = true·(1 + d) for VCAS, altitude, mass and CG ([CHEN] Table 2, PHYSICS §4);
+    measured = true·(1 + d) for VCAS, altitude, mass and CG ([CHEN] Table 2, docs/physics.md §4);
     mach, qbar_pa and alpha_deg are recomputed from the measured values through
     :func:`flight_condition`, as an on-board estimate would be.
     """
@@ -268,7 +268,7 @@ def measured_schedule(alt_ft, vcas_kt, mass_t, cg_pct, d_alt, d_vcas, d_mass, d_
 # The realistic-case rule
 # ---------------------------------------------------------------------------------------
 def rule_conditions(uncertainty: Uncertainty = UNCERTAINTY) -> dict[str, tuple[float, float]]:
-    """The conditions the realistic rule checks: name → (d_vcas, d_mass) (PHYSICS §6)."""
+    """The conditions the realistic rule checks: name → (d_vcas, d_mass) (docs/physics.md §6)."""
     return {
         "nominal": (0.0, 0.0),
         "slow_heavy": (-uncertainty.vcas, +uncertainty.mass),
@@ -278,7 +278,7 @@ def rule_conditions(uncertainty: Uncertainty = UNCERTAINTY) -> dict[str, tuple[f
 
 def realistic_rule(points: pd.DataFrame, uncertainty: Uncertainty = UNCERTAINTY,
                    aircraft: AircraftParams = A330) -> pd.DataFrame:
-    """Flag the realistic flight points (PHYSICS §6, after [CHEN] §5.1's 158 of 324 cases).
+    """Flag the realistic flight points (docs/physics.md §6, after [CHEN] §5.1's 158 of 324 cases).
 
     A point is realistic if, at each of three conditions — ``nominal``, ``slow_heavy``
     (VCAS −10 %, mass +10 %) and ``fast_light`` (VCAS +10 %, mass −10 %); altitude and CG

@@ -1,4 +1,4 @@
-"""Fault injection (PHYSICS §5): how each fault type enters the servo-loop.
+"""Fault injection (docs/physics.md §5): how each fault type enters the servo-loop.
 
 A fault acts from its onset step k0 = round(onset/Ts) on (faults act at step boundaries).
 This module turns the per-run fault description (type, onset, magnitude, frequency) into
@@ -38,7 +38,7 @@ NEVER = np.iinfo(np.int64).max // 2
 @dataclass(frozen=True)
 class FaultDefaults:
     """Default magnitudes of a single run (``fdd-campaign simulate``); campaigns sample their
-    own from the campaign file (PHYSICS §5)."""
+    own from the campaign file (docs/physics.md §5)."""
 
     runaway_rate_deg_s: float = param("deg/s", "[COMB] D_V1, [VANEK]", "runaway ramp rate")
     liquid_jam_pct_range: float = param("%", "[CHEN] §6.2 (1.3 % of the range)",

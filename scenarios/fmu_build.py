@@ -1,4 +1,4 @@
-"""Build the built-in servo-loop plant (PHYSICS §3) as an FMI 2.0 (default) or FMI 3.0
+"""Build the built-in servo-loop plant (docs/physics.md §3) as an FMI 2.0 (default) or FMI 3.0
 co-simulation FMU.
 
 The C sources and the model-description templates ship in ``scenarios/fmu_src``: the model

@@ -105,7 +105,7 @@ def plant_matrix(plant) -> np.ndarray:
                                           for f in PLANT_FIELDS], axis=1))
 
 
-# ---- scalar plant functions (PHYSICS §3; scenarios.servo holds the NumPy reference) --------
+# ---- scalar plant functions (docs/physics.md §3; scenarios.servo holds the NumPy reference) --------
 @njit(nogil=True, cache=True, error_model="numpy")
 def _clip(v, lo, hi):
     return min(max(v, lo), hi)
@@ -160,7 +160,7 @@ def rk4_step_1(x, i, p, loaded, h):
 @njit(nogil=True, cache=True, error_model="numpy")
 def float_step_1(delta, p, h, d_min, d_max):
     """Floating surface after a disconnection over *h* [s] (closed form of
-    :func:`scenarios.servo.float_step`, PHYSICS §5); angles [rad]."""
+    :func:`scenarios.servo.float_step`, docs/physics.md §5); angles [rad]."""
     d_f = -p[P_HM0] / p[P_HMD]
     e = delta - d_f
     r_m = p[P_R] / _MM_PER_M
@@ -183,8 +183,8 @@ def _quantize(v, q):
 def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, com_osc, k_osc,
                     cur_add, cur_force, k_jam, k_disc, flags, ts, d_min, d_max, rod_quant,
                     xs, ds, icmd, iapp, ycom):
-    """Closed loop of a block of runs (PHYSICS §2: acquire, i_k = sat(K·(u_k − y_k)), hold
-    over the next period; RK4 plant step; faults of PHYSICS §5 at step boundaries).
+    """Closed loop of a block of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
+    over the next period; RK4 plant step; faults of docs/physics.md §5 at step boundaries).
 
     *x0* (n,) is the initial rod order [mm]; the other inputs are (n, T) or (n,) as in
     :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
@@ -280,7 +280,7 @@ def integrate_compiled(p, sensors):
 @njit(nogil=True, cache=True, error_model="numpy")
 def servo_model_block(u, x0, plant, ts, out):
     """Nominal closed loop driven by the order *u* (n, T) [mm] from rod position *x0* (n,)
-    [mm] (PHYSICS §2–3, as :meth:`detectors.position_monitor.PositionMonitor.model_output`):
+    [mm] (docs/physics.md §2–3, as :meth:`detectors.position_monitor.PositionMonitor.model_output`):
     out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period."""
     n, T = u.shape
     x = x0.copy()

@@ -1,4 +1,4 @@
-"""Surface-deflection orders of the six ADDSAFE fault-free manoeuvres (PHYSICS §7, phase 1).
+"""Surface-deflection orders of the six ADDSAFE fault-free manoeuvres (docs/physics.md §7, phase 1).
 
 The order of one run [deg] is
 
@@ -9,7 +9,7 @@ The order of one run [deg] is
   1 after) of size ΔA_i and duration D_i. Peak rate π·|ΔA|/(2·D); every D is at least the
   one giving ``manoeuvre_rate_deg_s`` and at least ``transition_min_s``, and the transitions
   of one surface never overlap, so the manoeuvre is rate-limited by construction.
-* amplitudes: the PHYSICS §7 values hold at the reference dynamic pressure q_ref and scale
+* amplitudes: the docs/physics.md §7 values hold at the reference dynamic pressure q_ref and scale
   as f = clip(q_ref/q̄, scale_min, scale_max) (:func:`amplitude_scale`): a smaller q̄ needs a
   larger deflection for the same hinge/aircraft moment. They are then limited to the
   authority left between the trim and the electrical limit in that direction.
@@ -18,7 +18,7 @@ The order of one run [deg] is
   aileron — through a first-order lag of the closed-loop bandwidth. Its flight-point
   dependence comes from σ(altitude) and V: the moment ratio Cmα/Cmδ (Clβ/Clδ) it stands
   for does not depend on q̄, so it carries no q̄ factor. At the reference flight point its
-  std is ≈ 0.15° and a 60-s run spans ≈ ±0.35° (PHYSICS §7: cruise ±0.2–0.5°).
+  std is ≈ 0.15° and a 60-s run spans ≈ ±0.35° (docs/physics.md §7: cruise ±0.2–0.5°).
 * the final clip keeps the order within the electrical limits of ``actuator``; clipping
   cannot increase the rate. Order rate bound: ``rate_max_deg_s`` = manoeuvre transitions
   (``manoeuvre_rate_deg_s``) + the gust reaction (≈ 0.7 °/s RMS at the slowest, most
@@ -78,7 +78,7 @@ FLIGHT_KEYS: dict[str, str] = {
 
 @dataclass(frozen=True)
 class ManoeuvreParams:
-    """Manoeuvre shapes, flight-point scaling, trim and gust-reaction laws (PHYSICS §7).
+    """Manoeuvre shapes, flight-point scaling, trim and gust-reaction laws (docs/physics.md §7).
 
     Ranges ``(lo, hi)`` are sampled uniformly per run. Amplitudes are magnitudes at the
     reference dynamic pressure; signs are in the shape table of the module docstring.
@@ -86,12 +86,12 @@ class ManoeuvreParams:
 
     # ---- flight-point scaling ------------------------------------------------------
     qbar_ref_pa: float = param("Pa", "est.: ISA, M 0.82 at FL370, q̄ = (γ/2)·p·M²",
-                               "reference dynamic pressure of the PHYSICS §7 amplitudes")
+                               "reference dynamic pressure of the docs/physics.md §7 amplitudes")
     scale_min: float = param("-", "est. (grid q̄ ≈ 3.4–18 kPa → q_ref/q̄ ≈ 0.56–3.0)",
                              "lower clip of the amplitude factor q_ref/q̄")
     scale_max: float = param("-", "est. (see scale_min)", "upper clip of the amplitude factor q_ref/q̄")
     # ---- smoothness -----------------------------------------------------------------
-    rate_max_deg_s: float = param("deg/s", "est. (below the 48/57 °/s no-load rates, PHYSICS §3)",
+    rate_max_deg_s: float = param("deg/s", "est. (below the 48/57 °/s no-load rates, docs/physics.md §3)",
                                   "bound on the order rate, manoeuvre + gust reaction")
     manoeuvre_rate_deg_s: float = param("deg/s", "est. (rate_max minus a margin for the gust reaction)",
                                         "peak rate of a manoeuvre transition")
@@ -106,7 +106,7 @@ class ManoeuvreParams:
     trim_k_alpha: float = param("deg/deg", "est. (sign of −Cmα/Cmδ; share left to the elevator)",
                                 "trim kα: more angle of attack, more nose-up (negative) elevator")
     trim_k_cg_deg_per_pct: float = param("deg/%MAC", "est.", "trim kcg: an aft CG needs less nose-up elevator")
-    cg_ref_pct: float = param("% MAC", "PHYSICS §6 (middle of the CG grid)", "reference CG of the trim law")
+    cg_ref_pct: float = param("% MAC", "docs/physics.md §6 (middle of the CG grid)", "reference CG of the trim law")
     trim_min_deg: float = param("deg", "est.", "lower bound of the trim (then the electrical limit)")
     trim_max_deg: float = param("deg", "est.", "upper bound of the trim (then the electrical limit)")
     # ---- gust reaction: δ = k·(gust/V) through 1/(1 + τ·s) ----------------------------
@@ -116,20 +116,20 @@ class ManoeuvreParams:
                                      "aileron order per degree of gust sideslip v_g/V")
     gust_lag_s: float = param("s", "est. (closed-loop pitch/roll bandwidth ≈ 2 rad/s)",
                               "time constant τ of the gust reaction")
-    # ---- shapes (PHYSICS §7 suggested shapes; all est.) --------------------------------
-    nose_up_amp_deg: tuple[float, float] = param("deg", "PHYSICS §7 (est.)", "nose-up step magnitude")
-    nose_up_hold_s: tuple[float, float] = param("s", "PHYSICS §7 (est.)", "step width at half amplitude")
-    aoa_amp_deg: tuple[float, float] = param("deg", "PHYSICS §7 (est.)", "AoA-protection excursion magnitude")
-    aoa_ramp_s: tuple[float, float] = param("s", "est. ('slow', PHYSICS §7)", "ramp duration into and out of it")
+    # ---- shapes (docs/physics.md §7 suggested shapes; all est.) --------------------------------
+    nose_up_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "nose-up step magnitude")
+    nose_up_hold_s: tuple[float, float] = param("s", "docs/physics.md §7 (est.)", "step width at half amplitude")
+    aoa_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "AoA-protection excursion magnitude")
+    aoa_ramp_s: tuple[float, float] = param("s", "est. ('slow', docs/physics.md §7)", "ramp duration into and out of it")
     aoa_hold_s: tuple[float, float] = param("s", "est.", "time held at the excursion")
     pitch_authority_frac: tuple[float, float] = param(
-        "-", "PHYSICS §7 'transients to the limits' (est.)", "peak as a fraction of the authority to the limit")
+        "-", "docs/physics.md §7 'transients to the limits' (est.)", "peak as a fraction of the authority to the limit")
     pitch_hold_s: tuple[float, float] = param("s", "est.", "time held at each pitch-protection peak")
     pitch_gap_s: tuple[float, float] = param("s", "est.", "pause between the nose-up and nose-down transients")
-    yaw_amp_deg: tuple[float, float] = param("deg", "PHYSICS §7 (est.)", "aileron held in yaw-angle mode")
+    yaw_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "aileron held in yaw-angle mode")
     yaw_hold_s: tuple[float, float] = param("s", "est.", "hold width at half amplitude")
-    turn_amp_deg: tuple[float, float] = param("deg", "PHYSICS §7 (est.)", "aileron roll-in/roll-out pulse")
-    turn_roll_rate_deg_s: float = param("deg/s", "PHYSICS §7", "aircraft roll rate: pulse width = bank/rate")
+    turn_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "aileron roll-in/roll-out pulse")
+    turn_roll_rate_deg_s: float = param("deg/s", "docs/physics.md §7", "aircraft roll rate: pulse width = bank/rate")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank angle φ of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the steady turn")
     turn_elevator_deg_per_g: float = param(
@@ -211,7 +211,7 @@ REFERENCE_FLIGHT: Mapping[str, float] = types.MappingProxyType({
 
 # ---- flight-point laws -------------------------------------------------------------------
 def amplitude_scale(qbar_pa: float, params: ManoeuvreParams = MANOEUVRE_PARAMS) -> float:
-    """Amplitude factor f = clip(q_ref/q̄, scale_min, scale_max) [-] (PHYSICS §7)."""
+    """Amplitude factor f = clip(q_ref/q̄, scale_min, scale_max) [-] (docs/physics.md §7)."""
     return min(max(params.qbar_ref_pa / qbar_pa, params.scale_min), params.scale_max)
 
 

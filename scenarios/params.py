@@ -1,4 +1,4 @@
-"""Parameter tables of the servo-loop and its sensors (PHYSICS §3–4).
+"""Parameter tables of the servo-loop and its sensors (docs/physics.md §3–4).
 
 Every number used by the plant lives here, with its unit and its provenance, so a user can
 replace it with their own actuator data (``dataclasses.replace(ELEVATOR, S_m2=...)``).
@@ -23,20 +23,20 @@ def param(unit: str, source: str, doc: str = ""):
 
 @dataclass(frozen=True)
 class ActuatorParams:
-    """One active hydraulic servo-actuator and its control surface (PHYSICS §3).
+    """One active hydraulic servo-actuator and its control surface (docs/physics.md §3).
 
     The adjacent actuator of the same surface is in damping mode: it resists the motion with
     a force Ka·ẋ|ẋ| ([COMB] eq. 2, [CHEN] eq. 11).
     """
 
-    surface: str = param("-", "PHYSICS §3", "surface name")
-    delta_min_deg: float = param("deg", "A330-class (PHYSICS §3)", "electrical deflection limit, lower")
-    delta_max_deg: float = param("deg", "A330-class (PHYSICS §3)", "electrical deflection limit, upper")
-    stop_margin_deg: float = param("deg", "est. (PHYSICS §3: 1–2° beyond the electrical limits)",
+    surface: str = param("-", "docs/physics.md §3", "surface name")
+    delta_min_deg: float = param("deg", "A330-class (docs/physics.md §3)", "electrical deflection limit, lower")
+    delta_max_deg: float = param("deg", "A330-class (docs/physics.md §3)", "electrical deflection limit, upper")
+    stop_margin_deg: float = param("deg", "est. (docs/physics.md §3: 1–2° beyond the electrical limits)",
                                 "mechanical stops lie this far beyond the electrical limits")
     r_mm: float = param("mm", "est.", "lever arm r between rod and hinge line")
     dP_Pa: float = param("Pa", "3000 psi hydraulic system", "supply differential pressure ΔP")
-    dP_ref_Pa: float = param("Pa", "PHYSICS §3 (ΔP_ref = ΔP)", "pressure drop of the maximum rod speed")
+    dP_ref_Pa: float = param("Pa", "docs/physics.md §3 (ΔP_ref = ΔP)", "pressure drop of the maximum rod speed")
     S_m2: float = param("m²", "est. (A320 aileron jack 22.7 cm²)", "piston area S")
     K_mA_per_mm: float = param("mA/mm", "est.", "servo-loop gain K")
     Kci_mm_s_per_mA: float = param("(mm/s)/mA", "est.", "servo-valve gain Kci")
@@ -49,10 +49,10 @@ class ActuatorParams:
     Ch0: float = param("-", "est.", "hinge-moment coefficient at zero α and δ")
     downwash: float = param("-", "est. (elevator: dε/dα; 0 for the aileron)",
                          "local AoA of the surface α_s = α·(1 − dε/dα)")
-    mach_compress_cap: float = param("-", "PHYSICS §3", "Prandtl–Glauert scaling held above this Mach")
-    has_surface_sensor: bool = param("-", "PHYSICS §4 ([CHEN]: none on the inboard aileron)",
+    mach_compress_cap: float = param("-", "docs/physics.md §3", "Prandtl–Glauert scaling held above this Mach")
+    has_surface_sensor: bool = param("-", "docs/physics.md §4 ([CHEN]: none on the inboard aileron)",
                                   "whether a surface position sensor is fitted")
-    order_load_limit: float = param("-", "est. (PHYSICS §3: no stall in normal flight)",
+    order_load_limit: float = param("-", "est. (docs/physics.md §3: no stall in normal flight)",
                                     "the flight control laws keep manoeuvre orders where the "
                                     "hinge load stays below this share of the stall force S·ΔP")
 
@@ -215,16 +215,16 @@ RUDDER = ActuatorParams(
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Sensors acquired by the FCC (PHYSICS §4). All values (est.)."""
+    """Sensors acquired by the FCC (docs/physics.md §4). All values (est.)."""
 
-    rod_noise_mm: float = param("mm", "est. (PHYSICS §4)", "white-noise σ of each LVDT acquisition")
-    rod_quant_mm: float = param("mm", "est. (PHYSICS §4)", "quantisation step of the rod acquisitions")
-    rod_bias_mm: float = param("mm", "est. (PHYSICS §4)", "per-run bias ~ U(−b, b)")
-    rod_scale: float = param("-", "est. (PHYSICS §4)", "per-run scale error ~ U(−s, s), relative")
-    surface_noise_deg: float = param("deg", "est. (PHYSICS §4)", "white-noise σ of the surface sensor")
-    surface_quant_deg: float = param("deg", "est. (PHYSICS §4)", "quantisation of the surface sensor")
-    surface_bias_deg: float = param("deg", "est. (PHYSICS §4)", "per-run bias ~ U(−b, b)")
-    pressure_noise_frac: float = param("-", "est. (PHYSICS §4)",
+    rod_noise_mm: float = param("mm", "est. (docs/physics.md §4)", "white-noise σ of each LVDT acquisition")
+    rod_quant_mm: float = param("mm", "est. (docs/physics.md §4)", "quantisation step of the rod acquisitions")
+    rod_bias_mm: float = param("mm", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)")
+    rod_scale: float = param("-", "est. (docs/physics.md §4)", "per-run scale error ~ U(−s, s), relative")
+    surface_noise_deg: float = param("deg", "est. (docs/physics.md §4)", "white-noise σ of the surface sensor")
+    surface_quant_deg: float = param("deg", "est. (docs/physics.md §4)", "quantisation of the surface sensor")
+    surface_bias_deg: float = param("deg", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)")
+    pressure_noise_frac: float = param("-", "est. (docs/physics.md §4)",
                                     "σ of the chamber ΔP sensor as a fraction of supply")
 
 

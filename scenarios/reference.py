@@ -3,7 +3,7 @@
 
 It shares the open-loop preparation (orders, noise, fault arrays) and the sensor models with
 :mod:`scenarios.simulate` and differs only in how the plant is integrated, so it serves two
-purposes: the accuracy reference of the fixed-step scheme (PHYSICS §2: RMS error far below
+purposes: the accuracy reference of the fixed-step scheme (docs/physics.md §2: RMS error far below
 the sensor noise) and the speed baseline of ``fdd-campaign bench``.
 """
 

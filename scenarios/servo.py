@@ -1,4 +1,4 @@
-"""The nonlinear hydraulic servo-loop plant (PHYSICS §3), vectorised over runs.
+"""The nonlinear hydraulic servo-loop plant (docs/physics.md §3), vectorised over runs.
 
 Every function takes arrays of shape ``(n_runs,)`` (or broadcastable) and a
 :class:`PlantArrays` holding the *true* per-run parameters of the batch, so one call
@@ -7,21 +7,21 @@ advances every run of a chunk. Nothing here loops over runs.
 Equations
 ---------
 Rod speed, turbulent servo-valve flow with the adjacent actuator in damping mode
-([COMB] eq. 1–2, [CHEN] eq. 11; PHYSICS §3)::
+([COMB] eq. 1–2, [CHEN] eq. 11; docs/physics.md §3)::
 
     ẋ = Kci·i·sqrt( max(0, S·ΔP − sign(i)·F_aero) / (S·ΔP_ref + Ka·(Kci·i)²) )
 
 with the aiding-load numerator capped at 2·S·ΔP, ẋ = 0 when the opposing load exceeds the
 stall force S·ΔP, and x held inside the mechanical stops.
 
-Hinge moment and the rod force it creates (PHYSICS §3)::
+Hinge moment and the rod force it creates (docs/physics.md §3)::
 
     HM = q̄·S_c·c_c·(Ch0 + Chα·α_s + Chδ·δ),     F_aero = −HM / (r·cos δ)
 
 F_aero > 0 opposes extension (+x). Chα and Chδ carry the Prandtl–Glauert factor
 1/sqrt(1 − M²), held above M = 0.75.
 
-Floating surface after a disconnection (PHYSICS §5): the surface is held only by the
+Floating surface after a disconnection (docs/physics.md §5): the surface is held only by the
 damping-mode neighbour, Ka·ẋ_s|ẋ_s| = −F_aero with x_s = r·sin δ. With HM affine in δ,
 HM = H·(δ − δ_f), this is δ̇|δ̇| = H·(δ − δ_f)/(Ka·r³·cos³δ) (H < 0), whose solution with
 cos δ frozen over a step is exact: sqrt|δ − δ_f| decreases linearly at the rate
@@ -67,7 +67,7 @@ class PlantArrays:
 
 
 def compressibility_factor(mach, cap: float) -> np.ndarray:
-    """Prandtl–Glauert factor 1/sqrt(1 − M²), with M held at *cap* above it (PHYSICS §3)."""
+    """Prandtl–Glauert factor 1/sqrt(1 − M²), with M held at *cap* above it (docs/physics.md §3)."""
     m = np.minimum(np.asarray(mach, dtype=float), cap)
     return 1.0 / np.sqrt(1.0 - m * m)
 
@@ -82,7 +82,7 @@ def plant_arrays(act: ActuatorParams, *, qbar_pa, alpha_deg, mach, d_aero=0.0, d
     qbar_pa : dynamic pressure [Pa]; alpha_deg : trimmed wing angle of attack [deg];
     mach : Mach number [-].
     d_aero : relative aerodynamic-coefficient error ([CHEN] Table 2, ±5 %), scales Ch*.
-    d_hinge : relative hinge-moment mismatch (PHYSICS §6, ±20 % est.), scales Ch*.
+    d_hinge : relative hinge-moment mismatch (docs/physics.md §6, ±20 % est.), scales Ch*.
     d_supply : relative supply-pressure mismatch (±5 % est.); d_kci : servo-valve gain
     mismatch (±5 % est.).
     """
@@ -110,7 +110,7 @@ def plant_arrays(act: ActuatorParams, *, qbar_pa, alpha_deg, mach, d_aero=0.0, d
 
 
 def aero_force(x_mm, p: PlantArrays) -> np.ndarray:
-    """Rod force F_aero [N] created by the hinge moment at rod position *x_mm* (PHYSICS §3).
+    """Rod force F_aero [N] created by the hinge moment at rod position *x_mm* (docs/physics.md §3).
 
     Positive values oppose extension. δ = asin(x/r); cos δ = sqrt(1 − (x/r)²).
     """
@@ -168,7 +168,7 @@ def float_step(delta_rad, p: PlantArrays, h: float, d_min_rad, d_max_rad) -> np.
 def authority_limits(p: PlantArrays, act: ActuatorParams, n_grid: int = 721):
     """Deflections [deg] reachable in normal flight, per run: the widest interval around the
     floating angle, inside the electrical limits, where the hinge load stays below
-    ``act.order_load_limit`` × S·ΔP (PHYSICS §3: the actuator never stalls in normal
+    ``act.order_load_limit`` × S·ΔP (docs/physics.md §3: the actuator never stalls in normal
     flight, so the flight control laws do not order such deflections)."""
     grid = np.linspace(act.delta_min_deg, act.delta_max_deg, n_grid)            # (G,)
     x = act.r_mm * np.sin(np.radians(grid))

@@ -1,5 +1,5 @@
 """What a simulation returns: :class:`Signals` (what a detector may read) and :class:`Truth`
-(what only scoring sees). DESIGN.md, Contracts.
+(what only scoring sees). docs/design.md §4, Contracts.
 
 Arrays are shaped ``(n_runs, n_steps)`` and sampled at ``ts`` (the FCC period); step ``k``
 is time ``k·ts``. Per-run scheduling data are the *measured/estimated* values, carrying the

@@ -6,7 +6,7 @@ every run of the batch at once (arrays of shape ``(n_runs,)``); everything that 
 depend on the closed loop (orders, noise, fault injection arrays) is prepared before it and
 everything that only reads the trajectory (MON, surface and pressure sensors) after it.
 
-Time base (PHYSICS §2): the FCC runs every Ts. At t_k it acquires the COM rod position,
+Time base (docs/physics.md §2): the FCC runs every Ts. At t_k it acquires the COM rod position,
 computes i_k = sat(K·(u_k − y_k), ±i_max) and holds it over the *next* period (one Ts of
 transport delay): the current flowing over [t_k, t_k+1) is i_{k−1}. The plant is advanced
 over each period with one classical RK4 step (the current is constant within the period,
@@ -52,9 +52,9 @@ RUN_COLUMNS: dict[str, tuple[str, str]] = {
     "d_alt": ("-", "relative altitude measurement error ([CHEN] Table 2)"),
     "d_mass": ("-", "relative mass estimation error ([CHEN] Table 2)"),
     "d_cg": ("-", "relative CG estimation error ([CHEN] Table 2)"),
-    "d_supply": ("-", "relative supply-pressure mismatch (PHYSICS §6, est.)"),
-    "d_kci": ("-", "relative servo-valve gain mismatch (PHYSICS §6, est.)"),
-    "d_hinge": ("-", "relative hinge-moment mismatch (PHYSICS §6, est.)"),
+    "d_supply": ("-", "relative supply-pressure mismatch (docs/physics.md §6, est.)"),
+    "d_kci": ("-", "relative servo-valve gain mismatch (docs/physics.md §6, est.)"),
+    "d_hinge": ("-", "relative hinge-moment mismatch (docs/physics.md §6, est.)"),
     "seed": ("-", "campaign seed"),
     "stream": ("-", "run stream index: SeedSequence(seed, spawn_key=(stream,))"),
     "duration_s": ("s", "run duration"),
@@ -350,7 +350,7 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
 
 
 def chamber_pressure(traj: Trajectory, p: Prepared) -> np.ndarray:
-    """Actuator chamber differential (load) pressure [Pa] from the trajectory (PHYSICS §4).
+    """Actuator chamber differential (load) pressure [Pa] from the trajectory (docs/physics.md §4).
 
     Moving rod: ΔP_L = (F_aero + Ka·ẋ|ẋ|)/S; seized rod (solid jam): the valve drives the
     blocked piston to ±ΔP with the pressure gain of :data:`FAULT_DEFAULTS`; disconnected
@@ -379,7 +379,7 @@ def _broadcast_plant(pl: PlantArrays) -> PlantArrays:
 
 def acquire(traj, p, act: ActuatorParams, sensors: SensorParams, pressure_sensor: bool,
             plant: PlantArrays | None = None):
-    """The MON rod, surface and chamber-pressure acquisitions of a trajectory (PHYSICS §4).
+    """The MON rod, surface and chamber-pressure acquisitions of a trajectory (docs/physics.md §4).
 
     *p* carries the per-run sensor errors (``mon_*``, ``surf_*``, ``pres_noise``) and the
     fault arrays; *plant* replaces ``p.plant`` for the pressure (the monitored surface's

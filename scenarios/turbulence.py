@@ -1,4 +1,4 @@
-"""Dryden atmospheric turbulence (PHYSICS §7; MIL-F-8785C §3.7, MIL-HDBK-1797).
+"""Dryden atmospheric turbulence (docs/physics.md §7; MIL-F-8785C §3.7, MIL-HDBK-1797).
 
 Gust velocities u_g, v_g, w_g [m/s] along the body axes are white noise shaped by the
 Dryden forming filters of MIL-HDBK-1797 (medium/high altitude, above 2000 ft, where the
@@ -39,16 +39,16 @@ _DRYDEN_VW_ZERO: float = math.sqrt(3.0)
 
 @dataclass(frozen=True)
 class DrydenParams:
-    """Dryden turbulence intensity and scale (PHYSICS §7, MIL-F-8785C / MIL-HDBK-1797).
+    """Dryden turbulence intensity and scale (docs/physics.md §7, MIL-F-8785C / MIL-HDBK-1797).
 
     σ is interpolated linearly in altitude between the table points and held constant
     outside them (clamped), like the standard's σ-vs-altitude chart read at a few points.
     """
 
     alt_table_ft: tuple[float, ...] = param(
-        "ft", "PHYSICS §7", "altitudes of the σ table (strictly increasing)")
+        "ft", "docs/physics.md §7", "altitudes of the σ table (strictly increasing)")
     sigma_table_ms: tuple[float, ...] = param(
-        "m/s", "PHYSICS §7 (read from the MIL-F-8785C / MIL-HDBK-1797 high-altitude intensity "
+        "m/s", "docs/physics.md §7 (read from the MIL-F-8785C / MIL-HDBK-1797 high-altitude intensity "
         "chart, 'moderate' = 10⁻³ probability of exceedance)",
         "turbulence intensity σ_u = σ_v = σ_w at the table altitudes")
     scale_length_ft: float = param(
@@ -78,7 +78,7 @@ class DrydenParams:
         return self.scale_length_ft * FT_TO_M
 
 
-#: Moderate turbulence (PHYSICS §7): σ = 3.0 / 2.3 / 1.9 / 1.45 m/s at 8 / 18 / 28 / 38 kft.
+#: Moderate turbulence (docs/physics.md §7): σ = 3.0 / 2.3 / 1.9 / 1.45 m/s at 8 / 18 / 28 / 38 kft.
 MODERATE = DrydenParams(
     alt_table_ft=(8000.0, 18000.0, 28000.0, 38000.0),
     sigma_table_ms=(3.0, 2.3, 1.9, 1.45),

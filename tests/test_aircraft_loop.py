@@ -34,7 +34,7 @@ def _twins(surface, fault, manoeuvre, **point):
 
 
 def test_monitored_surface_pressure_sensor_sees_the_jam():
-    # PHYSICS §4: the chamber pressure of the monitored actuator; a solid jam blocks the
+    # docs/physics.md §4: the chamber pressure of the monitored actuator; a solid jam blocks the
     # piston and the valve drives it towards ±ΔP (the blocked-piston law of
     # scenarios.simulate.chamber_pressure), far beyond the flying load of a few % of ΔP.
     runs = _rows("left_elevator", "solid_jam", "nose_up", duration_s=20.0, onset_s=8.0)
@@ -43,7 +43,7 @@ def test_monitored_surface_pressure_sensor_sees_the_jam():
     t = sig.time
     before = np.abs(sig.pressure[0, (t > 1.0) & (t < 8.0)])
     assert np.isfinite(sig.pressure).all()
-    assert before.max() < 0.6 * dp        # non-stalling flight loads (PHYSICS §3)
+    assert before.max() < 0.6 * dp        # non-stalling flight loads (docs/physics.md §3)
     assert np.abs(sig.pressure[0, t > 12.0]).max() > before.max()
 
 
@@ -89,7 +89,7 @@ def test_closed_loop_bounded_at_all_realistic_cases(envelope_batch):
 
 
 def test_turns_barely_touch_the_monitored_aileron_current_limit(envelope_batch):
-    """PHYSICS §7: the turn's aileron transients are moderate. At every realistic case and
+    """docs/physics.md §7: the turn's aileron transients are moderate. At every realistic case and
     uncertainty level the monitored inboard aileron's servo-valve current stays inside its
     ±i_max limit through the turn but for brief turbulence peaks: at most 5 of the 159 turns
     touch it, each for at most 50 ms (measured: 3 turns, 10–20 ms, all at 160 kt and
@@ -110,7 +110,7 @@ def test_turns_barely_touch_the_monitored_aileron_current_limit(envelope_batch):
 def test_surfaces_within_limits_and_never_stall(envelope_batch):
     """Every surface stays inside its electrical limits (plus 0.3°: COM bias 0.1 mm, scale
     0.5 % and noise on which the loop closes) and its hinge load stays below the stall
-    force S·ΔP (PHYSICS §3: no stall in normal flight)."""
+    force S·ΔP (docs/physics.md §3: no stall in normal flight)."""
     runs, _, truth = envelope_batch
     fl = truth.flight
     draws = {c: runs[c].to_numpy(float) for c in ("d_aero", "d_hinge", "d_supply", "d_kci")}
@@ -249,7 +249,7 @@ def test_bad_surface_and_plant_are_rejected():
     ("rudder", "none", "yaw_angle_mode"),
 ])
 def test_aircraft_step_matches_a_tight_reference_integration(surface, fault, manoeuvre):
-    """PHYSICS §2 for the aircraft: the recorded aircraft states equal a solve_ivp
+    """docs/physics.md §2 for the aircraft: the recorded aircraft states equal a solve_ivp
     integration (rtol 1e-9) of the continuous model driven by the recorded surface
     deflections (linear between samples), spoiler order and gusts (held), to 0.002° and
     0.002 °/s — ten times below the sensor noise. Holding the surfaces instead of ramping
@@ -287,7 +287,7 @@ def test_single_run_of_an_aircraft_surface_gets_its_actuators_default_fault_magn
     from scenarios.params import ACTUATORS
     from scenarios.simulate import single_run
 
-    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel, PHYSICS §5)
+    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel, docs/physics.md §5)
     row = single_run("left_inboard_aileron", "cruise", "liquid_jam")
     assert row["magnitude"].iloc[0] == default_magnitude("liquid_jam", ACTUATORS["aileron"])
     assert np.isfinite(single_run("rudder", "cruise", "runaway")["magnitude"].iloc[0])

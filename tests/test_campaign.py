@@ -59,7 +59,7 @@ def test_addsafe_mc_plan_counts_match_chen():
 def test_grid_plan_keeps_the_realistic_cases():
     plan = build_plan(load_config("addsafe-grid"))
     per_cell = plan.groupby(["group", "manoeuvre"]).size()
-    # PHYSICS §6: the realistic rule keeps 53 of 108 points, i.e. 159 of 324 cases
+    # docs/physics.md §6: the realistic rule keeps 53 of 108 points, i.e. 159 of 324 cases
     assert (per_cell == 159).all()
     assert set(plan["level"]) == {"min", "nominal", "max"}
 

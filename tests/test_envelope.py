@@ -1,5 +1,5 @@
 """Flight envelope: grid, uncertainty levels, flight condition, measured scheduling data and
-the realistic-case rule (PHYSICS §6, §8)."""
+the realistic-case rule (docs/physics.md §6, §8)."""
 
 from __future__ import annotations
 
@@ -187,7 +187,7 @@ def test_realistic_rule_keeps_53_of_108_points():
     r = realistic_points()
     assert len(r) == 108
     assert r["realistic"].dtype == bool
-    # PHYSICS §6: exactly 53 points, i.e. 159 of the 324 cases ([CHEN]: 158)
+    # docs/physics.md §6: exactly 53 points, i.e. 159 of the 324 cases ([CHEN]: 158)
     assert int(r["realistic"].sum()) == 53
     assert 3 * int(r["realistic"].sum()) == 159
 

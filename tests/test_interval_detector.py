@@ -137,7 +137,7 @@ def test_dead_zone_by_hand():
 
 
 def test_loop_gain_matches_the_servo_law_by_hand():
-    """γ = ẋ/(u − y) of [COMB] eq. 2 (PHYSICS §3) at q̄ = 0 (no hinge load): Kci·K·
+    """γ = ẋ/(u − y) of [COMB] eq. 2 (docs/physics.md §3) at q̄ = 0 (no hinge load): Kci·K·
     sqrt(S·ΔP/(S·ΔP_ref + Ka·(Kci·K·e)²)) unsaturated, Kci·i_max·sqrt(…)/|e| saturated."""
     p = plant_arrays(ELEVATOR, qbar_pa=np.zeros(2), alpha_deg=np.zeros(2), mach=np.zeros(2))
     e = np.array([1.0, 20.0])                       # 1 mm: K·e = 1.5 mA; 20 mm: saturated

@@ -111,7 +111,7 @@ def test_rate_bound_holds_over_many_turbulent_runs():
 def test_nose_up_elevator_is_a_held_negative_step():
     for seed in range(20):
         x = order("nose_up", "elevator", seed=seed, params=CALM) - trim("elevator")
-        assert 2.0 - 1e-9 <= -x.min() <= 5.0 + 1e-9        # PHYSICS §7 at q_ref
+        assert 2.0 - 1e-9 <= -x.min() <= 5.0 + 1e-9        # docs/physics.md §7 at q_ref
         assert x.max() <= 1e-12                            # one-sided: nose up only
         # held 5–10 s (width at half amplitude; ± one sample of quantisation)
         assert 5.0 - TS <= half_width_s(-x) <= 10.0 + TS
@@ -218,7 +218,7 @@ def test_lateral_manoeuvres_give_small_elevator_activity_and_vice_versa():
 
 
 def test_cruise_activity_at_reference():
-    # PHYSICS §7: cruise ±0.2–0.5°; the gust reaction's std is ≈ 0.13° at q_ref
+    # docs/physics.md §7: cruise ±0.2–0.5°; the gust reaction's std is ≈ 0.13° at q_ref
     for surface in SURFACES:
         stds = [order("cruise", surface, seed=s).std() for s in range(20)]
         assert 0.05 <= np.median(stds) <= 0.5

@@ -1,4 +1,4 @@
-"""Run-level metric definitions (DESIGN.md, Metrics) on constructed alarm sequences, and the
+"""Run-level metric definitions (docs/design.md §5, Metrics) on constructed alarm sequences, and the
 exact binomial bounds."""
 
 import math
@@ -187,7 +187,7 @@ def test_bad_input_is_named(kwargs, match):
 
 
 def _reference(alarm_row, fault, onset, ts, required, window):
-    """Step-by-step reading of DESIGN.md, Metrics, for one run."""
+    """Step-by-step reading of docs/design.md §5, Metrics, for one run."""
     times = [k * ts for k in range(len(alarm_row))]
     if fault == "none":
         hits = [t for t, a in zip(times, alarm_row) if a]

@@ -83,7 +83,7 @@ def test_report_has_the_verdict_first_and_every_figure(campaign_dir, report):
     row = s[(s.fault == "none") & (s.manoeuvre == "all")].iloc[0]
     assert f"{int(row.fa_count)}/{int(row.n_runs)}" in page
     assert int(row.n_runs) == 16
-    # the bound is spelled out (DESIGN.md, Metrics): with k = 0 of 16, 1 − 0.05^(1/16)
+    # the bound is spelled out (docs/design.md §5, Metrics): with k = 0 of 16, 1 − 0.05^(1/16)
     if row.fa_count == 0:
         bound = 100 * (1 - 0.05 ** (1 / 16))
         assert f"No false alarm in 16 fault-free runs: FA ≤ {bound:.2f} %" in page
@@ -126,7 +126,7 @@ def test_every_link_reaches_the_runs_behind_its_row(campaign_dir, report):
 
 def test_resimulated_margins_reproduce_the_stored_ones(report):
     _, page = report
-    # a run simulated alone or in any batch is bit for bit the same (DESIGN.md,
+    # a run simulated alone or in any batch is bit for bit the same (docs/design.md §9,
     # Determinism), so the re-simulated margins equal the stored ones exactly
     assert "reproduce the stored ones of all 16 runs (largest difference 0.0e+00)" in page
     assert 'class="warn"' not in page

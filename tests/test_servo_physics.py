@@ -1,4 +1,4 @@
-"""PHYSICS §8 sanity facts of the servo-loop, as quantitative checks.
+"""docs/physics.md §8 sanity facts of the servo-loop, as quantitative checks.
 
 Most checks drive the loop with a constructed order (``orders_deg``) and ideal sensors, so
 the numbers compared are those of the plant and the loop, not of the noise.
@@ -86,7 +86,7 @@ def test_saturated_rate_with_damping_neighbour_and_opposing_load(surface):
 @pytest.mark.parametrize("surface", ["elevator", "aileron"])
 def test_steady_state_tracks_order_under_load(surface):
     act = ACTS[surface]
-    level = 5.0      # PHYSICS §3: at high q̄ and 5° the load is tens of % of S·ΔP
+    level = 5.0      # docs/physics.md §3: at high q̄ and 5° the load is tens of % of S·ΔP
     _, truth = run(surface, step_order(400, 10, level), **HIGH_Q)
     # the hinge load at this point is a sizeable share of the stall force...
     p = plant_arrays(act, qbar_pa=truth.flight["qbar_pa"], alpha_deg=truth.flight["alpha_deg"],

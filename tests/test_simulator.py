@@ -1,6 +1,6 @@
 """The batch simulator as a whole: accuracy of the fixed-step scheme against a tight
-``solve_ivp`` reference (PHYSICS §2), finite outputs over the whole parametric grid
-(PHYSICS §8), batch invariance and determinism (DESIGN.md, Non-negotiables), and clear
+``solve_ivp`` reference (docs/physics.md §2), finite outputs over the whole parametric grid
+(docs/physics.md §8), batch invariance and determinism (docs/design.md §9, Non-negotiables), and clear
 errors for bad run rows."""
 
 import numpy as np
@@ -12,9 +12,9 @@ from scenarios.envelope import grid_points, level_draws
 from scenarios.reference import integrate_reference
 from scenarios.simulate import RunSpecError, integrate, prepare, simulate, single_run
 
-#: Sensor noise of the rod LVDT, σ [mm] (PHYSICS §4): the yardstick of the accuracy checks.
+#: Sensor noise of the rod LVDT, σ [mm] (docs/physics.md §4): the yardstick of the accuracy checks.
 ROD_NOISE_MM = 0.03
-#: Surface sensor noise, σ [deg] (PHYSICS §4).
+#: Surface sensor noise, σ [deg] (docs/physics.md §4).
 SURFACE_NOISE_DEG = 0.02
 
 
@@ -22,7 +22,7 @@ def _batch(rows: list[pd.DataFrame]) -> pd.DataFrame:
     return pd.concat(rows, ignore_index=True)
 
 
-# ---- accuracy of the RK4-per-period scheme (PHYSICS §2) --------------------------------------
+# ---- accuracy of the RK4-per-period scheme (docs/physics.md §2) --------------------------------------
 def _accuracy_batch(surface: str) -> pd.DataFrame:
     """Every manoeuvre fault-free, and every fault type on a manoeuvre (round robin), onset
     mid-record; 20 s is the shortest record that holds every whole manoeuvre."""
@@ -43,7 +43,7 @@ def test_fixed_step_scheme_matches_tight_reference(surface):
     rod_rms = np.sqrt(np.mean((fast.x - ref.x) ** 2, axis=1))
     surf_rms = np.degrees(np.sqrt(np.mean((fast.delta - ref.delta) ** 2, axis=1)))
     worst = runs["run_id"].iloc[int(np.argmax(rod_rms))]
-    # PHYSICS §2: integration error far below the sensor noise — RMS < 0.01 mm, a third of
+    # docs/physics.md §2: integration error far below the sensor noise — RMS < 0.01 mm, a third of
     # the LVDT σ, on every run; the surface angle likewise under a quarter of its sensor σ.
     assert rod_rms.max() < ROD_NOISE_MM / 3, f"rod RMS error {rod_rms.max():.2e} mm ({worst})"
     assert surf_rms.max() < SURFACE_NOISE_DEG / 4, f"surface RMS error {surf_rms.max():.2e} deg"
@@ -61,7 +61,7 @@ def test_batched_reference_equals_the_per_run_reference():
     np.testing.assert_allclose(batched.delta, per_run.delta, rtol=0, atol=1e-7)
 
 
-# ---- the whole parametric grid (PHYSICS §8) ----------------------------------------------------
+# ---- the whole parametric grid (docs/physics.md §8) ----------------------------------------------------
 def _grid_cases() -> pd.DataFrame:
     points = grid_points()
     frames = []
@@ -104,7 +104,7 @@ def test_all_324_cases_simulate_every_manoeuvre_with_finite_outputs(surface):
     assert truth.surface_deg.max() <= act.stop_max_deg + 1e-9
 
 
-# ---- batch invariance and determinism (DESIGN.md, Non-negotiables) ----------------------------
+# ---- batch invariance and determinism (docs/design.md §9, Non-negotiables) ----------------------------
 def _mixed_batch() -> pd.DataFrame:
     faults = ("none",) + FAULT_TYPES
     rows = []

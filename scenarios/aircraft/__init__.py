@@ -1,4 +1,4 @@
-"""Aircraft in the loop (PHYSICS §7 phase 2): rigid-body LPV dynamics, normal-law-like
+"""Aircraft in the loop (docs/physics.md §7 phase 2): rigid-body LPV dynamics, normal-law-like
 control laws, every primary surface with its own servo-loop and aircraft-level sensors.
 
 - :mod:`.data` — parameter tables: the Boeing 747 stability derivatives of the reference

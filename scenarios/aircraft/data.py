@@ -1,4 +1,4 @@
-"""Parameter tables of the aircraft level (PHYSICS §7 phase 2). Every number used by the
+"""Parameter tables of the aircraft level (docs/physics.md §7 phase 2). Every number used by the
 rigid-body model, the surface layout, the control laws, the pilot inputs and the aircraft
 sensors lives here with its unit and provenance ("(est.)" marks engineering estimates).
 
@@ -159,7 +159,7 @@ class SurfaceLayout:
     (spoilers are not monitored and have no servo-loop here). Rudder: the whole δr set.
     """
 
-    names: tuple[str, ...] = param("-", "PHYSICS §7, issue 8", "surfaces, in array order")
+    names: tuple[str, ...] = param("-", "docs/physics.md §7, issue 8", "surfaces, in array order")
     actuator: tuple[str, ...] = param("-", "scenarios.params", "actuator table of each surface")
     elevator_share: float = param("-", "est. (two equal elevators)",
                                   "share of the elevator derivatives per elevator")
@@ -186,7 +186,7 @@ AIRCRAFT_SURFACES: tuple[str, ...] = LAYOUT.names
 
 @dataclass(frozen=True)
 class LawParams:
-    """Normal-law-like control laws (est.; structure after Goupil 2011 / PHYSICS §7).
+    """Normal-law-like control laws (est.; structure after Goupil 2011 / docs/physics.md §7).
 
     Pitch: load-factor command with integral action; gains placed on the short-period
     model of the *measured* flight point so that the closed loop has a short-period pair
@@ -206,7 +206,7 @@ class LawParams:
     sideslip_gain: float = param("1/s²", "est.", "sideslip feedback: added ∂ṙ/∂β")
     sideslip_integral: float = param("1/s³", "est.", "sideslip integral (turn coordination)")
     hinge_load_limit: float = param(
-        "-", "est. (PHYSICS §3: no stall in normal flight; like a rudder travel limiter)",
+        "-", "est. (docs/physics.md §3: no stall in normal flight; like a rudder travel limiter)",
         "orders stay where the hinge load is below this share of the stall force S·ΔP")
 
 
@@ -219,28 +219,28 @@ LAWS = LawParams(
 
 @dataclass(frozen=True)
 class PilotParams:
-    """Pilot inputs of the six manoeuvres (PHYSICS §7 shapes flown through the laws; est.).
+    """Pilot inputs of the six manoeuvres (docs/physics.md §7 shapes flown through the laws; est.).
 
     Ranges (lo, hi) are sampled per run from the manoeuvre stream.
     """
 
     start_s: tuple[float, float] = param("s", "est.", "time of the first input")
-    nose_up_g: tuple[float, float] = param("g", "est. (PHYSICS §7 nose_up)", "load-factor step")
-    nose_up_hold_s: tuple[float, float] = param("s", "PHYSICS §7", "time held")
-    aoa_g: tuple[float, float] = param("g", "est. (PHYSICS §7 aoa_protection: slow)", "pull")
+    nose_up_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 nose_up)", "load-factor step")
+    nose_up_hold_s: tuple[float, float] = param("s", "docs/physics.md §7", "time held")
+    aoa_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 aoa_protection: slow)", "pull")
     aoa_ramp_s: tuple[float, float] = param("s", "est.", "ramp in and out")
     aoa_hold_s: tuple[float, float] = param("s", "est.", "time held")
-    pitch_g: tuple[float, float] = param("g", "est. (PHYSICS §7 pitch_protection)", "pull/push")
+    pitch_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 pitch_protection)", "pull/push")
     pitch_hold_s: tuple[float, float] = param("s", "est.", "time held at each peak")
     pitch_gap_s: float = param("s", "est.", "pause between the pull and the push")
-    yaw_beta_deg: tuple[float, float] = param("deg", "est. (PHYSICS §7 yaw_angle_mode)",
+    yaw_beta_deg: tuple[float, float] = param("deg", "est. (docs/physics.md §7 yaw_angle_mode)",
                                               "pedal sideslip order")
-    yaw_hold_s: tuple[float, float] = param("s", "PHYSICS §7", "time held")
+    yaw_hold_s: tuple[float, float] = param("s", "docs/physics.md §7", "time held")
     turn_rate_deg_s: float = param(
-        "deg/s", "est. (airline and autopilot roll-in rates are 3–8 °/s; PHYSICS §7's 15 °/s "
+        "deg/s", "est. (airline and autopilot roll-in rates are 3–8 °/s; docs/physics.md §7's 15 °/s "
         "is the normal law's full-stick rate: with it, at the low-q̄ corner of the envelope "
         "the law drives the ailerons to their authority limits and saturates the servo-valve "
-        "current in every turn, against PHYSICS §7's ±5–10° aileron transients)",
+        "current in every turn, against docs/physics.md §7's ±5–10° aileron transients)",
         "roll-rate order")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the turn")

@@ -1,4 +1,4 @@
-"""Normal-law-like flight control laws at Ts, vectorised over runs (PHYSICS §7 phase 2).
+"""Normal-law-like flight control laws at Ts, vectorised over runs (docs/physics.md §7 phase 2).
 
 The gains are scheduled on the *measured* flight point: the FCC builds the nominal linear
 model (d_aero = 0) of :mod:`scenarios.aircraft.lpv` from the measured/estimated Mach, q̄,

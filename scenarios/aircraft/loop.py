@@ -4,7 +4,7 @@ Plant: the rigid-body LPV model of :mod:`.lpv` at each run's true flight point, 
 the seven primary surfaces, each with its own nonlinear servo-loop — the servo plant of
 :mod:`scenarios.servo` (``plant_arrays``, ``rk4_step``, ``float_step``) stacked along a
 surface axis: the arrays of the loop have shape (7·n,), surface-major (index s·n + i). The
-FCC (every Ts, PHYSICS §2) acquires the aircraft sensors and every COM rod position at t_k,
+FCC (every Ts, docs/physics.md §2) acquires the aircraft sensors and every COM rod position at t_k,
 computes the laws of :mod:`.laws` and every surface's current i = sat(K·(u − y), ±i_max),
 held over the next period (one Ts of transport delay, as at the actuator level); the
 spoilers follow the roll order of the previous period (fixed coupling, no servo-loop). The
@@ -18,7 +18,7 @@ angle β_a = β + β_g, what a vane aligned with the local flow (or a sideslip c
 the side force, which depends on β_a) gives, not the inertial β of the state; the rates,
 attitudes and load factors are inertial. The yaw law closes on that measured β_a.
 
-The fault of a run (PHYSICS §5) acts on the *monitored* surface (column ``surface`` of the
+The fault of a run (docs/physics.md §5) acts on the *monitored* surface (column ``surface`` of the
 run rows, one of :data:`scenarios.aircraft.data.AIRCRAFT_SURFACES`) through the
 actuator-level injection arrays (:func:`scenarios.faults.fault_arrays`) and the same COM
 acquisition and current functions as :mod:`scenarios.simulate`; the laws see its effect on

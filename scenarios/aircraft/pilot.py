@@ -1,4 +1,4 @@
-"""The six ADDSAFE manoeuvres as pilot inputs flown through the laws (PHYSICS §7 phase 2).
+"""The six ADDSAFE manoeuvres as pilot inputs flown through the laws (docs/physics.md §7 phase 2).
 
 Sidestick: a load-factor order n_zc [g] (pitch) and a roll-rate order p_c [rad/s] (roll);
 pedals: a sideslip order β_c [rad]. Each input rises and falls with a smooth step of
