@@ -30,7 +30,8 @@ from joblib import Parallel, delayed
 from scenarios.catalog import MANOEUVRES
 from scenarios.envelope import DRAW_COLUMNS
 from scenarios.reference import integrate_reference
-from scenarios.simulate import RUN_COLUMNS, prepare, simulate
+from scenarios.plants import simulate
+from scenarios.simulate import RUN_COLUMNS, prepare
 
 
 def bench_runs(n_runs: int, duration_s: float, seed: int = 1) -> pd.DataFrame:

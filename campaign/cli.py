@@ -233,23 +233,22 @@ def cmd_init(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    from scenarios.simulate import simulate, single_run
+    from scenarios.plants import get_plant
+    from scenarios.simulate import single_run
 
-    if args.plant == "aircraft":
-        from .aircraft_cli import aircraft_single_run
-
-        runs = aircraft_single_run(args)
+    plant = get_plant(args.plant)
+    if args.surface in plant.surfaces:
+        surface = args.surface
+    elif plant.kind == "aircraft":          # elevator/aileron: their left surface
+        surface = plant.run_surface(args.surface)
     else:
-        from scenarios.catalog import SURFACES
-
-        if args.surface not in SURFACES:
-            raise UsageError(f"invalid choice --surface {args.surface} at the actuator plant "
-                             f"level: it is an aircraft surface; use --plant aircraft, or one "
-                             f"of {', '.join(SURFACES)}")
-        runs = single_run(args.surface, args.manoeuvre, args.fault, seed=args.seed,
-                          onset_s=args.onset, duration_s=args.duration,
-                          **({} if args.magnitude is None else {"magnitude": args.magnitude}))
-    signals, truth = simulate(runs, pressure_sensor=args.pressure, plant=args.plant)
+        raise UsageError(f"invalid choice --surface {args.surface} at the actuator plant "
+                         f"level: it is an aircraft surface; use --plant aircraft, or one "
+                         f"of {', '.join(plant.surfaces)}")
+    runs = single_run(surface, args.manoeuvre, args.fault, seed=args.seed,
+                      onset_s=args.onset, duration_s=args.duration,
+                      **({} if args.magnitude is None else {"magnitude": args.magnitude}))
+    signals, truth = plant.simulate(runs, pressure_sensor=args.pressure)
     frame = signals.to_pandas(0)
     frame["true_rod [mm]"] = truth.rod_mm[0]
     frame["true_surface [deg]"] = truth.surface_deg[0]
@@ -270,7 +269,7 @@ def cmd_simulate(args) -> int:
             b"fdd_campaign": runs.to_json(orient="records").encode()})
         pq.write_table(table, args.out)
         print(f"signals and truth written to {args.out}")
-    if args.plot and args.plant == "aircraft":
+    if args.plot and plant.kind == "aircraft":
         from reports.aircraft_plot import plot_aircraft_run
 
         plot_aircraft_run(frame, onset_s=onset, path=args.plot, monitored=str(runs["surface"].iloc[0]),
@@ -319,7 +318,8 @@ def _sub(subs, name, help_, example, func):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from scenarios.aircraft.data import AIRCRAFT_SURFACES, PLANTS
+    from scenarios.aircraft.data import AIRCRAFT_SURFACES
+    from scenarios.plants import PLANT_KINDS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
 
     parser = argparse.ArgumentParser(
@@ -411,7 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--surface", default="elevator", choices=SURFACES + AIRCRAFT_SURFACES,
                    help="surface (with --plant aircraft: the monitored one; elevator → "
                    "left_elevator, aileron → left_inboard_aileron)")
-    p.add_argument("--plant", default="actuator", choices=PLANTS,
+    p.add_argument("--plant", default="actuator", choices=PLANT_KINDS,
                    help="actuator: the servo-loop alone; aircraft: aircraft, laws and every "
                    "surface in the loop")
     p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES)

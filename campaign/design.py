@@ -111,7 +111,7 @@ def _scale(u, values) -> np.ndarray:
 def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray,
                duration: float) -> pd.DataFrame:
     """Add fault, onset and fixed-point columns to the flight-point rows of one cell."""
-    act = run_actuator(config.campaign)
+    act = run_actuator(config)
     ts = config.campaign.ts_s
     n = len(frame)
     fl = config.faults
@@ -134,7 +134,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     start = getattr(group, "manoeuvre_start_s", None)
     out = frame.copy()
     out.insert(0, "group", group.name)
-    out["surface"] = run_surface(config.campaign)
+    out["surface"] = run_surface(config)
     out["manoeuvre"] = manoeuvre
     out["fault"] = group.fault
     out["onset_s"] = onset

@@ -1,28 +1,48 @@
-"""Which surface a campaign's runs name, and its actuator table, at either plant level.
+"""The campaign's plant, built once from its configuration (docs/design.md §4, Contracts).
 
-``[campaign] plant = "actuator"``: the runs name ``surface`` (elevator or aileron) and its
-servo-loop is simulated alone. ``plant = "aircraft"``: the runs name the monitored aircraft
-surface (``monitored_surface``, by default the left surface of ``surface``), simulated with
-the aircraft and every other surface in the loop (:mod:`scenarios.aircraft`).
+:func:`plant_of` turns the campaign file's ``[plant]`` section into a
+:class:`scenarios.plants.Plant`; :func:`run_surface` and :func:`run_actuator` give the run
+rows' surface and its nominal actuator table; :func:`detector_problems` is the compatibility
+check of the configured detectors against that plant (:func:`detectors.compat.incompatibilities`).
 """
 
 from __future__ import annotations
 
-from scenarios.aircraft.data import DEFAULT_MONITORED
-from scenarios.params import ACTUATORS, ActuatorParams
+from pathlib import Path
+
+from detectors.compat import incompatibilities
+from scenarios.fmu import FmuPlant
+from scenarios.params import ActuatorParams
+from scenarios.plants import Plant, get_plant
 
 
-def run_surface(campaign) -> str:
+def plant_of(config) -> Plant:
+    """The plant of *config*: its ``[plant]`` kind, or the FMU its ``fmu`` names (the path
+    made absolute against the working directory, so workers find it wherever they run)."""
+    section = config.plant
+    if section.fmu is not None:
+        variables = {name: getattr(section.variables, name)
+                     for name in section.variables.__dataclass_fields__}
+        return FmuPlant.of(Path(section.fmu).expanduser().resolve(), variables,
+                           push_parameters=section.push_parameters)
+    return get_plant(section.kind)
+
+
+def run_surface(config, plant: Plant | None = None) -> str:
     """The ``surface`` column of the campaign's run rows."""
-    if getattr(campaign, "plant", "actuator") == "aircraft":
-        return campaign.monitored_surface or DEFAULT_MONITORED[campaign.surface]
-    return campaign.surface
+    plant = plant or plant_of(config)
+    return plant.run_surface(config.campaign.surface, config.plant.monitored_surface)
 
 
-def run_actuator(campaign) -> ActuatorParams:
+def run_actuator(config, plant: Plant | None = None) -> ActuatorParams:
     """Nominal actuator table of the simulated (monitored) surface."""
-    if getattr(campaign, "plant", "actuator") == "aircraft":
-        from scenarios.aircraft.loop import surface_actuator
+    plant = plant or plant_of(config)
+    return plant.actuator(run_surface(config, plant))
 
-        return surface_actuator(run_surface(campaign))
-    return ACTUATORS[campaign.surface]
+
+def detector_problems(config, capabilities: dict, plant: Plant | None = None) -> list[str]:
+    """What keeps the detectors of *capabilities* (label → Capabilities) from running on the
+    campaign's plant, one message each (empty: all can run)."""
+    plant = plant or plant_of(config)
+    return incompatibilities(capabilities, plant, run_surface(config, plant),
+                             pressure_sensor=config.campaign.pressure_sensor)

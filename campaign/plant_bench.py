@@ -12,7 +12,7 @@ import time
 import pandas as pd
 
 from scenarios.aircraft.data import DEFAULT_MONITORED
-from scenarios.simulate import simulate
+from scenarios.plants import simulate
 
 
 def plant_cost(runs: pd.DataFrame, echo=print) -> dict:

@@ -33,7 +33,6 @@ from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE, score_runs
 from scenarios import kernels
-from scenarios.simulate import simulate
 
 from .config import CampaignConfig
 from .runner import CampaignSetupError, ChunkSettings, load_results, settings_of
@@ -145,8 +144,8 @@ def resimulate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
     """
     # the plant level and engine of the campaign, as the runner's chunks (runner.run_chunk)
     with kernels.use_engine(settings.engine):
-        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
-                                  plant=settings.plant)
+        signals, truth = settings.plant.simulate(rows, ts=settings.ts,
+                                                 pressure_sensor=settings.pressure_sensor)
         detections = {}
         for label, det in detectors.items():
             detections.update(as_variants(label, det.detect(signals)))

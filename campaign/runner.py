@@ -31,10 +31,11 @@ from reports.summary import summarize
 from reports.table import format_table
 from scenarios import kernels
 from scenarios.signals import Signals
-from scenarios.simulate import simulate
+from scenarios.plants import Plant
+from scenarios.simulate import ActuatorPlant
 
 from .design import build_learning_plan, build_plan
-from .plant import run_actuator
+from .plant import detector_problems, plant_of
 from .storage import CampaignDir, read_metadata, write_parquet, write_pickle, write_text
 
 
@@ -50,7 +51,7 @@ class ChunkSettings:
     pressure_sensor: bool
     required_time_s: dict
     window_s: float | None
-    plant: object = "actuator"  # "actuator", "aircraft", or a scenarios.fmu.FmuPlant
+    plant: Plant = ActuatorPlant()   # what the runs are simulated on (scenarios.plants)
     engine: str = "compiled"
 
 
@@ -87,8 +88,7 @@ def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
 
 def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
     try:
-        signals, truth = simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
-                                  plant=settings.plant)
+        signals, truth = _simulate(rows, settings)
     except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
         if len(rows) > 1:
             return pd.concat([_run_chunk(rows.iloc[[j]], detectors, settings)
@@ -184,20 +184,9 @@ class Progress:
             print(file=self.stream, flush=True)
 
 
-def _check_compatibility(config, detectors: dict) -> None:
-    act = run_actuator(config.campaign)
-    problems = []
-    for label, det in detectors.items():
-        caps = det.capabilities
-        if caps.needs_surface_sensor and not act.has_surface_sensor:
-            problems.append(f"detector {label!r} needs a surface position sensor; the "
-                            f"{act.surface} has none: choose another surface or detector")
-        if caps.needs_pressure_sensor and not config.campaign.pressure_sensor:
-            problems.append(f"detector {label!r} needs the chamber pressure sensor: set "
-                            "[campaign] pressure_sensor = true")
-        if getattr(caps, "needs_aircraft", False) and config.campaign.plant != "aircraft":
-            problems.append(f"detector {label!r} reads the aircraft sensors and every "
-                            "surface's rod: it needs [campaign] plant = \"aircraft\"")
+def _check_compatibility(config, detectors: dict, plant) -> None:
+    problems = detector_problems(config, {label: det.capabilities
+                                          for label, det in detectors.items()}, plant)
     if problems:
         raise CampaignSetupError("; ".join(problems))
 
@@ -207,10 +196,14 @@ def build_detectors(config) -> dict:
     return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
 
 
+def _simulate(rows: pd.DataFrame, settings: ChunkSettings):
+    """(Signals, Truth) of *rows* on the campaign's plant."""
+    return settings.plant.simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
+
+
 def _simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
     with kernels.use_engine(settings.engine):
-        return simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor,
-                        plant=settings.plant)[0]
+        return _simulate(rows, settings)[0]
 
 
 def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
@@ -225,8 +218,7 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
         return Signals.concat([f.result() for f in futures])
     parts = []
     for start in range(0, len(plan), chunk_size):
-        sig, _ = simulate(plan.iloc[start:start + chunk_size], ts=settings.ts,
-                          pressure_sensor=settings.pressure_sensor, plant=settings.plant)
+        sig, _ = _simulate(plan.iloc[start:start + chunk_size], settings)
         parts.append(sig)
     return Signals.concat(parts)
 
@@ -235,7 +227,7 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                   log=print, submit=None, workers: int = 1) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it."""
     detectors = build_detectors(config)
-    _check_compatibility(config, detectors)
+    _check_compatibility(config, detectors, settings.plant)
     learning = build_learning_plan(config)
     write_parquet(learning, cdir.root / "learning.parquet", config.to_json(), kind="learning")
     learning_signals = None
@@ -293,25 +285,19 @@ class CampaignResult:
 
 
 def settings_of(config) -> ChunkSettings:
-    from scenarios.fmu import spec_of_config
-
     return ChunkSettings(
         ts=config.campaign.ts_s,
         pressure_sensor=config.campaign.pressure_sensor,
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
-        plant=spec_of_config(config) or config.campaign.plant,
+        plant=plant_of(config),
         engine=config.runner.engine,
     )
 
 
-def check_plant(config) -> None:
-    """Check an FMU plant and its variable map before anything runs (clear FmuError)."""
-    from scenarios.fmu import probe, spec_of_config
-
-    spec = spec_of_config(config)
-    if spec is not None:
-        probe(spec, faults={g.fault for g in config.groups})
+def check_plant(config, plant) -> None:
+    """Check the plant before anything runs (an FMU and its variable map: a clear FmuError)."""
+    plant.check(faults={g.fault for g in config.groups})
 
 
 def failure_rows(rows: pd.DataFrame, labels, status: str, message: str) -> pd.DataFrame:
@@ -347,15 +333,15 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
-    check_plant(config)
     settings = settings_of(config)
+    check_plant(config, settings.plant)
     if engine is not None:
         settings = replace(settings, engine=kernels.check_engine(engine))
-    fmu_plant = not isinstance(settings.plant, str)
+    processes = settings.plant.needs_processes
     if backend is None:   # processes where threads cannot serve: time limits, FMU instances
-        backend = ("threading" if config.runner.run_timeout_s is None and not fmu_plant
+        backend = ("threading" if config.runner.run_timeout_s is None and not processes
                    else "loky")
-    elif backend == "threading" and fmu_plant and jobs > 1:
+    elif backend == "threading" and processes and jobs > 1:
         raise CampaignSetupError(
             "an FMU plant is loaded once per worker process and is not safe to share between "
             "threads: use --backend loky (the default with an FMU plant) or --jobs 1")
@@ -380,7 +366,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         with kernels.use_engine(settings.engine):
             # the learning set on the worker threads (the built-in plant's kernels release
             # the GIL; an FMU plant is simulated here, one instance at a time)
-            threads = pool is not None and backend == "threading" and settings.plant == "actuator"
+            threads = (pool is not None and backend == "threading"
+                       and settings.plant.kind == "actuator")
             detectors = fit_detectors(config, cdir, settings, chunk_size, log=log,
                                       submit=pool.submit if threads else None, workers=jobs)
 

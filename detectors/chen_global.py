@@ -393,7 +393,7 @@ class ChenGlobalEstimator(Detector):
 
     def inputs(self, signals: Signals) -> np.ndarray:
         """u_b [deg], shape (6, n_runs, n_steps): rod deflections then the spoilers."""
-        from scenarios.aircraft.loop import surface_actuator
+        from scenarios.aircraft.data import surface_actuator
 
         out = np.empty((len(INPUT_SURFACES) + 1,) + signals.command.shape)
         for j, s in enumerate(INPUT_SURFACES):

@@ -76,7 +76,8 @@ AIRCRAFT_CASES = (
 def _signals_of(surface: str, duration_s: float, cases, plant: str) -> tuple:
     """Learning and evaluation signals: fault-free learning runs of
     :data:`LEARNING_MANOEUVRES` (seed 11), evaluation runs of *cases* (seed 12)."""
-    from scenarios.simulate import simulate, single_run
+    from scenarios.plants import simulate
+    from scenarios.simulate import single_run
 
     learn = pd.concat([single_run(surface, m, "none", seed=11, duration_s=duration_s)
                        .assign(stream=j, run_id=f"learn-{j}")

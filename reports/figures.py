@@ -29,7 +29,8 @@ THRESHOLD_COLOUR = "tab:green"
 WORST_COLOUR = "tab:red"
 
 
-def _plt():
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg back end (imported on first use)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -40,7 +41,7 @@ def _plt():
 
 def figure_png(fig, dpi: int = 80) -> bytes:
     """PNG bytes of *fig*; the figure is closed."""
-    plt = _plt()
+    plt = pyplot()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
@@ -81,7 +82,7 @@ def envelope_figure(t_s: np.ndarray, binned: np.ndarray, worst: int, *, title: s
     binned : ndarray (n_runs, n_b) [-] per-run max of |r|/τ in each bin (:func:`bin_max`)
     worst : index of the run to highlight (the largest margin)
     """
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.2, 3.3))
     fig.subplots_adjust(left=0.08, right=0.98, top=0.91, bottom=0.32)
     with np.errstate(all="ignore"), _quiet():
@@ -144,7 +145,7 @@ def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: 
     n_missed : number of scored runs of this fault type without detection
     max_dtp : required DTP limit drawn as a line (1 = the required detection time)
     """
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(9.0, 2.8), gridspec_kw={"width_ratios": [3, 3, 1.3]})
     fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.17, wspace=0.28)
     n_det = len(dtp)
@@ -194,7 +195,7 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     residuals : {detector: (residual (n_steps,) [-], alarm (n_steps,) bool)}
     onset_s : fault onset [s] (NaN for a fault-free run)
     """
-    plt = _plt()
+    plt = pyplot()
     t = frame.index.to_numpy()
     ratios = [3, 2, 2, 3] if residuals else [3, 2, 2]
     fig, axes = plt.subplots(len(ratios), 1, figsize=(9.0, 1.85 * sum(ratios) / 2.5),
@@ -264,7 +265,7 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
         territory for a margin, the DTP limit for a DTP)
     missed : runs drawn as black crosses (missed detections: no DTP to colour)
     """
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9.6, 3.6))
     fig.subplots_adjust(left=0.08, right=0.9, top=0.88, bottom=0.14, wspace=0.25)
     v = points[value].to_numpy(dtype=float)

@@ -10,8 +10,8 @@ def plot_run(frame, *, onset_s: float, title: str, path) -> None:
     *frame* is :meth:`scenarios.Signals.to_pandas` output (columns carry their units),
     optionally with ``true_*`` columns.
     """
-    from .figures import _plt, run_figure
+    from .figures import pyplot, run_figure
 
     fig = run_figure(frame, {}, onset_s=onset_s, title=title)
     fig.savefig(path, dpi=110)
-    _plt().close(fig)
+    pyplot().close(fig)

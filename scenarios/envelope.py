@@ -16,7 +16,7 @@ CG in % of the mean aerodynamic chord (MAC), angles in deg, pressures in Pa.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd

@@ -47,9 +47,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .catalog import suggest
+from .catalog import SURFACES, suggest
+from .acquisition import Trajectory
 from .faults import NEVER
-from .params import SENSORS, SensorParams
+from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
+from .simulate import servo_provides, simulate
 
 #: Engine signals an FMU variable can be mapped to:
 #: name → (causality, FMI types accepted, required, meaning).
@@ -100,7 +102,8 @@ class FmuRunError(RuntimeError):
 @dataclass(frozen=True)
 class FmuPlant:
     """A plant back end: which FMU to run and how its variables map to the engine
-    (picklable, hashable; ``simulate(runs, plant=FmuPlant.of("servo.fmu"))``).
+    (picklable, hashable; a :class:`scenarios.plants.Plant`:
+    ``FmuPlant.of("servo.fmu").simulate(runs)``).
 
     path : the .fmu file.
     variables : (engine signal, FMU variable) pairs; an empty name leaves a signal unmapped.
@@ -114,10 +117,39 @@ class FmuPlant:
     push_parameters: bool = True
     parameters: tuple[tuple[str, float], ...] = ()
 
+    kind = "fmu"
+    #: one FMU instance per worker process (fmpy changes the working directory; an
+    #: instance is not safe to share between threads)
+    needs_processes = True
+
     @property
     def mapping(self) -> dict[str, str]:
         """engine signal → FMU variable, mapped signals only."""
         return {k: v for k, v in self.variables if v}
+
+    # -- the scenarios.plants.Plant protocol ---------------------------------------------
+    @property
+    def surfaces(self) -> tuple[str, ...]:
+        return SURFACES
+
+    def run_surface(self, surface: str, monitored: str | None = None) -> str:
+        return surface
+
+    def actuator(self, surface: str) -> ActuatorParams:
+        return ACTUATORS[surface]
+
+    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
+        return servo_provides(self.actuator(surface), pressure_sensor)
+
+    def check(self, faults=()) -> None:
+        """:func:`probe` the FMU (load, instantiate, one step) before any work."""
+        probe(self, faults)
+
+    def simulate(self, runs, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
+                 pressure_sensor: bool = False):
+        """The engine's FCC, sensors and faults around this FMU (:func:`integrate_fmu`)."""
+        return simulate(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
+                        integrator=lambda p, s: integrate_fmu(p, s, self))
 
     @classmethod
     def of(cls, path, variables: dict | None = None, push_parameters: bool = True,
@@ -490,8 +522,6 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
     numpy versions cost ~60 µs per step on length-1 arrays); the operations and their order
     are the same, so both back ends round alike (checked in tests/test_fmu.py).
     """
-    from .simulate import Trajectory
-
     if spec is None:
         raise ValueError("integrate_fmu needs an FmuPlant (which FMU to run)")
     faults = {"disconnection"} if (p.faults.k_disc < NEVER).any() else set()
@@ -574,16 +604,3 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
 def _bad(inst: _Instance, signal: str, value: float, t: float):
     raise FmuRunError(f"FMU {inst.info.path}: output {inst.spec.mapping[signal]!r} "
                       f"({signal}) is {value!r} at t = {t:.2f} s; the run is stopped")
-
-
-def spec_of_config(config) -> FmuPlant | None:
-    """The FmuPlant of a campaign's ``[plant]`` section (None: the built-in plant). The
-    path is made absolute against the working directory."""
-    section = getattr(config, "plant", None)
-    if section is None or section.fmu is None:
-        return None
-    from dataclasses import fields
-
-    variables = {f.name: getattr(section.variables, f.name) for f in fields(section.variables)}
-    return FmuPlant.of(Path(section.fmu).expanduser().resolve(), variables,
-                      push_parameters=section.push_parameters)

@@ -249,7 +249,7 @@ def integrate_compiled(p, sensors):
     """:func:`scenarios.simulate.integrate` through :func:`integrate_block`; returns the
     same :class:`scenarios.simulate.Trajectory`."""
     from .faults import NEVER
-    from .simulate import Trajectory
+    from .acquisition import Trajectory
 
     n, T = p.u.shape
     fa, act = p.faults, p.act

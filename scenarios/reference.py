@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 from .faults import NEVER
 from .params import SENSORS, SensorParams
 from .servo import PlantArrays, float_rate_coef, rod_rate
-from .simulate import Prepared, Trajectory, acquire_com, applied_current
+from .acquisition import Prepared, Trajectory, acquire_com, applied_current
 
 
 def _take(pl: PlantArrays, j: int) -> PlantArrays:

@@ -37,6 +37,19 @@ AIRCRAFT_SIGNAL_UNITS: dict[str, str] = {
 #: Unit of every surface's COM rod position (``Signals.rods``, aircraft plant only).
 ROD_UNIT: str = "mm"
 
+#: Signal groups a plant provides and a detector may need (docs/design.md §4, Contracts):
+#: ``servo`` (command, current, rod_com, rod_mon: every plant), ``surface`` (a surface
+#: position sensor), ``pressure`` (the chamber pressure sensor), ``aircraft`` (the aircraft
+#: sensors of :data:`AIRCRAFT_SIGNAL_UNITS` and every surface's rod).
+SIGNAL_GROUPS: dict[str, str] = {
+    "servo": "command, current and the COM/MON rod positions",
+    "surface": "a surface position sensor",
+    "pressure": "the actuator chamber pressure sensor",
+    "aircraft": "the aircraft sensors and every surface's rod position",
+}
+#: The groups every servo-loop acquisition provides.
+SERVO_GROUPS: frozenset[str] = frozenset({"servo"})
+
 #: Units of the per-run scheduling data, by name.
 SCHEDULE_UNITS: dict[str, str] = {
     "vcas_kt": "kt",

@@ -12,7 +12,8 @@ from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS, simulate_aircraft
 from scenarios.catalog import MANOEUVRES
 from scenarios.servo import PlantArrays, aero_force, plant_arrays
 from scenarios.signals import Signals
-from scenarios.simulate import RunSpecError, simulate, single_run
+from scenarios.plants import simulate
+from scenarios.simulate import RunSpecError, single_run
 
 
 def _rows(surface, fault="none", manoeuvre="cruise", duration_s=30.0, onset_s=10.0, **point):

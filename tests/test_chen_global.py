@@ -12,7 +12,8 @@ from detectors.chen_global import (INPUT_SURFACES, OUTPUTS, ChenGlobalEstimator,
                                    lateral_models, output_matrix, scheduling_vector)
 from detectors.lpv_synthesis import discretise, hinf_sweep
 from scenarios.signals import Signals
-from scenarios.simulate import simulate, single_run
+from scenarios.plants import simulate
+from scenarios.simulate import single_run
 
 MONITORED = "left_inboard_aileron"
 #: Flight points of the simulated runs (realistic points of the [CHEN] Table-1 grid).

@@ -20,7 +20,8 @@ from scenarios.fmu import (_CACHE, FmuError, FmuRunError, FmuPlant, inspect_fmu,
                            probe)
 from scenarios.fmu_build import build_servo_fmu, start_values
 from scenarios.params import SENSORS
-from scenarios.simulate import integrate, prepare, simulate, single_run
+from scenarios.plants import simulate
+from scenarios.simulate import integrate, prepare, single_run
 
 #: Agreement required between the two back ends [mm, mA]. Both run the same equations in
 #: the same order in IEEE double precision (the C code is compiled without FMA

@@ -26,7 +26,7 @@ from __future__ import annotations
 import types
 from dataclasses import dataclass
 
-from ..params import param
+from ..params import AILERON, ELEVATOR, RUDDER, ActuatorParams, param
 
 
 @dataclass(frozen=True)
@@ -182,6 +182,19 @@ LAYOUT = SurfaceLayout(
 
 #: Surfaces of the aircraft plant, in array order.
 AIRCRAFT_SURFACES: tuple[str, ...] = LAYOUT.names
+
+#: Actuator table of each kind of surface (:data:`LAYOUT` ``actuator``).
+AIRCRAFT_ACTUATORS: dict[str, ActuatorParams] = {
+    "elevator": ELEVATOR, "aileron": AILERON, "rudder": RUDDER}
+
+
+def surface_actuator(surface: str) -> ActuatorParams:
+    """The nominal actuator table of an aircraft surface (named after that surface)."""
+    if surface not in AIRCRAFT_SURFACES:
+        raise ValueError(f"unknown aircraft surface {surface!r}; allowed: "
+                         f"{', '.join(AIRCRAFT_SURFACES)}")
+    kind = LAYOUT.actuator[AIRCRAFT_SURFACES.index(surface)]
+    return AIRCRAFT_ACTUATORS[kind].replace(surface=surface)
 
 
 @dataclass(frozen=True)

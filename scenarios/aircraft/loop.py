@@ -27,7 +27,7 @@ actuator-level fields of :class:`Signals` (command, current, rod_com, rod_mon, s
 pressure), so actuator-level detectors run unchanged; ``Signals.aircraft`` adds the
 aircraft sensors and ``Signals.rods`` every surface's COM rod position.
 
-Determinism: run i draws only from its own streams (:func:`scenarios.simulate.run_streams`):
+Determinism: run i draws only from its own streams (:func:`scenarios.runs.run_streams`):
 the manoeuvre stream gives the pilot inputs then the turbulence; the sensor stream gives the
 monitored surface's sensor errors (same draws as at the actuator level), then the other
 surfaces' COM errors, then the aircraft sensor noise.
@@ -41,33 +41,25 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pandas as pd
 
+from ..acquisition import acquire, acquire_com, applied_current, quantize, sensor_draws
 from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays
 from ..manoeuvres import elevator_trim_deg
-from ..params import AILERON, ELEVATOR, RUDDER, SENSORS, TS_S, ActuatorParams, SensorParams
+from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
+from ..runs import RUN_COLUMNS, RUN_RANGES, flight_of, run_streams, validate_runs
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
+from ..simulate import servo_provides
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
 from . import laws, lpv, pilot
-from .data import AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, LAYOUT, AircraftSensorParams
-
-#: Actuator parameter table of each kind of surface.
-AIRCRAFT_ACTUATORS: dict[str, ActuatorParams] = {
-    "elevator": ELEVATOR, "aileron": AILERON, "rudder": RUDDER}
+from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
+                   LAYOUT, AircraftSensorParams, surface_actuator)
 
 #: Sign of the pitch, roll and yaw orders on each surface (array order of LAYOUT).
 _PITCH = np.array([1.0 if k == "elevator" else 0.0 for k in LAYOUT.actuator])
 _ROLL = laws.ROLL_DISTRIBUTION[:len(LAYOUT.names)]
 _YAW = np.array([1.0 if k == "rudder" else 0.0 for k in LAYOUT.actuator])
 _ELEVATORS = _PITCH > 0
-
-
-def surface_actuator(surface: str) -> ActuatorParams:
-    """The nominal actuator table of an aircraft surface (named after that surface)."""
-    if surface not in AIRCRAFT_SURFACES:
-        raise ValueError(f"unknown aircraft surface {surface!r}; allowed: {', '.join(AIRCRAFT_SURFACES)}")
-    kind = LAYOUT.actuator[AIRCRAFT_SURFACES.index(surface)]
-    return AIRCRAFT_ACTUATORS[kind].replace(surface=surface)
 
 
 @dataclass(frozen=True)
@@ -129,9 +121,6 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
                      law_params: laws.LawParams = laws.LAWS) -> AircraftPrepared:
     """Validate *runs* and compute every open-loop input of the batch (*turbulence* None:
     calm air)."""
-    from ..simulate import (RUN_COLUMNS, RUN_RANGES, _sensor_draws, flight_of, run_streams,
-                            validate_runs)
-
     validate_runs(runs, surfaces=AIRCRAFT_SURFACES)
     n = len(runs)
     T = int(round(float(runs["duration_s"].iloc[0]) / ts))
@@ -179,7 +168,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
     mon = np.empty((3, n)); mon_noise = np.empty((3, n, T)); ac_noise = np.empty((len(sig), n, T))
     others = [j for j in range(n_s) if j != m_idx]
     for i, g in enumerate(gens):
-        d = [x[0] for x in _sensor_draws([g[1]], T, sensors, act_m.dP_Pa)]   # run i's own stream
+        d = [x[0] for x in sensor_draws([g[1]], T, sensors, act_m.dP_Pa)]   # run i's own stream
         com_bias[m_idx, i], com_scale[m_idx, i], com_noise[m_idx, i] = d[0], d[1], d[2]
         mon[:, i] = d[3], d[4], d[6]
         mon_noise[0, i], mon_noise[1, i], mon_noise[2, i] = d[5], d[7], d[8]
@@ -227,8 +216,6 @@ class AircraftTrajectory:
 
 def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
     """The closed-loop time loop, vectorised over runs and surfaces."""
-    from ..simulate import acquire_com, applied_current, quantize
-
     n, T, ts, m = p.n, p.T, p.ts, p.monitored
     n_s = len(p.acts)
     pl, fa = p.plant, p.faults
@@ -342,8 +329,6 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
     :func:`scenarios.simulate.simulate`."""
-    from ..simulate import acquire
-
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
                          law_params=law_params, aircraft_sensors=aircraft_sensors)
     traj = integrate_aircraft(p, sensors)
@@ -368,3 +353,36 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
         surfaces_deg={s: np.degrees(traj.surfaces[j]) for j, s in enumerate(AIRCRAFT_SURFACES)},
     )
     return signals, truth
+
+
+@dataclass(frozen=True)
+class AircraftPlant:
+    """The aircraft in the loop (docs/physics.md §7): rigid body, control laws and every
+    surface's servo-loop; the run rows name the *monitored* aircraft surface. A
+    :class:`scenarios.plants.Plant`."""
+
+    kind = "aircraft"
+    #: runs on threads (no per-process state)
+    needs_processes = False
+
+    @property
+    def surfaces(self) -> tuple[str, ...]:
+        return AIRCRAFT_SURFACES
+
+    def run_surface(self, surface: str, monitored: str | None = None) -> str:
+        """The monitored aircraft surface: *monitored*, or the left surface of *surface*
+        (``elevator`` → ``left_elevator``, ``aileron`` → ``left_inboard_aileron``)."""
+        return monitored or DEFAULT_MONITORED[surface]
+
+    def actuator(self, surface: str) -> ActuatorParams:
+        return surface_actuator(surface)
+
+    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
+        return servo_provides(self.actuator(surface), pressure_sensor) | {"aircraft"}
+
+    def check(self, faults=()) -> None:
+        """Nothing to check before work: the aircraft plant simulates every fault."""
+
+    def simulate(self, runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
+                 pressure_sensor: bool = False) -> tuple[Signals, Truth]:
+        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor)

@@ -1,0 +1,143 @@
+"""The run row: the columns a batch of runs is described by, their physical ranges, their
+validation, each run's random streams and its flight condition.
+
+A campaign's run table (plan.parquet) carries exactly these columns; every plant
+(:mod:`scenarios.plants`) simulates from them. Determinism (docs/design.md §9): run i draws
+only from ``SeedSequence(seed, spawn_key=(stream,))`` (columns ``seed`` and ``stream``),
+spawned into a manoeuvre/turbulence stream and a sensor stream.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from . import envelope
+from .catalog import FAULTS, MANOEUVRES, SURFACES, suggest
+from .faults import required_magnitude
+
+#: Columns of a run row: name → (unit, meaning). The campaign's run table carries them.
+RUN_COLUMNS: dict[str, tuple[str, str]] = {
+    "run_id": ("-", "identity of the run"),
+    "surface": ("-", "controlled surface: " + ", ".join(SURFACES)),
+    "manoeuvre": ("-", "fault-free manoeuvre: " + ", ".join(MANOEUVRES)),
+    "fault": ("-", "fault type: " + ", ".join(FAULTS)),
+    "onset_s": ("s", "fault onset (NaN for a fault-free run)"),
+    "magnitude": ("(per fault)", "fault magnitude, see scenarios.faults"),
+    "freq_hz": ("Hz", "oscillation frequency of an OFC (NaN otherwise)"),
+    "alt_ft": ("ft", "true pressure altitude"),
+    "vcas_kt": ("kt", "true calibrated airspeed"),
+    "mass_t": ("t", "true mass"),
+    "cg_pct": ("% MAC", "true centre of gravity"),
+    "d_aero": ("-", "relative aerodynamic-coefficient error ([CHEN] Table 2)"),
+    "d_vcas": ("-", "relative VCAS measurement error ([CHEN] Table 2)"),
+    "d_alt": ("-", "relative altitude measurement error ([CHEN] Table 2)"),
+    "d_mass": ("-", "relative mass estimation error ([CHEN] Table 2)"),
+    "d_cg": ("-", "relative CG estimation error ([CHEN] Table 2)"),
+    "d_supply": ("-", "relative supply-pressure mismatch (docs/physics.md §6, est.)"),
+    "d_kci": ("-", "relative servo-valve gain mismatch (docs/physics.md §6, est.)"),
+    "d_hinge": ("-", "relative hinge-moment mismatch (docs/physics.md §6, est.)"),
+    "seed": ("-", "campaign seed"),
+    "stream": ("-", "run stream index: SeedSequence(seed, spawn_key=(stream,))"),
+    "duration_s": ("s", "run duration"),
+}
+
+#: Optional columns of a run row (absent or NaN: the default behaviour).
+OPTIONAL_RUN_COLUMNS: dict[str, tuple[str, str]] = {
+    "manoeuvre_start_s": ("s", "fixed start of the manoeuvre (NaN: sampled per run)"),
+}
+
+#: Physical ranges accepted for run rows (inclusive): column → (low, high).
+RUN_RANGES: dict[str, tuple[float, float]] = {
+    "alt_ft": (0.0, 45000.0),
+    "vcas_kt": (80.0, 400.0),
+    "mass_t": (50.0, 300.0),
+    "cg_pct": (0.0, 60.0),
+    "duration_s": (1.0, 3600.0),
+    "d_aero": (-0.5, 0.5), "d_vcas": (-0.5, 0.5), "d_alt": (-0.5, 0.5), "d_mass": (-0.5, 0.5),
+    "d_cg": (-0.5, 0.5), "d_supply": (-0.5, 0.5), "d_kci": (-0.5, 0.5), "d_hinge": (-0.9, 0.9),
+}
+
+
+class RunSpecError(ValueError):
+    """A run table that cannot be simulated; ``errors`` lists every problem found."""
+
+    def __init__(self, errors):
+        self.errors = list(errors)
+        super().__init__("invalid run table:\n  - " + "\n  - ".join(self.errors))
+
+    def __reduce__(self):
+        return (type(self), (self.errors,))
+
+
+def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> None:
+    """Raise :class:`RunSpecError` listing every problem of *runs* (names, ranges, onsets);
+    *surfaces* are the allowed surface names (the aircraft plant has its own)."""
+    errors = []
+    missing = [c for c in RUN_COLUMNS if c not in runs.columns]
+    if missing:
+        raise RunSpecError([f"missing column(s) {missing}; a run row needs {list(RUN_COLUMNS)}"])
+    if len(runs) == 0:
+        raise RunSpecError(["the run table is empty"])
+    for col, allowed in (("surface", surfaces), ("manoeuvre", MANOEUVRES), ("fault", FAULTS)):
+        bad = sorted(set(runs[col].astype(str)) - set(allowed))
+        for value in bad:
+            errors.append(f"{col}: unknown value {value!r}{suggest(value, allowed)}; "
+                          f"allowed: {', '.join(allowed)}")
+    for col, (lo, hi) in RUN_RANGES.items():
+        v = pd.to_numeric(runs[col], errors="coerce").to_numpy(float)
+        bad = ~np.isfinite(v) | (v < lo) | (v > hi)
+        if bad.any():
+            errors.append(f"{col}: {int(bad.sum())} value(s) outside [{lo:g}, {hi:g}] "
+                          f"{RUN_COLUMNS[col][0]} (first: {v[bad][0]!r})")
+    if runs["surface"].nunique() > 1 or runs["duration_s"].nunique() > 1:
+        errors.append("a batch must share one surface and one duration_s; split it first")
+    fault = runs["fault"].astype(str).to_numpy()
+    onset = runs["onset_s"].to_numpy(float)
+    dur = runs["duration_s"].to_numpy(float)
+    faulty = fault != "none"
+    bad_onset = faulty & (~np.isfinite(onset) | (onset < 0) | (onset >= dur))
+    if bad_onset.any():
+        errors.append(f"onset_s: {int(bad_onset.sum())} faulty run(s) with an onset outside "
+                      f"[0, duration_s) (first: {onset[bad_onset][0]!r} s)")
+    needs = np.array([required_magnitude(f) for f in fault])
+    bad_mag = needs & ~np.isfinite(runs["magnitude"].to_numpy(float))
+    if bad_mag.any():
+        errors.append(f"magnitude: {int(bad_mag.sum())} run(s) of fault types "
+                      f"{sorted(set(fault[bad_mag]))} need a finite magnitude")
+    ofc = np.char.startswith(fault.astype(str), "ofc")
+    freq = runs["freq_hz"].to_numpy(float)
+    bad_freq = ofc & ~(np.isfinite(freq) & (freq > 0))
+    if bad_freq.any():
+        errors.append(f"freq_hz: {int(bad_freq.sum())} OFC run(s) need a positive frequency")
+    if "manoeuvre_start_s" in runs.columns:
+        start = pd.to_numeric(runs["manoeuvre_start_s"], errors="coerce").to_numpy(float)
+        bad_start = ~np.isnan(start) & ~((start >= 0) & (start < dur))
+        if bad_start.any():
+            errors.append(f"manoeuvre_start_s: {int(bad_start.sum())} run(s) with a start "
+                          f"outside [0, duration_s) (first: {start[bad_start][0]!r} s)")
+    if errors:
+        raise RunSpecError(errors)
+
+
+
+def run_streams(seed, stream) -> tuple[np.random.Generator, np.random.Generator]:
+    """The run's manoeuvre/turbulence generator and its sensor generator."""
+    ss = np.random.SeedSequence(int(seed), spawn_key=(int(stream),))
+    man, sens = ss.spawn(2)
+    return np.random.default_rng(man), np.random.default_rng(sens)
+
+
+
+def flight_of(f: dict) -> tuple[dict, dict]:
+    """The true flight condition of each run (Mach, q̄, TAS, trimmed α …) and the scheduling
+    data a detector sees (measured/estimated, [CHEN] Table 2), from the run columns *f*
+    (float arrays: alt_ft, vcas_kt, mass_t, cg_pct and the d_* deviations)."""
+    flight = envelope.flight_condition(f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"])
+    flight_true = {"alt_ft": f["alt_ft"], "vcas_kt": f["vcas_kt"], "mass_t": f["mass_t"],
+                   "cg_pct": f["cg_pct"], **{k: np.asarray(v, float) for k, v in flight.items()}}
+    schedule = envelope.measured_schedule(
+        f["alt_ft"], f["vcas_kt"], f["mass_t"], f["cg_pct"],
+        f["d_alt"], f["d_vcas"], f["d_mass"], f["d_cg"])
+    return flight_true, schedule
+
