@@ -27,10 +27,19 @@ def _overridden(config, args):
     if args.seed is not None:
         config = cfg.with_overrides(config, seed=args.seed)
     if getattr(args, "plant", None) is not None:
-        from scenarios.aircraft.data import PLANTS
+        from scenarios.plants import PLANT_KINDS
 
-        key = "campaign.plant" if args.plant in PLANTS else "plant.fmu"
-        config = cfg.with_overrides(config, values={key: args.plant})
+        if args.plant in PLANT_KINDS:
+            values = {"plant.kind": args.plant}
+        elif args.plant.lower().endswith(".fmu") or Path(args.plant).exists():
+            values = {"plant.fmu": args.plant}
+        else:
+            from scenarios.catalog import suggest
+
+            raise UsageError(f"--plant {args.plant}: neither a plant kind "
+                             f"({', '.join(PLANT_KINDS)}){suggest(args.plant, PLANT_KINDS)} "
+                             "nor an .fmu file; fix: name a kind or an existing FMU file")
+        config = cfg.with_overrides(config, values=values)
     return config
 
 

@@ -27,12 +27,15 @@ import math
 import re
 import sys
 import tomllib
+import warnings
 from dataclasses import MISSING, dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
-from scenarios.aircraft.data import AIRCRAFT_SURFACES, DEFAULT_MONITORED, PLANTS
+from detectors.compat import incompatibilities
+from scenarios.aircraft.data import AIRCRAFT_SURFACES
+from scenarios.plants import PLANT_KINDS, get_plant
 from scenarios.catalog import (
     FAULT_TYPES,
     FAULTS,
@@ -223,15 +226,6 @@ class CampaignSection:
                                "envelope rule (docs/physics.md §6), for grid and mc", True)
     pressure_sensor: bool = key("bool", "simulate the actuator chamber ΔP sensor",
                                 False)
-    plant: str = key("choice", "plant level: actuator (the servo-loop of `surface` alone, "
-                     "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
-                     "control laws and every primary surface with its own servo-loop; "
-                     "docs/physics.md §7 phase 2)", "actuator", choices=PLANTS)
-    monitored_surface: str | None = key(
-        "choice", "aircraft plant only: the surface whose servo-loop signals the detectors "
-        "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
-        default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
-        example="left_inboard_aileron")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -459,6 +453,15 @@ class PlantVariables:
 
 @dataclass(frozen=True, kw_only=True)
 class PlantSection:
+    kind: str = key("choice", "plant level: actuator (the servo-loop of `surface` alone, "
+                    "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
+                    "control laws and every primary surface with its own servo-loop; "
+                    "docs/physics.md §7)", "actuator", choices=PLANT_KINDS)
+    monitored_surface: str | None = key(
+        "choice", "aircraft plant only: the surface whose servo-loop signals the detectors "
+        "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
+        default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
+        example="left_inboard_aileron")
     fmu: str | None = key("str", "FMI 2.0/3.0 co-simulation FMU that replaces the built-in "
                           "servo-loop plant (path relative to the working directory; "
                           "`fdd-campaign fmu build` makes the built-in one)", optional=True,
@@ -508,8 +511,9 @@ class CampaignConfig:
                                     "any result).")
     plant: PlantSection = section(
         PlantSection, "plant", "The plant the runs are simulated on: the built-in servo-loop "
-        "(default) or an FMU (docs/fmu.md). The engine keeps the FCC, the sensors and the "
-        "command- and sensor-side faults; the FMU is the physical plant.")
+        "(default), the aircraft in the loop (docs/aircraft.md), or an FMU (docs/fmu.md). "
+        "With an FMU the engine keeps the FCC, the sensors and the command- and sensor-side "
+        "faults; the FMU is the physical plant.")
     source: str = field(default="<dict>", compare=False, repr=False)
 
     # -- canonical forms ------------------------------------------------------------------
@@ -894,6 +898,7 @@ def _validate(data: Any, source: str) -> CampaignConfig:
         if k not in names:
             errors.append(f"{k}: unknown section [{k}]{suggest(k, names)}; allowed sections: "
                           f"{', '.join(names)}")
+    data = _migrate(data, errors)
     values: dict[str, Any] = {}
     for f in fields(CampaignConfig):
         meta = f.metadata
@@ -932,6 +937,37 @@ def _validate(data: Any, source: str) -> CampaignConfig:
     return _instantiate(values, source)
 
 
+#: Keys that moved: (old section, old key) → (new section, new key).
+MOVED_KEYS: dict[tuple[str, str], tuple[str, str]] = {
+    ("campaign", "plant"): ("plant", "kind"),
+    ("campaign", "monitored_surface"): ("plant", "monitored_surface"),
+}
+
+
+def _migrate(data: Mapping, errors: list[str]) -> Mapping:
+    """*data* with the keys of :data:`MOVED_KEYS` under their new names: a campaign file
+    written with an old spelling keeps working, with a one-line FutureWarning naming the new
+    one. The old and the new spelling together, with different values, is an error."""
+    moves = [(old, new) for old, new in MOVED_KEYS.items()
+             if isinstance(data.get(old[0]), Mapping) and old[1] in data[old[0]]]
+    if not moves:
+        return data
+    out = {k: dict(v) if isinstance(v, Mapping) else v for k, v in data.items()}
+    for (sec, key_), (new_sec, new_key) in moves:
+        value = out[sec].pop(key_)
+        target = out.setdefault(new_sec, {})
+        if not isinstance(target, dict):
+            continue                     # reported by the section check
+        if new_key in target and target[new_key] != value:
+            errors.append(f"{sec}.{key_}: old spelling of {new_sec}.{new_key}, which is also "
+                          f"set, to another value; fix: remove {sec}.{key_}")
+            continue
+        target.setdefault(new_key, value)
+        warnings.warn(f"[{sec}] {key_} is now [{new_sec}] {new_key}; the old spelling still "
+                      "works", FutureWarning, stacklevel=4)
+    return out
+
+
 def _cross_checks(v: dict, errors: list[str]) -> None:
     """Rules that involve several keys (run after every key was checked on its own)."""
     camp, faults = v["campaign"], v["faults"]
@@ -949,9 +985,10 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
     only_mc(camp, "campaign", CampaignSection)
 
     # plant level: the monitored surface belongs to the aircraft plant
-    if camp["plant"] == "actuator" and camp.get("monitored_surface") is not None:
-        errors.append("campaign.monitored_surface: only used with plant = \"aircraft\"; fix: "
-                      "remove it or set plant = \"aircraft\"")
+    plant = v["plant"]
+    if plant["kind"] == "actuator" and plant.get("monitored_surface") is not None:
+        errors.append("plant.monitored_surface: only used with kind = \"aircraft\"; fix: "
+                      "remove it or set [plant] kind = \"aircraft\"")
 
     # onset window
     if _ok(duration, faults["onset_min_s"], faults["onset_before_end_s"]):
@@ -1028,10 +1065,9 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
             taken.add(name)
 
     # detectors
-    _check_detectors(v["detectors"], camp, errors)
+    _check_detectors(v["detectors"], camp, v["plant"], errors)
 
     # plant: the FMU keys mean nothing without an FMU (defaults written out are harmless)
-    plant = v["plant"]
     if plant["fmu"] is None:
         given = [k for k in ("push_parameters",) if k in plant["__present__"]
                  and plant[k] != PlantSection.__dataclass_fields__[k].default]
@@ -1041,9 +1077,9 @@ def _cross_checks(v: dict, errors: list[str]) -> None:
         for k in given:
             errors.append(f"plant.{k}: only used with an FMU plant; fix: set [plant] fmu = "
                           "\"servo.fmu\" or remove it")
-    elif camp.get("plant") == "aircraft":
+    elif plant["kind"] == "aircraft":
         errors.append("plant.fmu: an FMU replaces the single actuator servo-loop, but "
-                      "[campaign] plant = \"aircraft\"; fix: set [campaign] plant = "
+                      "[plant] kind = \"aircraft\"; fix: set [plant] kind = "
                       "\"actuator\" or remove [plant] fmu")
 
 
@@ -1052,7 +1088,7 @@ def _spec(cls: type, sub: str, name: str) -> Key:
     return next(f.metadata["key"] for f in _leaf_fields(sub_cls) if f.name == name)
 
 
-def _check_detectors(dets: list[dict], camp: dict, errors: list[str]) -> None:
+def _check_detectors(dets: list[dict], camp: dict, plant: dict, errors: list[str]) -> None:
     from detectors.registry import (
         DetectorSpecError,
         available_detectors,
@@ -1093,24 +1129,13 @@ def _check_detectors(dets: list[dict], camp: dict, errors: list[str]) -> None:
                 f"{_signature_text(cls)}"
             errors.append(f"{p}.params: {msg}{hint}")
         caps = getattr(cls, "capabilities", None)
-        surface = camp["surface"]
-        if caps is not None and getattr(caps, "needs_surface_sensor", False) and _ok(surface):
-            from scenarios.params import ACTUATORS
-
-            act = ACTUATORS.get(surface)
-            if camp["plant"] == "aircraft" and _ok(camp["monitored_surface"]):
-                from scenarios.aircraft.loop import surface_actuator
-
-                surface = camp["monitored_surface"] or DEFAULT_MONITORED.get(surface, "")
-                act = surface_actuator(surface) if surface else None
-            if act is not None and not act.has_surface_sensor:
-                errors.append(f"{p}.name: detector {name!r} needs a surface position sensor, "
-                              f"which the {surface} has none of; fix: choose another "
-                              "surface or detector")
-        if caps is not None and getattr(caps, "needs_pressure_sensor", False) \
-                and camp["pressure_sensor"] is False:
-            errors.append(f"{p}.name: detector {name!r} needs the chamber pressure sensor; "
-                          "fix: set pressure_sensor = true in [campaign]")
+        if caps is not None and _ok(camp["surface"], camp["pressure_sensor"], plant["kind"],
+                                    plant["monitored_surface"]):
+            built = get_plant(plant["kind"])
+            surface = built.run_surface(camp["surface"], plant["monitored_surface"])
+            for msg in incompatibilities({name: caps}, built, surface,
+                                         pressure_sensor=camp["pressure_sensor"]):
+                errors.append(f"{p}.name: {msg}")
 
 
 def _signature_text(cls: type) -> str:

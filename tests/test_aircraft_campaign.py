@@ -11,9 +11,10 @@ from campaign.config import CampaignConfig, ConfigError
 from campaign.design import build_plan
 
 
-def _tiny(**campaign):
+def _tiny(plant_section=None, **campaign):
     data = {
         "campaign": {"name": "tiny-aircraft", "seed": 3, "duration_s": 20.0, **campaign},
+        "plant": plant_section or {},
         "faults": {"onset_min_s": 8.0, "onset_before_end_s": 5.0},
         "group": [
             {"name": "ff", "fault": "none", "manoeuvres": ["cruise", "turn_coordination"],
@@ -27,33 +28,78 @@ def _tiny(**campaign):
     return CampaignConfig.from_dict(data)
 
 
+AIRCRAFT = {"kind": "aircraft"}
+
+
 def test_plant_defaults_to_actuator_and_aircraft_names_the_monitored_surface():
-    assert _tiny().campaign.plant == "actuator"
-    plan = build_plan(_tiny(plant="aircraft"))
+    assert _tiny().plant.kind == "actuator"
+    plan = build_plan(_tiny(AIRCRAFT))
     assert set(plan["surface"]) == {"left_elevator"}           # default: left of "elevator"
-    plan_a = build_plan(_tiny(plant="aircraft", surface="aileron",
-                              monitored_surface="right_outboard_aileron"))
+    plan_a = build_plan(_tiny({**AIRCRAFT, "monitored_surface": "right_outboard_aileron"},
+                              surface="aileron"))
     assert set(plan_a["surface"]) == {"right_outboard_aileron"}
     # another plant level never reuses the results of the first (run ids differ)
     assert not set(plan["run_id"]) & set(build_plan(_tiny())["run_id"])
 
 
-@pytest.mark.parametrize("campaign, needle", [
-    ({"monitored_surface": "left_elevator"}, "only used with plant = \"aircraft\""),
-    ({"plant": "aircraft", "monitored_surface": "left_inbord_aileron"},
+def test_old_spellings_of_the_plant_keys_still_work_with_a_note():
+    """Campaign files written with [campaign] plant / monitored_surface keep working: the
+    same configuration as the new [plant] spelling, and a one-line note naming it."""
+    with pytest.warns(FutureWarning) as notes:
+        old = _tiny(plant="aircraft", monitored_surface="rudder")
+    assert old == _tiny({"kind": "aircraft", "monitored_surface": "rudder"})
+    assert [str(n.message) for n in notes] == [
+        "[campaign] plant is now [plant] kind; the old spelling still works",
+        "[campaign] monitored_surface is now [plant] monitored_surface; the old spelling "
+        "still works"]
+    with pytest.raises(ConfigError, match="campaign.plant: old spelling of plant.kind"):
+        _tiny({"kind": "actuator"}, plant="aircraft")
+
+
+@pytest.mark.parametrize("plant, needle", [
+    ({"monitored_surface": "left_elevator"}, "only used with kind = \"aircraft\""),
+    ({**AIRCRAFT, "monitored_surface": "left_inbord_aileron"},
      "did you mean 'left_inboard_aileron'"),
-    ({"plant": "airframe"}, "allowed: actuator, aircraft"),
+    ({"kind": "airframe"}, "allowed: actuator, aircraft"),
+    ({**AIRCRAFT, "fmu": "servo.fmu"}, "an FMU replaces the single actuator servo-loop"),
 ])
-def test_bad_plant_keys_are_reported(campaign, needle):
+def test_bad_plant_keys_are_reported(plant, needle):
     with pytest.raises(ConfigError) as info:
-        _tiny(**campaign)
+        _tiny(plant)
     assert needle in str(info.value)
+
+
+def test_plan_and_run_refuse_an_aircraft_detector_on_the_actuator_plant(tmp_path, capsys):
+    """Compatibility is checked in one place: ``plan`` refuses what ``run`` refuses, with
+    the same message, before anything is written."""
+    path = tmp_path / "vanek-on-actuator.toml"
+    path.write_text('''
+[campaign]
+name = "vanek-on-actuator"
+duration_s = 20.0
+[[group]]
+fault = "none"
+count = 1
+[[detector]]
+name = "vanek-geometric"
+''')
+    messages = []
+    for command in ("plan", "run"):
+        out = tmp_path / command
+        assert main([command, str(path), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        messages.append(err)
+        assert not out.exists()
+    assert messages[0] == messages[1]
+    assert ("detector[0].name: detector 'vanek-geometric' reads the aircraft sensors and "
+            "every surface's rod, which the actuator plant does not simulate; fix: set "
+            "[plant] kind = \"aircraft\"") in messages[0]
 
 
 def test_aircraft_campaign_runs_end_to_end(tmp_path):
     """A small aircraft-level campaign: every run ok, the existing position monitor detects
     the runaways of the monitored left elevator and stays quiet on the fault-free runs."""
-    res = run(_tiny(plant="aircraft"), tmp_path / "out", jobs=1, progress=False)
+    res = run(_tiny(AIRCRAFT), tmp_path / "out", jobs=1, progress=False)
     r = res.results
     assert (r["status"] == "ok").all()
     assert not r.loc[r.fault == "none", "false_alarm"].any()
@@ -78,7 +124,7 @@ def test_report_resimulates_an_aircraft_campaign_on_its_plant(tmp_path):
     from campaign.report import build_report
 
     out = tmp_path / "out"
-    run(_tiny(plant="aircraft"), out, jobs=1, progress=False)
+    run(_tiny(AIRCRAFT), out, jobs=1, progress=False)
     page = build_report(out, jobs=1, log=lambda _: None).read_text()
     assert "reproduce the stored ones of all 4 runs (largest difference 0.0e+00)" in page
     assert 'class="warn"' not in page

@@ -188,9 +188,9 @@ def test_init_text_loads_and_documents_every_key(tmp_path):
 # ---------------------------------------------------------------------------------------
 BAD_FILES = {
     "fmu on the aircraft plant": (
-        BASE.replace('name = "t"', 'name = "t"\nplant = "aircraft"') + '\n[plant]\nfmu = "servo.fmu"\n',
+        BASE + '\n[plant]\nkind = "aircraft"\nfmu = "servo.fmu"\n',
         "plant.fmu: an FMU replaces the single actuator servo-loop",
-        'fix: set [campaign] plant = "actuator" or remove [plant] fmu'),
+        'fix: set [plant] kind = "actuator" or remove [plant] fmu'),
     "unknown section": (
         BASE + "\n[envelop]\nalt_ft = [10000]\n",
         "envelop: unknown section", "did you mean 'envelope'?"),

@@ -194,7 +194,7 @@ def test_vanek_section5_suite_names_its_three_campaigns():
     suite = load_suite("vanek-section5")
     assert [m.name for m in suite.members] == ["vanek-scenarios", "vanek-isolation",
                                                "vanek-isolation-rudder"]
-    monitored = [load_config(m.name).campaign.monitored_surface for m in suite.members]
+    monitored = [load_config(m.name).plant.monitored_surface for m in suite.members]
     assert monitored == ["left_inboard_aileron", "left_elevator", "rudder"]
 
 

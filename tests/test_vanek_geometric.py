@@ -221,17 +221,20 @@ def test_comparison_command_refuses_a_bad_noise_scale(capsys):
 
 
 def test_a_campaign_at_the_actuator_level_is_refused_before_it_starts():
-    from campaign.config import CampaignConfig, load_config
+    from campaign.config import CampaignConfig, ConfigError, load_config
     from campaign.runner import CampaignSetupError, _check_compatibility, build_detectors
+    from scenarios.plants import get_plant
 
     cfg = load_config("vanek-scenarios")
     _check_compatibility(cfg, build_detectors(cfg))       # aircraft plant: accepted
     actuator = cfg.to_dict()
-    actuator["campaign"]["plant"] = "actuator"
-    actuator["campaign"].pop("monitored_surface")
-    actuator = CampaignConfig.from_dict(actuator)
-    with pytest.raises(CampaignSetupError, match='vanek-geometric.*plant = "aircraft"'):
-        _check_compatibility(actuator, build_detectors(actuator))
+    actuator["plant"]["kind"] = "actuator"
+    actuator["plant"].pop("monitored_surface")
+    with pytest.raises(ConfigError, match='vanek-geometric.*kind = "aircraft"'):
+        CampaignConfig.from_dict(actuator)
+    # the runner asks the same rule (for detectors built outside a campaign file)
+    with pytest.raises(CampaignSetupError, match='vanek-geometric.*kind = "aircraft"'):
+        _check_compatibility(cfg, build_detectors(cfg), get_plant("actuator"))
 
 
 def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():

@@ -289,9 +289,6 @@ AIRCRAFT_SENSORS = AircraftSensorParams(
     rate_noise_deg_s=0.02, attitude_noise_deg=0.02, load_noise_g=0.003, sideslip_noise_deg=0.1,
 )
 
-#: Plant levels a campaign can simulate (``[campaign] plant``).
-PLANTS: tuple[str, ...] = ("actuator", "aircraft")
-
 #: Monitored aircraft surface when a campaign names only the actuator-level surface.
 DEFAULT_MONITORED: dict[str, str] = {"elevator": "left_elevator",
                                      "aileron": "left_inboard_aileron"}
