@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -473,6 +474,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _note(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as one line on stderr (an old campaign-file spelling, a solver's remark)."""
+    prefix = "note" if issubclass(category, FutureWarning) else category.__name__
+    print(f"{prefix}: {message}", file=sys.stderr, flush=True)
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -487,7 +494,9 @@ def main(argv=None) -> int:
     from .storage import CampaignDirError
 
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _note
+            return args.func(args)
     except (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
             UsageError, FileNotFoundError) as exc:
         _err(str(exc))
