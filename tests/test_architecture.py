@@ -1,0 +1,156 @@
+"""The architecture as rules a change cannot break silently (docs/design.md §2): imports
+flow one way with no cycle (also inside functions), no private name crosses a module, no
+package file grows past 700 lines, and every citation of the physics and design documents
+points to a section that exists in the repository."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGES = ("campaign", "scenarios", "detectors", "reports")
+#: Which package may import which (docs/design.md §2).
+MAY_IMPORT = {
+    "campaign": {"campaign", "scenarios", "detectors", "reports"},
+    "detectors": {"detectors", "scenarios"},
+    "scenarios": {"scenarios"},
+    "reports": {"reports"},
+}
+MAX_LINES = 700
+
+
+def _modules() -> dict[str, Path]:
+    mods = {}
+    for pkg in PACKAGES:
+        for path in sorted((REPO / pkg).rglob("*.py")):
+            name = ".".join(path.relative_to(REPO).with_suffix("").parts)
+            mods[name.removesuffix(".__init__")] = path
+    return mods
+
+
+MODULES = _modules()
+
+
+def _imports(name: str, path: Path) -> list[tuple[str, str | None, int]]:
+    """(imported module, imported name or None, line) of every import in *path*, resolved to
+    the project's modules (function-local imports included)."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            targets = [(alias.name, None) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ""
+            targets = [(f"{module}.{a.name}", None) if f"{module}.{a.name}" in MODULES
+                       else (module, a.name) for a in node.names]
+        else:
+            continue
+        for target, attr in targets:
+            parts = target.split(".")
+            while parts and ".".join(parts) not in MODULES:
+                parts.pop()
+            if parts and ".".join(parts) != name:
+                out.append((".".join(parts), attr, node.lineno))
+    return out
+
+
+GRAPH = {name: _imports(name, path) for name, path in MODULES.items()}
+
+
+def _cycles() -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in {t for t, _, _ in GRAPH[v]}:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in GRAPH:
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_checker_sees_function_local_and_relative_imports():
+    # the runner imports the execution module inside a function; the simulator imports the
+    # run-row module relatively: both must be seen, or the rules below prove nothing
+    assert any(t == "scenarios.runs" for t, _, _ in GRAPH["scenarios.simulate"])
+    assert len(MODULES) > 50
+
+
+def test_no_import_cycle_between_the_project_modules():
+    assert _cycles() == []
+
+
+def test_no_private_name_is_imported_across_modules():
+    crossing = [f"{name}:{line} imports {attr} from {target}"
+                for name, edges in GRAPH.items() for target, attr, line in edges
+                if attr and attr.startswith("_") and not attr.startswith("__")]
+    assert crossing == []
+
+
+def test_imports_flow_one_way_between_packages():
+    upward = [f"{name}:{line} imports {target}"
+              for name, edges in GRAPH.items() for target, _, line in edges
+              if target.split(".")[0] not in MAY_IMPORT[name.split(".")[0]]]
+    assert upward == []
+
+
+def test_no_package_file_is_over_the_line_limit():
+    long = {str(p.relative_to(REPO)): n for p in MODULES.values()
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES}
+    assert long == {}
+
+
+def _sections(doc: str) -> set[str]:
+    text = (REPO / "docs" / doc).read_text(encoding="utf-8")
+    return set(re.findall(r"^#+ *§?(\d+)[.\s]", text, flags=re.M))
+
+
+CITED = sorted({(m.group(1), m.group(2), str(path.relative_to(REPO)))
+                for path in [*REPO.glob("*/**/*.py"), *REPO.glob("docs/*.md"),
+                             REPO / "README.md"]
+                if ".venv" not in path.parts
+                for m in re.finditer(r"docs/(physics|design)\.md §(\d+)",
+                                     path.read_text(encoding="utf-8"))})
+
+
+@pytest.mark.parametrize("doc", ["physics", "design"])
+def test_every_citation_of_the_documents_resolves_to_a_section(doc):
+    sections = _sections(f"{doc}.md")
+    cited = [c for c in CITED if c[0] == doc]
+    assert cited, f"nothing cites docs/{doc}.md"
+    missing = [f"{where}: docs/{doc}.md §{n}" for d, n, where in cited if n not in sections]
+    assert missing == []
+
+
+def test_no_citation_points_outside_the_repository():
+    outside = [str(p.relative_to(REPO)) for p in [*REPO.glob("*/**/*.py"), *REPO.glob("docs/*.md")]
+               if ".venv" not in p.parts and p != Path(__file__).resolve()
+               and re.search(r"\b(PHYSICS|DESIGN)(\.md)?,? ?§|shared/", p.read_text(encoding="utf-8"))]
+    assert outside == []
