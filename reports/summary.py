@@ -1,7 +1,7 @@
 """Aggregate result rows into rates, exact confidence bounds and DTP statistics.
 
-One summary row per detector × fault × manoeuvre, plus aggregates (docs/design.md §5, Metrics and
-Outputs; the layout of [CHEN] Tables 3–4):
+One summary row per detector × fault × manoeuvre, plus aggregates (docs/design.md §5, Metrics, and
+§6, Outputs; the layout of [CHEN] Tables 3–4):
 
 * ``manoeuvre = "all"`` per detector × fault (e.g. the 1200 fault-free runs of a Monte Carlo
   campaign, or all runs of one fault type);

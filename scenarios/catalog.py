@@ -37,8 +37,8 @@ FAULTS: tuple[str, ...] = (
 FAULT_TYPES: tuple[str, ...] = FAULTS[1:]
 
 #: Required detection times [s], the DTP denominators (docs/physics.md §5: est. defaults, the
-#: ADDSAFE values are not public). OFC: 3 oscillation periods, resolved per run from the
-#: sampled frequency (the value here is the default for a 1 Hz oscillation).
+#: ADDSAFE values are not public). OFC: 3 oscillation periods of the default 1 Hz
+#: oscillation, a fixed 3 s for every OFC run (not resolved from each run's frequency).
 REQUIRED_DETECTION_TIME_S: dict[str, float] = {
     "runaway": 0.5,
     "hardover": 0.2,

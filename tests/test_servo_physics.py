@@ -46,7 +46,7 @@ def test_small_signal_time_constant(surface):
     x = truth.rod_mm[0] - truth.rod_mm[0, 0]
     target = act.deg_to_mm(amp)
     # time from the step to 63.2 % of the final value; the one-period delay and the
-    # zero-order hold shift it by about Ts against 1/(Kci·K): the issue allows 10 %.
+    # zero-order hold shift it by about Ts against 1/(Kci·K): 10 % covers both (docs/physics.md §8).
     k63 = np.argmax(x >= (1 - np.exp(-1)) * target)
     tau = (k63 - k0) * TS
     assert tau == pytest.approx(act.tau_s, rel=0.10)

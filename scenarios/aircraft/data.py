@@ -159,7 +159,7 @@ class SurfaceLayout:
     (spoilers are not monitored and have no servo-loop here). Rudder: the whole δr set.
     """
 
-    names: tuple[str, ...] = param("-", "docs/physics.md §7, issue 8", "surfaces, in array order")
+    names: tuple[str, ...] = param("-", "docs/physics.md §7", "surfaces, in array order")
     actuator: tuple[str, ...] = param("-", "scenarios.params", "actuator table of each surface")
     elevator_share: float = param("-", "est. (two equal elevators)",
                                   "share of the elevator derivatives per elevator")
