@@ -36,7 +36,7 @@ from pathlib import Path
 
 from scenarios.catalog import suggest
 
-from .config import CampaignConfig, ConfigError, _read_toml, load_config, looks_like_path
+from .config import CampaignConfig, ConfigError, read_toml, load_config, looks_like_path
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
            "load_suite", "suite_members", "write_suite_json"]
@@ -106,7 +106,7 @@ def _suite_path(spec) -> Path | None:
     if not path.is_file():
         return None
     try:
-        data = _read_toml(path, str(path))
+        data = read_toml(path, str(path))
     except ConfigError:
         return None                    # load_config reports the file's syntax error
     return path if isinstance(data, dict) and "suite" in data else None
@@ -129,7 +129,7 @@ def load_suite(spec) -> Suite:
                            f"suite{suggest(str(spec), names)}; shipped suites: "
                            f"{', '.join(names)}"], str(spec))
     source = str(path)
-    data = _read_toml(path, source)
+    data = read_toml(path, source)
     errors: list[str] = []
     for k in data:
         if k not in ("suite", "member"):

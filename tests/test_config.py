@@ -22,6 +22,8 @@ from campaign.config import (
     schema_markdown,
     with_overrides,
 )
+from campaign.config.keys import leaf_fields
+from campaign.config.schema import iter_tables
 from detectors import registry
 from scenarios.catalog import FAULTS, MANOEUVRES, REQUIRED_DETECTION_TIME_S
 
@@ -178,8 +180,8 @@ def test_init_text_loads_and_documents_every_key(tmp_path):
     text = init_text()
     config = load_config(write(tmp_path, text, "init.toml"))
     assert config.campaign.name == "my-campaign"
-    for section, cls, _, _ in cfg._sections():
-        for f in cfg._leaf_fields(cls):
+    for section, cls, _, _ in iter_tables():
+        for f in leaf_fields(cls):
             assert f"{f.name} = " in text, (section, f.name)
 
 
@@ -513,9 +515,9 @@ def test_docs_reference_is_up_to_date():
 
 def test_reference_documents_every_section_and_key():
     md = schema_markdown()
-    for section, cls, _, array in cfg._sections():
+    for section, cls, _, array in iter_tables():
         assert (f"[[{section}]]" if array else f"[{section}]") in md
-        for f in cfg._leaf_fields(cls):
+        for f in leaf_fields(cls):
             assert f"| `{f.name}` |" in md
 
 
