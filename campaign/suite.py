@@ -31,20 +31,18 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 from scenarios.catalog import suggest
 
-from .config import CampaignConfig, ConfigError, read_toml, load_config, looks_like_path
+from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
+from .config.load import SUITE_DIR, shipped_dir, shipped_names
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
            "load_suite", "suite_members", "write_suite_json"]
 
 #: Name of the file that marks a suite's output directory.
 SUITE_FILE = "suite.json"
-#: Package folder of the shipped suites.
-SUITE_DIR = "suites"
 
 _SUITE_KEYS = ("name", "description")
 _MEMBER_KEYS = ("campaign", "title")
@@ -76,11 +74,11 @@ class Suite:
 
 # ---- shipped suites -----------------------------------------------------------------------
 def _suite_dir():
-    return resources.files(__package__).joinpath(SUITE_DIR)
+    return shipped_dir(SUITE_DIR)
 
 
 def _suite_names() -> list[str]:
-    return sorted(p.name[:-5] for p in _suite_dir().iterdir() if p.name.endswith(".toml"))
+    return shipped_names(SUITE_DIR)
 
 
 def list_suites() -> dict[str, str]:

@@ -116,9 +116,7 @@ def load_config(spec: str | Path) -> CampaignConfig:
     if not isinstance(spec, Path) and not looks_like_path(text) and not Path(text).is_file():
         names = shipped_names(PRESET_DIR)
         if text not in names:
-            from ..suite import list_suites
-
-            if text in list_suites():
+            if text in shipped_names(SUITE_DIR):
                 raise ConfigError([f"{text}: a suite of campaigns, not one campaign; run it "
                                    "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], text)
             raise ConfigError([f"{text}: unknown preset{suggest(text, names)}; allowed: "
