@@ -31,20 +31,18 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 from scenarios.catalog import suggest
 
-from .config import CampaignConfig, ConfigError, _read_toml, load_config, looks_like_path
+from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
+from .config.load import SUITE_DIR, shipped_dir, shipped_names
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
            "load_suite", "suite_members", "write_suite_json"]
 
 #: Name of the file that marks a suite's output directory.
 SUITE_FILE = "suite.json"
-#: Package folder of the shipped suites.
-SUITE_DIR = "suites"
 
 _SUITE_KEYS = ("name", "description")
 _MEMBER_KEYS = ("campaign", "title")
@@ -76,11 +74,11 @@ class Suite:
 
 # ---- shipped suites -----------------------------------------------------------------------
 def _suite_dir():
-    return resources.files(__package__).joinpath(SUITE_DIR)
+    return shipped_dir(SUITE_DIR)
 
 
 def _suite_names() -> list[str]:
-    return sorted(p.name[:-5] for p in _suite_dir().iterdir() if p.name.endswith(".toml"))
+    return shipped_names(SUITE_DIR)
 
 
 def list_suites() -> dict[str, str]:
@@ -106,7 +104,7 @@ def _suite_path(spec) -> Path | None:
     if not path.is_file():
         return None
     try:
-        data = _read_toml(path, str(path))
+        data = read_toml(path, str(path))
     except ConfigError:
         return None                    # load_config reports the file's syntax error
     return path if isinstance(data, dict) and "suite" in data else None
@@ -129,7 +127,7 @@ def load_suite(spec) -> Suite:
                            f"suite{suggest(str(spec), names)}; shipped suites: "
                            f"{', '.join(names)}"], str(spec))
     source = str(path)
-    data = _read_toml(path, source)
+    data = read_toml(path, source)
     errors: list[str] = []
     for k in data:
         if k not in ("suite", "member"):

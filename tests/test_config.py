@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import ast
+import copy
 import dataclasses
 import importlib
 import json
 import pickle
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -22,6 +26,9 @@ from campaign.config import (
     schema_markdown,
     with_overrides,
 )
+from campaign.config.keys import leaf_fields
+from campaign.config.rules import check_rules, derive_group_names, normalise
+from campaign.config.schema import check_tables, iter_tables
 from detectors import registry
 from scenarios.catalog import FAULTS, MANOEUVRES, REQUIRED_DETECTION_TIME_S
 
@@ -178,8 +185,8 @@ def test_init_text_loads_and_documents_every_key(tmp_path):
     text = init_text()
     config = load_config(write(tmp_path, text, "init.toml"))
     assert config.campaign.name == "my-campaign"
-    for section, cls, _, _ in cfg._sections():
-        for f in cfg._leaf_fields(cls):
+    for section, cls, _, _ in iter_tables():
+        for f in leaf_fields(cls):
             assert f"{f.name} = " in text, (section, f.name)
 
 
@@ -513,9 +520,9 @@ def test_docs_reference_is_up_to_date():
 
 def test_reference_documents_every_section_and_key():
     md = schema_markdown()
-    for section, cls, _, array in cfg._sections():
+    for section, cls, _, array in iter_tables():
         assert (f"[[{section}]]" if array else f"[{section}]") in md
-        for f in cfg._leaf_fields(cls):
+        for f in leaf_fields(cls):
             assert f"| `{f.name}` |" in md
 
 
@@ -525,3 +532,95 @@ def test_module_entry_prints_the_reference(capsys):
     assert cfg.main(["--init"]) == 0
     assert tomllib.loads(capsys.readouterr().out)["campaign"]["name"] == "my-campaign"
     assert cfg.main(["--check", "nonexistent-preset"]) == 2
+
+
+# ---------------------------------------------------------------------------------------
+# rules: the values they derive are explicit steps, the rules only report
+# ---------------------------------------------------------------------------------------
+GRID_WITH_MC_KEYS = """\
+[campaign]
+name = "t"
+design = "grid"
+sampler = "random"
+
+[[group]]
+fault = "runaway"
+manoeuvres = ["cruise"]
+count = 3
+
+[[group]]
+fault = "none"
+name = "runaway@cruise"
+
+[[group]]
+fault = "runaway"
+manoeuvres = ["cruise"]
+
+[[detector]]
+name = "stub-detector"
+"""
+
+
+def test_rules_report_without_changing_the_values():
+    errors: list[str] = []
+    values = check_tables(tomllib.loads(GRID_WITH_MC_KEYS), errors)
+    assert errors == []
+    checked = copy.deepcopy(values)
+
+    normalised = normalise(values)
+    assert values == checked                                 # a new dict, input untouched
+    assert values["campaign"]["sampler"] == "random" and values["groups"][0]["count"] == 3
+    assert normalised["campaign"]["sampler"] is None         # mc-only keys on a grid design
+    assert [g["count"] for g in normalised["groups"]] == [None, None, None]
+    assert normalised["detectors"][0]["label"] == "stub-detector"   # label = name
+
+    before_rules = copy.deepcopy(normalised)
+    check_rules(normalised, errors)
+    assert normalised == before_rules
+    assert errors == [
+        'campaign.sampler: only used with design = "mc"; fix: remove it (grid runs one run '
+        'per case)',
+        'group[0].count: only used with design = "mc"; fix: remove it (grid runs one run '
+        'per case)',
+    ]
+
+    named = derive_group_names(normalised)
+    assert normalised == before_rules
+    assert [g["name"] for g in normalised["groups"]] == [None, "runaway@cruise", None]
+    # derived names never take a name given in the file, nor each other's
+    assert [g["name"] for g in named["groups"]] == ["runaway@cruise#2", "runaway@cruise",
+                                                    "runaway@cruise#3"]
+
+
+def test_config_layers_import_only_the_layers_below():
+    """Each module of campaign.config imports only modules listed before it in the
+    package docstring (no import cycle inside the package)."""
+    order = ["keys", "text", "convert", "sections", "rules", "schema", "load", "docs"]
+    folder = REPO / "campaign" / "config"
+    assert sorted(p.stem for p in folder.glob("*.py")) == sorted(
+        order + ["__init__", "__main__"])
+    for i, name in enumerate(order):
+        tree = ast.parse((folder / f"{name}.py").read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                assert node.module in order[:i], (name, node.module)
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                assert not node.module.startswith("campaign"), (name, node.module)
+            elif isinstance(node, ast.Import):
+                assert not any(a.name.startswith("campaign") for a in node.names), name
+
+
+def test_loading_a_suite_name_as_a_campaign_does_not_import_the_suites():
+    """campaign.suite builds on campaign.config, never the reverse."""
+    code = ("import sys\n"
+            "from campaign.config import ConfigError, load_config\n"
+            "try:\n"
+            "    load_config('chen-tables')\n"
+            "except ConfigError as exc:\n"
+            "    assert 'a suite of campaigns' in str(exc), exc\n"
+            "else:\n"
+            "    raise SystemExit('no error')\n"
+            "print('campaign.suite' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=REPO, check=True)
+    assert out.stdout.strip() == "False"

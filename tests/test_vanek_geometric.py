@@ -226,7 +226,7 @@ def test_a_campaign_at_the_actuator_level_is_refused_before_it_starts():
     from scenarios.plants import get_plant
 
     cfg = load_config("vanek-scenarios")
-    _check_compatibility(cfg, build_detectors(cfg))       # aircraft plant: accepted
+    _check_compatibility(cfg, build_detectors(cfg), get_plant("aircraft"))   # accepted
     actuator = cfg.to_dict()
     actuator["plant"]["kind"] = "actuator"
     actuator["plant"].pop("monitored_surface")

@@ -1,0 +1,168 @@
+"""Campaign files and presets: reading, loading by name or path, overriding values.
+
+A campaign is given either as the name of a preset shipped in ``campaign/presets``
+(``"smoke"``) or as a path to a TOML file; :func:`load_config` reads it and validates it
+(:func:`campaign.config.schema.validate`). The shipped suites (``campaign/suites``,
+loaded by :mod:`campaign.suite`) are listed here too, so that a suite given where a
+campaign is expected is named as such.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any, Mapping
+
+from scenarios.catalog import suggest
+
+from .convert import ConfigError
+from .schema import CampaignConfig, validate
+
+__all__ = [
+    "PRESET_PACKAGE",
+    "PRESET_DIR",
+    "SUITE_DIR",
+    "shipped_dir",
+    "shipped_names",
+    "preset_path",
+    "list_presets",
+    "read_toml",
+    "looks_like_path",
+    "load_config",
+    "with_overrides",
+]
+
+#: Package holding the shipped campaign files.
+PRESET_PACKAGE = "campaign"
+#: Its folder of preset campaigns.
+PRESET_DIR = "presets"
+#: Its folder of suites of campaigns (:mod:`campaign.suite`).
+SUITE_DIR = "suites"
+
+
+# ----------------------------------------------------------------------------------------
+# Shipped files
+# ----------------------------------------------------------------------------------------
+def shipped_dir(folder: str):
+    """The package folder *folder* (:data:`PRESET_DIR` or :data:`SUITE_DIR`) as an
+    :mod:`importlib.resources` traversable."""
+    return resources.files(PRESET_PACKAGE).joinpath(folder)
+
+
+def shipped_names(folder: str) -> list[str]:
+    """Sorted names (file names without ``.toml``) of the TOML files in package folder
+    *folder*."""
+    return sorted(p.name[:-5] for p in shipped_dir(folder).iterdir()
+                  if p.name.endswith(".toml"))
+
+
+def preset_path(name: str) -> Path:
+    """Path of the shipped preset *name* (``ConfigError`` if there is none)."""
+    names = shipped_names(PRESET_DIR)
+    if name not in names:
+        raise ConfigError([f"{name}: unknown preset{suggest(name, names)}; allowed: "
+                           f"{', '.join(names)}, or a path to a .toml file"], "<preset>")
+    return Path(str(shipped_dir(PRESET_DIR).joinpath(f"{name}.toml")))
+
+
+def list_presets() -> dict[str, str]:
+    """Shipped presets: name → description (from their ``[campaign] description``)."""
+    out = {}
+    for name in shipped_names(PRESET_DIR):
+        with open(preset_path(name), "rb") as fh:
+            data = tomllib.load(fh)
+        out[name] = str(data.get("campaign", {}).get("description", ""))
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# Reading and loading
+# ----------------------------------------------------------------------------------------
+_TOML_POS = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
+
+
+def read_toml(path: Path, source: str) -> dict:
+    """The content of TOML file *path*; a file that is not UTF-8 or not valid TOML raises
+    :class:`ConfigError` (named *source*) giving the line and column of the problem."""
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError([f"<file>: not UTF-8 text ({exc.reason} at byte {exc.start}); fix: "
+                           "save the file as UTF-8"], source) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = str(exc)
+        m = _TOML_POS.search(msg)
+        where = f"line {m.group(1)}, column {m.group(2)}" if m else "unknown position"
+        problem = _TOML_POS.sub("", msg)
+        raise ConfigError([f"<file> {where}: TOML syntax error: {problem}; fix: check the "
+                           "quotes, brackets, commas and '=' on that line"], source) from None
+
+
+def looks_like_path(text: str) -> bool:
+    """Whether a campaign spec is written as a file path rather than a preset name."""
+    return text.endswith(".toml") or "/" in text or "\\" in text
+
+
+def load_config(spec: str | Path) -> CampaignConfig:
+    """Load and validate a campaign: a preset name (``"smoke"``) or a path to a .toml file.
+
+    Raises :class:`ConfigError` listing every problem of the file at once.
+    """
+    text = str(spec)
+    if not isinstance(spec, Path) and not looks_like_path(text) and not Path(text).is_file():
+        names = shipped_names(PRESET_DIR)
+        if text not in names:
+            if text in shipped_names(SUITE_DIR):
+                raise ConfigError([f"{text}: a suite of campaigns, not one campaign; run it "
+                                   "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], text)
+            raise ConfigError([f"{text}: unknown preset{suggest(text, names)}; allowed: "
+                               f"{', '.join(names)}, or a path to a .toml file"], text)
+        path = preset_path(text)
+        source = f"preset {text!r}"
+    else:
+        path = Path(text)
+        source = str(path)
+        if not path.is_file():
+            what = "is a directory" if path.is_dir() else "file not found"
+            raise ConfigError([f"{path}: {what}; fix: check the path, or use a preset: "
+                               f"{', '.join(shipped_names(PRESET_DIR))}"], source)
+    data = read_toml(path, source)
+    if isinstance(data, dict) and "suite" in data:
+        raise ConfigError([f"{path}: a suite file ([suite] table), not a campaign file; run it "
+                           "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], source)
+    return validate(data, source)
+
+
+def with_overrides(config: CampaignConfig, seed: int | None = None, *,
+                   chunk_size: int | None = None,
+                   values: Mapping[str, Any] | None = None) -> CampaignConfig:
+    """A copy of *config* with some values changed and validated again.
+
+    *values* maps dotted paths to new values, e.g. ``{"campaign.duration_s": 30.0,
+    "group[0].count": 5}``; *seed* and *chunk_size* are shortcuts for the command line.
+    """
+    changes = dict(values or {})
+    if seed is not None:
+        changes["campaign.seed"] = seed
+    if chunk_size is not None:
+        changes["runner.chunk_size"] = chunk_size
+    data = config.to_dict()
+    errors = []
+    for dotted, value in changes.items():
+        parts = dotted.split(".")
+        node: Any = data
+        try:
+            for part in parts[:-1]:
+                m = re.fullmatch(r"(\w+)\[(\d+)\]", part)
+                node = node[m.group(1)][int(m.group(2))] if m else node.setdefault(part, {})
+        except (KeyError, IndexError, TypeError):
+            errors.append(f"{dotted}: no such table in the campaign")
+            continue
+        node[parts[-1]] = value
+    if errors:
+        raise ConfigError(errors, f"overrides of {config.source}")
+    return validate(data, f"{config.source} (with overrides)")

@@ -1,0 +1,376 @@
+"""Rules of the campaign file that involve several keys, and the values they derive.
+
+They run after every key was checked on its own (:func:`campaign.config.convert.build_table`)
+on the checked values: one dict per table, keys → frozen value, default or
+:data:`~campaign.config.convert.BAD` (whose error is already recorded), with the keys
+written in the file under ``"__present__"``. Validation runs, in this order:
+
+1. :func:`normalise` — keys that only apply to Monte Carlo designs are ``None`` with
+   ``design = "grid"``; a ``[[detector]]`` without ``label`` is labelled with its name;
+2. :func:`check_rules` — every rule appends its problems to the error list, in file order,
+   and changes nothing;
+3. :func:`derive_group_names` — a ``[[group]]`` without ``name`` is named
+   ``fault@manoeuvres`` (unique, never one of the names given in the file).
+
+:func:`normalise` and :func:`derive_group_names` return new values; their input is left
+as it is.
+"""
+
+from __future__ import annotations
+
+import inspect
+import warnings
+from typing import Any, Mapping
+
+from detectors.compat import incompatibilities
+from scenarios.plants import get_plant
+from scenarios.catalog import MANOEUVRES, suggest
+
+from .convert import is_ok, out_of_range
+from .keys import key_spec, leaf_fields, thaw
+from .sections import (
+    FAULT_MAGNITUDE_KEY,
+    OFC_FAULTS,
+    SIGNED_FAULTS,
+    CampaignSection,
+    FaultsSection,
+    GroupSpec,
+    PlantSection,
+    PlantVariables,
+)
+from .text import num, range_text
+
+__all__ = ["normalise", "check_rules", "check_detectors", "derive_group_names"]
+
+
+# ----------------------------------------------------------------------------------------
+# Old spellings (before anything is checked)
+# ----------------------------------------------------------------------------------------
+#: Keys that moved: (old section, old key) → (new section, new key). Campaign files that use
+#: an old spelling keep working (docs/campaign-file.md, "Keys that moved").
+MOVED_KEYS: dict[tuple[str, str], tuple[str, str]] = {
+    ("campaign", "plant"): ("plant", "kind"),
+    ("campaign", "monitored_surface"): ("plant", "monitored_surface"),
+}
+
+
+def migrate(data: Mapping[str, Any], errors: list[str]) -> Mapping[str, Any]:
+    """*data* (a campaign file's content) with the keys of :data:`MOVED_KEYS` under their
+    new names, each move announced by a one-line FutureWarning naming the new spelling. The
+    old and the new spelling together with different values is an error (appended to
+    *errors*). *data* itself is not changed."""
+    moves = [(old, new) for old, new in MOVED_KEYS.items()
+             if isinstance(data.get(old[0]), Mapping) and old[1] in data[old[0]]]
+    if not moves:
+        return data
+    out = {k: dict(v) if isinstance(v, Mapping) else v for k, v in data.items()}
+    for (sec, name), (new_sec, new_name) in moves:
+        value = out[sec].pop(name)
+        target = out.setdefault(new_sec, {})
+        if not isinstance(target, dict):
+            continue                     # reported by the section's own check
+        if new_name in target and target[new_name] != value:
+            errors.append(f"{sec}.{name}: old spelling of {new_sec}.{new_name}, which is also "
+                          f"set, to another value; fix: remove {sec}.{name}")
+            continue
+        target.setdefault(new_name, value)
+        warnings.warn(f"[{sec}] {name} is now [{new_sec}] {new_name}; the old spelling still "
+                      "works", FutureWarning, stacklevel=5)
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# Normalisation (before the rules) and derived names (after them)
+# ----------------------------------------------------------------------------------------
+def normalise(values: Mapping[str, Any]) -> dict[str, Any]:
+    """The checked *values* as the rules and the dataclasses take them (a new dict).
+
+    With ``design = "grid"`` every key that only applies to ``design = "mc"`` is ``None``
+    (one written in the file is an error of :func:`check_rules`); a ``[[detector]]``
+    without ``label`` whose ``name`` is valid takes its name as label.
+    """
+    design = values["campaign"]["design"]
+    return {
+        **values,
+        "campaign": _without_mc_only_keys(values["campaign"], CampaignSection, design),
+        "groups": [_without_mc_only_keys(g, GroupSpec, design) for g in values["groups"]],
+        "detectors": [_with_label(d) for d in values["detectors"]],
+    }
+
+
+def _without_mc_only_keys(table: Mapping[str, Any], cls: type, design: Any) -> dict:
+    if design != "grid":
+        return dict(table)
+    cleared = {f.name: None for f in leaf_fields(cls) if f.metadata["key"].only == "mc"}
+    return {**table, **cleared}
+
+
+def _with_label(det: Mapping[str, Any]) -> dict:
+    if is_ok(det["name"]) and det["label"] is None:
+        return {**det, "label": det["name"]}
+    return dict(det)
+
+
+def derive_group_names(values: Mapping[str, Any]) -> dict[str, Any]:
+    """*values* with a name for every ``[[group]]`` that has none (a new dict).
+
+    The name is ``fault@manoeuvres`` (``all`` for every manoeuvre, else the manoeuvres
+    joined by ``+``), with ``#2``, ``#3``, … appended when it is already taken by a
+    name given in the file or derived before. Groups whose fault or manoeuvres are
+    invalid keep no name (the file has errors).
+    """
+    groups = values["groups"]
+    taken = {g["name"] for g in groups if g["name"] is not None and is_ok(g["name"])}
+    named = []
+    for g in groups:
+        if g["name"] is None and is_ok(g["fault"], g["manoeuvres"]):
+            man = g["manoeuvres"]
+            base = f"{g['fault']}@{'all' if man == MANOEUVRES else '+'.join(man)}"
+            name, n = base, 1
+            while name in taken:
+                n += 1
+                name = f"{base}#{n}"
+            taken.add(name)
+            g = {**g, "name": name}
+        named.append(g)
+    return {**values, "groups": named}
+
+
+# ----------------------------------------------------------------------------------------
+# The rules
+# ----------------------------------------------------------------------------------------
+def check_rules(values: Mapping[str, Any], errors: list[str]) -> None:
+    """Append to *errors* every problem that involves several keys of the (normalised)
+    *values*, in the order of the file: [campaign], [faults], each [[group]], each
+    [[detector]], [plant]."""
+    camp = values["campaign"]
+    design, duration = camp["design"], camp["duration_s"]
+    _check_mc_only_keys(camp, "campaign", CampaignSection, design, errors)
+    _check_monitored_surface(values["plant"], errors)
+    _check_onset_window(values["faults"], duration, errors)
+    _check_groups(values["groups"], design, duration, errors)
+    check_detectors(values["detectors"], camp, values["plant"], errors)
+    _check_plant(values["plant"], camp, errors)
+
+
+def _check_mc_only_keys(table: Mapping, path: str, cls: type, design: Any,
+                        errors: list[str]) -> None:
+    """Keys that only apply to Monte Carlo designs must not be written with grid."""
+    if design != "grid":
+        return
+    for f in leaf_fields(cls):
+        if f.metadata["key"].only == "mc" and f.name in table["__present__"]:
+            errors.append(f"{path}.{f.name}: only used with design = \"mc\"; fix: "
+                          f"remove it (grid runs one run per case)")
+
+
+def _check_monitored_surface(plant: Mapping, errors: list[str]) -> None:
+    """The monitored surface belongs to the aircraft plant."""
+    if plant["kind"] == "actuator" and plant.get("monitored_surface") is not None:
+        errors.append("plant.monitored_surface: only used with kind = \"aircraft\"; fix: "
+                      "remove it or set [plant] kind = \"aircraft\"")
+
+
+def _check_onset_window(faults: Mapping, duration: Any, errors: list[str]) -> None:
+    """The window the fault onset is sampled from must not be empty."""
+    onset_min, before_end = faults["onset_min_s"], faults["onset_before_end_s"]
+    if not is_ok(duration, onset_min, before_end):
+        return
+    latest = duration - before_end
+    if onset_min > latest:
+        errors.append(
+            f"faults.onset_min_s: empty onset window [{num(onset_min)}, "
+            f"{num(latest)}] s (duration_s {num(duration)} − onset_before_end_s "
+            f"{num(before_end)}); fix: lower onset_min_s or "
+            f"onset_before_end_s, or lengthen campaign.duration_s")
+
+
+# ---- [[group]] ----------------------------------------------------------------------------
+def _check_groups(groups: list, design: Any, duration: Any, errors: list[str]) -> None:
+    """The rules of each [[group]], group by group; names given must be unique."""
+    explicit: dict[str, str] = {}
+    for i, g in enumerate(groups):
+        p = f"group[{i}]"
+        _check_mc_only_keys(g, p, GroupSpec, design, errors)
+        _check_count(g, p, design, errors)
+        fault = g["fault"]
+        if is_ok(fault) and fault == "none":
+            _check_fault_free(g, p, errors)
+        elif is_ok(fault):
+            _check_magnitude(g, p, fault, errors)
+            _check_sign(g, p, fault, errors)
+            _check_freq(g, p, fault, errors)
+            _check_onset(g, p, duration, errors)
+        _check_manoeuvre_start(g, p, duration, errors)
+        _check_unique_name(g, p, explicit, errors)
+
+
+def _given(g: Mapping, k: str) -> bool:
+    """Whether key *k* of group *g* is set to a valid value."""
+    return g[k] is not None and is_ok(g[k])
+
+
+def _check_count(g: Mapping, p: str, design: Any, errors: list[str]) -> None:
+    if design == "mc" and g["count"] is None:
+        errors.append(f"{p}.count: missing; required with design = \"mc\" (runs per "
+                      f"manoeuvre); fix: add count = 10")
+
+
+def _check_fault_free(g: Mapping, p: str, errors: list[str]) -> None:
+    for k in ("onset_s", "magnitude", "freq_hz", "sign"):
+        if _given(g, k):
+            errors.append(f"{p}.{k}: a fault-free group (fault = \"none\") has "
+                          f"no {k}; fix: remove it")
+
+
+def _check_magnitude(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
+    """A fixed magnitude needs a fault that has one, within that fault's [faults.*]
+    range."""
+    if not _given(g, "magnitude"):
+        return
+    if fault not in FAULT_MAGNITUDE_KEY:
+        errors.append(f"{p}.magnitude: fault {fault!r} has no magnitude; "
+                      f"allowed only with: {', '.join(FAULT_MAGNITUDE_KEY)}; "
+                      "fix: remove it")
+        return
+    sub, k = FAULT_MAGNITUDE_KEY[fault]
+    spec = key_spec(FaultsSection, sub, k)
+    if out_of_range(spec, g["magnitude"]):
+        errors.append(f"{p}.magnitude: {num(g['magnitude'])} is out of range "
+                      f"for {fault}; allowed: "
+                      f"{range_text(spec, 'magnitude')}")
+
+
+def _check_sign(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
+    if fault not in SIGNED_FAULTS and _given(g, "sign"):
+        errors.append(f"{p}.sign: fault {fault!r} has no direction; allowed only "
+                      f"with: {', '.join(SIGNED_FAULTS)}; fix: remove it")
+
+
+def _check_freq(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
+    if fault not in OFC_FAULTS and _given(g, "freq_hz"):
+        errors.append(f"{p}.freq_hz: only for {', '.join(OFC_FAULTS)}; fix: "
+                      "remove it")
+
+
+def _check_onset(g: Mapping, p: str, duration: Any, errors: list[str]) -> None:
+    onset = g["onset_s"]
+    if is_ok(onset, duration) and onset is not None and onset >= duration:
+        errors.append(f"{p}.onset_s: {num(onset)} s is not before the end "
+                      f"of the run; allowed: 0 ≤ onset_s < duration_s = "
+                      f"{num(duration)} s")
+
+
+def _check_manoeuvre_start(g: Mapping, p: str, duration: Any, errors: list[str]) -> None:
+    start = g["manoeuvre_start_s"]
+    if is_ok(start, duration) and start is not None and start >= duration:
+        errors.append(f"{p}.manoeuvre_start_s: {num(start)} s is not before the end of "
+                      f"the run; allowed: 0 ≤ manoeuvre_start_s < duration_s = "
+                      f"{num(duration)} s")
+
+
+def _check_unique_name(g: Mapping, p: str, seen: dict[str, str], errors: list[str]) -> None:
+    """A group name given in the file must not repeat one given before (*seen*: name →
+    path of the group that gave it; updated)."""
+    name = g["name"]
+    if not _given(g, "name"):
+        return
+    if name in seen:
+        errors.append(f"{p}.name: duplicate group name {name!r} (also "
+                      f"{seen[name]}); fix: give each group a unique name")
+    seen[name] = p
+
+
+# ---- [[detector]] -------------------------------------------------------------------------
+def check_detectors(dets: list, camp: Mapping, plant: Mapping, errors: list[str]) -> None:
+    """Each [[detector]]: unique label, registered name, parameters its class accepts,
+    and the signals it needs provided by the campaign's plant
+    (:func:`detectors.compat.incompatibilities`, the one compatibility rule)."""
+    from detectors.registry import (
+        DetectorSpecError,
+        available_detectors,
+        load_detector_class,
+        parameter_errors,
+    )
+
+    registered = list(available_detectors())
+    labels: dict[str, str] = {}
+    for i, d in enumerate(dets):
+        p = f"detector[{i}]"
+        _check_unique_label(d, p, labels, errors)
+        name = d["name"]
+        if not is_ok(name):
+            continue
+        if name not in registered:
+            errors.append(f"{p}.name: unknown detector {name!r}{suggest(name, registered)}; "
+                          f"allowed: {', '.join(sorted(registered))} (third-party detectors "
+                          "register through the entry-point group fdd_campaign.detectors)")
+            continue
+        if not is_ok(d["params"]):
+            continue
+        try:
+            problems = parameter_errors(name, thaw(d["params"], "table"))
+            cls = load_detector_class(name)
+        except DetectorSpecError as exc:
+            errors.append(f"{p}.name: {exc}")
+            continue
+        for msg in problems:
+            hint = "" if "allowed:" in msg else f"; parameters and defaults: " \
+                f"{signature_text(cls)}"
+            errors.append(f"{p}.params: {msg}{hint}")
+        caps = getattr(cls, "capabilities", None)
+        if caps is not None:
+            _check_compatibility(name, caps, p, camp, plant, errors)
+
+
+def _check_unique_label(d: Mapping, p: str, seen: dict[str, str], errors: list[str]) -> None:
+    """A detector label must not repeat one before (*seen*: label → path; updated)."""
+    label = d["label"]
+    if is_ok(label) and label is not None:
+        if label in seen:
+            errors.append(f"{p}.label: duplicate label {label!r} (also {seen[label]}); "
+                          "fix: give each [[detector]] a unique label = \"…\"")
+        seen[label] = p
+
+
+def _check_compatibility(name: str, caps, p: str, camp: Mapping, plant: Mapping,
+                         errors: list[str]) -> None:
+    """Detector *name* (capabilities *caps*) must find what it reads on the campaign's plant
+    (the plant kind's provides; an FMU plant provides what the actuator plant does)."""
+    if not is_ok(camp["surface"], camp["pressure_sensor"], plant["kind"],
+                 plant["monitored_surface"]):
+        return
+    built = get_plant(plant["kind"])
+    surface = built.run_surface(camp["surface"], plant["monitored_surface"])
+    for msg in incompatibilities({name: caps}, built, surface,
+                                 pressure_sensor=camp["pressure_sensor"]):
+        errors.append(f"{p}.name: {msg}")
+
+
+def signature_text(cls: type) -> str:
+    """The keyword parameters of detector class *cls* with their defaults, for hints."""
+    parts = []
+    for prm in inspect.signature(cls.__init__).parameters.values():
+        if prm.name == "self" or prm.kind in (prm.VAR_POSITIONAL, prm.VAR_KEYWORD):
+            continue
+        parts.append(prm.name if prm.default is prm.empty else f"{prm.name}={prm.default!r}")
+    return ", ".join(parts) or "(none)"
+
+
+# ---- [plant] ------------------------------------------------------------------------------
+def _check_plant(plant: Mapping, camp: Mapping, errors: list[str]) -> None:
+    """The FMU keys mean nothing without an FMU (defaults written out are harmless); an FMU
+    replaces the single actuator servo-loop, not the aircraft plant."""
+    if plant["fmu"] is None:
+        given = [k for k in ("push_parameters",) if k in plant["__present__"]
+                 and plant[k] != PlantSection.__dataclass_fields__[k].default]
+        given += [f"variables.{f.name}" for f in leaf_fields(PlantVariables)
+                  if f.name in plant["variables"]["__present__"]
+                  and plant["variables"][f.name] != f.default]
+        for k in given:
+            errors.append(f"plant.{k}: only used with an FMU plant; fix: set [plant] fmu = "
+                          "\"servo.fmu\" or remove it")
+    elif plant["kind"] == "aircraft":
+        errors.append("plant.fmu: an FMU replaces the single actuator servo-loop, but "
+                      "[plant] kind = \"aircraft\"; fix: set [plant] kind = "
+                      "\"actuator\" or remove [plant] fmu")

@@ -1,0 +1,360 @@
+"""The sections of the campaign file: one frozen dataclass per table, keys as fields.
+
+Each class is a table of the file (``[campaign]``, ``[faults.runaway]``, one ``[[group]]``,
+…); each field declares one key with its type, default, allowed values or range, unit,
+source and a one-line description (:mod:`campaign.config.keys`). The sections are
+assembled into the whole file by :class:`campaign.config.schema.CampaignConfig`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from scenarios.aircraft.data import AIRCRAFT_SURFACES
+from scenarios.plants import PLANT_KINDS
+from scenarios.catalog import (
+    FAULT_TYPES,
+    FAULTS,
+    MANOEUVRES,
+    REQUIRED_DETECTION_TIME_S,
+    SURFACES,
+)
+
+from .keys import key, sub_table, thaw
+
+__all__ = [
+    "FLIGHT_POINT_RANGES",
+    "CampaignSection",
+    "EnvelopeSection",
+    "UncertaintySection",
+    "MismatchSection",
+    "RunawayRanges",
+    "LiquidJamRanges",
+    "OfcLiquidRanges",
+    "OfcSolidRanges",
+    "FaultsSection",
+    "FAULT_MAGNITUDE_KEY",
+    "OFC_FAULTS",
+    "SIGNED_FAULTS",
+    "SIGNED_FAULT_DIRECTIONS",
+    "GroupSpec",
+    "DetectorSpec",
+    "RequirementsSection",
+    "LearningSection",
+    "RunnerSection",
+    "PlantVariables",
+    "PlantSection",
+    "ARRAY_EXAMPLES",
+]
+
+#: Physical range of each flight-point coordinate: (low, high, unit). Used by the
+#: [envelope] lists and by the fixed flight point of a [[group]].
+FLIGHT_POINT_RANGES: dict[str, tuple[float, float, str]] = {
+    "alt_ft": (0.0, 45000.0, "ft"),
+    "vcas_kt": (100.0, 360.0, "kt"),
+    "mass_t": (100.0, 260.0, "t"),
+    "cg_pct": (10.0, 50.0, "% MAC"),
+}
+
+_CHEN_T1 = "[CHEN] Table 1"
+_CHEN_T2 = "[CHEN] Table 2"
+
+
+def _envelope_key(name: str, values: tuple[float, ...], what: str):
+    lo, hi, unit = FLIGHT_POINT_RANGES[name]
+    return key("floats", f"{what}: grid values; Monte Carlo samples uniformly between "
+               "their min and max", values, unit=unit, lo=lo, hi=hi, source=_CHEN_T1)
+
+
+def _fixed_point_key(name: str, what: str, example: float):
+    lo, hi, unit = FLIGHT_POINT_RANGES[name]
+    return key("float", f"fixed {what} for every run of the group (replaces that envelope "
+               "axis)", unit=unit, lo=lo, hi=hi, optional=True,
+               default_doc="from [envelope]", example=example)
+
+
+def _half_width(doc: str, default: float, source: str):
+    return key("float", doc + " (relative half-width of a uniform draw)", default,
+               unit="-", lo=0.0, hi=0.5, source=source)
+
+
+# ----------------------------------------------------------------------------------------
+# The schema: sections of the file, as frozen dataclasses
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True, kw_only=True)
+class CampaignSection:
+    name: str = key("str", "campaign name (reports, output metadata)", example="my-campaign",
+                    nonempty=True)
+    description: str = key("str", "free text describing the campaign", "")
+    seed: int = key("int", "master seed: run i draws from SeedSequence(seed, spawn_key=(i,))",
+                    0, lo=0)
+    surface: str = key("choice", "control surface whose servo-loop is simulated", "elevator",
+                       choices=SURFACES)
+    duration_s: float = key("float", "duration of every evaluation run", 60.0, unit="s",
+                            lo=20.0, hi=600.0)
+    ts_s: float = key("float", "sampling period of the simulation and of the signals", 0.01,
+                      unit="s", lo=0.001, hi=0.05)
+    design: str = key("choice", "mc: Monte Carlo sampling of the envelope; grid: every "
+                      "envelope point × uncertainty levels {min, 0, max}", "mc",
+                      choices=("mc", "grid"))
+    sampler: str | None = key("choice", "Monte Carlo sequence (design = \"mc\" only; leave "
+                              "out with grid)", "sobol", choices=("sobol", "random"),
+                              only="mc")
+    realistic_only: bool = key("bool", "keep only flight points passing the realistic-"
+                               "envelope rule (docs/physics.md §6), for grid and mc", True)
+    pressure_sensor: bool = key("bool", "simulate the actuator chamber ΔP sensor",
+                                False)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EnvelopeSection:
+    alt_ft: tuple[float, ...] = _envelope_key(
+        "alt_ft", (8000.0, 18000.0, 28000.0, 38000.0), "pressure altitude")
+    vcas_kt: tuple[float, ...] = _envelope_key(
+        "vcas_kt", (160.0, 220.0, 300.0), "calibrated airspeed")
+    mass_t: tuple[float, ...] = _envelope_key("mass_t", (120.0, 180.0, 233.0), "aircraft mass")
+    cg_pct: tuple[float, ...] = _envelope_key("cg_pct", (17.0, 30.0, 41.0),
+                                              "centre-of-gravity position")
+
+
+@dataclass(frozen=True, kw_only=True)
+class UncertaintySection:
+    aero: float = _half_width("aerodynamic coefficients δCx…δCn", 0.05, _CHEN_T2)
+    vcas: float = _half_width("measured VCAS error", 0.10, _CHEN_T2)
+    alt: float = _half_width("measured altitude error", 0.10, _CHEN_T2)
+    mass: float = _half_width("estimated mass error", 0.10, _CHEN_T2)
+    cg: float = _half_width("estimated CG error", 0.10, _CHEN_T2)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MismatchSection:
+    enabled: bool = key("bool", "sample the plant/model mismatch below", True)
+    supply: float = _half_width("hydraulic supply pressure", 0.05, "est. (docs/physics.md §6)")
+    kci: float = _half_width("servo-valve gain Kci", 0.05, "est. (docs/physics.md §6)")
+    hinge: float = _half_width("hinge-moment coefficients", 0.20, "est. (docs/physics.md §6)")
+
+
+def _pair(doc: str, default: tuple[float, float], unit: str, hi: float, source: str):
+    return key("pair", doc + ", drawn uniformly in [low, high]", default, unit=unit, lo=0.0,
+               lo_open=True, hi=hi, source=source)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunawayRanges:
+    rate_deg_s: tuple[float, float] = _pair("runaway ramp rate", (1.0, 10.0), "deg/s", 100.0,
+                                            "docs/physics.md §5, [COMB] D_V1")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LiquidJamRanges:
+    bias_pct_range: tuple[float, float] = _pair(
+        "rod-signal bias as a share of the deflection range", (1.3, 1.3), "%", 50.0,
+        "[CHEN] §6.2")
+
+
+@dataclass(frozen=True, kw_only=True)
+class OfcLiquidRanges:
+    amplitude_mA: tuple[float, float] = _pair("amplitude of the sinusoid added to the "
+                                              "current", (0.5, 2.0), "mA", 10.0, "est.")
+    freq_hz: tuple[float, float] = _pair("oscillation frequency", (0.5, 5.0), "Hz", 20.0,
+                                         "est.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class OfcSolidRanges:
+    amplitude_mm: tuple[float, float] = _pair("amplitude of the sinusoid replacing the rod "
+                                              "measurement", (0.5, 3.0), "mm", 20.0, "est.")
+    freq_hz: tuple[float, float] = _pair("oscillation frequency", (0.5, 5.0), "Hz", 20.0,
+                                         "est.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FaultsSection:
+    onset_min_s: float = key("float", "earliest fault onset", 5.0, unit="s", lo=0.0, hi=600.0)
+    onset_before_end_s: float = key("float", "latest onset is duration_s minus this", 10.0,
+                                    unit="s", lo=0.0, hi=600.0)
+    runaway: RunawayRanges = sub_table(RunawayRanges, "runaway magnitude (sign random)")
+    liquid_jam: LiquidJamRanges = sub_table(LiquidJamRanges,
+                                            "liquid-jam magnitude (sign random)")
+    ofc_liquid: OfcLiquidRanges = sub_table(OfcLiquidRanges,
+                                            "liquid oscillatory failure (sign random)")
+    ofc_solid: OfcSolidRanges = sub_table(OfcSolidRanges,
+                                          "solid oscillatory failure (sign random)")
+
+
+#: Which [faults.*] range holds the magnitude of each fault type (a [[group]] ``magnitude``
+#: is in the same unit). Faults not listed have no magnitude (hardover: ±i_max; solid_jam:
+#: frozen where it is; disconnection: floating surface).
+FAULT_MAGNITUDE_KEY: dict[str, tuple[str, str]] = {
+    "runaway": ("runaway", "rate_deg_s"),
+    "liquid_jam": ("liquid_jam", "bias_pct_range"),
+    "ofc_liquid": ("ofc_liquid", "amplitude_mA"),
+    "ofc_solid": ("ofc_solid", "amplitude_mm"),
+}
+#: Fault types with a sampled oscillation frequency.
+OFC_FAULTS: tuple[str, ...] = ("ofc_liquid", "ofc_solid")
+#: Fault types with a direction (sign of the magnitude), and the names of a fixed sign.
+SIGNED_FAULTS: tuple[str, ...] = ("runaway", "hardover", "liquid_jam")
+SIGNED_FAULT_DIRECTIONS: tuple[str, ...] = ("positive", "negative")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroupSpec:
+    name: str = key("str", "group name in the run table (unique)", optional=True,
+                    default_doc="derived: fault@manoeuvres, e.g. \"liquid_jam@cruise\"",
+                    example="liquid_jam@cruise", nonempty=True)
+    manoeuvres: tuple[str, ...] = key("names", "manoeuvres of the group, or [\"all\"]",
+                                      MANOEUVRES, choices=MANOEUVRES)
+    fault: str = key("choice", "fault type of every run of the group (\"none\": fault-free)",
+                     choices=FAULTS, example="none")
+    count: int | None = key("int", "runs per manoeuvre (design = \"mc\": required; grid: "
+                            "leave out, one run per case)", lo=1, optional=True, only="mc",
+                            default_doc="required with design = \"mc\"", example=10)
+    onset_s: float | None = key("float", "fixed fault onset instead of the sampled one (before "
+                                "the end of the run)",
+                                unit="s", lo=0.0, hi=600.0, optional=True,
+                                default_doc="sampled from [faults]", example=30.0)
+    magnitude: float | None = key("float", "fixed magnitude in the unit of its [faults.*] "
+                                  "range (runaway deg/s, liquid_jam %, ofc_liquid mA, "
+                                  "ofc_solid mm); sign random unless sign is given", lo=0.0, lo_open=True,
+                                  optional=True, default_doc="sampled from [faults]",
+                                  example=5.0)
+    freq_hz: float | None = key("float", "fixed OFC frequency (ofc_liquid, ofc_solid only)",
+                                unit="Hz", lo=0.0, lo_open=True, hi=20.0, optional=True,
+                                default_doc="sampled from [faults]", example=1.0)
+    sign: str | None = key("choice", "fixed direction of the fault (runaway, hardover, "
+                           "liquid_jam only): positive or negative deflection",
+                           choices=SIGNED_FAULT_DIRECTIONS, optional=True,
+                           default_doc="random", example="negative")
+    manoeuvre_start_s: float | None = key(
+        "float", "fixed start time of the manoeuvre instead of the sampled one (places its "
+        "transients, e.g. [COMB] §4 D_V2; before the end of the run)", unit="s", lo=0.0,
+        hi=600.0, optional=True, default_doc="sampled per run", example=14.3)
+    alt_ft: float | None = _fixed_point_key("alt_ft", "altitude", 28000.0)
+    vcas_kt: float | None = _fixed_point_key("vcas_kt", "calibrated airspeed", 220.0)
+    mass_t: float | None = _fixed_point_key("mass_t", "mass", 180.0)
+    cg_pct: float | None = _fixed_point_key("cg_pct", "CG position", 30.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DetectorSpec:
+    name: str = key("str", "registered detector name (built-in: position-monitor; others "
+                    "through the entry-point group fdd_campaign.detectors)",
+                    example="position-monitor", nonempty=True)
+    label: str = key("str", "name of this detector in the results (unique)", optional=True,
+                     default_doc="= name", example="pm-strict", nonempty=True)
+    params: tuple[tuple[str, Any], ...] = key(
+        "table", "keyword parameters of the detector (checked against its signature and "
+        "ranges)", (), example={"safety": 2.0})
+
+    def params_dict(self) -> dict:
+        """The parameters as a plain dict (lists and dicts), ready for ``make_detector``."""
+        return thaw(self.params, "table")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RequirementsSection:
+    detection_time_s: tuple[tuple[str, float], ...] = key(
+        "fault_seconds", "required detection time per fault type, the DTP denominator "
+        "(entries given replace the defaults; ofc: 3 periods, value for 1 Hz)",
+        tuple(REQUIRED_DETECTION_TIME_S.items()), unit="s", lo=0.0, lo_open=True,
+        choices=FAULT_TYPES, source="est. (docs/physics.md §5)")
+    max_fa_rate: float = key("float", "gate: highest accepted false-alarm rate", 0.0,
+                             lo=0.0, hi=1.0)
+    max_md_rate: float = key("float", "gate: highest accepted missed-detection rate", 0.0,
+                             lo=0.0, hi=1.0)
+    max_dtp: float = key("float", "gate: highest accepted detection time performance "
+                         "(delay / required time)", 1.0, lo=0.0, lo_open=True)
+    detection_window_s: float | None = key("float", "a fault counts as detected only within "
+                                           "this time after onset", unit="s", lo=0.0,
+                                           lo_open=True, hi=600.0, optional=True,
+                                           default_doc="rest of the run", example=5.0)
+
+    def required_time(self, fault: str) -> float:
+        """Required detection time [s] of *fault*."""
+        return dict(self.detection_time_s)[fault]
+
+
+@dataclass(frozen=True, kw_only=True)
+class LearningSection:
+    runs_per_manoeuvre: int = key("int", "fault-free learning runs per manoeuvre (own seeds, "
+                                  "never evaluation runs)", 10, lo=1)
+    manoeuvres: tuple[str, ...] = key("names", "manoeuvres of the learning set, or [\"all\"]",
+                                      MANOEUVRES, choices=MANOEUVRES)
+    duration_s: float | None = key("float", "duration of a learning run", unit="s", lo=20.0,
+                                   hi=600.0, optional=True,
+                                   default_doc="[campaign] duration_s", example=60.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunnerSection:
+    chunk_size: int = key("int", "runs simulated together by one worker task", 100, lo=1,
+                          hi=10000)
+    engine: str = key("choice", "implementation of the time loops: compiled (numba kernels) "
+                      "or numpy (the reference they are tested against; last-bit differences "
+                      "from transcendental functions)", "compiled", choices=("compiled", "numpy"))
+    run_timeout_s: float | None = key("float", "time limit of one run on a worker process "
+                                      "(a chunk gets this times its runs); a run exceeding it "
+                                      "is recorded with status \"timeout\" and retried by a "
+                                      "rerun", unit="s", lo=0.0, lo_open=True, hi=86400.0,
+                                      optional=True, default_doc="no limit", example=60.0)
+
+
+def _fmu_var(doc: str, default: str):
+    return key("str", doc + " (\"\" leaves it unmapped)", default,
+               source="scenarios/fmu.py SIGNALS")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantVariables:
+    current: str = key("str", "FMU input that receives the servo-valve current held over "
+                       "each period [mA]; required", "i_mA", nonempty=True,
+                       source="scenarios/fmu.py SIGNALS")
+    rod: str = key("str", "FMU output of the rod position [mm]; required", "x_mm",
+                   nonempty=True, source="scenarios/fmu.py SIGNALS")
+    surface: str = _fmu_var("FMU output of the surface deflection [deg]; unmapped: "
+                            "asin(rod/r), no disconnection runs", "delta_deg")
+    rod_start: str = _fmu_var("FMU parameter set to the trimmed start rod position [mm]",
+                              "x0")
+    jam: str = _fmu_var("FMU input set to 1 from a solid-jam onset; unmapped: the engine "
+                        "holds the FMU outputs from the onset", "jam")
+    disconnect: str = _fmu_var("FMU input set to 1 from a disconnection onset; required "
+                               "for disconnection runs", "disconnect")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantSection:
+    kind: str = key("choice", "plant level: actuator (the servo-loop of `surface` alone, "
+                    "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
+                    "control laws and every primary surface with its own servo-loop; "
+                    "docs/physics.md §7)", "actuator", choices=PLANT_KINDS)
+    monitored_surface: str | None = key(
+        "choice", "aircraft plant only: the surface whose servo-loop signals the detectors "
+        "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
+        default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
+        example="left_inboard_aileron")
+    fmu: str | None = key("str", "FMI 2.0/3.0 co-simulation FMU that replaces the built-in "
+                          "servo-loop plant (path relative to the working directory; "
+                          "`fdd-campaign fmu build` makes the built-in one)", optional=True,
+                          default_doc="built-in plant", example="servo.fmu", nonempty=True)
+    push_parameters: bool = key("bool", "set each run's true plant parameters (Kci, SdP, "
+                                "SdP_ref, Ka, r_mm, x_min, x_max, hm_delta, hm_0, "
+                                "stop_min_rad, stop_max_rad) into the FMU parameters of the "
+                                "same names", True)
+    variables: PlantVariables = sub_table(PlantVariables, "FMU variable of each engine "
+                                          "signal (defaults: the built-in servo-loop FMU)")
+
+
+
+
+#: Entries of the array tables written into the starting file (and suggested in errors
+#: when a file has none), by TOML section name.
+ARRAY_EXAMPLES: dict[str, list[dict[str, Any]]] = {
+    "group": [
+        {"fault": "none", "count": 10},
+        {"fault": "liquid_jam", "manoeuvres": ["cruise"], "count": 10},
+        {"fault": "runaway", "manoeuvres": ["cruise"], "count": 10},
+    ],
+    "detector": [{"name": "position-monitor"}],
+}
