@@ -10,7 +10,13 @@ targets, [CHEN] §5):
   a failure lists the manoeuvres where the misses happened;
 * **detection time** (only with ``max_dtp``) — the largest DTP per detector × fault type;
 * **run errors** — any run with ``status != "ok"`` fails the gate unless ``allow_errors``;
-* every detector must have scored runs: an empty campaign proves nothing.
+* every detector must have scored runs: an empty campaign proves nothing;
+* **coverage** (when the caller knows it) — a campaign that has not finished every run of
+  its plan fails, unless ``allow_incomplete``: a gate is never green on part of the
+  evidence.
+
+A failed false-alarm check names its first runs (``Check.run_ids``) when the result rows
+are given, so that one can be replayed (``fdd-campaign show DIR RUN_ID``).
 
 Limits on rates are fractions (``max_fa=0.01`` is 1 %).
 """
@@ -67,6 +73,8 @@ class Check:
     limit: float
     passed: bool
     message: str
+    #: the first failing runs (false alarms), for replaying one
+    run_ids: tuple[str, ...] = ()
 
 
 @dataclass
@@ -109,7 +117,7 @@ def _where(fault: str, manoeuvre: str) -> str:
 def _validate(summary: pd.DataFrame, limits: dict) -> None:
     problems = []
     missing = [c for c in _REQUIRED if c not in summary.columns]
-    if missing:
+    if missing and not summary.empty:
         problems.append(f"summary lacks column(s) {', '.join(missing)}; "
                         "pass the output of reports.summarize")
     for name, value in limits.items():
@@ -130,7 +138,9 @@ def _validate(summary: pd.DataFrame, limits: dict) -> None:
 
 
 def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float | None = None,
-                  max_dtp: float | None = None, allow_errors: bool = False) -> GateResult:
+                  max_dtp: float | None = None, allow_errors: bool = False,
+                  coverage: tuple[int, int] | None = None, allow_incomplete: bool = False,
+                  results: pd.DataFrame | None = None) -> GateResult:
     """Evaluate the acceptance requirements on a summary (see the module docstring).
 
     Parameters
@@ -147,6 +157,12 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         checked.
     allow_errors : bool
         When False (default) any run that did not finish with ``status="ok"`` fails.
+    coverage : (runs done, runs planned) or None
+        When given, a campaign with fewer runs done than planned fails the ``coverage``
+        check (the first check), unless *allow_incomplete*.
+    results : DataFrame or None
+        The result rows behind *summary*; a failed false-alarm check then lists its first
+        failing run ids.
 
     Raises
     ------
@@ -154,11 +170,17 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         When the summary lacks columns or a limit is out of range.
     """
     _validate(summary, {"max_fa": max_fa, "max_md": max_md, "max_dtp": max_dtp})
-    fine = summary[(summary["fault"] != ALL_FAULTS) & (summary["manoeuvre"] != ALL_MANOEUVRES)]
     checks: list[Check] = []
+    if coverage is not None:
+        checks.append(_coverage_check(*coverage, allow_incomplete))
+    if summary.empty:
+        checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
+                            "FAIL scored runs: no run has finished yet"))
+        return GateResult(checks)
+    fine = summary[(summary["fault"] != ALL_FAULTS) & (summary["manoeuvre"] != ALL_MANOEUVRES)]
     for detector, rows in fine.groupby("detector", sort=True):
         checks += _runs_check(detector, rows)
-        checks += _fa_checks(detector, rows, float(max_fa))
+        checks += _fa_checks(detector, rows, float(max_fa), _alarmed_runs(results, detector))
         if max_md is not None:
             checks += _md_checks(detector, rows, float(max_md))
         if max_dtp is not None:
@@ -170,6 +192,29 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
     return GateResult(checks)
 
 
+def _coverage_check(done: int, planned: int, allow_incomplete: bool) -> Check:
+    done, planned = int(done), int(planned)
+    if done >= planned:
+        return Check("coverage", "all", "all", "all", float(done), float(planned), True,
+                     f"PASS coverage: all {planned} runs of the plan done")
+    verdict = "PASS (allowed)" if allow_incomplete else "FAIL"
+    return Check("coverage", "all", "all", "all", float(done), float(planned),
+                 bool(allow_incomplete),
+                 f"{verdict} coverage: incomplete: {done} of {planned} runs done; finish the "
+                 "campaign by running the same 'fdd-campaign run' command again"
+                 + ("" if allow_incomplete else " (or gate part of it with --allow-incomplete)"))
+
+
+def _alarmed_runs(results: pd.DataFrame | None, detector: str) -> dict:
+    """(fault, manoeuvre) → the run ids of *detector*'s false alarms (ok runs, plan order)."""
+    if results is None or results.empty:
+        return {}
+    r = results[(results["detector"] == detector) & (results["status"] == "ok")
+                & results["false_alarm"].astype(bool)]
+    return {key: tuple(g["run_id"].astype(str)) for key, g in
+            r.groupby(["fault", "manoeuvre"], sort=False)}
+
+
 def _runs_check(detector, rows) -> list[Check]:
     n = int(rows["n_runs"].sum())
     if n > 0:
@@ -178,9 +223,10 @@ def _runs_check(detector, rows) -> list[Check]:
                   f"FAIL scored runs: {detector}: no run finished with status ok")]
 
 
-def _fa_checks(detector, rows, limit) -> list[Check]:
+def _fa_checks(detector, rows, limit, alarmed: dict) -> list[Check]:
     out = []
     for r in rows[rows["n_runs"] > 0].itertuples(index=False):
+        ids = alarmed.get((r.fault, r.manoeuvre), ())
         rate = r.fa_count / r.n_runs
         passed = rate <= limit
         what = "false alarms" if r.fault == FAULT_FREE else "false alarms before onset"
@@ -189,8 +235,11 @@ def _fa_checks(detector, rows, limit) -> list[Check]:
         msg = (f"{'PASS' if passed else 'FAIL'} {what}: {detector}, "
                f"{_where(r.fault, r.manoeuvre)}: {r.fa_count}/{r.n_runs} runs "
                f"({_pct(rate)} {rel} {_pct(limit)}{bound if passed else ''})")
+        if not passed and ids:
+            msg += f"; runs: {', '.join(ids[:3])}" + (f" and {len(ids) - 3} more"
+                                                       if len(ids) > 3 else "")
         out.append(Check("false_alarm", detector, r.fault, r.manoeuvre, rate, limit,
-                         bool(passed), msg))
+                         bool(passed), msg, ids[:3] if not passed else ()))
     return out
 
 

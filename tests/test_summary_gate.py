@@ -201,6 +201,48 @@ def test_gate_fails_on_one_false_alarm_with_precise_message():
     assert evaluate_gate(summarize(res), max_fa=0.01).passed
 
 
+def test_gate_names_the_first_failing_runs_when_given_the_results():
+    res = campaign()
+    ff = res.index[(res.fault == "none") & (res.manoeuvre == "turn_coordination")]
+    res.loc[ff[[3, 10, 11, 40, 41]], "false_alarm"] = True
+    [fail] = evaluate_gate(summarize(res), results=res).failures
+    # the first three in plan order, and how many more
+    assert fail.run_ids == ("position-monitor-ff-turn_coordination-3",
+                            "position-monitor-ff-turn_coordination-10",
+                            "position-monitor-ff-turn_coordination-11")
+    assert fail.message.endswith("runs: position-monitor-ff-turn_coordination-3, "
+                                 "position-monitor-ff-turn_coordination-10, "
+                                 "position-monitor-ff-turn_coordination-11 and 2 more")
+    # passing checks carry no run ids
+    assert all(c.run_ids == () for c in evaluate_gate(summarize(res), results=res).checks
+               if c.passed)
+
+
+@pytest.mark.parametrize("done, planned, allow, passed", [
+    (2400, 2400, False, True),
+    (2399, 2400, False, False),      # one run short is not the campaign
+    (600, 2400, True, True),         # explicitly allowed: still says incomplete
+])
+def test_gate_coverage(done, planned, allow, passed):
+    result = evaluate_gate(summarize(campaign()), coverage=(done, planned),
+                           allow_incomplete=allow)
+    cover = result.checks[0]
+    assert cover.name == "coverage" and cover.passed is passed and result.passed is passed
+    if done < planned:
+        assert f"incomplete: {done} of {planned} runs done" in cover.message
+        assert ("--allow-incomplete" in cover.message) is (not allow)
+        assert "gate PASSED" not in result.format() or allow
+
+
+def test_gate_on_a_campaign_with_no_finished_run_fails_in_user_words():
+    result = evaluate_gate(pd.DataFrame(), coverage=(0, 2400))
+    assert not result.passed
+    assert [c.message for c in result.failures] == [
+        "FAIL coverage: incomplete: 0 of 2400 runs done; finish the campaign by running the "
+        "same 'fdd-campaign run' command again (or gate part of it with --allow-incomplete)",
+        "FAIL scored runs: no run has finished yet"]
+
+
 def test_gate_fails_on_pre_onset_alarm():
     result = evaluate_gate(summarize(campaign(faulty("solid_jam", "nose_up", [0.1],
                                                       pre_onset=[0]))))
