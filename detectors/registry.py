@@ -25,8 +25,8 @@ ENTRY_POINT_GROUP = "fdd_campaign.detectors"
 #: Built-in detectors: name → "module:Class".
 BUILTIN: dict[str, str] = {
     "position-monitor": "detectors.position_monitor:PositionMonitor",
-    "comb-interval": "detectors.interval_detector:IntervalDetector",
-    "chen-local": "detectors.chen_estimator:ChenLocalEstimator",
+    "comb-interval": "detectors.comb_interval:IntervalDetector",
+    "chen-local": "detectors.chen_local:ChenLocalEstimator",
     "chen-global": "detectors.chen_global:ChenGlobalEstimator",
     "vanek-geometric": "detectors.vanek_geometric:VanekGeometric",
 }
