@@ -1,6 +1,7 @@
 """Fault detectors: the contract, the registry and the built-in detectors."""
 
 from .base import Capabilities, Detection, Detector, NotFittedError, as_variants, confirm
+from .params import Param, parameter_problems, parameter_table
 from .registry import (
     DetectorSpecError,
     available_detectors,
@@ -12,5 +13,5 @@ from .registry import (
 __all__ = [
     "Capabilities", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
     "DetectorSpecError", "available_detectors", "load_detector_class", "make_detector",
-    "parameter_errors",
+    "parameter_errors", "Param", "parameter_problems", "parameter_table",
 ]

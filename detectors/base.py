@@ -5,7 +5,8 @@
   attributes ending in ``_`` and returns ``self``;
 * ``detect(signals)`` returns a :class:`Detection` (or a mapping variant → Detection for a
   detector that runs several variants at once, e.g. several residual-filter poles);
-* capabilities are declared as data in :class:`Capabilities`.
+* capabilities are declared as data in :class:`Capabilities`, parameters as data in
+  :attr:`Detector.parameters` (:class:`detectors.params.Param`).
 
 A detector never receives the truth of a run: it is only ever handed :class:`Signals`.
 """
@@ -19,6 +20,8 @@ from typing import Mapping
 import numpy as np
 
 from scenarios.signals import Signals
+
+from .params import Param, parameter_problems
 
 
 class NotFittedError(RuntimeError):
@@ -70,6 +73,12 @@ class Detector:
 
     capabilities = Capabilities()
 
+    #: The keyword parameters of ``__init__`` declared as data (type, range or choices,
+    #: unit, doc): :meth:`validate_params`, the campaign-file validation and the reference
+    #: docs/detectors.md read them. A detector that declares nothing has its values
+    #: unchecked (its unknown parameter names are still refused).
+    parameters: tuple[Param, ...] = ()
+
     # ---- parameters (scikit-learn style) ------------------------------------------------
     @classmethod
     def _param_names(cls) -> list[str]:
@@ -82,9 +91,17 @@ class Detector:
         return {name: getattr(self, name) for name in self._param_names()}
 
     def validate_params(self) -> None:
-        """Raise ``ValueError`` naming a parameter whose value is out of range. Called by the
-        registry before a campaign starts; subclasses override to check their ranges."""
-        return None
+        """Raise ``ValueError`` listing every parameter whose value breaks its declaration
+        in :attr:`parameters` (:func:`detectors.params.parameter_problems`). Called by the
+        registry before a campaign starts and by :meth:`fit`. A subclass with a check the
+        declarations cannot express overrides this, calls ``super().validate_params()``
+        first, then raises ``ValueError`` for its own check."""
+        problems = parameter_problems(type(self), self.get_params())
+        if len(problems) == 1:
+            raise ValueError(f"{type(self).__name__}: {problems[0]}")
+        if problems:
+            raise ValueError(f"{type(self).__name__} has {len(problems)} invalid parameters:\n"
+                             + "\n".join(f"  - {msg}" for msg in problems))
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
@@ -100,7 +117,9 @@ class Detector:
         return {k: v for k, v in vars(self).items() if k.endswith("_") and not k.startswith("_")}
 
     def fit(self, signals: Signals) -> "Detector":
-        """Learn from fault-free runs; returns ``self``."""
+        """Learn from fault-free runs; returns ``self``. Checks the parameters
+        (:meth:`validate_params`) and the signals (:meth:`check_signals`) first."""
+        self.validate_params()
         self.check_signals(signals)
         self._fit(signals)
         return self

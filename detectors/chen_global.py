@@ -68,6 +68,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector, confirm
+from .params import Param
 
 #: Lateral states of [CHEN] eq. 25 (β stands for v_y), outputs and inputs, in array order.
 STATES = ("beta", "p", "r", "phi")
@@ -95,10 +96,6 @@ class GlobalNumerics:
 
 NUMERICS = GlobalNumerics(affine_tolerance=1e-9, negligible=1e-9, grid_per_axis=9,
                           polytope_margin=0.02)
-
-
-def _number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _tas(schedule: dict) -> np.ndarray:
@@ -255,6 +252,25 @@ class ChenGlobalEstimator(Detector):
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
                                 needs_aircraft=True)
 
+    parameters = (
+        Param("h_perturbation", "float", gt=0.0, unit="deg/deg", doc="ε of Remark 4.1: "
+              "H = ε·E (H = 0 for a disconnection, so ε > 0)",
+              source="[CHEN] Remark 4.1; value est."),
+        Param("h_output", "choice", choices=OUTPUTS, doc="output E of Remark 4.1 points to",
+              source="[CHEN] Remark 4.1; choice est."),
+        Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free "
+              "|f̂| over the learning set"),
+        Param("confirm_s", "float", ge=0.0, unit="s", doc="time |f̂| must stay beyond the "
+              "threshold"),
+        Param("filter_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
+              "f̂ (0: none)"),
+        Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 error "
+              "widths over which the polytope is computed", source="[CHEN] Table 2; value est."),
+        Param("floor_deg", "float", gt=0.0, unit="deg", doc="smallest threshold"),
+        Param("gust_channel", "bool", doc="decouple the gust sideslip as a second unknown "
+              "input (F = [B_b W, A_b[:, β]])"),
+    )
+
     def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
                  filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True):
         self.h_perturbation = h_perturbation
@@ -265,24 +281,6 @@ class ChenGlobalEstimator(Detector):
         self.schedule_margin = schedule_margin
         self.floor_deg = floor_deg
         self.gust_channel = gust_channel
-
-    # ---- parameters --------------------------------------------------------------------
-    def validate_params(self) -> None:
-        if not (_number(self.h_perturbation) and self.h_perturbation > 0.0):
-            raise ValueError("h_perturbation must be a number > 0 (Remark 4.1: H = 0 for a "
-                             f"disconnection), got {self.h_perturbation!r}")
-        if self.h_output not in OUTPUTS:
-            raise ValueError(f"h_output must be one of {list(OUTPUTS)}, got {self.h_output!r}")
-        if not (_number(self.safety) and self.safety > 1.0):
-            raise ValueError(f"safety must be a number > 1, got {self.safety!r}")
-        for name in ("confirm_s", "filter_s", "schedule_margin"):
-            v = getattr(self, name)
-            if not (_number(v) and v >= 0.0):
-                raise ValueError(f"{name} must be a number ≥ 0, got {v!r}")
-        if not (_number(self.floor_deg) and self.floor_deg > 0.0):
-            raise ValueError(f"floor_deg must be a number > 0 deg, got {self.floor_deg!r}")
-        if not isinstance(self.gust_channel, bool):
-            raise ValueError(f"gust_channel must be true or false, got {self.gust_channel!r}")
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -336,7 +334,6 @@ class ChenGlobalEstimator(Detector):
     def _fit(self, signals: Signals) -> None:
         from .lpv_synthesis import discretise, synthesise
 
-        self.validate_params()
         ts = float(signals.ts)
         col = monitored_column(signals.actuator.surface)
         model = fit_affine(envelope_schedules(self.schedule_margin))

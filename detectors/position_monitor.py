@@ -34,6 +34,7 @@ from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector, confirm
+from .params import Param
 
 CHECKS = ("loop", "com_mon", "surface")
 
@@ -101,23 +102,23 @@ class PositionMonitor(Detector):
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
 
+    parameters = (
+        Param("safety", "float", gt=1.0, doc="threshold of a check = safety × its largest "
+              "fault-free residual over the learning set"),
+        Param("confirm_s", "float", ge=0.0, unit="s", doc="time the discrepancy must persist "
+              "before the alarm, which is then latched"),
+        Param("checks", "choices", choices=CHECKS, doc="consistency checks that run: loop "
+              "(COM rod vs nominal servo-loop model), com_mon (COM vs MON rod), surface "
+              "(surface sensor vs MON rod)", source="Goupil 2010/2011, [CHEN] §1"),
+        Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest threshold of a check "
+              "(guards against a learning set without motion)"),
+    )
+
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks
         self.floor_mm = floor_mm
-
-    def validate_params(self) -> None:
-        if not (isinstance(self.safety, (int, float)) and self.safety > 1.0):
-            raise ValueError(f"safety must be a number > 1, got {self.safety!r}")
-        if not (isinstance(self.confirm_s, (int, float)) and self.confirm_s >= 0.0):
-            raise ValueError(f"confirm_s must be ≥ 0 s, got {self.confirm_s!r}")
-        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
-        bad = [c for c in checks if c not in CHECKS]
-        if bad or not checks:
-            raise ValueError(f"checks must be a non-empty list of {list(CHECKS)}, got {self.checks!r}")
-        if not (isinstance(self.floor_mm, (int, float)) and self.floor_mm > 0.0):
-            raise ValueError(f"floor_mm must be > 0 mm, got {self.floor_mm!r}")
 
     # ---- residuals ---------------------------------------------------------------------
     def _active_checks(self, signals: Signals) -> list[str]:
@@ -167,7 +168,6 @@ class PositionMonitor(Detector):
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
-        self.validate_params()
         res = self.residuals(signals)
         self.thresholds_mm_ = {
             name: float(max(self.safety * np.max(np.abs(r)), self.floor_mm))

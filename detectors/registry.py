@@ -12,21 +12,24 @@ list of allowed ones, before any run starts.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import inspect
+import sys
 from importlib.metadata import entry_points
 
 from scenarios.catalog import suggest
 
 from .base import Detector
+from .params import parameter_markdown, parameter_problems
 
 ENTRY_POINT_GROUP = "fdd_campaign.detectors"
 
 #: Built-in detectors: name → "module:Class".
 BUILTIN: dict[str, str] = {
     "position-monitor": "detectors.position_monitor:PositionMonitor",
-    "comb-interval": "detectors.interval_detector:IntervalDetector",
-    "chen-local": "detectors.chen_estimator:ChenLocalEstimator",
+    "comb-interval": "detectors.comb_interval:IntervalDetector",
+    "chen-local": "detectors.chen_local:ChenLocalEstimator",
     "chen-global": "detectors.chen_global:ChenGlobalEstimator",
     "vanek-geometric": "detectors.vanek_geometric:VanekGeometric",
 }
@@ -74,23 +77,24 @@ def load_detector_class(name: str) -> type[Detector]:
 
 
 def parameter_errors(name: str, params: dict) -> list[str]:
-    """Problems with *params* for detector *name* (empty when they are acceptable)."""
+    """Every problem with the keyword *params* of detector *name*, one message each (empty
+    when they are acceptable).
+
+    Unknown names (from the ``__init__`` signature) and the values of the parameters the
+    detector declares (:attr:`Detector.parameters`, :func:`detectors.params.parameter_problems`)
+    are checked all at once. When those pass, the detector is built and its own
+    ``validate_params`` runs (checks a declaration cannot express, and the checks of a
+    detector that declares nothing). Each message starts with the parameter, so it reads
+    after a location prefix such as ``detector[0].params: ``."""
     cls = load_detector_class(name)
-    sig = inspect.signature(cls.__init__)
-    allowed = [p for p in sig.parameters if p != "self"]
-    errors = []
-    for key in params:
-        if key not in allowed:
-            errors.append(
-                f"detector {name!r} has no parameter {key!r}{suggest(key, allowed)}; "
-                f"allowed: {', '.join(allowed) or '(none)'}"
-            )
-    if not errors:
-        try:
-            cls(**params).validate_params()
-        except (TypeError, ValueError) as exc:
-            errors.append(f"detector {name!r}: {exc}")
-    return errors
+    problems = parameter_problems(cls, params)
+    if problems:
+        return problems
+    try:
+        cls(**params).validate_params()
+    except (TypeError, ValueError) as exc:
+        return [str(exc)]
+    return []
 
 
 def make_detector(name: str, params: dict | None = None) -> Detector:
@@ -98,5 +102,44 @@ def make_detector(name: str, params: dict | None = None) -> Detector:
     params = dict(params or {})
     errors = parameter_errors(name, params)
     if errors:
-        raise DetectorSpecError("; ".join(errors))
+        raise DetectorSpecError(f"detector {name!r}: " + "; ".join(errors))
     return load_detector_class(name)(**params)
+
+
+REFERENCE_INTRO = """\
+# Built-in detectors and their parameters
+
+Generated from the parameter declarations of each detector class (`parameters`, see
+[write-a-detector.md](write-a-detector.md)); regenerate with
+`python -m detectors --markdown > docs/detectors.md`.
+
+Give parameters in a campaign file as `params = { … }` of a `[[detector]]` table; every
+parameter has a default. Values are shown as they are written in TOML. *allowed*: `(a, b)`
+excludes the ends, `[a, b]` includes them; a bound may name another parameter. The
+description ends with the source of the default value (`est.`: estimated for this
+simulator). Parameters are checked before any run starts: every problem is reported at
+once with the allowed values.
+"""
+
+
+def reference_markdown() -> str:
+    """docs/detectors.md: the parameter table of every built-in detector
+    (:func:`detectors.params.parameter_markdown`)."""
+    body = parameter_markdown({name: load_detector_class(name) for name in BUILTIN})
+    return REFERENCE_INTRO + "\n" + body
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m detectors``: list the registered detectors, or print the parameter
+    reference docs/detectors.md (``--markdown``)."""
+    parser = argparse.ArgumentParser(prog="python -m detectors",
+                                     description=main.__doc__)
+    parser.add_argument("--markdown", action="store_true",
+                        help="print docs/detectors.md (the built-in detectors' parameters)")
+    args = parser.parse_args(argv)
+    if args.markdown:
+        sys.stdout.write(reference_markdown())
+    else:
+        for name, spec in available_detectors().items():
+            print(f"{name}\t{spec}")
+    return 0

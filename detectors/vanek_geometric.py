@@ -80,6 +80,7 @@ from scenarios.signals import Signals
 
 from . import geometric as geo
 from .base import Capabilities, Detection, Detector, confirm
+from .params import Param
 
 VARIANTS = ("lti", "lpv")
 #: Optional variant: [VANEK] §5's LPV filter affine in VCAS and altitude (module docstring).
@@ -352,6 +353,22 @@ class VanekGeometric(Detector):
 
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
 
+    parameters = (
+        Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free |r̂| "
+              "over the learning set", source="[VANEK] §5"),
+        Param("confirm_s", "float", ge=0.0, unit="s", doc="confirmation time"),
+        Param("decay", "float", gt=0.0, unit="1/s", doc="decay rate imposed on the filter "
+              "poles by the LMI", source="[VANEK] eq. 3–4; value est."),
+        Param("radius", "float", gt="decay", unit="rad/s", doc="largest filter pole modulus "
+              "(well below π/Ts for the bilinear map)", source="[VANEK] eq. 3–4; value est."),
+        Param("decouple_gusts", "bool", doc="also decouple the gust sideslip direction e_β"),
+        Param("smoothing_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
+              "r̂ (0: none); stands for the band limit of [VANEK] §5"),
+        Param("variants", "choices", choices=VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS,
+              doc="filters run by one detect; lti-hinf and one-step need the extra hinf",
+              source="[VANEK] §3–5"),
+    )
+
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS):
         self.safety = safety
@@ -363,25 +380,10 @@ class VanekGeometric(Detector):
         self.variants = variants
 
     def validate_params(self) -> None:
-        if not (isinstance(self.safety, (int, float)) and self.safety > 1.0):
-            raise ValueError(f"safety must be a number > 1, got {self.safety!r}")
-        if not (isinstance(self.confirm_s, (int, float)) and self.confirm_s >= 0.0):
-            raise ValueError(f"confirm_s must be ≥ 0 s, got {self.confirm_s!r}")
-        if not (isinstance(self.decay, (int, float)) and self.decay > 0.0):
-            raise ValueError(f"decay must be > 0 1/s, got {self.decay!r}")
-        if not (isinstance(self.radius, (int, float)) and self.radius > self.decay):
-            raise ValueError(f"radius must be > decay ({self.decay!r}) rad/s, got {self.radius!r}")
-        if not isinstance(self.decouple_gusts, bool):
-            raise ValueError(f"decouple_gusts must be true or false, got {self.decouple_gusts!r}")
-        if not (isinstance(self.smoothing_s, (int, float)) and self.smoothing_s >= 0.0):
-            raise ValueError(f"smoothing_s must be ≥ 0 s, got {self.smoothing_s!r}")
-        v = [self.variants] if isinstance(self.variants, str) else list(self.variants)
-        allowed = VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS
-        bad = [x for x in v if x not in allowed]
-        if bad or not v:
-            raise ValueError(f"variants must be a non-empty list of {list(allowed)}, got "
-                             f"{self.variants!r}")
-        if any(x in HINF_VARIANTS for x in v):
+        """The declared checks (:attr:`parameters`), then that the optional variants of
+        :data:`HINF_VARIANTS` have their libraries."""
+        super().validate_params()
+        if any(x in HINF_VARIANTS for x in self._variant_list()):
             try:
                 import control  # noqa: F401
                 import slycot  # noqa: F401
@@ -513,7 +515,6 @@ class VanekGeometric(Detector):
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
-        self.validate_params()
         est = self.estimates(signals)
         self.thresholds_deg_ = {k: float(self.safety * np.max(np.abs(r))) for k, r in est.items()}
         self.learning_runs_ = int(signals.n_runs)

@@ -1,4 +1,4 @@
-"""The local-level [CHEN] estimator (detectors.chen_estimator, ``chen-local``): the
+"""The local-level [CHEN] estimator (detectors.chen_local, ``chen-local``): the
 identified quasi-LPV actuator model, the gains and γ of its LMI design, the fault estimate
 on the model itself, and detection of liquid and solid jams on simulated runs."""
 
@@ -12,7 +12,7 @@ import pytest
 
 from detectors import make_detector
 from detectors import chen_local_model as lm
-from detectors.chen_estimator import ChenLocalEstimator
+from detectors.chen_local import ChenLocalEstimator
 from detectors.lpv_synthesis import hinf_sweep
 from scenarios.catalog import MANOEUVRES
 from scenarios.faults import default_magnitude

@@ -1,19 +1,35 @@
 """Every registered detector (built-in and installed third-party) passes the public
-conformance checks of detectors.testing.check_detector, and the checks catch breaches."""
+conformance checks of detectors.testing, one test id per check, and the checks catch
+breaches: every breach of a detector is reported, not only the first."""
 
 from __future__ import annotations
+
+import pickle
 
 import numpy as np
 import pytest
 
 from detectors import Detection, Detector, available_detectors, make_detector
 from detectors.base import Capabilities
-from detectors.testing import DetectorCheckError, check_detector
+from detectors.testing import (
+    CHECKS,
+    DetectorCheckError,
+    check_detector,
+    detector_checks,
+    parametrize_with_checks,
+)
+
+#: Every registered detector with its defaults, and the optional variants of
+#: vanek-geometric (the [hinf] extra is part of [test]): the LPV filter affine in VCAS and
+#: altitude of [VANEK] §5, the H∞ post-filter and the one-step H∞ filter of [VANEK] §3.
+CONFORMANCE = {name: make_detector(name) for name in sorted(available_detectors())}
+CONFORMANCE["vanek-geometric[optional-variants]"] = make_detector(
+    "vanek-geometric", {"variants": ["lpv-affine", "lti-hinf", "one-step"]})
 
 
-@pytest.mark.parametrize("name", sorted(available_detectors()))
-def test_every_registered_detector_passes_check_detector(name):
-    check_detector(make_detector(name))
+@parametrize_with_checks(CONFORMANCE)
+def test_every_registered_detector_passes_every_check(check):
+    check()
 
 
 class _Peeking(Detector):
@@ -73,6 +89,77 @@ def test_check_detector_names_the_broken_rule(cls, check):
         check_detector(cls(), duration_s=20.0)
 
 
+class _TwoBreaches(Detector):
+    """Breaks two rules at once: writes into the last sample of the MON rod signal it is
+    given (read-only rule) and, from step 50 on, divides its residual by the sum over the
+    batch of each run's largest error in steps 0–49 (batch invariance: alone, a run's sum is
+    its own maximum). It stays causal (step k uses steps ≤ k) and never alarms."""
+
+    capabilities = Capabilities(needs_fit=False)
+
+    def _detect(self, signals):
+        r = np.abs(signals.rod_com - signals.command)
+        signals.rod_mon[:, -1] = 0.0
+        norm = r.copy()
+        norm[:, 50:] /= r[:, :50].max(axis=1).sum()
+        return Detection(alarm=np.zeros(r.shape, dtype=bool), residual=norm)
+
+
+def test_check_detector_reports_every_breach_with_run_and_step():
+    with pytest.raises(DetectorCheckError) as info:
+        check_detector(_TwoBreaches(), duration_s=20.0)
+    err = info.value
+    assert [name for name, _ in err.failures] == ["detect_leaves_signals", "batch_invariance"]
+    text = str(err)
+    assert text.startswith("_TwoBreaches failed 2 checks:")
+    # the mutation: the signal, the first run (index and id) and step it changed
+    assert "detect() modified the signals it was given (rod_mon, first at run 0 (eval-0), " \
+           f"step {2000 - 1})" in text
+    # the batch dependence: run 0 alone differs from run 0 in the batch, first at step 50
+    assert "batch invariance (run 0 (eval-0) alone): detector residual differs, first at " \
+           "run 0 (eval-0), step 50" in text
+    # the error crosses process boundaries (workers) intact
+    again = pickle.loads(pickle.dumps(err))
+    assert again.failures == err.failures and str(again) == text
+
+
+def test_a_failing_fit_is_reported_in_every_check_that_needs_it():
+    class FitFails(_Peeking):
+        capabilities = Capabilities(needs_fit=True)
+
+        def _fit(self, signals):
+            raise ValueError("no learning today")
+
+    with pytest.raises(DetectorCheckError) as info:
+        check_detector(FitFails())
+    failed = dict(info.value.failures)
+    needs_fit = [n for n in CHECKS if n.startswith(("fit_", "detect_", "output_", "determinism",
+                                                     "batch_", "causality", "pickle_"))]
+    assert sorted(failed) == sorted(needs_fit)
+    assert all("fit() raised ValueError: no learning today" in failed[n] for n in needs_fit)
+
+
+def test_detector_checks_give_one_named_check_each():
+    det = _Peeking()
+    checks = dict(detector_checks(det))
+    # needs_fit=False: no NotFittedError and no learned-state check
+    assert list(checks) == [n for n in CHECKS if n not in ("not_fitted_error",
+                                                           "fit_stores_state")]
+    checks["determinism"]()                                # passes: raises nothing
+    with pytest.raises(DetectorCheckError, match="failed check causality") as info:
+        checks["causality"]()
+    assert [n for n, _ in info.value.failures] == ["causality"]
+
+
+def test_parametrize_with_checks_gives_one_test_id_per_check():
+    mark = parametrize_with_checks([_Peeking(), _Peeking(), _Mutating()])
+    ids = [p.id for p in mark.args[1]]
+    assert mark.args[0] == "check"
+    assert ids[0] == "_Peeking[0]-init_stores_params"
+    assert "_Peeking[1]-causality" in ids and "_Mutating-detect_leaves_signals" in ids
+    assert len(ids) == len(set(ids)) == 3 * 13
+
+
 def test_bench_reports_the_cost_of_every_registered_detector():
     from campaign.bench import detector_costs
 
@@ -82,11 +169,3 @@ def test_bench_reports_the_cost_of_every_registered_detector():
     assert {(c["detector"], c["engine"]) for c in costs} == {
         (name, engine) for name in BUILTIN for engine in ("compiled", "numpy")}
     assert all(np.isfinite(c["ns_per_run_step"]) and c["ns_per_run_step"] > 0 for c in costs)
-
-
-def test_vanek_optional_variants_pass_check_detector():
-    # the optional variants of vanek-geometric (the [hinf] extra is part of [test]): the LPV
-    # filter affine in VCAS and altitude of [VANEK] §5, the H∞ post-filter and the one-step
-    # H∞ filter of [VANEK] §3
-    check_detector(make_detector("vanek-geometric",
-                                 {"variants": ["lpv-affine", "lti-hinf", "one-step"]}))

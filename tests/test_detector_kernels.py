@@ -1,5 +1,5 @@
 """The compiled recursions of the comb-interval and chen-local detectors against their NumPy
-reference (detectors/interval_detector.py, detectors/chen_estimator.py)."""
+reference (detectors/comb_interval.py, detectors/chen_local.py)."""
 
 from __future__ import annotations
 

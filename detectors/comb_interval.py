@@ -72,6 +72,7 @@ from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rat
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector
+from .params import Param
 
 #: Default residual-filter poles ([COMB] §4, Table 1).
 DEFAULT_POLES: tuple[float, ...] = (0.6, 0.8, 0.9, 0.95, 0.99)
@@ -363,6 +364,30 @@ class IntervalDetector(Detector):
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
 
+    parameters = (
+        Param("poles", "floats", gt=0.0, lt=1.0, unique=True, scalar=True,
+              doc="residual-filter poles a, one variant \"a=<pole>\" each",
+              source="[COMB] §4, Table 1"),
+        Param("safety", "float", gt=1.0, doc="safety factor ς of the noise characterisation "
+              "λ_q", source="[COMB] eq. 6, §4"),
+        Param("kappa", "floats", length=3, gt=0.0, unit="-, 1/mm, -",
+              doc="(κ1, κ2, κ3) of g^r = min(κ1 + κ2·|u − x^c|, κ3); fit checks eq. 17 over "
+              "the envelope", source="[COMB] §4; values est."),
+        Param("h_radius", "float", ge=0.0, doc="radius h^r of the static gain h ∈ 1 ± h^r "
+              "(0: no static error)", source="[COMB] eq. 4, §3.3"),
+        Param("q_max", "int", ge=2, unit="steps", doc="longest moving-average window q̄ of "
+              "λ_q", source="[COMB] eq. 6; value est."),
+        Param("x0_radius_mm", "float", ge=0.0, unit="mm", doc="radius x_0^r of the initial "
+              "state around the first measurement"),
+        Param("sensor", "choice", choices=SENSORS, doc="measurement y: COM or MON rod, or the "
+              "surface sensor converted by x = r·sin δ", source="est.; [COMB] used the "
+              "surface sensor"),
+        Param("use_power_law", "bool", doc="threshold from the power-law bound α·q^γ + β "
+              "instead of λ_q", source="[COMB] §3.1.1"),
+        Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest λ_q (guards against an "
+              "all-zero learning residual)"),
+    )
+
     def __init__(self, poles=DEFAULT_POLES, safety=1.2, kappa=(0.02, 0.02, 0.06),
                  h_radius=0.0, q_max=300, x0_radius_mm=0.5, sensor="rod_com",
                  use_power_law=False, floor_mm=1e-4):
@@ -375,39 +400,6 @@ class IntervalDetector(Detector):
         self.sensor = sensor
         self.use_power_law = use_power_law
         self.floor_mm = floor_mm
-
-    # ---- parameters --------------------------------------------------------------------
-    def validate_params(self) -> None:
-        def number(v):
-            return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-        poles = [self.poles] if number(self.poles) else self.poles
-        if not (isinstance(poles, (list, tuple)) and poles
-                and all(number(a) and 0.0 < a < 1.0 for a in poles)):
-            raise ValueError(f"poles must be a non-empty list of filter poles 0 < a < 1, got "
-                             f"{self.poles!r}")
-        if len(set(float(a) for a in poles)) != len(poles):
-            raise ValueError(f"poles must not repeat a value, got {self.poles!r}")
-        if not (number(self.safety) and self.safety > 1.0):
-            raise ValueError(f"safety (ς of [COMB] eq. 6) must be a number > 1, got "
-                             f"{self.safety!r}")
-        if not (isinstance(self.kappa, (list, tuple)) and len(self.kappa) == 3
-                and all(number(k) and k > 0.0 for k in self.kappa)):
-            raise ValueError(f"kappa must be three positive numbers [κ1, κ2 (1/mm), κ3], got "
-                             f"{self.kappa!r}")
-        if not (number(self.h_radius) and self.h_radius >= 0.0):
-            raise ValueError(f"h_radius must be ≥ 0, got {self.h_radius!r}")
-        if not (isinstance(self.q_max, int) and not isinstance(self.q_max, bool)
-                and self.q_max >= 2):
-            raise ValueError(f"q_max must be an integer ≥ 2 (steps), got {self.q_max!r}")
-        if not (number(self.x0_radius_mm) and self.x0_radius_mm >= 0.0):
-            raise ValueError(f"x0_radius_mm must be ≥ 0 mm, got {self.x0_radius_mm!r}")
-        if self.sensor not in SENSORS:
-            raise ValueError(f"sensor must be one of {list(SENSORS)}, got {self.sensor!r}")
-        if not isinstance(self.use_power_law, bool):
-            raise ValueError(f"use_power_law must be true or false, got {self.use_power_law!r}")
-        if not (number(self.floor_mm) and self.floor_mm > 0.0):
-            raise ValueError(f"floor_mm must be > 0 mm, got {self.floor_mm!r}")
 
     def _poles(self) -> tuple[float, ...]:
         if isinstance(self.poles, (int, float)):
@@ -507,7 +499,6 @@ class IntervalDetector(Detector):
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
-        self.validate_params()
         r = self.interval_residual(signals)
         if signals.n_steps < self.q_max:
             raise ValueError(f"q_max = {self.q_max} steps is longer than the learning runs "

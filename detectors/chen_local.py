@@ -59,7 +59,6 @@ division per run and step, vectorised over runs.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +69,7 @@ from scenarios.signals import Signals
 
 from . import chen_local_model as lm
 from .base import Capabilities, Detection, Detector
+from .params import Param
 
 #: Measurements the estimator can use as the rod sensor output y of [CHEN] eq. 24.
 SENSORS = ("rod_com", "rod_mon")
@@ -101,10 +101,6 @@ class LocalNumerics:
 
 
 NUMERICS = LocalNumerics(polytope_margin=0.05, grid_rho=7, grid_x=41)
-
-
-def _number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def discrete_post_filter(ts: float, pf: PostFilter = POST_FILTER) -> tuple[np.ndarray, np.ndarray]:
@@ -193,6 +189,28 @@ class ChenLocalEstimator(Detector):
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
 
+    parameters = (
+        Param("sensor", "choice", choices=SENSORS, doc="rod measurement y of eq. 24 (the "
+              "acquisition the loop closes on, or the monitoring one)", source="[CHEN] eq. 24"),
+        Param("safety", "float", gt=1.0, doc="thresholds = safety × the largest fault-free "
+              "statistic over the learning set"),
+        Param("liquid_confirm_s", "float", ge=0.0, unit="s", doc="integrated time beyond "
+              "τ_liq that raises the liquid alarm (0: first step)",
+              source="[CHEN] §6.2; value est."),
+        Param("solid_confirm_s", "float", ge=0.0, unit="s", doc="window over which |f̂| must "
+              "stay beyond τ_sol (0: one step)"),
+        Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 "
+              "measurement-error widths over which the polytope of eq. 8 is computed",
+              source="[CHEN] Table 2, eq. 8; value est."),
+        Param("h_perturbation", "float", ge=0.0, doc="ε of Remark 4.1: H = 1 + ε",
+              source="[CHEN] Remark 4.1"),
+        Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest threshold"),
+        Param("post_filter_zero_rad_s", "float", gt=0.0, unit="rad/s", doc="zero z of the "
+              "liquid-jam post-filter T(s) = (s + z)/(s + p)", source="[CHEN] §6.2"),
+        Param("post_filter_pole_rad_s", "float", gt="post_filter_zero_rad_s", unit="rad/s",
+              doc="pole p of T(s); p/z divides slow model mismatch", source="[CHEN] §6.2"),
+    )
+
     def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
                  solid_confirm_s=1.0, schedule_margin=0.25, h_perturbation=0.0,
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
@@ -206,24 +224,6 @@ class ChenLocalEstimator(Detector):
         self.floor_mm = floor_mm
         self.post_filter_zero_rad_s = post_filter_zero_rad_s
         self.post_filter_pole_rad_s = post_filter_pole_rad_s
-
-    # ---- parameters --------------------------------------------------------------------
-    def validate_params(self) -> None:
-        if self.sensor not in SENSORS:
-            raise ValueError(f"sensor must be one of {list(SENSORS)}, got {self.sensor!r}")
-        if not (_number(self.safety) and self.safety > 1.0):
-            raise ValueError(f"safety must be a number > 1, got {self.safety!r}")
-        for name in ("liquid_confirm_s", "solid_confirm_s", "schedule_margin",
-                     "h_perturbation"):
-            v = getattr(self, name)
-            if not (_number(v) and v >= 0.0):
-                raise ValueError(f"{name} must be a number ≥ 0, got {v!r}")
-        if not (_number(self.floor_mm) and self.floor_mm > 0.0):
-            raise ValueError(f"floor_mm must be a number > 0 mm, got {self.floor_mm!r}")
-        z, p = self.post_filter_zero_rad_s, self.post_filter_pole_rad_s
-        if not (_number(z) and _number(p) and 0.0 < z < p):
-            raise ValueError("the post-filter needs 0 < post_filter_zero_rad_s < "
-                             f"post_filter_pole_rad_s, got zero {z!r}, pole {p!r}")
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -277,7 +277,6 @@ class ChenLocalEstimator(Detector):
     def _fit(self, signals: Signals) -> None:
         from .lpv_synthesis import VertexSystem, synthesise
 
-        self.validate_params()
         act = signals.actuator
         ts = float(signals.ts)
         model = lm.fit_local_model(act, ts)
