@@ -37,7 +37,7 @@ class Capabilities:
     needs_pressure_sensor: bool = False
     causal: bool = True
     #: reads the aircraft-level signals (Signals.aircraft, Signals.rods): campaigns must set
-    #: [campaign] plant = "aircraft"
+    #: [plant] kind = "aircraft" (detectors.compat)
     needs_aircraft: bool = False
 
 
@@ -150,7 +150,7 @@ class Detector:
         if caps.needs_aircraft and (signals.aircraft is None or signals.rods is None):
             raise ValueError(
                 f"{type(self).__name__} needs the aircraft-level signals (Signals.aircraft and "
-                "Signals.rods), which only the aircraft plant gives: set [campaign] plant = "
+                "Signals.rods), which only the aircraft plant gives: set [plant] kind = "
                 "\"aircraft\" in the campaign file (or run with --plant aircraft)"
             )
 

@@ -222,7 +222,7 @@ def monitored_column(surface: str) -> int:
     """Column of u_b of the monitored aileron (W of [CHEN] eq. 25 selects it)."""
     if surface not in INPUT_SURFACES[:4]:
         raise ValueError(f"chen-global estimates the disconnection of an aileron; the "
-                         f"monitored surface is {surface!r}; set [campaign] monitored_surface "
+                         f"monitored surface is {surface!r}; set [plant] monitored_surface "
                          f"to one of {', '.join(INPUT_SURFACES[:4])}")
     return INPUT_SURFACES.index(surface)
 
@@ -287,7 +287,7 @@ class ChenGlobalEstimator(Detector):
         if signals.aircraft is None or signals.rods is None:
             raise ValueError(f"{type(self).__name__} needs the aircraft sensors and every "
                              "surface's rod (Signals.aircraft/rods are None): it needs "
-                             "[campaign] plant = \"aircraft\"")
+                             "[plant] kind = \"aircraft\"")
         missing = [k for k in OUTPUTS + (SPOILER,) if k not in signals.aircraft]
         missing += [k for k in INPUT_SURFACES if k not in signals.rods]
         if missing:

@@ -50,9 +50,11 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from scenarios.plants import get_plant
 from scenarios.signals import SIGNAL_UNITS
 
 from .base import Detection, Detector, NotFittedError, as_variants
+from .compat import incompatibilities
 from .params import declared_parameters, parameter_problems, signature_defaults
 
 
@@ -68,10 +70,12 @@ class DetectorCheckError(AssertionError):
         return type(self), (self.args[0], self.failures)
 
 
-def _batch(surface: str, duration_s: float, aircraft: bool = False) -> tuple:
-    """Fresh copies of the (cached) learning and evaluation signals."""
+def _batch(surface: str, duration_s: float, aircraft: bool = False,
+           pressure: bool = False) -> tuple:
+    """Fresh copies of the (cached) learning and evaluation signals (*pressure*: with the
+    chamber pressure sensor)."""
     make = _aircraft_batch if aircraft else _simulated_batch
-    return tuple(copy.deepcopy(s) for s in make(surface, float(duration_s)))
+    return tuple(copy.deepcopy(s) for s in make(surface, float(duration_s), bool(pressure)))
 
 
 #: Monitored surface of the aircraft-level batch when the detector needs the aircraft plant.
@@ -96,7 +100,7 @@ AIRCRAFT_CASES = (
 )
 
 
-def _signals_of(surface: str, duration_s: float, cases, plant: str) -> tuple:
+def _signals_of(surface: str, duration_s: float, cases, plant: str, pressure: bool) -> tuple:
     """Learning and evaluation signals: fault-free learning runs of
     :data:`LEARNING_MANOEUVRES` (seed 11), evaluation runs of *cases* (seed 12)."""
     from scenarios.plants import simulate
@@ -109,19 +113,20 @@ def _signals_of(surface: str, duration_s: float, cases, plant: str) -> tuple:
                             for m, fault, kw in cases], ignore_index=True)
     evaluation["stream"] = np.arange(len(evaluation))
     evaluation["run_id"] = [f"eval-{j}" for j in range(len(evaluation))]
-    return simulate(learn, plant=plant)[0], simulate(evaluation, plant=plant)[0]
+    return (simulate(learn, plant=plant, pressure_sensor=pressure)[0],
+            simulate(evaluation, plant=plant, pressure_sensor=pressure)[0])
 
 
 @functools.lru_cache(maxsize=2)
-def _aircraft_batch(surface: str, duration_s: float) -> tuple:
+def _aircraft_batch(surface: str, duration_s: float, pressure: bool) -> tuple:
     """Learning and evaluation signals at the aircraft plant level (monitored *surface*)."""
-    return _signals_of(surface, duration_s, AIRCRAFT_CASES, "aircraft")
+    return _signals_of(surface, duration_s, AIRCRAFT_CASES, "aircraft", pressure)
 
 
 @functools.lru_cache(maxsize=4)
-def _simulated_batch(surface: str, duration_s: float) -> tuple:
+def _simulated_batch(surface: str, duration_s: float, pressure: bool) -> tuple:
     """Learning and evaluation signals at the actuator level."""
-    return _signals_of(surface, duration_s, ACTUATOR_CASES, "actuator")
+    return _signals_of(surface, duration_s, ACTUATOR_CASES, "actuator", pressure)
 
 
 def _variants(det, signals) -> dict[str, Detection]:
@@ -226,13 +231,21 @@ class _Context:
     def signals(self) -> tuple:
         """Fresh copies of the (learning, evaluation) signals."""
         def make():
-            aircraft = bool(getattr(self.detector.capabilities, "needs_aircraft", False))
+            caps = self.detector.capabilities
+            aircraft = bool(getattr(caps, "needs_aircraft", False))
+            pressure = bool(getattr(caps, "needs_pressure_sensor", False))
+            plant = get_plant("aircraft" if aircraft else "actuator")
             surface = self.surface
-            if aircraft:
-                from scenarios.aircraft.data import AIRCRAFT_SURFACES
-
-                surface = surface if surface in AIRCRAFT_SURFACES else AIRCRAFT_SURFACE
-            return _batch(surface, self.duration_s, aircraft)
+            if aircraft and surface not in plant.surfaces:
+                surface = AIRCRAFT_SURFACE
+            # the campaign's compatibility rule: signals this detector cannot read are a
+            # choice of the check, not a breach of the detector
+            problems = incompatibilities({type(self.detector).__name__: caps}, plant, surface,
+                                         pressure_sensor=pressure)
+            if problems:
+                raise ValueError("; ".join(problems) + " (check_detector's surface= "
+                                 "chooses the simulated surface)")
+            return _batch(surface, self.duration_s, aircraft, pressure)
 
         if "signals" not in self._stages:
             try:

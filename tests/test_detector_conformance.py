@@ -169,3 +169,23 @@ def test_bench_reports_the_cost_of_every_registered_detector():
     assert {(c["detector"], c["engine"]) for c in costs} == {
         (name, engine) for name in BUILTIN for engine in ("compiled", "numpy")}
     assert all(np.isfinite(c["ns_per_run_step"]) and c["ns_per_run_step"] > 0 for c in costs)
+
+
+class NeedsSurface(Detector):
+    """Reads the surface position sensor (module level: the checks pickle it)."""
+
+    capabilities = Capabilities(needs_fit=False, needs_surface_sensor=True)
+
+    def _detect(self, signals):
+        r = np.abs(signals.surface) / 100.0
+        return Detection(alarm=r >= 1.0, residual=r)
+
+
+def test_check_detector_applies_the_campaign_compatibility_rule():
+    """A detector that needs a surface position sensor is not checked on a surface that has
+    none: check_detector says so with the campaign's own message, instead of reporting the
+    detector's refusal of NaN signals as breaches."""
+    with pytest.raises(RuntimeError, match="'NeedsSurface' needs a surface position sensor, "
+                                           "which the aileron has none of"):
+        check_detector(NeedsSurface(), surface="aileron")
+    check_detector(NeedsSurface(), surface="elevator")      # the elevator has one
