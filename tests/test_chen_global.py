@@ -165,7 +165,7 @@ def test_detects_disconnection_and_stays_quiet_on_aircraft_runs(fitted):
 
 def test_needs_the_aircraft_plant():
     sig, _ = simulate(single_run("aileron", "cruise", "none", duration_s=20.0))
-    with pytest.raises(ValueError, match='\[plant\] kind = "aircraft"'):
+    with pytest.raises(ValueError, match=r'\[plant\] kind = "aircraft"'):
         ChenGlobalEstimator().fit(sig)
 
 

@@ -101,7 +101,7 @@ def test_without_gust_decoupling_the_gust_reaches_the_residual():
 
 def test_actuator_level_signals_are_refused():
     sig, _ = simulate(single_run("aileron", "cruise", "none", duration_s=20.0))
-    with pytest.raises(ValueError, match='\[plant\] kind = "aircraft"'):
+    with pytest.raises(ValueError, match=r'\[plant\] kind = "aircraft"'):
         VanekGeometric().fit(sig)
 
 
