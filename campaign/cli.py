@@ -44,11 +44,15 @@ def _run_campaign(config, out, args):
           f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
     if not result.summary.empty:
         print(result.table())
-    _detection_times(result, config)
+    if result.detection_times is not None:   # fixed-scenario campaigns, e.g. comb-table1
+        from reports.detection_times import format_detection_times
+
+        print(format_detection_times(result.detection_times))
     return result
 
 
 def cmd_run(args) -> int:
+    from .storage import CampaignDir
     from .suite import Suite, load_spec, write_suite_json
 
     if args.jobs < 1:
@@ -59,7 +63,7 @@ def cmd_run(args) -> int:
         return EXIT_OK if result.complete else EXIT_INTERRUPTED
     # a suite: every member validated (with the overrides) before the first one runs
     configs = [_overridden(m.config, args) for m in spec.members]
-    if (Path(args.out) / "campaign.json").exists():
+    if CampaignDir(args.out).is_campaign():
         raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
                          "campaigns into subdirectories of a directory of its own: choose "
                          "another --out")
@@ -74,23 +78,6 @@ def cmd_run(args) -> int:
             return EXIT_INTERRUPTED
     print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {args.out}")
     return EXIT_OK
-
-
-def _detection_times(result, config) -> None:
-    """Fixed-scenario campaigns (every faulty group with one onset, e.g. comb-table1):
-    print the first alarm times laid out like [COMB] Table 1 and store them as
-    ``detection-times.parquet``."""
-    from reports.detection_times import (detection_time_table, fixed_onset_campaign,
-                                         format_detection_times)
-
-    from .storage import write_parquet
-
-    if result.results.empty or not fixed_onset_campaign(result.plan):
-        return
-    times = detection_time_table(result.plan, result.results)
-    write_parquet(times, Path(result.out) / "detection-times.parquet", config.to_json(),
-                  kind="detection_times")
-    print(format_detection_times(times))
 
 
 def cmd_plan(args) -> int:
@@ -108,17 +95,17 @@ def cmd_plan(args) -> int:
 
 def _plan_one(config, out: Path) -> None:
     from .design import build_learning_plan, build_plan, plan_counts
-    from .storage import write_parquet
+    from .storage import CampaignDir
 
     plan = build_plan(config)
-    out.mkdir(parents=True, exist_ok=True)
-    write_parquet(plan, out / "plan.parquet", config.to_json(), kind="plan")
+    cdir = CampaignDir(out)
+    cdir.write_plan(plan, config.to_json())
     learning = build_learning_plan(config)
     counts = plan_counts(plan)
     print(counts.to_string(index=False))
     print(f"total: {len(plan)} runs ({int((plan['fault'] == 'none').sum())} fault-free, "
           f"{int((plan['fault'] != 'none').sum())} faulty); learning set: {len(learning)} runs")
-    print(f"run table written to {out / 'plan.parquet'}")
+    print(f"run table written to {cdir.plan_path}")
 
 
 def cmd_gate(args) -> int:
