@@ -121,24 +121,8 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
     if spec is not None:
-        m = min(plant_runs, n_runs)
-        fmu_rows = runs.iloc[:m]
-        per = max(1, -(-m // jobs))
-        t2 = time.perf_counter()
-        Parallel(n_jobs=jobs, backend="loky")(
-            delayed(_simulate_chunk)(fmu_rows.iloc[s:s + per], spec) for s in range(0, m, per))
-        fmu_wall = time.perf_counter() - t2
-        builtin_per_run = wall / n_runs
-        fmu_per_run = fmu_wall / m
-        figures.update({
-            "fmu_runs": m, "fmu_wall_s": fmu_wall, "fmu_s_per_run": fmu_per_run,
-            "builtin_s_per_run": builtin_per_run,
-            "fmu_cost_ratio": fmu_per_run / builtin_per_run,
-        })
-        echo(f"  FMU plant ({plant}): {m} runs on {jobs} worker(s) in {fmu_wall:.2f} s")
-        echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
-             f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
-             "the built-in plant per run")
+        figures.update(_fmu_cost(runs.iloc[:min(plant_runs, n_runs)], spec, jobs,
+                                 builtin_per_run=wall / n_runs, label=plant, echo=echo))
     from .plant_bench import plant_cost
 
     figures.update(plant_cost(runs.iloc[:min(n_runs, chunk_size)], echo=echo))
@@ -151,6 +135,27 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     if campaign:
         figures.update(bench_campaign(campaign, jobs, reference_s_per_run=ref_per_run,
                                       cold=cold, echo=echo))
+    return figures
+
+
+def _fmu_cost(rows: pd.DataFrame, spec, jobs: int, *, builtin_per_run: float, label: str,
+              echo=print) -> dict:
+    """Wall time of *rows* simulated on the FMU plant *spec* in *jobs* loky processes, and
+    its per-run cost against the built-in plant's *builtin_per_run* [s]."""
+    m = len(rows)
+    per = max(1, -(-m // jobs))
+    t0 = time.perf_counter()
+    Parallel(n_jobs=jobs, backend="loky")(
+        delayed(_simulate_chunk)(rows.iloc[s:s + per], spec) for s in range(0, m, per))
+    fmu_wall = time.perf_counter() - t0
+    fmu_per_run = fmu_wall / m
+    figures = {"fmu_runs": m, "fmu_wall_s": fmu_wall, "fmu_s_per_run": fmu_per_run,
+               "builtin_s_per_run": builtin_per_run,
+               "fmu_cost_ratio": fmu_per_run / builtin_per_run}
+    echo(f"  FMU plant ({label}): {m} runs on {jobs} worker(s) in {fmu_wall:.2f} s")
+    echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
+         f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
+         "the built-in plant per run")
     return figures
 
 
