@@ -6,7 +6,8 @@ never from the memory of the process that ran it, so a directory copied to anoth
 gives the same report. Traces that are not stored (residuals of every fault-free run, the
 signals of example runs) are re-simulated on demand from the plan rows (run id, seed and
 stream fix every random draw, docs/design.md §9, Determinism) and fed to the stored fitted
-detectors; the margins of the re-simulated runs are checked against the stored ones.
+detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's own pipeline); the
+margins of the re-simulated runs are checked against the stored ones.
 
 Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``), ``show DIR RUN_ID``
 and ``compare DIR_A DIR_B``.

@@ -1,14 +1,15 @@
 """Run a campaign: plan, learn, simulate and score in parallel chunks, store as they finish.
 
-docs/design.md §3, data flow steps 2–6. The run table is cut into chunks; a worker simulates a chunk
-(vectorised over its runs), hands the signals to every detector and scores the detections;
-only result rows come back. Results stream back as chunks finish and each chunk is written
-at once as a Parquet shard (atomically), so a crash, a kill or Ctrl-C loses at most the
-chunks in flight; rerunning into the same directory skips the runs already done.
-A run that fails (bad row, detector exception) is recorded with ``status="error"`` and its
-message; it never stops the campaign, and a rerun retries it. Where the chunks run (threads,
-worker processes, a dask cluster) and how a dying worker or a run over its time limit ends
-as per-run status is :mod:`campaign.execute`.
+docs/design.md §3, data flow steps 2–6. The run table is cut into chunks; a worker simulates
+a chunk (vectorised over its runs), hands the signals to every detector and scores the
+detections (:func:`campaign.evaluate.evaluate`); only result rows come back. Results stream
+back as chunks finish and each chunk is written at once as a Parquet shard (atomically), so
+a crash, a kill or Ctrl-C loses at most the chunks in flight; rerunning into the same
+directory skips the runs already done. A run that fails (bad row, detector exception) is
+recorded with ``status="error"`` and its message; it never stops the campaign, and a rerun
+retries it. Where the chunks run (threads, worker processes, a dask cluster) and how a dying
+worker or a run over its time limit ends as per-run status is :mod:`campaign.execute`; every
+file of the directory is read and written by :class:`campaign.storage.CampaignDir`.
 """
 
 from __future__ import annotations
