@@ -10,6 +10,11 @@ subprocess — simulation, every detector, scoring and Parquet — first with an
 compile cache, then with the cache warm, and reports wall time, peak memory of the
 process tree and the ratio to the per-run reference; and the cost of each built-in
 detector per run-step.
+
+The in-process figures time the stages of the evaluation pipeline (:mod:`campaign.evaluate`)
+one by one: the simulation (:func:`campaign.evaluate.simulate_signals`) and each detector
+(:func:`campaign.evaluate.detect`), with the settings of
+:func:`campaign.plant_bench.bench_settings`.
 """
 
 from __future__ import annotations
@@ -30,8 +35,10 @@ from joblib import Parallel, delayed
 from scenarios.catalog import MANOEUVRES
 from scenarios.envelope import DRAW_COLUMNS
 from scenarios.reference import integrate_reference
-from scenarios.plants import simulate
 from scenarios.simulate import RUN_COLUMNS, prepare
+
+from .evaluate import detect, simulate_signals
+from .plant_bench import bench_settings
 
 
 def bench_runs(n_runs: int, duration_s: float, seed: int = 1) -> pd.DataFrame:
@@ -60,13 +67,9 @@ def _peak_rss_mb() -> float:
     return max(self_kb, child_kb) / 1024.0
 
 
-def _simulate_chunk(rows):
-    sig, _ = simulate(rows)
-    return sig.n_runs, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def _simulate_chunk_on(rows, plant):
-    sig, _ = simulate(rows, plant=plant)
+def _simulate_chunk(rows, plant="actuator"):
+    """Simulate *rows* on *plant*; (runs, peak resident memory [MB] of this process)."""
+    sig = simulate_signals(rows, bench_settings(plant))
     return sig.n_runs, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
@@ -118,24 +121,8 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
     if spec is not None:
-        m = min(plant_runs, n_runs)
-        fmu_rows = runs.iloc[:m]
-        per = max(1, -(-m // jobs))
-        t2 = time.perf_counter()
-        Parallel(n_jobs=jobs, backend="loky")(
-            delayed(_simulate_chunk_on)(fmu_rows.iloc[s:s + per], spec) for s in range(0, m, per))
-        fmu_wall = time.perf_counter() - t2
-        builtin_per_run = wall / n_runs
-        fmu_per_run = fmu_wall / m
-        figures.update({
-            "fmu_runs": m, "fmu_wall_s": fmu_wall, "fmu_s_per_run": fmu_per_run,
-            "builtin_s_per_run": builtin_per_run,
-            "fmu_cost_ratio": fmu_per_run / builtin_per_run,
-        })
-        echo(f"  FMU plant ({plant}): {m} runs on {jobs} worker(s) in {fmu_wall:.2f} s")
-        echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
-             f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
-             "the built-in plant per run")
+        figures.update(_fmu_cost(runs.iloc[:min(plant_runs, n_runs)], spec, jobs,
+                                 builtin_per_run=wall / n_runs, label=plant, echo=echo))
     from .plant_bench import plant_cost
 
     figures.update(plant_cost(runs.iloc[:min(n_runs, chunk_size)], echo=echo))
@@ -148,6 +135,27 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     if campaign:
         figures.update(bench_campaign(campaign, jobs, reference_s_per_run=ref_per_run,
                                       cold=cold, echo=echo))
+    return figures
+
+
+def _fmu_cost(rows: pd.DataFrame, spec, jobs: int, *, builtin_per_run: float, label: str,
+              echo=print) -> dict:
+    """Wall time of *rows* simulated on the FMU plant *spec* in *jobs* loky processes, and
+    its per-run cost against the built-in plant's *builtin_per_run* [s]."""
+    m = len(rows)
+    per = max(1, -(-m // jobs))
+    t0 = time.perf_counter()
+    Parallel(n_jobs=jobs, backend="loky")(
+        delayed(_simulate_chunk)(rows.iloc[s:s + per], spec) for s in range(0, m, per))
+    fmu_wall = time.perf_counter() - t0
+    fmu_per_run = fmu_wall / m
+    figures = {"fmu_runs": m, "fmu_wall_s": fmu_wall, "fmu_s_per_run": fmu_per_run,
+               "builtin_s_per_run": builtin_per_run,
+               "fmu_cost_ratio": fmu_per_run / builtin_per_run}
+    echo(f"  FMU plant ({label}): {m} runs on {jobs} worker(s) in {fmu_wall:.2f} s")
+    echo(f"  per-run cost (wall)   : built-in {1000 * builtin_per_run:8.1f} ms, FMU "
+         f"{1000 * fmu_per_run:8.1f} ms  -> FMU costs {figures['fmu_cost_ratio']:.1f} x "
+         "the built-in plant per run")
     return figures
 
 
@@ -217,17 +225,18 @@ def detector_costs(n_runs: int = 200, duration_s: float = 60.0, learning_runs: i
     learn = bench_runs(learning_runs, duration_s, seed=3).assign(fault="none", onset_s=np.nan,
                                                                   magnitude=np.nan)
     learn["run_id"] = [f"learn-{i}" for i in range(learning_runs)]
-    signals, _ = simulate(runs)
-    learning, _ = simulate(learn)
+    actuator = bench_settings()
+    signals = simulate_signals(runs, actuator)
+    learning = simulate_signals(learn, actuator)
     aircraft = {}                   # aircraft-plant signals, for detectors that need them
 
     def signals_for(det):
         if not getattr(det.capabilities, "needs_aircraft", False):
             return signals, learning
         if not aircraft:
-            monitored = "left_inboard_aileron"
-            aircraft["sets"] = (simulate(runs.assign(surface=monitored), plant="aircraft")[0],
-                                simulate(learn.assign(surface=monitored), plant="aircraft")[0])
+            monitored, level = "left_inboard_aileron", bench_settings("aircraft")
+            aircraft["sets"] = (simulate_signals(runs.assign(surface=monitored), level),
+                                simulate_signals(learn.assign(surface=monitored), level))
         return aircraft["sets"]
 
     kernels.warm_up()
@@ -239,9 +248,9 @@ def detector_costs(n_runs: int = 200, duration_s: float = 60.0, learning_runs: i
                 sig, learn_sig = signals_for(det)
                 if det.capabilities.needs_fit:
                     det.fit(learn_sig)
-                det.detect(sig.take(slice(0, 2)))          # first call outside the timing
+                detect(sig.take(slice(0, 2)), {name: det})   # first call outside the timing
                 t0 = time.perf_counter()
-                det.detect(sig)
+                detect(sig, {name: det})
                 dt = time.perf_counter() - t0
             out.append({"detector": name, "engine": engine,
                         "ns_per_run_step": 1e9 * dt / (sig.n_runs * sig.n_steps)})

@@ -54,11 +54,15 @@ def _run_campaign(config, out, args):
           f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
     if not result.summary.empty:
         print(result.table())
-    _detection_times(result, config)
+    if result.detection_times is not None:   # fixed-scenario campaigns, e.g. comb-table1
+        from reports.detection_times import format_detection_times
+
+        print(format_detection_times(result.detection_times))
     return result
 
 
 def cmd_run(args) -> int:
+    from .storage import CampaignDir
     from .suite import Suite, load_spec, write_suite_json
 
     if args.jobs < 1:
@@ -69,7 +73,7 @@ def cmd_run(args) -> int:
         return EXIT_OK if result.complete else EXIT_INTERRUPTED
     # a suite: every member validated (with the overrides) before the first one runs
     configs = [_overridden(m.config, args) for m in spec.members]
-    if (Path(args.out) / "campaign.json").exists():
+    if CampaignDir(args.out).is_campaign():
         raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
                          "campaigns into subdirectories of a directory of its own: choose "
                          "another --out")
@@ -84,23 +88,6 @@ def cmd_run(args) -> int:
             return EXIT_INTERRUPTED
     print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {args.out}")
     return EXIT_OK
-
-
-def _detection_times(result, config) -> None:
-    """Fixed-scenario campaigns (every faulty group with one onset, e.g. comb-table1):
-    print the first alarm times laid out like [COMB] Table 1 and store them as
-    ``detection-times.parquet``."""
-    from reports.detection_times import (detection_time_table, fixed_onset_campaign,
-                                         format_detection_times)
-
-    from .storage import write_parquet
-
-    if result.results.empty or not fixed_onset_campaign(result.plan):
-        return
-    times = detection_time_table(result.plan, result.results)
-    write_parquet(times, Path(result.out) / "detection-times.parquet", config.to_json(),
-                  kind="detection_times")
-    print(format_detection_times(times))
 
 
 def cmd_plan(args) -> int:
@@ -118,17 +105,17 @@ def cmd_plan(args) -> int:
 
 def _plan_one(config, out: Path) -> None:
     from .design import build_learning_plan, build_plan, plan_counts
-    from .storage import write_parquet
+    from .storage import CampaignDir
 
     plan = build_plan(config)
-    out.mkdir(parents=True, exist_ok=True)
-    write_parquet(plan, out / "plan.parquet", config.to_json(), kind="plan")
+    cdir = CampaignDir(out)
+    cdir.write_plan(plan, config.to_json())
     learning = build_learning_plan(config)
     counts = plan_counts(plan)
     print(counts.to_string(index=False))
     print(f"total: {len(plan)} runs ({int((plan['fault'] == 'none').sum())} fault-free, "
           f"{int((plan['fault'] != 'none').sum())} faulty); learning set: {len(learning)} runs")
-    print(f"run table written to {out / 'plan.parquet'}")
+    print(f"run table written to {cdir.plan_path}")
 
 
 def cmd_gate(args) -> int:
@@ -305,6 +292,15 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
+def cmd_study_vanek(args) -> int:
+    from .studies.vanek import run_study
+
+    if not args.noise_scale > 0.0:
+        raise UsageError(f"--noise-scale must be > 0, got {args.noise_scale}")
+    run_study(args.noise_scale, args.seed)
+    return EXIT_OK
+
+
 def cmd_fmu(args) -> int:
     from scenarios.fmu_build import FmuBuildError, build_servo_fmu
 
@@ -327,24 +323,8 @@ def _sub(subs, name, help_, example, func):
     return p
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from scenarios.aircraft.data import AIRCRAFT_SURFACES
-    from scenarios.plants import PLANT_KINDS
-    from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
-
-    parser = argparse.ArgumentParser(
-        prog="fdd-campaign",
-        description="Monte Carlo evaluation campaigns for control-surface fault detectors: "
-                    "false alarms, missed detections and detection time performance (DTP).",
-        epilog=textwrap.dedent("""\
-            examples:
-              fdd-campaign run addsafe-mc --jobs 2 --out results/
-              fdd-campaign gate results/ --junit gate.xml
-              fdd-campaign simulate --surface elevator --manoeuvre turn_coordination \\
-                  --fault solid_jam --plot run.png --out run.parquet"""),
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    subs = parser.add_subparsers(dest="command", metavar="COMMAND")
-
+def _add_run_parsers(subs) -> None:
+    """Sub-commands: run and plan a campaign."""
     p = _sub(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
              "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
@@ -374,6 +354,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     p.add_argument("--seed", type=int)
 
+
+def _add_result_parsers(subs) -> None:
+    """Sub-commands: read a campaign directory: report, show, compare, gate."""
     p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
              "report (DIR/report.html)", "fdd-campaign report results/", cmd_report)
     p.add_argument("dir")
@@ -415,6 +398,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-errors", action="store_true", help="do not fail on runs in error")
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 
+
+def _add_simulate_parser(subs) -> None:
+    """Sub-commands: simulate one run."""
+    from scenarios.aircraft.data import AIRCRAFT_SURFACES
+    from scenarios.plants import PLANT_KINDS
+    from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
+
     p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
              "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
@@ -433,6 +423,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pressure", action="store_true", help="simulate the chamber pressure sensor")
     p.add_argument("--out", help="Parquet file for the signals and the truth")
     p.add_argument("--plot", help="PNG file for a plot of the run")
+
+
+def _add_tool_parsers(subs) -> None:
+    """Sub-commands: presets, init, bench and the FMU tools."""
+    from scenarios.catalog import SURFACES
 
     _sub(subs, "presets", "list the campaign presets shipped with the package",
          "fdd-campaign presets", cmd_presets)
@@ -471,6 +466,38 @@ def build_parser() -> argparse.ArgumentParser:
                    help="surface whose parameters are the FMU's start values")
     p.add_argument("--fmi", default="2", choices=["2", "3"], help="FMI version (default 2)")
     p.add_argument("--verbose", action="store_true", help="print the compiler command")
+
+def _add_study_parsers(subs) -> None:
+    """Sub-commands: the studies (``fdd-campaign study NAME``, :mod:`campaign.studies`)."""
+    study = subs.add_parser("study", help="reproduce a published comparison (a fixed set of "
+                            "scenarios, one table)",
+                            description="studies: fixed comparisons reproduced from a paper, "
+                                        "one table each (campaign.studies)")
+    ssubs = study.add_subparsers(dest="study", metavar="STUDY", required=True)
+    p = _sub(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
+             "residual peaks, thresholds, detection delays and DTP (docs/vanek-geometric.md)",
+             "fdd-campaign study vanek --noise-scale 0.1", cmd_study_vanek)
+    p.add_argument("--noise-scale", type=float, default=1.0,
+                   help="factor on the σ of every aircraft sensor (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the scenarios (default 0)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fdd-campaign",
+        description="Monte Carlo evaluation campaigns for control-surface fault detectors: "
+                    "false alarms, missed detections and detection time performance (DTP).",
+        epilog=textwrap.dedent("""\
+            examples:
+              fdd-campaign run addsafe-mc --jobs 2 --out results/
+              fdd-campaign gate results/ --junit gate.xml
+              fdd-campaign simulate --surface elevator --manoeuvre turn_coordination \\
+                  --fault solid_jam --plot run.png --out run.parquet"""),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    subs = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
+                _add_study_parsers):
+        add(subs)
     return parser
 
 

@@ -19,7 +19,7 @@ Faults in the machinery (TimeEval-style per-run status)
   ``status="error"`` and the reason. On dask the scheduler reschedules the tasks of a lost
   worker itself and gives up with ``KilledWorker`` after its ``allowed-failures``; such a
   chunk is recorded as ``error``.
-* **A detector raises** on some runs: :func:`campaign.runner.run_chunk` records those runs
+* **A detector raises** on some runs: :func:`campaign.evaluate.evaluate` records those runs
   with ``status="error"`` (never fatal).
 * **A run exceeds** ``[runner] run_timeout_s`` (worker processes only): a chunk gets that
   limit times its number of runs, counted from the moment it is handed to an idle worker
@@ -67,7 +67,7 @@ def _worker_init() -> None:
     """Start-up of every worker process: import the engine, load the compiled kernels."""
     from scenarios import kernels
 
-    from . import runner  # noqa: F401  (the imports of a chunk, done before any chunk)
+    from . import evaluate  # noqa: F401  (the imports of a chunk, done before any chunk)
 
     kernels.warm_up()
 

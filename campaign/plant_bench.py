@@ -12,17 +12,29 @@ import time
 import pandas as pd
 
 from scenarios.aircraft.data import DEFAULT_MONITORED
-from scenarios.plants import simulate
+from scenarios.plants import get_plant
+from scenarios.simulate import TS_S
+
+from .evaluate import ChunkSettings, simulate_signals
+
+
+def bench_settings(plant="actuator") -> ChunkSettings:
+    """Pipeline settings of the benchmark loads (``fdd-campaign bench``): 100 Hz, no
+    pressure sensor, compiled kernels, on *plant* (``"actuator"``, ``"aircraft"`` or a
+    :class:`scenarios.fmu.FmuPlant`). Nothing is scored: no required detection time."""
+    return ChunkSettings(ts=TS_S, pressure_sensor=False, required_time_s={}, window_s=None,
+                         plant=get_plant(plant))
 
 
 def plant_cost(runs: pd.DataFrame, echo=print) -> dict:
-    """Wall time of one vectorised batch of *runs* at each plant level, and their ratio."""
+    """Wall time of one vectorised batch of *runs* at each plant level, and their ratio
+    (the simulation stage of the pipeline, :func:`campaign.evaluate.simulate_signals`)."""
     t0 = time.perf_counter()
-    simulate(runs)
+    simulate_signals(runs, bench_settings())
     actuator_s = time.perf_counter() - t0
     aircraft_runs = runs.assign(surface=[DEFAULT_MONITORED[s] for s in runs["surface"]])
     t1 = time.perf_counter()
-    simulate(aircraft_runs, plant="aircraft")
+    simulate_signals(aircraft_runs, bench_settings("aircraft"))
     aircraft_s = time.perf_counter() - t1
     figures = {"plant_runs": len(runs), "actuator_batch_s": actuator_s,
                "aircraft_batch_s": aircraft_s, "aircraft_over_actuator": aircraft_s / actuator_s}

@@ -6,7 +6,8 @@ never from the memory of the process that ran it, so a directory copied to anoth
 gives the same report. Traces that are not stored (residuals of every fault-free run, the
 signals of example runs) are re-simulated on demand from the plan rows (run id, seed and
 stream fix every random draw, docs/design.md §9, Determinism) and fed to the stored fitted
-detectors; the margins of the re-simulated runs are checked against the stored ones.
+detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's own pipeline); the
+margins of the re-simulated runs are checked against the stored ones.
 
 Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``), ``show DIR RUN_ID``
 and ``compare DIR_A DIR_B``.
@@ -14,11 +15,9 @@ and ``compare DIR_A DIR_B``.
 
 from __future__ import annotations
 
-import json
-import pickle
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -26,20 +25,19 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from detectors import as_variants
 from reports.compare import compare_results, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
-from reports.metrics import FAULT_FREE, score_runs
-from scenarios import kernels
+from reports.metrics import FAULT_FREE
 
 from .config import CampaignConfig
-from .runner import CampaignSetupError, ChunkSettings, load_results, settings_of
-from .storage import write_text
+from .evaluate import ChunkSettings, score, simulate_and_detect
+from .runner import CampaignSetupError, load_results, settings_of
+from .storage import CampaignDir
 
 __all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs",
-           "load_campaign", "resimulate", "show_run"]
+           "load_campaign", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
 POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude")
@@ -91,17 +89,10 @@ class LoadedCampaign:
         return settings_of(self.config)
 
     def detectors(self) -> dict:
-        """The fitted detectors stored in ``fitted/LABEL.pkl``: label → Detector."""
-        out = {}
-        for label in self.config.detector_labels:
-            path = self.root / "fitted" / f"{label}.pkl"
-            if not path.exists():
-                raise CampaignSetupError(
-                    f"{path} is missing: the fitted detector {label!r} is needed to "
-                    "re-simulate runs; copy the whole campaign directory (fitted/ included) "
-                    "or rerun 'fdd-campaign run' into it")
-            out[label] = pickle.loads(path.read_bytes())
-        return out
+        """The fitted detectors stored in the directory: label → Detector
+        (:meth:`campaign.storage.CampaignDir.read_fitted`)."""
+        cdir = CampaignDir(self.root)
+        return {label: cdir.read_fitted(label) for label in self.config.detector_labels}
 
 
 def load_campaign(directory) -> LoadedCampaign:
@@ -112,46 +103,25 @@ def load_campaign(directory) -> LoadedCampaign:
                                  "'fdd-campaign run'")
     from .suite import is_suite_dir
 
-    if is_suite_dir(root) and not (root / "campaign.json").exists():
-        members = sorted(p.name for p in root.iterdir() if (p / "campaign.json").exists())
+    cdir = CampaignDir(root)
+    if is_suite_dir(root) and not cdir.is_campaign():
+        members = sorted(p.name for p in root.iterdir() if CampaignDir(p).is_campaign())
         raise CampaignSetupError(f"{root} is the directory of a suite of campaigns; give one "
                                  f"of its campaign directories: "
                                  f"{', '.join(str(root / m) for m in members) or '(none run yet)'}")
-    for name in ("campaign.json", "plan.parquet", "summary.parquet"):
-        if not (root / name).exists():
-            raise CampaignSetupError(
-                f"{root} is not a campaign directory: it holds no {name}; give the --out "
-                "directory of a finished 'fdd-campaign run' (rerun it to finish an "
-                "interrupted one)")
-    try:
-        config = CampaignConfig.from_dict(json.loads((root / "campaign.json").read_text()),
-                                          source=str(root / "campaign.json"))
-    except json.JSONDecodeError as exc:
-        raise CampaignSetupError(f"{root / 'campaign.json'} is not valid JSON ({exc}); the "
-                                 "directory is damaged: rerun the campaign") from None
+    missing = cdir.missing_outputs()
+    if missing:
+        raise CampaignSetupError(
+            f"{root} is not a campaign directory: it holds no {missing[0]}; give the --out "
+            "directory of a finished 'fdd-campaign run' (rerun it to finish an "
+            "interrupted one)")
+    config = CampaignConfig.from_dict(cdir.read_config(), source=str(cdir.config_path))
     results, summary, meta = load_results(root)
-    plan = pd.read_parquet(root / "plan.parquet")
-    return LoadedCampaign(root=root, config=config, plan=plan, results=results,
+    return LoadedCampaign(root=root, config=config, plan=cdir.read_plan(), results=results,
                           summary=summary, meta=meta)
 
 
 # ---- re-simulation -------------------------------------------------------------------------
-def resimulate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
-    """Simulate plan *rows* and run every fitted detector on them.
-
-    Returns ``(signals, truth, detections)`` with ``detections`` = {variant name →
-    :class:`detectors.base.Detection`} (the names of the result rows).
-    """
-    # the plant level and engine of the campaign, as the runner's chunks (runner.run_chunk)
-    with kernels.use_engine(settings.engine):
-        signals, truth = settings.plant.simulate(rows, ts=settings.ts,
-                                                 pressure_sensor=settings.pressure_sensor)
-        detections = {}
-        for label, det in detectors.items():
-            detections.update(as_variants(label, det.detect(signals)))
-    return signals, truth, detections
-
-
 def _run_margin(residual: np.ndarray) -> np.ndarray:
     """max |r|/τ over a whole run, NaN samples ignored (the margin of a fault-free run,
     reports.metrics.score_runs)."""
@@ -169,7 +139,7 @@ def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors:
     so extra rows cost almost nothing.
     """
     rows = pd.concat([env_rows, extra_rows], ignore_index=True)
-    signals, truth, detections = resimulate(rows, detectors, settings)
+    signals, truth, detections = simulate_and_detect(rows, detectors, settings)
     n_env = len(env_rows)
     env, starts = {}, None
     if n_env:
@@ -327,6 +297,25 @@ def runs_table(camp: LoadedCampaign) -> pd.DataFrame:
 
 
 
+@dataclass
+class _ReportData:
+    """What the report shows, gathered from the directory and the re-simulation."""
+
+    camp: LoadedCampaign
+    cfg: ReportSettings
+    requirements: dict
+    gate: object                   # reports.gate.GateResult
+    runs: pd.DataFrame             # runs_table(camp)
+    plan: pd.DataFrame             # the plan indexed by run id
+    n_free: int                    # fault-free runs scored ok
+    env: dict | None               # re-simulated envelopes (_gather_envelopes)
+    examples: list                 # (fault, run_id, why)
+    traces: dict                   # run_id → (frame, residuals, onset) of the examples
+    t_sim: float                   # seconds from the start to the end of the re-simulation
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
 def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings | None = None,
                  log=None) -> Path:
     """Write the HTML report of a campaign directory; returns its path.
@@ -349,6 +338,28 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
         raise ValueError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
+    data = _gather_report_data(directory, cfg, jobs, t0)
+    specs = _figure_specs(data)
+    t1 = time.perf_counter()
+    pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
+                       for *_, kind, args, kwargs in specs], jobs,
+                      min_tasks=MIN_PARALLEL_FIGURES)
+    figures = [ReportFigure(section, group, title, png, caption)
+               for (section, group, title, caption, *_), png in zip(specs, pngs)]
+    t_fig = time.perf_counter() - t1
+    data.notes.append(f"Report made with {jobs} job(s): re-simulation {data.t_sim:.1f} s, "
+                      f"{len(figures)} figures {t_fig:.1f} s.")
+    page = _assemble_page(data, figures)
+    path = CampaignDir(data.camp.root).write_report(page, out)
+    log(f"report: {len(figures)} figures, {len(page) / 1e6:.1f} MB in "
+        f"{time.perf_counter() - t0:.1f} s (re-simulation {data.t_sim:.1f} s, figures "
+        f"{t_fig:.1f} s, {jobs} job(s))")
+    return path
+
+
+def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) -> _ReportData:
+    """Read the directory and re-simulate, on *jobs* processes, the fault-free runs (for
+    the envelopes) with the example runs riding along (phase 1)."""
     camp = load_campaign(directory)
     if camp.results.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
@@ -356,15 +367,11 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     req = _requirements(camp.config)
     gate = evaluate_gate(camp.summary, max_fa=req["max_fa_rate"], max_md=req["max_md_rate"],
                          max_dtp=req["max_dtp"])
-    runs = runs_table(camp)
-    notes: list[str] = []
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "
                         f"{camp.meta.get('runs_planned')} runs; rerun 'fdd-campaign run' into "
                         "this directory to finish it.")
-
-    # phase 1: re-simulation of the fault-free runs and of the example runs
     free, n_free = _envelope_runs(camp, cfg)
     examples = _example_ids(camp.results, cfg.examples_per_fault)
     example_ids = frozenset(rid for _, rid, _ in examples)
@@ -376,45 +383,64 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                                               example_ids=example_ids)
                         for e, x in _chunks(free, extra, jobs)], jobs)
     t_sim = time.perf_counter() - t0
-    env = _gather_envelopes(parts, free, settings)
-    traces = {rid: tr for p in parts for rid, tr in p[3].items()}
+    return _ReportData(
+        camp=camp, cfg=cfg, requirements=req, gate=gate, runs=runs_table(camp), plan=plan,
+        n_free=n_free, env=_gather_envelopes(parts, free, settings), examples=examples,
+        traces={rid: tr for p in parts for rid, tr in p[3].items()}, t_sim=t_sim,
+        warnings=warnings)
 
-    # phase 2: the figures, as (section, group, title, caption, kind, args, kwargs)
-    specs: list[tuple] = []
-    if env is not None:
-        n_sim = len(env["run_ids"])
-        delta = _margin_check(env, camp.results)
-        rule = ("all of them" if n_sim == n_free else
-                f"{n_sim} of {n_free}: per manoeuvre at most {cfg.envelope_runs}, always the "
-                f"{cfg.worst_kept} runs of largest stored margin of each detector, the rest "
-                "evenly spaced in plan order")
-        notes.append(f"Residual envelopes: the fault-free runs were re-simulated from "
-                     f"plan.parquet with the stored fitted detectors ({rule}); each curve is "
-                     f"the largest |r|/τ of a run in each of {len(env['t_s'])} time bins, so "
-                     "no peak is hidden.")
-        if delta <= 1e-9:
-            notes.append(f"The re-simulated margins reproduce the stored ones of all {n_sim} "
-                         f"runs (largest difference {delta:.1e}).")
-        else:
-            warnings.append(f"The re-simulated margins differ from the stored ones by up to "
-                            f"{delta:.3g}: the simulator or a detector changed since the "
-                            "campaign ran; the envelopes show the current code, the tables "
-                            "the stored results.")
-        for name in env["binned"]:
-            for man in dict.fromkeys(env["manoeuvre"]):
-                sel = env["manoeuvre"] == man
-                b = env["binned"][name][sel]
-                m = env["margin"][name][sel]
-                worst = int(np.nanargmax(m)) if np.isfinite(m).any() else 0
-                wid = env["run_ids"][sel][worst]
-                specs.append((
-                    "envelope", name, f"Residual envelope — {name} — {man}",
-                    f"|r|/τ of {len(b)} fault-free runs; threshold at 1; worst run {wid} "
-                    f"({show_command(wid)}).", "envelope", (env["t_s"], b, worst),
-                    {"title": f"{name} — {man}: {len(b)} fault-free runs",
-                     "worst_label": f"worst run {wid} (margin {m[worst]:.3f})"}))
 
-    ok = runs[runs["status"] == "ok"]
+# A figure to draw: (section, group, title, caption, kind, args, kwargs) for
+# reports.figures.render_png(kind, args, kwargs).
+def _figure_specs(data: _ReportData) -> list[tuple]:
+    """Every figure of the report, in page order (phase 2 draws them); adds the notes and
+    warnings that go with them."""
+    ok = data.runs[data.runs["status"] == "ok"]
+    return (_envelope_specs(data) + _fault_specs(ok, data.requirements)
+            + _example_specs(data) + _map_specs(ok, data.requirements))
+
+
+def _envelope_specs(data: _ReportData) -> list[tuple]:
+    env, cfg = data.env, data.cfg
+    if env is None:
+        return []
+    n_sim = len(env["run_ids"])
+    delta = _margin_check(env, data.camp.results)
+    rule = ("all of them" if n_sim == data.n_free else
+            f"{n_sim} of {data.n_free}: per manoeuvre at most {cfg.envelope_runs}, always the "
+            f"{cfg.worst_kept} runs of largest stored margin of each detector, the rest "
+            "evenly spaced in plan order")
+    data.notes.append(f"Residual envelopes: the fault-free runs were re-simulated from "
+                      f"plan.parquet with the stored fitted detectors ({rule}); each curve is "
+                      f"the largest |r|/τ of a run in each of {len(env['t_s'])} time bins, so "
+                      "no peak is hidden.")
+    if delta <= 1e-9:
+        data.notes.append(f"The re-simulated margins reproduce the stored ones of all {n_sim} "
+                          f"runs (largest difference {delta:.1e}).")
+    else:
+        data.warnings.append(f"The re-simulated margins differ from the stored ones by up to "
+                             f"{delta:.3g}: the simulator or a detector changed since the "
+                             "campaign ran; the envelopes show the current code, the tables "
+                             "the stored results.")
+    specs = []
+    for name in env["binned"]:
+        for man in dict.fromkeys(env["manoeuvre"]):
+            sel = env["manoeuvre"] == man
+            b = env["binned"][name][sel]
+            m = env["margin"][name][sel]
+            worst = int(np.nanargmax(m)) if np.isfinite(m).any() else 0
+            wid = env["run_ids"][sel][worst]
+            specs.append((
+                "envelope", name, f"Residual envelope — {name} — {man}",
+                f"|r|/τ of {len(b)} fault-free runs; threshold at 1; worst run {wid} "
+                f"({show_command(wid)}).", "envelope", (env["t_s"], b, worst),
+                {"title": f"{name} — {man}: {len(b)} fault-free runs",
+                 "worst_label": f"worst run {wid} (margin {m[worst]:.3f})"}))
+    return specs
+
+
+def _fault_specs(ok: pd.DataFrame, req: dict) -> list[tuple]:
+    specs = []
     for fault, g in ok[ok["fault"] != FAULT_FREE].groupby("fault", sort=True):
         for name, gd in g.groupby("detector", sort=True):
             hit = gd["detected"].astype(bool).to_numpy()
@@ -425,21 +451,30 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                 (gd["delay_s"].to_numpy(float)[hit], gd["dtp"].to_numpy(float)[hit],
                  int((~hit).sum())),
                 {"title": f"{name} — {fault}: {len(gd)} runs", "max_dtp": req["max_dtp"]}))
-    for fault, rid, why in examples:
-        frame, residuals, onset = traces[rid]
-        row = plan.loc[rid]
+    return specs
+
+
+def _example_specs(data: _ReportData) -> list[tuple]:
+    specs = []
+    for fault, rid, why in data.examples:
+        frame, residuals, onset = data.traces[rid]
+        row = data.plan.loc[rid]
         label = "fault-free" if fault == FAULT_FREE else fault
         specs.append((
             "fault", label, f"Example run {rid} — {label} ({why})",
             f"{row['manoeuvre']} at {_point_text(row)}; re-simulated from its run id and seed: "
             f"{show_command(rid)}", "run", (frame, residuals),
             {"onset_s": onset, "title": f"{rid}: {label}, {row['manoeuvre']} ({why})"}))
-    if examples:
-        notes.append(f"Example runs ({len(examples)}) were re-simulated from their plan rows: "
-                     "per fault type the slowest (or a missed) run, the median and the fastest "
-                     "by the worst DTP over the detectors, and the fault-free run of largest "
-                     "margin.")
+    if data.examples:
+        data.notes.append(f"Example runs ({len(data.examples)}) were re-simulated from their "
+                          "plan rows: per fault type the slowest (or a missed) run, the median "
+                          "and the fastest by the worst DTP over the detectors, and the "
+                          "fault-free run of largest margin.")
+    return specs
 
+
+def _map_specs(ok: pd.DataFrame, req: dict) -> list[tuple]:
+    specs = []
     for name, gd in ok.groupby("detector", sort=True):
         free_runs = gd[gd["fault"] == FAULT_FREE]
         if len(free_runs):
@@ -459,16 +494,12 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                 (faulty[hit], "dtp"),
                 {"title": f"{name}: DTP of {len(faulty)} faulty runs", "label": "DTP",
                  "highlight_above": req["max_dtp"], "missed": faulty[~hit]}))
-    t1 = time.perf_counter()
-    pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
-                       for *_, kind, args, kwargs in specs], jobs,
-                      min_tasks=MIN_PARALLEL_FIGURES)
-    figures = [ReportFigure(section, group, title, png, caption)
-               for (section, group, title, caption, *_), png in zip(specs, pngs)]
-    t_fig = time.perf_counter() - t1
-    notes.append(f"Report made with {jobs} job(s): re-simulation {t_sim:.1f} s, "
-                 f"{len(figures)} figures {t_fig:.1f} s.")
+    return specs
 
+
+def _assemble_page(data: _ReportData, figures: list) -> str:
+    """The HTML page: campaign facts, summary, verdict, run list, figures, notes."""
+    camp = data.camp
     c = camp.config.campaign
     meta = {
         "name": c.name, "description": c.description, "directory": str(camp.root),
@@ -479,14 +510,9 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
         "engine version": camp.meta.get("engine_version"),
         "report written (UTC)": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
     }
-    page = render_report(meta=meta, summary=camp.summary, gate=gate, requirements=req,
-                         runs=runs, figures=figures, notes=notes, warnings=warnings)
-    path = Path(out) if out else camp.root / "report.html"
-    write_text(path, page)
-    log(f"report: {len(figures)} figures, {len(page) / 1e6:.1f} MB in "
-        f"{time.perf_counter() - t0:.1f} s (re-simulation {t_sim:.1f} s, figures "
-        f"{t_fig:.1f} s, {jobs} job(s))")
-    return path
+    return render_report(meta=meta, summary=camp.summary, gate=data.gate,
+                         requirements=data.requirements, runs=data.runs, figures=figures,
+                         notes=data.notes, warnings=data.warnings)
 
 
 # ---- show ----------------------------------------------------------------------------------
@@ -517,7 +543,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
                                  f"{suggest(str(run_id), ids)}; the run ids are listed in "
                                  "report.html (e.g. " + ", ".join(ids[:3]) + ")")
     detectors = camp.detectors()
-    signals, truth, detections = resimulate(match, detectors, camp.settings)
+    settings = camp.settings
+    signals, truth, detections = simulate_and_detect(match, detectors, settings)
     row = match.iloc[0]
     frame = _run_frame(signals, truth, 0)
     onset = float(truth.onset_s[0])
@@ -526,19 +553,15 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
         + f" (seed {row['seed']}, stream {row['stream']})")
     stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
         "detector")
-    settings = camp.settings
-    required = settings.required_time_s.get(str(row["fault"]), np.nan)
+    # scored again with the campaign's own rules (campaign.evaluate.score)
+    again = score(match, truth, detections, settings).set_index("detector")
     residuals = {}
     for name, d in detections.items():
         res, alarm = np.asarray(d.residual[0], float), np.asarray(d.alarm[0], bool)
         residuals[name] = (res, alarm)
         frame[f"{name} |r|/tau [-]"] = res
         frame[f"{name} alarm"] = alarm
-        # scored again with the campaign's own rules (reports.metrics.score_runs)
-        again = score_runs(run_id=[str(run_id)], fault=truth.fault[:1], onset_s=truth.onset_s[:1],
-                           alarm=alarm[None, :], residual=res[None, :], ts=settings.ts,
-                           required_time_s=[required], window_s=settings.window_s).iloc[0]
-        now = _score_text(again)
+        now = _score_text(again.loc[name])
         if name in stored.index:
             log(f"  {name}: stored {_score_text(stored.loc[name])}")
             log(f"  {' ' * len(name)}  re-simulated {now}")

@@ -1,14 +1,15 @@
 """Run a campaign: plan, learn, simulate and score in parallel chunks, store as they finish.
 
-docs/design.md §3, data flow steps 2–6. The run table is cut into chunks; a worker simulates a chunk
-(vectorised over its runs), hands the signals to every detector and scores the detections;
-only result rows come back. Results stream back as chunks finish and each chunk is written
-at once as a Parquet shard (atomically), so a crash, a kill or Ctrl-C loses at most the
-chunks in flight; rerunning into the same directory skips the runs already done.
-A run that fails (bad row, detector exception) is recorded with ``status="error"`` and its
-message; it never stops the campaign, and a rerun retries it. Where the chunks run (threads,
-worker processes, a dask cluster) and how a dying worker or a run over its time limit ends
-as per-run status is :mod:`campaign.execute`.
+docs/design.md §3, data flow steps 2–6. The run table is cut into chunks; a worker simulates
+a chunk (vectorised over its runs), hands the signals to every detector and scores the
+detections (:func:`campaign.evaluate.evaluate`); only result rows come back. Results stream
+back as chunks finish and each chunk is written at once as a Parquet shard (atomically), so
+a crash, a kill or Ctrl-C loses at most the chunks in flight; rerunning into the same
+directory skips the runs already done. A run that fails (bad row, detector exception) is
+recorded with ``status="error"`` and its message; it never stops the campaign, and a rerun
+retries it. Where the chunks run (threads, worker processes, a dask cluster) and how a dying
+worker or a run over its time limit ends as per-run status is :mod:`campaign.execute`; every
+file of the directory is read and written by :class:`campaign.storage.CampaignDir`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from __future__ import annotations
 import copy
 import sys
 import time
-import traceback
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -24,130 +24,31 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from detectors import as_variants, make_detector
+from detectors import make_detector
 from detectors.registry import load_detector_class
-from reports.metrics import RESULT_COLUMNS, score_runs
+from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
 from reports.table import format_table
 from scenarios import kernels
 from scenarios.signals import Signals
-from scenarios.plants import Plant
-from scenarios.simulate import ActuatorPlant
 
 from .design import build_learning_plan, build_plan
+from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .plant import detector_problems, plant_of
-from .storage import CampaignDir, read_metadata, write_parquet, write_pickle, write_text
+from .storage import CampaignDir
+
+#: The former name of :func:`campaign.evaluate.evaluate`, for existing callers.
+run_chunk = evaluate
 
 
 class CampaignSetupError(ValueError):
     """The campaign cannot start (incompatible detector, bad directory, …)."""
 
 
-@dataclass(frozen=True)
-class ChunkSettings:
-    """What a worker needs besides the rows and the fitted detectors (picklable)."""
-
-    ts: float
-    pressure_sensor: bool
-    required_time_s: dict
-    window_s: float | None
-    plant: Plant = ActuatorPlant()   # what the runs are simulated on (scenarios.plants)
-    engine: str = "compiled"
-
-
-def _error_rows(rows: pd.DataFrame, detector: str, message: str,
-                status: str = "error") -> pd.DataFrame:
-    n = len(rows)
-    return pd.DataFrame({
-        "run_id": rows["run_id"].to_numpy(), "detector": detector,
-        "fault": rows["fault"].to_numpy(), "manoeuvre": rows["manoeuvre"].to_numpy(),
-        "status": status, "error": message,
-        "false_alarm": np.zeros(n, bool), "pre_onset_alarm": np.zeros(n, bool),
-        "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
-        "dtp": np.nan, "margin": np.nan,
-    })
-
-
-def _describe(exc: BaseException) -> str:
-    last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
-    where = f" (at {Path(last[0].filename).name}:{last[0].lineno})" if last else ""
-    return f"{type(exc).__name__}: {exc}{where}"
-
-
-def run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
-    """Simulate, detect and score one chunk of runs; returns its result rows.
-
-    Never raises for a bad run or a failing detector: those rows get ``status="error"``.
-    A chunk whose simulation fails, or a detector that raises on a chunk, is retried run by
-    run, so one bad run does not take the others of its chunk down with it. The kernels
-    are those of ``settings.engine``.
-    """
-    with kernels.use_engine(settings.engine):
-        return _run_chunk(rows, detectors, settings)
-
-
-def _run_chunk(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
-    try:
-        signals, truth = _simulate(rows, settings)
-    except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
-        if len(rows) > 1:
-            return pd.concat([_run_chunk(rows.iloc[[j]], detectors, settings)
-                              for j in range(len(rows))], ignore_index=True)
-        return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
-                          for label in detectors], ignore_index=True)
-    truth = _scoring_truth(truth)
-    required = np.array([settings.required_time_s.get(f, np.nan) for f in truth.fault])
-    frames = []
-    for label, det in detectors.items():
-        try:
-            frames.extend(_detect_and_score(label, det, signals, truth, rows, required,
-                                            settings))
-        except Exception as exc:  # noqa: BLE001
-            if len(rows) == 1:
-                frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
-                continue
-            # run by run, so that only the runs the detector fails on are recorded as errors
-            for j in range(len(rows)):
-                try:
-                    frames.extend(_detect_and_score(
-                        label, det, signals.take([j]), truth.take([j]), rows.iloc[[j]],
-                        required[[j]], settings))
-                except Exception as exc_j:  # noqa: BLE001
-                    frames.append(_error_rows(rows.iloc[[j]], label,
-                                              f"detector failed: {_describe(exc_j)}"))
-    return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
-
-
-def _scoring_truth(truth):
-    """*truth* without its (n, T) true series, which scoring does not read (fault type and
-    onset only): their memory is freed before the detectors run. The series become
-    all-NaN read-only views of the same shape."""
-    shape = np.shape(truth.rod_mm)
-    nan = np.broadcast_to(np.nan, shape)
-    return replace(truth, rod_mm=nan, surface_deg=nan, current_mA=nan, aircraft=None,
-                   surfaces_deg=None)
-
-
-def _run_chunk_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
-    """:func:`run_chunk` on private copies of the detectors (chunks run in threads)."""
-    return run_chunk(rows, copy.deepcopy(detectors), settings)
-
-
-def _detect_and_score(label, det, signals, truth, rows, required, settings) -> list:
-    frames = []
-    variants = as_variants(label, det.detect(signals))
-    for name, detection in variants.items():
-        scored = score_runs(
-            run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
-            alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
-            required_time_s=required, window_s=settings.window_s)
-        scored.insert(1, "detector", name)
-        scored.insert(2, "fault", truth.fault)
-        scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
-        scored.insert(4, "status", "ok")
-        scored.insert(5, "error", "")
-        frames.append(scored)
-    return frames
+def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
+    """:func:`campaign.evaluate.evaluate` on private copies of the detectors (chunks run in
+    threads)."""
+    return evaluate(rows, copy.deepcopy(detectors), settings)
 
 
 class Progress:
@@ -185,6 +86,8 @@ class Progress:
 
 
 def _check_compatibility(config, detectors: dict, plant) -> None:
+    """The one compatibility rule (:func:`detectors.compat.incompatibilities`) on the built
+    detectors, whose capabilities may be an instance's own."""
     problems = detector_problems(config, {label: det.capabilities
                                           for label, det in detectors.items()}, plant)
     if problems:
@@ -196,16 +99,6 @@ def build_detectors(config) -> dict:
     return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
 
 
-def _simulate(rows: pd.DataFrame, settings: ChunkSettings):
-    """(Signals, Truth) of *rows* on the campaign's plant."""
-    return settings.plant.simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
-
-
-def _simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
-    with kernels.use_engine(settings.engine):
-        return _simulate(rows, settings)[0]
-
-
 def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
                     submit=None, workers: int = 1) -> Signals:
     """Signals of every run of *plan* (used for the small learning set). *submit*
@@ -213,14 +106,11 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
     *chunk_size* runs spread evenly over them; a run's signals never depend on its part."""
     if submit is not None and workers > 1:
         size = max(1, min(chunk_size, -(-len(plan) // workers)))
-        futures = [submit(_simulate_signals, plan.iloc[s:s + size], settings)
+        futures = [submit(simulate_signals, plan.iloc[s:s + size], settings)
                    for s in range(0, len(plan), size)]
         return Signals.concat([f.result() for f in futures])
-    parts = []
-    for start in range(0, len(plan), chunk_size):
-        sig, _ = _simulate(plan.iloc[start:start + chunk_size], settings)
-        parts.append(sig)
-    return Signals.concat(parts)
+    return Signals.concat([simulate_signals(plan.iloc[start:start + chunk_size], settings)
+                           for start in range(0, len(plan), chunk_size)])
 
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
@@ -229,15 +119,12 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
     detectors = build_detectors(config)
     _check_compatibility(config, detectors, settings.plant)
     learning = build_learning_plan(config)
-    write_parquet(learning, cdir.root / "learning.parquet", config.to_json(), kind="learning")
+    cdir.write_learning(learning, config.to_json())
     learning_signals = None
     fitted = {}
     for label, det in detectors.items():
-        path = cdir.fitted / f"{label}.pkl"
-        if path.exists():
-            import pickle
-
-            fitted[label] = pickle.loads(path.read_bytes())
+        if cdir.has_fitted(label):
+            fitted[label] = cdir.read_fitted(label)
             continue
         if det.capabilities.needs_fit:
             if learning_signals is None:
@@ -245,28 +132,9 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                 learning_signals = simulate_chunks(learning, settings, chunk_size,
                                                    submit=submit, workers=workers)
             det.fit(learning_signals)
-        write_pickle(path, det)
-        write_text(cdir.fitted / f"{label}.json", _json_state(det))
+        cdir.write_fitted(label, det)
         fitted[label] = det
     return fitted
-
-
-def _json_state(det) -> str:
-    import json
-
-    def plain(v):
-        if isinstance(v, np.ndarray):
-            return v.tolist()
-        if isinstance(v, (np.floating, np.integer)):
-            return v.item()
-        if isinstance(v, dict):
-            return {str(k): plain(x) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [plain(x) for x in v]
-        return v
-
-    return json.dumps({"detector": type(det).__name__, "params": plain(det.get_params()),
-                       "fitted": plain(det.fitted_state())}, indent=2, default=str)
 
 
 @dataclass
@@ -279,12 +147,16 @@ class CampaignResult:
     summary: pd.DataFrame
     complete: bool
     wall_s: float
+    #: first alarm per group × detector variant of a fixed-onset campaign
+    #: (``detection-times.parquet``, :mod:`reports.detection_times`); None for other campaigns
+    detection_times: pd.DataFrame | None = None
 
     def table(self) -> str:
         return format_table(self.summary)
 
 
 def settings_of(config) -> ChunkSettings:
+    """What the workers need of *config*, with its plant built once (:func:`plant_of`)."""
     return ChunkSettings(
         ts=config.campaign.ts_s,
         pressure_sensor=config.campaign.pressure_sensor,
@@ -298,12 +170,6 @@ def settings_of(config) -> ChunkSettings:
 def check_plant(config, plant) -> None:
     """Check the plant before anything runs (an FMU and its variable map: a clear FmuError)."""
     plant.check(faults={g.fault for g in config.groups})
-
-
-def failure_rows(rows: pd.DataFrame, labels, status: str, message: str) -> pd.DataFrame:
-    """Result rows of runs that could not be run (*status* ``error`` or ``timeout``)."""
-    return pd.concat([_error_rows(rows, label, message, status) for label in labels],
-                     ignore_index=True)[list(RESULT_COLUMNS)]
 
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
@@ -327,12 +193,49 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
 
     Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
-    as per-run status rows; see :mod:`campaign.execute`.
+    as per-run status rows; see :mod:`campaign.execute`. The directory left is the same
+    whether the campaign runs from Python or from ``fdd-campaign run``.
     """
-    from .execute import LocalPool, connect, run_local, run_on_cluster
-
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
+    setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
+                   scheduler=scheduler, engine=engine, log=log)
+    try:
+        plan = build_plan(config)
+        if not setup.cdir.has_plan():
+            setup.cdir.write_plan(plan, config.to_json())
+        detectors = _learn(config, setup, log)
+        complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
+    finally:
+        setup.close()
+    return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
+
+
+@dataclass
+class _Setup:
+    """Where and how a campaign runs, decided before any work (:func:`_setup`)."""
+
+    cdir: CampaignDir
+    resumed: bool
+    settings: ChunkSettings
+    chunk_size: int
+    jobs: int
+    backend: str
+    client: object = None   # a distributed.Client, or None
+    pool: object = None     # a started campaign.execute.LocalPool, or None
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.stop(kill=True)
+        if self.client is not None:
+            self.client.close()
+
+
+def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log) -> _Setup:
+    """Check the plant and the options, open the directory, warm the kernels and start the
+    local workers (they start while the learning set is simulated here)."""
+    from .execute import LocalPool, connect
+
     settings = settings_of(config)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -348,83 +251,86 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     client = connect(scheduler) if scheduler else None   # fail fast, before any work
     cdir = CampaignDir(out)
     resumed = cdir.open(config.to_json())
-    chunk_size = int(chunk_size or config.runner.chunk_size)
     if settings.engine == "compiled":
         for spec in config.detectors:   # import their modules: they register their kernels
             load_detector_class(spec.name)
         kernels.warm_up(log)
-    pool = None
+    setup = _Setup(cdir=cdir, resumed=resumed, settings=settings,
+                   chunk_size=int(chunk_size or config.runner.chunk_size), jobs=jobs,
+                   backend=backend, client=client)
     if client is None and jobs > 1:
-        pool = LocalPool(backend, jobs)
-        pool.start()              # workers start while the learning set is simulated here
+        setup.pool = LocalPool(backend, jobs)
+        setup.pool.start()
+    return setup
+
+
+def _learn(config, setup: _Setup, log) -> dict:
+    """The fitted detectors (fitted on the learning set, or reloaded from the directory)."""
+    settings, pool = setup.settings, setup.pool
+    with kernels.use_engine(settings.engine):
+        # the learning set on the worker threads (the built-in plant's kernels release
+        # the GIL; an FMU plant is simulated here, one instance at a time)
+        threads = (pool is not None and setup.backend == "threading"
+                   and settings.plant.kind == "actuator")
+        return fit_detectors(config, setup.cdir, settings, setup.chunk_size, log=log,
+                             submit=pool.submit if threads else None, workers=setup.jobs)
+
+
+def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, progress: bool,
+             log) -> bool:
+    """Evaluate the runs of *plan* not done yet, chunk by chunk, each stored as a shard as
+    it finishes; returns whether every chunk ran (False after Ctrl-C)."""
+    from .execute import run_local, run_on_cluster
+
+    cdir, settings, pool = setup.cdir, setup.settings, setup.pool
+    done = cdir.done_run_ids() if setup.resumed else set()
+    todo = plan[~plan["run_id"].isin(done)]
+    if setup.resumed:
+        log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
+    size = setup.chunk_size
+    chunks = [todo.iloc[s:s + size] for s in range(0, len(todo), size)]
+    bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
+    labels = list(detectors)
+
+    def store(frame: pd.DataFrame) -> None:
+        cdir.write_shard(frame, config.to_json())
+        bar.update(frame["run_id"].nunique())
+
+    def fail(rows, status, message):
+        return failure_rows(rows, labels, status, message)
 
     try:
-        plan = build_plan(config)
-        plan_path = cdir.root / "plan.parquet"
-        if not plan_path.exists():
-            write_parquet(plan, plan_path, config.to_json(), kind="plan")
-        with kernels.use_engine(settings.engine):
-            # the learning set on the worker threads (the built-in plant's kernels release
-            # the GIL; an FMU plant is simulated here, one instance at a time)
-            threads = (pool is not None and backend == "threading"
-                       and settings.plant.kind == "actuator")
-            detectors = fit_detectors(config, cdir, settings, chunk_size, log=log,
-                                      submit=pool.submit if threads else None, workers=jobs)
-
-        done = cdir.done_run_ids() if resumed else set()
-        todo = plan[~plan["run_id"].isin(done)]
-        if resumed:
-            log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already "
-                "done")
-        chunks = [todo.iloc[s:s + chunk_size] for s in range(0, len(todo), chunk_size)]
-        bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
-        labels = list(detectors)
-        complete = False
-
-        def store(frame: pd.DataFrame) -> None:
-            write_parquet(frame, cdir.next_shard_path(), config.to_json(), kind="results")
-            bar.update(frame["run_id"].nunique())
-
-        def fail(rows, status, message):
-            return failure_rows(rows, labels, status, message)
-
-        try:
-            if chunks and client is not None:
-                run_on_cluster(client, chunks, run_chunk, detectors, settings, fail, store,
-                               log=log)
-            elif chunks and pool is None:
-                if config.runner.run_timeout_s is not None:
-                    log("note: run_timeout_s is enforced on worker processes only (--jobs ≥ 2 "
-                        "with the loky backend, or a dask cluster); running in-process "
-                        "without a limit")
-                for c in chunks:
-                    store(run_chunk(c, detectors, settings))
-            elif chunks:
-                if backend == "threading":   # threads share memory: one detector copy each
-                    call = partial(_run_chunk_copy, detectors=detectors, settings=settings)
-                else:
-                    call = partial(run_chunk, detectors=detectors, settings=settings)
-                run_local(chunks, call,
-                          fail, store, jobs=jobs, backend=backend,
-                          run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
-            complete = True
-        except KeyboardInterrupt:
-            bar.close()
-            log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
-                "command again to resume")
-        finally:
-            bar.close()
+        if chunks and setup.client is not None:
+            run_on_cluster(setup.client, chunks, evaluate, detectors, settings, fail, store,
+                           log=log)
+        elif chunks and pool is None:
+            if config.runner.run_timeout_s is not None:
+                log("note: run_timeout_s is enforced on worker processes only (--jobs ≥ 2 "
+                    "with the loky backend, or a dask cluster); running in-process "
+                    "without a limit")
+            for c in chunks:
+                store(evaluate(c, detectors, settings))
+        elif chunks:
+            # threads share memory: one detector copy per chunk
+            call = partial(_evaluate_copy if setup.backend == "threading" else evaluate,
+                           detectors=detectors, settings=settings)
+            run_local(chunks, call, fail, store, jobs=setup.jobs, backend=setup.backend,
+                      run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
+        return True
+    except KeyboardInterrupt:
+        bar.close()
+        log(f"\ninterrupted: the finished chunks are stored in {cdir.root}; run the same "
+            "command again to resume")
+        return False
     finally:
-        if pool is not None:
-            pool.stop(kill=True)
-        if client is not None:
-            client.close()
-    return finalize(cdir, config, plan, complete, time.perf_counter() - t_start)
+        bar.close()
 
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
              wall_s: float) -> CampaignResult:
-    """Gather the shards in plan order and write ``summary.parquet``."""
+    """Gather the shards in plan order and write ``summary.parquet`` and, for a campaign of
+    fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
+    ``detection-times.parquet``."""
     results = cdir.read_results()
     if not results.empty:
         order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
@@ -434,20 +340,22 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
         summary = summarize(results)
     else:
         summary = pd.DataFrame()
-    write_parquet(summary, cdir.root / "summary.parquet", config.to_json(), kind="summary",
-                  complete=complete, runs_done=int(results["run_id"].nunique())
-                  if not results.empty else 0, runs_planned=len(plan))
+    cdir.write_summary(summary, config.to_json(), complete=complete,
+                       runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
+                       runs_planned=len(plan))
+    times = None
+    if not results.empty and fixed_onset_campaign(plan):
+        times = detection_time_table(plan, results)
+        cdir.write_detection_times(times, config.to_json())
     return CampaignResult(out=cdir.root, plan=plan, results=results, summary=summary,
-                          complete=complete, wall_s=wall_s)
+                          complete=complete, wall_s=wall_s, detection_times=times)
 
 
 def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``."""
     cdir = CampaignDir(out)
-    summary_path = cdir.root / "summary.parquet"
-    if not summary_path.exists():
+    if not cdir.has_summary():
         raise CampaignSetupError(f"{cdir.root} holds no summary.parquet: is it a campaign "
                                  "directory written by 'fdd-campaign run'?")
-    import pyarrow.parquet as pq
-
-    return cdir.read_results(), pq.read_table(summary_path).to_pandas(), read_metadata(summary_path)
+    summary, meta = cdir.read_summary()
+    return cdir.read_results(), summary, meta

@@ -8,11 +8,16 @@ Layout (docs/design.md §6, Outputs)::
     DIR/fitted/LABEL.pkl      each fitted detector (and LABEL.json: its learned values)
     DIR/runs/part-NNNNNN.parquet  result rows, one shard per finished chunk
     DIR/summary.parquet       rates, bounds, DTP statistics
+    DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
+                              campaigns only, :mod:`reports.detection_times`)
+    DIR/report.html           the HTML report (``fdd-campaign report``)
 
-Every file is written under a temporary name and moved into place with ``os.replace``, so a
-crash or a kill leaves either the old file or the new one, never a torn one; leftover
-temporary files are removed when the directory is opened again. Every Parquet file carries
-the campaign configuration, the engine version and its row count in its schema metadata.
+:class:`CampaignDir` alone names these files and reads and writes them; the rest of the
+engine asks it. Every file is written under a temporary name and moved into place with
+``os.replace``, so a crash or a kill leaves either the old file or the new one, never a torn
+one; leftover temporary files are removed when the directory is opened again. Every Parquet
+file carries the campaign configuration, the engine version and its row count in its schema
+metadata.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ import tempfile
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -82,6 +88,26 @@ def write_pickle(path: Path, obj) -> None:
     _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_bytes(pickle.dumps(obj)))
 
 
+def _plain(value):
+    """*value* with NumPy arrays and scalars made JSON-serialisable (lists, floats, ints)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, dict):
+        return {str(k): _plain(x) for k, x in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(x) for x in value]
+    return value
+
+
+def fitted_json(det) -> str:
+    """The human-readable form of a fitted detector (``fitted/LABEL.json``): its class,
+    parameters and learned values (:meth:`detectors.base.Detector.fitted_state`)."""
+    return json.dumps({"detector": type(det).__name__, "params": _plain(det.get_params()),
+                       "fitted": _plain(det.fitted_state())}, indent=2, default=str)
+
+
 #: ``[runner]`` keys that do not change any result (rows are bit-identical across chunk
 #: sizes; a time limit only decides which runs are retried), so a directory resumed with
 #: other values still holds the same campaign. ``engine`` is not among them: the two
@@ -99,12 +125,32 @@ def campaign_identity(config: dict) -> dict:
 
 
 class CampaignDir:
-    """One campaign's output directory."""
+    """One campaign's output directory: the only code that names, reads and writes its files.
+
+    Every Parquet file is written with the campaign's JSON form (*config_json*, as
+    ``CampaignConfig.to_json()``) in its metadata (:func:`write_parquet`).
+    """
 
     def __init__(self, root):
         self.root = Path(root)
+        self.config_path = self.root / "campaign.json"
+        self.plan_path = self.root / "plan.parquet"
+        self.learning_path = self.root / "learning.parquet"
+        self.summary_path = self.root / "summary.parquet"
+        self.detection_times_path = self.root / "detection-times.parquet"
+        self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
+
+    def is_campaign(self) -> bool:
+        """Whether the directory belongs to a campaign (holds ``campaign.json``)."""
+        return self.config_path.exists()
+
+    def missing_outputs(self) -> list[str]:
+        """Names of the files a finished run leaves (``campaign.json``, ``plan.parquet``,
+        ``summary.parquet``) that the directory does not hold."""
+        return [p.name for p in (self.config_path, self.plan_path, self.summary_path)
+                if not p.exists()]
 
     # ---- identity ---------------------------------------------------------------------
     def open(self, config_json: str) -> bool:
@@ -113,7 +159,7 @@ class CampaignDir:
         Returns True when earlier results exist (a resume). Raises
         :class:`CampaignDirError` when the directory holds a different campaign.
         """
-        stored = self.root / "campaign.json"
+        stored = self.config_path
         if self.root.exists() and not self.root.is_dir():
             raise CampaignDirError(f"{self.root} exists and is not a directory")
         if stored.exists():
@@ -138,6 +184,86 @@ class CampaignDir:
             write_text(stored, config_json)
         return any(self.runs.glob(SHARD_GLOB))
 
+    def read_config(self) -> dict:
+        """The stored ``campaign.json`` as a dict; :class:`CampaignDirError` when it is not
+        valid JSON."""
+        try:
+            return json.loads(self.config_path.read_text())
+        except json.JSONDecodeError as exc:
+            raise CampaignDirError(f"{self.config_path} is not valid JSON ({exc}); the "
+                                   "directory is damaged: rerun the campaign") from None
+
+    # ---- run tables -------------------------------------------------------------------
+    def has_plan(self) -> bool:
+        return self.plan_path.exists()
+
+    def write_plan(self, plan: pd.DataFrame, config_json: str) -> None:
+        """Write the run table ``plan.parquet``."""
+        write_parquet(plan, self.plan_path, config_json, kind="plan")
+
+    def read_plan(self) -> pd.DataFrame:
+        return pd.read_parquet(self.plan_path)
+
+    def write_learning(self, learning: pd.DataFrame, config_json: str) -> None:
+        """Write the learning-set run table ``learning.parquet``."""
+        write_parquet(learning, self.learning_path, config_json, kind="learning")
+
+    # ---- fitted detectors -------------------------------------------------------------
+    def _fitted_pickle(self, label: str) -> Path:
+        return self.fitted / f"{label}.pkl"
+
+    def has_fitted(self, label: str) -> bool:
+        """Whether the fitted detector *label* is stored."""
+        return self._fitted_pickle(label).exists()
+
+    def write_fitted(self, label: str, det) -> None:
+        """Store the fitted detector *label*: ``fitted/LABEL.pkl`` (the object, read back by
+        :meth:`read_fitted`) and ``fitted/LABEL.json`` (its learned values, for people)."""
+        write_pickle(self._fitted_pickle(label), det)
+        write_text(self.fitted / f"{label}.json", fitted_json(det))
+
+    def read_fitted(self, label: str):
+        """The fitted detector *label* stored by :meth:`write_fitted`;
+        :class:`CampaignDirError` when it is missing."""
+        path = self._fitted_pickle(label)
+        if not path.exists():
+            raise CampaignDirError(
+                f"{path} is missing: the fitted detector {label!r} is needed to re-simulate "
+                "runs; copy the whole campaign directory (fitted/ included) or rerun "
+                "'fdd-campaign run' into it")
+        return pickle.loads(path.read_bytes())
+
+    # ---- summary and detection times --------------------------------------------------
+    def has_summary(self) -> bool:
+        return self.summary_path.exists()
+
+    def write_summary(self, summary: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``summary.parquet``; *extra* (``complete``, ``runs_done``, ``runs_planned``)
+        goes into its metadata."""
+        write_parquet(summary, self.summary_path, config_json, kind="summary", **extra)
+
+    def read_summary(self) -> tuple[pd.DataFrame, dict]:
+        """(summary, metadata of ``summary.parquet``)."""
+        return (pq.read_table(self.summary_path).to_pandas(),
+                read_metadata(self.summary_path))
+
+    def write_detection_times(self, times: pd.DataFrame, config_json: str) -> None:
+        """Write ``detection-times.parquet``
+        (:func:`reports.detection_times.detection_time_table`)."""
+        write_parquet(times, self.detection_times_path, config_json, kind="detection_times")
+
+    def read_detection_times(self) -> pd.DataFrame | None:
+        """The stored detection times, or None when the campaign has none."""
+        if not self.detection_times_path.exists():
+            return None
+        return pd.read_parquet(self.detection_times_path)
+
+    def write_report(self, page: str, path=None) -> Path:
+        """Write the HTML report *page* to *path* (default ``report.html`` here)."""
+        path = Path(path) if path else self.report_path
+        write_text(path, page)
+        return path
+
     # ---- shards -----------------------------------------------------------------------
     def shard_paths(self) -> list[Path]:
         return sorted(self.runs.glob(SHARD_GLOB))
@@ -146,6 +272,10 @@ class CampaignDir:
         paths = self.shard_paths()
         last = int(paths[-1].stem.split("-")[1]) if paths else -1
         return self.runs / f"part-{last + 1:06d}.parquet"
+
+    def write_shard(self, results: pd.DataFrame, config_json: str) -> None:
+        """Store the result rows of one finished chunk as the next shard."""
+        write_parquet(results, self.next_shard_path(), config_json, kind="results")
 
     def read_results(self) -> pd.DataFrame:
         """Every result row; of a run written more than once (a rerun retrying its error or

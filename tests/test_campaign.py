@@ -16,7 +16,7 @@ from campaign import run
 from campaign.cli import main
 from campaign.config import CampaignConfig, load_config
 from campaign.design import LEARNING_STREAM_BASE, build_learning_plan, build_plan
-from campaign.runner import ChunkSettings, run_chunk
+from campaign.evaluate import ChunkSettings, evaluate
 from campaign.storage import CampaignDirError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -105,6 +105,66 @@ def test_faults_are_detected_and_fault_free_runs_are_quiet(tmp_path):
         assert (res.out / name).exists()
 
 
+#: A small campaign whose faulty groups have fixed onsets: ``run`` stores its detection
+#: times (reports.detection_times) beside the summary.
+FIXED_ONSETS = """
+[campaign]
+name = "fixed-onsets"
+seed = 5
+duration_s = 20.0
+[[group]]
+name = "ff"
+fault = "none"
+manoeuvres = ["cruise"]
+count = 2
+[[group]]
+name = "jam"
+fault = "solid_jam"
+manoeuvres = ["nose_up"]
+count = 2
+onset_s = 8.0
+[[group]]
+name = "ra"
+fault = "runaway"
+manoeuvres = ["cruise"]
+count = 1
+onset_s = 10.0
+[[detector]]
+name = "position-monitor"
+[learning]
+runs_per_manoeuvre = 1
+"""
+
+
+def test_python_api_and_command_line_leave_the_same_directory(tmp_path, capsys):
+    cfg_file = tmp_path / "fixed.toml"
+    cfg_file.write_text(FIXED_ONSETS)
+    py, cli = tmp_path / "py", tmp_path / "cli"
+    res = run(load_config(cfg_file), py, jobs=1, progress=False)
+    assert main(["run", str(cfg_file), "--out", str(cli), "--jobs", "1", "--quiet"]) == 0
+    assert "Detection times (s) of position-monitor" in capsys.readouterr().out
+
+    def files(root):
+        return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
+
+    assert files(py) == files(cli)
+    assert "detection-times.parquet" in files(py)
+    times = pd.read_parquet(py / "detection-times.parquet")
+    pd.testing.assert_frame_equal(times, pd.read_parquet(cli / "detection-times.parquet"),
+                                  check_exact=True)
+    pd.testing.assert_frame_equal(times, res.detection_times, check_exact=True)
+    # one row per group, the faulty groups alarmed after their onsets
+    assert list(times["group"]) == ["ff", "jam", "ra"]
+    faulty = times[times["fault"] != "none"]
+    assert (faulty["n_alarmed"] == faulty["n_runs"]).all() and (faulty["delay_s"] > 0).all()
+
+
+def test_a_campaign_of_random_onsets_stores_no_detection_times(tmp_path):
+    res = run(tiny(), tmp_path / "out", jobs=1, progress=False)
+    assert res.detection_times is None
+    assert not (res.out / "detection-times.parquet").exists()
+
+
 def test_a_bad_run_is_recorded_and_does_not_stop_the_chunk():
     cfg = tiny()
     plan = build_plan(cfg).iloc[:3].copy()
@@ -116,7 +176,7 @@ def test_a_bad_run_is_recorded_and_does_not_stop_the_chunk():
     det = make_detector("position-monitor")
     det.fit(simulate(build_learning_plan(cfg).iloc[:2])[0])
     settings = ChunkSettings(ts=0.01, pressure_sensor=False, required_time_s={}, window_s=None)
-    out = run_chunk(plan, {"pm": det}, settings)
+    out = evaluate(plan, {"pm": det}, settings)
     assert list(out["status"]) == ["ok", "error", "ok"]
     assert "alt_ft" in out["error"].iloc[1]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from campaign.runner import _scoring_truth
+from campaign.evaluate import _scoring_truth
 from scenarios.simulate import simulate, single_run
 
 SIGNALS = ("command", "current", "rod_com", "rod_mon", "surface")

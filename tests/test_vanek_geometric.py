@@ -213,11 +213,10 @@ def test_aileron_faults_cross_the_threshold_after_onset():
 
 
 def test_comparison_command_refuses_a_bad_noise_scale(capsys):
-    from detectors.vanek_compare import main
+    from campaign.cli import main
 
-    with pytest.raises(SystemExit) as exc:
-        main(["--noise-scale", "0"])
-    assert exc.value.code == 2 and "--noise-scale must be > 0" in capsys.readouterr().err
+    assert main(["study", "vanek", "--noise-scale", "0"]) == 2
+    assert "--noise-scale must be > 0" in capsys.readouterr().err
 
 
 def test_a_campaign_at_the_actuator_level_is_refused_before_it_starts():
@@ -348,14 +347,14 @@ def test_one_step_hinf_filter_gamma_tracking_and_approximate_isolation():
 
 
 def test_vanek_comparison_lpv_detects_the_jam_first_and_both_isolate():
-    """The [VANEK] §5 comparison (python -m detectors.vanek_compare) at the default sensors:
+    """The [VANEK] §5 comparison (fdd-campaign study vanek) at the default sensors:
     as in [VANEK], both geometric filters keep the elevator runaway below threshold, the LPV
     filters (frozen-point and affine) have the smaller isolation peak ([VANEK]: 0.105 < 0.175)
     and detect the [VANEK]-size liquid jam at 170 kt / 23 000 ft first ([VANEK] DTP
     0.00508 < 0.00725). Measured: peaks 0.67 ° (LTI), 0.24 ° (LPV), 0.42 ° (LPV-affine); jam
     alarms 2.9 s, 1.5 s and 1.7 s after onset; thresholds 1.31–1.39 °, 0.39–0.40 ° and
     0.63–0.67 °."""
-    from detectors.vanek_compare import compare
+    from campaign.studies.vanek import compare
 
     df = compare(1.0).set_index(["scenario", "variant"])
     iso = df.loc["elevator runaway (isolation)"]

@@ -359,8 +359,13 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
 class AircraftPlant:
     """The aircraft in the loop (docs/physics.md §7): rigid body, control laws and every
     surface's servo-loop; the run rows name the *monitored* aircraft surface. A
-    :class:`scenarios.plants.Plant`."""
+    :class:`scenarios.plants.Plant`.
 
+    aircraft_sensors : the noise of the aircraft sensors (default :data:`AIRCRAFT_SENSORS`,
+        docs/physics.md §7).
+    """
+
+    aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS
     kind = "aircraft"
     #: runs on threads (no per-process state)
     needs_processes = False
@@ -385,4 +390,5 @@ class AircraftPlant:
 
     def simulate(self, runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
                  pressure_sensor: bool = False) -> tuple[Signals, Truth]:
-        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor)
+        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
+                                 aircraft_sensors=self.aircraft_sensors)

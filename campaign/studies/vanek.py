@@ -1,5 +1,5 @@
 """LTI against LPV geometric filter on the scenarios of [VANEK] §5, run by
-``python -m detectors.vanek_compare [--noise-scale S]``.
+``fdd-campaign study vanek [--noise-scale S] [--seed N]`` (docs/vanek-geometric.md).
 
 * isolation: left elevator runaway at 5 °/s from 20 s, 200 kt / 26 000 ft, left elevator
   monitored — peak of the aileron residual [deg of aileron-equivalent] and its ratio to the
@@ -14,16 +14,27 @@ installed.
 
 Each scenario is fitted on its own fault-free cruise learning set (same monitored surface,
 moderate turbulence, :data:`LEARNING_POINTS`). ``noise_scale`` multiplies the σ of every
-aircraft sensor (:class:`scenarios.aircraft.data.AircraftSensorParams`).
+aircraft sensor (:class:`scenarios.aircraft.data.AircraftSensorParams`). Detection and
+scoring are those of a campaign (:func:`campaign.evaluate.detect`,
+:func:`campaign.evaluate.score`, i.e. :func:`reports.metrics.score_runs`: the delay is
+counted from the first alarm at or after onset, the DTP over the campaign's default
+required detection time, no detection window).
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
+from dataclasses import replace
 
-import numpy as np
 import pandas as pd
+
+from scenarios.aircraft.loop import AircraftPlant
+from scenarios.catalog import REQUIRED_DETECTION_TIME_S
+from scenarios.params import TS_S
+
+from ..evaluate import ChunkSettings, score, simulate_and_detect, simulate_signals
+
+__all__ = ["CG_PCT", "JAM_MM", "LEARNING_POINTS", "MASS_T", "compare", "format_table"]
 
 #: Flight points (VCAS [kt], altitude [ft]) of the fault-free cruise learning runs (est.:
 #: the cruise part of the realistic envelope, [VANEK] §5 "various cruise conditions").
@@ -33,6 +44,13 @@ LEARNING_POINTS = ((170.0, 23000.0), (200.0, 26000.0), (220.0, 20000.0), (240.0,
 MASS_T, CG_PCT = 200.0, 30.0
 #: Liquid-jam rod bias [mm] (module docstring).
 JAM_MM = -4.09
+#: Label of the detector in the result rows (variants ``vanek-geometric[lti]``, …).
+LABEL = "vanek-geometric"
+
+#: Scoring settings: the campaign defaults at the aircraft plant level, 100 Hz.
+SETTINGS = ChunkSettings(ts=TS_S, pressure_sensor=False,
+                         required_time_s=dict(REQUIRED_DETECTION_TIME_S), window_s=None,
+                         plant=AircraftPlant())
 
 
 def _rows(surface, fault, seed, vcas, alt, magnitude=None, duration_s=40.0, stream=0):
@@ -46,28 +64,37 @@ def _rows(surface, fault, seed, vcas, alt, magnitude=None, duration_s=40.0, stre
     return r
 
 
-def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
-    """One row per scenario and variant: residual peak [deg], peak / threshold, threshold
-    [deg], detection delay [s] (NaN: none) and DTP."""
-    from campaign.config import REQUIRED_DETECTION_TIME_S
-    from scenarios.aircraft.data import AIRCRAFT_SENSORS
-    from scenarios.aircraft.loop import simulate_aircraft
-
-    from .vanek_geometric import AFFINE_VARIANTS, HINF_VARIANTS, VARIANTS, VanekGeometric
+def _variants() -> list[str]:
+    """The variants compared: the H∞ ones when their extra (control, slycot) is installed."""
+    from detectors.vanek_geometric import AFFINE_VARIANTS, HINF_VARIANTS, VARIANTS
 
     variants = VARIANTS + AFFINE_VARIANTS
-    try:                                  # the H∞ variants when their extra is there
+    try:
         import control  # noqa: F401
         import slycot  # noqa: F401
-        variants += HINF_VARIANTS
     except ImportError:
-        pass
+        return variants
+    return variants + HINF_VARIANTS
+
+
+def _sensors(noise_scale: float):
+    """The aircraft sensors with every σ multiplied by *noise_scale*."""
+    from scenarios.aircraft.data import AIRCRAFT_SENSORS
 
     if not noise_scale > 0.0:
         raise ValueError(f"noise_scale must be > 0, got {noise_scale!r}")
-    sensors = dataclasses.replace(AIRCRAFT_SENSORS, **{
+    return dataclasses.replace(AIRCRAFT_SENSORS, **{
         f.name: getattr(AIRCRAFT_SENSORS, f.name) * noise_scale
         for f in dataclasses.fields(AIRCRAFT_SENSORS)})
+
+
+def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
+    """One row per scenario and variant: residual peak [deg], peak / threshold, threshold
+    [deg], detection delay [s] (NaN: none) and DTP."""
+    from detectors.vanek_geometric import VanekGeometric
+
+    settings = replace(SETTINGS, plant=AircraftPlant(aircraft_sensors=_sensors(noise_scale)))
+    variants = _variants()
     scenarios = {
         "elevator runaway (isolation)": _rows("left_elevator", "runaway", seed + 1, 200.0,
                                               26000.0, magnitude=5.0),
@@ -77,42 +104,35 @@ def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
     }
     fitted = {}
     out = []
-    for name, row in scenarios.items():
-        surface = str(row["surface"].iloc[0])
+    for name, rows in scenarios.items():
+        surface = str(rows["surface"].iloc[0])
         if surface not in fitted:
             learn = pd.concat([_rows(surface, "none", seed + 100 + i, v, h, stream=i)
                                for i, (v, h) in enumerate(LEARNING_POINTS)], ignore_index=True)
-            fitted[surface] = VanekGeometric(variants=variants).fit(simulate_aircraft(learn,
-                                                                     aircraft_sensors=sensors)[0])
+            fitted[surface] = VanekGeometric(variants=variants).fit(
+                simulate_signals(learn, settings))
         det = fitted[surface]
-        sig, _ = simulate_aircraft(row, aircraft_sensors=sensors)
-        detections = det.detect(sig)
-        fault = str(row["fault"].iloc[0])
-        for variant, d in detections.items():
+        _, truth, detections = simulate_and_detect(rows, {LABEL: det}, settings)
+        scored = score(rows, truth, detections, settings).set_index("detector")
+        for key, d in detections.items():
+            variant = key[len(LABEL) + 1:-1]          # "vanek-geometric[lti]" -> "lti"
             tau = det.thresholds_deg_[variant]
-            delay = (np.argmax(d.alarm[0]) * sig.ts - 20.0) if d.alarm[0].any() else np.nan
-            required = REQUIRED_DETECTION_TIME_S.get(fault, np.nan)
             out.append({"scenario": name, "variant": variant,
                         "peak_deg": float(d.residual[0].max() * tau),
                         "peak_over_threshold": float(d.residual[0].max()),
-                        "threshold_deg": tau, "delay_s": delay,
-                        "dtp": delay / required if fault != "none" else np.nan})
+                        "threshold_deg": tau, "delay_s": float(scored.loc[key, "delay_s"]),
+                        "dtp": float(scored.loc[key, "dtp"])})
     return pd.DataFrame(out)
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m detectors.vanek_compare",
-                                description=__doc__.split("\n\n")[0])
-    p.add_argument("--noise-scale", type=float, default=1.0,
-                   help="factor on the σ of every aircraft sensor (default 1)")
-    p.add_argument("--seed", type=int, default=0)
-    args = p.parse_args(argv)
-    if not args.noise_scale > 0.0:
-        p.error(f"--noise-scale must be > 0, got {args.noise_scale}")
+def format_table(table: pd.DataFrame) -> str:
+    """The table as printed by ``fdd-campaign study vanek``."""
     with pd.option_context("display.width", 120, "display.precision", 4):
-        print(compare(args.noise_scale, args.seed).to_string(index=False))
-    return 0
+        return table.to_string(index=False)
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
+def run_study(noise_scale: float = 1.0, seed: int = 0, echo=print) -> pd.DataFrame:
+    """Compute and print the comparison; returns its table (:func:`compare`)."""
+    table = compare(noise_scale, seed)
+    echo(format_table(table))
+    return table

@@ -1,0 +1,201 @@
+"""The evaluation pipeline: simulate plan rows, run the fitted detectors, score the alarms.
+
+docs/design.md §3, data flow steps 3–5. Every path of the engine that turns run-table rows
+into detections or result rows goes through here: the runner's chunks
+(:func:`evaluate`), the report's and ``show``'s re-simulation (:func:`simulate_and_detect`),
+the learning set (:func:`simulate_signals`), ``bench`` and the studies. The plant is
+called in one place (:func:`_simulate`); the scoring rules are those of
+:func:`reports.metrics.score_runs` and nowhere else.
+
+:func:`evaluate` never raises for a bad run or a failing detector: those runs get result
+rows with ``status="error"`` and the message (docs/design.md §9, Non-negotiables). This
+module does not know where chunks run (:mod:`campaign.execute`) nor where results are
+stored (:mod:`campaign.storage`).
+"""
+
+from __future__ import annotations
+
+import traceback
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from detectors import as_variants
+from reports.metrics import RESULT_COLUMNS, score_runs
+from scenarios import kernels
+from scenarios.signals import Signals
+from scenarios.plants import Plant
+from scenarios.simulate import ActuatorPlant
+
+__all__ = ["ChunkSettings", "detect", "evaluate", "failure_rows", "score",
+           "simulate_and_detect", "simulate_signals"]
+
+
+@dataclass(frozen=True)
+class ChunkSettings:
+    """What a worker needs besides the rows and the fitted detectors (picklable).
+
+    ts : sampling period [s]
+    pressure_sensor : whether the chamber pressure sensor is simulated
+    required_time_s : fault type → required detection time [s] (the DTP denominator)
+    window_s : detection window after onset [s] (None: the rest of the run)
+    plant : what the runs are simulated on (a :class:`scenarios.plants.Plant`)
+    engine : time-loop kernels, ``"compiled"`` or ``"numpy"`` (:mod:`scenarios.kernels`)
+    """
+
+    ts: float
+    pressure_sensor: bool
+    required_time_s: dict
+    window_s: float | None
+    plant: Plant = ActuatorPlant()
+    engine: str = "compiled"
+
+
+# ---- the stages ------------------------------------------------------------------------------
+def _simulate(rows: pd.DataFrame, settings: ChunkSettings):
+    """(Signals, Truth) of plan *rows* on the campaign's plant: the one call of the plant."""
+    return settings.plant.simulate(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
+
+
+def simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
+    """The signals of plan *rows* (what a detector reads), with the kernels of
+    ``settings.engine``; used for learning sets and benchmarks."""
+    with kernels.use_engine(settings.engine):
+        return _simulate(rows, settings)[0]
+
+
+def detect(signals: Signals, detectors: dict) -> dict:
+    """Every fitted detector (label → Detector) on *signals*: {variant name →
+    :class:`detectors.base.Detection`}, the names of the result rows
+    (:func:`detectors.as_variants`)."""
+    detections = {}
+    for label, det in detectors.items():
+        detections.update(as_variants(label, det.detect(signals)))
+    return detections
+
+
+def simulate_and_detect(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
+    """Simulate plan *rows* and run every fitted detector on them, for callers that need the
+    traces (report, ``show``).
+
+    Returns ``(signals, truth, detections)``, *detections* as :func:`detect`. Raises what
+    the simulation or a detector raises (:func:`evaluate` records it instead).
+    """
+    with kernels.use_engine(settings.engine):
+        signals, truth = _simulate(rows, settings)
+        return signals, truth, detect(signals, detectors)
+
+
+def _required(fault, settings: ChunkSettings) -> np.ndarray:
+    """Required detection time [s] of each run's fault type (NaN when none is set)."""
+    return np.array([settings.required_time_s.get(f, np.nan) for f in fault])
+
+
+def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
+            settings: ChunkSettings) -> list[pd.DataFrame]:
+    frames = []
+    for name, detection in detections.items():
+        scored = score_runs(
+            run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
+            alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
+            required_time_s=required, window_s=settings.window_s)
+        scored.insert(1, "detector", name)
+        scored.insert(2, "fault", truth.fault)
+        scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
+        scored.insert(4, "status", "ok")
+        scored.insert(5, "error", "")
+        frames.append(scored)
+    return frames
+
+
+def score(rows: pd.DataFrame, truth, detections: dict, settings: ChunkSettings) -> pd.DataFrame:
+    """Result rows (:data:`reports.metrics.RESULT_COLUMNS`, ``status="ok"``) of *detections*
+    ({variant name → Detection}) on the runs *rows* whose truth is *truth*: one row per
+    run × variant, scored by :func:`reports.metrics.score_runs` with the required detection
+    times and window of *settings*."""
+    frames = _scored(rows, truth, detections, _required(truth.fault, settings), settings)
+    return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+# ---- the robust whole ------------------------------------------------------------------------
+def evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
+    """Simulate, detect and score one chunk of runs; returns its result rows.
+
+    Never raises for a bad run or a failing detector: those rows get ``status="error"``.
+    A chunk whose simulation fails, or a detector that raises on a chunk, is retried run by
+    run, so one bad run does not take the others of its chunk down with it. The kernels
+    are those of ``settings.engine``.
+    """
+    with kernels.use_engine(settings.engine):
+        return _evaluate(rows, detectors, settings)
+
+
+def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
+    try:
+        signals, truth = _simulate(rows, settings)
+    except Exception as exc:  # noqa: BLE001 - recorded per run, never fatal
+        if len(rows) > 1:
+            return pd.concat([_evaluate(rows.iloc[[j]], detectors, settings)
+                              for j in range(len(rows))], ignore_index=True)
+        return pd.concat([_error_rows(rows, label, f"simulation failed: {_describe(exc)}")
+                          for label in detectors], ignore_index=True)
+    truth = _scoring_truth(truth)
+    required = _required(truth.fault, settings)
+    frames = []
+    for label, det in detectors.items():
+        try:
+            frames.extend(_scored(rows, truth, detect(signals, {label: det}), required,
+                                  settings))
+        except Exception as exc:  # noqa: BLE001
+            if len(rows) == 1:
+                frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+                continue
+            # run by run, so that only the runs the detector fails on are recorded as errors
+            for j in range(len(rows)):
+                try:
+                    frames.extend(_scored(rows.iloc[[j]], truth.take([j]),
+                                          detect(signals.take([j]), {label: det}),
+                                          required[[j]], settings))
+                except Exception as exc_j:  # noqa: BLE001
+                    frames.append(_error_rows(rows.iloc[[j]], label,
+                                              f"detector failed: {_describe(exc_j)}"))
+    return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _scoring_truth(truth):
+    """*truth* without its (n, T) true series, which scoring does not read (fault type and
+    onset only): their memory is freed before the detectors run. The series become
+    all-NaN read-only views of the same shape."""
+    shape = np.shape(truth.rod_mm)
+    nan = np.broadcast_to(np.nan, shape)
+    return replace(truth, rod_mm=nan, surface_deg=nan, current_mA=nan, aircraft=None,
+                   surfaces_deg=None)
+
+
+# ---- runs that could not be evaluated --------------------------------------------------------
+def _error_rows(rows: pd.DataFrame, detector: str, message: str,
+                status: str = "error") -> pd.DataFrame:
+    n = len(rows)
+    return pd.DataFrame({
+        "run_id": rows["run_id"].to_numpy(), "detector": detector,
+        "fault": rows["fault"].to_numpy(), "manoeuvre": rows["manoeuvre"].to_numpy(),
+        "status": status, "error": message,
+        "false_alarm": np.zeros(n, bool), "pre_onset_alarm": np.zeros(n, bool),
+        "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
+        "dtp": np.nan, "margin": np.nan,
+    })
+
+
+def _describe(exc: BaseException) -> str:
+    last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
+    where = f" (at {Path(last[0].filename).name}:{last[0].lineno})" if last else ""
+    return f"{type(exc).__name__}: {exc}{where}"
+
+
+def failure_rows(rows: pd.DataFrame, labels, status: str, message: str) -> pd.DataFrame:
+    """Result rows of runs that could not be run (*status* ``error`` or ``timeout``), one
+    per run × detector label."""
+    return pd.concat([_error_rows(rows, label, message, status) for label in labels],
+                     ignore_index=True)[list(RESULT_COLUMNS)]
