@@ -624,3 +624,20 @@ def test_loading_a_suite_name_as_a_campaign_does_not_import_the_suites():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=REPO, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_init_text_lists_every_builtin_detector_parameter_from_its_declaration():
+    """``fdd-campaign init`` shows each built-in detector's parameters and defaults from the
+    one declaration the validator uses (detectors.params)."""
+    from detectors.params import parameter_table
+    from detectors.registry import BUILTIN, load_detector_class
+
+    text = init_text()
+    block = text[text.index("# Parameters of the built-in detectors"):]
+    block = block[:block.index("\n\n")]
+    for name in BUILTIN:
+        assert f"#   {name}:" in block
+        for row in parameter_table(load_detector_class(name)):
+            assert f"#     {row['name']}" in block, (name, row["name"])
+    assert "(built-in: position-monitor, comb-interval, chen-local, chen-global, " \
+           "vanek-geometric;" in " ".join(line.lstrip("# ") for line in text.splitlines())

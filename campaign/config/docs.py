@@ -90,6 +90,8 @@ def init_text() -> str:
                         out.extend(_wrap_comment(_key_comment(spec, f.name)))
                         out.append(f"# {f.name} = {toml_value(example_value(spec, f.default))}")
                 out.append("")
+            if path == "detector":
+                out += _builtin_detector_comments()
             continue
         out.extend(_wrap_comment(doc))
         out.append(f"[{path}]")
@@ -101,6 +103,24 @@ def init_text() -> str:
             out.append(f"{prefix}{f.name} = {toml_value(shown)}")
         out.append("")
     return "\n".join(out).rstrip() + "\n"
+
+
+def _builtin_detector_comments() -> list[str]:
+    """Commented lines listing every built-in detector's parameters with their defaults,
+    allowed values and units (from the detectors' declarations, detectors.params)."""
+    from detectors.params import parameter_table
+    from detectors.registry import BUILTIN, load_detector_class
+
+    out = ["# Parameters of the built-in detectors (params = { … }; docs/detectors.md):"]
+    for name in BUILTIN:
+        out.append(f"#   {name}:")
+        for row in parameter_table(load_detector_class(name)):
+            default = "" if row["default"] is None else f" = {toml_value(row['default'])}"
+            unit = f" [{row['unit']}]" if row["unit"] and row["unit"] != "-" else ""
+            allowed = f" ({row['allowed']})" if row["allowed"] else ""
+            out.extend(_wrap_comment(f"    {row['name']}{default}{unit}{allowed}"))
+    out.append("")
+    return out
 
 
 def _md_cell(text: str) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from detectors.registry import BUILTIN
 from scenarios.aircraft.data import AIRCRAFT_SURFACES
 from scenarios.plants import PLANT_KINDS
 from scenarios.catalog import (
@@ -239,7 +240,8 @@ class GroupSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class DetectorSpec:
-    name: str = key("str", "registered detector name (built-in: position-monitor; others "
+    name: str = key("str", "registered detector name (built-in: "
+                    + ", ".join(BUILTIN) + "; their parameters: docs/detectors.md; others "
                     "through the entry-point group fdd_campaign.detectors)",
                     example="position-monitor", nonempty=True)
     label: str = key("str", "name of this detector in the results (unique)", optional=True,
