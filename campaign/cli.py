@@ -58,7 +58,29 @@ def _run_campaign(config, out, args):
         from reports.detection_times import format_detection_times
 
         print(format_detection_times(result.detection_times))
+    print(_verdict(config, result))
     return result
+
+
+def _verdict(config, result) -> str:
+    """One line: would ``fdd-campaign gate`` (the campaign file's false-alarm limit) pass on
+    this result, and the command to run next."""
+    from reports.gate import evaluate_gate
+
+    gate = evaluate_gate(result.summary, max_fa=config.requirements.max_fa_rate,
+                         coverage=(result.results["run_id"].nunique()
+                                   if not result.results.empty else 0, len(result.plan)),
+                         results=result.results)
+    if gate.passed:
+        return (f"verdict: the gate passes (all {len(gate.checks)} checks); next: "
+                f"fdd-campaign gate {result.out} --junit gate.xml, or fdd-campaign report "
+                f"{result.out}")
+    first = gate.failures[0]
+    runs = [run for c in gate.failures for run in c.run_ids]
+    nxt = (f"fdd-campaign show {result.out} {runs[0]} --plot run.png" if runs
+           else f"fdd-campaign report {result.out}")
+    return (f"verdict: the gate fails ({len(gate.failures)} of {len(gate.checks)} checks; "
+            f"first: {first.message.removeprefix('FAIL ')}); next: {nxt}")
 
 
 def cmd_run(args) -> int:
@@ -124,17 +146,17 @@ def cmd_gate(args) -> int:
     from .suite import is_suite_dir, suite_members
 
     if not is_suite_dir(args.dir):
-        result, complete = _gate_one(args.dir, args)
+        result = _gate_one(args.dir, args)
         if args.junit:
             write_junit(result, args.junit)
             print(f"JUnit report written to {args.junit}")
-        return EXIT_OK if (result.passed and complete) else EXIT_GATE
+        return EXIT_OK if result.passed else EXIT_GATE
     results, ok = [], True
     for title, member in suite_members(args.dir):
         print(f"== {title} ==")
-        result, complete = _gate_one(member, args)
+        result = _gate_one(member, args)
         results.append((member.name, result))
-        ok = ok and result.passed and complete
+        ok = ok and result.passed
     print(f"suite gate {'PASSED' if ok else 'FAILED'}: "
           f"{sum(r.passed for _, r in results)} of {len(results)} campaigns passed")
     if args.junit:
@@ -148,20 +170,25 @@ def _gate_one(directory, args):
 
     from .runner import load_results
 
-    _, summary, meta = load_results(directory)
+    results, summary, meta = load_results(directory)
     req = (meta.get("config") or {}).get("requirements", {})
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
     max_md, max_dtp = args.max_md, args.max_dtp
     if args.all_requirements:        # the campaign file's MD and DTP limits too (as the report)
         max_md = max_md if max_md is not None else req.get("max_md_rate")
         max_dtp = max_dtp if max_dtp is not None else req.get("max_dtp")
+    coverage = None
+    if meta.get("runs_planned") is not None:
+        coverage = (int(meta.get("runs_done") or 0), int(meta["runs_planned"]))
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
-                           allow_errors=args.allow_errors)
-    if meta.get("complete") is False:
-        print(f"note: the campaign is incomplete ({meta.get('runs_done')} of "
-              f"{meta.get('runs_planned')} runs); rerun 'fdd-campaign run' to finish it")
+                           allow_errors=args.allow_errors, coverage=coverage,
+                           allow_incomplete=args.allow_incomplete, results=results)
     print(result.format())
-    return result, meta.get("complete", True)
+    failing = [run for c in result.failures for run in c.run_ids]
+    if failing:
+        print(f"replay one: fdd-campaign show {directory} {failing[0]} --plot run.png; "
+              f"every run, margins and envelopes: fdd-campaign report {directory}")
+    return result
 
 
 def cmd_report(args) -> int:
@@ -386,7 +413,7 @@ def _add_result_parsers(subs) -> None:
 
     p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)
-    p.add_argument("dir")
+    p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
     p.add_argument("--max-fa", type=float, help="largest false-alarm rate (default: campaign file)")
     p.add_argument("--max-md", type=float, help="largest missed-detection rate (default: "
                    "unchecked, or the campaign file's with --all-requirements)")
@@ -396,6 +423,10 @@ def _add_result_parsers(subs) -> None:
                    help="also check the campaign file's max_md_rate and max_dtp (the verdict "
                         "of report.html); without it only false alarms and errors are gated")
     p.add_argument("--allow-errors", action="store_true", help="do not fail on runs in error")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="gate a campaign that has not finished every run of its plan (without "
+                        "it, an unfinished campaign fails: the gate is never green on part of "
+                        "the evidence)")
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 
 

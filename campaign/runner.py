@@ -354,8 +354,15 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
 def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``."""
     cdir = CampaignDir(out)
+    if not cdir.root.is_dir():
+        raise CampaignSetupError(f"{cdir.root} does not exist; run a campaign into it first: "
+                                 f"fdd-campaign run CAMPAIGN --out {cdir.root}")
     if not cdir.has_summary():
-        raise CampaignSetupError(f"{cdir.root} holds no summary.parquet: is it a campaign "
-                                 "directory written by 'fdd-campaign run'?")
+        started = cdir.has_plan()
+        raise CampaignSetupError(
+            f"{cdir.root} holds no results summary: "
+            + ("the campaign was stopped before it wrote one; finish it by running the same "
+               "'fdd-campaign run' command again" if started else
+               "it is not a campaign directory written by 'fdd-campaign run'"))
     summary, meta = cdir.read_summary()
     return cdir.read_results(), summary, meta

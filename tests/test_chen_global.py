@@ -169,17 +169,23 @@ def test_needs_the_aircraft_plant():
         ChenGlobalEstimator().fit(sig)
 
 
-def test_runner_refuses_it_on_an_actuator_level_campaign():
-    from campaign.config import CampaignConfig
+def test_an_actuator_level_campaign_is_refused_before_it_starts():
+    """The campaign file is refused (so 'plan' and 'run' alike), and the runner asks the
+    same rule for detectors built outside a campaign file."""
+    from campaign.config import CampaignConfig, ConfigError
     from campaign.runner import CampaignSetupError, _check_compatibility, build_detectors
+    from scenarios.plants import get_plant
 
-    config = CampaignConfig.from_dict({
+    data = {
         "campaign": {"name": "x", "surface": "aileron", "duration_s": 20.0},
         "group": [{"fault": "none", "manoeuvres": ["cruise"], "count": 1}],
         "detector": [{"name": "chen-global"}],
-    })
-    with pytest.raises(CampaignSetupError, match='plant = \\\\?"aircraft'):
-        _check_compatibility(config, build_detectors(config))
+    }
+    with pytest.raises(ConfigError, match=r'chen-global.*\[plant\] kind = "aircraft"'):
+        CampaignConfig.from_dict(data)
+    config = CampaignConfig.from_dict({**data, "plant": {"kind": "aircraft"}})
+    with pytest.raises(CampaignSetupError, match=r'chen-global.*\[plant\] kind = "aircraft"'):
+        _check_compatibility(config, build_detectors(config), get_plant("actuator"))
 
 
 @pytest.mark.parametrize("params, needle", [
