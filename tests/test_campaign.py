@@ -280,7 +280,7 @@ def test_gate_checks_the_files_md_and_dtp_limits_only_with_all_requirements(tmp_
 @pytest.mark.parametrize("argv, needle", [
     (["run", "no-such-preset", "--out", "x"], "preset"),
     (["simulate", "--surface", "rudder"], "invalid choice"),
-    (["gate", "/nonexistent/dir"], "summary.parquet"),
+    (["gate", "/nonexistent/dir"], "/nonexistent/dir does not exist"),
 ])
 def test_cli_bad_input_exits_2_with_a_message(argv, needle, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -211,7 +211,7 @@ def test_show_and_report_refuse_bad_input_with_exit_2(campaign_dir, tmp_path, ca
     assert main(["show", str(campaign_dir), "no-such-run"]) == 2
     assert "not in" in capsys.readouterr().err
     assert main(["report", str(tmp_path)]) == 2
-    assert "summary.parquet" in capsys.readouterr().err
+    assert "is not a campaign directory written by" in capsys.readouterr().err
     assert main(["compare", str(campaign_dir), str(tmp_path)]) == 2
     assert "not a campaign directory" in capsys.readouterr().err
 
