@@ -37,13 +37,10 @@ campaign records the run with ``status="error"`` and goes on.
 
 Checks
 ------
-:func:`inspect_fmu` (reading the archive only) and :func:`probe` (loading, instantiating,
-one step) refuse, before any work, with an :class:`FmuError` naming the file and the fix:
-files that are no FMU (empty, text, Git LFS pointer, not a zip, truncated zip, no or an
-unreadable model description), FMI 1.0, model-exchange-only and scheduled-execution-only
-FMUs, no binary for this platform, binaries that do not load, lack the FMI functions or
-refuse to instantiate (a GUID / instantiationToken that is not the binary's), variables and
-parameter overrides that do not match the FMU.
+Before any work :func:`inspect_fmu` (the archive) and :func:`probe` (load, instantiate, one
+step) refuse with an :class:`FmuError` naming the file and the fix (docs/fmu.md, Bad FMUs):
+files that are no FMU, FMI 1.0, FMUs without co-simulation, without a binary for this
+platform, binaries that do not load or refuse the GUID, mismatched variables or parameters.
 """
 
 from __future__ import annotations
@@ -63,6 +60,7 @@ import numpy as np
 from .catalog import SURFACES, suggest
 from .acquisition import Trajectory
 from .faults import NEVER
+from .fmu_messages import load_failure, not_a_zip
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .simulate import servo_provides, simulate
 
@@ -211,28 +209,6 @@ class FmuInfo:
     sources: bool = False        # ships C/C++ sources (it can be recompiled: fmpy compile)
 
 
-def _not_a_zip(path: Path) -> str:
-    """What *path* is, when it is not a zip archive (an FMU is one)."""
-    with open(path, "rb") as fh:
-        head = fh.read(512)
-    if not head:
-        return "is an empty file (0 bytes), not an FMU (a zip archive)"
-    if head.startswith(b"PK"):
-        return ("is a truncated or damaged zip archive (it has no zip directory at its end, "
-                "e.g. an interrupted download or copy)")
-    try:
-        text = head.decode("utf-8")
-    except UnicodeDecodeError:
-        text = None
-    if text is not None and all(ch.isprintable() or ch in "\r\n\t" for ch in text):
-        first = text.strip().splitlines()[0] if text.strip() else ""
-        what = f"is a text file, not an FMU (a zip archive); it starts with {first[:60]!r}"
-        if text.startswith("version https://git-lfs"):
-            what += " (a Git LFS pointer: fetch the file itself with 'git lfs pull')"
-        return what
-    return "is not a zip archive, so not an FMU"
-
-
 def _md_of(path: Path):
     """(model description, archive members) of the FMU *path*; :class:`FmuError` naming
     the file when it is no readable FMU."""
@@ -244,7 +220,7 @@ def _md_of(path: Path):
            "modelDescription.xml and binaries/), or build the built-in servo-loop with "
            f"'fdd-campaign fmu build --out {path}'")
     if not zipfile.is_zipfile(path):
-        raise FmuError(f"FMU {path}: {_not_a_zip(path)}; {fix}")
+        raise FmuError(f"FMU {path}: {not_a_zip(path)}; {fix}")
     try:
         with zipfile.ZipFile(path) as zf:
             members = zf.namelist()
@@ -410,37 +386,6 @@ def probe(spec: FmuPlant, faults=()) -> FmuInfo:
     return info
 
 
-def _load_failure(info: FmuInfo, stage: str, exc: Exception) -> str:
-    """The message of an FMU whose archive does not extract, whose binary does not load or
-    export the FMI functions, or whose binary refuses to instantiate."""
-    import fmpy
-
-    v2 = info.version == "2.0"
-    plat = fmpy.platform if v2 else fmpy.platform_tuple
-    binary = f"binaries/{plat}/{info.model_identifier}{fmpy.sharedLibraryExtension}"
-    detail = f"{type(exc).__name__}: {exc}"
-    rebuild = f"fix: re-export the FMU for {plat} from its modelling tool"
-    if info.sources:
-        rebuild += (f", or compile the sources it ships for this platform "
-                    f"('python -m fmpy compile {info.path}')")
-    if stage == "extract":
-        return f"FMU {info.path}: fails to extract ({detail}); fix: re-export or re-copy it"
-    if stage == "load":
-        if isinstance(exc, AttributeError) or "undefined symbol" in str(exc):
-            return (f"FMU {info.path}: its binary {binary} does not export the FMI "
-                    f"{info.version} functions ({detail}); {rebuild}")
-        return (f"FMU {info.path}: its binary {binary} fails to load ({detail}): it is not "
-                f"a shared library for this platform, or it needs libraries this machine "
-                f"lacks; {rebuild}")
-    token, call = (("a guid", "fmi2Instantiate") if v2 else
-                   ("an instantiationToken", "fmi3InstantiateCoSimulation"))
-    return (f"FMU {info.path}: fails to instantiate: {call} returned no instance ({detail}). "
-            f"The usual cause is {token} in modelDescription.xml ({info.guid}) that is not "
-            f"the one its binary was built with (a description edited or taken from another "
-            f"export); fix: re-export the FMU so that modelDescription.xml and {binary} come "
-            "from the same build")
-
-
 # ---------------------------------------------------------------------------------------
 # One loaded FMU instance
 # ---------------------------------------------------------------------------------------
@@ -475,7 +420,7 @@ class _Instance:
             self.slave.instantiate()
         except Exception as exc:  # noqa: BLE001 - any failure of a foreign archive or binary
             self.close()
-            raise FmuError(_load_failure(info, stage, exc)) from None
+            raise FmuError(load_failure(info, stage, exc)) from None
         finally:
             os.chdir(cwd)
         self.v2 = info.version == "2.0"
