@@ -24,7 +24,8 @@ def plant_of(config) -> Plant:
         variables = {name: getattr(section.variables, name)
                      for name in section.variables.__dataclass_fields__}
         return FmuPlant.of(Path(section.fmu).expanduser().resolve(), variables,
-                           push_parameters=section.push_parameters)
+                           push_parameters=section.push_parameters,
+                           parameters=dict(section.parameters))
     return get_plant(section.kind)
 
 

@@ -29,9 +29,18 @@ Execution
 FMUs are scalar: the loop runs one run at a time (fixed-step co-simulation at Ts, one
 ``doStep`` per FCC period). Each worker process extracts and instantiates an FMU once
 (module-level cache keyed by its path) and calls ``reset()`` between runs: fmpy objects do
-not pickle and leak when re-instantiated thousands of times. A NaN/inf output, or an FMI
-call that fails, stops that run with :class:`FmuRunError` naming the FMU and the variable;
-the campaign records the run with ``status="error"`` and goes on.
+not pickle and leak when re-instantiated thousands of times. An output that is NaN, infinite
+or beyond all physical range (:data:`ROD_LIMIT_R`, :data:`SURFACE_LIMIT_DEG`: the plant
+diverged), or an FMI call that fails, stops that run with :class:`FmuRunError` naming the
+FMU, the variable and the time, before the value reaches the engine's arithmetic; the
+campaign records the run with ``status="error"`` and goes on.
+
+Checks
+------
+Before any work :func:`inspect_fmu` (the archive) and :func:`probe` (load, instantiate, one
+step) refuse with an :class:`FmuError` naming the file and the fix (docs/fmu.md, Bad FMUs):
+files that are no FMU, FMI 1.0, FMUs without co-simulation, without a binary for this
+platform, binaries that do not load or refuse the GUID, mismatched variables or parameters.
 """
 
 from __future__ import annotations
@@ -40,6 +49,7 @@ import atexit
 import ctypes
 import math
 import os
+import re
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -50,6 +60,7 @@ import numpy as np
 from .catalog import SURFACES, suggest
 from .acquisition import Trajectory
 from .faults import NEVER
+from .fmu_messages import load_failure, not_a_zip
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .simulate import servo_provides, simulate
 
@@ -80,6 +91,20 @@ SERVO_VARIABLES: dict[str, str] = {
 PUSHED_PARAMETERS: tuple[str, ...] = ("Kci", "SdP", "SdP_ref", "Ka", "r_mm", "x_min", "x_max",
                                       "hm_delta", "hm_0", "stop_min_rad", "stop_max_rad")
 
+#: FMU parameter that receives the engine's period Ts [s] when parameters are pushed: the
+#: longest internal integration sub-step of the built-in servo-loop FMU (start value 0.01 s,
+#: :data:`scenarios.fmu_build.H_MAX_S`). Set to Ts, each ``doStep(Ts)`` is one RK4 step,
+#: the built-in plant's, at whatever period the campaign runs.
+STEP_PARAMETER = "h_max_s"
+
+#: Largest |rod position| an FMU may return, in lever arms r [-]. δ = asin(x/r)
+#: (docs/physics.md §3) has no value beyond |x| = r and the mechanical stops hold a real rod
+#: well inside; a rod twice as far out has diverged. Checked before the engine's arithmetic
+#: (the COM acquisition) sees the value.
+ROD_LIMIT_R = 2.0
+#: Largest |surface deflection| an FMU may return [deg]: beyond a half turn it has diverged.
+SURFACE_LIMIT_DEG = 180.0
+
 
 def plant_parameters(pl, act, j: int) -> dict[str, float]:
     """The pushed parameters of run *j* of a batch: :data:`PUSHED_PARAMETERS` from the
@@ -96,7 +121,7 @@ class FmuError(ValueError):
 
 
 class FmuRunError(RuntimeError):
-    """A run of an FMU that failed (NaN/inf output, failing FMI call)."""
+    """A run of an FMU that failed (NaN, infinite or diverged output, failing FMI call)."""
 
 
 @dataclass(frozen=True)
@@ -181,16 +206,44 @@ class FmuInfo:
     vr: dict                     # engine signal → value reference
     vtype: dict                  # engine signal → FMI type name
     parameters: dict             # FMU parameter name → (value reference, type) (Real only)
+    sources: bool = False        # ships C/C++ sources (it can be recompiled: fmpy compile)
 
 
 def _md_of(path: Path):
+    """(model description, archive members) of the FMU *path*; :class:`FmuError` naming
+    the file when it is no readable FMU."""
+    import zipfile
+
     from fmpy import read_model_description
 
+    fix = ("fix: give the .fmu file exported by the modelling tool (a zip archive holding "
+           "modelDescription.xml and binaries/), or build the built-in servo-loop with "
+           f"'fdd-campaign fmu build --out {path}'")
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"FMU {path}: {not_a_zip(path)}; {fix}")
     try:
-        return read_model_description(str(path), validate=False)
-    except Exception as exc:  # noqa: BLE001 - any unreadable archive gets one message
-        raise FmuError(f"FMU {path}: not a readable FMU ({type(exc).__name__}: {exc}); fix: "
-                       "give a .fmu archive exported for co-simulation") from None
+        with zipfile.ZipFile(path) as zf:
+            members = zf.namelist()
+            xml = zf.read("modelDescription.xml") if "modelDescription.xml" in members else None
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise FmuError(f"FMU {path}: a damaged zip archive ({type(exc).__name__}: {exc}); "
+                       f"{fix}") from None
+    if xml is None:
+        shown = ", ".join(members[:5]) + (", …" if len(members) > 5 else "")
+        raise FmuError(f"FMU {path}: a zip archive without modelDescription.xml (it holds: "
+                       f"{shown or 'nothing'}), so not an FMU; {fix}")
+    # the version first: fmpy reads FMI 1.0 descriptions with other rules
+    version = re.search(rb"<fmiModelDescription\b[^>]*?\sfmiVersion\s*=\s*[\"']([^\"']*)", xml)
+    if version and not re.fullmatch(rb"2\.0|3\.\d+(\.\d+)?(-.*)?", version.group(1)):
+        raise FmuError(f"FMU {path}: FMI version {version.group(1).decode(errors='replace')} "
+                       "is not supported; fix: export the model as an FMI 2.0 or 3.0 "
+                       "co-simulation FMU")
+    try:
+        return read_model_description(str(path), validate=False), members
+    except Exception as exc:  # noqa: BLE001 - any unreadable description gets one message
+        raise FmuError(f"FMU {path}: its modelDescription.xml cannot be read "
+                       f"({type(exc).__name__}: {exc}); fix: re-export the FMU from its "
+                       "modelling tool (FMI 2.0 or 3.0 co-simulation)") from None
 
 
 def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
@@ -204,28 +257,36 @@ def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
         what = "is a directory" if path.is_dir() else "file not found"
         raise FmuError(f"FMU {path}: {what}; fix: check [plant] fmu / --plant, or build the "
                        f"built-in servo-loop FMU with 'fdd-campaign fmu build --out {path}'")
-    md = _md_of(path)
+    md, members = _md_of(path)
     name = f"FMU {path} (model {md.modelName!r})"
     if md.fmiVersion not in ("2.0", "3.0") and not str(md.fmiVersion).startswith("3."):
-        raise FmuError(f"{name}: FMI version {md.fmiVersion} is not supported; fdd-campaign "
-                       "runs FMI 2.0 and 3.0 co-simulation FMUs")
+        raise FmuError(f"{name}: FMI version {md.fmiVersion} is not supported; fix: export "
+                       "the model as an FMI 2.0 or 3.0 co-simulation FMU")
     if md.coSimulation is None:
-        kinds = "model exchange" if md.modelExchange is not None else "no interface"
-        raise FmuError(f"{name}: not a co-simulation FMU ({kinds} only); fix: export the "
-                       "model as a co-simulation FMU (FMI 2.0 or 3.0)")
+        kinds = {kind: why for kind, iface, why in (
+            ("model exchange", md.modelExchange, "it has no ODE solver for model exchange"),
+            ("scheduled execution", getattr(md, "scheduledExecution", None),
+             "it has no clocks to schedule model partitions"))
+            if iface is not None}
+        what = " and ".join(kinds) + " only" if kinds else "it declares no interface"
+        why = "; ".join(kinds.values()) or "it needs the co-simulation interface"
+        raise FmuError(f"{name}: not a co-simulation FMU ({what}); the engine advances the "
+                       f"plant with doStep, {why}; fix: export the model as a co-simulation "
+                       "FMU (FMI 2.0 or 3.0)")
     version = "2.0" if md.fmiVersion == "2.0" else "3.0"
     ident = md.coSimulation.modelIdentifier
     plat = fmpy.platform if version == "2.0" else fmpy.platform_tuple
-    import zipfile
-
-    with zipfile.ZipFile(path) as zf:
-        members = zf.namelist()
     binary = f"binaries/{plat}/{ident}{fmpy.sharedLibraryExtension}"
+    sources = any(m.startswith("sources/") and m.endswith((".c", ".cpp")) for m in members)
     if binary not in members:
         found = sorted({m.split("/")[1] for m in members
                         if m.startswith("binaries/") and m.count("/") >= 2})
+        fix = f"export the FMU for {plat}"
+        if sources:
+            fix += (f", or compile the sources it ships for this platform: "
+                    f"'python -m fmpy compile {path}'")
         raise FmuError(f"{name}: no binary for this platform ({binary} is missing; it has: "
-                       f"{', '.join(found) or 'no binaries'}); fix: export the FMU for {plat}")
+                       f"{', '.join(found) or 'no binaries'}); fix: {fix}")
 
     by_name = {v.name: v for v in md.modelVariables}
     problems = []
@@ -275,36 +336,53 @@ def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
               if v.causality == "parameter" and v.type in ("Real", "Float64")
               and v.variability in ("fixed", "tunable")}
     for pname, _value in spec.parameters:
-        if pname not in params:
-            problems.append(f"parameter override {pname!r}: {name} has no settable real "
-                            f"parameter {pname!r}{suggest(pname, list(params))}; its real "
-                            f"parameters: {', '.join(params) or 'none'}")
+        if pname in params:
+            continue
+        v = by_name.get(pname)
+        if v is None:
+            why = f"{name} has no variable {pname!r}{suggest(pname, list(params))}"
+        else:
+            why = (f"in {name} this variable is a(n) {v.causality} ({v.type}, "
+                   f"{v.variability}); only real parameters (fixed or tunable) can be set")
+        problems.append(f"parameter override {pname!r} ([plant] parameters): {why}; fix: "
+                        f"name one of its real parameters: {', '.join(params) or 'none'}")
     if problems:
         raise FmuError("; ".join(problems) if len(problems) == 1 else
                        f"{name}: {len(problems)} problems:\n  - " + "\n  - ".join(problems))
     return FmuInfo(path=str(path), version=version, model_identifier=ident, guid=md.guid,
-                   vr=vr, vtype=vtype, parameters=params)
+                   vr=vr, vtype=vtype, parameters=params, sources=sources)
 
 
 def probe(spec: FmuPlant, faults=()) -> FmuInfo:
-    """:func:`inspect_fmu`, then instantiate, initialise and step the FMU once in this
-    process; raises :class:`FmuError` naming the FMU when it fails to."""
+    """:func:`inspect_fmu`, then load, instantiate, initialise (with the parameter
+    overrides of *spec*) and step the FMU once in this process; raises :class:`FmuError`
+    naming the FMU and what failed (its binary does not load, the binary refuses the
+    model description's GUID/instantiationToken, initialisation fails, an output is not a
+    number)."""
     info = inspect_fmu(spec, faults)
-    inst = None
+    inst = _Instance(info, spec)   # FmuError when the binary does not load or instantiate
+    stage = "initialise"
     try:
-        inst = _Instance(info, spec)
         inst.start(x0=0.0, params={})
-        inst.step(0.0, 0.01)
-        inst.outputs(0.0)
+        for t in (0.0, TS_S):
+            if t:
+                stage = "step"
+                inst.step(0.0, TS_S)
+            for signal, value in zip(("rod", "surface"), inst.outputs(t)):
+                if signal in info.vr and not math.isfinite(value):
+                    raise FmuError(f"FMU {info.path}: output {spec.mapping[signal]!r} "
+                                   f"({signal}) is {value!r} at t = {t:.2f} s of a trial run "
+                                   "(rod at 0, the FMU's own parameters and the overrides); "
+                                   "fix: check the FMU and its parameters with "
+                                   f"'python -m fmpy simulate {info.path}'")
     except FmuError:
         raise
     except Exception as exc:  # noqa: BLE001 - any failure of a foreign binary
-        raise FmuError(f"FMU {info.path}: fails to instantiate or initialise "
-                       f"({type(exc).__name__}: {exc}); fix: check the FMU with "
-                       f"'python -m fmpy simulate {info.path}' or rebuild it") from None
+        raise FmuError(f"FMU {info.path}: fails to {stage} ({type(exc).__name__}: {exc}); "
+                       f"fix: check the FMU with 'python -m fmpy simulate {info.path}' or "
+                       "rebuild it") from None
     finally:
-        if inst is not None:
-            inst.close()
+        inst.close()
     return info
 
 
@@ -322,8 +400,10 @@ class _Instance:
         self.slave = None
         self.used = False
         cwd = os.getcwd()  # fmpy changes directory to load the library (and may not return)
+        stage = "extract"
         try:
             unzip = extract(info.path, unzipdir=self.tmp)
+            stage = "load"
             if info.version == "2.0":
                 from fmpy.fmi2 import FMU2Slave
 
@@ -336,10 +416,11 @@ class _Instance:
                 self.slave = FMU3Slave(guid=info.guid, unzipDirectory=unzip,
                                        modelIdentifier=info.model_identifier,
                                        instanceName="fdd_plant")
+            stage = "instantiate"
             self.slave.instantiate()
-        except Exception:
+        except Exception as exc:  # noqa: BLE001 - any failure of a foreign archive or binary
             self.close()
-            raise
+            raise FmuError(load_failure(info, stage, exc)) from None
         finally:
             os.chdir(cwd)
         self.v2 = info.version == "2.0"
@@ -481,9 +562,8 @@ def instance(spec: FmuPlant, faults=()) -> tuple[FmuInfo, _Instance]:
         cwd = os.getcwd()
         try:
             _CACHE[key] = (info, _Instance(info, spec))
-        except Exception as exc:  # noqa: BLE001
-            raise FmuRunError(f"FMU {info.path}: fails to instantiate "
-                              f"({type(exc).__name__}: {exc})") from None
+        except FmuError as exc:   # checked by probe() before a campaign; here: a worker
+            raise FmuRunError(str(exc)) from None
         finally:
             os.chdir(cwd)
     return _CACHE[key]
@@ -514,8 +594,11 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
     the FMU of *spec* (one run at a time, one ``doStep`` of Ts per FCC period).
 
     *p* is a :class:`scenarios.simulate.Prepared` batch; returns its
-    :class:`scenarios.simulate.Trajectory`. Raises :class:`FmuRunError` (naming the FMU and
-    the variable) on a NaN/inf output or a failing FMI call.
+    :class:`scenarios.simulate.Trajectory`. Raises :class:`FmuRunError` (naming the FMU, the
+    variable and the time) on an output that is NaN, infinite or beyond |rod| ≤
+    :data:`ROD_LIMIT_R`·r, |surface| ≤ :data:`SURFACE_LIMIT_DEG` (checked before the value
+    enters the COM acquisition), or on a failing FMI call. With ``push_parameters`` the FMU
+    parameter :data:`STEP_PARAMETER` is set to Ts.
 
     The FCC side of the loop is the one of :func:`scenarios.simulate.acquire_com` and
     :func:`scenarios.simulate.applied_current`, written on Python floats for one run (the
@@ -533,6 +616,7 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
     has_surface = "surface" in info.vr
     quant = sensors.rod_quant_mm
     for j in range(n):
+        rod_limit = ROD_LIMIT_R * float(pl.r_mm[j])
         k_jam, k_disc, k_osc = int(fa.k_jam[j]), int(fa.k_disc[j]), int(fa.k_osc[j])
         emulate_jam = k_jam < NEVER and not has_jam
         K, i_max, r_mm = float(pl.K[j]), float(pl.i_max[j]), float(pl.r_mm[j])
@@ -549,18 +633,20 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
         y_hold = 0.0
         t = 0.0
         try:
-            inst.start(x0=float(p.u[j, 0]), params=plant_parameters(pl, p.act, j))
+            inst.start(x0=float(p.u[j, 0]),
+                       params={**plant_parameters(pl, p.act, j), STEP_PARAMETER: ts})
             for k in range(T):
                 t = k * ts
                 if emulate_jam and k > k_jam:
                     x, d = xs[k - 1], ds[k - 1]      # seized: the outputs stop moving
                 else:
                     x, surf = inst.outputs(t)
-                    if not math.isfinite(x):
-                        _bad(inst, "rod", x, t)
+                    # diverged outputs end the run here, before the acquisition arithmetic
+                    if not abs(x) <= rod_limit:             # also NaN
+                        _bad(inst, "rod", x, t, f"±{rod_limit:g} mm = {ROD_LIMIT_R:g} r")
                     if has_surface:
-                        if not math.isfinite(surf):
-                            _bad(inst, "surface", surf, t)
+                        if not abs(surf) <= SURFACE_LIMIT_DEG:
+                            _bad(inst, "surface", surf, t, f"±{SURFACE_LIMIT_DEG:g} deg")
                         d = math.radians(surf)
                     else:
                         d = math.asin(min(max(x / r_mm, -1.0), 1.0))
@@ -601,6 +687,10 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
     return Trajectory(**out)
 
 
-def _bad(inst: _Instance, signal: str, value: float, t: float):
+def _bad(inst: _Instance, signal: str, value: float, t: float, limit: str):
+    """Stop the run: output *signal* is NaN, infinite or beyond *limit* (diverged)."""
+    what = "not a number" if math.isnan(value) else (
+        "infinite" if math.isinf(value) else f"beyond {limit}")
     raise FmuRunError(f"FMU {inst.info.path}: output {inst.spec.mapping[signal]!r} "
-                      f"({signal}) is {value!r} at t = {t:.2f} s; the run is stopped")
+                      f"({signal}) is {value!r} at t = {t:.2f} s ({what}: the plant "
+                      "diverged or failed); the run is stopped")

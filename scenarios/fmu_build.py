@@ -11,6 +11,7 @@ fmpy ships (``fmpy/c-code``), zips the standard FMU layout::
     modelDescription.xml
     binaries/<platform>/fdd_servo.so       (FMI 2.0: linux64; FMI 3.0: x86_64-linux)
     sources/*.c, *.h
+    sources/buildDescription.xml           (FMI 3.0 only; FMI 2.0 lists its <SourceFiles>)
 
 and checks the result with fmpy (``fmpy.validation.validate_fmu``, then one instantiation
 and one step). It relies on no fmpy build helper (``fmpy.util.compile_platform_binary`` was
@@ -36,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .params import TS_S
+
 MODEL_IDENTIFIER = "fdd_servo"
 #: FMI version → (C sources, model-description template).
 VERSIONS = {
@@ -49,8 +52,14 @@ START_MACROS = {
     "Kci": "START_KCI", "SdP": "START_SDP", "SdP_ref": "START_SDP_REF", "Ka": "START_KA",
     "r_mm": "START_R_MM", "x_min": "START_X_MIN", "x_max": "START_X_MAX",
     "hm_delta": "START_HM_DELTA", "hm_0": "START_HM_0", "stop_min_rad": "START_STOP_MIN",
-    "stop_max_rad": "START_STOP_MAX",
+    "stop_max_rad": "START_STOP_MAX", "h_max_s": "START_H_MAX",
 }
+
+#: Start value of the FMU's ``h_max_s`` [s], its longest internal integration sub-step: the
+#: FCC period the model was designed for (:data:`scenarios.params.TS_S`, docs/physics.md §2).
+#: ``doStep(h)`` takes ceil(h / h_max_s) equal RK4 sub-steps, so a step of Ts is the built-in
+#: plant's single RK4 step and longer communication steps converge to the same trajectory.
+H_MAX_S = TS_S
 
 #: Compiler flags: position-independent shared object; no floating-point contraction (FMA)
 #: and no fast-math, so the C arithmetic rounds like the numpy plant it is checked against.
@@ -89,7 +98,8 @@ def find_compiler() -> str:
 
 def start_values(surface: str = "elevator") -> dict[str, float]:
     """Parameter start values of the FMU: the true plant of *surface* at the default flight
-    point of ``fdd-campaign simulate`` (nominal, no uncertainty), from scenarios.params."""
+    point of ``fdd-campaign simulate`` (nominal, no uncertainty), from scenarios.params, and
+    the internal sub-step ``h_max_s`` (:data:`H_MAX_S`)."""
     from . import envelope
     from .params import ACTUATORS
     from .servo import plant_arrays
@@ -103,7 +113,7 @@ def start_values(surface: str = "elevator") -> dict[str, float]:
     pl = plant_arrays(act, qbar_pa=fc["qbar_pa"], alpha_deg=fc["alpha_deg"], mach=fc["mach"])
     from .fmu import plant_parameters
 
-    return plant_parameters(pl, act, 0)
+    return {**plant_parameters(pl, act, 0), "h_max_s": H_MAX_S}
 
 
 def _start_header(values: dict[str, float], guid: str) -> str:
@@ -114,6 +124,21 @@ def _start_header(values: dict[str, float], guid: str) -> str:
         lines.append(f"#define {macro} {values[name]!r}")
     lines += ["#define START_X0 0.0", "#endif", ""]
     return "\n".join(lines)
+
+
+def _build_description(source_files) -> str:
+    """``sources/buildDescription.xml`` of the FMI 3.0 FMU: the C sources to compile (C99,
+    as :data:`CFLAGS`), so that importers rebuild the binary (e.g. ``fmpy compile``); the
+    FMI 2.0 FMU lists them in its model description (``<SourceFiles>``)."""
+    files = "\n".join(f'      <SourceFile name="{name}"/>' for name in source_files)
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
+            '<fmiBuildDescription fmiVersion="3.0">\n'
+            f'  <BuildConfiguration modelIdentifier="{MODEL_IDENTIFIER}">\n'
+            '    <SourceFileSet language="C99">\n'
+            f"{files}\n"
+            '    </SourceFileSet>\n'
+            '  </BuildConfiguration>\n'
+            '</fmiBuildDescription>\n')
 
 
 def _version() -> str:
@@ -155,6 +180,9 @@ def build_servo_fmu(out: str | os.PathLike = "servo.fmu", *, surface: str = "ele
         for name in (*SOURCE_FILES, *HEADER_FILES):
             shutil.copy(src / name, sources / name)
         (sources / "servo_start.h").write_text(_start_header(values, guid))
+        if str(fmi) == "3":   # FMI 3.0 source FMUs list their sources here
+            (sources / "buildDescription.xml").write_text(_build_description(SOURCE_FILES),
+                                                          encoding="utf-8")
         xml = (src / TEMPLATE).read_text(encoding="utf-8").format(
             guid=guid, version=_version(), surface=surface, ts=repr(ts),
             **{k: repr(v) for k, v in values.items()})

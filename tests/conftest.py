@@ -27,3 +27,44 @@ class LibmNumpy:
 def libm_numpy(monkeypatch):
     """The NumPy plant functions of :mod:`scenarios.servo` on the C library's arcsin/cos."""
     monkeypatch.setattr(servo, "np", LibmNumpy())
+
+
+# ---------------------------------------------------------------------------------------
+# FMUs (tests/test_fmu.py, tests/test_fmu_bad.py)
+# ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="session")
+def servo_fmu(tmp_path_factory):
+    """The built-in servo-loop FMU (FMI 2.0), built once per test session from the shipped
+    sources."""
+    from scenarios.fmu_build import build_servo_fmu
+
+    return build_servo_fmu(tmp_path_factory.mktemp("fmu") / "servo.fmu")
+
+
+@pytest.fixture(scope="session")
+def servo_fmu3(tmp_path_factory):
+    """The same servo-loop as an FMI 3.0 co-simulation FMU."""
+    from scenarios.fmu_build import build_servo_fmu
+
+    return build_servo_fmu(tmp_path_factory.mktemp("fmu3") / "servo3.fmu", fmi="3")
+
+
+def edit_fmu(src, dst, replace=None, drop=(), rename=None):
+    """Copy the FMU *src* to *dst*, editing its members: *replace* maps a member name to
+    new bytes or to a function of the old bytes, *drop* lists members (or folder prefixes
+    ending in "/") to leave out, *rename* maps a member name to a new name."""
+    import zipfile
+
+    replace, rename = replace or {}, rename or {}
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for item in zin.infolist():
+            name = item.filename
+            if any(name == d or (d.endswith("/") and name.startswith(d)) for d in drop):
+                continue
+            data = zin.read(name)
+            if name in replace:
+                new = replace[name]
+                data = new(data) if callable(new) else new
+            item.filename = rename.get(name, name)
+            zout.writestr(item, data)
+    return dst

@@ -227,6 +227,23 @@ def _to_fault_seconds(c: _Check, value: Any) -> Any:
     return tuple((k, merged[k]) for k in spec.choices) if ok else BAD
 
 
+def _to_number_table(c: _Check, value: Any) -> Any:
+    if not isinstance(value, dict):
+        return c.bad(f"expected a table of name = number, {c.got}; fix: e.g. {c.name} = "
+                     f"{toml_value(c.spec.example or {'h_max_s': 0.005})}")
+    ok = True
+    for k, x in value.items():
+        if not is_number(x):
+            c.errors.append(f"{c.path}.{k}: expected a number, got {type_word(x)} "
+                            f"{short(x)}; fix: e.g. {k} = 1.0")
+            ok = False
+        elif out_of_range(c.spec, float(x)):
+            c.errors.append(f"{c.path}.{k}: {num(x)} is out of range; allowed: "
+                            f"{range_text(c.spec, k) or 'a finite number'}")
+            ok = False
+    return tuple(sorted((k, float(x)) for k, x in value.items())) if ok else BAD
+
+
 _CONVERTERS: dict[str, Callable[[_Check, Any], Any]] = {
     "str": _to_str,
     "choice": _to_str,
@@ -238,6 +255,7 @@ _CONVERTERS: dict[str, Callable[[_Check, Any], Any]] = {
     "names": _to_names,
     "table": _to_table,
     "fault_seconds": _to_fault_seconds,
+    "number_table": _to_number_table,
 }
 
 

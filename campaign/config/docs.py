@@ -52,6 +52,8 @@ def _allowed_text(spec: Key, name: str = "value") -> str:
         return "keys " + ", ".join(spec.choices) + "; each " + range_text(spec, "value")
     if spec.kind == "table":
         return "the detector's keyword parameters"
+    if spec.kind == "number_table":
+        return "each value " + (range_text(spec, "value") or "a finite number")
     if spec.kind in ("int", "float"):
         return range_text(spec, name)
     if spec.kind in ("floats", "pair"):

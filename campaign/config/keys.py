@@ -43,6 +43,7 @@ KIND_NAMES: dict[str, str] = {
     "names": "list of names",
     "table": "table",
     "fault_seconds": "table fault → float",
+    "number_table": "table name → float",
 }
 
 
@@ -149,8 +150,8 @@ def thaw_value(value: Any) -> Any:
 
 
 def thaw(value: Any, kind: str) -> Any:
-    """The plain value of a frozen key of kind *kind* (``table`` and ``fault_seconds``
-    keys are stored as ``((name, value), …)`` and come back as dicts)."""
-    if kind in ("table", "fault_seconds"):
+    """The plain value of a frozen key of kind *kind* (``table``, ``fault_seconds`` and
+    ``number_table`` keys are stored as ``((name, value), …)`` and come back as dicts)."""
+    if kind in ("table", "fault_seconds", "number_table"):
         return {k: thaw_value(v) for k, v in value}
     return thaw_value(value)

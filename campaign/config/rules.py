@@ -362,7 +362,7 @@ def _check_plant(plant: Mapping, camp: Mapping, errors: list[str]) -> None:
     """The FMU keys mean nothing without an FMU (defaults written out are harmless); an FMU
     replaces the single actuator servo-loop, not the aircraft plant."""
     if plant["fmu"] is None:
-        given = [k for k in ("push_parameters",) if k in plant["__present__"]
+        given = [k for k in ("push_parameters", "parameters") if k in plant["__present__"]
                  and plant[k] != PlantSection.__dataclass_fields__[k].default]
         given += [f"variables.{f.name}" for f in leaf_fields(PlantVariables)
                   if f.name in plant["variables"]["__present__"]

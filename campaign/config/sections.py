@@ -343,7 +343,13 @@ class PlantSection:
     push_parameters: bool = key("bool", "set each run's true plant parameters (Kci, SdP, "
                                 "SdP_ref, Ka, r_mm, x_min, x_max, hm_delta, hm_0, "
                                 "stop_min_rad, stop_max_rad) into the FMU parameters of the "
-                                "same names", True)
+                                "same names, and the FCC period into h_max_s (the internal "
+                                "sub-step of the built-in servo-loop FMU)", True)
+    parameters: tuple[tuple[str, float], ...] = key(
+        "number_table", "FMU parameter start values to override, name = value (set after "
+        "the pushed run parameters, so an override of a pushed name holds for every run; "
+        "checked against the FMU's real parameters before the campaign)", (),
+        source="scenarios/fmu.py FmuPlant")
     variables: PlantVariables = sub_table(PlantVariables, "FMU variable of each engine "
                                           "signal (defaults: the built-in servo-loop FMU)")
 

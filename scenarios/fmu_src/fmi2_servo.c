@@ -20,7 +20,7 @@ static void logmsg(Instance *c, fmi2Status st, const char *msg) {
     if (c && c->cb.logger) c->cb.logger(c->cb.componentEnvironment, c->name, st, "error", msg);
 }
 
-static int is_parameter(fmi2ValueReference vr) { return vr >= VR_KCI && vr <= VR_X0; }
+static int is_parameter(fmi2ValueReference vr) { return vr >= VR_KCI && vr <= SERVO_LAST_PAR; }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
@@ -74,7 +74,10 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
 fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
     Instance *c = (Instance *)comp;
     if (!c || c->mode != M_INIT) return fmi2Error;
-    servo_initialize(&c->s);
+    if (!servo_initialize(&c->s)) {
+        logmsg(c, fmi2Error, "fmi2ExitInitializationMode: h_max_s must be a positive finite time step [s]");
+        return fmi2Error;
+    }
     c->mode = M_STEP;
     return fmi2OK;
 }
@@ -208,6 +211,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     (void)t; (void)noSetPrior;
     if (!c || c->mode != M_STEP) return fmi2Error;
     if (!(h > 0.0)) { logmsg(c, fmi2Error, "fmi2DoStep: step size must be positive"); return fmi2Error; }
+    if (!servo_substeps(&c->s, h)) { logmsg(c, fmi2Error, "fmi2DoStep: step size is infinite or needs more than 1e8 sub-steps of h_max_s"); return fmi2Error; }
     servo_step(&c->s, h);
     return fmi2OK;
 }

@@ -23,7 +23,7 @@ static void logmsg(Instance *c, const char *msg) {
     if (c && c->log) c->log(c->env, fmi3Error, "logStatusError", msg);
 }
 
-static int is_parameter(fmi3ValueReference vr) { return vr >= VR_KCI && vr <= VR_X0; }
+static int is_parameter(fmi3ValueReference vr) { return vr >= VR_KCI && vr <= SERVO_LAST_PAR; }
 
 const char *fmi3GetVersion(void) { return fmi3Version; }
 
@@ -73,7 +73,10 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     Instance *c = (Instance *)instance;
     if (!c || c->mode != M_INIT) return fmi3Error;
-    servo_initialize(&c->s);
+    if (!servo_initialize(&c->s)) {
+        logmsg(c, "fmi3ExitInitializationMode: h_max_s must be a positive finite time step [s]");
+        return fmi3Error;
+    }
     c->mode = M_STEP;
     return fmi3OK;
 }
@@ -173,6 +176,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     (void)currentCommunicationPoint; (void)noSetFMUStatePriorToCurrentPoint;
     if (!c || c->mode != M_STEP) return fmi3Error;
     if (!(communicationStepSize > 0.0)) { logmsg(c, "fmi3DoStep: step size must be positive"); return fmi3Error; }
+    if (!servo_substeps(&c->s, communicationStepSize)) { logmsg(c, "fmi3DoStep: step size is infinite or needs more than 1e8 sub-steps of h_max_s"); return fmi3Error; }
     servo_step(&c->s, communicationStepSize);
     if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
     if (terminateSimulation) *terminateSimulation = fmi3False;

@@ -5,7 +5,11 @@
  *     xdot = Kci·i·sqrt( clip(S·ΔP − sign(i)·F_aero, 0, 2·S·ΔP) / (S·ΔP_ref + Ka·(Kci·i)²) )
  * with the rod held inside the mechanical stops. Hinge moment and rod force (PHYSICS §3):
  *     HM = hm_0 + hm_delta·δ,   F_aero = −HM / (r·cos δ),   δ = asin(x/r).
- * One classical RK4 step per period with the current held (scenarios/servo.py rk4_step).
+ * A communication step h is integrated in n = ceil(h / h_max_s) equal sub-steps, each one
+ * classical RK4 step with the current held (scenarios/servo.py rk4_step); h_max_s is a
+ * parameter whose start value is the FCC period Ts = 0.01 s the model was designed for
+ * (docs/physics.md §2), so a step of Ts is exactly one RK4 step, as in the built-in plant,
+ * and longer communication steps (other tools) converge to the same trajectory.
  * Solid jam: the rod keeps its position ([CHEN] eq. 4). Disconnection: the rod is unloaded
  * and the surface floats, held only by the damping neighbour ([CHEN] eq. 5); the closed
  * form of scenarios/servo.py float_step advances it. */
@@ -46,6 +50,7 @@ void servo_defaults(ServoState *s) {
     P(s, VR_STOP_MIN) = START_STOP_MIN;
     P(s, VR_STOP_MAX) = START_STOP_MAX;
     P(s, VR_X0) = START_X0;
+    P(s, VR_H_MAX) = START_H_MAX;
     s->i_mA = 0.0;
     s->jam = 0;
     s->disc = 0;
@@ -54,9 +59,12 @@ void servo_defaults(ServoState *s) {
     s->time = 0.0;
 }
 
-void servo_initialize(ServoState *s) {
+int servo_initialize(ServoState *s) {
+    double h_max = P(s, VR_H_MAX);
+    if (!(h_max > 0.0) || isinf(h_max)) return 0;   /* also NaN */
     s->x = clip(P(s, VR_X0), P(s, VR_X_MIN), P(s, VR_X_MAX));
     s->delta = asin(s->x / P(s, VR_R_MM));
+    return 1;
 }
 
 /* rod force created by the hinge moment [N]; positive opposes extension */
@@ -110,13 +118,31 @@ static double float_step(const ServoState *s, double delta, double h) {
     return clip(delta_f + e_new, P(s, VR_STOP_MIN), P(s, VR_STOP_MAX));
 }
 
-void servo_step(ServoState *s, double h) {
+/* one sub-step h: the period step of scenarios/servo.py, in the same order of operations */
+static void servo_substep(ServoState *s, double h) {
     int loaded = !s->disc;
     double x_next = rk4_step(s, s->x, s->i_mA, loaded, h);
     if (s->jam) x_next = s->x;
     if (loaded) s->delta = asin(x_next / P(s, VR_R_MM));
     else s->delta = float_step(s, s->delta, h);
     s->x = x_next;
+}
+
+/* The fewest equal sub-steps no longer than h_max_s; the relative slack of 1e-9 keeps a
+ * step of m·h_max_s (up to the rounding of h) at exactly m sub-steps, so h = Ts is one.
+ * 0 when h is not a positive finite step or needs more than SERVO_MAX_SUBSTEPS. */
+int servo_substeps(const ServoState *s, double h) {
+    double n;
+    if (!(h > 0.0) || isinf(h)) return 0;
+    n = ceil(h / P(s, VR_H_MAX) * (1.0 - 1e-9));
+    if (!(n <= SERVO_MAX_SUBSTEPS)) return 0;
+    return n < 1.0 ? 1 : (int)n;
+}
+
+void servo_step(ServoState *s, double h) {
+    int k, n = servo_substeps(s, h);
+    double hs = h / n;             /* n = 1: hs is h itself, today's single RK4 step */
+    for (k = 0; k < n; k++) servo_substep(s, hs);
     s->time += h;
 }
 

@@ -21,6 +21,7 @@ enum {
     VR_STOP_MIN = 10,  /* lower mechanical stop [rad] (floating surface) */
     VR_STOP_MAX = 11,  /* upper mechanical stop [rad] */
     VR_X0 = 12,        /* initial (trimmed) rod position [mm] */
+    VR_H_MAX = 13,     /* longest internal integration sub-step [s] (the FCC period Ts) */
     VR_I = 20,         /* input: servo-valve current held over the step [mA] */
     VR_JAM = 21,       /* input (Boolean): rod and surface seized (solid jam) */
     VR_DISC = 22,      /* input (Boolean): rod-surface link broken (disconnection) */
@@ -28,7 +29,9 @@ enum {
     VR_DELTA_DEG = 31  /* output: surface deflection [deg] */
 };
 
-#define SERVO_N_PAR 13   /* parameters are stored at index = value reference (1..12) */
+#define SERVO_N_PAR 14   /* parameters are stored at index = value reference (1..13) */
+#define SERVO_LAST_PAR VR_H_MAX
+#define SERVO_MAX_SUBSTEPS 100000000   /* 1e8 sub-steps: 1e6 s at h_max_s = 0.01 s */
 
 typedef struct {
     double par[SERVO_N_PAR];
@@ -41,8 +44,9 @@ typedef struct {
 } ServoState;
 
 void servo_defaults(ServoState *s);                 /* start values of the model description */
-void servo_initialize(ServoState *s);               /* trimmed state from x0 */
-void servo_step(ServoState *s, double h);           /* advance over one period h [s] */
+int servo_initialize(ServoState *s);                /* trimmed state from x0; 0: bad h_max_s */
+int servo_substeps(const ServoState *s, double h);  /* sub-steps of a communication step h */
+void servo_step(ServoState *s, double h);           /* advance over a communication step h [s] */
 double servo_delta_deg(const ServoState *s);
 
 #endif
