@@ -57,12 +57,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .catalog import SURFACES, suggest
+from .catalog import suggest
 from .acquisition import Trajectory
 from .faults import NEVER
 from .fmu_messages import load_failure, not_a_zip
-from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
-from .simulate import servo_provides, simulate
+from .params import SENSORS, TS_S, SensorParams
+from .simulate import ServoLoopPlant, simulate
 
 #: Engine signals an FMU variable can be mapped to:
 #: name → (causality, FMI types accepted, required, meaning).
@@ -125,7 +125,7 @@ class FmuRunError(RuntimeError):
 
 
 @dataclass(frozen=True)
-class FmuPlant:
+class FmuPlant(ServoLoopPlant):
     """A plant back end: which FMU to run and how its variables map to the engine
     (picklable, hashable; a :class:`scenarios.plants.Plant`:
     ``FmuPlant.of("servo.fmu").simulate(runs)``).
@@ -152,20 +152,7 @@ class FmuPlant:
         """engine signal → FMU variable, mapped signals only."""
         return {k: v for k, v in self.variables if v}
 
-    # -- the scenarios.plants.Plant protocol ---------------------------------------------
-    @property
-    def surfaces(self) -> tuple[str, ...]:
-        return SURFACES
-
-    def run_surface(self, surface: str, monitored: str | None = None) -> str:
-        return surface
-
-    def actuator(self, surface: str) -> ActuatorParams:
-        return ACTUATORS[surface]
-
-    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
-        return servo_provides(self.actuator(surface), pressure_sensor)
-
+    # -- the scenarios.plants.Plant protocol (surfaces, actuator, provides: ServoLoopPlant)
     def check(self, faults=()) -> None:
         """:func:`probe` the FMU (load, instantiate, one step) before any work."""
         probe(self, faults)

@@ -197,14 +197,9 @@ def servo_provides(act: ActuatorParams, pressure_sensor: bool) -> frozenset[str]
     return frozenset(groups)
 
 
-@dataclass(frozen=True)
-class ActuatorPlant:
-    """The built-in nonlinear servo-loop of one surface, alone (docs/physics.md §3): a
-    :class:`scenarios.plants.Plant`. The run rows name ``elevator`` or ``aileron``."""
-
-    kind = "actuator"
-    #: runs on threads: the compiled kernels release the GIL and hold no state
-    needs_processes = False
+class ServoLoopPlant:
+    """What every plant of one surface's servo-loop alone shares (the built-in one and an
+    FMU): the run rows name ``elevator`` or ``aileron``, with their actuator tables."""
 
     @property
     def surfaces(self) -> tuple[str, ...]:
@@ -219,6 +214,16 @@ class ActuatorPlant:
 
     def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
         return servo_provides(self.actuator(surface), pressure_sensor)
+
+
+@dataclass(frozen=True)
+class ActuatorPlant(ServoLoopPlant):
+    """The built-in nonlinear servo-loop of one surface, alone (docs/physics.md §3): a
+    :class:`scenarios.plants.Plant`."""
+
+    kind = "actuator"
+    #: runs on threads: the compiled kernels release the GIL and hold no state
+    needs_processes = False
 
     def check(self, faults=()) -> None:
         """Nothing to check before work: the built-in plant simulates every fault."""
