@@ -57,8 +57,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .catalog import suggest
 from .acquisition import Trajectory
+from .catalog import suggest
 from .faults import NEVER
 from .fmu_messages import load_failure, not_a_zip
 from .params import SENSORS, TS_S, SensorParams
