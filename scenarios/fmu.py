@@ -49,7 +49,6 @@ import atexit
 import ctypes
 import math
 import os
-import re
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -60,7 +59,7 @@ import numpy as np
 from .acquisition import Trajectory
 from .catalog import suggest
 from .faults import NEVER
-from .fmu_messages import load_failure, not_a_zip
+from .fmu_files import FmuError, container, load_failure
 from .params import SENSORS, TS_S, SensorParams
 from .simulate import ServoLoopPlant, simulate
 
@@ -114,10 +113,6 @@ def plant_parameters(pl, act, j: int) -> dict[str, float]:
     out["stop_min_rad"] = float(np.radians(act.stop_min_deg))
     out["stop_max_rad"] = float(np.radians(act.stop_max_deg))
     return out
-
-
-class FmuError(ValueError):
-    """An FMU that cannot be used for a campaign (checked before any run)."""
 
 
 class FmuRunError(RuntimeError):
@@ -196,85 +191,25 @@ class FmuInfo:
     sources: bool = False        # ships C/C++ sources (it can be recompiled: fmpy compile)
 
 
-def _md_of(path: Path):
-    """(model description, archive members) of the FMU *path*; :class:`FmuError` naming
-    the file when it is no readable FMU."""
-    import zipfile
-
-    from fmpy import read_model_description
-
-    fix = ("fix: give the .fmu file exported by the modelling tool (a zip archive holding "
-           "modelDescription.xml and binaries/), or build the built-in servo-loop with "
-           f"'fdd-campaign fmu build --out {path}'")
-    if not zipfile.is_zipfile(path):
-        raise FmuError(f"FMU {path}: {not_a_zip(path)}; {fix}")
-    try:
-        with zipfile.ZipFile(path) as zf:
-            members = zf.namelist()
-            xml = zf.read("modelDescription.xml") if "modelDescription.xml" in members else None
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise FmuError(f"FMU {path}: a damaged zip archive ({type(exc).__name__}: {exc}); "
-                       f"{fix}") from None
-    if xml is None:
-        shown = ", ".join(members[:5]) + (", …" if len(members) > 5 else "")
-        raise FmuError(f"FMU {path}: a zip archive without modelDescription.xml (it holds: "
-                       f"{shown or 'nothing'}), so not an FMU; {fix}")
-    # the version first: fmpy reads FMI 1.0 descriptions with other rules
-    version = re.search(rb"<fmiModelDescription\b[^>]*?\sfmiVersion\s*=\s*[\"']([^\"']*)", xml)
-    if version and not re.fullmatch(rb"2\.0|3\.\d+(\.\d+)?(-.*)?", version.group(1)):
-        raise FmuError(f"FMU {path}: FMI version {version.group(1).decode(errors='replace')} "
-                       "is not supported; fix: export the model as an FMI 2.0 or 3.0 "
-                       "co-simulation FMU")
-    try:
-        return read_model_description(str(path), validate=False), members
-    except Exception as exc:  # noqa: BLE001 - any unreadable description gets one message
-        raise FmuError(f"FMU {path}: its modelDescription.xml cannot be read "
-                       f"({type(exc).__name__}: {exc}); fix: re-export the FMU from its "
-                       "modelling tool (FMI 2.0 or 3.0 co-simulation)") from None
-
-
 def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
     """Check *spec* against its FMU without running it; raises :class:`FmuError` listing
     every problem (each naming the FMU and the variable). *faults* are the fault types the
     campaign will run (disconnection needs a mapped input)."""
-    import fmpy
-
     path = Path(spec.path)
-    if not path.is_file():
-        what = "is a directory" if path.is_dir() else "file not found"
-        raise FmuError(f"FMU {path}: {what}; fix: check [plant] fmu / --plant, or build the "
-                       f"built-in servo-loop FMU with 'fdd-campaign fmu build --out {path}'")
-    md, members = _md_of(path)
-    name = f"FMU {path} (model {md.modelName!r})"
-    if md.fmiVersion not in ("2.0", "3.0") and not str(md.fmiVersion).startswith("3."):
-        raise FmuError(f"{name}: FMI version {md.fmiVersion} is not supported; fix: export "
-                       "the model as an FMI 2.0 or 3.0 co-simulation FMU")
-    if md.coSimulation is None:
-        kinds = {kind: why for kind, iface, why in (
-            ("model exchange", md.modelExchange, "it has no ODE solver for model exchange"),
-            ("scheduled execution", getattr(md, "scheduledExecution", None),
-             "it has no clocks to schedule model partitions"))
-            if iface is not None}
-        what = " and ".join(kinds) + " only" if kinds else "it declares no interface"
-        why = "; ".join(kinds.values()) or "it needs the co-simulation interface"
-        raise FmuError(f"{name}: not a co-simulation FMU ({what}); the engine advances the "
-                       f"plant with doStep, {why}; fix: export the model as a co-simulation "
-                       "FMU (FMI 2.0 or 3.0)")
-    version = "2.0" if md.fmiVersion == "2.0" else "3.0"
-    ident = md.coSimulation.modelIdentifier
-    plat = fmpy.platform if version == "2.0" else fmpy.platform_tuple
-    binary = f"binaries/{plat}/{ident}{fmpy.sharedLibraryExtension}"
-    sources = any(m.startswith("sources/") and m.endswith((".c", ".cpp")) for m in members)
-    if binary not in members:
-        found = sorted({m.split("/")[1] for m in members
-                        if m.startswith("binaries/") and m.count("/") >= 2})
-        fix = f"export the FMU for {plat}"
-        if sources:
-            fix += (f", or compile the sources it ships for this platform: "
-                    f"'python -m fmpy compile {path}'")
-        raise FmuError(f"{name}: no binary for this platform ({binary} is missing; it has: "
-                       f"{', '.join(found) or 'no binaries'}); fix: {fix}")
+    md, name, version, ident, sources = container(path)
+    problems, vr, vtype = _variable_problems(spec, md, name, faults)
+    params, more = _parameter_problems(spec, md, name)
+    problems += more
+    if problems:
+        raise FmuError("; ".join(problems) if len(problems) == 1 else
+                       f"{name}: {len(problems)} problems:\n  - " + "\n  - ".join(problems))
+    return FmuInfo(path=str(path), version=version, model_identifier=ident, guid=md.guid,
+                   vr=vr, vtype=vtype, parameters=params, sources=sources)
 
+
+def _variable_problems(spec: FmuPlant, md, name: str, faults):
+    """Every problem of the variable map of *spec* against the model description *md*, and
+    the value reference and type of each mapped engine signal."""
     by_name = {v.name: v for v in md.modelVariables}
     problems = []
     mapping = spec.mapping
@@ -319,6 +254,14 @@ def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
                     f"disconnection runs: the engine cannot disconnect a plant from outside; "
                     f"fix: map the {name}'s {SIGNALS[signal][0]} for it, or remove the "
                     "disconnection groups")
+    return problems, vr, vtype
+
+
+def _parameter_problems(spec: FmuPlant, md, name: str):
+    """The FMU's settable real parameters (name → (value reference, type)) and every
+    parameter override of *spec* that is not one of them."""
+    by_name = {v.name: v for v in md.modelVariables}
+    problems = []
     params = {v.name: (v.valueReference, v.type) for v in md.modelVariables
               if v.causality == "parameter" and v.type in ("Real", "Float64")
               and v.variability in ("fixed", "tunable")}
@@ -333,11 +276,7 @@ def inspect_fmu(spec: FmuPlant, faults=()) -> FmuInfo:
                    f"{v.variability}); only real parameters (fixed or tunable) can be set")
         problems.append(f"parameter override {pname!r} ([plant] parameters): {why}; fix: "
                         f"name one of its real parameters: {', '.join(params) or 'none'}")
-    if problems:
-        raise FmuError("; ".join(problems) if len(problems) == 1 else
-                       f"{name}: {len(problems)} problems:\n  - " + "\n  - ".join(problems))
-    return FmuInfo(path=str(path), version=version, model_identifier=ident, guid=md.guid,
-                   vr=vr, vtype=vtype, parameters=params, sources=sources)
+    return params, problems
 
 
 def probe(spec: FmuPlant, faults=()) -> FmuInfo:
