@@ -28,7 +28,7 @@ def _overridden(config, args):
     if args.seed is not None:
         config = cfg.with_overrides(config, seed=args.seed)
     if getattr(args, "plant", None) is not None:
-        from scenarios.plants import PLANT_KINDS
+        from scenarios.catalog import PLANT_KINDS
 
         if args.plant in PLANT_KINDS:
             values = {"plant.kind": args.plant}
@@ -433,7 +433,7 @@ def _add_result_parsers(subs) -> None:
 def _add_simulate_parser(subs) -> None:
     """Sub-commands: simulate one run."""
     from scenarios.aircraft.data import AIRCRAFT_SURFACES
-    from scenarios.plants import PLANT_KINDS
+    from scenarios.catalog import PLANT_KINDS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
 
     p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
@@ -544,22 +544,14 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
-    from detectors.registry import DetectorSpecError
-    from scenarios.simulate import RunSpecError
-
-    from .config import ConfigError
-    from .runner import CampaignSetupError
-    from .storage import CampaignDirError
-
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _note
             return args.func(args)
-    except (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
-            UsageError, FileNotFoundError) as exc:
-        _err(str(exc))
-        return EXIT_INPUT
-    except ValueError as exc:  # a value the library refused, named in its message
+    # bad input: every error of the engine that names a wrong value is a ValueError
+    # (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
+    # FmuError, UsageError), and a missing file; the message names the field and the fix
+    except (ValueError, FileNotFoundError) as exc:
         _err(str(exc))
         return EXIT_INPUT
     except KeyboardInterrupt:

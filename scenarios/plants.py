@@ -24,7 +24,7 @@ from typing import Protocol, runtime_checkable
 import pandas as pd
 
 from .aircraft.loop import AircraftPlant
-from .catalog import suggest
+from .catalog import PLANT_KINDS, suggest
 from .fmu import FmuPlant
 from .params import SENSORS, TS_S, ActuatorParams, SensorParams
 from .signals import Signals, Truth
@@ -71,12 +71,10 @@ class Plant(Protocol):
 
 
 #: The built-in plants that need no options, by kind (an FMU plant needs its file:
-#: :meth:`scenarios.fmu.FmuPlant.of`).
+#: :meth:`scenarios.fmu.FmuPlant.of`); their names, :data:`PLANT_KINDS`, are listed in
+#: :mod:`scenarios.catalog`, which costs no import.
 _BUILT_IN: dict[str, type] = {"actuator": ActuatorPlant, "aircraft": AircraftPlant}
 
-#: The plant kinds a campaign names in ``[plant] kind`` (an FMU plant is the actuator kind
-#: with ``[plant] fmu`` set: the FMU replaces the built-in servo-loop).
-PLANT_KINDS: tuple[str, ...] = tuple(_BUILT_IN)
 
 
 def get_plant(plant: str | Plant = "actuator") -> Plant:

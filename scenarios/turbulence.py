@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.signal import lfilter
 
 from .params import param
 
@@ -181,6 +180,8 @@ def dryden_gusts(n_steps: int, ts: float, tas_ms: float, alt_ft: float,
     filters, then 3·n_steps driving normals), so the result is a deterministic function of
     the generator's state.
     """
+    from scipy.signal import lfilter     # imported when first needed (0.7 s): not at start-up
+
     n_steps = _check_inputs(n_steps, alt_ft, rng)
     filters = dryden_filters(float(tas_ms), float(ts), params)
     z0 = rng.standard_normal(5)
@@ -257,6 +258,8 @@ def lagged_gust(n_steps: int, ts: float, tas_ms: float, alt_ft: float,
     :func:`dryden_gusts` (not the same numbers: the draws differ). Random numbers: the
     initial-state normals (order of the cascade), then n_steps driving normals.
     """
+    from scipy.signal import lfilter
+
     n_steps = _check_inputs(n_steps, alt_ft, rng)
     if component not in GUST_COMPONENTS:
         raise ValueError(

@@ -292,3 +292,18 @@ def test_single_run_of_an_aircraft_surface_gets_its_actuators_default_fault_magn
     row = single_run("left_inboard_aileron", "cruise", "liquid_jam")
     assert row["magnitude"].iloc[0] == default_magnitude("liquid_jam", ACTUATORS["aileron"])
     assert np.isfinite(single_run("rudder", "cruise", "runaway")["magnitude"].iloc[0])
+
+
+def test_every_plant_kind_is_built_by_the_registry_and_follows_the_protocol():
+    from scenarios.catalog import PLANT_KINDS
+    from scenarios.plants import Plant, get_plant
+
+    for kind in PLANT_KINDS:
+        plant = get_plant(kind)
+        assert plant.kind == kind and isinstance(plant, Plant)
+        assert get_plant(plant) is plant
+        surface = plant.run_surface("aileron")
+        assert surface in plant.surfaces
+        assert ("aircraft" in plant.provides(surface, pressure_sensor=True)) == (kind == "aircraft")
+    with pytest.raises(ValueError, match="did you mean 'aircraft'"):
+        get_plant("aircraf")

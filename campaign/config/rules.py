@@ -23,7 +23,6 @@ import warnings
 from typing import Any, Mapping
 
 from detectors.compat import incompatibilities
-from scenarios.plants import get_plant
 from scenarios.catalog import MANOEUVRES, suggest
 
 from .convert import is_ok, out_of_range
@@ -340,6 +339,8 @@ def _check_compatibility(name: str, caps, p: str, camp: Mapping, plant: Mapping,
     if not is_ok(camp["surface"], camp["pressure_sensor"], plant["kind"],
                  plant["monitored_surface"]):
         return
+    from scenarios.plants import get_plant     # the plants' modules: only when a detector is named
+
     built = get_plant(plant["kind"])
     surface = built.run_surface(camp["surface"], plant["monitored_surface"])
     for msg in incompatibilities({name: caps}, built, surface,

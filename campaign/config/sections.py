@@ -13,7 +13,7 @@ from typing import Any
 
 from detectors.registry import BUILTIN
 from scenarios.aircraft.data import AIRCRAFT_SURFACES
-from scenarios.plants import PLANT_KINDS
+from scenarios.catalog import PLANT_KINDS
 from scenarios.catalog import (
     FAULT_TYPES,
     FAULTS,
