@@ -214,7 +214,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     as per-run status rows; see :mod:`campaign.execute`. The directory left is the same
     whether the campaign runs from Python or from ``fdd-campaign run``. The run holds the
     directory's lock (:class:`campaign.storage.DirLock`) from opening it to the summary: a
-    second run into the same directory meanwhile is refused (:class:`CampaignLockedError`).
+    second run into the same directory meanwhile is refused
+    (:class:`campaign.storage.CampaignLockedError`).
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
