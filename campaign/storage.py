@@ -15,7 +15,8 @@ Layout (docs/design.md §6, Outputs)::
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
                               campaigns only, :mod:`reports.detection_times`)
     DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
-    DIR/.fdd-campaign.lock    held by the run writing into the directory (:class:`DirLock`)
+    DIR/.fdd-campaign.lock    held by the run writing into the directory
+                              (:class:`campaign.dirlock.DirLock`)
 
 :class:`CampaignDir` alone names these files and reads and writes them; the rest of the
 engine asks it. Every file is written under a temporary name and moved into place with
@@ -43,10 +44,7 @@ import hashlib
 import json
 import os
 import secrets
-import socket
-import sys
 from contextlib import contextmanager
-from datetime import datetime, timezone
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -55,10 +53,15 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .dirlock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
+
+__all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
+           "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
+           "write_text"]
+
 METADATA_KEY = b"fdd_campaign"
 SHARD_GLOB = "part-*.parquet"
 MANIFEST_NAME = "manifest.json"
-LOCK_NAME = ".fdd-campaign.lock"
 #: ``format`` of manifest.json and of fitted/LABEL.json: a reader refuses any other.
 MANIFEST_FORMAT = "fdd-campaign manifest 1"
 FITTED_FORMAT = "fdd-campaign fitted detector 1"
@@ -85,10 +88,6 @@ class ManifestError(CampaignDirError):
 
     def __reduce__(self):
         return (type(self), (str(self), self.problems))
-
-
-class CampaignLockedError(CampaignDirError):
-    """Another run is writing into the campaign directory."""
 
 
 def _temporary_name(path: Path) -> Path:
@@ -170,142 +169,6 @@ def identity_sha256(config_json: str) -> str:
 
 def _is_temporary(path: Path) -> bool:
     return path.name.startswith(".") and path.name.endswith(".tmp")
-
-
-# ---- the lock ----------------------------------------------------------------------------------
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:        # alive, owned by another user
-        return True
-    except OSError:
-        return False
-    return True
-
-
-def _holder_text(info: dict) -> str:
-    return (f"pid {info.get('pid', '?')} on host {info.get('host', '?')}, started "
-            f"{info.get('started', '?')}")
-
-
-class DirLock:
-    """The lock of a campaign directory (``DIR/.fdd-campaign.lock``), held by the one run
-    writing into it.
-
-    The file names its holder (pid, host, start time, command) and is locked with
-    ``flock``, which the operating system releases when the holder exits, however it exits:
-    a second run finds it locked and is refused with the holder's name
-    (:class:`CampaignLockedError`); a run finding the lock left by a killed run (file
-    present, nobody holding it) takes it over with a one-line note. Released by
-    :meth:`release` (the file is removed). On systems without ``fcntl`` the file is
-    created exclusively and a lock whose pid no longer runs on this host is stale.
-    """
-
-    def __init__(self, path):
-        self.path = Path(path)
-        self.fd: int | None = None
-
-    @staticmethod
-    def _me() -> dict:
-        return {"pid": os.getpid(), "host": socket.gethostname(),
-                "started": datetime.now(timezone.utc).astimezone().isoformat(timespec="seconds"),
-                "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])[:300]}
-
-    @staticmethod
-    def _parse(data: bytes) -> dict | None:
-        if not data.strip():
-            return None
-        try:
-            info = json.loads(data)
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            return {"pid": "?", "host": "?", "started": "? (unreadable lock file)"}
-        return info if isinstance(info, dict) else {}
-
-    def _refuse(self, holder: dict | None) -> CampaignLockedError:
-        return CampaignLockedError(
-            f"{self.path.parent} is being written by another run "
-            f"({_holder_text(holder or {})}); two runs into one directory would store every "
-            "run twice: wait for it to finish (it resumes what is done) or stop it, then run "
-            "this command again")
-
-    def _stale_note(self, previous: dict | None, log) -> None:
-        if previous and previous.get("pid") != os.getpid():
-            log(f"note: taking over the lock of {self.path.parent} left by a run that is no "
-                f"longer running ({_holder_text(previous)})")
-
-    def acquire(self, log=None) -> "DirLock":
-        """Take the lock (creating the directory); :class:`CampaignLockedError` when another
-        live run holds it."""
-        log = log or (lambda msg: None)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            import fcntl
-        except ImportError:                    # pragma: no cover - not on POSIX
-            return self._acquire_exclusive(log)
-        for _ in range(20):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                holder = self._parse(os.pread(fd, 65536, 0))
-                os.close(fd)
-                raise self._refuse(holder) from None
-            try:                               # the previous holder may have removed it
-                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
-            except FileNotFoundError:
-                same = False
-            if not same:
-                os.close(fd)
-                continue
-            self._stale_note(self._parse(os.pread(fd, 65536, 0)), log)
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, json.dumps(self._me()).encode(), 0)
-            self.fd = fd
-            return self
-        raise CampaignLockedError(f"cannot take the lock {self.path}: it keeps being replaced")
-
-    def _acquire_exclusive(self, log) -> "DirLock":  # pragma: no cover - not on POSIX
-        for _ in range(2):
-            try:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o666)
-            except FileExistsError:
-                holder = self._parse(self.path.read_bytes()) or {}
-                if (holder.get("host") == socket.gethostname()
-                        and isinstance(holder.get("pid"), int)
-                        and not _pid_alive(holder["pid"])):
-                    self._stale_note(holder, log)
-                    self.path.unlink(missing_ok=True)
-                    continue
-                raise self._refuse(holder) from None
-            os.write(fd, json.dumps(self._me()).encode())
-            self.fd = fd
-            return self
-        raise self._refuse(None)
-
-    def release(self) -> None:
-        """Remove the lock file and release the lock (idempotent)."""
-        if self.fd is None:
-            return
-        try:
-            self.path.unlink(missing_ok=True)   # still holding it: no one else has it
-        finally:
-            os.close(self.fd)
-            self.fd = None
-
-    @classmethod
-    def holder(cls, path) -> dict | None:
-        """Who the lock file at *path* names when that process still runs on this host
-        (a hint for readers; never takes the lock), else None."""
-        try:
-            info = cls._parse(Path(path).read_bytes())
-        except OSError:
-            return None
-        if (info and info.get("host") == socket.gethostname()
-                and isinstance(info.get("pid"), int) and _pid_alive(info["pid"])):
-            return info
-        return None
 
 
 class CampaignDir:
@@ -531,7 +394,7 @@ class CampaignDir:
         shown = "; ".join(problems[:5]) + (f"; and {len(problems) - 5} more"
                                            if len(problems) > 5 else "")
         busy = DirLock.holder(self.lock_path)
-        hint = (f" (a run is writing into it now: {_holder_text(busy)}; wait for it to "
+        hint = (f" (a run is writing into it now: {holder_text(busy)}; wait for it to "
                 "finish)" if busy else
                 "; its results may have been changed after the run wrote them: restore the "
                 "directory from where it came from, or rerun the campaign into a new "
