@@ -44,12 +44,23 @@ def _overridden(config, args):
     return config
 
 
+def _tls_files(args):
+    """The --tls-* options as :class:`campaign.execute.TlsFiles` (None when none is given)."""
+    from .execute import TlsFiles
+
+    files = TlsFiles(ca_file=args.tls_ca_file, cert=args.tls_cert, key=args.tls_key)
+    if files.given() and not args.scheduler:
+        raise UsageError(f"{', '.join(files.given())} apply to a dask cluster: give "
+                         "--scheduler tls://HOST:PORT too")
+    return files if files.given() else None
+
+
 def _run_campaign(config, out, args):
     from .runner import run
 
     result = run(config, out, jobs=args.jobs, chunk_size=args.chunk_size,
                  progress=not args.quiet, backend=args.backend, scheduler=args.scheduler,
-                 engine=args.engine)
+                 engine=args.engine, tls=_tls_files(args))
     print(f"campaign {config.campaign.name!r}: {result.results['run_id'].nunique() if not result.results.empty else 0}"
           f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
     if not result.summary.empty:
@@ -189,6 +200,40 @@ def _gate_one(directory, args):
         print(f"replay one: fdd-campaign show {directory} {failing[0]} --plot run.png; "
               f"every run, margins and envelopes: fdd-campaign report {directory}")
     return result
+
+
+def cmd_verify(args) -> int:
+    from .storage import CampaignDir, CampaignDirError, ManifestError
+    from .suite import is_suite_dir, suite_members
+
+    root = Path(args.dir)
+    if not root.is_dir():
+        raise UsageError(f"{root} does not exist or is not a directory")
+    if is_suite_dir(root) and not CampaignDir(root).is_campaign():
+        dirs = [member for _, member in suite_members(root)]
+    else:
+        dirs = [root]
+    ok = True
+    for directory in dirs:
+        cdir = CampaignDir(directory)
+        try:
+            problems = cdir.verify()
+        except ManifestError as exc:
+            problems = [str(exc)]
+        if problems:
+            ok = False
+            print(f"{directory}: {len(problems)} file(s) do not match the manifest:")
+            for problem in problems:
+                print(f"  {problem}")
+            continue
+        manifest = cdir.read_manifest()
+        print(f"{directory}: all {len(manifest['files'])} files match the manifest (campaign "
+              f"{(manifest.get('campaign') or {}).get('name')!r}, written by fdd-campaign "
+              f"{', '.join(manifest.get('engine_versions') or ['?'])})")
+    if not ok:
+        raise CampaignDirError(f"{args.dir} does not match its manifest (listed above); "
+                               "tamper-evident only: see docs/security.md")
+    return EXIT_OK
 
 
 def cmd_report(args) -> int:
@@ -371,7 +416,14 @@ def _add_run_parsers(subs) -> None:
                         "see docs/fmu.md)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run the chunks on this dask.distributed scheduler's workers "
-                        "(needs the [dask] extra; see docs/execution.md)")
+                        "(needs the [dask] extra; tls://HOST:PORT with the --tls-* options or "
+                        "dask's distributed.comm.tls configuration; see docs/security.md)")
+    p.add_argument("--tls-ca-file", metavar="FILE",
+                   help="CA certificate (PEM) that signed the cluster's certificates")
+    p.add_argument("--tls-cert", metavar="FILE",
+                   help="client certificate (PEM) for a tls:// scheduler")
+    p.add_argument("--tls-key", metavar="FILE",
+                   help="private key of --tls-cert (PEM), unless that file holds it")
     p.add_argument("--engine", choices=["compiled", "numpy"],
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
 
@@ -383,7 +435,7 @@ def _add_run_parsers(subs) -> None:
 
 
 def _add_result_parsers(subs) -> None:
-    """Sub-commands: read a campaign directory: report, show, compare, gate."""
+    """Sub-commands: read a campaign directory: report, show, compare, verify, gate."""
     p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
              "report (DIR/report.html)", "fdd-campaign report results/", cmd_report)
     p.add_argument("dir")
@@ -410,6 +462,11 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("dir_b")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the worse/better flags (default 0.01)")
+
+    p = _sub(subs, "verify", "check every file of a campaign directory against its manifest "
+             "(SHA-256); exit 2 naming each file that differs, is missing or is extra",
+             "fdd-campaign verify results/", cmd_verify)
+    p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
 
     p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)

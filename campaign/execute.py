@@ -7,7 +7,8 @@ run of the plan ends either done or recorded with a status and its message:
 * in-process (``jobs == 1``), one chunk after the other;
 * a pool of local workers: ``"loky"`` processes (joblib's process executor) or
   ``"threading"`` threads (the compiled kernels release the GIL);
-* a dask.distributed cluster (:func:`run_on_cluster`, ``--scheduler tcp://HOST:PORT``).
+* a dask.distributed cluster (:func:`run_on_cluster`, ``--scheduler tcp://HOST:PORT``, or
+  ``tls://HOST:PORT`` with certificates, :func:`connect`).
 
 Faults in the machinery (TimeEval-style per-run status)
 -------------------------------------------------------
@@ -34,10 +35,12 @@ Splitting never changes a result: a run simulated alone equals the same run in a
 
 from __future__ import annotations
 
+import sys
 import time
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
+from pathlib import Path
 
 import pandas as pd
 
@@ -255,23 +258,111 @@ class ClusterError(ValueError):
     """The dask cluster cannot be used (not installed, unreachable, bad address)."""
 
 
-def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S):
-    """A ``distributed.Client`` connected to the scheduler at *address* (``tcp://HOST:PORT``)."""
-    if not isinstance(address, str) or "://" not in address or ":" not in address.split("://", 1)[1]:
+@dataclass(frozen=True)
+class TlsFiles:
+    """Files of a TLS connection to a dask scheduler (``fdd-campaign run --tls-ca-file
+    --tls-cert --tls-key``, dask's own option names). A field left None is taken from dask's
+    configuration (``distributed.comm.tls.ca-file``, ``distributed.comm.tls.client.cert``,
+    ``distributed.comm.tls.client.key``)."""
+
+    ca_file: str | None = None
+    cert: str | None = None
+    key: str | None = None
+
+    def given(self) -> list[str]:
+        """The command-line options given (for messages)."""
+        return [opt for opt, v in (("--tls-ca-file", self.ca_file), ("--tls-cert", self.cert),
+                                   ("--tls-key", self.key)) if v]
+
+
+def _split_address(address) -> tuple[str, str]:
+    """(scheme, host) of ``SCHEME://HOST:PORT``; :class:`ClusterError` otherwise."""
+    scheme, sep, rest = address.partition("://") if isinstance(address, str) else ("", "", "")
+    host, colon, port = rest.rpartition(":")
+    if not sep or not colon or not host or not port.isdigit() or scheme not in ("tcp", "tls"):
         raise ClusterError(f"scheduler address {address!r} is not of the form tcp://HOST:PORT "
-                           "(e.g. tcp://127.0.0.1:8786)")
+                           "or tls://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
+    return scheme, host.strip("[]")
+
+
+def _is_loopback(host: str) -> bool:
+    """Whether *host* (a name or an address) names this machine's loopback interface only."""
+    import ipaddress
+    import socket
+
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    return bool(infos) and all(ipaddress.ip_address(i[4][0].split("%")[0]).is_loopback
+                               for i in infos)
+
+
+def _security(tls: TlsFiles | None):
+    """The ``distributed.Security`` of a ``tls://`` connection: the given files, the rest
+    from dask's configuration; :class:`ClusterError` naming what is missing."""
+    from distributed import Security
+
+    tls = tls or TlsFiles()
+    given = {k: v for k, v in (("tls_ca_file", tls.ca_file), ("tls_client_cert", tls.cert),
+                               ("tls_client_key", tls.key)) if v}
+    for option, path in zip(tls.given(), given.values()):
+        if not Path(path).is_file():
+            raise ClusterError(f"{option} {path}: no such file")
+    security = Security(require_encryption=True, **given)
+    missing = [f"{opt} (or dask's {key})" for opt, key, value in (
+        ("--tls-ca-file", "distributed.comm.tls.ca-file", security.tls_ca_file),
+        ("--tls-cert", "distributed.comm.tls.client.cert", security.tls_client_cert))
+        if not value]
+    if missing:
+        raise ClusterError("a tls:// scheduler needs the CA certificate that signed the "
+                           "cluster's certificates and a client certificate (with its key, "
+                           "--tls-key, unless the certificate file holds it): give "
+                           + " and ".join(missing) + " (docs/security.md)")
+    return security
+
+
+def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S, *, tls: TlsFiles | None = None,
+            log=None):
+    """A ``distributed.Client`` connected to the scheduler at *address*.
+
+    ``tcp://HOST:PORT``: plain TCP, neither encrypted nor authenticated; a one-line warning
+    on *log* when HOST is not a loopback address. ``tls://HOST:PORT``: mutual TLS with the
+    files of *tls* (:class:`TlsFiles`), the fields left None taken from dask's
+    configuration ``distributed.comm.tls.*``.
+    """
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    scheme, host = _split_address(address)
+    if tls is not None and tls.given() and scheme != "tls":
+        raise ClusterError(f"{', '.join(tls.given())} apply to a tls:// scheduler; the "
+                           f"address {address} is {scheme}://: write tls://HOST:PORT")
     try:
         from distributed import Client
     except ImportError as exc:
         raise ClusterError("--scheduler needs dask.distributed, which is not installed: "
                            "pip install 'fdd-campaign[dask]'") from exc
+    security = None
+    if scheme == "tls":
+        security = _security(tls)
+    elif not _is_loopback(host):
+        log(f"warning: {address} is plain TCP, neither encrypted nor authenticated: whoever "
+            "can reach the scheduler can run code on its workers; use tls:// "
+            "(docs/security.md)")
     try:
-        return Client(address, timeout=timeout_s)
+        return Client(address, timeout=timeout_s, security=security)
     except (OSError, TimeoutError) as exc:
+        hint = ("; check that the scheduler and workers use certificates signed by the CA "
+                "given and that the scheduler listens on tls://" if scheme == "tls" else
+                "; start one with 'dask scheduler --host 127.0.0.1' and workers with "
+                "'dask worker tcp://127.0.0.1:8786' (docs/execution.md)")
         raise ClusterError(f"cannot reach the dask scheduler at {address} within "
-                           f"{timeout_s:g} s ({type(exc).__name__}: {exc}); start one with "
-                           "'dask scheduler --host 127.0.0.1' and workers with "
-                           "'dask worker tcp://127.0.0.1:8786' (docs/execution.md)") from exc
+                           f"{timeout_s:g} s ({type(exc).__name__}: {exc}){hint}") from exc
+    except ValueError as exc:     # e.g. an unreadable certificate (ssl.SSLError is OSError)
+        raise ClusterError(f"cannot connect to the dask scheduler at {address}: {exc}") from exc
 
 
 def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_result,

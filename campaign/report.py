@@ -1,9 +1,10 @@
 """The HTML report, the re-simulation of single runs and the comparison of two campaigns.
 
 Everything here starts from what a campaign directory holds — ``campaign.json``,
-``plan.parquet``, ``runs/part-*.parquet``, ``summary.parquet`` and ``fitted/*.pkl`` — and
-never from the memory of the process that ran it, so a directory copied to another machine
-gives the same report. Traces that are not stored (residuals of every fault-free run, the
+``plan.parquet``, ``runs/part-*.parquet``, ``summary.parquet`` and the fitted detectors of
+``fitted/`` (stored as data, never unpickled) — and never from the memory of the process that
+ran it, so a directory copied to another machine gives the same report. Each command first
+checks the directory's files against its manifest (exit 2 on any difference). Traces that are not stored (residuals of every fault-free run, the
 signals of example runs) are re-simulated on demand from the plan rows (run id, seed and
 stream fix every random draw, docs/design.md §9, Determinism) and fed to the stored fitted
 detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's own pipeline); the
@@ -92,7 +93,7 @@ class LoadedCampaign:
         """The fitted detectors stored in the directory: label → Detector
         (:meth:`campaign.storage.CampaignDir.read_fitted`)."""
         cdir = CampaignDir(self.root)
-        return {label: cdir.read_fitted(label) for label in self.config.detector_labels}
+        return {d.label: cdir.read_fitted(d.label, d.name) for d in self.config.detectors}
 
 
 def load_campaign(directory) -> LoadedCampaign:

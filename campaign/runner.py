@@ -35,7 +35,7 @@ from scenarios.signals import Signals
 from .design import build_learning_plan, build_plan
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .plant import detector_problems, plant_of
-from .storage import CampaignDir
+from .storage import CampaignDir, DirLock
 
 #: The former name of :func:`campaign.evaluate.evaluate`, for existing callers.
 run_chunk = evaluate
@@ -115,16 +115,24 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
                   log=print, submit=None, workers: int = 1) -> dict:
-    """Fit each detector on the learning set, or reload it when this directory has it."""
+    """Fit each detector on the learning set, or reload it when this directory has it.
+
+    A fitted detector is stored as data (:meth:`CampaignDir.write_fitted`); one whose
+    parameters or learned attributes are not plain data (:mod:`detectors.state`) stops the
+    campaign here, before any run, with a :class:`CampaignSetupError` naming the detector
+    and the attribute."""
+    from detectors.state import PLAIN_TYPES_DOC, StateTypeError
+
     detectors = build_detectors(config)
     _check_compatibility(config, detectors, settings.plant)
+    names = {d.label: d.name for d in config.detectors}
     learning = build_learning_plan(config)
     cdir.write_learning(learning, config.to_json())
     learning_signals = None
     fitted = {}
     for label, det in detectors.items():
         if cdir.has_fitted(label):
-            fitted[label] = cdir.read_fitted(label)
+            fitted[label] = cdir.read_fitted(label, names[label])
             continue
         if det.capabilities.needs_fit:
             if learning_signals is None:
@@ -132,7 +140,15 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                 learning_signals = simulate_chunks(learning, settings, chunk_size,
                                                    submit=submit, workers=workers)
             det.fit(learning_signals)
-        cdir.write_fitted(label, det)
+        try:
+            cdir.write_fitted(label, names[label], det)
+        except StateTypeError as exc:
+            raise CampaignSetupError(
+                f"detector {label!r} ({names[label]}): its {exc.path} cannot be stored in "
+                f"the campaign directory: {exc.detail}. A fitted detector is stored as data, "
+                f"never as a pickle; parameters and learned attributes (names ending in '_') "
+                f"may hold {PLAIN_TYPES_DOC} (docs/write-a-detector.md, 'Learned state')"
+            ) from None
         fitted[label] = det
     return fitted
 
@@ -174,7 +190,7 @@ def check_plant(config, plant) -> None:
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
         backend: str | None = None, log=None, scheduler: str | None = None,
-        engine: str | None = None) -> CampaignResult:
+        engine: str | None = None, tls=None) -> CampaignResult:
     """Run *config* into directory *out* (resuming what it already holds).
 
     Parameters
@@ -188,27 +204,32 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
         campaign sets ``run_timeout_s`` (a thread cannot be stopped) or runs an FMU plant
         (one FMU instance per worker process).
-    scheduler : address ``tcp://HOST:PORT`` of a dask.distributed scheduler; the chunks then
-        run on its workers (*jobs* and *backend* are not used)
+    scheduler : address ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` of a dask.distributed
+        scheduler; the chunks then run on its workers (*jobs* and *backend* are not used)
+    tls : :class:`campaign.execute.TlsFiles` (CA, certificate and key files) for a
+        ``tls://`` scheduler; default: dask's configuration ``distributed.comm.tls.*``
     engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
 
     Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
     as per-run status rows; see :mod:`campaign.execute`. The directory left is the same
-    whether the campaign runs from Python or from ``fdd-campaign run``.
+    whether the campaign runs from Python or from ``fdd-campaign run``. The run holds the
+    directory's lock (:class:`campaign.storage.DirLock`) from opening it to the summary: a
+    second run into the same directory meanwhile is refused
+    (:class:`campaign.storage.CampaignLockedError`).
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
     setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
-                   scheduler=scheduler, engine=engine, log=log)
+                   scheduler=scheduler, engine=engine, log=log, tls=tls)
     try:
         plan = build_plan(config)
         if not setup.cdir.has_plan():
             setup.cdir.write_plan(plan, config.to_json())
         detectors = _learn(config, setup, log)
         complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
+        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
     finally:
         setup.close()
-    return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
 
 
 @dataclass
@@ -223,15 +244,21 @@ class _Setup:
     backend: str
     client: object = None   # a distributed.Client, or None
     pool: object = None     # a started campaign.execute.LocalPool, or None
+    lock: object = None     # the directory's held campaign.storage.DirLock
 
     def close(self) -> None:
-        if self.pool is not None:
-            self.pool.stop(kill=True)
-        if self.client is not None:
-            self.client.close()
+        try:
+            if self.pool is not None:
+                self.pool.stop(kill=True)
+            if self.client is not None:
+                self.client.close()
+        finally:
+            if self.lock is not None:
+                self.lock.release()
 
 
-def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log) -> _Setup:
+def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
+           tls=None) -> _Setup:
     """Check the plant and the options, open the directory, warm the kernels and start the
     local workers (they start while the learning set is simulated here)."""
     from .execute import LocalPool, connect
@@ -248,19 +275,25 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log) ->
         raise CampaignSetupError(
             "an FMU plant is loaded once per worker process and is not safe to share between "
             "threads: use --backend loky (the default with an FMU plant) or --jobs 1")
-    client = connect(scheduler) if scheduler else None   # fail fast, before any work
+    client = connect(scheduler, tls=tls, log=log) if scheduler else None   # fail fast
     cdir = CampaignDir(out)
-    resumed = cdir.open(config.to_json())
-    if settings.engine == "compiled":
-        for spec in config.detectors:   # import their modules: they register their kernels
-            load_detector_class(spec.name)
-        kernels.warm_up(log)
-    setup = _Setup(cdir=cdir, resumed=resumed, settings=settings,
+    setup = _Setup(cdir=cdir, resumed=False, settings=settings,
                    chunk_size=int(chunk_size or config.runner.chunk_size), jobs=jobs,
                    backend=backend, client=client)
-    if client is None and jobs > 1:
-        setup.pool = LocalPool(backend, jobs)
-        setup.pool.start()
+    try:
+        # one run at a time writes into a directory: a second one is refused (exit 2)
+        setup.lock = DirLock(cdir.lock_path).acquire(log)
+        setup.resumed = cdir.open(config.to_json(), log=log)
+        if settings.engine == "compiled":
+            for spec in config.detectors:   # import their modules: they register their kernels
+                load_detector_class(spec.name)
+            kernels.warm_up(log)
+        if client is None and jobs > 1:
+            setup.pool = LocalPool(backend, jobs)
+            setup.pool.start()
+    except BaseException:
+        setup.close()
+        raise
     return setup
 
 
@@ -352,7 +385,9 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
 
 
 def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
-    """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``."""
+    """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``,
+    after checking its files against its manifest
+    (:meth:`campaign.storage.CampaignDir.check_manifest`)."""
     cdir = CampaignDir(out)
     if not cdir.root.is_dir():
         raise CampaignSetupError(f"{cdir.root} does not exist; run a campaign into it first: "
@@ -364,5 +399,7 @@ def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
             + ("the campaign was stopped before it wrote one; finish it by running the same "
                "'fdd-campaign run' command again" if started else
                "it is not a campaign directory written by 'fdd-campaign run'"))
+    cdir.refuse_pickles()      # a directory of an older version: say how to go on
+    cdir.check_manifest()      # every file as the run wrote it (ManifestError, exit 2)
     summary, meta = cdir.read_summary()
     return cdir.read_results(), summary, meta

@@ -1,31 +1,50 @@
-"""The campaign directory: Parquet files written atomically, resume by replaying shards.
+"""The campaign directory: Parquet and JSON files written atomically, a manifest of their
+SHA-256 digests, a lock, resume by replaying shards.
 
 Layout (docs/design.md §6, Outputs)::
 
     DIR/campaign.json         the frozen configuration this directory belongs to
+    DIR/manifest.json         SHA-256 and size of every file below, the engine version and
+                              the campaign's identity (:meth:`CampaignDir.verify`)
     DIR/plan.parquet          the run table
     DIR/learning.parquet      the learning-set run table
-    DIR/fitted/LABEL.pkl      each fitted detector (and LABEL.json: its learned values)
+    DIR/fitted/LABEL.json     each fitted detector as data: registry name, parameters and
+    DIR/fitted/LABEL.npz      learned values (:mod:`detectors.state`), arrays in the .npz
     DIR/runs/part-NNNNNN.parquet  result rows, one shard per finished chunk
     DIR/summary.parquet       rates, bounds, DTP statistics
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
                               campaigns only, :mod:`reports.detection_times`)
-    DIR/report.html           the HTML report (``fdd-campaign report``)
+    DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
+    DIR/.fdd-campaign.lock    held by the run writing into the directory
+                              (:class:`campaign.dirlock.DirLock`)
 
 :class:`CampaignDir` alone names these files and reads and writes them; the rest of the
 engine asks it. Every file is written under a temporary name and moved into place with
 ``os.replace``, so a crash or a kill leaves either the old file or the new one, never a torn
-one; leftover temporary files are removed when the directory is opened again. Every Parquet
-file carries the campaign configuration, the engine version and its row count in its schema
-metadata.
+one; leftover temporary files are removed when the directory is opened again. Files and
+directories get the modes the user's umask gives (``0644``/``0755`` under umask 022). Every
+Parquet file carries the campaign configuration, the engine version and its row count in its
+schema metadata.
+
+Nothing read from a campaign directory is ever unpickled: a fitted detector is rebuilt from
+its registry name, parameters and learned values (:meth:`CampaignDir.read_fitted`), and a
+directory written by an older version (fitted detectors stored as ``.pkl``) is refused with
+the way forward (docs/security.md).
+
+The manifest is updated atomically after each file lands and before a file is replaced or
+removed, so it never claims a file that is not there, or the old content of a replaced one;
+a file written just before a crash may be missing from it, and resuming removes such a file
+(a shard's runs are run again). It makes a directory tamper-evident, not tamper-proof: anyone
+who can write the files can write a matching manifest too.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
-import pickle
-import tempfile
+import secrets
+from contextlib import contextmanager
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -34,8 +53,18 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .dirlock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
+
+__all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
+           "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
+           "write_text"]
+
 METADATA_KEY = b"fdd_campaign"
 SHARD_GLOB = "part-*.parquet"
+MANIFEST_NAME = "manifest.json"
+#: ``format`` of manifest.json and of fitted/LABEL.json: a reader refuses any other.
+MANIFEST_FORMAT = "fdd-campaign manifest 1"
+FITTED_FORMAT = "fdd-campaign fitted detector 1"
 
 
 def engine_version() -> str:
@@ -49,16 +78,32 @@ class CampaignDirError(ValueError):
     """The output directory cannot be used for this campaign (message says why and how)."""
 
 
+class ManifestError(CampaignDirError):
+    """The files of a campaign directory do not match its manifest; ``problems`` lists each
+    file that differs, is missing or is not in the manifest."""
+
+    def __init__(self, message: str, problems: list[str] = ()):
+        super().__init__(message)
+        self.problems = list(problems)
+
+    def __reduce__(self):
+        return (type(self), (str(self), self.problems))
+
+
+def _temporary_name(path: Path) -> Path:
+    """A fresh hidden name next to *path* (``.NAME.PID.RANDOM.tmp``), not created: the
+    writer creates it, with the mode the umask gives."""
+    return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+
+
 def _atomic_write_bytes(path: Path, write) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    tmp = _temporary_name(path)
     try:
-        write(tmp)
+        write(str(tmp))
         os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        tmp.unlink(missing_ok=True)
         raise
 
 
@@ -84,28 +129,13 @@ def write_text(path: Path, text: str) -> None:
     _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_text(text))
 
 
-def write_pickle(path: Path, obj) -> None:
-    _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_bytes(pickle.dumps(obj)))
-
-
-def _plain(value):
-    """*value* with NumPy arrays and scalars made JSON-serialisable (lists, floats, ints)."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, dict):
-        return {str(k): _plain(x) for k, x in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(x) for x in value]
-    return value
-
-
-def fitted_json(det) -> str:
-    """The human-readable form of a fitted detector (``fitted/LABEL.json``): its class,
-    parameters and learned values (:meth:`detectors.base.Detector.fitted_state`)."""
-    return json.dumps({"detector": type(det).__name__, "params": _plain(det.get_params()),
-                       "fitted": _plain(det.fitted_state())}, indent=2, default=str)
+def sha256_of(path: Path) -> str:
+    """The SHA-256 digest of the file *path* (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 #: ``[runner]`` keys that do not change any result (rows are bit-identical across chunk
@@ -124,16 +154,36 @@ def campaign_identity(config: dict) -> dict:
     return out
 
 
+#: Top-level files of a campaign directory that the manifest covers (with every file under
+#: ``runs/`` and ``fitted/``).
+MANIFEST_TOP_FILES: tuple[str, ...] = ("campaign.json", "plan.parquet", "learning.parquet",
+                                       "summary.parquet", "detection-times.parquet")
+
+
+def identity_sha256(config_json: str) -> str:
+    """SHA-256 of the canonical JSON of :func:`campaign_identity` of a campaign's JSON form."""
+    ident = json.dumps(campaign_identity(json.loads(config_json)), sort_keys=True,
+                       separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(ident.encode()).hexdigest()
+
+
+def _is_temporary(path: Path) -> bool:
+    return path.name.startswith(".") and path.name.endswith(".tmp")
+
+
 class CampaignDir:
     """One campaign's output directory: the only code that names, reads and writes its files.
 
     Every Parquet file is written with the campaign's JSON form (*config_json*, as
-    ``CampaignConfig.to_json()``) in its metadata (:func:`write_parquet`).
+    ``CampaignConfig.to_json()``) in its metadata (:func:`write_parquet`). Every file it
+    writes into a directory that has a manifest is recorded there (:meth:`verify`).
     """
 
     def __init__(self, root):
         self.root = Path(root)
         self.config_path = self.root / "campaign.json"
+        self.manifest_path = self.root / MANIFEST_NAME
+        self.lock_path = self.root / LOCK_NAME
         self.plan_path = self.root / "plan.parquet"
         self.learning_path = self.root / "learning.parquet"
         self.summary_path = self.root / "summary.parquet"
@@ -141,6 +191,7 @@ class CampaignDir:
         self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
+        self._manifest: dict | None = None
 
     def is_campaign(self) -> bool:
         """Whether the directory belongs to a campaign (holds ``campaign.json``)."""
@@ -152,18 +203,34 @@ class CampaignDir:
         return [p.name for p in (self.config_path, self.plan_path, self.summary_path)
                 if not p.exists()]
 
+    # ---- the lock ---------------------------------------------------------------------
+    @contextmanager
+    def locked(self, log=None):
+        """Hold the directory's lock (:class:`DirLock`) for the duration of the block."""
+        lock = DirLock(self.lock_path).acquire(log)
+        try:
+            yield lock
+        finally:
+            lock.release()
+
     # ---- identity ---------------------------------------------------------------------
-    def open(self, config_json: str) -> bool:
-        """Create the directory, or check that it holds this same campaign.
+    def open(self, config_json: str, log=None) -> bool:
+        """Create the directory, or check that it holds this same campaign and that its
+        files match its manifest; call it holding the lock (:meth:`locked`).
 
         Returns True when earlier results exist (a resume). Raises
-        :class:`CampaignDirError` when the directory holds a different campaign.
+        :class:`CampaignDirError` when the directory holds a different campaign or pickled
+        detectors, and :class:`ManifestError` when a recorded file was changed or removed.
+        A file missing from the manifest (written just before the previous run stopped)
+        is removed, with a note on *log*; a directory of an older version, without a
+        manifest, has one made of the files it holds.
         """
+        log = log or (lambda msg: None)
         stored = self.config_path
         if self.root.exists() and not self.root.is_dir():
             raise CampaignDirError(f"{self.root} exists and is not a directory")
         if stored.exists():
-            if (campaign_identity(json.loads(stored.read_text()))
+            if (campaign_identity(self.read_config())
                     != campaign_identity(json.loads(config_json))):
                 raise CampaignDirError(
                     f"{self.root} holds the results of a different campaign (its campaign.json "
@@ -171,7 +238,7 @@ class CampaignDir:
                     "run_timeout_s); choose another --out directory, or delete this one to "
                     "start again"
                 )
-        elif self.root.exists() and any(self.root.iterdir()):
+        elif self.root.exists() and any(p.name != LOCK_NAME for p in self.root.iterdir()):
             raise CampaignDirError(
                 f"{self.root} is not empty and holds no campaign.json; choose an empty or new "
                 "--out directory"
@@ -180,8 +247,16 @@ class CampaignDir:
         self.fitted.mkdir(parents=True, exist_ok=True)
         for leftover in list(self.root.rglob(".*.tmp")):
             leftover.unlink()
+        self.refuse_pickles()
         if not stored.exists():
             write_text(stored, config_json)
+            self._new_manifest()
+        elif not self.manifest_path.exists():
+            log(f"note: {self.root} has no {MANIFEST_NAME} (written by an older fdd-campaign): "
+                "recording the files it holds now (their content before now is not proven)")
+            self._new_manifest()
+        else:
+            self._recover(log)
         return any(self.runs.glob(SHARD_GLOB))
 
     def read_config(self) -> dict:
@@ -193,45 +268,271 @@ class CampaignDir:
             raise CampaignDirError(f"{self.config_path} is not valid JSON ({exc}); the "
                                    "directory is damaged: rerun the campaign") from None
 
+    # ---- the manifest -----------------------------------------------------------------
+    def _rel(self, path: Path) -> str:
+        return Path(path).relative_to(self.root).as_posix()
+
+    def _owned_files(self) -> list[str]:
+        """Every file the manifest covers that the directory holds (relative paths)."""
+        out = [name for name in MANIFEST_TOP_FILES if (self.root / name).is_file()]
+        for sub in (self.fitted, self.runs):
+            if sub.is_dir():
+                out += [self._rel(p) for p in sorted(sub.rglob("*"))
+                        if not p.is_dir() and not _is_temporary(p)]
+        return out
+
+    def _new_manifest(self) -> None:
+        """Start the manifest with every covered file the directory holds."""
+        self._manifest = {
+            "format": MANIFEST_FORMAT,
+            "engine_versions": [engine_version()],
+            "campaign": {"name": (self.read_config().get("campaign") or {}).get("name"),
+                         "identity_sha256": identity_sha256(self.config_path.read_text())},
+            "files": {},
+        }
+        self._record(*(self.root / rel for rel in self._owned_files()))
+
+    def read_manifest(self) -> dict:
+        """The stored manifest; :class:`ManifestError` when there is none or it is not one."""
+        path = self.manifest_path
+        if not path.exists():
+            raise ManifestError(
+                f"{self.root} has no {MANIFEST_NAME}, so its files cannot be checked: it was "
+                "written by an older fdd-campaign, or not by 'fdd-campaign run'. Rerun the "
+                "'fdd-campaign run' command that wrote it (delete its fitted/ directory first "
+                "if it holds .pkl files): the runs done are kept and a manifest is recorded",
+                [f"{MANIFEST_NAME} is missing"])
+        try:
+            manifest = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise ManifestError(f"{path} is not valid JSON ({exc}); the directory's files "
+                                "cannot be checked", [f"{MANIFEST_NAME} is not valid JSON"]) \
+                from None
+        if (not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT
+                or not isinstance(manifest.get("files"), dict)):
+            raise ManifestError(f"{path} is not an fdd-campaign manifest (format "
+                                f"{MANIFEST_FORMAT!r} expected)",
+                                [f"{MANIFEST_NAME} is not a manifest"])
+        return manifest
+
+    def _loaded_manifest(self) -> dict | None:
+        """The manifest being maintained: the one this object read or started, else the
+        directory's own, else None (a directory without one: nothing is recorded)."""
+        if self._manifest is None and self.manifest_path.exists():
+            self._manifest = self.read_manifest()
+        return self._manifest
+
+    def _write_manifest(self) -> None:
+        m = self._manifest
+        if engine_version() not in m["engine_versions"]:
+            m["engine_versions"].append(engine_version())
+        m["files"] = dict(sorted(m["files"].items()))
+        write_text(self.manifest_path, json.dumps(m, indent=1, ensure_ascii=False) + "\n")
+
+    def _record(self, *paths: Path) -> None:
+        """Add *paths* (written and in place) to the manifest, with their SHA-256 and size."""
+        if self._loaded_manifest() is None:
+            return
+        for path in paths:
+            self._manifest["files"][self._rel(path)] = {"sha256": sha256_of(path),
+                                                        "bytes": Path(path).stat().st_size}
+        self._write_manifest()
+
+    def _forget(self, *paths: Path) -> None:
+        """Take *paths* out of the manifest before they are replaced or removed."""
+        if self._loaded_manifest() is None:
+            return
+        rels = [self._rel(p) for p in paths if self._rel(p) in self._manifest["files"]]
+        if rels:
+            for rel in rels:
+                del self._manifest["files"][rel]
+            self._write_manifest()
+
+    def _write_recorded(self, path: Path, write) -> None:
+        """``write()`` the file *path*, keeping the manifest true at every moment."""
+        self._forget(path)
+        write()
+        self._record(path)
+
+    def remove(self, path) -> None:
+        """Remove the file *path* of this directory (and its manifest entry first)."""
+        path = Path(path)
+        self._forget(path)
+        path.unlink(missing_ok=True)
+
+    def verify(self) -> list[str]:
+        """What does not match the manifest: one message per file that differs from its
+        recorded SHA-256, is recorded but missing, or is held but not recorded (files under
+        ``runs/`` and ``fitted/`` and the top-level files of :data:`MANIFEST_TOP_FILES`);
+        empty when everything matches. :class:`ManifestError` when there is no manifest."""
+        manifest = self.read_manifest()
+        recorded = manifest["files"]
+        problems = []
+        held = set(self._owned_files())
+        for rel, entry in recorded.items():
+            path = self.root / rel
+            if rel not in held:
+                problems.append(f"{rel} is in the manifest but missing")
+            elif not isinstance(entry, dict) or sha256_of(path) != entry.get("sha256"):
+                problems.append(f"{rel} does not match the manifest (its SHA-256 differs from "
+                                "the one recorded when it was written)")
+        problems += [f"{rel} is not in the manifest" for rel in sorted(held - set(recorded))]
+        if self.config_path.exists() and not problems:
+            ident = (manifest.get("campaign") or {}).get("identity_sha256")
+            if ident != identity_sha256(self.config_path.read_text()):
+                problems.append("campaign.json does not match the campaign identity recorded "
+                                "in the manifest")
+        return problems
+
+    def check_manifest(self) -> None:
+        """Raise :class:`ManifestError` naming the files that do not match the manifest
+        (:meth:`verify`); ``fdd-campaign gate``, ``report``, ``show`` and ``compare`` call
+        it before reading anything else."""
+        problems = self.verify()
+        if not problems:
+            return
+        shown = "; ".join(problems[:5]) + (f"; and {len(problems) - 5} more"
+                                           if len(problems) > 5 else "")
+        busy = DirLock.holder(self.lock_path)
+        hint = (f" (a run is writing into it now: {holder_text(busy)}; wait for it to "
+                "finish)" if busy else
+                "; its results may have been changed after the run wrote them: restore the "
+                "directory from where it came from, or rerun the campaign into a new "
+                f"directory ('fdd-campaign verify {self.root}' lists every difference)")
+        raise ManifestError(f"{self.root} does not match its manifest: {shown}{hint}",
+                            problems)
+
+    def _recover(self, log) -> None:
+        """On resume: refuse recorded files that changed or went missing, remove files
+        written but not recorded before the previous run stopped."""
+        problems = self.verify()
+        stray = [p.split(" is not in the manifest")[0] for p in problems
+                 if p.endswith(" is not in the manifest")]
+        changed = [p for p in problems if not p.endswith(" is not in the manifest")]
+        if "campaign.json" in stray:
+            changed.append("campaign.json is not in the manifest")
+        if changed:
+            raise ManifestError(
+                f"{self.root} does not match its manifest: {'; '.join(changed[:5])}; its "
+                "results may have been changed after they were written, so they are not "
+                "resumed: restore the directory, or run the campaign into a new directory",
+                changed)
+        for rel in stray:
+            log(f"note: {rel} was written but not recorded in {MANIFEST_NAME} before the "
+                "previous run stopped: removed (whatever it held is computed again)")
+            (self.root / rel).unlink()
+
     # ---- run tables -------------------------------------------------------------------
     def has_plan(self) -> bool:
         return self.plan_path.exists()
 
     def write_plan(self, plan: pd.DataFrame, config_json: str) -> None:
         """Write the run table ``plan.parquet``."""
-        write_parquet(plan, self.plan_path, config_json, kind="plan")
+        self._write_recorded(self.plan_path, lambda: write_parquet(
+            plan, self.plan_path, config_json, kind="plan"))
 
     def read_plan(self) -> pd.DataFrame:
         return pd.read_parquet(self.plan_path)
 
     def write_learning(self, learning: pd.DataFrame, config_json: str) -> None:
         """Write the learning-set run table ``learning.parquet``."""
-        write_parquet(learning, self.learning_path, config_json, kind="learning")
+        self._write_recorded(self.learning_path, lambda: write_parquet(
+            learning, self.learning_path, config_json, kind="learning"))
 
     # ---- fitted detectors -------------------------------------------------------------
-    def _fitted_pickle(self, label: str) -> Path:
-        return self.fitted / f"{label}.pkl"
+    def _fitted_paths(self, label: str) -> tuple[Path, Path]:
+        return self.fitted / f"{label}.json", self.fitted / f"{label}.npz"
+
+    def refuse_pickles(self) -> None:
+        """:class:`CampaignDirError` when ``fitted/`` holds pickles (older versions stored
+        fitted detectors so): loading a pickle can run any code, so none is ever read."""
+        pickles = sorted(self.fitted.glob("*.pkl")) if self.fitted.is_dir() else []
+        if pickles:
+            raise CampaignDirError(
+                f"{pickles[0]} is a pickled detector, written by an older fdd-campaign; "
+                "loading a pickle can run any code, so fdd-campaign never reads one. To use "
+                f"this directory, delete {self.fitted} and rerun the 'fdd-campaign run' "
+                "command that wrote it: the detectors are fitted again on the learning set "
+                "and stored as data, and the runs already done are kept")
 
     def has_fitted(self, label: str) -> bool:
         """Whether the fitted detector *label* is stored."""
-        return self._fitted_pickle(label).exists()
+        return all(p.exists() for p in self._fitted_paths(label))
 
-    def write_fitted(self, label: str, det) -> None:
-        """Store the fitted detector *label*: ``fitted/LABEL.pkl`` (the object, read back by
-        :meth:`read_fitted`) and ``fitted/LABEL.json`` (its learned values, for people)."""
-        write_pickle(self._fitted_pickle(label), det)
-        write_text(self.fitted / f"{label}.json", fitted_json(det))
+    def write_fitted(self, label: str, name: str, det) -> None:
+        """Store the fitted detector *label* (registry name *name*) as data:
+        ``fitted/LABEL.json`` (name, parameters, learned values, engine version) and
+        ``fitted/LABEL.npz`` (the arrays among them), :mod:`detectors.state`. Raises
+        :class:`detectors.state.StateTypeError` (nothing written) when a parameter or a
+        learned attribute is not plain data."""
+        from detectors.state import encode
 
-    def read_fitted(self, label: str):
-        """The fitted detector *label* stored by :meth:`write_fitted`;
-        :class:`CampaignDirError` when it is missing."""
-        path = self._fitted_pickle(label)
-        if not path.exists():
+        cls = type(det)
+        params, arrays = encode(det.get_params(), "parameter ")
+        learned, arrays = encode(det.fitted_state(), "learned attribute ", arrays)
+        doc = {"format": FITTED_FORMAT, "detector": name,
+               "class": f"{cls.__module__}:{cls.__qualname__}",
+               "engine_version": engine_version(), "params": params, "learned": learned}
+        text = json.dumps(doc, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+        doc_path, npz_path = self._fitted_paths(label)
+        self._forget(doc_path, npz_path)
+
+        def save(tmp):
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **arrays)
+
+        _atomic_write_bytes(npz_path, save)
+        write_text(doc_path, text)
+        self._record(npz_path, doc_path)
+
+    def read_fitted(self, label: str, name: str | None = None):
+        """The fitted detector *label* stored by :meth:`write_fitted`, rebuilt from its
+        registry name and parameters (:func:`detectors.registry.make_detector`) with its
+        learned attributes set; never unpickles anything (arrays are read with
+        ``allow_pickle=False``). *name*: the registry name the campaign gives *label*, checked
+        against the stored one. :class:`CampaignDirError` when it is missing or damaged."""
+        from detectors.registry import make_detector
+        from detectors.state import StateFormatError, decode
+
+        self.refuse_pickles()
+        doc_path, npz_path = self._fitted_paths(label)
+        if not doc_path.exists() or not npz_path.exists():
+            missing = doc_path if not doc_path.exists() else npz_path
             raise CampaignDirError(
-                f"{path} is missing: the fitted detector {label!r} is needed to re-simulate "
+                f"{missing} is missing: the fitted detector {label!r} is needed to re-simulate "
                 "runs; copy the whole campaign directory (fitted/ included) or rerun "
                 "'fdd-campaign run' into it")
-        return pickle.loads(path.read_bytes())
+
+        def damaged(why: str) -> CampaignDirError:
+            return CampaignDirError(f"{doc_path} cannot be read back ({why}); the directory "
+                                    f"is damaged: delete {self.fitted} and rerun "
+                                    "'fdd-campaign run' into it to fit the detectors again")
+
+        try:
+            doc = json.loads(doc_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise damaged(f"not valid JSON: {exc}") from None
+        if not isinstance(doc, dict) or doc.get("format") != FITTED_FORMAT:
+            raise damaged(f"not a fitted detector of format {FITTED_FORMAT!r}")
+        stored = doc.get("detector")
+        if name is not None and stored != name:
+            raise damaged(f"it holds detector {stored!r}, the campaign names {name!r}")
+        try:
+            with np.load(npz_path, allow_pickle=False) as npz:
+                arrays = {key: npz[key] for key in npz.files}
+            params = decode(doc.get("params"), arrays)
+            learned = decode(doc.get("learned"), arrays)
+        except StateFormatError as exc:
+            raise damaged(str(exc)) from None
+        except (ValueError, OSError, EOFError) as exc:   # bad zip, object arrays, truncation
+            raise damaged(f"{npz_path.name}: {type(exc).__name__}: {exc}") from None
+        bad = [k for k in learned if not (k.isidentifier() and k.endswith("_")
+                                          and not k.startswith("_"))]
+        if bad:
+            raise damaged(f"learned attribute names must end in '_': {bad}")
+        det = make_detector(stored, params)
+        vars(det).update(learned)          # as unpickling did: the stored values, as they are
+        return det
 
     # ---- summary and detection times --------------------------------------------------
     def has_summary(self) -> bool:
@@ -240,7 +541,8 @@ class CampaignDir:
     def write_summary(self, summary: pd.DataFrame, config_json: str, **extra) -> None:
         """Write ``summary.parquet``; *extra* (``complete``, ``runs_done``, ``runs_planned``)
         goes into its metadata."""
-        write_parquet(summary, self.summary_path, config_json, kind="summary", **extra)
+        self._write_recorded(self.summary_path, lambda: write_parquet(
+            summary, self.summary_path, config_json, kind="summary", **extra))
 
     def read_summary(self) -> tuple[pd.DataFrame, dict]:
         """(summary, metadata of ``summary.parquet``)."""
@@ -250,7 +552,8 @@ class CampaignDir:
     def write_detection_times(self, times: pd.DataFrame, config_json: str) -> None:
         """Write ``detection-times.parquet``
         (:func:`reports.detection_times.detection_time_table`)."""
-        write_parquet(times, self.detection_times_path, config_json, kind="detection_times")
+        self._write_recorded(self.detection_times_path, lambda: write_parquet(
+            times, self.detection_times_path, config_json, kind="detection_times"))
 
     def read_detection_times(self) -> pd.DataFrame | None:
         """The stored detection times, or None when the campaign has none."""
@@ -273,9 +576,13 @@ class CampaignDir:
         last = int(paths[-1].stem.split("-")[1]) if paths else -1
         return self.runs / f"part-{last + 1:06d}.parquet"
 
-    def write_shard(self, results: pd.DataFrame, config_json: str) -> None:
-        """Store the result rows of one finished chunk as the next shard."""
-        write_parquet(results, self.next_shard_path(), config_json, kind="results")
+    def write_shard(self, results: pd.DataFrame, config_json: str) -> Path:
+        """Store the result rows of one finished chunk as the next shard (then record it in
+        the manifest); returns its path."""
+        path = self.next_shard_path()
+        self._write_recorded(path, lambda: write_parquet(results, path, config_json,
+                                                         kind="results"))
+        return path
 
     def read_results(self) -> pd.DataFrame:
         """Every result row; of a run written more than once (a rerun retrying its error or

@@ -32,7 +32,11 @@ checks, on any detector (docs/design.md §4, Contracts):
 * batch invariance: a run's result does not depend on the other runs of the batch;
 * causality: truncating the future never changes past alarms or residuals;
 * picklability: a fitted detector survives a pickle round trip with identical output
-  (workers receive detectors pickled).
+  (workers receive detectors pickled);
+* stored as data: its parameters and learned attributes are plain data
+  (:mod:`detectors.state`), and the detector rebuilt from them — made afresh from its
+  parameters, the learned attributes set, as a campaign directory reads it back without
+  unpickling — gives bit-identical output.
 
 Every check runs, also after another failed: :func:`check_detector` raises one
 :class:`DetectorCheckError` listing every failed check, each with the run (index and run
@@ -44,6 +48,8 @@ from __future__ import annotations
 
 import copy
 import functools
+import io
+import json
 import pickle
 from collections.abc import Callable, Iterator, Mapping, Sequence
 
@@ -56,6 +62,7 @@ from scenarios.signals import SIGNAL_UNITS
 from .base import Detection, Detector, NotFittedError, as_variants
 from .compat import incompatibilities
 from .params import declared_parameters, parameter_problems, signature_defaults
+from .state import StateTypeError, decode, encode
 
 
 class DetectorCheckError(AssertionError):
@@ -431,6 +438,29 @@ def _check_pickle_round_trip(ctx: _Context) -> None:
     _same(out, _variants(clone, ev), "pickle round trip", ev, range(ev.n_runs))
 
 
+def _check_state_round_trip(ctx: _Context) -> None:
+    fitted = ctx.fitted()["det"]
+    out = ctx.output()["out"]
+    try:
+        params, arrays = encode(fitted.get_params(), "parameter ")
+        learned, arrays = encode(fitted.fitted_state(), "learned attribute ", arrays)
+    except StateTypeError as exc:
+        raise DetectorCheckError(f"a campaign directory cannot store it as data: {exc}",
+                                 []) from None
+    text = json.dumps({"params": params, "learned": learned}, allow_nan=False)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    buf.seek(0)
+    with np.load(buf, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    doc = json.loads(text)
+    clone = type(fitted)(**decode(doc["params"], arrays))
+    vars(clone).update(decode(doc["learned"], arrays))
+    _, ev = ctx.signals()
+    _same(out, _variants(clone, ev), "rebuilt from its stored parameters and learned state",
+          ev, range(ev.n_runs))
+
+
 #: Every check, in the order they run: name → (check, applies to the detector?).
 CHECKS: dict[str, tuple[Callable[[_Context], None], Callable[[Detector], bool]]] = {
     "init_stores_params": (_check_init_stores_params, lambda d: True),
@@ -448,6 +478,7 @@ CHECKS: dict[str, tuple[Callable[[_Context], None], Callable[[Detector], bool]]]
     "batch_invariance": (_check_batch_invariance, lambda d: True),
     "causality": (_check_causality, lambda d: d.capabilities.causal),
     "pickle_round_trip": (_check_pickle_round_trip, lambda d: True),
+    "state_round_trip": (_check_state_round_trip, lambda d: True),
 }
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
+import secrets
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
@@ -342,9 +342,10 @@ def write_junit_tree(suites: list, path) -> None:
     ET.indent(tree)
     path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".junit-", suffix=".xml", dir=directory)
+    # created by open(): the mode the user's umask gives (mkstemp would make it 0600)
+    tmp = os.path.join(directory, f".junit-{os.getpid()}-{secrets.token_hex(4)}.xml.tmp")
     try:
-        with os.fdopen(fd, "wb") as fh:
+        with open(tmp, "xb") as fh:
             tree.write(fh, encoding="utf-8", xml_declaration=True)
         os.replace(tmp, path)
     except BaseException:

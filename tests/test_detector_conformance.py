@@ -134,7 +134,8 @@ def test_a_failing_fit_is_reported_in_every_check_that_needs_it():
         check_detector(FitFails())
     failed = dict(info.value.failures)
     needs_fit = [n for n in CHECKS if n.startswith(("fit_", "detect_", "output_", "determinism",
-                                                     "batch_", "causality", "pickle_"))]
+                                                     "batch_", "causality", "pickle_",
+                                                     "state_"))]
     assert sorted(failed) == sorted(needs_fit)
     assert all("fit() raised ValueError: no learning today" in failed[n] for n in needs_fit)
 
@@ -157,7 +158,7 @@ def test_parametrize_with_checks_gives_one_test_id_per_check():
     assert mark.args[0] == "check"
     assert ids[0] == "_Peeking[0]-init_stores_params"
     assert "_Peeking[1]-causality" in ids and "_Mutating-detect_leaves_signals" in ids
-    assert len(ids) == len(set(ids)) == 3 * 13
+    assert len(ids) == len(set(ids)) == 3 * 14
 
 
 def test_bench_reports_the_cost_of_every_registered_detector():

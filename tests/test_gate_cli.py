@@ -29,7 +29,7 @@ def _interrupted(smoke_dir, tmp_path, keep: int):
     config, plan = load_config("smoke"), cdir.read_plan()
     results = cdir.read_results()
     for path in cdir.shard_paths():
-        path.unlink()
+        cdir.remove(path)
     if keep:
         cdir.write_shard(results[results["run_id"].isin(plan["run_id"].iloc[:keep])],
                          config.to_json())
@@ -74,7 +74,7 @@ def test_a_false_alarm_names_the_run_and_the_show_command(smoke_dir, tmp_path, c
     row = results.index[(results["fault"] == "none")][2]
     results.loc[row, "false_alarm"] = True
     for path in cdir.shard_paths():
-        path.unlink()
+        cdir.remove(path)
     cdir.write_shard(results, config.to_json())
     finalize(cdir, config, plan, True, 0.0)
     assert main(["gate", str(copy)]) == 1

@@ -163,7 +163,7 @@ def test_report_works_on_a_copied_directory(campaign_dir, report, tmp_path, caps
 
 def test_report_of_an_interrupted_campaign_says_so(campaign_dir, tmp_path):
     from campaign.runner import finalize
-    from campaign.storage import CampaignDir, write_parquet
+    from campaign.storage import CampaignDir
 
     copy = tmp_path / "partial"
     shutil.copytree(campaign_dir, copy)
@@ -171,10 +171,9 @@ def test_report_of_an_interrupted_campaign_says_so(campaign_dir, tmp_path):
     camp = load_campaign(copy)
     # as if the campaign had been stopped after its first runs
     for path in cdir.shard_paths():
-        path.unlink()
+        cdir.remove(path)
     first = camp.plan["run_id"].iloc[:20]
-    write_parquet(camp.results[camp.results["run_id"].isin(first)], cdir.next_shard_path(),
-                  camp.config.to_json(), kind="results")
+    cdir.write_shard(camp.results[camp.results["run_id"].isin(first)], camp.config.to_json())
     finalize(cdir, camp.config, camp.plan, False, 0.0)
     page = build_report(copy, jobs=1, log=lambda _: None,
                         settings=ReportSettings(examples_per_fault=0)).read_text()
