@@ -145,6 +145,23 @@ def sha256_of(path: Path) -> str:
 RESULT_NEUTRAL_RUNNER_KEYS: tuple[str, ...] = ("chunk_size", "run_timeout_s")
 
 
+def _current_form(config: dict) -> dict:
+    """A stored campaign's JSON form as this version writes it: a directory written before a
+    key moved (docs/campaign-file.md, "Keys that moved") or before a key with a default was
+    added still resumes. A form this version cannot read is returned as it is (and then
+    differs from any campaign it is compared with)."""
+    import warnings
+
+    from .config import CampaignConfig, ConfigError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            return json.loads(CampaignConfig.from_dict(config).to_json())
+    except ConfigError:
+        return config
+
+
 def campaign_identity(config: dict) -> dict:
     """The part of a campaign's JSON form that decides its results."""
     out = dict(config)
@@ -230,7 +247,7 @@ class CampaignDir:
         if self.root.exists() and not self.root.is_dir():
             raise CampaignDirError(f"{self.root} exists and is not a directory")
         if stored.exists():
-            if (campaign_identity(self.read_config())
+            if (campaign_identity(_current_form(self.read_config()))
                     != campaign_identity(json.loads(config_json))):
                 raise CampaignDirError(
                     f"{self.root} holds the results of a different campaign (its campaign.json "

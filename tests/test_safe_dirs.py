@@ -616,3 +616,25 @@ def test_a_tls_scheduler_without_certificates_says_which_are_missing(tmp_path, c
     assert "--tls-ca-file (or dask's distributed.comm.tls.ca-file)" in err
     assert "--tls-cert (or dask's distributed.comm.tls.client.cert)" in err
 
+
+
+def test_a_directory_written_before_the_plant_keys_moved_still_resumes(tmp_path, capsys):
+    """campaign.json of an older version spells the plant in [campaign] and has no
+    manifest: the same campaign resumes (nothing recomputed), it is not refused as a
+    different one."""
+    import json
+
+    from campaign.cli import main
+
+    out = tmp_path / "old"
+    assert main(["run", "smoke", "--out", str(out), "--quiet", "--jobs", "1"]) == 0
+    config = json.loads((out / "campaign.json").read_text())
+    config["campaign"]["plant"] = config["plant"].pop("kind")      # the old spelling
+    (out / "campaign.json").write_text(json.dumps(config, sort_keys=True, separators=(",", ":")))
+    (out / "manifest.json").unlink()                                 # older versions had none
+    shards = sorted(p.name for p in (out / "runs").glob("part-*.parquet"))
+    capsys.readouterr()
+    assert main(["run", "smoke", "--out", str(out), "--quiet", "--jobs", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "20 of 20 runs already done" in err
+    assert sorted(p.name for p in (out / "runs").glob("part-*.parquet")) == shards
