@@ -31,6 +31,9 @@ def _overridden(config, args):
         from scenarios.plants import PLANT_KINDS
 
         if args.plant in PLANT_KINDS:
+            problem = cfg.preset_plant_problem(getattr(args, "campaign", ""), args.plant)
+            if problem:
+                raise UsageError(problem)
             values = {"plant.kind": args.plant}
         elif args.plant.lower().endswith(".fmu") or Path(args.plant).exists():
             values = {"plant.fmu": args.plant}
@@ -211,11 +214,15 @@ def _report_one(args) -> None:
 
     from .runner import load_results
 
-    _, summary, meta = load_results(args.dir)
+    results, summary, meta = load_results(args.dir)
     cfg = meta.get("config") or {}
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
     print(format_table(summary))
+    from .report import error_lines
+
+    for line in error_lines(results):
+        print(f"runs not scored: {line}")
     if not args.no_html:
         from .report import write_html_report
 

@@ -36,7 +36,7 @@ from .evaluate import ChunkSettings, score, simulate_and_detect
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
-__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs",
+__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs", "error_lines",
            "load_campaign", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
@@ -133,13 +133,19 @@ def _run_margin(residual: np.ndarray) -> np.ndarray:
 def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors: dict,
                  settings: ChunkSettings, n_bins: int, example_ids: frozenset):
     """Worker: re-simulate fault-free runs (binned |r|/τ and margin per detector variant)
-    together with some example runs (full traces).
+    together with some example runs (full traces). A detector that fails is run again run
+    by run; its failed runs are left out of its envelopes and returned as
+    {label: {run id: message}}.
 
     The example runs ride along in the same batch: the time loops are vectorised over runs,
     so extra rows cost almost nothing.
     """
     rows = pd.concat([env_rows, extra_rows], ignore_index=True)
-    signals, truth, detections = simulate_and_detect(rows, detectors, settings)
+    failed: dict = {}
+    signals, truth, detections = simulate_and_detect(rows, detectors, settings, failed)
+    ids = rows["run_id"].astype(str).to_numpy()
+    failures = {label: {ids[j]: msg for j, msg in runs.items()}
+                for label, runs in failed.items()}
     n_env = len(env_rows)
     env, starts = {}, None
     if n_env:
@@ -153,7 +159,7 @@ def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors:
             examples[rid] = (_run_frame(signals, truth, i),
                              {n: (d.residual[i], d.alarm[i]) for n, d in detections.items()},
                              float(truth.onset_s[i]))
-    return env_rows["run_id"].to_numpy(), starts, env, examples
+    return env_rows["run_id"].to_numpy(), starts, env, examples, failures
 
 
 def _run_tasks(tasks: list, jobs: int, min_tasks: int = 2) -> list:
@@ -215,10 +221,18 @@ def _gather_envelopes(parts: list, free: pd.DataFrame, settings: ChunkSettings):
     if not parts:
         return None
     run_ids = np.concatenate([p[0] for p in parts])
-    names = list(parts[0][2])
-    return {"run_ids": run_ids, "t_s": parts[0][1] * settings.ts,
-            "binned": {n: np.concatenate([p[2][n][0] for p in parts]) for n in names},
-            "margin": {n: np.concatenate([p[2][n][1] for p in parts]) for n in names},
+    # a detector that failed on every run of a part has none of its variants there
+    names = list(dict.fromkeys(n for p in parts for n in p[2]))
+    starts = next(p[1] for p in parts if p[1] is not None)
+
+    def part(p, n, k):
+        if n in p[2]:
+            return p[2][n][k]
+        return np.full((len(p[0]), len(starts)) if k == 0 else len(p[0]), np.nan)
+
+    return {"run_ids": run_ids, "t_s": starts * settings.ts,
+            "binned": {n: np.concatenate([part(p, n, 0) for p in parts]) for n in names},
+            "margin": {n: np.concatenate([part(p, n, 1) for p in parts]) for n in names},
             "manoeuvre": free.set_index("run_id").loc[run_ids, "manoeuvre"].to_numpy()}
 
 
@@ -383,11 +397,41 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
                                               example_ids=example_ids)
                         for e, x in _chunks(free, extra, jobs)], jobs)
     t_sim = time.perf_counter() - t0
+    warnings += error_lines(camp.results)
+    warnings += _resimulation_warnings([p[4] for p in parts])
     return _ReportData(
         camp=camp, cfg=cfg, requirements=req, gate=gate, runs=runs_table(camp), plan=plan,
         n_free=n_free, env=_gather_envelopes(parts, free, settings), examples=examples,
         traces={rid: tr for p in parts for rid, tr in p[3].items()}, t_sim=t_sim,
         warnings=warnings)
+
+
+def error_lines(results: pd.DataFrame, per_detector: int = 3) -> list[str]:
+    """One warning per detector with runs that did not finish (``status != "ok"``): how
+    many, with which status, and its first distinct messages with a run id each."""
+    bad = results[results["status"].astype(str) != "ok"]
+    out = []
+    for detector, g in bad.groupby("detector", sort=True):
+        counts = ", ".join(f"{n} {status}" for status, n in
+                           g["status"].astype(str).value_counts().sort_index().items())
+        first = g.drop_duplicates("error").head(per_detector)
+        more = g["error"].nunique() - len(first)
+        msgs = "; ".join(f"run {r.run_id}: {r.error}" for r in first.itertuples(index=False))
+        out.append(f"{detector}: {g['run_id'].nunique()} run(s) did not finish ({counts}); "
+                   "they are in the 'err' column and left out of every rate. "
+                   f"{msgs}{f' (and {more} other messages)' if more > 0 else ''}")
+    return out
+
+
+def _resimulation_warnings(parts: list[dict]) -> list[str]:
+    """Warnings for the detectors that failed on runs re-simulated for the report."""
+    merged: dict = {}
+    for failures in parts:
+        for label, runs in failures.items():
+            merged.setdefault(label, {}).update(runs)
+    return [f"{label} failed on {len(runs)} re-simulated run(s), left out of its envelopes "
+            f"and example traces; first: run {next(iter(runs))}: {next(iter(runs.values()))}"
+            for label, runs in sorted(merged.items()) if runs]
 
 
 # A figure to draw: (section, group, title, caption, kind, args, kwargs) for
@@ -544,7 +588,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
                                  "report.html (e.g. " + ", ".join(ids[:3]) + ")")
     detectors = camp.detectors()
     settings = camp.settings
-    signals, truth, detections = simulate_and_detect(match, detectors, settings)
+    failed: dict = {}
+    signals, truth, detections = simulate_and_detect(match, detectors, settings, failed)
     row = match.iloc[0]
     frame = _run_frame(signals, truth, 0)
     onset = float(truth.onset_s[0])
@@ -562,11 +607,21 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
         frame[f"{name} |r|/tau [-]"] = res
         frame[f"{name} alarm"] = alarm
         now = _score_text(again.loc[name])
-        if name in stored.index:
+        if name in stored.index and stored.loc[name, "status"] == "ok":
             log(f"  {name}: stored {_score_text(stored.loc[name])}")
+            log(f"  {' ' * len(name)}  re-simulated {now}")
+        elif name in stored.index:
+            log(f"  {name}: stored status {stored.loc[name, 'status']}: "
+                f"{stored.loc[name, 'error']}")
             log(f"  {' ' * len(name)}  re-simulated {now}")
         else:
             log(f"  {name}: no stored result; re-simulated {now}")
+    for label, runs in failed.items():
+        if runs:
+            was = (f"stored status {stored.loc[label, 'status']}: {stored.loc[label, 'error']}"
+                   if label in stored.index else "no stored result")
+            log(f"  {label}: {was}")
+            log(f"  {' ' * len(label)}  re-simulated: {runs[0]}")
     if out:
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -586,15 +641,44 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
 
 
 # ---- compare -------------------------------------------------------------------------------
+def differing_keys(a, b, prefix: str = "") -> list[str]:
+    """The dotted keys where two campaign-file dicts differ, each with both values
+    (``campaign.seed: 0 → 1``, ``detector[1].params.kappa: … → …``, ``group[2]: only in
+    B``); tables are compared key by key, arrays of tables element by element."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in list(dict.fromkeys([*a, *b])):
+            path = f"{prefix}.{k}" if prefix else str(k)
+            if k not in a or k not in b:
+                out.append(f"{path}: only in {'B' if k not in a else 'A'}")
+            else:
+                out += differing_keys(a[k], b[k], path)
+        return out
+    if (isinstance(a, list) and isinstance(b, list) and a and b
+            and all(isinstance(x, dict) for x in a + b)):
+        out = []
+        for i in range(max(len(a), len(b))):
+            path = f"{prefix}[{i}]"
+            if i >= len(a) or i >= len(b):
+                out.append(f"{path}: only in {'B' if i >= len(a) else 'A'}")
+            else:
+                out += differing_keys(a[i], b[i], path)
+        return out
+    return [] if a == b else [f"{prefix}: {a!r} → {b!r}"]
+
+
 def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
     """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
     and print the table; returns it."""
     a, b = load_campaign(dir_a), load_campaign(dir_b)
     ca, cb = a.config.to_dict(), b.config.to_dict()
-    differ = [k for k in sorted(set(ca) | set(cb)) if ca.get(k) != cb.get(k)]
+    differ = differing_keys(ca, cb)
     log(f"A: {a.root} ({a.config.campaign.name}, {a.results['run_id'].nunique()} runs)")
     log(f"B: {b.root} ({b.config.campaign.name}, {b.results['run_id'].nunique()} runs)")
-    log("the campaign files differ in: " + (", ".join(differ) if differ else "nothing"))
+    log("the campaign files differ in: " + ("; ".join(differ) if differ else "nothing"))
+    for side, camp in (("A", a), ("B", b)):
+        for line in error_lines(camp.results):
+            log(f"{side}: {line}")
     table = compare_results(a.results, b.results, alpha=alpha)
     log(format_compare(table, alpha=alpha))
     return table
