@@ -265,23 +265,34 @@ def _example_ids(results: pd.DataFrame, n_per_fault: int) -> list[tuple[str, str
         if m.notna().any():
             out.append((FAULT_FREE, m.idxmax(), f"largest margin {m.max():.3f}"))
     for fault, g in ok[ok["fault"] != FAULT_FREE].groupby("fault", sort=True):
-        dtp = np.where(g["detected"].astype(bool), g["dtp"].astype(float), np.inf)
+        detected = g["detected"].astype(bool).to_numpy()
+        dtp = np.where(detected, g["dtp"].astype(float), np.inf)
         per_run = pd.Series(dtp, index=g["run_id"].to_numpy()).groupby(level=0).max()
         per_run = per_run.sort_values(kind="stable")
-        picks = [(per_run.index[-1], "missed" if np.isinf(per_run.iloc[-1])
-                  else f"slowest, DTP {per_run.iloc[-1]:.3g}")]
+        missers = (g.loc[~detected].groupby("run_id")["detector"]
+                   .agg(lambda d: ", ".join(sorted(d))))
+        worst_by = (g.assign(_d=dtp).sort_values("_d", kind="stable")
+                    .groupby("run_id")["detector"].last())
+
+        def why(rid, dtp_value, word):
+            if np.isinf(dtp_value):
+                return f"{word + ', ' if word else ''}missed by {missers.get(rid, '?')}"
+            return f"{word}, DTP {dtp_value:.3g} ({worst_by.get(rid, '?')})"
+
+        picks = [(per_run.index[-1], why(per_run.index[-1], per_run.iloc[-1], "slowest"
+                                          if np.isfinite(per_run.iloc[-1]) else ""))]
         if len(per_run) > 2:
             mid = len(per_run) // 2
-            picks.append((per_run.index[mid], f"median, DTP {per_run.iloc[mid]:.3g}"
-                          if np.isfinite(per_run.iloc[mid]) else "median (missed)"))
+            picks.append((per_run.index[mid], why(per_run.index[mid], per_run.iloc[mid],
+                                                  "median")))
         if len(per_run) > 1:
-            picks.append((per_run.index[0], f"fastest, DTP {per_run.iloc[0]:.3g}"
-                          if np.isfinite(per_run.iloc[0]) else "missed"))
+            picks.append((per_run.index[0], why(per_run.index[0], per_run.iloc[0],
+                                                "fastest")))
         seen = set()
-        for rid, why in picks[:n_per_fault]:
+        for rid, text in picks[:n_per_fault]:
             if rid not in seen:
                 seen.add(rid)
-                out.append((fault, rid, why))
+                out.append((fault, rid, text))
     return out
 
 
@@ -525,9 +536,11 @@ def _map_specs(ok: pd.DataFrame, req: dict) -> list[tuple]:
             specs.append((
                 "map", name, f"Margin to false alarm — {name}",
                 "Each dot is a fault-free run at its true flight point; dots ringed in red "
-                "crossed the threshold (|r|/τ > 1).", "map", (free_runs, "margin"),
+                "are its false alarms, as counted in the summary table (a margin above 1 "
+                "without a confirmed alarm is not one).", "map", (free_runs, "margin"),
                 {"title": f"{name}: margin max |r|/τ of {len(free_runs)} fault-free runs",
-                 "label": "margin |r|/τ", "highlight_above": 1.0}))
+                 "label": "margin |r|/τ", "highlight_above": 1.0,
+                 "flagged": "false_alarm", "flagged_label": "false alarm"}))
         faulty = gd[gd["fault"] != FAULT_FREE]
         if len(faulty):
             hit = faulty["detected"].astype(bool)

@@ -342,11 +342,36 @@ class _Setup:
             self.client.close()
 
 
+def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
+    """The chunk size a run uses (*chunk_size*, or ``[runner] chunk_size``), after checking
+    it against the range of the schema's ``[runner] chunk_size`` (and *jobs* ≥ 1);
+    :class:`CampaignSetupError` (exit 2) names the option, its range and the fix."""
+    from dataclasses import fields
+
+    from .config.sections import RunnerSection
+    from .config.text import range_text
+
+    spec = next(f.metadata["key"] for f in fields(RunnerSection) if f.name == "chunk_size")
+    size = config.runner.chunk_size if chunk_size is None else chunk_size
+    if (isinstance(size, bool) or not isinstance(size, (int, np.integer))
+            or not spec.lo <= size <= spec.hi):
+        raise CampaignSetupError(
+            f"--chunk-size {size!r}: out of range; allowed: an integer, "
+            f"{range_text(spec, 'chunk size')} runs ([runner] chunk_size, "
+            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lo) * 100}, or leave it "
+            "out to use the campaign file's value")
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
+        raise CampaignSetupError(f"--jobs {jobs!r}: must be an integer ≥ 1 (local workers); "
+                                 "fix: e.g. --jobs 2")
+    return int(size)
+
+
 def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log) -> _Setup:
     """Check the plant and the options, open the directory, warm the kernels and start the
     local workers (they start while the learning set is simulated here)."""
     from .execute import LocalPool, connect
 
+    size = check_run_options(config, jobs=jobs, chunk_size=chunk_size)
     settings = settings_of(config)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -367,7 +392,7 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log) ->
             load_detector_class(spec.name)
         kernels.warm_up(log)
     setup = _Setup(cdir=cdir, resumed=resumed, settings=settings,
-                   chunk_size=int(chunk_size or config.runner.chunk_size), jobs=jobs,
+                   chunk_size=size, jobs=jobs,
                    backend=backend, client=client)
     if client is None and jobs > 1:
         setup.pool = LocalPool(backend, jobs)
