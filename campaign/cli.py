@@ -259,7 +259,7 @@ def _report_one(args) -> None:
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
     print(format_table(summary))
-    from .report import error_lines
+    from reports.table import error_lines
 
     for line in error_lines(results):
         print(f"runs not scored: {line}")

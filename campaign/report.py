@@ -25,18 +25,19 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from reports.compare import compare_results, format_compare
+from reports.compare import compare_results, differing_keys, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE
+from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
-__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs", "error_lines",
+__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs",
            "load_campaign", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
@@ -417,23 +418,6 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
         warnings=warnings)
 
 
-def error_lines(results: pd.DataFrame, per_detector: int = 3) -> list[str]:
-    """One warning per detector with runs that did not finish (``status != "ok"``): how
-    many, with which status, and its first distinct messages with a run id each."""
-    bad = results[results["status"].astype(str) != "ok"]
-    out = []
-    for detector, g in bad.groupby("detector", sort=True):
-        counts = ", ".join(f"{n} {status}" for status, n in
-                           g["status"].astype(str).value_counts().sort_index().items())
-        first = g.drop_duplicates("error").head(per_detector)
-        more = g["error"].nunique() - len(first)
-        msgs = "; ".join(f"run {r.run_id}: {r.error}" for r in first.itertuples(index=False))
-        out.append(f"{detector}: {g['run_id'].nunique()} run(s) did not finish ({counts}); "
-                   "they are in the 'err' column and left out of every rate. "
-                   f"{msgs}{f' (and {more} other messages)' if more > 0 else ''}")
-    return out
-
-
 def _resimulation_warnings(parts: list[dict]) -> list[str]:
     """Warnings for the detectors that failed on runs re-simulated for the report."""
     merged: dict = {}
@@ -654,32 +638,6 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
 
 
 # ---- compare -------------------------------------------------------------------------------
-def differing_keys(a, b, prefix: str = "") -> list[str]:
-    """The dotted keys where two campaign-file dicts differ, each with both values
-    (``campaign.seed: 0 → 1``, ``detector[1].params.kappa: … → …``, ``group[2]: only in
-    B``); tables are compared key by key, arrays of tables element by element."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        out = []
-        for k in list(dict.fromkeys([*a, *b])):
-            path = f"{prefix}.{k}" if prefix else str(k)
-            if k not in a or k not in b:
-                out.append(f"{path}: only in {'B' if k not in a else 'A'}")
-            else:
-                out += differing_keys(a[k], b[k], path)
-        return out
-    if (isinstance(a, list) and isinstance(b, list) and a and b
-            and all(isinstance(x, dict) for x in a + b)):
-        out = []
-        for i in range(max(len(a), len(b))):
-            path = f"{prefix}[{i}]"
-            if i >= len(a) or i >= len(b):
-                out.append(f"{path}: only in {'B' if i >= len(a) else 'A'}")
-            else:
-                out += differing_keys(a[i], b[i], path)
-        return out
-    return [] if a == b else [f"{prefix}: {a!r} → {b!r}"]
-
-
 def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
     """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
     and print the table; returns it."""
