@@ -20,6 +20,36 @@ def _err(msg: str) -> None:
     print(f"fdd-campaign: error: {msg}", file=sys.stderr)
 
 
+def check_writable(path, option: str, *, directory: bool = False) -> None:
+    """Raise :class:`UsageError` (exit 2) naming *option*, *path* and the fix when *path*
+    (a file, or a directory when *directory*) cannot be written: it exists and is not
+    writable (or not of its kind), or the nearest existing folder above it is not a
+    writable directory."""
+    import os
+
+    target = Path(path)
+    fix = "fix: choose a writable location (e.g. under your home directory)"
+    if target.exists():
+        if directory and not target.is_dir():
+            raise UsageError(f"{option} {path}: exists and is not a directory; {fix}")
+        if not directory and target.is_dir():
+            raise UsageError(f"{option} {path}: is a directory, a file name is needed; fix: "
+                             f"e.g. {option} {target / 'out'}")
+        if not os.access(target, os.W_OK | (os.X_OK if directory else 0)):
+            raise UsageError(f"{option} {path}: not writable (permission denied); {fix}, or "
+                             f"make it writable: chmod u+w {target}")
+        return
+    parent = target.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UsageError(f"{option} {path}: {parent} is a file, not a folder; {fix}")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UsageError(f"{option} {path}: cannot create it, the folder {parent} is not "
+                         f"writable (permission denied); {fix}, or make that folder "
+                         f"writable: chmod u+w {parent}")
+
+
 # ---- commands ------------------------------------------------------------------------------
 def _overridden(config, args):
     """*config* with the command line's --seed and --plant."""
@@ -31,6 +61,9 @@ def _overridden(config, args):
         from scenarios.catalog import PLANT_KINDS
 
         if args.plant in PLANT_KINDS:
+            problem = cfg.preset_plant_problem(getattr(args, "campaign", ""), args.plant)
+            if problem:
+                raise UsageError(problem)
             values = {"plant.kind": args.plant}
         elif args.plant.lower().endswith(".fmu") or Path(args.plant).exists():
             values = {"plant.fmu": args.plant}
@@ -99,13 +132,18 @@ def cmd_run(args) -> int:
     from .suite import Suite, load_spec, write_suite_json
 
     if args.jobs < 1:
-        raise UsageError("--jobs must be ≥ 1")
+        raise UsageError(f"--jobs {args.jobs}: must be ≥ 1 (local workers); fix: e.g. --jobs 2")
     spec = load_spec(args.campaign)
+    check_writable(args.out, "--out", directory=True)
     if not isinstance(spec, Suite):
         result = _run_campaign(_overridden(spec, args), args.out, args)
         return EXIT_OK if result.complete else EXIT_INTERRUPTED
     # a suite: every member validated (with the overrides) before the first one runs
     configs = [_overridden(m.config, args) for m in spec.members]
+    from .runner import check_run_options
+
+    for config in configs:
+        check_run_options(config, jobs=args.jobs, chunk_size=args.chunk_size)
     if CampaignDir(args.out).is_campaign():
         raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
                          "campaigns into subdirectories of a directory of its own: choose "
@@ -127,6 +165,7 @@ def cmd_plan(args) -> int:
     from .suite import Suite, load_spec
 
     spec = load_spec(args.campaign)
+    check_writable(args.out, "--out", directory=True)
     if isinstance(spec, Suite):
         for member in spec.members:
             print(f"== {member.title} ==")
@@ -156,6 +195,8 @@ def cmd_gate(args) -> int:
 
     from .suite import is_suite_dir, suite_members
 
+    if args.junit:
+        check_writable(args.junit, "--junit")
     if not is_suite_dir(args.dir):
         result = _gate_one(args.dir, args)
         if args.junit:
@@ -256,11 +297,17 @@ def _report_one(args) -> None:
 
     from .runner import load_results
 
-    _, summary, meta = load_results(args.dir)
+    results, summary, meta = load_results(args.dir)
+    if not args.no_html:
+        check_writable(args.html or Path(args.dir) / "report.html", "--html")
     cfg = meta.get("config") or {}
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
     print(format_table(summary))
+    from reports.table import error_lines
+
+    for line in error_lines(results):
+        print(f"runs not scored: {line}")
     if not args.no_html:
         from .report import write_html_report
 
@@ -270,6 +317,9 @@ def _report_one(args) -> None:
 def cmd_show(args) -> int:
     from .report import cmd_show as show
 
+    for option in ("plot", "out"):
+        if getattr(args, option):
+            check_writable(getattr(args, option), f"--{option}")
     return show(args)
 
 
@@ -296,6 +346,7 @@ def cmd_init(args) -> int:
     path = Path(args.file)
     if path.exists() and not args.force:
         raise UsageError(f"{path} exists; use --force to overwrite it")
+    check_writable(path, "init")
     path.write_text(init_text())
     print(f"wrote {path}; run it with: fdd-campaign run {path} --out results/")
     return EXIT_OK
@@ -305,6 +356,9 @@ def cmd_simulate(args) -> int:
     from scenarios.plants import get_plant
     from scenarios.simulate import single_run
 
+    for option in ("plot", "out"):
+        if getattr(args, option):
+            check_writable(getattr(args, option), f"--{option}")
     plant = get_plant(args.plant)
     if args.surface in plant.surfaces:
         surface = args.surface
@@ -376,6 +430,7 @@ def cmd_study_vanek(args) -> int:
 def cmd_fmu(args) -> int:
     from scenarios.fmu_build import FmuBuildError, build_servo_fmu
 
+    check_writable(args.out, "--out")
     try:
         out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,
                               log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
@@ -429,16 +484,17 @@ def _add_run_parsers(subs) -> None:
 
     p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)
-    p.add_argument("campaign")
-    p.add_argument("--out", required=True)
-    p.add_argument("--seed", type=int)
+    p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
+    p.add_argument("--out", required=True, help="directory to write plan.parquet into "
+                   "(a suite: one subdirectory per campaign)")
+    p.add_argument("--seed", type=int, help="override the campaign seed")
 
 
 def _add_result_parsers(subs) -> None:
     """Sub-commands: read a campaign directory: report, show, compare, verify, gate."""
     p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
              "report (DIR/report.html)", "fdd-campaign report results/", cmd_report)
-    p.add_argument("dir")
+    p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
     p.add_argument("--no-html", action="store_true", help="only print the table")
     p.add_argument("--html", help="HTML file to write (default DIR/report.html)")
     p.add_argument("--jobs", type=int, default=2,
@@ -450,16 +506,17 @@ def _add_result_parsers(subs) -> None:
     p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
              "fdd-campaign show results/ 2e961155651f65ed16c7 --plot run.png --out run.parquet",
              cmd_show)
-    p.add_argument("dir")
-    p.add_argument("run_id")
+    p.add_argument("dir", help="campaign directory written by 'fdd-campaign run'")
+    p.add_argument("run_id", help="run id of plan.parquet (listed in report.html, and by "
+                   "'gate' for its failing runs)")
     p.add_argument("--plot", help="PNG file: signals, |r|/τ and alarms of every detector")
     p.add_argument("--out", help="Parquet file for the traces")
 
     p = _sub(subs, "compare", "what changed between two campaigns: rates with a significance "
              "test, DTP shifts, per cell", "fdd-campaign compare results-v1/ results-v2/",
              cmd_compare)
-    p.add_argument("dir_a")
-    p.add_argument("dir_b")
+    p.add_argument("dir_a", help="campaign directory A (the reference)")
+    p.add_argument("dir_b", help="campaign directory B (compared with A)")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the worse/better flags (default 0.01)")
 
@@ -502,9 +559,11 @@ def _add_simulate_parser(subs) -> None:
     p.add_argument("--plant", default="actuator", choices=PLANT_KINDS,
                    help="actuator: the servo-loop alone; aircraft: aircraft, laws and every "
                    "surface in the loop")
-    p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES)
-    p.add_argument("--fault", default="none", choices=FAULTS)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES,
+                   help="manoeuvre (default cruise; docs/physics.md §7)")
+    p.add_argument("--fault", default="none", choices=FAULTS,
+                   help="fault injected at --onset (default none; docs/physics.md §5)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random draw (default 0)")
     p.add_argument("--onset", type=float, default=10.0, help="fault onset [s] (default 10)")
     p.add_argument("--magnitude", type=float, help="fault magnitude (unit per fault type)")
     p.add_argument("--duration", type=float, default=30.0, help="run duration [s]")
@@ -522,15 +581,18 @@ def _add_tool_parsers(subs) -> None:
 
     p = _sub(subs, "init", "write an annotated starting campaign file",
              "fdd-campaign init my-campaign.toml", cmd_init)
-    p.add_argument("file", nargs="?", default="campaign.toml")
-    p.add_argument("--force", action="store_true")
+    p.add_argument("file", nargs="?", default="campaign.toml",
+                   help="campaign file to write (default campaign.toml)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
 
     p = _sub(subs, "bench", "measure simulation speed, memory and the ratio to the per-run "
              "reference", "fdd-campaign bench --runs 2200 --jobs 2", cmd_bench)
-    p.add_argument("--runs", type=int, default=2200)
-    p.add_argument("--duration", type=float, default=60.0)
-    p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--chunk-size", type=int, default=275)
+    p.add_argument("--runs", type=int, default=2200, help="runs simulated (default 2200)")
+    p.add_argument("--duration", type=float, default=60.0,
+                   help="run duration [s] (default 60)")
+    p.add_argument("--jobs", type=int, default=2, help="local workers (default 2)")
+    p.add_argument("--chunk-size", type=int, default=275,
+                   help="runs per chunk (default 275)")
     p.add_argument("--reference-runs", type=int, default=2,
                    help="runs timed with the solve_ivp reference (default 2)")
     p.add_argument("--campaign", default="addsafe-mc",
@@ -582,6 +644,13 @@ def build_parser() -> argparse.ArgumentParser:
               fdd-campaign simulate --surface elevator --manoeuvre turn_coordination \\
                   --fault solid_jam --plot run.png --out run.parquet"""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version("fdd-campaign")
+    except PackageNotFoundError:      # run from a source tree that is not installed
+        v = "unknown (not installed)"
+    parser.add_argument("--version", action="version", version=f"fdd-campaign {v}")
     subs = parser.add_subparsers(dest="command", metavar="COMMAND")
     for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
                 _add_study_parsers):
@@ -610,6 +679,11 @@ def main(argv=None) -> int:
     # FmuError, UsageError), and a missing file; the message names the field and the fix
     except (ValueError, FileNotFoundError) as exc:
         _err(str(exc))
+        return EXIT_INPUT
+    except OSError as exc:    # a path the checks above could not foresee (disk full, …)
+        where = f" {exc.filename}" if exc.filename else ""
+        _err(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path exists, "
+             "that you may write there and that the disk has room")
         return EXIT_INPUT
     except KeyboardInterrupt:
         _err("interrupted")

@@ -22,15 +22,47 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from detectors import as_variants
+from detectors import Detection, as_variants, detection_problems
 from reports.metrics import RESULT_COLUMNS, score_runs
 from scenarios import kernels
 from scenarios.signals import Signals
 from scenarios.plants import Plant
 from scenarios.simulate import ActuatorPlant
 
-__all__ = ["ChunkSettings", "detect", "evaluate", "failure_rows", "score",
-           "simulate_and_detect", "simulate_signals"]
+__all__ = ["ChunkSettings", "DetectorContractError", "detect", "detect_runs", "evaluate", "failure_message",
+           "failure_rows", "score", "simulate_and_detect", "simulate_signals"]
+
+
+class DetectorContractError(ValueError):
+    """A detector's output broke the contract of ``detect`` on the signals it was given
+    (:func:`detectors.detection_problems`): wrong dtype, a shape that is not the signals'
+    (n_runs, n_steps), ±inf or a NaN after the warm-up in the residual. The message names
+    the detector, the rule, the shapes seen and how to find the breach with
+    :func:`detectors.testing.check_detector`."""
+
+    def __init__(self, label: str, detector, variant: str, problems: list[str],
+                 detection, shape: tuple[int, int]):
+        alarm, residual = np.asarray(detection.alarm), np.asarray(detection.residual)
+        cls = type(detector).__name__
+        seen = (f"seen: alarm {alarm.shape} {alarm.dtype}, residual {residual.shape} "
+                f"{residual.dtype}, signals {tuple(shape)}")
+        where = "" if variant == label else f" (variant {variant!r})"
+        super().__init__(
+            f"detector {label!r}{where} broke the output contract of detect(): "
+            f"{'; '.join(problems)} ({seen}); its runs are recorded as errors, never scored. "
+            f"Find it with: from detectors.testing import check_detector; "
+            f"check_detector({cls}(**params)) (docs/write-a-detector.md)")
+        self.label, self.variant, self.problems = label, variant, tuple(problems)
+
+    def __reduce__(self):
+        return _rebuild_contract_error, (str(self), self.label, self.variant, self.problems)
+
+
+def _rebuild_contract_error(message, label, variant, problems):
+    exc = DetectorContractError.__new__(DetectorContractError)
+    ValueError.__init__(exc, message)
+    exc.label, exc.variant, exc.problems = label, variant, problems
+    return exc
 
 
 @dataclass(frozen=True)
@@ -66,26 +98,90 @@ def simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
         return _simulate(rows, settings)[0]
 
 
-def detect(signals: Signals, detectors: dict) -> dict:
+def detect(signals: Signals, detectors: dict, failures: dict | None = None) -> dict:
     """Every fitted detector (label → Detector) on *signals*: {variant name →
     :class:`detectors.base.Detection`}, the names of the result rows
-    (:func:`detectors.as_variants`)."""
+    (:func:`detectors.as_variants`).
+
+    Each output is checked against the contract (:func:`detectors.detection_problems`:
+    dtypes, the signals' exact (n_runs, n_steps) shape, a finite residual but for NaN
+    warm-up samples); a breach raises :class:`DetectorContractError`. With a dict
+    *failures*, a detector that raises (or breaks the contract) is left out and its
+    message stored there under its label instead (the report and ``show`` go on with the
+    others).
+    """
     detections = {}
     for label, det in detectors.items():
-        detections.update(as_variants(label, det.detect(signals)))
+        try:
+            detections.update(_checked(label, det, signals))
+        except Exception as exc:  # noqa: BLE001 - recorded for the caller when asked to
+            if failures is None:
+                raise
+            failures[label] = failure_message(exc)
     return detections
 
 
-def simulate_and_detect(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
+def detect_runs(signals: Signals, detectors: dict) -> tuple[dict, dict]:
+    """:func:`detect` for readers of a campaign (report, ``show``) that must go on when a
+    detector fails: a detector that raises on the batch (or breaks the contract) is run
+    again run by run, as :func:`evaluate` does.
+
+    Returns ``(detections, failures)``: *detections* as :func:`detect`, where the runs a
+    detector failed on have no alarm and an all-NaN residual (left out of every margin);
+    *failures* maps a label to {run index → message} of the runs it failed on (a label
+    that failed on every run has no detection at all).
+    """
+    failed: dict = {}
+    detections = detect(signals, detectors, failed)
+    failures = {}
+    for label in failed:
+        det, shape = detectors[label], (signals.n_runs, signals.n_steps)
+        parts, errors = {}, {}
+        for j in range(signals.n_runs):
+            try:
+                parts[j] = _checked(label, det, signals.take([j]))
+            except Exception as exc:  # noqa: BLE001 - recorded per run
+                errors[j] = failure_message(exc)
+        failures[label] = errors
+        names = dict.fromkeys(name for out in parts.values() for name in out)
+        for name in names:
+            alarm, residual = np.zeros(shape, bool), np.full(shape, np.nan)
+            for j, out in parts.items():
+                if name in out:
+                    alarm[j], residual[j] = out[name].alarm[0], out[name].residual[0]
+            detections[name] = Detection(alarm=alarm, residual=residual)
+    return detections, failures
+
+
+def _checked(label: str, det, signals: Signals) -> dict:
+    """The variants of *det* on *signals*, each checked against the output contract."""
+    variants = as_variants(label, det.detect(signals))
+    shape = (signals.n_runs, signals.n_steps)
+    for name, detection in variants.items():
+        problems = detection_problems(detection, *shape)
+        if problems:
+            raise DetectorContractError(label, det, name, problems, detection, shape)
+    return variants
+
+
+def simulate_and_detect(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings,
+                        failures: dict | None = None):
     """Simulate plan *rows* and run every fitted detector on them, for callers that need the
     traces (report, ``show``).
 
     Returns ``(signals, truth, detections)``, *detections* as :func:`detect`. Raises what
-    the simulation or a detector raises (:func:`evaluate` records it instead).
+    the simulation raises, and what a detector raises unless *failures* is a dict: the
+    detectors then run as :func:`detect_runs` says (a failing one run by run) and
+    *failures* receives its {label: {run index: message}} (:func:`evaluate` records both
+    as result rows instead).
     """
     with kernels.use_engine(settings.engine):
         signals, truth = _simulate(rows, settings)
-        return signals, truth, detect(signals, detectors)
+        if failures is None:
+            return signals, truth, detect(signals, detectors)
+        detections, failed = detect_runs(signals, detectors)
+        failures.update(failed)
+        return signals, truth, detections
 
 
 def _required(fault, settings: ChunkSettings) -> np.ndarray:
@@ -150,7 +246,7 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
                                   settings))
         except Exception as exc:  # noqa: BLE001
             if len(rows) == 1:
-                frames.append(_error_rows(rows, label, f"detector failed: {_describe(exc)}"))
+                frames.append(_error_rows(rows, label, failure_message(exc)))
                 continue
             # run by run, so that only the runs the detector fails on are recorded as errors
             for j in range(len(rows)):
@@ -160,7 +256,7 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
                                           required[[j]], settings))
                 except Exception as exc_j:  # noqa: BLE001
                     frames.append(_error_rows(rows.iloc[[j]], label,
-                                              f"detector failed: {_describe(exc_j)}"))
+                                              failure_message(exc_j)))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
 
 
@@ -186,6 +282,14 @@ def _error_rows(rows: pd.DataFrame, detector: str, message: str,
         "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
         "dtp": np.nan, "margin": np.nan,
     })
+
+
+def failure_message(exc: BaseException) -> str:
+    """The ``error`` text of a run a detector failed on: a contract breach as its own
+    message (:class:`DetectorContractError`), anything else as ``detector failed: …``."""
+    if isinstance(exc, DetectorContractError):
+        return str(exc)
+    return f"detector failed: {_describe(exc)}"
 
 
 def _describe(exc: BaseException) -> str:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from detectors.compat import incompatibilities
+from detectors.compat import incompatibilities, offline_problems
 from scenarios.fmu import FmuPlant
 from scenarios.params import ActuatorParams
 from scenarios.plants import Plant, get_plant
@@ -43,7 +43,9 @@ def run_actuator(config, plant: Plant | None = None) -> ActuatorParams:
 
 def detector_problems(config, capabilities: dict, plant: Plant | None = None) -> list[str]:
     """What keeps the detectors of *capabilities* (label → Capabilities) from running on the
-    campaign's plant, one message each (empty: all can run)."""
+    campaign's plant, one message each (empty: all can run); a non-causal detector is
+    refused too (:func:`detectors.compat.offline_problems`)."""
     plant = plant or plant_of(config)
-    return incompatibilities(capabilities, plant, run_surface(config, plant),
-                             pressure_sensor=config.campaign.pressure_sensor)
+    return (incompatibilities(capabilities, plant, run_surface(config, plant),
+                              pressure_sensor=config.campaign.pressure_sensor)
+            + offline_problems(capabilities))

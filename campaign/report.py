@@ -26,11 +26,12 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from reports.compare import compare_results, format_compare
+from reports.compare import compare_results, differing_keys, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE
+from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
@@ -134,13 +135,19 @@ def _run_margin(residual: np.ndarray) -> np.ndarray:
 def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors: dict,
                  settings: ChunkSettings, n_bins: int, example_ids: frozenset):
     """Worker: re-simulate fault-free runs (binned |r|/τ and margin per detector variant)
-    together with some example runs (full traces).
+    together with some example runs (full traces). A detector that fails is run again run
+    by run; its failed runs are left out of its envelopes and returned as
+    {label: {run id: message}}.
 
     The example runs ride along in the same batch: the time loops are vectorised over runs,
     so extra rows cost almost nothing.
     """
     rows = pd.concat([env_rows, extra_rows], ignore_index=True)
-    signals, truth, detections = simulate_and_detect(rows, detectors, settings)
+    failed: dict = {}
+    signals, truth, detections = simulate_and_detect(rows, detectors, settings, failed)
+    ids = rows["run_id"].astype(str).to_numpy()
+    failures = {label: {ids[j]: msg for j, msg in runs.items()}
+                for label, runs in failed.items()}
     n_env = len(env_rows)
     env, starts = {}, None
     if n_env:
@@ -154,7 +161,7 @@ def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors:
             examples[rid] = (_run_frame(signals, truth, i),
                              {n: (d.residual[i], d.alarm[i]) for n, d in detections.items()},
                              float(truth.onset_s[i]))
-    return env_rows["run_id"].to_numpy(), starts, env, examples
+    return env_rows["run_id"].to_numpy(), starts, env, examples, failures
 
 
 def _run_tasks(tasks: list, jobs: int, min_tasks: int = 2) -> list:
@@ -216,10 +223,18 @@ def _gather_envelopes(parts: list, free: pd.DataFrame, settings: ChunkSettings):
     if not parts:
         return None
     run_ids = np.concatenate([p[0] for p in parts])
-    names = list(parts[0][2])
-    return {"run_ids": run_ids, "t_s": parts[0][1] * settings.ts,
-            "binned": {n: np.concatenate([p[2][n][0] for p in parts]) for n in names},
-            "margin": {n: np.concatenate([p[2][n][1] for p in parts]) for n in names},
+    # a detector that failed on every run of a part has none of its variants there
+    names = list(dict.fromkeys(n for p in parts for n in p[2]))
+    starts = next(p[1] for p in parts if p[1] is not None)
+
+    def part(p, n, k):
+        if n in p[2]:
+            return p[2][n][k]
+        return np.full((len(p[0]), len(starts)) if k == 0 else len(p[0]), np.nan)
+
+    return {"run_ids": run_ids, "t_s": starts * settings.ts,
+            "binned": {n: np.concatenate([part(p, n, 0) for p in parts]) for n in names},
+            "margin": {n: np.concatenate([part(p, n, 1) for p in parts]) for n in names},
             "manoeuvre": free.set_index("run_id").loc[run_ids, "manoeuvre"].to_numpy()}
 
 
@@ -252,23 +267,34 @@ def _example_ids(results: pd.DataFrame, n_per_fault: int) -> list[tuple[str, str
         if m.notna().any():
             out.append((FAULT_FREE, m.idxmax(), f"largest margin {m.max():.3f}"))
     for fault, g in ok[ok["fault"] != FAULT_FREE].groupby("fault", sort=True):
-        dtp = np.where(g["detected"].astype(bool), g["dtp"].astype(float), np.inf)
+        detected = g["detected"].astype(bool).to_numpy()
+        dtp = np.where(detected, g["dtp"].astype(float), np.inf)
         per_run = pd.Series(dtp, index=g["run_id"].to_numpy()).groupby(level=0).max()
         per_run = per_run.sort_values(kind="stable")
-        picks = [(per_run.index[-1], "missed" if np.isinf(per_run.iloc[-1])
-                  else f"slowest, DTP {per_run.iloc[-1]:.3g}")]
+        missers = (g.loc[~detected].groupby("run_id")["detector"]
+                   .agg(lambda d: ", ".join(sorted(d))))
+        worst_by = (g.assign(_d=dtp).sort_values("_d", kind="stable")
+                    .groupby("run_id")["detector"].last())
+
+        def why(rid, dtp_value, word):
+            if np.isinf(dtp_value):
+                return f"{word + ', ' if word else ''}missed by {missers.get(rid, '?')}"
+            return f"{word}, DTP {dtp_value:.3g} ({worst_by.get(rid, '?')})"
+
+        picks = [(per_run.index[-1], why(per_run.index[-1], per_run.iloc[-1], "slowest"
+                                          if np.isfinite(per_run.iloc[-1]) else ""))]
         if len(per_run) > 2:
             mid = len(per_run) // 2
-            picks.append((per_run.index[mid], f"median, DTP {per_run.iloc[mid]:.3g}"
-                          if np.isfinite(per_run.iloc[mid]) else "median (missed)"))
+            picks.append((per_run.index[mid], why(per_run.index[mid], per_run.iloc[mid],
+                                                  "median")))
         if len(per_run) > 1:
-            picks.append((per_run.index[0], f"fastest, DTP {per_run.iloc[0]:.3g}"
-                          if np.isfinite(per_run.iloc[0]) else "missed"))
+            picks.append((per_run.index[0], why(per_run.index[0], per_run.iloc[0],
+                                                "fastest")))
         seen = set()
-        for rid, why in picks[:n_per_fault]:
+        for rid, text in picks[:n_per_fault]:
             if rid not in seen:
                 seen.add(rid)
-                out.append((fault, rid, why))
+                out.append((fault, rid, text))
     return out
 
 
@@ -384,11 +410,24 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
                                               example_ids=example_ids)
                         for e, x in _chunks(free, extra, jobs)], jobs)
     t_sim = time.perf_counter() - t0
+    warnings += error_lines(camp.results)
+    warnings += _resimulation_warnings([p[4] for p in parts])
     return _ReportData(
         camp=camp, cfg=cfg, requirements=req, gate=gate, runs=runs_table(camp), plan=plan,
         n_free=n_free, env=_gather_envelopes(parts, free, settings), examples=examples,
         traces={rid: tr for p in parts for rid, tr in p[3].items()}, t_sim=t_sim,
         warnings=warnings)
+
+
+def _resimulation_warnings(parts: list[dict]) -> list[str]:
+    """Warnings for the detectors that failed on runs re-simulated for the report."""
+    merged: dict = {}
+    for failures in parts:
+        for label, runs in failures.items():
+            merged.setdefault(label, {}).update(runs)
+    return [f"{label} failed on {len(runs)} re-simulated run(s), left out of its envelopes "
+            f"and example traces; first: run {next(iter(runs))}: {next(iter(runs.values()))}"
+            for label, runs in sorted(merged.items()) if runs]
 
 
 # A figure to draw: (section, group, title, caption, kind, args, kwargs) for
@@ -482,9 +521,11 @@ def _map_specs(ok: pd.DataFrame, req: dict) -> list[tuple]:
             specs.append((
                 "map", name, f"Margin to false alarm — {name}",
                 "Each dot is a fault-free run at its true flight point; dots ringed in red "
-                "crossed the threshold (|r|/τ > 1).", "map", (free_runs, "margin"),
+                "are its false alarms, as counted in the summary table (a margin above 1 "
+                "without a confirmed alarm is not one).", "map", (free_runs, "margin"),
                 {"title": f"{name}: margin max |r|/τ of {len(free_runs)} fault-free runs",
-                 "label": "margin |r|/τ", "highlight_above": 1.0}))
+                 "label": "margin |r|/τ", "highlight_above": 1.0,
+                 "flagged": "false_alarm", "flagged_label": "false alarm"}))
         faulty = gd[gd["fault"] != FAULT_FREE]
         if len(faulty):
             hit = faulty["detected"].astype(bool)
@@ -545,7 +586,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
                                  "report.html (e.g. " + ", ".join(ids[:3]) + ")")
     detectors = camp.detectors()
     settings = camp.settings
-    signals, truth, detections = simulate_and_detect(match, detectors, settings)
+    failed: dict = {}
+    signals, truth, detections = simulate_and_detect(match, detectors, settings, failed)
     row = match.iloc[0]
     frame = _run_frame(signals, truth, 0)
     onset = float(truth.onset_s[0])
@@ -563,11 +605,21 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
         frame[f"{name} |r|/tau [-]"] = res
         frame[f"{name} alarm"] = alarm
         now = _score_text(again.loc[name])
-        if name in stored.index:
+        if name in stored.index and stored.loc[name, "status"] == "ok":
             log(f"  {name}: stored {_score_text(stored.loc[name])}")
+            log(f"  {' ' * len(name)}  re-simulated {now}")
+        elif name in stored.index:
+            log(f"  {name}: stored status {stored.loc[name, 'status']}: "
+                f"{stored.loc[name, 'error']}")
             log(f"  {' ' * len(name)}  re-simulated {now}")
         else:
             log(f"  {name}: no stored result; re-simulated {now}")
+    for label, runs in failed.items():
+        if runs:
+            was = (f"stored status {stored.loc[label, 'status']}: {stored.loc[label, 'error']}"
+                   if label in stored.index else "no stored result")
+            log(f"  {label}: {was}")
+            log(f"  {' ' * len(label)}  re-simulated: {runs[0]}")
     if out:
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -592,10 +644,13 @@ def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFram
     and print the table; returns it."""
     a, b = load_campaign(dir_a), load_campaign(dir_b)
     ca, cb = a.config.to_dict(), b.config.to_dict()
-    differ = [k for k in sorted(set(ca) | set(cb)) if ca.get(k) != cb.get(k)]
+    differ = differing_keys(ca, cb)
     log(f"A: {a.root} ({a.config.campaign.name}, {a.results['run_id'].nunique()} runs)")
     log(f"B: {b.root} ({b.config.campaign.name}, {b.results['run_id'].nunique()} runs)")
-    log("the campaign files differ in: " + (", ".join(differ) if differ else "nothing"))
+    log("the campaign files differ in: " + ("; ".join(differ) if differ else "nothing"))
+    for side, camp in (("A", a), ("B", b)):
+        for line in error_lines(camp.results):
+            log(f"{side}: {line}")
     table = compare_results(a.results, b.results, alpha=alpha)
     log(format_compare(table, alpha=alpha))
     return table

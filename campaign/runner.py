@@ -113,14 +113,46 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
                            for start in range(0, len(plan), chunk_size)])
 
 
+#: Learning runs the sampled batch-invariance check of third-party detectors uses
+#: (:func:`check_batch_invariance`): each alone, together and in reverse order.
+BATCH_CHECK_RUNS = 4
+
+
+def third_party(det) -> bool:
+    """Whether *det* is a third-party (plugin) detector: its class lives outside the
+    :mod:`detectors` package, whose built-in detectors the test suite checks."""
+    return type(det).__module__.split(".")[0] != "detectors"
+
+
+def plant_name(plant) -> str:
+    """The plant as a user names it: ``the aircraft plant``, ``the FMU plant servo.fmu``."""
+    path = getattr(plant, "path", None)
+    return f"the FMU plant {path}" if path else f"the {plant.kind} plant"
+
+
+def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
+                      submit, workers: int) -> Signals:
+    """The signals of the learning runs; a plant that fails is named (exit 2)."""
+    try:
+        return simulate_chunks(learning, settings, chunk_size, submit=submit, workers=workers)
+    except Exception as exc:  # noqa: BLE001 - any failure of the plant, named for the user
+        raise CampaignSetupError(
+            f"{plant_name(settings.plant)} failed while simulating the learning set "
+            f"({len(learning)} fault-free runs): {type(exc).__name__}: {exc}; nothing was "
+            "run. Fix: try one run with 'fdd-campaign simulate' (or 'fdd-campaign run smoke "
+            "--plant ...') to see the plant's error") from exc
+
+
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
                   log=print, submit=None, workers: int = 1) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it.
 
-    A fitted detector is stored as data (:meth:`CampaignDir.write_fitted`); one whose
-    parameters or learned attributes are not plain data (:mod:`detectors.state`) stops the
-    campaign here, before any run, with a :class:`CampaignSetupError` naming the detector
-    and the attribute."""
+    A detector whose ``fit`` raises (anything) is a :class:`CampaignSetupError` naming its
+    label; so is a plant that fails on the learning runs. A fitted detector is stored as data
+    (:meth:`CampaignDir.write_fitted`); one whose parameters or learned attributes are not
+    plain data (:mod:`detectors.state`) stops the campaign here, before any run, with a
+    :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
+    detector is then checked for batch invariance (:func:`check_batch_invariance`)."""
     from detectors.state import PLAIN_TYPES_DOC, StateTypeError
 
     detectors = build_detectors(config)
@@ -137,9 +169,15 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
         if det.capabilities.needs_fit:
             if learning_signals is None:
                 log(f"learning set: simulating {len(learning)} fault-free runs")
-                learning_signals = simulate_chunks(learning, settings, chunk_size,
-                                                   submit=submit, workers=workers)
-            det.fit(learning_signals)
+                learning_signals = _learning_signals(learning, settings, chunk_size,
+                                                     submit, workers)
+            try:
+                det.fit(learning_signals)
+            except Exception as exc:  # noqa: BLE001 - any failure of fit, named for the user
+                raise CampaignSetupError(
+                    f"detector {label!r} ({type(det).__name__}) failed while fitting on the "
+                    f"learning set ({learning_signals.n_runs} fault-free runs of "
+                    f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}") from exc
         try:
             cdir.write_fitted(label, names[label], det)
         except StateTypeError as exc:
@@ -150,7 +188,48 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                 f"may hold {PLAIN_TYPES_DOC} (docs/write-a-detector.md, 'Learned state')"
             ) from None
         fitted[label] = det
+    plugins = {label: det for label, det in fitted.items() if third_party(det)}
+    if plugins:
+        check_batch_invariance(plugins, learning, settings, learning_signals)
     return fitted
+
+
+def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
+                           learning_signals: Signals | None = None) -> None:
+    """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
+    depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
+    chunk, which ``[runner]`` must never change.
+
+    A sampled check, cheap enough for every campaign start: :data:`BATCH_CHECK_RUNS`
+    learning runs spread over the learning plan, each alone, all together and in reverse
+    order (:func:`detectors.testing.batch_invariance_failure`, the ``batch_invariance``
+    check of ``check_detector``). It catches what depends on the batch as a whole (a
+    normalisation by the chunk's mean or maximum, a state shared between runs); it is not
+    a proof. The runner applies it to third-party detectors only (:func:`third_party`):
+    the test suite runs the full check on the built-in ones. A detector that raises on
+    these runs is left to the campaign, which records its failures per run.
+    """
+    from detectors.testing import batch_invariance_failure
+
+    n = len(learning)
+    picks = np.unique(np.linspace(0, n - 1, min(BATCH_CHECK_RUNS, n)).round().astype(int))
+    if learning_signals is not None:
+        signals = learning_signals.take(list(picks))
+    else:
+        signals = _learning_signals(learning.iloc[picks], settings, len(picks), None, 1)
+    with kernels.use_engine(settings.engine):
+        for label, det in detectors.items():
+            try:
+                failure = batch_invariance_failure(det, signals)
+            except Exception:  # noqa: BLE001 - a failing detect is recorded per run later
+                continue
+            if failure is not None:
+                raise CampaignSetupError(
+                    f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
+                    f"{failure}. Its results would depend on --chunk-size and on which runs "
+                    "share a chunk, which [runner] must never change; fix: compute every "
+                    "run on its own (docs/write-a-detector.md, Signals and output) and check "
+                    "it with detectors.testing.check_detector")
 
 
 @dataclass
@@ -219,17 +298,47 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
-    setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
-                   scheduler=scheduler, engine=engine, log=log, tls=tls)
+    root = Path(out)
+    # what a failed start may remove: a directory this call creates, or fills from empty
+    existed = root.exists()
+    fresh = not existed or (root.is_dir() and not any(root.iterdir()))
+    setup = None
     try:
+        setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
+                       scheduler=scheduler, engine=engine, log=log, tls=tls)
         plan = build_plan(config)
         if not setup.cdir.has_plan():
             setup.cdir.write_plan(plan, config.to_json())
         detectors = _learn(config, setup, log)
+    except BaseException:
+        if setup is not None:       # this call holds the directory's lock
+            if fresh:               # nothing that looks like a campaign is left behind
+                _remove_created(root, existed)
+            setup.close()
+        raise
+    try:
         complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
         return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
     finally:
         setup.close()
+
+
+def _remove_created(root: Path, existed: bool) -> None:
+    """Remove what a campaign start that failed before its first run created in *root*:
+    the directory itself when this call created it, else its content (it was empty:
+    :meth:`CampaignDir.open` refuses a non-empty directory without ``campaign.json``)."""
+    import shutil
+
+    if not root.is_dir():
+        return
+    if not existed:
+        shutil.rmtree(root, ignore_errors=True)
+        return
+    for child in root.iterdir():
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child, ignore_errors=True)
+        else:
+            child.unlink(missing_ok=True)
 
 
 @dataclass
@@ -257,12 +366,37 @@ class _Setup:
                 self.lock.release()
 
 
+def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
+    """The chunk size a run uses (*chunk_size*, or ``[runner] chunk_size``), after checking
+    it against the range of the schema's ``[runner] chunk_size`` (and *jobs* ≥ 1);
+    :class:`CampaignSetupError` (exit 2) names the option, its range and the fix."""
+    from dataclasses import fields
+
+    from .config.sections import RunnerSection
+    from .config.text import range_text
+
+    spec = next(f.metadata["key"] for f in fields(RunnerSection) if f.name == "chunk_size")
+    size = config.runner.chunk_size if chunk_size is None else chunk_size
+    if (isinstance(size, bool) or not isinstance(size, (int, np.integer))
+            or not spec.lo <= size <= spec.hi):
+        raise CampaignSetupError(
+            f"--chunk-size {size!r}: out of range; allowed: an integer, "
+            f"{range_text(spec, 'chunk size')} runs ([runner] chunk_size, "
+            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lo) * 100}, or leave it "
+            "out to use the campaign file's value")
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
+        raise CampaignSetupError(f"--jobs {jobs!r}: must be an integer ≥ 1 (local workers); "
+                                 "fix: e.g. --jobs 2")
+    return int(size)
+
+
 def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
            tls=None) -> _Setup:
     """Check the plant and the options, open the directory, warm the kernels and start the
     local workers (they start while the learning set is simulated here)."""
     from .execute import LocalPool, connect
 
+    size = check_run_options(config, jobs=jobs, chunk_size=chunk_size)
     settings = settings_of(config)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -278,7 +412,7 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     client = connect(scheduler, tls=tls, log=log) if scheduler else None   # fail fast
     cdir = CampaignDir(out)
     setup = _Setup(cdir=cdir, resumed=False, settings=settings,
-                   chunk_size=int(chunk_size or config.runner.chunk_size), jobs=jobs,
+                   chunk_size=size, jobs=jobs,
                    backend=backend, client=client)
     try:
         # one run at a time writes into a directory: a second one is refused (exit 2)

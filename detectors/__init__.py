@@ -1,6 +1,14 @@
 """Fault detectors: the contract, the registry and the built-in detectors."""
 
-from .base import Capabilities, Detection, Detector, NotFittedError, as_variants, confirm
+from .base import (
+    Capabilities,
+    Detection,
+    Detector,
+    NotFittedError,
+    as_variants,
+    confirm,
+    detection_problems,
+)
 from .params import Param, parameter_problems, parameter_table
 from .registry import (
     DetectorSpecError,
@@ -12,6 +20,7 @@ from .registry import (
 
 __all__ = [
     "Capabilities", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
+    "detection_problems",
     "DetectorSpecError", "available_detectors", "load_detector_class", "make_detector",
     "parameter_errors", "Param", "parameter_problems", "parameter_table",
 ]

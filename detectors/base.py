@@ -161,6 +161,56 @@ class Detector:
         raise NotImplementedError(f"{type(self).__name__} must implement _detect(signals)")
 
 
+def detection_problems(detection: Detection, n_runs: int, n_steps: int) -> list[str]:
+    """Every rule of the output contract *detection* breaks for signals of *n_runs* runs of
+    *n_steps* samples, one message each (empty: it keeps the contract).
+
+    The rules (docs/write-a-detector.md, Signals and output), the same for the engine's
+    check after every ``detect`` (:func:`campaign.evaluate.detect`) and for
+    :func:`detectors.testing.check_detector`:
+
+    * ``alarm`` is a bool array and ``residual`` a float array, both exactly
+      (n_runs, n_steps), the shape of the signals;
+    * ``residual`` is finite, except NaN samples at the start of a run (a filter warming
+      up: "no residual yet"), which scoring ignores (the margin of
+      :func:`reports.metrics.score_runs` skips NaN); a NaN after the first non-NaN sample
+      of a run, or ±inf anywhere, is a breach.
+    """
+    alarm, residual = np.asarray(detection.alarm), np.asarray(detection.residual)
+    want = (int(n_runs), int(n_steps))
+    problems = []
+    if alarm.dtype != np.bool_:
+        problems.append(f"alarm must be a bool array, got dtype {alarm.dtype}")
+    if alarm.shape != want:
+        problems.append(f"alarm must have the shape of the signals (n_runs, n_steps) = "
+                        f"{want}, got {alarm.shape}")
+    if not np.issubdtype(residual.dtype, np.floating):
+        problems.append(f"residual must be a float array, got dtype {residual.dtype}")
+        return problems
+    if residual.shape != want:
+        problems.append(f"residual must have the shape of the signals (n_runs, n_steps) = "
+                        f"{want}, got {residual.shape}")
+        return problems
+    bad = residual_breaches(residual)
+    if bad.any():
+        i, k = (int(v) for v in np.argwhere(bad)[0])
+        value = residual[i, k]
+        what = ("±inf is never allowed" if np.isinf(value) else
+                "NaN is allowed only before the first non-NaN sample of a run (warm-up)")
+        problems.append(f"residual must be finite floats ({what}): got {value} at run {i}, "
+                        f"step {k} ({int(bad.any(axis=1).sum())} of {want[0]} runs affected)")
+    return problems
+
+
+def residual_breaches(residual: np.ndarray) -> np.ndarray:
+    """(n_runs, n_steps) bool: the samples of *residual* the output contract refuses (±inf,
+    and NaN after the first non-NaN sample of its run; :func:`detection_problems`)."""
+    residual = np.asarray(residual, dtype=float)
+    nan = np.isnan(residual)
+    started = np.logical_or.accumulate(~nan, axis=1) if residual.ndim == 2 else ~nan
+    return np.isinf(residual) | (nan & started)
+
+
 def as_variants(name: str, output) -> dict[str, Detection]:
     """Normalise ``detect`` output to ``{detector_variant_name: Detection}``."""
     if isinstance(output, Detection):

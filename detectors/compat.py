@@ -55,3 +55,21 @@ def incompatibilities(capabilities: Mapping[str, object], plant, surface: str, *
         for group in sorted(needs_of(caps) - provided, key=list(SIGNAL_GROUPS).index):
             problems.append(_message(label, group, plant, surface))
     return problems
+
+
+def offline_problems(capabilities: Mapping[str, object]) -> list[str]:
+    """The detectors of *capabilities* (label → :class:`Capabilities`) that declare
+    ``causal=False``, one message each: a campaign refuses them (docs/write-a-detector.md,
+    Capabilities).
+
+    A campaign measures online detection: an alarm at step k may use the samples up to k
+    only. A non-causal (offline) detector's alarm times use the future, so its detection
+    delay and DTP are not achievable in flight, and its false alarms are not those of an
+    online monitor; scoring it like the others would mix the two in one table and one gate.
+    """
+    return [f"detector {label!r} declares Capabilities(causal=False) (offline: its alarm at "
+            "a step may use later samples), and a campaign evaluates online detection only "
+            "(detection times and DTP of an offline method are not achievable in flight); "
+            "fix: if it only uses past samples, declare causal=True (check_detector's "
+            "causality check verifies it), else leave it out of the campaign"
+            for label, caps in capabilities.items() if not getattr(caps, "causal", True)]

@@ -26,7 +26,9 @@ checks, on any detector (docs/design.md §4, Contracts):
 * ``fit`` returns ``self`` and stores learned state only in attributes ending in ``_``;
   it leaves ``get_params`` unchanged; neither ``fit`` nor ``detect`` modifies the signals
   it is given;
-* shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite;
+* shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite
+  but for NaN warm-up samples at the start of a run — the rule the engine applies to every
+  ``detect`` of a campaign (:func:`detectors.detection_problems`);
 * determinism: detecting twice gives identical output, and so does a second detector
   fitted afresh on the same learning set;
 * batch invariance: a run's result does not depend on the other runs of the batch;
@@ -59,7 +61,7 @@ import pandas as pd
 from scenarios.plants import get_plant
 from scenarios.signals import SIGNAL_UNITS
 
-from .base import Detection, Detector, NotFittedError, as_variants
+from .base import Detection, Detector, NotFittedError, as_variants, detection_problems
 from .compat import incompatibilities
 from .params import declared_parameters, parameter_problems, signature_defaults
 from .state import StateTypeError, decode, encode
@@ -380,17 +382,8 @@ def _check_detect_leaves_signals(ctx: _Context) -> None:
 def _check_output_types(ctx: _Context) -> None:
     o = ctx.output()
     ev = o["ev"]
-    problems = []
-    for name, d in o["out"].items():
-        if d.alarm.dtype != np.bool_ or d.alarm.shape != ev.command.shape:
-            problems.append(f"{name}: alarm must be bool of shape {ev.command.shape}, got "
-                            f"{d.alarm.dtype} of shape {d.alarm.shape}")
-        if not np.issubdtype(d.residual.dtype, np.floating):
-            problems.append(f"{name}: residual must be finite floats, got {d.residual.dtype}")
-        elif not np.isfinite(d.residual).all():
-            i, k = (int(v) for v in np.argwhere(~np.isfinite(d.residual))[0])
-            problems.append(f"{name}: residual must be finite floats, got "
-                            f"{_value(d.residual[i, k])} at {_run_text(ev, i)}, step {k}")
+    problems = [f"{name}: {msg}" for name, d in o["out"].items()
+                for msg in detection_problems(d, ev.n_runs, ev.n_steps)]
     if problems:
         raise DetectorCheckError("; ".join(problems))
 
@@ -413,12 +406,33 @@ def _check_batch_invariance(ctx: _Context) -> None:
     out = ctx.output()["out"]
     det = ctx.fitted()["det"]
     _, ev = ctx.signals()
-    for j in range(ev.n_runs):
-        alone = _variants(det, ev.take([j]))
-        _same(out, alone, f"batch invariance ({_run_text(ev, j)} alone)", ev, [j])
-    order = np.arange(ev.n_runs)[::-1]
-    reordered = _variants(det, ev.take(order))
-    _same(out, reordered, "batch invariance (runs in reverse order)", ev, list(order))
+    _batch_invariant(det, ev, out)
+
+
+def _batch_invariant(det, signals, out: dict) -> None:
+    """Raise :class:`DetectorCheckError` unless fitted *det* gives each run of *signals*
+    alone, and the runs in reverse order, what it gave them together (*out*)."""
+    for j in range(signals.n_runs):
+        alone = _variants(det, signals.take([j]))
+        _same(out, alone, f"batch invariance ({_run_text(signals, j)} alone)", signals, [j])
+    order = np.arange(signals.n_runs)[::-1]
+    reordered = _variants(det, signals.take(order))
+    _same(out, reordered, "batch invariance (runs in reverse order)", signals, list(order))
+
+
+def batch_invariance_failure(detector: Detector, signals) -> str | None:
+    """The ``batch_invariance`` check of :data:`CHECKS` on the given *signals*: what differs
+    when the fitted *detector* sees each run alone, or the runs in reverse order, instead
+    of all of them together (None: nothing; a run's result must not depend on the other
+    runs of its batch, since a campaign cuts its runs into chunks of any size). The
+    detector is not modified (it runs on copies). Used by the runner on a few learning
+    runs of every third-party detector before a campaign starts."""
+    det = copy.deepcopy(detector)
+    try:
+        _batch_invariant(det, signals, _variants(det, signals))
+    except DetectorCheckError as exc:
+        return str(exc)
+    return None
 
 
 def _check_causality(ctx: _Context) -> None:

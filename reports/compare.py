@@ -42,7 +42,7 @@ from scipy import stats
 from .metrics import FAULT_FREE
 from .summary import ALL_MANOEUVRES
 
-__all__ = ["COMPARE_COLUMNS", "compare_results", "format_compare"]
+__all__ = ["COMPARE_COLUMNS", "compare_results", "differing_keys", "format_compare"]
 
 #: Default significance level of the flags.
 ALPHA = 0.01
@@ -262,3 +262,29 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA) -> str:
         if r.flag in ("worse", "better") and r.reasons:
             lines.append(f"  {r.detector} / {r.fault} / {r.manoeuvre}: {r.reasons}")
     return "\n".join(lines)
+
+
+def differing_keys(a, b, prefix: str = "") -> list[str]:
+    """The dotted keys where two campaign-file dicts differ, each with both values
+    (``campaign.seed: 0 → 1``, ``detector[1].params.kappa: … → …``, ``group[2]: only in
+    B``); tables are compared key by key, arrays of tables element by element."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in list(dict.fromkeys([*a, *b])):
+            path = f"{prefix}.{k}" if prefix else str(k)
+            if k not in a or k not in b:
+                out.append(f"{path}: only in {'B' if k not in a else 'A'}")
+            else:
+                out += differing_keys(a[k], b[k], path)
+        return out
+    if (isinstance(a, list) and isinstance(b, list) and a and b
+            and all(isinstance(x, dict) for x in a + b)):
+        out = []
+        for i in range(max(len(a), len(b))):
+            path = f"{prefix}[{i}]"
+            if i >= len(a) or i >= len(b):
+                out.append(f"{path}: only in {'B' if i >= len(a) else 'A'}")
+            else:
+                out += differing_keys(a[i], b[i], path)
+        return out
+    return [] if a == b else [f"{prefix}: {a!r} → {b!r}"]

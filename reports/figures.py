@@ -129,6 +129,8 @@ def _hist(ax, x: np.ndarray, color: str) -> None:
         width = max(abs(hi) * 0.2, 1e-3)
         ax.bar([hi], [len(x)], width=width, color=color, alpha=0.8)
         ax.set_xlim(hi - 3 * width, hi + 3 * width)
+        ax.set_xticks([hi], [f"{hi:.4g}"])     # one value: one tick (no crowded labels)
+        return
     else:
         ax.hist(x, bins=min(30, max(5, len(x) // 5)), color=color, alpha=0.8)
     ax.ticklabel_format(axis="x", useOffset=False)
@@ -166,7 +168,8 @@ def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: 
         ax.text(0.5, 0.5, "no detected run", ha="center", va="center", transform=ax.transAxes)
     if max_dtp is not None and (not n_det or np.max(dtp) > 0.5 * max_dtp):
         ax.axvline(max_dtp, color=WORST_COLOUR, ls="--", lw=1.2, label=f"DTP limit {max_dtp:g}")
-        ax.legend(fontsize=7, loc="center right")
+        # clear of the "no detected run" text in the middle of an empty panel
+        ax.legend(fontsize=7, loc="center right" if n_det else "upper left")
     ax.set_xlabel("DTP = delay / required time [-]")
     ax = axes[2]
     late = int(np.sum(dtp > max_dtp)) if max_dtp is not None else 0
@@ -254,7 +257,8 @@ def _residual_panel(ax, t: np.ndarray, residuals: dict) -> None:
 
 
 def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: str,
-                        highlight_above: float | None = None, missed: pd.DataFrame | None = None):
+                        highlight_above: float | None = None, missed: pd.DataFrame | None = None,
+                        flagged: str | None = None, flagged_label: str = ""):
     """A per-run value over altitude × VCAS and mass × CG (two panels).
 
     Parameters
@@ -264,6 +268,9 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
     highlight_above : runs with value above this are ringed in red (e.g. 1: false alarm
         territory for a margin, the DTP limit for a DTP)
     missed : runs drawn as black crosses (missed detections: no DTP to colour)
+    flagged : a bool column of *points* (e.g. ``false_alarm``): its runs are ringed in red,
+        labelled *flagged_label* with their count, instead of those above
+        *highlight_above* (so the count is the one of the summary table)
     """
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9.6, 3.6))
@@ -282,12 +289,17 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
                                          ("cg_pct", "mass_t", "CG [% MAC]", "mass [t]")]):
         sc = ax.scatter(pts[x], pts[y], c=vv, cmap="YlOrRd", vmin=vmin, vmax=vmax, s=16,
                         edgecolors="0.4", linewidths=0.3)
-        if highlight_above is not None:
+        if flagged is not None:
+            over = pts[flagged].to_numpy(dtype=bool)
+            ring_label = f"{flagged_label} ({int(over.sum())})"
+        elif highlight_above is not None:
             over = vv > highlight_above
-            if over.any():
-                ax.scatter(pts[x][over], pts[y][over], s=70, facecolors="none",
-                           edgecolors=WORST_COLOUR, linewidths=1.2,
-                           label=f"{label} > {highlight_above:g} ({int(over.sum())})")
+            ring_label = f"{label} > {highlight_above:g} ({int(over.sum())})"
+        else:
+            over = np.zeros(len(pts), dtype=bool)
+        if over.any():
+            ax.scatter(pts[x][over], pts[y][over], s=70, facecolors="none",
+                       edgecolors=WORST_COLOUR, linewidths=1.2, label=ring_label)
         if missed is not None and len(missed):
             ax.scatter(missed[x], missed[y], marker="x", c="k", s=40, linewidths=1.2,
                        label=f"missed ({len(missed)})")

@@ -185,7 +185,7 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
             checks += _md_checks(detector, rows, float(max_md))
         if max_dtp is not None:
             checks += _dtp_checks(detector, rows, float(max_dtp))
-        checks += _error_checks(detector, rows, allow_errors)
+        checks += _error_checks(detector, rows, allow_errors, _first_error(results, detector))
     if fine.empty:
         checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
                             "FAIL scored runs: the summary holds no runs"))
@@ -286,7 +286,21 @@ def _dtp_checks(detector, rows, limit) -> list[Check]:
     return out
 
 
-def _error_checks(detector, rows, allow_errors) -> list[Check]:
+def _first_error(results: pd.DataFrame | None, detector: str) -> str:
+    """``run <id>: <message>`` of *detector*'s first run that did not finish ('' if none
+    or no result rows were given)."""
+    if results is None or results.empty or "error" not in results.columns:
+        return ""
+    bad = results[(results["detector"] == detector) & (results["status"] != "ok")]
+    if bad.empty:
+        return ""
+    first = bad.iloc[0]
+    n_msgs = bad["error"].nunique()
+    more = f" ({n_msgs - 1} other message(s): fdd-campaign report)" if n_msgs > 1 else ""
+    return f"run {first['run_id']}: {first['error']}{more}"
+
+
+def _error_checks(detector, rows, allow_errors, first: str = "") -> list[Check]:
     n_err = int(rows["n_errors"].sum())
     if n_err == 0:
         return [Check("errors", detector, "all", "all", 0.0, 0.0, True,
@@ -296,7 +310,7 @@ def _error_checks(detector, rows, allow_errors) -> list[Check]:
     verdict = "PASS (allowed)" if allow_errors else "FAIL"
     return [Check("errors", detector, "all", "all", float(n_err), 0.0, bool(allow_errors),
                   f"{verdict} run errors: {detector}: {n_err} run(s) did not finish "
-                  f"(status != ok): {where}")]
+                  f"(status != ok): {where}" + (f"; first: {first}" if first else ""))]
 
 
 def junit_tree(result: GateResult, name: str = "fdd-campaign gate") -> ET.Element:

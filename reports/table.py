@@ -14,7 +14,7 @@ import pandas as pd
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["format_table"]
+__all__ = ["error_lines", "format_table"]
 
 
 def _num(x, fmt: str, missing: str = "-") -> str:
@@ -94,3 +94,20 @@ def format_table(summary: pd.DataFrame) -> str:
                              _num(r.worst_margin, ".3f")])
             lines += _render(header, body, "lrrrlr")
     return "\n".join(lines)
+
+
+def error_lines(results: pd.DataFrame, per_detector: int = 3) -> list[str]:
+    """One warning per detector with runs that did not finish (``status != "ok"``): how
+    many, with which status, and its first distinct messages with a run id each."""
+    bad = results[results["status"].astype(str) != "ok"]
+    out = []
+    for detector, g in bad.groupby("detector", sort=True):
+        counts = ", ".join(f"{n} {status}" for status, n in
+                           g["status"].astype(str).value_counts().sort_index().items())
+        first = g.drop_duplicates("error").head(per_detector)
+        more = g["error"].nunique() - len(first)
+        msgs = "; ".join(f"run {r.run_id}: {r.error}" for r in first.itertuples(index=False))
+        out.append(f"{detector}: {g['run_id'].nunique()} run(s) did not finish ({counts}); "
+                   "they are in the 'err' column and left out of every rate. "
+                   f"{msgs}{f' (and {more} other messages)' if more > 0 else ''}")
+    return out

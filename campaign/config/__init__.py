@@ -43,11 +43,13 @@ from .docs import init_text, main, schema_markdown
 from .keys import KIND_NAMES, FrozenTable, Key
 from .load import (
     PRESET_DIR,
+    PRESET_PLANTS,
     PRESET_PACKAGE,
     list_presets,
     load_config,
     looks_like_path,
     preset_path,
+    preset_plant_problem,
     read_toml,
     with_overrides,
 )
@@ -94,6 +96,8 @@ __all__ = [
     "load_config",
     "list_presets",
     "preset_path",
+    "preset_plant_problem",
+    "PRESET_PLANTS",
     "init_text",
     "schema_markdown",
     "with_overrides",

@@ -32,6 +32,8 @@ __all__ = [
     "looks_like_path",
     "load_config",
     "with_overrides",
+    "PRESET_PLANTS",
+    "preset_plant_problem",
 ]
 
 #: Package holding the shipped campaign files.
@@ -75,6 +77,34 @@ def list_presets() -> dict[str, str]:
             data = tomllib.load(fh)
         out[name] = str(data.get("campaign", {}).get("description", ""))
     return out
+
+
+#: The plant kinds a shipped preset is valid on, and why, for the presets valid on fewer
+#: than all of them: ``--plant`` naming another kind is refused before anything runs
+#: (:func:`preset_plant_problem`).
+PRESET_PLANTS: dict[str, tuple[tuple[str, ...], str]] = {
+    name: (("actuator",),
+           "its comb-interval uses the default kappa = [0.02, 0.02, 0.06], tuned on the "
+           "actuator plant's learning runs (loop errors of a few mm); on the aircraft plant "
+           "the control laws drive the elevator servo into rate saturation (loop errors up to "
+           "40 mm in its learning runs), where that kappa breaks [COMB] eq. 17 (|g^c| + g^r "
+           "< 1), which the detector's fit checks. Fix: run it on the aircraft plant from a "
+           "campaign file (fdd-campaign init) with [plant] kind = \"aircraft\" and "
+           "params = { kappa = [0.01, 0.002, 0.012] } for comb-interval, valid there "
+           "(docs/interval-detector.md), or run a preset valid there (e.g. smoke, chen-*, "
+           "vanek-*)")
+    for name in ("addsafe-mc", "comb-table1")
+}
+
+
+def preset_plant_problem(spec: str, kind: str) -> str | None:
+    """Why the shipped preset *spec* cannot run on plant kind *kind* (None: it can, or *spec*
+    is not a preset restricted in :data:`PRESET_PLANTS`)."""
+    if str(spec) not in PRESET_PLANTS or kind in PRESET_PLANTS[str(spec)][0]:
+        return None
+    kinds, why = PRESET_PLANTS[str(spec)]
+    return (f"--plant {kind}: preset {spec!r} is valid on the {' and '.join(kinds)} plant "
+            f"only: {why}")
 
 
 # ----------------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ import inspect
 import warnings
 from typing import Any, Mapping
 
-from detectors.compat import incompatibilities
+from detectors.compat import incompatibilities, offline_problems
 from scenarios.catalog import MANOEUVRES, suggest
 
 from .convert import is_ok, out_of_range
@@ -320,6 +320,7 @@ def check_detectors(dets: list, camp: Mapping, plant: Mapping, errors: list[str]
         caps = getattr(cls, "capabilities", None)
         if caps is not None:
             _check_compatibility(name, caps, p, camp, plant, errors)
+            errors.extend(f"{p}.name: {msg}" for msg in offline_problems({name: caps}))
 
 
 def _check_unique_label(d: Mapping, p: str, seen: dict[str, str], errors: list[str]) -> None:

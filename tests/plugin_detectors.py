@@ -1,0 +1,85 @@
+"""Third-party detectors that break the contract in one way each, to test what the engine
+does with them (tests/test_plugin_contract.py). Registered per test through
+``detectors.registry.BUILTIN`` with their ``module:Class`` text; their module lives outside
+the ``detectors`` package, so the runner treats them as third-party detectors."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from detectors.base import Capabilities, Detection, Detector
+
+
+class _Quiet(Detector):
+    """No alarm, residual 0.5 everywhere (well-behaved base of the others)."""
+
+    capabilities = Capabilities(needs_fit=False)
+
+    def _output(self, signals) -> tuple[np.ndarray, np.ndarray]:
+        shape = (signals.n_runs, signals.n_steps)
+        return np.zeros(shape, dtype=bool), np.full(shape, 0.5)
+
+    def _detect(self, signals) -> Detection:
+        alarm, residual = self._output(signals)
+        return Detection(alarm=alarm, residual=residual)
+
+
+class Subsampled(_Quiet):
+    """Returns every *every*-th sample (a decimating detector that forgot to hold its
+    output), or all but the last *cut* samples."""
+
+    def __init__(self, every=1, cut=0):
+        self.every = every
+        self.cut = cut
+
+    def _output(self, signals):
+        alarm, residual = super()._output(signals)
+        keep = slice(0, signals.n_steps - self.cut, self.every)
+        return alarm[:, keep], residual[:, keep]
+
+
+class BadResidual(_Quiet):
+    """Residual with NaN for the first *warm_up* steps of every run (allowed), and
+    *value* (a number, or ``"inf"``, ``"nan"``: campaign files hold finite numbers only)
+    at step *step* of the runs of ids *runs* (every run when empty): a breach unless
+    *value* is finite."""
+
+    def __init__(self, warm_up=0, value=0.5, step=100, runs=()):
+        self.warm_up = warm_up
+        self.value = value
+        self.step = step
+        self.runs = runs
+
+    def _output(self, signals):
+        alarm, residual = super()._output(signals)
+        residual[:, :self.warm_up] = np.nan
+        hit = np.ones(signals.n_runs, bool)
+        if self.runs and signals.run_ids is not None:
+            hit = np.isin(np.asarray(signals.run_ids).astype(str), list(self.runs))
+        residual[hit, self.step] = float(self.value)
+        return alarm, residual
+
+
+class BatchMean(_Quiet):
+    """Normalises each run's loop error by the mean over the batch: its results depend on
+    which runs share a chunk."""
+
+    def _output(self, signals):
+        alarm, _ = super()._output(signals)
+        error = np.abs(np.asarray(signals.command) - np.asarray(signals.rod_com))
+        return alarm, error / (2.0 * error.mean() + 1e-9)
+
+
+class Offline(_Quiet):
+    """Declares itself non-causal (an offline method)."""
+
+    capabilities = Capabilities(needs_fit=False, causal=False)
+
+
+class FitFails(_Quiet):
+    """Needs fit, and its fit raises a RuntimeError (not a ValueError)."""
+
+    capabilities = Capabilities(needs_fit=True)
+
+    def _fit(self, signals):
+        raise RuntimeError("singular matrix in the threshold estimate")
