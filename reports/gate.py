@@ -251,8 +251,11 @@ def _md_checks(detector, rows, limit) -> list[Check]:
         rate = k / n
         passed = rate <= limit
         rel = "≤" if passed else ">"
+        late = int(g["late_count"].sum()) if "late_count" in g else 0
         msg = (f"{'PASS' if passed else 'FAIL'} missed detections: {detector}, {fault}: "
-               f"{k}/{n} runs ({_pct(rate)} {rel} {_pct(limit)})")
+               f"{k}/{n} runs never detected ({_pct(rate)} {rel} {_pct(limit)})"
+               + (f"; {late} more detected late (DTP > 1, see the detection time check)"
+                  if late else ""))
         if k:
             where = ", ".join(f"{m} {c}/{t}" for m, c, t in
                               zip(g["manoeuvre"], g["md_count"], g["n_runs"]) if c)

@@ -146,7 +146,8 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
                 rows.append([
                     f'<a href="#{link}">{_e(label)}</a>', str(n), str(int(r.n_errors)),
                     _pct(r.fa_rate), _ci(r.fa_count, n), _pct(r.md_rate), _ci(r.md_count, n),
-                    _pct(r.md_upper95),
+                    _pct(r.md_upper95), table.late_text(r),
+                    _pct(getattr(r, "md_req_rate", math.nan)),
                     f"{_num(r.dtp_min, '.4g')}/{_num(r.dtp_mean, '.4g')}/"
                     f"{_num(r.dtp_max, '.4g')}", _num(r.dtp_p95, ".4g"),
                     _num(100 * r.dtp_within, ".1f"),
@@ -154,9 +155,14 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
                     f'<a href="#{link}">{n + int(r.n_errors)} runs</a>'])
             out.append(_table(
                 ["Fault scenario", "n", "err", "FA (%)", "FA 95 % CI", "MD (%)", "MD 95 % CI",
-                 "MD ≤95 (%)", "Min/Mean/Max DTP", "DTP p95", "DTP ≤ 1 (%)", "verdict",
+                 "MD ≤95 (%)", "late", "MD in T (%)", "Min/Mean/Max DTP", "DTP p95",
+                 "DTP ≤ 1 (%)", "verdict",
                  "drill-down"], rows, cls="verdict faults"))
-            out.append('<p class="note">FA of faulty runs: alarms before onset.</p>')
+            out.append('<p class="note">FA of faulty runs: alarms before onset. MD: never '
+                       'detected in the detection window; late: detected after the required '
+                       'time T (DTP &gt; 1); MD in T: not detected within T, missed or late '
+                       '(the reading of [CHEN] Tables 3–4, whose MD and DTP say “in time”).'
+                       '</p>')
         free = det[det["fault"] == FAULT_FREE]
         if len(free):
             rows = []

@@ -14,7 +14,11 @@ Counting rules
 * ``fa_count`` counts false alarms: any alarm in a fault-free run, an alarm before onset in
   a faulty run. Both are reported apart because rows are split by fault.
 * ``md_*`` only concern faulty runs (``md_count`` 0 and the rate/bound NaN for
-  ``fault = "none"``).
+  ``fault = "none"``). A faulty run is **missed** when it is never detected within the
+  detection window (``md_count``, ``md_rate``), and **late** when it is detected after its
+  required detection time (DTP > 1, ``late_count``). ``md_req_*`` count the runs *not
+  detected within the required time* — missed or late — the reading of a table whose MD
+  and DTP together say "detected in time" ([CHEN] Tables 3–4).
 * ``dtp_min/mean/max/p95`` and ``delay_mean_s`` are over detected runs only, so misses sit
   next to them in ``md_count``, and ``dtp_within`` is the share of all scored faulty runs
   with DTP ≤ 1, a miss counting as not within. ``dtp_p95`` uses linear interpolation
@@ -42,6 +46,7 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "detector", "fault", "manoeuvre", "n_runs", "n_errors",
     "fa_count", "fa_rate", "fa_upper95",
     "md_count", "md_rate", "md_upper95",
+    "late_count", "md_req_count", "md_req_rate", "md_req_upper95",
     "dtp_min", "dtp_mean", "dtp_max", "dtp_p95", "dtp_within",
     "delay_mean_s", "worst_margin",
 )
@@ -76,6 +81,7 @@ def _per_row(results: pd.DataFrame) -> pd.DataFrame:
         "err": ~ok,
         "fa": ok & _as_bool(results["false_alarm"]),
         "miss": scored_faulty & ~detected,
+        "late": detected & ~(dtp <= 1.0),
         "within": detected & (dtp <= 1.0),
         "dtp": np.where(detected, dtp, np.nan),
         "delay": np.where(detected, _as_float(results["delay_s"]), np.nan),
@@ -90,6 +96,7 @@ def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
         n_errors=("err", "sum"),
         fa_count=("fa", "sum"),
         md_count=("miss", "sum"),
+        late_count=("late", "sum"),
         n_within=("within", "sum"),
         dtp_min=("dtp", "min"),
         dtp_mean=("dtp", "mean"),
@@ -156,7 +163,9 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
                      .assign(fault=ALL_FAULTS, manoeuvre=ALL_MANOEUVRES))
     out = pd.concat(parts, ignore_index=True)
 
-    for c in ("n_runs", "n_errors", "fa_count", "md_count", "n_within"):
+    out["md_req_count"] = out["md_count"] + out["late_count"]
+    for c in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count",
+              "n_within"):
         out[c] = out[c].astype("int64")
     n = out["n_runs"].to_numpy()
     has_runs = n > 0
@@ -165,9 +174,12 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     with np.errstate(invalid="ignore", divide="ignore"):
         out["fa_rate"] = np.where(has_runs, out["fa_count"] / np.maximum(n, 1), np.nan)
         out["md_rate"] = np.where(md_n > 0, out["md_count"] / np.maximum(md_n, 1), np.nan)
+        out["md_req_rate"] = np.where(md_n > 0, out["md_req_count"] / np.maximum(md_n, 1),
+                                      np.nan)
         out["dtp_within"] = np.where(md_n > 0, out["n_within"] / np.maximum(md_n, 1), np.nan)
     out["fa_upper95"] = upper_bound(out["fa_count"].to_numpy(), n)
     out["md_upper95"] = upper_bound(np.where(is_faulty, out["md_count"], 0), md_n)
+    out["md_req_upper95"] = upper_bound(np.where(is_faulty, out["md_req_count"], 0), md_n)
 
     out = out.sort_values(_KEYS, key=_sort_key, kind="stable", ignore_index=True)
     return out.loc[:, list(SUMMARY_COLUMNS)]
@@ -176,6 +188,6 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
 def _dtype(column: str) -> str:
     if column in ("detector", "fault", "manoeuvre"):
         return "object"
-    if column in ("n_runs", "n_errors", "fa_count", "md_count"):
+    if column in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count"):
         return "int64"
     return "float64"

@@ -14,7 +14,7 @@ import pandas as pd
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["error_lines", "format_table"]
+__all__ = ["error_lines", "format_table", "late_text"]
 
 
 def _num(x, fmt: str, missing: str = "-") -> str:
@@ -34,6 +34,13 @@ def _pct(x, missing: str = "-") -> str:
 def _dtp(row) -> str:
     parts = [_num(row.dtp_min, ".4g"), _num(row.dtp_mean, ".4g"), _num(row.dtp_max, ".4g")]
     return "-" if parts == ["-", "-", "-"] else "/".join(parts)
+
+
+def late_text(row) -> str:
+    """Late detections (DTP > 1) of a summary row; '-' for summaries written before the
+    column existed."""
+    late = getattr(row, "late_count", None)
+    return "-" if late is None or late != late else str(int(late))
 
 
 def _fault_label(fault: str) -> str:
@@ -71,13 +78,16 @@ def format_table(summary: pd.DataFrame) -> str:
         faults = det[(det["manoeuvre"] == ALL_MANOEUVRES) & (det["fault"] != FAULT_FREE)]
         if len(faults):
             header = ["Fault scenario", "n", "err", "FA (%)", "FA ≤95 (%)", "MD (%)",
-                      "MD ≤95 (%)", "Min/Mean/Max DTP", "DTP≤1 (%)"]
+                      "MD ≤95 (%)", "late", "MD in T (%)", "Min/Mean/Max DTP", "DTP≤1 (%)"]
             body = [[_fault_label(r.fault), str(int(r.n_runs)), str(int(r.n_errors)),
                      _pct(r.fa_rate), _pct(r.fa_upper95), _pct(r.md_rate), _pct(r.md_upper95),
-                     _dtp(r), _num(100 * r.dtp_within, ".1f")]
+                     late_text(r), _pct(getattr(r, "md_req_rate", math.nan)), _dtp(r),
+                     _num(100 * r.dtp_within, ".1f")]
                     for r in faults.itertuples(index=False)]
-            lines += _render(header, body, "lrrrrrrlr")
-            lines.append("(FA of faulty runs: alarms before onset)")
+            lines += _render(header, body, "lrrrrrrrrlr")
+            lines.append("(FA of faulty runs: alarms before onset. MD: never detected in the "
+                         "detection window; late: detected after the required time T (DTP > "
+                         "1); MD in T: not detected within T, missed or late)")
             lines.append("")
 
         free = det[det["fault"] == FAULT_FREE]

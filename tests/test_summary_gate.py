@@ -258,7 +258,29 @@ def test_gate_fails_on_a_miss_only_when_md_is_checked():
     [fail] = result.failures
     assert (fail.name, fail.fault) == ("missed_detection", "runaway")
     assert fail.message == ("FAIL missed detections: position-monitor, runaway: 1/7 runs "
-                            "(14.29 % > 0.00 %); misses in: nose_up 1/3")
+                            "never detected (14.29 % > 0.00 %); misses in: nose_up 1/3")
+
+
+def test_missed_and_late_are_counted_apart():
+    """A run never detected is missed; one detected after its required time (DTP > 1) is
+    late; 'MD in T' counts both (not detected within the required time)."""
+    s = summarize(campaign(faulty("runaway", "nose_up", [np.nan, 1.0, 1.5, 3.0])))
+    r = row(s, "runaway", "all")
+    # runaway: 4 + 2 detected in time from campaign() and 4 here = 10 runs
+    assert (r.n_runs, r.md_count, r.late_count, r.md_req_count) == (10, 1, 2, 3)
+    assert r.md_rate == pytest.approx(1 / 10, rel=REL)
+    assert r.md_req_rate == pytest.approx(3 / 10, rel=REL)
+    assert r.md_req_upper95 == pytest.approx(upper_bound(np.array([3]), np.array([10]))[0],
+                                             rel=REL)
+    # DTP exactly 1 is in time; the fault-free rows have no MD of either kind
+    assert row(s, "none", "all").md_req_count == 0
+    assert np.isnan(row(s, "none", "all").md_req_rate)
+    msg = evaluate_gate(s, max_md=0.0).failures[0].message
+    assert "1/10 runs never detected" in msg and "2 more detected late (DTP > 1" in msg
+    table = format_table(s)
+    assert "MD in T (%)" in table and "late" in table
+    line = next(x for x in table.splitlines() if x.startswith("runaway"))
+    assert " 10.00 " in line and " 30.00 " in line
 
 
 def test_gate_fails_on_dtp_above_limit():
