@@ -140,8 +140,7 @@ def cmd_run(args) -> int:
         result = _run_campaign(_overridden(spec, args), args.out, args)
         return EXIT_OK if result.complete else EXIT_INTERRUPTED
     if getattr(args, "fitted_from", None):
-        raise UsageError(f"--fitted-from {args.fitted_from}: applies to one campaign, not to "
-                         f"the suite {spec.name!r}; run its member campaigns one by one")
+        raise UsageError(f"--fitted-from: one campaign only, not the suite {spec.name!r}")
     # a suite: every member validated (with the overrides) before the first one runs
     configs = [_overridden(m.config, args) for m in spec.members]
     from .runner import check_run_options
@@ -486,9 +485,8 @@ def _add_run_parsers(subs) -> None:
     p.add_argument("--engine", choices=["compiled", "numpy"],
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
     p.add_argument("--fitted-from", metavar="DIR",
-                   help="evaluate the detectors fitted in campaign directory DIR (same "
-                        "[[detector]] entries) instead of learning them again; their files are "
-                        "copied into --out (see docs/thresholds.md)")
+                   help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
+                        "entries) without learning again (copied into --out; docs/thresholds.md)")
 
     p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)

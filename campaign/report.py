@@ -26,8 +26,7 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from reports.compare import (compare_results, differing_keys, format_compare,
-                             threshold_changes, threshold_text)
+from reports.compare import compare_results, differing_keys, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
@@ -36,6 +35,7 @@ from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
+from .fitted import compare_fitted
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
@@ -652,57 +652,13 @@ def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFram
     for side, camp in (("A", a), ("B", b)):
         for line in error_lines(camp.results):
             log(f"{side}: {line}")
-    notes = _fitted_comparison(a, b, log)
+    notes = compare_fitted(a, b, log)
     table = compare_results(a.results, b.results, alpha=alpha)
     labels = {str(d): str(d).split("[", 1)[0] for d in table["detector"]}
     table["fitted"] = [("re-learned" if labels[str(d)] in notes else "shared")
                        for d in table["detector"]]
     log(format_compare(table, alpha=alpha, notes=notes))
     return table
-
-
-def fitted_digest(camp: LoadedCampaign) -> str | None:
-    """:meth:`CampaignDir.fitted_sha256` of a loaded campaign's fitted detectors (from the
-    summary's metadata, or computed from the files for a directory written before it was
-    recorded there)."""
-    digest = camp.meta.get("fitted_sha256")
-    if digest:
-        return digest
-    return CampaignDir(camp.root).fitted_sha256([d.label for d in camp.config.detectors])
-
-
-def _fitted_comparison(a: LoadedCampaign, b: LoadedCampaign, log) -> dict[str, str]:
-    """Say whether A and B evaluated the same fitted detectors (same
-    :func:`fitted_digest`), and when not, which learned thresholds differ, both values;
-    returns detector label → that text for the detectors whose thresholds were re-learned
-    (printed beside each of their flagged cells)."""
-    da, db = fitted_digest(a), fitted_digest(b)
-    if da is not None and da == db:
-        log(f"fitted detectors: shared (SHA-256 {da[:12]}…): A and B evaluated the same "
-            "thresholds")
-        for label, det in a.detectors().items():
-            same = {k: v for k, v in det.fitted_state().items() if "threshold" in k}
-            log(f"  {label}: " + "; ".join(f"{k} = {threshold_text(v)}"
-                                           for k, v in same.items()))
-        return {}
-    log(f"fitted detectors: not shared (SHA-256 {(da or '-')[:12]}… vs {(db or '-')[:12]}…): "
-        "the thresholds were re-learned")
-    fitted_a, fitted_b = a.detectors(), b.detectors()
-    notes = {}
-    for label in list(dict.fromkeys([*fitted_a, *fitted_b])):
-        if label not in fitted_a or label not in fitted_b:
-            log(f"  {label}: only in {'A' if label in fitted_a else 'B'}")
-            continue
-        changes = threshold_changes(fitted_a[label].fitted_state(),
-                                    fitted_b[label].fitted_state())
-        if changes:
-            log(f"  {label}: thresholds re-learned: " + "; ".join(changes))
-            notes[label] = "thresholds re-learned: " + "; ".join(changes)
-        else:
-            same = {k: v for k, v in fitted_a[label].fitted_state().items() if "threshold" in k}
-            log(f"  {label}: other learned values differ; thresholds the same "
-                + "; ".join(f"{k} = {threshold_text(v)}" for k, v in same.items()))
-    return notes
 
 
 # ---- command-line entry points (wired in campaign/cli.py) ----------------------------------
