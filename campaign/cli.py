@@ -93,7 +93,8 @@ def _run_campaign(config, out, args):
 
     result = run(config, out, jobs=args.jobs, chunk_size=args.chunk_size,
                  progress=not args.quiet, backend=args.backend, scheduler=args.scheduler,
-                 engine=args.engine, tls=_tls_files(args))
+                 engine=args.engine, tls=_tls_files(args),
+                 fitted_from=getattr(args, "fitted_from", None))
     print(f"campaign {config.campaign.name!r}: {result.results['run_id'].nunique() if not result.results.empty else 0}"
           f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
     if not result.summary.empty:
@@ -138,6 +139,8 @@ def cmd_run(args) -> int:
     if not isinstance(spec, Suite):
         result = _run_campaign(_overridden(spec, args), args.out, args)
         return EXIT_OK if result.complete else EXIT_INTERRUPTED
+    if getattr(args, "fitted_from", None):
+        raise UsageError(f"--fitted-from: one campaign only, not the suite {spec.name!r}")
     # a suite: every member validated (with the overrides) before the first one runs
     configs = [_overridden(m.config, args) for m in spec.members]
     from .runner import check_run_options
@@ -481,6 +484,9 @@ def _add_run_parsers(subs) -> None:
                    help="private key of --tls-cert (PEM), unless that file holds it")
     p.add_argument("--engine", choices=["compiled", "numpy"],
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
+    p.add_argument("--fitted-from", metavar="DIR",
+                   help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
+                        "entries) without learning again (copied into --out; docs/thresholds.md)")
 
     p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)

@@ -35,6 +35,7 @@ from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
+from .fitted import compare_fitted
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
@@ -651,8 +652,12 @@ def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFram
     for side, camp in (("A", a), ("B", b)):
         for line in error_lines(camp.results):
             log(f"{side}: {line}")
+    notes = compare_fitted(a, b, log)
     table = compare_results(a.results, b.results, alpha=alpha)
-    log(format_compare(table, alpha=alpha))
+    labels = {str(d): str(d).split("[", 1)[0] for d in table["detector"]}
+    table["fitted"] = [("re-learned" if labels[str(d)] in notes else "shared")
+                       for d in table["detector"]]
+    log(format_compare(table, alpha=alpha, notes=notes))
     return table
 
 

@@ -194,6 +194,61 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
     return fitted
 
 
+def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
+    """The detectors fitted in the campaign directory *source*, to evaluate this campaign's
+    runs without learning again (``fdd-campaign run --fitted-from DIR``).
+
+    *source* is read through its :class:`CampaignDir` only after its files match its
+    manifest; its ``[[detector]]`` entries (labels, registry names and parameters) must be
+    this campaign's, else :class:`CampaignSetupError` (exit 2) names the differences. Its
+    fitted files and learning-set table are copied into *cdir* byte for byte, with
+    ``fitted-origin.json`` saying where they came from, so *cdir* stands on its own; the
+    detectors are rebuilt from the copies as data (:meth:`CampaignDir.read_fitted`). A
+    resumed directory must hold the same fitted files (same
+    :meth:`CampaignDir.fitted_sha256`).
+    """
+    from reports.compare import differing_keys
+
+    from .config import CampaignConfig
+
+    src = CampaignDir(source)
+    where = f"--fitted-from {source}"
+    if not src.root.is_dir() or not src.is_campaign():
+        raise CampaignSetupError(f"{where}: not a campaign directory (no campaign.json); give "
+                                 "the --out directory of an earlier 'fdd-campaign run'")
+    if src.root.resolve() == cdir.root.resolve():
+        raise CampaignSetupError(f"{where}: that is the output directory itself; give the "
+                                 "directory of another campaign")
+    src.refuse_pickles()
+    src.check_manifest()
+    theirs = CampaignConfig.from_dict(src.read_config(), source=str(src.config_path))
+    ours_d = {"detector": config.to_dict().get("detector")}
+    theirs_d = {"detector": theirs.to_dict().get("detector")}
+    differ = differing_keys(theirs_d, ours_d)
+    if differ:
+        raise CampaignSetupError(
+            f"{where}: its detectors are not this campaign's [[detector]] entries (labels, "
+            f"names and parameters must be the same; A = {src.root}, B = this campaign): "
+            f"{'; '.join(differ)}; fix: give the same [[detector]] tables, or run without "
+            "--fitted-from to fit the detectors on this campaign's learning set")
+    labels = [d.label for d in config.detectors]
+    missing = [label for label in labels if not src.has_fitted(label)]
+    if missing:
+        raise CampaignSetupError(f"{where}: holds no fitted detector {missing[0]!r} "
+                                 "(fitted/ incomplete); rerun the campaign that wrote it")
+    want = src.fitted_sha256(labels)
+    held = cdir.fitted_sha256(labels)
+    if held is None:
+        cdir.adopt_fitted(src, labels)
+        log(f"fitted detectors: taken from {src.root} (SHA-256 {want[:12]}…), not re-learned")
+    elif held != want:
+        raise CampaignSetupError(
+            f"{where}: {cdir.root} already holds other fitted detectors (SHA-256 "
+            f"{held[:12]}… ≠ {want[:12]}…); choose a new --out directory")
+    names = {d.label: d.name for d in config.detectors}
+    return {label: cdir.read_fitted(label, names[label]) for label in labels}
+
+
 def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
                            learning_signals: Signals | None = None) -> None:
     """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
@@ -269,7 +324,7 @@ def check_plant(config, plant) -> None:
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
         backend: str | None = None, log=None, scheduler: str | None = None,
-        engine: str | None = None, tls=None) -> CampaignResult:
+        engine: str | None = None, tls=None, fitted_from=None) -> CampaignResult:
     """Run *config* into directory *out* (resuming what it already holds).
 
     Parameters
@@ -288,6 +343,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     tls : :class:`campaign.execute.TlsFiles` (CA, certificate and key files) for a
         ``tls://`` scheduler; default: dask's configuration ``distributed.comm.tls.*``
     engine : ``"compiled"`` or ``"numpy"`` kernels (default: ``[runner] engine``)
+    fitted_from : a campaign directory whose fitted detectors are evaluated on this
+        campaign's runs instead of learning them again (:func:`adopt_fitted`); a directory
+        started so keeps using them when resumed
 
     Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
     as per-run status rows; see :mod:`campaign.execute`. The directory left is the same
@@ -309,7 +367,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         plan = build_plan(config)
         if not setup.cdir.has_plan():
             setup.cdir.write_plan(plan, config.to_json())
-        detectors = _learn(config, setup, log)
+        detectors = _learn(config, setup, log, fitted_from)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock
             if fresh:               # nothing that looks like a campaign is left behind
@@ -431,9 +489,18 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     return setup
 
 
-def _learn(config, setup: _Setup, log) -> dict:
-    """The fitted detectors (fitted on the learning set, or reloaded from the directory)."""
+def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
+    """The fitted detectors (fitted on the learning set, reloaded from the directory, or
+    taken from the campaign directory *fitted_from*)."""
     settings, pool = setup.settings, setup.pool
+    origin = setup.cdir.read_fitted_origin()
+    if fitted_from is None and origin is not None:
+        fitted_from = origin.get("fitted_from")
+        log(f"fitted detectors: those taken from {fitted_from} when this directory started")
+        names = {d.label: d.name for d in config.detectors}
+        return {label: setup.cdir.read_fitted(label, name) for label, name in names.items()}
+    if fitted_from is not None:
+        return adopt_fitted(config, setup.cdir, fitted_from, log=log)
     with kernels.use_engine(settings.engine):
         # the learning set on the worker threads (the built-in plant's kernels release
         # the GIL; an FMU plant is simulated here, one instance at a time)
@@ -495,7 +562,9 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
              wall_s: float) -> CampaignResult:
-    """Gather the shards in plan order and write ``summary.parquet`` and, for a campaign of
+    """Gather the shards in plan order and write ``summary.parquet`` (its metadata also
+    holds ``fitted_sha256``, :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and
+    ``fitted_from``, the directory they were taken from or None) and, for a campaign of
     fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
     ``detection-times.parquet``."""
     results = cdir.read_results()
@@ -507,9 +576,12 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
         summary = summarize(results)
     else:
         summary = pd.DataFrame()
+    origin = cdir.read_fitted_origin() or {}
     cdir.write_summary(summary, config.to_json(), complete=complete,
                        runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
-                       runs_planned=len(plan))
+                       runs_planned=len(plan),
+                       fitted_sha256=cdir.fitted_sha256([d.label for d in config.detectors]),
+                       fitted_from=origin.get("fitted_from"))
     times = None
     if not results.empty and fixed_onset_campaign(plan):
         times = detection_time_table(plan, results)

@@ -10,6 +10,9 @@ Layout (docs/design.md §6, Outputs)::
     DIR/learning.parquet      the learning-set run table
     DIR/fitted/LABEL.json     each fitted detector as data: registry name, parameters and
     DIR/fitted/LABEL.npz      learned values (:mod:`detectors.state`), arrays in the .npz
+    DIR/fitted-origin.json    only when the detectors were fitted in another campaign
+                              directory (``run --fitted-from``): where from, and the SHA-256
+                              of the fitted files (:meth:`CampaignDir.fitted_sha256`)
     DIR/runs/part-NNNNNN.parquet  result rows, one shard per finished chunk
     DIR/summary.parquet       rates, bounds, DTP statistics
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
@@ -174,7 +177,8 @@ def campaign_identity(config: dict) -> dict:
 #: Top-level files of a campaign directory that the manifest covers (with every file under
 #: ``runs/`` and ``fitted/``).
 MANIFEST_TOP_FILES: tuple[str, ...] = ("campaign.json", "plan.parquet", "learning.parquet",
-                                       "summary.parquet", "detection-times.parquet")
+                                       "summary.parquet", "detection-times.parquet",
+                                       "fitted-origin.json")
 
 
 def identity_sha256(config_json: str) -> str:
@@ -208,6 +212,7 @@ class CampaignDir:
         self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
+        self.fitted_origin_path = self.root / "fitted-origin.json"
         self._manifest: dict | None = None
 
     def is_campaign(self) -> bool:
@@ -550,6 +555,53 @@ class CampaignDir:
         det = make_detector(stored, params)
         vars(det).update(learned)          # as unpickling did: the stored values, as they are
         return det
+
+    def fitted_sha256(self, labels) -> str | None:
+        """SHA-256 identifying the fitted detectors *labels* as stored: of the lines
+        ``LABEL.json SHA256`` and ``LABEL.npz SHA256`` (the digest of each file, labels
+        sorted); ``None`` when one of them is not stored. Two campaigns with the same value
+        evaluate the very same fitted detectors (thresholds and every learned value)."""
+        lines = []
+        for label in sorted(labels):
+            for path in self._fitted_paths(label):
+                if not path.exists():
+                    return None
+                lines.append(f"{path.name} {sha256_of(path)}\n")
+        return hashlib.sha256("".join(lines).encode()).hexdigest()
+
+    def adopt_fitted(self, source: "CampaignDir", labels) -> dict:
+        """Copy the fitted detectors *labels* and the learning-set table of campaign
+        directory *source* (checked against its manifest by the caller) into this one, byte
+        for byte, and record where they came from in ``fitted-origin.json``; returns that
+        record (``fitted_from``, ``fitted_sha256``, ``campaign``)."""
+        import shutil
+
+        files = [p for label in labels for p in source._fitted_paths(label)]
+        if source.learning_path.exists():
+            files.append(source.learning_path)
+        for src in files:
+            dst = self.root / src.relative_to(source.root)
+            self._forget(dst)
+            _atomic_write_bytes(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+            self._record(dst)
+        origin = {"fitted_from": str(source.root.resolve()),
+                  "fitted_sha256": source.fitted_sha256(labels),
+                  "campaign": (source.read_config().get("campaign") or {}).get("name")}
+        self._write_recorded(self.fitted_origin_path, lambda: write_text(
+            self.fitted_origin_path, json.dumps(origin, indent=1, ensure_ascii=False) + "\n"))
+        return origin
+
+    def read_fitted_origin(self) -> dict | None:
+        """The record of :meth:`adopt_fitted`, or ``None`` when the detectors were fitted
+        here."""
+        if not self.fitted_origin_path.exists():
+            return None
+        try:
+            origin = json.loads(self.fitted_origin_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise CampaignDirError(f"{self.fitted_origin_path} is not valid JSON ({exc}); the "
+                                   "directory is damaged: rerun the campaign") from None
+        return origin if isinstance(origin, dict) else None
 
     # ---- summary and detection times --------------------------------------------------
     def has_summary(self) -> bool:

@@ -68,6 +68,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector, confirm
+from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
 #: Lateral states of [CHEN] eq. 25 (β stands for v_y), outputs and inputs, in array order.
@@ -247,6 +248,14 @@ class ChenGlobalEstimator(Detector):
         (≥ 0); scheduling data outside the box are clipped to it.
     floor_deg : float
         Smallest threshold [deg] (> 0).
+    threshold_method : str
+        ``"max"`` (safety × the largest learning value) or ``"evt"`` (calibrated to
+        ``target_fa_per_run`` per variant by :mod:`detectors.calibrate`; ``safety`` then
+        only multiplies the largest value when the learning set cannot support the target).
+    target_fa_per_run : float
+        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
+    threshold_confidence : float
+        ``"evt"``: confidence of the calibration, in (0.5, 1).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
@@ -269,10 +278,12 @@ class ChenGlobalEstimator(Detector):
         Param("floor_deg", "float", gt=0.0, unit="deg", doc="smallest threshold"),
         Param("gust_channel", "bool", doc="decouple the gust sideslip as a second unknown "
               "input (F = [B_b W, A_b[:, β]])"),
+        *THRESHOLD_PARAMS,
     )
 
     def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
-                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True):
+                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True, threshold_method="max",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
         self.safety = safety
@@ -281,6 +292,9 @@ class ChenGlobalEstimator(Detector):
         self.schedule_margin = schedule_margin
         self.floor_deg = floor_deg
         self.gust_channel = gust_channel
+        self.threshold_method = threshold_method
+        self.target_fa_per_run = target_fa_per_run
+        self.threshold_confidence = threshold_confidence
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -379,7 +393,14 @@ class ChenGlobalEstimator(Detector):
                            "grid_max_discrete_modulus": disc, "grid_points": int(len(grid))}
         self.static_gain_ = (min(gains), max(gains))
         r = self._filtered(signals)
-        self.threshold_ = max(float(self.safety) * float(np.max(np.abs(r))), float(self.floor_deg))
+        if self.threshold_method == "max":
+            self.threshold_ = max(float(self.safety) * float(np.max(np.abs(r))),
+                                  float(self.floor_deg))
+        else:
+            tau, self.calibration_ = learned_threshold(
+                np.max(np.abs(r), axis=1), "evt", float(self.safety),
+                self.target_fa_per_run, self.threshold_confidence)
+            self.threshold_ = max(float(tau), float(self.floor_deg))
         self.learning_runs_ = int(signals.n_runs)
 
     # ---- online part -------------------------------------------------------------------

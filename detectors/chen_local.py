@@ -69,6 +69,7 @@ from scenarios.signals import Signals
 
 from . import chen_local_model as lm
 from .base import Capabilities, Detection, Detector
+from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
 #: Measurements the estimator can use as the rod sensor output y of [CHEN] eq. 24.
@@ -185,6 +186,14 @@ class ChenLocalEstimator(Detector):
         Zero z and pole p of the liquid-jam post-filter T(s) = (s + z)/(s + p) [rad/s]
         (0 < z < p); default [CHEN] §6.2's (s + 1)/(s + 5). T keeps the high-frequency gain
         1 (a jam's estimate is a step) and divides slow model mismatch by p/z.
+    threshold_method : str
+        ``"max"`` (safety × the largest learning value) or ``"evt"`` (calibrated to
+        ``target_fa_per_run`` per variant by :mod:`detectors.calibrate`; ``safety`` then
+        only multiplies the largest value when the learning set cannot support the target).
+    target_fa_per_run : float
+        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
+    threshold_confidence : float
+        ``"evt"``: confidence of the calibration, in (0.5, 1).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -209,12 +218,14 @@ class ChenLocalEstimator(Detector):
               "liquid-jam post-filter T(s) = (s + z)/(s + p)", source="[CHEN] §6.2"),
         Param("post_filter_pole_rad_s", "float", gt="post_filter_zero_rad_s", unit="rad/s",
               doc="pole p of T(s); p/z divides slow model mismatch", source="[CHEN] §6.2"),
+        *THRESHOLD_PARAMS,
     )
 
     def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
                  solid_confirm_s=1.0, schedule_margin=0.25, h_perturbation=0.0,
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
-                 post_filter_pole_rad_s=POST_FILTER.pole_rad_s):
+                 post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="max",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95):
         self.sensor = sensor
         self.safety = safety
         self.liquid_confirm_s = liquid_confirm_s
@@ -224,6 +235,9 @@ class ChenLocalEstimator(Detector):
         self.floor_mm = floor_mm
         self.post_filter_zero_rad_s = post_filter_zero_rad_s
         self.post_filter_pole_rad_s = post_filter_pole_rad_s
+        self.threshold_method = threshold_method
+        self.target_fa_per_run = target_fa_per_run
+        self.threshold_confidence = threshold_confidence
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -335,11 +349,24 @@ class ChenLocalEstimator(Detector):
             zero_rad_s=float(self.post_filter_zero_rad_s),
             pole_rad_s=float(self.post_filter_pole_rad_s)))
         f_hat, g = self._residuals(signals)
-        self.thresholds_ = {
-            "liquid": max(float(self.safety) * float(np.max(np.abs(g))), float(self.floor_mm)),
-            "solid": max(float(self.safety) * float(np.max(self._solid_statistic(f_hat, ts))),
-                         float(self.floor_mm)),
-        }
+        if self.threshold_method == "max":
+            self.thresholds_ = {
+                "liquid": max(float(self.safety) * float(np.max(np.abs(g))),
+                              float(self.floor_mm)),
+                "solid": max(float(self.safety)
+                             * float(np.max(self._solid_statistic(f_hat, ts))),
+                             float(self.floor_mm)),
+            }
+        else:           # "evt": each variant is scored on its own, each at the target
+            maxima = {"liquid": np.max(np.abs(g), axis=1),
+                      "solid": np.max(self._solid_statistic(f_hat, ts), axis=1)}
+            self.thresholds_, self.calibration_ = {}, {}
+            for name, m in maxima.items():
+                tau, cal = learned_threshold(m, "evt", float(self.safety),
+                                             self.target_fa_per_run,
+                                             self.threshold_confidence)
+                self.thresholds_[name] = max(float(tau), float(self.floor_mm))
+                self.calibration_[name] = cal
         self.learning_runs_ = int(signals.n_runs)
 
     # ---- online part -------------------------------------------------------------------

@@ -44,7 +44,14 @@ Residual, filter and threshold ([COMB] §3.1–3.3)
 * filter F_a (eq. 8–9 with b = 1 − a, c = 1): ε_k = a·ε_{k−1} + (1 − a)·r_k, ε_0 = r_0
   (the initial condition of Corollary 2's proof, μ_0 = λ_1);
 * noise characterisation (eq. 6): λ_q = ς·max_k |r_{k/q}| over the learning set, q = 1…q̄,
-  r_{k/q} the moving average of the q last residuals of one run;
+  r_{k/q} the moving average of the q last residuals of one run; with
+  ``threshold_method = "evt"`` the safety factor ς is instead calibrated
+  (:mod:`detectors.calibrate`, docs/thresholds.md): λ_q = s·max(λ⁰_q, floor), λ⁰_q the
+  learning maximum (ς = 1), and s the threshold, at ``target_fa_per_run``, of the per-run
+  statistic max_q m_q/λ⁰_q (m_q the run's own max_k |r_{k/q}|), each learning run scaled by
+  the profile learned without it (:func:`detectors.calibrate.leave_one_out_ratios`). Since
+  |ε_k| ≤ τ_k whenever every |r_{k/q}| ≤ λ_q (eq. 10), a fault-free run then raises an alarm
+  with probability ≤ ``target_fa_per_run`` in every variant;
 * threshold: eq. 11 for k < q̄ (τ_k = τ_{k,k} with μ = λ_1), eq. 13 (constant) for k ≥ q̄,
   from eq. 10::
 
@@ -72,6 +79,7 @@ from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rat
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector
+from .calibrate import THRESHOLD_PARAMS, calibrate_threshold, leave_one_out_ratios
 from .params import Param
 
 #: Default residual-filter poles ([COMB] §4, Table 1).
@@ -150,6 +158,21 @@ def moving_average_bounds(r: np.ndarray, q_max: int, safety: float) -> np.ndarra
     for q in range(1, q_max + 1):
         lam[q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q])) / q
     return safety * lam
+
+
+def moving_average_maxima(r: np.ndarray, q_max: int) -> np.ndarray:
+    """max_k |r_{k/q}| of each run (row) of *r*, q = 1…q_max: shape (n_runs, q_max) [mm]
+    (:func:`moving_average_bounds` before the maximum over runs and the safety factor)."""
+    r = np.atleast_2d(np.asarray(r, float))
+    T = r.shape[1]
+    if q_max > T:
+        raise ValueError(f"q_max = {q_max} exceeds the length of the learning runs "
+                         f"({T} steps); lower q_max or use longer learning runs")
+    c = np.concatenate([np.zeros((r.shape[0], 1)), np.cumsum(r, axis=1)], axis=1)
+    out = np.empty((r.shape[0], q_max))
+    for q in range(1, q_max + 1):
+        out[:, q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q]), axis=1) / q
+    return out
 
 
 def filter_threshold(lam: np.ndarray, a: float, r: int, mu: float | None = None) -> float:
@@ -360,6 +383,13 @@ class IntervalDetector(Detector):
         Compute the threshold from the power-law bound α·q^γ + β instead of λ_q.
     floor_mm : float
         Smallest λ_q [mm] (guards against a learning set whose residual is all zero).
+    threshold_method : str
+        ``"max"`` (λ_q = ς × the learning maximum, [COMB] eq. 6) or ``"evt"`` (ς calibrated
+        to ``target_fa_per_run``, module docstring).
+    target_fa_per_run : float
+        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
+    threshold_confidence : float
+        ``"evt"``: confidence of the calibration, in (0.5, 1).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -386,11 +416,13 @@ class IntervalDetector(Detector):
               "instead of λ_q", source="[COMB] §3.1.1"),
         Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest λ_q (guards against an "
               "all-zero learning residual)"),
+        *THRESHOLD_PARAMS,
     )
 
     def __init__(self, poles=DEFAULT_POLES, safety=1.2, kappa=(0.02, 0.02, 0.06),
                  h_radius=0.0, q_max=300, x0_radius_mm=0.5, sensor="rod_com",
-                 use_power_law=False, floor_mm=1e-4):
+                 use_power_law=False, floor_mm=1e-4, threshold_method="max",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95):
         self.poles = poles
         self.safety = safety
         self.kappa = kappa
@@ -400,6 +432,9 @@ class IntervalDetector(Detector):
         self.sensor = sensor
         self.use_power_law = use_power_law
         self.floor_mm = floor_mm
+        self.threshold_method = threshold_method
+        self.target_fa_per_run = target_fa_per_run
+        self.threshold_confidence = threshold_confidence
 
     def _poles(self) -> tuple[float, ...]:
         if isinstance(self.poles, (int, float)):
@@ -516,8 +551,11 @@ class IntervalDetector(Detector):
                 f"(g^c = {where['g_c']:.4f}, g^r = {where['g_r']:.4f}); fix: choose kappa so "
                 f"that g^r = min(κ1 + κ2·|u − x^c|, κ3) stays below 1 − |g^c| = "
                 f"{1.0 - abs(where['g_c']):.4f} there (κ3 below it is enough)")
-        lam = np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
-                         float(self.floor_mm))
+        if self.threshold_method == "max":
+            lam = np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
+                             float(self.floor_mm))
+        else:
+            lam = self._calibrated_bounds(r)
         alpha, gamma, beta = power_law_bound(lam)
         self.lambda_q_ = lam
         self.power_law_ = {"alpha": alpha, "gamma": gamma, "beta": beta}
@@ -528,6 +566,19 @@ class IntervalDetector(Detector):
         self.thresholds_ = {self.variant_name(a): threshold_schedule(basis, a)
                             for a in self._poles()}
         self.learning_runs_ = int(signals.n_runs)
+
+    def _calibrated_bounds(self, r: np.ndarray) -> np.ndarray:
+        """λ_q = s·max(λ⁰_q, floor) with s calibrated (``threshold_method = "evt"``, module
+        docstring); stores the calibration in ``calibration_``."""
+        floor = float(self.floor_mm)
+        m = moving_average_maxima(r, int(self.q_max))
+        profile = np.maximum(m.max(axis=0), floor)
+        ratios = leave_one_out_ratios(m, floor)
+        cal = calibrate_threshold(ratios, float(self.target_fa_per_run),
+                                  float(self.threshold_confidence),
+                                  fallback_factor=float(self.safety))
+        self.calibration_ = cal
+        return np.maximum(cal.threshold * profile, floor)
 
     def _threshold_basis(self) -> np.ndarray:
         if self.use_power_law:

@@ -18,7 +18,12 @@ threshold for a confirmation time. Three consistency checks, each optional:
     surface has no sensor.
 
 Thresholds are learned on fault-free learning runs: τ_c = ``safety`` × the largest |r_c| seen
-(never below ``floor_mm``). The normalised residual is max_c |r_c|/τ_c; the alarm is raised
+(never below ``floor_mm``), or, with ``threshold_method = "evt"``, calibrated per check from the
+learning runs' per-run maxima of |r_c| (:mod:`detectors.calibrate`, docs/thresholds.md) so that
+a fault-free run exceeds it with probability ≤ ``target_fa_per_run``/m, m the number of active
+checks (the checks share the detector's target: by the union bound the run's false-alarm
+probability is then ≤ ``target_fa_per_run``); ``safety`` is not applied on top, and serves
+only as the factor on the largest value when the learning set cannot support the target. The normalised residual is max_c |r_c|/τ_c; the alarm is raised
 once it has been ≥ 1 for ``confirm_s`` and is then latched.
 """
 
@@ -34,6 +39,7 @@ from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector, confirm
+from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
 CHECKS = ("loop", "com_mon", "surface")
@@ -98,6 +104,13 @@ class PositionMonitor(Detector):
         Which consistency checks run: any of ``"loop"``, ``"com_mon"``, ``"surface"``.
     floor_mm : float
         Smallest threshold of a check [mm] (guards against a learning set without motion).
+    threshold_method : str
+        ``"max"`` (safety × largest learning residual) or ``"evt"`` (calibrated to
+        ``target_fa_per_run``, module docstring).
+    target_fa_per_run : float
+        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
+    threshold_confidence : float
+        ``"evt"``: confidence of the calibration, in (0.5, 1).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -112,13 +125,18 @@ class PositionMonitor(Detector):
               "(surface sensor vs MON rod)", source="Goupil 2010/2011, [CHEN] §1"),
         Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest threshold of a check "
               "(guards against a learning set without motion)"),
+        *THRESHOLD_PARAMS,
     )
 
-    def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05):
+    def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
+                 threshold_method="max", target_fa_per_run=1e-4, threshold_confidence=0.95):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks
         self.floor_mm = floor_mm
+        self.threshold_method = threshold_method
+        self.target_fa_per_run = target_fa_per_run
+        self.threshold_confidence = threshold_confidence
 
     # ---- residuals ---------------------------------------------------------------------
     def _active_checks(self, signals: Signals) -> list[str]:
@@ -169,10 +187,19 @@ class PositionMonitor(Detector):
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
         res = self.residuals(signals)
-        self.thresholds_mm_ = {
-            name: float(max(self.safety * np.max(np.abs(r)), self.floor_mm))
-            for name, r in res.items()
-        }
+        if self.threshold_method == "max":
+            self.thresholds_mm_ = {
+                name: float(max(self.safety * np.max(np.abs(r)), self.floor_mm))
+                for name, r in res.items()
+            }
+        else:       # "evt": each check at target/m, so the run's probability is ≤ target
+            share = float(self.target_fa_per_run) / max(len(res), 1)
+            self.thresholds_mm_, self.calibration_ = {}, {}
+            for name, r in res.items():
+                tau, cal = learned_threshold(np.max(np.abs(r), axis=1), "evt", self.safety,
+                                             share, self.threshold_confidence)
+                self.thresholds_mm_[name] = float(max(tau, self.floor_mm))
+                self.calibration_[name] = cal
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> Detection:

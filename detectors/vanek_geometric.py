@@ -80,6 +80,7 @@ from scenarios.signals import Signals
 
 from . import geometric as geo
 from .base import Capabilities, Detection, Detector, confirm
+from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
 VARIANTS = ("lti", "lpv")
@@ -349,6 +350,14 @@ class VanekGeometric(Detector):
         (the LTI filter followed by the H∞ post-filter of [VANEK] §3, no low-pass) and
         ``"one-step"`` (the one-step H∞ FDI filter of [VANEK] §3 at the LTI design point, no
         low-pass; for comparison: no exact decoupling).
+    threshold_method : str
+        ``"max"`` (safety × the largest learning value) or ``"evt"`` (calibrated to
+        ``target_fa_per_run`` per variant by :mod:`detectors.calibrate`; ``safety`` then
+        only multiplies the largest value when the learning set cannot support the target).
+    target_fa_per_run : float
+        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
+    threshold_confidence : float
+        ``"evt"``: confidence of the calibration, in (0.5, 1).
     """
 
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
@@ -367,10 +376,12 @@ class VanekGeometric(Detector):
         Param("variants", "choices", choices=VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS,
               doc="filters run by one detect; lti-hinf and one-step need the extra hinf",
               source="[VANEK] §3–5"),
+        *THRESHOLD_PARAMS,
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
-                 smoothing_s=2.0, variants=VARIANTS):
+                 smoothing_s=2.0, variants=VARIANTS, threshold_method="max",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
@@ -378,6 +389,9 @@ class VanekGeometric(Detector):
         self.decouple_gusts = decouple_gusts
         self.smoothing_s = smoothing_s
         self.variants = variants
+        self.threshold_method = threshold_method
+        self.target_fa_per_run = target_fa_per_run
+        self.threshold_confidence = threshold_confidence
 
     def validate_params(self) -> None:
         """The declared checks (:attr:`parameters`), then that the optional variants of
@@ -516,7 +530,17 @@ class VanekGeometric(Detector):
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
         est = self.estimates(signals)
-        self.thresholds_deg_ = {k: float(self.safety * np.max(np.abs(r))) for k, r in est.items()}
+        if self.threshold_method == "max":
+            self.thresholds_deg_ = {k: float(self.safety * np.max(np.abs(r)))
+                                    for k, r in est.items()}
+        else:           # "evt": each variant is scored on its own, each at the target
+            self.thresholds_deg_, self.calibration_ = {}, {}
+            for k, r in est.items():
+                tau, cal = learned_threshold(np.max(np.abs(r), axis=1), "evt",
+                                             float(self.safety), self.target_fa_per_run,
+                                             self.threshold_confidence)
+                self.thresholds_deg_[k] = float(tau)
+                self.calibration_[k] = cal
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> dict[str, Detection]:

@@ -42,7 +42,8 @@ from scipy import stats
 from .metrics import FAULT_FREE
 from .summary import ALL_MANOEUVRES
 
-__all__ = ["COMPARE_COLUMNS", "compare_results", "differing_keys", "format_compare"]
+__all__ = ["COMPARE_COLUMNS", "compare_results", "differing_keys", "format_compare",
+           "threshold_changes", "threshold_text"]
 
 #: Default significance level of the flags.
 ALPHA = 0.01
@@ -230,8 +231,13 @@ def _f(x, fmt):
     return "-" if not math.isfinite(x) else format(x, fmt)
 
 
-def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA) -> str:
-    """Fixed-width text of :func:`compare_results` output, with a count of flags."""
+def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA,
+                   notes: dict[str, str] | None = None) -> str:
+    """Fixed-width text of :func:`compare_results` output, with a count of flags.
+
+    *notes*: detector label → a text printed beside every flagged cell of that detector
+    (its variants ``label[…]`` included), e.g. that its thresholds were re-learned."""
+    notes = notes or {}
     if table.empty:
         return "no cell to compare"
     header = ["detector", "fault", "manoeuvre", "n A/B", "FA % A→B", "p(FA)", "MD % A→B",
@@ -260,8 +266,53 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA) -> str:
                  "exact, Mann–Whitney U)")
     for r in table.itertuples(index=False):
         if r.flag in ("worse", "better") and r.reasons:
-            lines.append(f"  {r.detector} / {r.fault} / {r.manoeuvre}: {r.reasons}")
+            note = notes.get(str(r.detector).split("[", 1)[0])
+            lines.append(f"  {r.detector} / {r.fault} / {r.manoeuvre}: {r.reasons}"
+                         + (f" [{note}]" if note else ""))
     return "\n".join(lines)
+
+
+def threshold_text(value) -> str:
+    """A learned threshold as text: numbers with 6 significant digits, a dict key by key, an
+    array by its length, first and last values (a threshold schedule)."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {threshold_text(v)}" for k, v in value.items()) + "}"
+    arr = np.asarray(value) if not isinstance(value, str) else None
+    if arr is not None and arr.dtype.kind in "biuf":
+        if arr.ndim == 0:
+            return f"{float(arr):.6g}"
+        flat = arr.ravel()
+        if flat.size == 0:
+            return "[]"
+        return (f"[{float(flat[0]):.6g} … {float(flat[-1]):.6g}] ({flat.size} values)"
+                if flat.size > 3 else "[" + ", ".join(f"{float(v):.6g}" for v in flat) + "]")
+    return repr(value)
+
+
+def threshold_changes(learned_a: dict, learned_b: dict) -> list[str]:
+    """The learned thresholds of one detector that differ between two fittings: for every
+    learned attribute whose name contains ``threshold`` (``thresholds_mm_``, ``threshold_``,
+    …), ``name: A → B`` (:func:`threshold_text`), key by key for a dict."""
+    out = []
+    for name in sorted(set(learned_a) | set(learned_b)):
+        if "threshold" not in name:
+            continue
+        a, b = learned_a.get(name), learned_b.get(name)
+        if isinstance(a, dict) and isinstance(b, dict):
+            for key in list(dict.fromkeys([*a, *b])):
+                if not _same(a.get(key), b.get(key)):
+                    out.append(f"{name}[{key!r}]: {threshold_text(a.get(key))} → "
+                               f"{threshold_text(b.get(key))}")
+        elif not _same(a, b):
+            out.append(f"{name}: {threshold_text(a)} → {threshold_text(b)}")
+    return out
+
+
+def _same(a, b) -> bool:
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    except (TypeError, ValueError):
+        return a == b
 
 
 def differing_keys(a, b, prefix: str = "") -> list[str]:

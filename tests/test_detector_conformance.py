@@ -25,6 +25,11 @@ from detectors.testing import (
 CONFORMANCE = {name: make_detector(name) for name in sorted(available_detectors())}
 CONFORMANCE["vanek-geometric[optional-variants]"] = make_detector(
     "vanek-geometric", {"variants": ["lpv-affine", "lti-hinf", "one-step"]})
+# thresholds calibrated by detectors.calibrate (docs/thresholds.md): the calibration is
+# learned state, stored as data
+for _name in ("position-monitor", "comb-interval"):
+    CONFORMANCE[f"{_name}[evt]"] = make_detector(_name, {"threshold_method": "evt",
+                                                         "target_fa_per_run": 0.01})
 
 
 @parametrize_with_checks(CONFORMANCE)

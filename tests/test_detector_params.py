@@ -74,8 +74,9 @@ def test_every_problem_is_reported_at_once_naming_value_allowed_and_fix():
         "use_power_law": 1, "floor_mm": 0.0, "safty": 1.5})
     assert errors == [
         "safty = 1.5: no such parameter (did you mean 'safety'?); allowed: poles, safety, "
-        "kappa, h_radius, q_max, x0_radius_mm, sensor, use_power_law, floor_mm; fix: rename "
-        "or remove safty",
+        "kappa, h_radius, q_max, x0_radius_mm, sensor, use_power_law, floor_mm, "
+        "threshold_method, target_fa_per_run, threshold_confidence; fix: rename or remove "
+        "safty",
         "poles = [0.9, 0.9]: 0.9 repeated; allowed: a single number or a non-empty list of "
         "finite numbers, each in (0, 1), all different; fix: e.g. poles = "
         "(0.6, 0.8, 0.9, 0.95, 0.99) (the default), or remove it",
