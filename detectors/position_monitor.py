@@ -9,6 +9,13 @@ threshold for a confirmation time. Three consistency checks, each optional:
     order u — the model of docs/physics.md §3 with the nominal actuator parameters, loaded by the
     hinge moment at the *measured* flight point (the monitor never sees the true one). It
     catches runaways (the rod leaves the order) and solid jams (the rod stops following it).
+    The hinge moment is the model's least known input (docs/physics.md §6: coefficient
+    mismatch, [CHEN] Table 2 aerodynamic errors, q̄ from a measured airspeed), and near the
+    stall force (docs/physics.md §8) a rod's position is very sensitive to it. So the model is
+    run at the nominal hinge moment and at ``hinge_scale`` = (low, high) times it, and the loop
+    residual is how far the rod lies *outside* the hull of the three outputs (0 inside it) — a
+    set-membership check in the manner of [COMB]'s interval bounds. With ``hinge_scale =
+    (1, 1)`` it is the plain difference to the nominal model.
 ``com_mon``
     COM against MON rod acquisition. A liquid jam biases the acquisition the loop closes on:
     the loop hides it on COM but MON keeps the offset (docs/physics.md §5).
@@ -30,6 +37,7 @@ once it has been ≥ 1 for ``confirm_s`` and is then latched.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -46,14 +54,15 @@ CHECKS = ("loop", "com_mon", "surface")
 
 
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
-def _decide_block(rod_com, model, rod_mon, surface_mm, tau, active, n_confirm, norm_out,
-                  alarm_out):
+def _decide_block(rod_com, model_lo, model_hi, rod_mon, surface_mm, tau, active, n_confirm,
+                  norm_out, alarm_out):
     """Normalised residual and confirmed alarm of a block of runs, compiled (the NumPy
     reference is :meth:`PositionMonitor._detect` with :func:`detectors.base.confirm`).
 
     norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
     loop, com_mon, surface; NaN propagates as in ``np.maximum``),
-    r_loop = y_COM − model, r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
+    r_loop = distance of y_COM outside [model_lo, model_hi] (|y_COM − model| when the two
+    are the same model), r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
     alarm once norm ≥ 1 for *n_confirm* consecutive steps, latched. Writes *norm_out*,
     *alarm_out* (n, T).
     """
@@ -65,7 +74,13 @@ def _decide_block(rod_com, model, rod_mon, surface_mm, tau, active, n_confirm, n
         for k in range(T):
             v = 0.0
             if use_loop:
-                c = abs(rod_com[r, k] - model[r, k]) / tau[0]
+                y = rod_com[r, k]
+                above = y - model_hi[r, k]
+                below = model_lo[r, k] - y
+                if math.isnan(above) or math.isnan(below):
+                    c = math.nan                        # NaN propagates as in np.abs
+                else:
+                    c = (above if above > 0.0 else max(0.0, below)) / tau[0]
                 v = c if (c > v or math.isnan(c)) else v
             if use_cm and not math.isnan(v):
                 c = abs(rod_com[r, k] - rod_mon[r, k]) / tau[1]
@@ -83,7 +98,7 @@ def _decide_block(rod_com, model, rod_mon, surface_mm, tau, active, n_confirm, n
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
-    _decide_block(z2, z2, z2, np.zeros((0, 0)), np.ones(3),
+    _decide_block(z2, z2, z2, z2, np.zeros((0, 0)), np.ones(3),
                   np.array([True, True, False]), 1, np.zeros((1, 2)),
                   np.zeros((1, 2), dtype=np.bool_))
 
@@ -111,6 +126,14 @@ class PositionMonitor(Detector):
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
+    hinge_scale : (float, float)
+        (low, high) multiples of the nominal hinge moment between which the ``loop`` check
+        accepts the rod (module docstring). Default (0.6, 1.6): the true hinge moment over the
+        model's when the documented uncertainties add up — coefficient mismatch ±20 %
+        (docs/physics.md §6, est.), aerodynamic error ±5 % and q̄ from an airspeed measured
+        within ±10 % ([CHEN] Table 2; q̄ ∝ VCAS², so the true q̄ is 0.83–1.23 times the one the
+        model uses): 0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards.
+        (1, 1): the plain nominal model.
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -126,10 +149,15 @@ class PositionMonitor(Detector):
         Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest threshold of a check "
               "(guards against a learning set without motion)"),
         *THRESHOLD_PARAMS,
+        Param("hinge_scale", "floats", gt=0.0, length=2, doc="(low, high) multiples of the "
+              "nominal hinge moment: the loop check accepts the rod anywhere between the model "
+              "outputs at these loads (1, 1: the plain nominal model)",
+              source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
-                 threshold_method="max", target_fa_per_run=1e-4, threshold_confidence=0.95):
+                 threshold_method="max", target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 hinge_scale=(0.6, 1.6)):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks
@@ -137,6 +165,7 @@ class PositionMonitor(Detector):
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
+        self.hinge_scale = hinge_scale
 
     # ---- residuals ---------------------------------------------------------------------
     def _active_checks(self, signals: Signals) -> list[str]:
@@ -146,16 +175,21 @@ class PositionMonitor(Detector):
         return checks
 
     @staticmethod
-    def model_output(signals: Signals, engine: str | None = None) -> np.ndarray:
+    def model_output(signals: Signals, engine: str | None = None,
+                     hinge_scale: float = 1.0) -> np.ndarray:
         """Nominal closed-loop servo model driven by the order (docs/physics.md §2–3) [mm].
 
         *engine*: ``"compiled"`` (:func:`scenarios.kernels.servo_model`) or ``"numpy"`` (the
         reference loop below); default :func:`scenarios.kernels.current_engine`.
+        *hinge_scale*: the model's hinge moment (both HM(0) and ∂HM/∂δ) times this factor.
         """
         act = signals.actuator
         sch = signals.schedule
         plant = plant_arrays(act, qbar_pa=sch["qbar_pa"], alpha_deg=sch["alpha_deg"],
                              mach=sch["mach"])
+        if hinge_scale != 1.0:
+            plant = replace(plant, hm_0=plant.hm_0 * hinge_scale,
+                            hm_delta=plant.hm_delta * hinge_scale)
         if resolve_engine(engine) == "compiled":
             return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts)
         n, T = signals.command.shape
@@ -171,12 +205,26 @@ class PositionMonitor(Detector):
             i_prev = i_new
         return out
 
+    def model_band(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) [mm]: the hull of the model outputs at the nominal hinge moment and at
+        ``hinge_scale`` times it (one array twice when ``hinge_scale = (1, 1)``)."""
+        nominal = self.model_output(signals)
+        scales = sorted({float(v) for v in self.hinge_scale} - {1.0})
+        if not scales:
+            return nominal, nominal
+        outs = [nominal] + [self.model_output(signals, hinge_scale=v) for v in scales]
+        return np.minimum.reduce(outs), np.maximum.reduce(outs)
+
     def residuals(self, signals: Signals) -> dict[str, np.ndarray]:
-        """The raw residual [mm] of each active check, shape (n_runs, n_steps)."""
+        """The raw residual [mm] of each active check, shape (n_runs, n_steps); the loop
+        residual is the signed distance of the COM rod outside :meth:`model_band`."""
         out = {}
         checks = self._active_checks(signals)
         if "loop" in checks:
-            out["loop"] = signals.rod_com - self.model_output(signals)
+            lo, hi = self.model_band(signals)
+            y = signals.rod_com
+            # 0 inside the band (0·(y − hi) keeps a NaN acquisition NaN)
+            out["loop"] = np.where(y > hi, y - hi, np.where(y < lo, y - lo, 0.0 * (y - hi)))
         if "com_mon" in checks:
             out["com_mon"] = signals.rod_com - signals.rod_mon
         if "surface" in checks:
@@ -227,7 +275,7 @@ class PositionMonitor(Detector):
             return np.ascontiguousarray(a, dtype=float)
 
         rod_com = c(signals.rod_com)
-        model = self.model_output(signals) if "loop" in checks else empty
+        lo, hi = self.model_band(signals) if "loop" in checks else (empty, empty)
         rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
         surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
                    if "surface" in checks else empty)
@@ -236,5 +284,5 @@ class PositionMonitor(Detector):
         alarm = np.empty(rod_com.shape, dtype=bool)
         n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
         active = np.array([name in checks for name in CHECKS])
-        _decide_block(rod_com, model, rod_mon, surface, tau, active, n_confirm, norm, alarm)
+        _decide_block(rod_com, c(lo), c(hi), rod_mon, surface, tau, active, n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)
