@@ -319,7 +319,7 @@ def settings_of(config) -> ChunkSettings:
 
 def check_plant(config, plant) -> None:
     """Check the plant before anything runs (an FMU and its variable map: a clear FmuError)."""
-    plant.check(faults={g.fault for g in config.groups})
+    plant.check(faults={g.fault for g in config.groups} | {r.fault for r in config.runs})
 
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
