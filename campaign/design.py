@@ -237,7 +237,14 @@ def explicit_rows(config, runs) -> pd.DataFrame:
     return frame
 
 
-def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int) -> pd.DataFrame:
+def explicit_plan(config, runs) -> pd.DataFrame:
+    """The run table (columns :data:`PLAN_COLUMNS`, run ids filled) of the explicit runs
+    *runs* alone (:func:`explicit_rows`); two equal runs keep the same run id."""
+    return _finish([explicit_rows(config, runs)], config.campaign.seed, 0, unique=False)
+
+
+def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
+            unique: bool = True) -> pd.DataFrame:
     plan = pd.concat(frames, ignore_index=True)
     plan["seed"] = int(seed)
     plan["stream"] = np.arange(len(plan), dtype=np.int64) + stream_base
@@ -251,7 +258,7 @@ def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int) -> pd.DataF
     plan["realistic"] = plan["realistic"].astype(bool)
     records = plan.to_dict(orient="records")
     plan["run_id"] = [run_id(r) for r in records]
-    if plan["run_id"].duplicated().any():
+    if unique and plan["run_id"].duplicated().any():
         dup = plan.loc[plan["run_id"].duplicated(), "group"].iloc[0]
         raise ValueError(f"duplicate runs in group {dup!r}: two rows describe the same run")
     return plan
