@@ -346,6 +346,13 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
         state = {"generation": 0, "done": 0, "t0": time.perf_counter(), "errors": 0}
 
         def objective(x):
+            try:
+                return evaluate_batch(x)
+            except Exception as exc:   # scipy would wrap a ValueError: re-raised below
+                state["error"] = exc
+                raise _Abort from exc
+
+        def evaluate_batch(x):
             runs = space.decode(x)
             rows = explicit_plan(config, runs)
             results = evaluate_rows(setup, rows, detectors, log=log)
@@ -364,9 +371,12 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
         bounds = space.vector_bounds()
         lo, hi = np.array(bounds).T
         init = lo + (hi - lo) * qmc.LatinHypercube(d=n_dims, seed=rng).random(pop)
-        differential_evolution(objective, bounds, maxiter=generations - 1, init=init,
-                               rng=rng, polish=False, tol=0.0, atol=0.0,
-                               updating="deferred", vectorized=True)
+        try:
+            differential_evolution(objective, bounds, maxiter=generations - 1, init=init,
+                                   rng=rng, polish=False, tol=0.0, atol=0.0,
+                                   updating="deferred", vectorized=True)
+        except _Abort:
+            raise state["error"] from None
         search = pd.concat(records, ignore_index=True)
         if baseline is None:
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
@@ -386,6 +396,10 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     return FalsifyResult(label=label, search=search, worst=worst, baseline_margin=baseline[0],
                          baseline_runs=baseline[1], baseline_source=baseline[2],
                          errors=state["errors"])
+
+
+class _Abort(Exception):
+    """Stops the optimiser when evaluating a generation failed (the cause is kept)."""
 
 
 def _check_variant(results: pd.DataFrame, label: str, config) -> None:
