@@ -97,11 +97,11 @@ def _named_files(argv: list[str]) -> list[Path]:
         files.append(Path(argv[1]) / "report.html")
     elif cmd == "init":
         files.append(Path(argv[1]))
+    elif cmd == "falsify":
+        files += [Path(opts["--out"]) / "search.parquet", Path(opts["--out"]) / "worst.toml"]
     for option in ("--junit", "--plot"):
         if option in opts:
             files.append(Path(opts[option]))
-    elif cmd == "falsify":
-        files += [Path(opts["--out"]) / "search.parquet", Path(opts["--out"]) / "worst.toml"]
     if cmd in ("simulate", "show", "fmu") and "--out" in opts:
         files.append(Path(opts["--out"]))
     return files
