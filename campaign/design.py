@@ -9,6 +9,9 @@ Two designs, one signature (``build_plan(config) -> DataFrame``):
 * ``grid`` — the parametric sweep: every envelope grid point × the three uncertainty levels
   {min, nominal, max} ([CHEN] §5.1: 108 × 3 = 324 cases), realistic cases only by default.
 
+Explicit ``[[run]]`` entries follow the groups' runs in either design, each with every value
+and its stream as written (:func:`explicit_rows`).
+
 Every sampled value is a column, so the table fully describes the campaign before it runs.
 Run i's simulation streams are ``SeedSequence(seed, spawn_key=(i,))`` (``stream`` = i); the
 learning set uses its own streams (:data:`LEARNING_STREAM_BASE` + j), never evaluation ones.
@@ -197,17 +200,65 @@ def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float) -> pd.D
     return _fill_runs(config, group, manoeuvre, frame, u[:, -4:], duration)
 
 
-def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int) -> pd.DataFrame:
+def explicit_rows(config, runs) -> pd.DataFrame:
+    """Run-table rows (no ``run_id``, ``seed`` or ``stream`` yet, but the run's own stream
+    under ``explicit_stream``) of explicit runs: the ``[[run]]`` entries of a campaign
+    file, or any objects or dicts with their keys (``fdd-campaign falsify`` builds its
+    candidate runs here, so a run it writes into ``worst.toml`` replays the same row and
+    run id).
+
+    Every value is taken as given; draw columns left out are 0, ``level`` is ``"run"``,
+    ``point`` −1, ``realistic`` the verdict of the realistic-envelope rule
+    (:func:`scenarios.envelope.realistic_rule`) and ``duration_s`` the campaign's."""
+    def get(run, name):
+        return run.get(name) if isinstance(run, dict) else getattr(run, name)
+
+    def number(value):
+        return np.nan if value is None else float(value)
+
+    rows = []
+    for run in runs:
+        draws = dict(get(run, "draws") or ())
+        row = {"group": get(run, "group"), "surface": run_surface(config),
+               "manoeuvre": get(run, "manoeuvre"), "fault": get(run, "fault"),
+               "onset_s": number(get(run, "onset_s")),
+               "magnitude": number(get(run, "magnitude")),
+               "freq_hz": number(get(run, "freq_hz"))}
+        row.update({k: float(get(run, k)) for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")})
+        row.update({"level": "run", "point": -1})
+        row.update({col: float(draws.get(col, 0.0)) for col in envelope.DRAW_COLUMNS})
+        row.update({"duration_s": float(config.campaign.duration_s),
+                    "manoeuvre_start_s": number(get(run, "manoeuvre_start_s")),
+                    "explicit_stream": int(get(run, "stream"))})
+        rows.append(row)
+    frame = pd.DataFrame(rows)
+    frame["realistic"] = envelope.realistic_rule(
+        frame[["alt_ft", "vcas_kt", "mass_t", "cg_pct"]], config.uncertainty)["realistic"]
+    return frame
+
+
+def explicit_plan(config, runs) -> pd.DataFrame:
+    """The run table (columns :data:`PLAN_COLUMNS`, run ids filled) of the explicit runs
+    *runs* alone (:func:`explicit_rows`); two equal runs keep the same run id."""
+    return _finish([explicit_rows(config, runs)], config.campaign.seed, 0, unique=False)
+
+
+def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
+            unique: bool = True) -> pd.DataFrame:
     plan = pd.concat(frames, ignore_index=True)
     plan["seed"] = int(seed)
     plan["stream"] = np.arange(len(plan), dtype=np.int64) + stream_base
+    if "explicit_stream" in plan.columns:      # explicit runs keep their own streams
+        given = plan["explicit_stream"].to_numpy(float)
+        keep = np.isfinite(given)
+        plan.loc[keep, "stream"] = given[keep].astype(np.int64)
     plan["run_id"] = ""
     plan = plan[list(PLAN_COLUMNS)]
     plan["point"] = plan["point"].astype(np.int64)
     plan["realistic"] = plan["realistic"].astype(bool)
     records = plan.to_dict(orient="records")
     plan["run_id"] = [run_id(r) for r in records]
-    if plan["run_id"].duplicated().any():
+    if unique and plan["run_id"].duplicated().any():
         dup = plan.loc[plan["run_id"].duplicated(), "group"].iloc[0]
         raise ValueError(f"duplicate runs in group {dup!r}: two rows describe the same run")
     return plan
@@ -225,6 +276,8 @@ def build_plan(config) -> pd.DataFrame:
                 frames.append(_mc_cell(config, group, manoeuvre, group.count, cell,
                                        config.campaign.duration_s))
             cell += 1
+    if config.runs:             # explicit runs after the groups' (whose streams stay 0…n−1)
+        frames.append(explicit_rows(config, config.runs))
     return _finish(frames, config.campaign.seed, 0)
 
 

@@ -319,7 +319,7 @@ def settings_of(config) -> ChunkSettings:
 
 def check_plant(config, plant) -> None:
     """Check the plant before anything runs (an FMU and its variable map: a clear FmuError)."""
-    plant.check(faults={g.fault for g in config.groups})
+    plant.check(faults={g.fault for g in config.groups} | {r.fault for r in config.runs})
 
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
@@ -379,6 +379,58 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
     finally:
         setup.close()
+
+
+def prepare(config, out, *, jobs: int = 2, chunk_size: int | None = None,
+            backend: str | None = None, scheduler: str | None = None, tls=None,
+            fitted_from=None, log=None):
+    """Open directory *out* for *config* and fit its detectors as :func:`run` does (the
+    same checks, workers and learning code path), without running the campaign's plan.
+
+    Returns ``(setup, detectors)``: the started setup (its ``close()`` releases the
+    directory's lock and stops the workers) and the fitted detectors, label → Detector.
+    Used by ``fdd-campaign falsify`` (:mod:`campaign.falsify`), which then evaluates runs
+    of its own with :func:`evaluate_rows`."""
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
+                   scheduler=scheduler, engine=None, log=log, tls=tls)
+    try:
+        return setup, _learn(config, setup, log, fitted_from)
+    except BaseException:
+        setup.close()
+        raise
+
+
+def evaluate_rows(setup, rows: pd.DataFrame, detectors: dict, log=None) -> pd.DataFrame:
+    """Result rows of the run-table *rows* on the workers of *setup* (:func:`prepare`): cut
+    into one chunk per worker, evaluated as the runner's chunks are (a failing run gets
+    ``status="error"``), returned in the order of *rows*. Nothing is stored."""
+    from .execute import run_local, run_on_cluster
+
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    settings, pool, frames = setup.settings, setup.pool, []
+    size = max(1, -(-len(rows) // max(setup.jobs, 1)))
+    chunks = [rows.iloc[s:s + size] for s in range(0, len(rows), size)]
+    labels = list(detectors)
+
+    def fail(part, status, message):
+        return failure_rows(part, labels, status, message)
+
+    if setup.client is not None:
+        run_on_cluster(setup.client, chunks, evaluate, detectors, settings, fail,
+                       frames.append, log=log)
+    elif pool is None:
+        frames.extend(evaluate(c, detectors, settings) for c in chunks)
+    else:
+        call = partial(_evaluate_copy if setup.backend == "threading" else evaluate,
+                       detectors=detectors, settings=settings)
+        run_local(chunks, call, fail, frames.append, jobs=setup.jobs, backend=setup.backend,
+                  run_timeout_s=None, pool=pool, log=log)
+    results = pd.concat(frames, ignore_index=True)
+    order = {rid: i for i, rid in enumerate(dict.fromkeys(rows["run_id"]))}
+    return (results.assign(_o=results["run_id"].map(order))
+            .sort_values(["_o", "detector"], kind="stable").drop(columns="_o")
+            .reset_index(drop=True))
 
 
 def _remove_created(root: Path, existed: bool) -> None:

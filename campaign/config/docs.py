@@ -78,6 +78,15 @@ def init_text() -> str:
         leaves = leaf_fields(cls)
         if not leaves:
             continue
+        if array and not ARRAY_EXAMPLES.get(path):     # optional, shown commented out
+            out.extend(_wrap_comment(doc))
+            out.append(f"# [[{path}]]")
+            for f in leaves:
+                spec = f.metadata["key"]
+                out.extend(_wrap_comment(_key_comment(spec, f.name)))
+                out.append(f"# {f.name} = {toml_value(example_value(spec, f.default))}")
+            out.append("")
+            continue
         if array:
             for n, example in enumerate(ARRAY_EXAMPLES[path]):
                 out.extend(_wrap_comment(doc) if n == 0 else [])
@@ -148,8 +157,8 @@ def schema_markdown() -> str:
         "A campaign is one TOML file: `fdd-campaign run FILE.toml --out DIR`, or a shipped "
         "preset by name (`fdd-campaign run smoke --out DIR`). `fdd-campaign init` writes an "
         "annotated starting file. Every section is optional except `[campaign]` (for its "
-        "`name`), at least one `[[group]]` and at least one `[[detector]]`; every key left "
-        "out takes its default.",
+        "`name`), at least one `[[group]]` (or `[[run]]`) and at least one `[[detector]]`; "
+        "every key left out takes its default.",
         "",
         "The whole file is checked before anything runs. Every problem is reported at once, "
         "each with its path in the file and how to fix it, for example:",

@@ -96,9 +96,14 @@ def sub_table(cls: type, doc: str):
     return field(default_factory=cls, metadata={"table": cls, "doc": doc})
 
 
-def section(cls: type, toml_name: str, doc: str, *, array: bool = False):
-    """Declare a top-level section (``[name]``, or ``[[name]]`` when *array*)."""
-    return field(metadata={"section": toml_name, "cls": cls, "doc": doc, "array": array})
+def section(cls: type, toml_name: str, doc: str, *, array: bool = False,
+            required: bool = True, required_unless: str = ""):
+    """Declare a top-level section (``[name]``, or ``[[name]]`` when *array*). An array
+    section needs at least one table when *required*, unless the file has a table of the
+    array section *required_unless*; an optional one left empty is not part of the
+    canonical form."""
+    return field(metadata={"section": toml_name, "cls": cls, "doc": doc, "array": array,
+                           "required": required, "required_unless": required_unless})
 
 
 # ----------------------------------------------------------------------------------------

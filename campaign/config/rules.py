@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import inspect
 import warnings
+from types import SimpleNamespace
 from typing import Any, Mapping
 
 from detectors.compat import incompatibilities, offline_problems
@@ -148,6 +149,7 @@ def check_rules(values: Mapping[str, Any], errors: list[str]) -> None:
     _check_monitored_surface(values["plant"], errors)
     _check_onset_window(values["faults"], duration, errors)
     _check_groups(values["groups"], design, duration, errors)
+    _check_runs(values, errors)
     check_detectors(values["detectors"], camp, values["plant"], errors)
     _check_plant(values["plant"], camp, errors)
 
@@ -205,8 +207,8 @@ def _check_groups(groups: list, design: Any, duration: Any, errors: list[str]) -
 
 
 def _given(g: Mapping, k: str) -> bool:
-    """Whether key *k* of group *g* is set to a valid value."""
-    return g[k] is not None and is_ok(g[k])
+    """Whether key *k* of group (or run) *g* is set to a valid value."""
+    return g.get(k) is not None and is_ok(g[k])
 
 
 def _check_count(g: Mapping, p: str, design: Any, errors: list[str]) -> None:
@@ -278,6 +280,89 @@ def _check_unique_name(g: Mapping, p: str, seen: dict[str, str], errors: list[st
         errors.append(f"{p}.name: duplicate group name {name!r} (also "
                       f"{seen[name]}); fix: give each group a unique name")
     seen[name] = p
+
+
+# ---- [[run]] ------------------------------------------------------------------------------
+def _check_runs(values: Mapping[str, Any], errors: list[str]) -> None:
+    """Each explicit [[run]]: the fault keys its fault type needs and no others, the onset
+    and the manoeuvre start before the end of the run, draws naming draw columns of the run
+    table within the campaign's half-widths, and, with realistic_only, a flight point that
+    passes the realistic-envelope rule (docs/physics.md §6)."""
+    from scenarios import envelope
+    from scenarios.faults import required_magnitude
+
+    runs = values["runs"]
+    if not runs:
+        return
+    camp = values["campaign"]
+    duration = camp["duration_s"]
+    tables = [{k: v for k, v in values[sec].items() if k != "__present__"}
+              for sec in ("uncertainty", "mismatch")]
+    widths = (envelope.half_widths(SimpleNamespace(**tables[0]), SimpleNamespace(**tables[1]))
+              if all(is_ok(*t.values()) for t in tables) else None)
+    for i, r in enumerate(runs):
+        p = f"run[{i}]"
+        fault = r["fault"]
+        if is_ok(fault) and fault == "none":
+            _check_fault_free(r, p, errors)
+        elif is_ok(fault):
+            if not _given(r, "onset_s") and is_ok(r["onset_s"]):
+                errors.append(f"{p}.onset_s: missing; a faulty run needs its onset; fix: "
+                              "add onset_s = 30.0 (seconds, before the end of the run)")
+            _check_onset(r, p, duration, errors)
+            if required_magnitude(fault) and r["magnitude"] is None:
+                errors.append(f"{p}.magnitude: missing; fault {fault!r} needs a signed "
+                              "magnitude in the run-table unit (scenarios/faults.py); fix: "
+                              "add magnitude = …")
+            elif not required_magnitude(fault) and _given(r, "magnitude"):
+                errors.append(f"{p}.magnitude: fault {fault!r} has no magnitude; fix: "
+                              "remove it")
+            if fault in OFC_FAULTS and r["freq_hz"] is None:
+                errors.append(f"{p}.freq_hz: missing; an oscillatory failure needs its "
+                              "frequency; fix: add freq_hz = 1.0")
+            _check_freq(r, p, fault, errors)
+        _check_manoeuvre_start(r, p, duration, errors)
+        _check_draws(r, p, widths, errors)
+        _check_realistic(r, p, camp, values["uncertainty"], errors)
+
+
+def _check_draws(r: Mapping, p: str, widths: dict | None, errors: list[str]) -> None:
+    """The draws of a [[run]] name draw columns (:data:`scenarios.envelope.DRAW_COLUMNS`),
+    each within ± the campaign's half-width of that column (*widths*; None: the half-widths
+    have errors of their own)."""
+    from scenarios.envelope import DRAW_COLUMNS
+
+    if not is_ok(r["draws"]):
+        return
+    for name, value in r["draws"]:
+        if name not in DRAW_COLUMNS:
+            errors.append(f"{p}.draws.{name}: unknown draw column{suggest(name, DRAW_COLUMNS)};"
+                          f" allowed: {', '.join(DRAW_COLUMNS)}")
+        elif widths is not None and abs(value) > widths[name]:
+            errors.append(f"{p}.draws.{name}: {num(value)} is outside the campaign's "
+                          f"half-width ±{num(widths[name])} ([uncertainty]/[mismatch]); fix: "
+                          f"a value in [{num(-widths[name])}, {num(widths[name])}], or widen "
+                          "the half-width")
+
+
+def _check_realistic(r: Mapping, p: str, camp: Mapping, unc: Mapping,
+                     errors: list[str]) -> None:
+    """With realistic_only, the run's flight point must pass the realistic-envelope rule."""
+    import pandas as pd
+
+    from scenarios import envelope
+
+    point = [r[k] for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")]
+    widths = {k: v for k, v in unc.items() if k != "__present__"}
+    if not (camp["realistic_only"] is True and is_ok(*point, *widths.values())):
+        return
+    frame = pd.DataFrame([point], columns=["alt_ft", "vcas_kt", "mass_t", "cg_pct"])
+    flags = envelope.realistic_rule(frame, SimpleNamespace(**widths))
+    if not bool(flags["realistic"].iloc[0]):
+        errors.append(f"{p}: flight point {num(point[0])} ft, {num(point[1])} kt, "
+                      f"{num(point[2])} t, {num(point[3])} % MAC fails the realistic-envelope "
+                      f"rule ({flags['rejected_by'].iloc[0]}; docs/physics.md §6); fix: choose "
+                      "a realistic point, or set [campaign] realistic_only = false")
 
 
 # ---- [[detector]] -------------------------------------------------------------------------

@@ -33,6 +33,7 @@ from .sections import (
     PlantSection,
     RequirementsSection,
     RunnerSection,
+    RunSpec,
     UncertaintySection,
 )
 from .text import toml_value, type_word
@@ -64,7 +65,14 @@ class CampaignConfig:
     groups: tuple[GroupSpec, ...] = section(
         GroupSpec, "group", "Run groups (at least one). design = \"mc\": count runs per "
         "manoeuvre; design = \"grid\": one run per realistic case and manoeuvre, no count. "
-        "A fixed flight-point coordinate replaces that envelope axis.", array=True)
+        "A fixed flight-point coordinate replaces that envelope axis. A file of [[run]] "
+        "entries only needs none.", array=True, required_unless="run")
+    runs: tuple[RunSpec, ...] = section(
+        RunSpec, "run", "Explicit runs (optional): every value of one run's row given, "
+        "replayed exactly after the runs of the groups, e.g. the regression corpus "
+        "`worst.toml` that `fdd-campaign falsify` writes (docs/evidence.md). A run keeps its "
+        "stream; with realistic_only its flight point must pass the realistic-envelope rule.",
+        array=True, required=False)
     detectors: tuple[DetectorSpec, ...] = section(
         DetectorSpec, "detector", "Detectors evaluated (at least one; labels unique).",
         array=True)
@@ -94,6 +102,8 @@ class CampaignConfig:
                 continue
             value = getattr(self, f.name)
             if meta["array"]:
+                if not value and not meta["required"]:
+                    continue       # an optional array left empty: not in the canonical form
                 out[meta["section"]] = [table_to_dict(item) for item in value]
             else:
                 out[meta["section"]] = table_to_dict(value)
@@ -191,14 +201,19 @@ def check_tables(data: Mapping, errors: list[str]) -> dict[str, Any]:
             continue
         raw = data.get(meta["section"])
         if meta["array"]:
-            values[f.name] = _check_array(meta["cls"], meta["section"], raw, errors)
+            other = meta["required_unless"]
+            required = meta["required"] and not (other and data.get(other))
+            values[f.name] = _check_array(meta["cls"], meta["section"], raw, errors,
+                                          required)
         else:
             values[f.name] = _check_table(meta["cls"], meta["section"], raw, errors)
     return values
 
 
-def _check_array(cls: type, sec: str, raw: Any, errors: list[str]) -> list[dict]:
-    """The checked tables of the array section ``[[sec]]`` (at least one is required)."""
+def _check_array(cls: type, sec: str, raw: Any, errors: list[str],
+                 required: bool = True) -> list[dict]:
+    """The checked tables of the array section ``[[sec]]`` (at least one when
+    *required*)."""
     if raw is None:
         raw = []
     if isinstance(raw, dict):
@@ -208,7 +223,7 @@ def _check_array(cls: type, sec: str, raw: Any, errors: list[str]) -> list[dict]
     if not isinstance(raw, list) or not all(isinstance(x, dict) for x in raw):
         errors.append(f"{sec}: expected [[{sec}]] tables, got {type_word(raw)}")
         raw = []
-    if not raw:
+    if not raw and required:
         example = ARRAY_EXAMPLES[sec][0]
         body = "; ".join(f"{k} = {toml_value(v)}" for k, v in example.items())
         errors.append(f"{sec}: no [[{sec}]] table; fix: add at least one, e.g. "

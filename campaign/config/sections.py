@@ -40,6 +40,8 @@ __all__ = [
     "SIGNED_FAULTS",
     "SIGNED_FAULT_DIRECTIONS",
     "GroupSpec",
+    "RunSpec",
+    "RUN_STREAM_LIMIT",
     "DetectorSpec",
     "RequirementsSection",
     "LearningSection",
@@ -236,6 +238,55 @@ class GroupSpec:
     vcas_kt: float | None = _fixed_point_key("vcas_kt", "calibrated airspeed", 220.0)
     mass_t: float | None = _fixed_point_key("mass_t", "mass", 180.0)
     cg_pct: float | None = _fixed_point_key("cg_pct", "CG position", 30.0)
+
+
+#: Streams an explicit [[run]] may use: below 2³², the first stream of the learning set
+#: (campaign/design.py LEARNING_STREAM_BASE), so a run never shares the noise of a
+#: learning run.
+RUN_STREAM_LIMIT: int = 2 ** 32 - 1
+
+
+def _run_point_key(name: str, what: str, example: float):
+    lo, hi, unit = FLIGHT_POINT_RANGES[name]
+    return key("float", f"true {what} of the run", unit=unit, lo=lo, hi=hi, example=example)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunSpec:
+    """One explicit run, every value of its run-table row given (a regression case, e.g. the
+    worst runs ``fdd-campaign falsify`` found): replayed exactly, never sampled."""
+
+    group: str = key("str", "group name of the run in the run table", "runs", nonempty=True)
+    manoeuvre: str = key("choice", "manoeuvre of the run", choices=MANOEUVRES,
+                         example="pitch_protection")
+    fault: str = key("choice", "fault type (\"none\": fault-free)", "none", choices=FAULTS)
+    onset_s: float | None = key("float", "fault onset (faulty runs: required; before the end "
+                                "of the run)", unit="s", lo=0.0, hi=600.0, optional=True,
+                                default_doc="none (fault-free)", example=30.0)
+    magnitude: float | None = key("float", "signed fault magnitude in the run-table unit "
+                                  "(scenarios/faults.py: runaway deg/s, liquid_jam mm, "
+                                  "ofc_liquid mA, ofc_solid mm); required by the faults that "
+                                  "have one", optional=True, default_doc="none",
+                                  example=-4.0)
+    freq_hz: float | None = key("float", "OFC frequency (ofc_liquid, ofc_solid only; "
+                                "required there)", unit="Hz", lo=0.0, lo_open=True, hi=20.0,
+                                optional=True, default_doc="none", example=1.0)
+    alt_ft: float = _run_point_key("alt_ft", "pressure altitude", 28000.0)
+    vcas_kt: float = _run_point_key("vcas_kt", "calibrated airspeed", 220.0)
+    mass_t: float = _run_point_key("mass_t", "mass", 180.0)
+    cg_pct: float = _run_point_key("cg_pct", "centre of gravity", 30.0)
+    draws: tuple[tuple[str, float], ...] = key(
+        "number_table", "relative deviations of the run, one per draw column of the run "
+        "table (d_… = value, docs/physics.md §6); each within ± its half-width of "
+        "[uncertainty]/[mismatch]; a column left out is 0", (), lo=-0.9, hi=0.9,
+        source="scenarios/envelope.py DRAW_COLUMNS", example={"d_vcas": 0.05})
+    stream: int = key("int", "random stream of the run: its noise, turbulence and manoeuvre "
+                      "shape come from SeedSequence(seed, spawn_key=(stream,))", lo=0,
+                      hi=RUN_STREAM_LIMIT, example=7)
+    manoeuvre_start_s: float | None = key(
+        "float", "fixed start time of the manoeuvre (before the end of the run)", unit="s",
+        lo=0.0, hi=600.0, optional=True, default_doc="sampled from the stream",
+        example=8.5)
 
 
 @dataclass(frozen=True, kw_only=True)

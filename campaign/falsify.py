@@ -1,0 +1,472 @@
+"""Worst-case search for false alarms over the fault-free envelope (``fdd-campaign falsify``).
+
+docs/evidence.md, "Worst-case search (falsify)"; docs/design.md §8. A Monte Carlo campaign
+can say "0 false alarms in n runs" and nothing stronger; validation practice for monitoring
+functions adds a global search for the fault-free run that comes closest to an alarm. Every
+run's margin m = max |r|/τ over its fault-free part (:func:`reports.metrics.score_runs`;
+m ≥ 1 is a false alarm) is the objective: the search maximises the margin of one detector
+(variant) over
+
+* the flight point (alt_ft, vcas_kt, mass_t, cg_pct) within the campaign's ``[envelope]``
+  box (min … max of each list); with ``realistic_only`` a point outside the realistic
+  envelope (:func:`scenarios.envelope.realistic_rule`, docs/physics.md §6) is *repaired*:
+  moved along the segment towards a realistic anchor point to the last realistic point
+  found by bisection (:data:`REPAIR_STEPS` halvings), so every evaluated run is one the
+  campaign could have drawn and none of the budget is spent on points it never would;
+* every draw column of the run table (:data:`scenarios.envelope.DRAW_COLUMNS`) within ± its
+  half-width of ``[uncertainty]``/``[mismatch]`` (:func:`scenarios.envelope.half_widths`;
+  a half-width of 0 holds the column at 0);
+* the manoeuvre start time (run-table column ``manoeuvre_start_s``) within the range the
+  manoeuvre model samples it from, [lead_s, lead_s + start_spread_s] (docs/physics.md §7,
+  :data:`scenarios.manoeuvres.MANOEUVRE_PARAMS`), below duration_s − tail_s; not searched on
+  the aircraft plant, whose pilot model times its inputs itself;
+* two discrete dimensions: the cell (fault-free ``[[group]]`` × manoeuvre, with the values
+  the group fixes) and the run's random stream in [0, :data:`STREAM_SPAN`) — its sensor
+  noise, turbulence and manoeuvre shape (docs/design.md §9).
+
+The optimiser is ``scipy.optimize.differential_evolution`` (Storn & Price 1997) with
+``vectorized=True`` and ``updating="deferred"``, so each generation is one batch of runs
+evaluated through the runner's pipeline (:func:`campaign.runner.evaluate_rows`) on the local
+workers or a dask cluster; discrete dimensions are searched as continuous values and
+floored. Population and generations follow from the budget (:func:`population_size`); the
+initial population is a Latin hypercube; no gradient polish. Same seed → same runs and
+margins at any ``--jobs`` (the runs' results do not depend on how they are chunked).
+
+It is a search, not a proof: a search that finds no margin ≥ 1 bounds nothing; what it
+gives is the worst case found with the budget, beside the worst a plain Monte Carlo found.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import differential_evolution
+from scipy.stats import qmc
+
+from scenarios import envelope
+from scenarios.manoeuvres import MANOEUVRE_PARAMS
+
+from .config import CampaignConfig
+from .config.text import toml_value
+from .design import PLAN_COLUMNS, build_plan, explicit_plan
+from .storage import write_parquet
+
+__all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
+           "monte_carlo_config", "population_size", "search_space", "worst_toml"]
+
+#: Random streams searched: [0, STREAM_SPAN) (below the learning streams, 2³²).
+STREAM_SPAN: int = 2 ** 31
+#: Bisection halvings of the realistic-envelope repair (segment length / 2^40: far below
+#: any physical resolution of the flight point).
+REPAIR_STEPS: int = 40
+#: Group name of the searched runs in their run-table rows (and in worst.toml).
+SEARCH_GROUP: str = "falsify"
+#: Smallest population of the differential evolution (best1bin needs 4 others).
+MIN_POPULATION: int = 5
+#: Generations the population size aims at (est.: enough for the mutation to act).
+TARGET_GENERATIONS: int = 8
+
+FLIGHT_COLUMNS: tuple[str, ...] = envelope.GridTable.columns
+
+
+class FalsifyError(ValueError):
+    """The search cannot start (no fault-free group, unknown detector, bad budget …)."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One fault-free group × manoeuvre, with the run-table values the group fixes."""
+
+    group: str
+    manoeuvre: str
+    fixed: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass
+class SearchSpace:
+    """What the search varies (module docstring), derived from a campaign file.
+
+    ``bounds`` holds the continuous dimensions searched, name → (low, high), in their
+    run-table units; ``held`` the dimensions whose range is one value. The search vector is
+    the continuous dimensions in ``bounds`` order, then the cell index in [0, n_cells], then
+    the stream in [0, :data:`STREAM_SPAN`]."""
+
+    config: CampaignConfig
+    bounds: dict[str, tuple[float, float]]
+    held: dict[str, float]
+    cells: tuple[Cell, ...]
+    anchors: np.ndarray = field(repr=False)   # (n_cells, 4) realistic flight points
+    realistic_only: bool = True
+
+    @property
+    def names(self) -> list[str]:
+        """Names of the search vector's dimensions."""
+        return [*self.bounds, "cell", "stream"]
+
+    def vector_bounds(self) -> list[tuple[float, float]]:
+        return [*self.bounds.values(), (0.0, float(len(self.cells))), (0.0, float(STREAM_SPAN))]
+
+    def decode(self, x: np.ndarray) -> list[dict]:
+        """The runs (dicts of :func:`campaign.design.explicit_rows`) of the search vectors
+        *x*, shape (n_dims, n) — repaired into the realistic envelope when asked."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        n = x.shape[1]
+        cols = {name: x[i] for i, name in enumerate(self.bounds)}
+        cell = np.minimum(np.floor(x[len(self.bounds)]).astype(int), len(self.cells) - 1)
+        stream = np.minimum(np.floor(x[-1]), STREAM_SPAN - 1).astype(np.int64)
+        values = {name: np.full(n, v) for name, v in self.held.items()}
+        values.update({name: v.copy() for name, v in cols.items()})
+        for j in range(n):
+            for name, v in self.cells[cell[j]].fixed:
+                values[name][j] = v
+        point = np.column_stack([values[c] for c in FLIGHT_COLUMNS])
+        if self.realistic_only:
+            point = self._repair(point, self.anchors[cell])
+        runs = []
+        for j in range(n):
+            c = self.cells[cell[j]]
+            run = {"group": SEARCH_GROUP, "manoeuvre": c.manoeuvre, "fault": "none",
+                   **{k: float(point[j, i]) for i, k in enumerate(FLIGHT_COLUMNS)},
+                   "draws": {d: float(values[d][j]) for d in envelope.DRAW_COLUMNS},
+                   "stream": int(stream[j]),
+                   "manoeuvre_start_s": (float(values["manoeuvre_start_s"][j])
+                                         if "manoeuvre_start_s" in values else None)}
+            runs.append(run)
+        return runs
+
+    def _realistic(self, point: np.ndarray) -> np.ndarray:
+        frame = pd.DataFrame(point, columns=list(FLIGHT_COLUMNS))
+        return envelope.realistic_rule(frame, self.config.uncertainty)["realistic"].to_numpy()
+
+    def _repair(self, point: np.ndarray, anchor: np.ndarray) -> np.ndarray:
+        """Each unrealistic point moved to the last realistic point of the segment from its
+        cell's anchor (realistic) towards it, by bisection."""
+        bad = ~self._realistic(point)
+        if not bad.any():
+            return point
+        p, a = point[bad], anchor[bad]
+        lo, hi = np.zeros(len(p)), np.ones(len(p))
+        for _ in range(REPAIR_STEPS):
+            mid = 0.5 * (lo + hi)
+            ok = self._realistic(a + mid[:, None] * (p - a))
+            lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+        out = point.copy()
+        out[bad] = a + lo[:, None] * (p - a)
+        return out
+
+
+def search_space(config: CampaignConfig) -> SearchSpace:
+    """The search space of *config* (module docstring); :class:`FalsifyError` when the
+    campaign has no fault-free group or no realistic flight point."""
+    groups = [g for g in config.groups if g.fault == "none"]
+    if not groups:
+        raise FalsifyError(f"campaign {config.campaign.name!r} has no fault-free [[group]] "
+                           "(fault = \"none\"): falsify searches its fault-free runs; fix: add "
+                           "one, e.g. [[group]] fault = \"none\" count = 10")
+    ranges: dict[str, tuple[float, float]] = {}
+    for col in FLIGHT_COLUMNS:
+        values = getattr(config.envelope, col)
+        ranges[col] = (float(min(values)), float(max(values)))
+    widths = envelope.half_widths(config.uncertainty, config.mismatch)
+    for col in envelope.DRAW_COLUMNS:
+        ranges[col] = (-float(widths[col]), float(widths[col]))
+    if config.plant.kind != "aircraft":
+        p, duration = MANOEUVRE_PARAMS, config.campaign.duration_s
+        ranges["manoeuvre_start_s"] = (p.lead_s, min(p.lead_s + p.start_spread_s,
+                                                     duration - p.tail_s))
+    bounds = {k: v for k, v in ranges.items() if v[1] > v[0]}
+    held = {k: v[0] for k, v in ranges.items() if not v[1] > v[0]}
+    cells = []
+    for g in groups:
+        fixed = tuple((k, float(getattr(g, k))) for k in (*FLIGHT_COLUMNS, "manoeuvre_start_s")
+                      if getattr(g, k, None) is not None)
+        cells += [Cell(g.name, m, fixed) for m in g.manoeuvres]
+    space = SearchSpace(config, bounds, held, tuple(cells), np.empty((0, 4)),
+                        config.campaign.realistic_only)
+    space.anchors = np.array([_anchor(space, c, ranges) for c in cells])
+    return space
+
+
+def _anchor(space: SearchSpace, cell: Cell, ranges: dict) -> np.ndarray:
+    """A realistic flight point of *cell*: of the envelope's grid points and the box
+    centre (with the cell's fixed values), the realistic one nearest the centre."""
+    env = space.config.envelope
+    lo = np.array([ranges[c][0] for c in FLIGHT_COLUMNS])
+    hi = np.array([ranges[c][1] for c in FLIGHT_COLUMNS])
+    table = envelope.GridTable(**{c: tuple(getattr(env, c)) for c in FLIGHT_COLUMNS})
+    grid = envelope.grid_points(table)[list(FLIGHT_COLUMNS)].to_numpy(float)
+    points = np.vstack([(lo + hi) / 2.0, grid])
+    fixed = dict(cell.fixed)
+    for i, c in enumerate(FLIGHT_COLUMNS):
+        if c in fixed:
+            points[:, i] = fixed[c]
+    if not space.realistic_only:
+        return points[0]
+    ok = space._realistic(points)
+    if not ok.any():
+        raise FalsifyError(f"cell {cell.group}/{cell.manoeuvre}: no realistic flight point "
+                           "among the envelope's grid points (docs/physics.md §6); fix: widen "
+                           "[envelope], or set [campaign] realistic_only = false")
+    span = np.where(hi > lo, hi - lo, 1.0)
+    dist = np.linalg.norm((points[ok] - (lo + hi) / 2.0) / span, axis=1)
+    return points[ok][int(np.argmin(dist))]
+
+
+def population_size(budget: int, n_dims: int) -> int:
+    """Population of the differential evolution for *budget* runs: budget /
+    :data:`TARGET_GENERATIONS`, between :data:`MIN_POPULATION` and 10 per dimension."""
+    return int(min(max(MIN_POPULATION, budget // TARGET_GENERATIONS), 10 * n_dims))
+
+
+@dataclass
+class FalsifyResult:
+    """What a search found (also written to ``DIR/search.parquet`` and ``DIR/worst.toml``)."""
+
+    label: str
+    search: pd.DataFrame            # one row per evaluated run
+    worst: pd.Series                # the row of largest margin
+    baseline_margin: float          # worst margin of the plain Monte Carlo (or --against)
+    baseline_runs: int
+    baseline_source: str
+    errors: int
+
+    @property
+    def false_alarm(self) -> bool:
+        return bool(self.worst["margin"] >= 1.0)
+
+
+def _margins(results: pd.DataFrame, rows: pd.DataFrame, label: str) -> np.ndarray:
+    """Margin of *label* per row of *rows* (NaN for a run in error)."""
+    mine = results[results["detector"] == label].drop_duplicates("run_id")
+    ok = mine["status"] == "ok"
+    margin = pd.Series(np.where(ok, mine["margin"], np.nan), index=mine["run_id"])
+    return rows["run_id"].map(margin).to_numpy(float)
+
+
+def check_label(config: CampaignConfig, label: str) -> None:
+    """*label* must name one of the campaign's detectors, or a variant ``LABEL[…]`` of one
+    (the variant itself is checked on the fitted detector); :class:`FalsifyError` lists
+    the labels."""
+    base = label.split("[", 1)[0] if label.endswith("]") else label
+    if base not in config.detector_labels:
+        raise FalsifyError(f"--detector {label}: not a detector of campaign "
+                           f"{config.campaign.name!r}; its labels: "
+                           f"{', '.join(config.detector_labels)} (a detector with variants "
+                           "is named LABEL[variant] as in the results, e.g. "
+                           "comb-interval[a=0.9])")
+
+
+def monte_carlo_config(config: CampaignConfig, budget: int) -> CampaignConfig:
+    """*config* reduced to its fault-free groups, as a Monte Carlo (Sobol) design of about
+    *budget* runs (runs per manoeuvre = budget / cells, at least 1): the plain Monte Carlo
+    the search is compared with."""
+    data = config.to_dict()
+    free = [g for g in data["group"] if g["fault"] == "none"]
+    cells = sum(len(g["manoeuvres"]) for g in free)
+    for g in free:
+        g["count"] = max(1, budget // cells)
+    data["group"] = free
+    data.pop("run", None)
+    data["campaign"]["design"] = "mc"
+    data["campaign"].setdefault("sampler", "sobol")
+    return CampaignConfig.from_dict(data, source=f"{config.source} (plain Monte Carlo)")
+
+
+def worst_toml(config: CampaignConfig, runs: list[dict], *, label: str, note: str) -> str:
+    """A campaign file replaying *runs* exactly: *config* with its groups replaced by one
+    ``[[run]]`` each (every value as written by ``repr``, which TOML reads back to the same
+    float). Checked by loading it back."""
+    data = config.to_dict()
+    data.pop("group")
+    data["campaign"]["name"] = f"{config.campaign.name}-worst"
+    data["campaign"]["description"] = (f"the {len(runs)} fault-free runs of largest "
+                                       f"{label} margin found by fdd-campaign falsify")
+    data["run"] = [{k: v for k, v in r.items() if v is not None} for r in runs]
+    lines = [f"# {line}" for line in note.splitlines()] + [""]
+    for sec, value in data.items():
+        tables = value if isinstance(value, list) else [value]
+        for table in tables:
+            lines.append(f"[[{sec}]]" if isinstance(value, list) else f"[{sec}]")
+            lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+            lines.append("")
+    text = "\n".join(lines)
+    replay = CampaignConfig.from_dict(tomllib.loads(text), source="worst.toml")
+    ids = explicit_plan(replay, replay.runs)["run_id"].tolist()
+    if ids != explicit_plan(config, runs)["run_id"].tolist():
+        raise AssertionError("worst.toml does not replay the runs it lists")  # a bug, not input
+    return text
+
+
+def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int = 2,
+            seed: int = 0, scheduler: str | None = None, tls=None, fitted_from=None,
+            against=None, keep: int = 10, log=None, progress=True) -> FalsifyResult:
+    """Search the fault-free runs of *config* for the largest margin of detector *label*
+    with at most *budget* simulated runs (module docstring); write ``out/search.parquet``,
+    ``out/worst.toml`` (the *keep* worst runs) and the fitted detectors in ``out/learned``.
+
+    The detectors are fitted on the campaign's learning set by the runner's code path
+    (:func:`campaign.runner.prepare`), or taken from the campaign directory *fitted_from*.
+    The worst margin is compared with that of a plain Monte Carlo of the same budget
+    (:func:`monte_carlo_config`, run here: as many runs again, written to
+    ``out/monte-carlo.parquet``), or with the worst fault-free margin of the campaign
+    directory *against*.
+    """
+    from .runner import evaluate_rows, load_results, prepare
+
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    check_label(config, label)
+    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
+        raise FalsifyError(f"--budget {budget!r}: must be a whole number of runs ≥ "
+                           f"{2 * MIN_POPULATION}; fix: e.g. --budget 600")
+    if isinstance(keep, bool) or not isinstance(keep, (int, np.integer)) or keep < 1:
+        raise FalsifyError(f"--keep {keep!r}: must be a whole number ≥ 1 (runs written to "
+                           "worst.toml); fix: e.g. --keep 10")
+    space = search_space(config)
+    n_dims = len(space.names)
+    pop = population_size(budget, n_dims)
+    generations = budget // pop
+    if generations < 2:
+        raise FalsifyError(f"--budget {budget}: too small; the search needs at least two "
+                           f"generations of {MIN_POPULATION} runs; fix: --budget "
+                           f"{2 * MIN_POPULATION} or more")
+    baseline = _against(against, config, label, load_results) if against else None
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    setup, detectors = prepare(config, out / "learned", jobs=jobs, scheduler=scheduler,
+                               tls=tls, fitted_from=fitted_from, log=log)
+    try:
+        records: list[pd.DataFrame] = []
+        state = {"generation": 0, "done": 0, "t0": time.perf_counter(), "errors": 0}
+
+        def objective(x):
+            try:
+                return evaluate_batch(x)
+            except Exception as exc:   # scipy would wrap a ValueError: re-raised below
+                state["error"] = exc
+                raise _Abort from exc
+
+        def evaluate_batch(x):
+            runs = space.decode(x)
+            rows = explicit_plan(config, runs)
+            results = evaluate_rows(setup, rows, detectors, log=log)
+            if not state["done"]:
+                _check_variant(results, label, config)
+            margin = _margins(results, rows, label)
+            state["errors"] += int(np.isnan(margin).sum())
+            records.append(rows.assign(margin=margin, generation=state["generation"]))
+            state["done"] += len(rows)
+            if progress:
+                _progress(log, state, generations, budget, records)
+            state["generation"] += 1
+            return -np.nan_to_num(margin, nan=0.0)
+
+        rng = np.random.default_rng(np.random.SeedSequence(seed))
+        bounds = space.vector_bounds()
+        lo, hi = np.array(bounds).T
+        init = lo + (hi - lo) * qmc.LatinHypercube(d=n_dims, seed=rng).random(pop)
+        try:
+            differential_evolution(objective, bounds, maxiter=generations - 1, init=init,
+                                   rng=rng, polish=False, tol=0.0, atol=0.0,
+                                   updating="deferred", vectorized=True)
+        except _Abort:
+            raise state["error"] from None
+        search = pd.concat(records, ignore_index=True)
+        if baseline is None:
+            mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
+            log(f"plain Monte Carlo of the same budget: {len(mc)} fault-free runs")
+            results = evaluate_rows(setup, mc, detectors, log=log)
+            mc = mc.assign(margin=_margins(results, mc, label))
+            write_parquet(mc, out / "monte-carlo.parquet", config.to_json(), kind="falsify-mc",
+                          detector=label)
+            baseline = (float(np.nanmax(mc["margin"])), len(mc),
+                        f"a plain Monte Carlo of the same budget ({len(mc)} runs)")
+    finally:
+        setup.close()
+    write_parquet(search, out / "search.parquet", config.to_json(), kind="falsify-search",
+                  detector=label, budget=budget, seed=seed, population=pop,
+                  dimensions=space.names)
+    worst = _write_worst(config, search, label, keep, out, fitted_from, seed, budget)
+    return FalsifyResult(label=label, search=search, worst=worst, baseline_margin=baseline[0],
+                         baseline_runs=baseline[1], baseline_source=baseline[2],
+                         errors=state["errors"])
+
+
+class _Abort(Exception):
+    """Stops the optimiser when evaluating a generation failed (the cause is kept)."""
+
+
+def _check_variant(results: pd.DataFrame, label: str, config) -> None:
+    names = list(dict.fromkeys(results["detector"]))
+    if label not in names:
+        raise FalsifyError(f"--detector {label}: not a detector of campaign "
+                           f"{config.campaign.name!r}; its results are named: "
+                           f"{', '.join(names)}")
+
+
+def _against(directory, config, label, load_results) -> tuple[float, int, str]:
+    """Worst fault-free margin of *label* in the campaign directory *directory*."""
+    results, _, meta = load_results(directory)
+    names = sorted(set(results["detector"]))
+    if label not in names:
+        raise FalsifyError(f"--against {directory}: its results hold no detector {label!r}; "
+                           f"they hold: {', '.join(names)}")
+    free = results[(results["detector"] == label) & (results["fault"] == "none")
+                   & (results["status"] == "ok")]
+    if free.empty:
+        raise FalsifyError(f"--against {directory}: no fault-free run of {label!r} to "
+                           "compare with")
+    name = ((meta.get("config") or {}).get("campaign") or {}).get("name")
+    return (float(free["margin"].max()), len(free),
+            f"the {len(free)} fault-free runs of {directory} (campaign {name!r})")
+
+
+def _progress(log, state, generations, budget, records) -> None:
+    elapsed = time.perf_counter() - state["t0"]
+    done = state["done"]
+    total = generations * len(records[0])
+    eta = elapsed / done * (total - done) if done else float("nan")
+    best = max((float(np.nanmax(r["margin"])) for r in records
+                if np.isfinite(r["margin"]).any()), default=float("nan"))
+    log(f"generation {state['generation'] + 1}/{generations}: {done}/{total} runs "
+        f"(budget {budget}), worst margin so far {best:.4g}, {elapsed:.1f} s, "
+        f"ETA {eta:.1f} s")
+
+
+def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) -> pd.Series:
+    ranked = (search.dropna(subset=["margin"]).sort_values("margin", ascending=False,
+                                                            kind="stable")
+              .drop_duplicates("run_id"))
+    if ranked.empty:
+        raise FalsifyError(f"every run of the search failed for {label!r}; see "
+                           f"{out / 'search.parquet'} and replay one with fdd-campaign show")
+    top = ranked.head(keep)
+    runs = [{"group": SEARCH_GROUP, "manoeuvre": r["manoeuvre"], "fault": "none",
+             **{c: float(r[c]) for c in FLIGHT_COLUMNS},
+             "draws": {d: float(r[d]) for d in envelope.DRAW_COLUMNS},
+             "stream": int(r["stream"]),
+             "manoeuvre_start_s": (None if math.isnan(r["manoeuvre_start_s"])
+                                   else float(r["manoeuvre_start_s"]))}
+            for _, r in top.iterrows()]
+    learned = out / "learned"
+    replay = (f"fdd-campaign run worst.toml --out DIR fits the detectors again on the same\n"
+              f"learning set; --fitted-from {learned} takes the ones the search used"
+              if fitted_from is None else
+              f"fdd-campaign run worst.toml --fitted-from {learned} --out DIR (the detectors\n"
+              f"the search used, taken from {fitted_from})")
+    note = (f"The {len(runs)} fault-free runs of largest {label} margin found by\n"
+            f"fdd-campaign falsify (seed {seed}, budget {budget}); margins "
+            f"{', '.join(f'{m:.6g}' for m in top['margin'])}.\n"
+            f"Replay (same margins): {replay}.")
+    (out / "worst.toml").write_text(worst_toml(config, runs, label=label, note=note))
+    return ranked.iloc[0]
+
+
+#: Columns of search.parquet beside the run table's.
+SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "generation")
