@@ -7,47 +7,16 @@ import argparse
 import sys
 import textwrap
 import warnings
+from functools import partial
 from pathlib import Path
+
+from .paths import UsageError, check_writable  # noqa: F401 - part of this module's interface
 
 EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
-class UsageError(ValueError):
-    """Bad command-line input (exit code 2)."""
-
-
 def _err(msg: str) -> None:
     print(f"fdd-campaign: error: {msg}", file=sys.stderr)
-
-
-def check_writable(path, option: str, *, directory: bool = False) -> None:
-    """Raise :class:`UsageError` (exit 2) naming *option*, *path* and the fix when *path*
-    (a file, or a directory when *directory*) cannot be written: it exists and is not
-    writable (or not of its kind), or the nearest existing folder above it is not a
-    writable directory."""
-    import os
-
-    target = Path(path)
-    fix = "fix: choose a writable location (e.g. under your home directory)"
-    if target.exists():
-        if directory and not target.is_dir():
-            raise UsageError(f"{option} {path}: exists and is not a directory; {fix}")
-        if not directory and target.is_dir():
-            raise UsageError(f"{option} {path}: is a directory, a file name is needed; fix: "
-                             f"e.g. {option} {target / 'out'}")
-        if not os.access(target, os.W_OK | (os.X_OK if directory else 0)):
-            raise UsageError(f"{option} {path}: not writable (permission denied); {fix}, or "
-                             f"make it writable: chmod u+w {target}")
-        return
-    parent = target.absolute().parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise UsageError(f"{option} {path}: {parent} is a file, not a folder; {fix}")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise UsageError(f"{option} {path}: cannot create it, the folder {parent} is not "
-                         f"writable (permission denied); {fix}, or make that folder "
-                         f"writable: chmod u+w {parent}")
 
 
 # ---- commands ------------------------------------------------------------------------------
@@ -238,6 +207,10 @@ def _gate_one(directory, args):
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
                            allow_errors=args.allow_errors, coverage=coverage,
                            allow_incomplete=args.allow_incomplete, results=results)
+    if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
+        from .cli_evidence import fa_probability_checks
+
+        result.checks += fa_probability_checks(directory, args.max_fa_prob)
     print(result.format())
     failing = [run for c in result.failures for run in c.run_ids]
     if failing:
@@ -547,6 +520,10 @@ def _add_result_parsers(subs) -> None:
                    help="gate a campaign that has not finished every run of its plan (without "
                         "it, an unfinished campaign fails: the gate is never green on part of "
                         "the evidence)")
+    p.add_argument("--max-fa-prob", type=float, metavar="P",
+                   help="largest per-run false-alarm probability bound of DIR/certificate.parquet "
+                        "(the tail fit's, or the sampled one's when present; made by 'fdd-campaign "
+                        "certify DIR' when absent; docs/evidence.md)")
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 
 
@@ -658,8 +635,10 @@ def build_parser() -> argparse.ArgumentParser:
         v = "unknown (not installed)"
     parser.add_argument("--version", action="version", version=f"fdd-campaign {v}")
     subs = parser.add_subparsers(dest="command", metavar="COMMAND")
+    from .cli_evidence import add_evidence_parsers
+
     for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
-                _add_study_parsers):
+                _add_study_parsers, partial(add_evidence_parsers, sub=_sub)):
         add(subs)
     return parser
 

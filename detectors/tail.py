@@ -144,9 +144,9 @@ def _profile_rate(y: np.ndarray, t: float, s) -> np.ndarray:
     safe = np.where(xi == 0.0, 1.0, xi)
     for i in range(0, s.size, step):
         si = s[i:i + step, None]
-        with np.errstate(over="ignore"):
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             h = np.where(xi == 0.0, si, np.expm1(safe * si) / safe)
-        ll = _loglik(y, t / h, np.broadcast_to(xi, h.shape))
+            ll = _loglik(y, t / h, np.broadcast_to(xi, h.shape))
         out[i:i + step] = ll.max(axis=1)
     return out
 
@@ -325,8 +325,9 @@ class TailFit:
 
     def _at_rate(self, t: float, s: float) -> tuple[float, float]:
         """(ξ, σ in working units) maximising the likelihood with σ tied to s = −log q."""
-        h = _h(math.exp(s), SHAPES) if s < 700 else np.full(SHAPES.size, np.inf)
-        ll = _loglik(self.excesses, t / h, SHAPES)
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            h = _h(math.exp(s), SHAPES) if s < 700 else np.full(SHAPES.size, np.inf)
+            ll = _loglik(self.excesses, t / h, SHAPES)
         j = int(np.argmax(ll))
         return float(SHAPES[j]), float(t / h[j])
 
