@@ -183,3 +183,45 @@ def test_gate_probability_check_uses_the_larger_model_bound():
     assert fa_probability_checks(cert, 0.5)[0].passed
     with pytest.raises(GateInputError, match="per-run probability in"):
         fa_probability_checks(cert, 2.0)
+
+
+# ---- detection time as survival data -------------------------------------------------------------
+def test_kaplan_meier_keeps_the_misses_at_risk():
+    from reports.survival import kaplan_meier, survival_stats
+
+    delays = np.arange(1.0, 9.0)            # 8 runs detected after 1 … 8 s, 2 missed
+    t, f, f_lo, f_hi = kaplan_meier(delays, 2)
+    assert np.allclose(f, np.arange(1, 9) / 10.0)
+    assert np.all(f_lo <= f + 1e-12) and np.all(f <= f_hi + 1e-12)
+    stats_ = survival_stats(delays, delays / 4.0, 2)
+    assert stats_["delay_km_median_s"] == 5.0
+    assert stats_["delay_km_median_lo_s"] <= 5.0 <= stats_["delay_km_median_hi_s"]
+    assert np.isnan(stats_["delay_km_p95_s"])          # the curve stops at 0.8
+    assert np.isnan(stats_["dtp_p99_upper95"])          # 10 runs: too few for the bound
+
+
+def test_tolerance_bound_rule():
+    from reports.survival import survival_stats, tolerance_rank
+
+    assert tolerance_rank(298) is None and tolerance_rank(299) == 299
+    r = tolerance_rank(1000)
+    assert stats.binom.cdf(r - 1, 1000, 0.99) >= 0.95 > stats.binom.cdf(r - 2, 1000, 0.99)
+    d = np.random.default_rng(2).uniform(size=1000)
+    assert survival_stats(d, d, 0)["dtp_p99_upper95"] == np.sort(d)[r - 1]
+    assert survival_stats(d[:995], d[:995], 5)["dtp_p99_upper95"] == np.inf
+
+
+def test_summary_appends_the_survival_columns_only():
+    from reports.summary import SUMMARY_COLUMNS, summarize
+    from reports.survival import SURVIVAL_COLUMNS
+
+    assert SUMMARY_COLUMNS[-len(SURVIVAL_COLUMNS):] == SURVIVAL_COLUMNS
+    n = 20
+    results = pd.DataFrame({
+        "run_id": [f"r{i}" for i in range(n)], "detector": "d", "fault": "runaway",
+        "manoeuvre": "cruise", "status": "ok", "error": "", "false_alarm": False,
+        "pre_onset_alarm": False, "detected": np.arange(n) < 16,
+        "first_alarm_s": np.nan, "delay_s": np.where(np.arange(n) < 16, np.arange(n) * 0.1, np.nan),
+        "dtp": np.where(np.arange(n) < 16, np.arange(n) * 0.05, np.nan), "margin": 0.1})
+    row = summarize(results).iloc[0]
+    assert row["md_count"] == 4 and row["delay_km_median_s"] == pytest.approx(0.9)
