@@ -7,6 +7,7 @@ import argparse
 import sys
 import textwrap
 import warnings
+from functools import partial
 from pathlib import Path
 
 from .cli_common import (  # noqa: F401  (part of this module's interface)
@@ -211,6 +212,10 @@ def _gate_one(directory, args):
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
                            allow_errors=args.allow_errors, coverage=coverage,
                            allow_incomplete=args.allow_incomplete, results=results)
+    if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
+        from .cli_evidence import fa_probability_checks
+
+        result.checks += fa_probability_checks(directory, args.max_fa_prob)
     print(result.format())
     failing = [run for c in result.failures for run in c.run_ids]
     if failing:
@@ -520,6 +525,10 @@ def _add_result_parsers(subs) -> None:
                    help="gate a campaign that has not finished every run of its plan (without "
                         "it, an unfinished campaign fails: the gate is never green on part of "
                         "the evidence)")
+    p.add_argument("--max-fa-prob", type=float, metavar="P",
+                   help="largest per-run false-alarm probability bound of DIR/certificate.parquet "
+                        "(the tail fit's, or the sampled one's when present; made by 'fdd-campaign "
+                        "certify DIR' when absent; docs/evidence.md)")
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 
 
@@ -631,10 +640,11 @@ def build_parser() -> argparse.ArgumentParser:
         v = "unknown (not installed)"
     parser.add_argument("--version", action="version", version=f"fdd-campaign {v}")
     subs = parser.add_subparsers(dest="command", metavar="COMMAND")
+    from .cli_evidence import add_evidence_parsers
     from .falsify_cli import add_falsify_parser
 
     for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
-                _add_study_parsers, add_falsify_parser):
+                _add_study_parsers, add_falsify_parser, partial(add_evidence_parsers, sub=_sub)):
         add(subs)
     return parser
 

@@ -36,6 +36,7 @@ from reports.table import error_lines
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .fitted import compare_fitted
+from .evidence_report import evidence_figure_specs
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
@@ -367,7 +368,7 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
     data = _gather_report_data(directory, cfg, jobs, t0)
-    specs = _figure_specs(data)
+    specs = _figure_specs(data) + evidence_figure_specs(data.camp)
     t1 = time.perf_counter()
     pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
                        for *_, kind, args, kwargs in specs], jobs,
@@ -555,7 +556,8 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
     }
     return render_report(meta=meta, summary=camp.summary, gate=data.gate,
                          requirements=data.requirements, runs=data.runs, figures=figures,
-                         notes=data.notes, warnings=data.warnings)
+                         notes=data.notes, warnings=data.warnings,
+                         certificate=CampaignDir(camp.root).read_certificate())
 
 
 # ---- show ----------------------------------------------------------------------------------

@@ -178,7 +178,7 @@ def campaign_identity(config: dict) -> dict:
 #: ``runs/`` and ``fitted/``).
 MANIFEST_TOP_FILES: tuple[str, ...] = ("campaign.json", "plan.parquet", "learning.parquet",
                                        "summary.parquet", "detection-times.parquet",
-                                       "fitted-origin.json")
+                                       "fitted-origin.json", "certificate.parquet")
 
 
 def identity_sha256(config_json: str) -> str:
@@ -209,6 +209,7 @@ class CampaignDir:
         self.learning_path = self.root / "learning.parquet"
         self.summary_path = self.root / "summary.parquet"
         self.detection_times_path = self.root / "detection-times.parquet"
+        self.certificate_path = self.root / "certificate.parquet"
         self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
@@ -629,6 +630,18 @@ class CampaignDir:
         if not self.detection_times_path.exists():
             return None
         return pd.read_parquet(self.detection_times_path)
+
+    def write_certificate(self, cert: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``certificate.parquet`` (:func:`campaign.certify.certify`); *extra* goes
+        into its metadata."""
+        self._write_recorded(self.certificate_path, lambda: write_parquet(
+            cert, self.certificate_path, config_json, kind="certificate", **extra))
+
+    def read_certificate(self) -> pd.DataFrame | None:
+        """The stored false-alarm certificate, or None when ``certify`` has not run."""
+        if not self.certificate_path.exists():
+            return None
+        return pd.read_parquet(self.certificate_path)
 
     def write_report(self, page: str, path=None) -> Path:
         """Write the HTML report *page* to *path* (default ``report.html`` here)."""

@@ -56,31 +56,19 @@ union bound).
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from .params import Param
 from .state import register_state_type
+from .tail import (MIN_DISTINCT_EXCESSES, MIN_EXCEEDANCES, MIN_TAIL_FIT_RUNS, SHAPE_RANGE,
+                   TAIL_FRACTION, TailFitError, fit_tail, tail_size)
 
 __all__ = ["Calibration", "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_FRACTION", "THRESHOLD_METHODS", "THRESHOLD_PARAMS",
            "calibrate_threshold", "leave_one_out_ratios", "learned_threshold",
            "min_learning_runs", "tail_size"]
-
-#: Fewest learning runs for the generalised Pareto tail fit.
-MIN_TAIL_FIT_RUNS = 50
-#: Fewest exceedances k of the tail fit.
-MIN_EXCEEDANCES = 20
-#: Share of the learning runs in the fitted tail (k = max(MIN_EXCEEDANCES, ⌈0.2 n⌉)).
-TAIL_FRACTION = 0.2
-#: Fewest distinct positive excesses over u for the tail to be fitted at all.
-MIN_DISTINCT_EXCESSES = 10
-#: Range of the shape ξ of the fitted generalised Pareto distribution.
-SHAPE_RANGE = (-0.5, 1.0)
-#: ξ values over which the profile likelihood is maximised (step 0.005, ξ = 0 included).
-_SHAPES = np.linspace(SHAPE_RANGE[0], SHAPE_RANGE[1], 301)
 
 #: ``threshold_method`` of the built-in detectors: ``"max"`` (safety × the largest learning
 #: value) or ``"evt"`` (:func:`calibrate_threshold`).
@@ -152,12 +140,6 @@ def _check_probability(name: str, value, lo: float = 0.0) -> float:
         raise ValueError(f"{name} = {value!r}: outside ({lo:g}, 1); give a probability in "
                          f"({lo:g}, 1), e.g. {name} = {0.95 if lo else 1e-4:g}")
     return v
-
-
-def tail_size(n: int) -> int:
-    """k = max(:data:`MIN_EXCEEDANCES`, ⌈:data:`TAIL_FRACTION`·n⌉): the learning values in
-    the fitted tail."""
-    return max(MIN_EXCEEDANCES, math.ceil(TAIL_FRACTION * int(n) - 1e-9))
 
 
 def min_learning_runs(target_fa_per_run: float, confidence: float = 0.95,
@@ -322,93 +304,22 @@ def _ordinal(r: int) -> str:
     return f"{r}{suffix}"
 
 
-# ---- the generalised Pareto tail -------------------------------------------------------------
-def _h(a: float, xi: np.ndarray) -> np.ndarray:
-    """(a^ξ − 1)/ξ (log a at ξ = 0): the (1 − p)-quantile's excess over u in units of σ,
-    a = (k/n)/p."""
-    xi = np.asarray(xi, float)
-    safe = np.where(xi == 0.0, 1.0, xi)
-    return np.where(xi == 0.0, math.log(a), np.expm1(safe * math.log(a)) / safe)
-
-
-def _loglik(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
-    """Generalised Pareto log-likelihood of the excesses *y* (k,) for parameters broadcast
-    together (−inf outside the support)."""
-    sigma, xi = np.broadcast_arrays(np.asarray(sigma, float), np.asarray(xi, float))
-    q = y / sigma[..., None]                             # excesses in units of σ
-    zero = xi == 0.0
-    safe = np.where(zero, 1.0, xi)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        z = safe[..., None] * q                          # ξ·y/σ
-        inside = (z > -1.0).all(axis=-1) & (sigma > 0.0)
-        tail = np.where(zero, q.sum(axis=-1),
-                        (1.0 + 1.0 / safe) * np.log1p(np.where(z > -1.0, z, 0.0)).sum(axis=-1))
-        ll = -y.size * np.log(sigma) - tail
-    return np.where(inside, ll, -np.inf)
-
-
-def _profile(y: np.ndarray, a: float, t) -> tuple[np.ndarray, np.ndarray]:
-    """Profile log-likelihood of the quantile excess *t* (maximised over ξ in
-    :data:`SHAPE_RANGE`, σ = t/h(ξ)) and the maximising ξ, for each value of *t*."""
-    t = np.atleast_1d(np.asarray(t, float))
-    h = _h(a, _SHAPES)
-    out, arg = np.empty(t.size), np.empty(t.size)
-    step = max(1, 2_000_000 // (_SHAPES.size * y.size))
-    for s in range(0, t.size, step):
-        ll = _loglik(y, t[s:s + step, None] / h[None, :], _SHAPES[None, :])
-        j = np.argmax(ll, axis=1)
-        out[s:s + step] = ll[np.arange(ll.shape[0]), j]
-        arg[s:s + step] = _SHAPES[j]
-    return out, arg
-
-
+# ---- the generalised Pareto tail (detectors.tail) -----------------------------------------
 def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict):
-    """The "gpd" :class:`Calibration`, or the reason (str) the tail cannot be fitted."""
-    from scipy.optimize import brentq, minimize_scalar
-    from scipy.stats import genpareto, kstest, norm
-
-    u = float(desc[k])
-    y_raw = desc[:k] - u
-    positive = y_raw[y_raw > 0.0]
-    if np.unique(positive).size < MIN_DISTINCT_EXCESSES:
-        return (f"the tail is degenerate: {np.unique(positive).size} distinct value(s) above "
-                f"u = {u:g} among the top {k} (fewer than {MIN_DISTINCT_EXCESSES})")
-    unit = float(y_raw.mean())                    # work in units of the mean excess
-    y = y_raw / unit
-    a = (k / n) / p
-    t0 = math.log(a)                              # the exponential tail's quantile (ξ = 0)
-    # the profile on a wide log grid of t, its maximum refined
-    grid = t0 * np.logspace(-2.0, 4.0, 61)
-    prof, _ = _profile(y, a, grid)
-    i = int(np.argmax(prof))
-    lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, grid.size - 1)])
-    best = minimize_scalar(lambda s: -_profile(y, a, math.exp(s))[0][0], bounds=(lo, hi),
-                           method="bounded", options={"xatol": 1e-10})
-    ll_max, t_hat = max((float(prof[i]), float(grid[i])), (-float(best.fun), math.exp(best.x)))
-    _, xi_hat = _profile(y, a, t_hat)
-    xi_hat = float(xi_hat[0])
-    sigma_hat = float(t_hat / _h(a, xi_hat))
-    level = ll_max - 0.5 * float(norm.ppf(c)) ** 2      # one-sided: χ²₁(2c − 1)/2
-    above = np.flatnonzero((grid > t_hat) & (prof < level))
-    if above.size == 0:
-        return (f"the profile likelihood of the quantile does not fall below its "
-                f"{c:g} level within 10⁴ × the estimate (the tail is too heavy to bound)")
-    j = int(above[0])
-    left = max(math.log(t_hat), math.log(grid[j - 1])) if j > 0 else math.log(t_hat)
-    s_up = brentq(lambda s: _profile(y, a, math.exp(s))[0][0] - level, left,
-                  math.log(grid[j]), xtol=1e-12, rtol=1e-12)
-    tau_up = u + unit * math.exp(s_up)
-    tau_hat = u + unit * float(genpareto.isf(p * n / k, xi_hat, scale=sigma_hat))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        gof = float(kstest(y, genpareto(xi_hat, scale=sigma_hat).cdf).pvalue)
-    at_bound = " (ξ at the edge of its range)" if xi_hat in SHAPE_RANGE else ""
+    """The "gpd" :class:`Calibration`, or the reason (str) the tail cannot be fitted: the
+    upper profile-likelihood bound of the (1 − p)-quantile of :func:`detectors.tail.fit_tail`."""
+    try:
+        fit = fit_tail(desc, k)
+        q = fit.quantile(p, c)
+    except TailFitError as exc:
+        return str(exc)
+    at_bound = " (ξ at the edge of its range)" if q.shape in SHAPE_RANGE else ""
     return Calibration(
-        threshold=float(tau_up), method="gpd", supported=True, k=k, u=u, shape=xi_hat,
-        scale=sigma_hat * unit, estimate=float(tau_hat), gof_pvalue=gof,
-        note=(f"generalised Pareto tail of the top {k} of {n} values above u = {u:g}: "
-              f"ξ = {xi_hat:.3g}{at_bound}, σ = {sigma_hat * unit:.3g}; (1 − p)-quantile "
-              f"{tau_hat:.6g}, upper {c:g} profile-likelihood bound {tau_up:.6g}"),
+        threshold=q.upper, method="gpd", supported=True, k=k, u=fit.u, shape=q.shape,
+        scale=q.scale, estimate=q.estimate, gof_pvalue=q.gof_pvalue,
+        note=(f"generalised Pareto tail of the top {k} of {n} values above u = {fit.u:g}: "
+              f"ξ = {q.shape:.3g}{at_bound}, σ = {q.scale:.3g}; (1 − p)-quantile "
+              f"{q.estimate:.6g}, upper {c:g} profile-likelihood bound {q.upper:.6g}"),
         **common)
 
 

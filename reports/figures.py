@@ -318,9 +318,76 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
     return fig
 
 
+def mean_excess_figure(values: np.ndarray, u: float, *, title: str):
+    """Mean-excess plot of per-run margins: e(v) = mean(X − v | X > v) against v, for v
+    up to the 10th-largest value, with the tail threshold *u* of the fit marked. A
+    generalised Pareto tail makes e(v) linear above u (slope ξ/(1 − ξ); Coles 2001 §4.3.1),
+    so the plot shows whether u is high enough."""
+    plt = pyplot()
+    x = np.sort(np.asarray(values, float)[np.isfinite(values)])
+    grid = x[: max(len(x) - 10, 1)]
+    excess = [float(np.mean(x[x > v] - v)) for v in grid]
+    fig, ax = plt.subplots(figsize=(4.6, 3.0))
+    fig.subplots_adjust(left=0.15, right=0.97, top=0.86, bottom=0.17)
+    ax.plot(grid, excess, color="tab:blue", lw=1.2)
+    ax.axvline(u, color=WORST_COLOUR, ls="--", lw=1.0, label=f"u = {u:.3g}")
+    ax.set_xlabel("margin threshold v [-]")
+    ax.set_ylabel("mean excess over v [-]")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    ax.set_title(title, fontsize=9)
+    return fig
+
+
+def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: str):
+    """Tail QQ plot: the k sorted excesses over u against the quantiles of the fitted
+    generalised Pareto distribution at plotting positions i/(k + 1); on the diagonal when
+    the model fits."""
+    from scipy.stats import genpareto
+
+    plt = pyplot()
+    y = np.sort(np.asarray(excesses, float))
+    k = len(y)
+    model = genpareto.ppf(np.arange(1, k + 1) / (k + 1.0), shape, scale=scale)
+    fig, ax = plt.subplots(figsize=(4.6, 3.0))
+    fig.subplots_adjust(left=0.15, right=0.97, top=0.86, bottom=0.17)
+    ax.plot(model, y, ".", color="tab:purple", ms=3)
+    top = float(max(np.max(model), np.max(y))) if k else 1.0
+    ax.plot([0, top], [0, top], color="0.4", lw=0.8, ls=":")
+    ax.set_xlabel("fitted GPD quantile of the excess [-]")
+    ax.set_ylabel("observed excess over u [-]")
+    ax.grid(alpha=0.3)
+    ax.set_title(title, fontsize=9)
+    return fig
+
+
+def survival_figure(curves: dict, *, title: str):
+    """Kaplan–Meier distribution of the detection delay per fault type: *curves* maps a
+    label to (t [s], F̂, F_lo, F_hi) (:func:`reports.survival.kaplan_meier`); the curve
+    stops below 1 by the share of missed runs (right-censored at the window's end)."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(5.6, 3.2))
+    fig.subplots_adjust(left=0.12, right=0.97, top=0.88, bottom=0.16)
+    for label, (t, f, f_lo, f_hi) in curves.items():
+        if len(t) == 0:
+            ax.plot([], [], label=f"{label}: no detection")
+            continue
+        line, = ax.step(np.r_[0.0, t], np.r_[0.0, f], where="post", lw=1.2, label=label)
+        ax.fill_between(np.r_[0.0, t], np.r_[0.0, f_lo], np.r_[0.0, f_hi], step="post",
+                        color=line.get_color(), alpha=0.15, lw=0)
+    ax.set_xlabel("detection delay [s]")
+    ax.set_ylabel("share of runs detected")
+    ax.set_ylim(0, 1.02)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(alpha=0.3)
+    ax.set_title(title, fontsize=9)
+    return fig
+
+
 #: Figure kinds drawn by :func:`render_png`.
 FIGURES = {"envelope": envelope_figure, "fault": fault_figure, "run": run_figure,
-           "map": envelope_map_figure}
+           "map": envelope_map_figure, "mean_excess": mean_excess_figure,
+           "tail_qq": tail_qq_figure, "survival": survival_figure}
 
 
 def render_png(kind: str, args: tuple, kwargs: dict, dpi: int = 80) -> bytes:

@@ -11,6 +11,8 @@ targets, [CHEN] §5):
 * **detection time** (only with ``max_dtp``) — the largest DTP per detector × fault type;
 * **run errors** — any run with ``status != "ok"`` fails the gate unless ``allow_errors``;
 * every detector must have scored runs: an empty campaign proves nothing;
+* **false-alarm probability** (only with a certificate, :func:`fa_probability_checks`) —
+  the per-run false-alarm probability bound of each detector beyond counting;
 * **coverage** (when the caller knows it) — a campaign that has not finished every run of
   its plan fails, unless ``allow_incomplete``: a gate is never green on part of the
   evidence.
@@ -35,7 +37,8 @@ import pandas as pd
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "junit_tree", "write_junit",
+__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_probability_checks",
+           "junit_tree", "write_junit",
            "write_junit_suite", "write_junit_tree"]
 
 _REQUIRED = ("detector", "fault", "manoeuvre", "n_runs", "n_errors", "fa_count",
@@ -369,3 +372,51 @@ def write_junit_tree(suites: list, path) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def fa_probability_checks(certificate: pd.DataFrame, limit: float) -> list[Check]:
+    """One ``fa_probability`` check per detector of a false-alarm certificate
+    (``fdd-campaign certify``, docs/evidence.md): the per-run false-alarm probability bound
+    must be ≤ *limit*. The bound is the larger of the tail fit's
+    (``fa_prob_evt_upper95``) and the sampled estimate's (``sampling_upper95``) where they
+    are present; a detector with neither is held to its counting bound
+    (``fa_upper95_cp``).
+
+    Raises :class:`GateInputError` when *limit* is not a probability in [0, 1] or the
+    certificate lacks its columns.
+    """
+    problems = []
+    try:
+        limit = float(limit)
+    except (TypeError, ValueError):
+        problems.append(f"max_fa_prob must be a number, got {limit!r}")
+    else:
+        if not 0.0 <= limit <= 1.0:
+            problems.append(f"max_fa_prob is a per-run probability in [0, 1] (1e-5 = one run in "
+                            f"100 000), got {limit}")
+    need = ("detector", "level", "fa_upper95_cp", "fa_prob_evt_upper95")
+    missing = [c for c in need if c not in certificate.columns]
+    if missing:
+        problems.append(f"certificate lacks column(s) {', '.join(missing)}; make it again "
+                        "with fdd-campaign certify DIR")
+    if problems:
+        raise GateInputError(problems)
+    out = []
+    for r in certificate.to_dict(orient="records"):
+        bounds = {"tail fit": r.get("fa_prob_evt_upper95"),
+                  "subset simulation": r.get("sampling_upper95")}
+        bounds = {k: float(v) for k, v in bounds.items()
+                  if v is not None and math.isfinite(float(v))}
+        if bounds:
+            source = max(bounds, key=bounds.get)
+            value = bounds[source]
+        else:
+            source, value = "counting (no tail fit)", float(r["fa_upper95_cp"])
+        passed = value <= limit
+        level = f"{100 * float(r['level']):g} %"
+        msg = (f"{'PASS' if passed else 'FAIL'} false-alarm probability: {r['detector']}: "
+               f"P(FA per run) ≤ {value:.3g} at {level} ({source}) "
+               f"{'≤' if passed else '>'} {limit:g}")
+        out.append(Check("fa_probability", r["detector"], FAULT_FREE, ALL_MANOEUVRES, value,
+                         limit, bool(passed), msg))
+    return out

@@ -32,6 +32,8 @@ SECTIONS = {
     "envelope": "Residual envelopes of the fault-free runs",
     "fault": "Detection per fault type",
     "map": "Envelope maps",
+    "certificate": "False-alarm probability certificates (certify)",
+    "survival": "Detection time as survival data",
 }
 
 
@@ -302,7 +304,8 @@ nav a{margin-right:1em}code{font-size:12px}.meta td{text-align:left}
 
 def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                   requirements: dict, runs: pd.DataFrame, figures: list[ReportFigure],
-                  notes: list[str] = (), warnings: list[str] = ()) -> str:
+                  notes: list[str] = (), warnings: list[str] = (),
+                  certificate: pd.DataFrame | None = None) -> str:
     """The report page.
 
     Parameters
@@ -316,6 +319,8 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     figures : embedded figures, shown in :data:`SECTIONS` order, grouped by ``group``
     notes : sentences on how the figures were made (sampling rules, re-simulation checks)
     warnings : shown in a highlighted box at the top
+    certificate : ``certificate.parquet`` of ``fdd-campaign certify`` (None: no such
+        section unless it has figures)
     """
     unknown = sorted({f.section for f in figures} - set(SECTIONS))
     if unknown:
@@ -332,16 +337,20 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     parts.append(_table(["", ""], facts, cls="meta"))
     links = ['<a href="#verdict">Verdict</a>'] + [
         f'<a href="#{key}">{_e(title)}</a>' for key, title in SECTIONS.items()
-        if any(f.section == key for f in figures)] + ['<a href="#runs">Runs</a>']
+        if any(f.section == key for f in figures)
+        or (key == "certificate" and certificate is not None)] + ['<a href="#runs">Runs</a>']
     parts.append("<nav>" + "".join(links) + "</nav>")
     for w in warnings:
         parts.append(f'<p class="warn">{_e(w)}</p>')
     parts.append(_verdict(summary, gate, requirements))
     for key, title in SECTIONS.items():
         figs = [f for f in figures if f.section == key]
-        if not figs:
+        table_here = key == "certificate" and certificate is not None
+        if not figs and not table_here:
             continue
         parts.append(f'<section id="{key}"><h2>{_e(title)}</h2>')
+        if table_here:
+            parts.append(_certificate_table(certificate))
         for group in dict.fromkeys(f.group for f in figs):
             parts.append(f"<h3>{_e(group)}</h3>")
             parts += [_img(f) for f in figs if f.group == group]
@@ -352,6 +361,30 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     parts.append(_drilldown(runs))
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _certificate_table(cert: pd.DataFrame) -> str:
+    """The certificate as a table: counts, the three estimates side by side, the fit."""
+    level = f"{100 * float(cert['level'].iloc[0]):g} %" if len(cert) else "95 %"
+    rows = []
+    for r in cert.to_dict(orient="records"):
+        sampled = (f"{_num(r['sampling_prob'])} [{_num(r['sampling_lower95'])}, "
+                   f"{_num(r['sampling_upper95'])}] ({int(r['sampling_runs'])} runs)"
+                   if r["sampling_runs"] else "—")
+        rows.append([_e(r["detector"]), f"{r['fa_count']}/{r['n_runs']}",
+                     _num(r["exposure_h"], ".4g"), _num(r["fa_upper95_cp"]),
+                     f"{_num(r['fa_prob_evt'])} (≤ {_num(r['fa_prob_evt_upper95'])})", sampled,
+                     _num(r["fa_per_hour_upper95"]), _e(r["evt_note"] or "")
+                     + (f"; {_e(r['sampling_note'])}" if r["sampling_note"] else "")])
+    head = ["detector", "FA / runs", "exposure [h]", f"CP bound ({level})",
+            f"tail fit (bound at {level})", "subset simulation [bounds]",
+            "FA per hour ≤", "tail fit / sampling"]
+    return (f"<p>Per-run false-alarm probability beyond counting (docs/evidence.md): the "
+            f"exact one-sided Clopper–Pearson bound of the count, the generalised Pareto "
+            f"tail of the fault-free margins with its profile-likelihood bound, and, when "
+            f"run, subset simulation over the run variables; bounds one-sided at {level}. "
+            f"Per hour: from the counting bound, a run of duration d being d hours of "
+            f"exposure (Poisson model).</p>" + _table(head, rows, tid="certificate-table"))
 
 
 def count_figures(page: str) -> int:

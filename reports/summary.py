@@ -24,6 +24,10 @@ Counting rules
   with DTP ≤ 1, a miss counting as not within. ``dtp_p95`` uses linear interpolation
   between order statistics (numpy's default).
 * ``worst_margin`` is the largest margin (max |r|/τ before onset) of the group.
+* Appended: the detection delay as survival data, misses right-censored at the end of the
+  window — Kaplan–Meier median and p95 delay with 95 % confidence intervals and an
+  order-statistic tolerance bound on the p99 DTP (:mod:`reports.survival`); NaN for
+  fault-free rows.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from .metrics import FAULT_FREE, upper_bound
+from .survival import SURVIVAL_COLUMNS, survival_stats
 
 __all__ = ["ALL_FAULTS", "ALL_MANOEUVRES", "SUMMARY_COLUMNS", "summarize"]
 
@@ -48,7 +53,7 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "md_count", "md_rate", "md_upper95",
     "late_count", "md_req_count", "md_req_rate", "md_req_upper95",
     "dtp_min", "dtp_mean", "dtp_max", "dtp_p95", "dtp_within",
-    "delay_mean_s", "worst_margin",
+    "delay_mean_s", "worst_margin", *SURVIVAL_COLUMNS,
 )
 
 _REQUIRED = ("detector", "fault", "manoeuvre", "status", "false_alarm", "detected",
@@ -105,6 +110,15 @@ def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
         worst_margin=("margin", "max"),
     )
     out["dtp_p95"] = grouped["dtp"].quantile(0.95)
+    def as_key(key):
+        return key if isinstance(key, tuple) else (key,)
+
+    surv = {as_key(key): survival_stats(g["delay"].to_numpy(), g["dtp"].to_numpy(),
+                                        int(g["miss"].sum()))
+            if not (g["fault"] == FAULT_FREE).all() else dict.fromkeys(SURVIVAL_COLUMNS, np.nan)
+            for key, g in grouped}
+    for c in SURVIVAL_COLUMNS:
+        out[c] = [surv[as_key(key)][c] for key in out.index]
     return out.reset_index()
 
 

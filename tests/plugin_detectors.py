@@ -83,3 +83,20 @@ class FitFails(_Quiet):
 
     def _fit(self, signals):
         raise RuntimeError("singular matrix in the threshold estimate")
+
+
+class ScheduleMargin(_Quiet):
+    """A margin that is an analytic function of the run variables: |r|/τ = measured VCAS /
+    *limit_kt* at every sample (measured VCAS = VCAS·(1 + d_vcas), docs/physics.md §4),
+    alarm where it is ≥ 1; so a fault-free run alarms exactly when
+    VCAS·(1 + d_vcas) ≥ *limit_kt*, a probability known in closed form over the campaign's
+    envelope box (tests/test_certify.py)."""
+
+    def __init__(self, limit_kt=300.0):
+        self.limit_kt = limit_kt
+
+    def _output(self, signals):
+        shape = (signals.n_runs, signals.n_steps)
+        ratio = np.asarray(signals.schedule["vcas_kt"], float) / float(self.limit_kt)
+        residual = np.broadcast_to(ratio[:, None], shape).copy()
+        return residual >= 1.0, residual

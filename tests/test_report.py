@@ -95,6 +95,9 @@ def test_report_has_the_verdict_first_and_every_figure(campaign_dir, report):
     expected = {f"Residual envelope — {det} — {m}" for m in FF_MANOEUVRES}
     expected |= {f"Detection of {f} — {det}" for f in FAULTS}
     expected |= {f"Margin to false alarm — {det}", f"Detection time performance — {det}"}
+    # detection time as survival data (docs/evidence.md); the certificate's figures only
+    # once fdd-campaign certify has run
+    expected |= {f"Detection delay (Kaplan–Meier) — {det}"}
     assert expected <= alts
     # example runs: the worst fault-free run and up to 3 per fault type
     examples = [a for a in alts if a.startswith("Example run")]
@@ -159,7 +162,8 @@ def test_report_works_on_a_copied_directory(campaign_dir, report, tmp_path, caps
     out = capsys.readouterr().out
     assert "Fault scenario" in out and "report.html" in out
     page = (copy / "report.html").read_text()
-    assert str(copy) in page and count_figures(page) == count_figures(report[1]) == 15
+    # 15 figures and the Kaplan–Meier curve of the detection delays
+    assert str(copy) in page and count_figures(page) == count_figures(report[1]) == 16
     assert main(["report", str(copy), "--no-html", "--html", str(tmp_path / "x.html")]) == 0
     assert not (tmp_path / "x.html").exists()
 
@@ -347,10 +351,11 @@ def test_report_dom_has_the_verdict_table_and_every_figure(chromium, report, tmp
     dom = done.stdout
     assert re.search(r'<section id="verdict">.*?<table class="verdict faults">', dom, re.S)
     assert "position-monitor" in dom and "Fault scenario" in dom
-    assert count_figures(dom) == count_figures(html) == 15
+    # 15 figures and the Kaplan–Meier curve of the detection delays
+    assert count_figures(dom) == count_figures(html) == 16
     # every image is an embedded PNG (data URI), nothing to fetch
     srcs = re.findall(r'<img [^>]*src="([^"]{0,30})', dom)
-    assert len(srcs) == 15 and all(s.startswith("data:image/png;base64,") for s in srcs)
+    assert len(srcs) == 16 and all(s.startswith("data:image/png;base64,") for s in srcs)
 
 
 def test_report_screenshot_shows_a_rendered_page(chromium, report, tmp_path):

@@ -1,0 +1,339 @@
+"""``fdd-campaign certify``: the per-run false-alarm probability of each detector beyond
+counting (docs/evidence.md, "False-alarm probability certificates (certify)";
+docs/design.md §8, Evidence beyond counting).
+
+From a finished campaign's fault-free runs (``fault = "none"``, ``status = "ok"``), per
+detector (result-row name, variants apart):
+
+* ``fa_count``/``n_runs`` and ``fa_upper95_cp``, the exact one-sided Clopper–Pearson upper
+  bound of the per-run false-alarm probability (``scipy.stats.binomtest(k, n,
+  alternative="less").proportion_ci(level, method="exact")``; the summary's
+  ``fa_upper95`` at 95 %); assumes independent runs of one probability;
+* ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) of the generalised Pareto tail
+  fitted to the fault-free margins (max |r|/τ before onset; ≥ 1 is a false alarm) by
+  :func:`detectors.tail.fit_tail` — the fit threshold calibration uses —, with its
+  one-sided profile-likelihood bound; threshold rule: the top k = max(20, ⌈0.2 n⌉) margins,
+  u the (k + 1)-th largest; NaN (with ``evt_note``) when fewer than 50 runs, a degenerate
+  tail, or u ≥ 1 (more than a fifth of the runs alarm: count them instead);
+* ``exposure_h`` = Σ fault-free run durations [h] and ``fa_per_hour_upper95`` (and
+  ``fa_per_hour_evt_upper95``): exposure model — false alarms arrive as a homogeneous
+  Poisson process of rate λ [1/h] over flight time, independently between runs, so a run
+  of duration d [h] is d hours of exposure and alarms with probability 1 − e^(−λd); the
+  per-run bound p_up then gives λ ≤ −ln(1 − p_up)/d (d the runs' mean duration; the runs
+  of a campaign share one duration);
+* with ``sampling``: ``sampling_prob`` and its bounds, P(margin ≥ 1) by subset simulation
+  (:mod:`campaign.rare`) over the campaign's run variables, simulated through
+  :func:`campaign.evaluate.evaluate` on the workers (:func:`sample_fa_probability`).
+
+Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pandas as pd
+
+from detectors.tail import TailFitError, fit_tail
+from reports.metrics import FAULT_FREE
+from scenarios import envelope
+
+from .design import run_id
+from .evaluate import evaluate
+
+__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_STREAM_BASE",
+           "certificate", "certify", "evt_estimate", "run_variables", "sample_fa_probability"]
+
+#: Columns of ``certificate.parquet``, one row per detector.
+CERTIFICATE_COLUMNS: tuple[str, ...] = (
+    "detector", "level", "n_runs", "exposure_h", "run_duration_s", "fa_count", "fa_rate",
+    "fa_upper95_cp", "fa_prob_evt", "fa_prob_evt_upper95", "fa_per_hour_upper95",
+    "fa_per_hour_evt_upper95", "worst_margin", "evt_k", "evt_u", "evt_shape", "evt_scale",
+    "evt_gof_pvalue", "evt_note", "sampling_runs", "sampling_prob", "sampling_lower95",
+    "sampling_upper95", "sampling_cov", "sampling_levels", "sampling_note",
+)
+
+#: Flight-point columns of the run table that an ``mc`` design samples in the envelope box
+#: (``[envelope]`` of the campaign file).
+FLIGHT_COLUMNS: tuple[str, ...] = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
+
+#: First simulation stream of the sampled runs (disjoint from evaluation streams, < 2³²,
+#: and learning streams, 2³² + j).
+SAMPLING_STREAM_BASE = 2 ** 40
+
+
+class CertifyError(ValueError):
+    """A campaign directory or an option certify cannot work from (exit 2)."""
+
+
+# ---- counting and the tail fit -------------------------------------------------------------
+def _cp_upper(k: int, n: int, level: float) -> float:
+    from scipy.stats import binomtest
+
+    return float(binomtest(int(k), int(n), alternative="less")
+                 .proportion_ci(confidence_level=level, method="exact").high)
+
+
+def _per_hour(p_up: float, duration_h: float) -> float:
+    """λ ≤ −ln(1 − p_up)/d [1/h] (Poisson exposure model, module docstring)."""
+    if not (math.isfinite(p_up) and duration_h > 0):
+        return math.nan
+    return math.inf if p_up >= 1.0 else -math.log1p(-p_up) / duration_h
+
+
+def evt_estimate(margins, level: float = 0.95) -> dict:
+    """P(margin ≥ 1) of the tail fitted to *margins* with its bound and the fit's
+    diagnostics (``evt_*`` keys), NaN with ``evt_note`` when the fit does not apply."""
+    m = np.asarray(margins, float)
+    m = m[np.isfinite(m)]
+    out = {"fa_prob_evt": math.nan, "fa_prob_evt_upper95": math.nan, "evt_k": 0,
+           "evt_u": math.nan, "evt_shape": math.nan, "evt_scale": math.nan,
+           "evt_gof_pvalue": math.nan, "evt_note": ""}
+    try:
+        fit = fit_tail(m)
+    except TailFitError as exc:
+        out["evt_note"] = f"no tail fit: {exc}"
+        return out
+    out.update(evt_k=fit.k, evt_u=fit.u, evt_shape=fit.shape, evt_scale=fit.scale,
+               evt_gof_pvalue=fit.gof_pvalue)
+    if fit.u >= 1.0:
+        out["evt_note"] = (f"u = {fit.u:.4g} ≥ 1: more than {fit.k} of {fit.n} runs alarm, "
+                           "the count is the estimate")
+        return out
+    est = fit.sf(1.0, level)
+    out.update(fa_prob_evt=est.estimate, fa_prob_evt_upper95=est.upper,
+               evt_note=(f"top {fit.k} of {fit.n} margins above u = {fit.u:.4g}: ξ = "
+                         f"{fit.shape:.3g}, σ = {fit.scale:.3g}, KS p = {fit.gof_pvalue:.2g}"))
+    return out
+
+
+def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
+    """The counting and tail-fit columns of :data:`CERTIFICATE_COLUMNS` (sampling columns
+    NaN) from the result rows and the run table of a campaign."""
+    ff = results[(results["fault"].astype(str) == FAULT_FREE)
+                 & (results["status"].astype(str) == "ok")]
+    duration = plan.set_index("run_id")["duration_s"]
+    rows = []
+    for detector, g in ff.groupby("detector", sort=False):
+        n = len(g)
+        k = int(g["false_alarm"].astype(bool).sum())
+        d_s = duration.reindex(g["run_id"]).to_numpy(float)
+        mean_h = float(np.nanmean(d_s)) / 3600.0
+        cp = _cp_upper(k, n, level)
+        evt = evt_estimate(g["margin"].to_numpy(float), level)
+        if k and evt["fa_prob_evt_upper95"] < k / n:
+            evt["evt_note"] += (f"; the bound is below the observed rate {k}/{n}: the tail "
+                                "model does not describe these runs (see the QQ plot)")
+        rows.append({
+            "detector": detector, "level": float(level), "n_runs": n,
+            "exposure_h": float(np.nansum(d_s)) / 3600.0, "run_duration_s": mean_h * 3600.0,
+            "fa_count": k, "fa_rate": k / n, "fa_upper95_cp": cp,
+            "fa_per_hour_upper95": _per_hour(cp, mean_h),
+            "fa_per_hour_evt_upper95": _per_hour(evt["fa_prob_evt_upper95"], mean_h),
+            "worst_margin": float(np.nanmax(g["margin"].to_numpy(float)))
+            if g["margin"].notna().any() else math.nan, **evt,
+            "sampling_runs": 0, "sampling_prob": math.nan, "sampling_lower95": math.nan,
+            "sampling_upper95": math.nan, "sampling_cov": math.nan, "sampling_levels": 0,
+            "sampling_note": "",
+        })
+    out = pd.DataFrame(rows, columns=list(CERTIFICATE_COLUMNS))
+    for c in ("n_runs", "fa_count", "evt_k", "sampling_runs", "sampling_levels"):
+        out[c] = out[c].astype("int64")
+    return out
+
+
+# ---- the sampled estimate --------------------------------------------------------------------
+def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
+    """The continuous run variables of the campaign's fault-free population and their
+    ranges (uniform priors, as the ``mc`` design draws them): each flight-point column
+    (:data:`FLIGHT_COLUMNS`) that varies among the fault-free runs → its ``[envelope]`` box,
+    and each draw column of :func:`scenarios.envelope.half_widths` with a non-zero width
+    → (−w, w). Generic in the draw columns: whatever ``half_widths`` returns."""
+    ff = plan[plan["fault"] == FAULT_FREE]
+    out = {}
+    for col in FLIGHT_COLUMNS:
+        values = getattr(config.envelope, col)
+        if col in ff and ff[col].nunique() > 1:
+            out[col] = (float(min(values)), float(max(values)))
+    for col, w in envelope.half_widths(config.uncertainty, config.mismatch).items():
+        if w > 0.0 and col in ff:
+            out[col] = (-float(w), float(w))
+    return out
+
+
+def _evaluate_rows(rows: pd.DataFrame, detectors: dict, settings, jobs: int,
+                   pool) -> pd.DataFrame:
+    if pool is None or jobs < 2 or len(rows) < 2:
+        return evaluate(rows, copy.deepcopy(detectors), settings)
+    size = -(-len(rows) // jobs)
+    futures = [pool.submit(evaluate, rows.iloc[s:s + size], copy.deepcopy(detectors), settings)
+               for s in range(0, len(rows), size)]
+    return pd.concat([f.result() for f in futures], ignore_index=True)
+
+
+def sample_fa_probability(config, plan: pd.DataFrame, detectors: dict, settings, names, *,
+                          n: int = 500, p0: float = 0.1, max_levels: int = 6,
+                          level: float = 0.95, seed: int = 0, jobs: int = 2,
+                          log=None) -> dict:
+    """P(margin ≥ 1) of each result-row detector name in *names* by subset simulation
+    (:func:`campaign.rare.subset_simulation`) over the campaign's fault-free population.
+
+    The population: the manoeuvre (drawn with the weights of the fault-free runs of the
+    plan), the continuous variables of :func:`run_variables` (uniform, mapped from
+    standard normal coordinates by u = Φ(z); points outside the realistic envelope are
+    outside the prior when the campaign has ``realistic_only``) and the simulation's noise
+    stream (a fresh stream from :data:`SAMPLING_STREAM_BASE` on); every other column is that
+    of a fault-free run of the same manoeuvre. Each point is a plan row simulated and
+    scored by :func:`campaign.evaluate.evaluate` (the detectors owning the name only), in
+    batches on *jobs* threads. Returns {name: :class:`campaign.rare.SubsetResult`}.
+    """
+    from scipy.stats import norm
+
+    from .rare import subset_simulation
+
+    if config.campaign.design != "mc":
+        raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "
+                           "sampling re-draws the run variables of an 'mc' design (a grid has "
+                           "no probability distribution over its points): leave --sampling out")
+    ff = plan[plan["fault"] == FAULT_FREE]
+    if ff.empty:
+        raise CertifyError("--sampling: the campaign has no fault-free run to sample around")
+    variables = run_variables(config, plan)
+    cols = list(variables)
+    lo = np.array([variables[c][0] for c in cols])
+    hi = np.array([variables[c][1] for c in cols])
+    manoeuvres = ff["manoeuvre"].value_counts(sort=False)
+    names_m, weights = manoeuvres.index.to_numpy(), manoeuvres.to_numpy(float)
+    templates = {m: ff[ff["manoeuvre"] == m].iloc[0] for m in names_m}
+    realistic = bool(config.campaign.realistic_only)
+    counter = iter(range(SAMPLING_STREAM_BASE, 2 ** 62))
+    flight = [c for c in cols if c in FLIGHT_COLUMNS]
+
+    def values(z):
+        return lo + (hi - lo) * norm.cdf(z)
+
+    def admissible(v):
+        if not (realistic and flight):
+            return np.ones(len(v), bool)
+        pts = pd.DataFrame({c: v[:, cols.index(c)] for c in flight})
+        for c in FLIGHT_COLUMNS:
+            if c not in pts:
+                pts[c] = float(ff[c].iloc[0])
+        return envelope.realistic_rule(pts[list(FLIGHT_COLUMNS)],
+                                       config.uncertainty)["realistic"].to_numpy(bool)
+
+    def sample_prior(rng, m):
+        z = rng.standard_normal((m, len(cols)))
+        man = rng.choice(len(names_m), size=m, p=weights / weights.sum())
+        nu = np.empty(m, dtype=object)
+        nu[:] = [(int(j), next(counter)) for j in man]
+        return z, nu, admissible(values(z))
+
+    pool = ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else None
+    out = {}
+    try:
+        for name in names:
+            label = next((lb for lb in detectors if name == lb or name.startswith(f"{lb}[")),
+                         None)
+            if label is None:
+                continue
+            owned = {label: detectors[label]}
+            evaluated = [0]
+
+            def g(z, nu, name=name, owned=owned, evaluated=evaluated):
+                v = values(z)
+                ok = admissible(v)
+                margin = np.full(len(z), -np.inf)
+                if not ok.any():
+                    return margin
+                records = []
+                for i in np.flatnonzero(ok):
+                    j, stream = nu[i]
+                    row = templates[names_m[j]].to_dict()
+                    row.update({c: float(v[i, k]) for k, c in enumerate(cols)})
+                    row["stream"] = int(stream)
+                    row["group"] = "certify-sampling"
+                    row["run_id"] = ""
+                    row["run_id"] = run_id(row)
+                    records.append(row)
+                rows = pd.DataFrame(records, columns=plan.columns)
+                res = _evaluate_rows(rows, owned, settings, jobs, pool)
+                evaluated[0] += len(rows)
+                res = res[res["detector"] == name].set_index("run_id")
+                got = res["margin"].reindex(rows["run_id"]).to_numpy(float)
+                margin[np.flatnonzero(ok)] = np.where(np.isfinite(got), got, -np.inf)
+                return margin
+
+            if log:
+                log(f"sampling {name}: subset simulation, {n} runs per level")
+            result = subset_simulation(g, sample_prior, len(cols), n=n, p0=p0,
+                                       max_levels=max_levels, confidence=level,
+                                       seed=seed, log=log)
+            out[name] = result
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
+    return out
+
+
+# ---- the command -----------------------------------------------------------------------------
+def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
+            seed: int = 0, detectors=None, log=print) -> pd.DataFrame:
+    """Certificate of a finished campaign directory (module docstring); writes
+    ``DIR/certificate.parquet`` and returns it.
+
+    *detectors*: the result-row names sampled (default all; the others keep NaN sampling
+    columns). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
+    outside (0.5, 1), ``sampling`` below 20 or not a multiple of 10, ``jobs`` below 1 or an
+    unknown detector name."""
+    from .report import load_campaign
+    from .storage import CampaignDir
+
+    problems = []
+    if not (isinstance(level, float | int) and 0.5 < float(level) < 1.0):
+        problems.append(f"--level {level!r}: must be a confidence in (0.5, 1), e.g. 0.95")
+    if sampling is not None and (int(sampling) < 20 or int(sampling) % 10):
+        problems.append(f"--sampling {sampling!r}: runs per level of the subset simulation "
+                        "must be a multiple of 10 and ≥ 20 (p0 = 0.1), e.g. --sampling 500")
+    if int(jobs) < 1:
+        problems.append(f"--jobs {jobs!r}: must be ≥ 1, e.g. --jobs 2")
+    if problems:
+        raise CertifyError("; ".join(problems))
+    loaded = load_campaign(directory)
+    meta = loaded.meta
+    done, planned = meta.get("runs_done"), meta.get("runs_planned")
+    if not meta.get("complete", True) or (planned is not None and int(done or 0) < int(planned)):
+        raise CertifyError(
+            f"{directory}: the campaign is unfinished ({done} of {planned} runs done); a "
+            "certificate is made from every fault-free run of the plan: finish it by running "
+            "the same 'fdd-campaign run' command again")
+    cert = certificate(loaded.results, loaded.plan, float(level))
+    if cert.empty:
+        raise CertifyError(f"{directory}: no fault-free run finished with status ok; a "
+                           "false-alarm certificate needs fault-free runs (fault = \"none\")")
+    names = list(cert["detector"])
+    unknown = [d for d in (detectors or ()) if d not in names]
+    if unknown:
+        raise CertifyError(f"--detector {unknown[0]}: no such detector in {directory}; "
+                           f"choose among {', '.join(names)}")
+    if sampling:
+        found = sample_fa_probability(loaded.config, loaded.plan, loaded.detectors(),
+                                      loaded.settings, list(detectors or names), n=int(sampling),
+                                      level=float(level), seed=seed, jobs=int(jobs), log=log)
+        for name, r in found.items():
+            i = cert.index[cert["detector"] == name][0]
+            cert.loc[i, ["sampling_prob", "sampling_lower95", "sampling_upper95",
+                         "sampling_cov"]] = [r.probability, r.lower, r.upper, r.cov]
+            cert.loc[i, ["sampling_runs", "sampling_levels"]] = [r.evaluations, len(r.levels)]
+            cert.loc[i, "sampling_note"] = (
+                f"subset simulation, seed {seed}, {int(sampling)} runs per level, p0 = 0.1"
+                + ("" if r.reached else f"; margin 1 not reached in {len(r.levels)} levels"
+                   + (" (the chains stopped climbing)" if r.stalled else "")
+                   + ": the estimate is incomplete, its upper bound indicative only"))
+    cdir = CampaignDir(loaded.root)
+    with cdir.locked():
+        cdir.write_certificate(cert, loaded.config.to_json(), sampling_seed=int(seed))
+    return cert

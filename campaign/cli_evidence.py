@@ -1,0 +1,79 @@
+"""The command line of the evidence beyond counting (docs/evidence.md): ``fdd-campaign
+certify`` and the ``gate --max-fa-prob`` checks. Registered by :mod:`campaign.cli`."""
+
+from __future__ import annotations
+
+__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks"]
+
+
+def cmd_certify(args) -> int:
+    """``fdd-campaign certify DIR``: write DIR/certificate.parquet and print it."""
+    from .certify import certify
+
+    cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
+                   seed=args.seed, detectors=args.detector,
+                   log=lambda msg: print(msg, flush=True))
+    print(format_certificate(cert))
+    print(f"certificate written to {args.dir}/certificate.parquet; the report shows it: "
+          f"fdd-campaign report {args.dir}")
+    return 0
+
+
+def format_certificate(cert) -> str:
+    """The certificate as a terminal table (probabilities per run, rates per hour)."""
+    def g(x):
+        return "n/a" if x != x else f"{x:.3g}"
+
+    lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'CP bound':>9s} {'EVT':>9s} "
+             f"{'EVT bound':>9s} {'sampled':>9s} {'bounds':>19s} {'per hour':>9s}"]
+    for r in cert.to_dict(orient="records"):
+        sampled = (f"[{g(r['sampling_lower95'])}, {g(r['sampling_upper95'])}]"
+                   if r["sampling_runs"] else "")
+        lines.append(f"{r['detector']:24s} {r['n_runs']:6d} {r['fa_count']:4d} "
+                     f"{g(r['fa_upper95_cp']):>9s} {g(r['fa_prob_evt']):>9s} "
+                     f"{g(r['fa_prob_evt_upper95']):>9s} "
+                     f"{g(r['sampling_prob']) if r['sampling_runs'] else '':>9s} {sampled:>19s} "
+                     f"{g(r['fa_per_hour_upper95']):>9s}")
+    level = float(cert["level"].iloc[0]) if len(cert) else 0.95
+    lines.append(f"bounds one-sided at {100 * level:g} %; per-run probabilities of a run of "
+                 f"the campaign's duration; per hour from the counting bound (Poisson "
+                 f"exposure model, docs/evidence.md)")
+    return "\n".join(lines)
+
+
+def fa_probability_checks(directory, limit: float) -> list:
+    """The ``gate --max-fa-prob`` checks of campaign *directory* from its certificate
+    (:func:`reports.gate.fa_probability_checks`); a CertifyError (exit 2) naming the
+    command that makes it when the directory has none."""
+    from reports.gate import fa_probability_checks as checks
+
+    from .certify import CertifyError
+    from .storage import CampaignDir
+
+    cert = CampaignDir(directory).read_certificate()
+    if cert is None:
+        raise CertifyError(f"--max-fa-prob: {directory} has no certificate.parquet; make it "
+                           f"first with: fdd-campaign certify {directory} (add --sampling 500 "
+                           "for the sampled cross-check)")
+    return checks(cert, limit)
+
+
+def add_evidence_parsers(subs, sub) -> None:
+    """Sub-command ``certify`` (*sub* makes a sub-parser as :func:`campaign.cli._sub`)."""
+    p = sub(subs, "certify", "per-run false-alarm probability of each detector beyond "
+            "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
+            "optionally subset simulation; writes DIR/certificate.parquet (docs/evidence.md)",
+            "fdd-campaign certify results/ --sampling 500", cmd_certify)
+    p.add_argument("dir", help="finished campaign directory written by 'fdd-campaign run'")
+    p.add_argument("--level", type=float, default=0.95,
+                   help="confidence of the one-sided bounds (default 0.95)")
+    p.add_argument("--sampling", type=int, metavar="N",
+                   help="also estimate P(margin ≥ 1) by subset simulation with N runs per "
+                        "level (a multiple of 10, ≥ 20; e.g. 500)")
+    p.add_argument("--jobs", type=int, default=2,
+                   help="worker threads simulating the sampled runs (default 2)")
+    p.add_argument("--detector", action="append", metavar="NAME",
+                   help="sample only this detector (result-row name, e.g. position-monitor; "
+                        "repeat for more; default all)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the subset simulation (default 0)")

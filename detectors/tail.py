@@ -1,0 +1,351 @@
+"""A generalised Pareto tail fitted once to a sample of per-run maxima (docs/thresholds.md,
+docs/evidence.md).
+
+Peaks over threshold: of *n* values, the k = :func:`tail_size` (n) largest are modelled as
+u + Y, u the (k + 1)-th largest value and Y generalised Pareto (``scipy.stats.genpareto``,
+shape ξ, scale σ), so that above u
+
+    P(X > x) = (k/n)·(1 + ξ(x − u)/σ)^(−1/ξ)        (exp(−(x − u)/σ) at ξ = 0)
+
+(Pickands–Balkema–de Haan; Coles, *An Introduction to Statistical Modeling of Extreme
+Values*, 2001, eqs. 4.2 and 4.13). The share k/n is taken as known (k is fixed by the rule,
+not estimated). Both uses of the fit go through one object, :class:`TailFit`:
+
+* :meth:`TailFit.quantile` — the (1 − p)-quantile and the upper end of its one-sided
+  profile-likelihood confidence interval (threshold calibration, :mod:`detectors.calibrate`);
+* :meth:`TailFit.sf` — the exceedance probability P(X ≥ x) and the upper end of its
+  one-sided profile-likelihood confidence interval (false-alarm certificates,
+  ``fdd-campaign certify``).
+
+Profile likelihood (Coles 2001 §2.6.6 and §4.3.4): the quantity of interest replaces one
+parameter (σ = t/h(a, ξ), h(a, ξ) = (a^ξ − 1)/ξ, with t the excess of the quantile over u
+and a = 1/(conditional exceedance probability)); the log-likelihood is maximised over ξ in
+:data:`SHAPE_RANGE` (a grid of step 0.005, ξ = 0 included) and the one-sided bound at
+confidence c is where it falls z_c²/2 below its maximum (Wilks' theorem, χ²₁, z_c the
+standard normal c-quantile). Deterministic: no random draw.
+
+Why this k and this range of ξ: with the tens to hundreds of runs of a campaign a
+mean-excess plot is too noisy to choose u automatically, so a fixed share (the top fifth)
+with a floor of :data:`MIN_EXCEEDANCES` is used, a common compromise between the bias of a
+low u and the variance of few exceedances; ξ ∈ [−0.5, 1] because the maximum-likelihood
+estimator is regular above −0.5 and ξ ≥ 1 (an infinite mean) is not a residual's tail.
+
+Assumptions: the values are independent draws from one distribution (exchangeable runs),
+and its tail above u is generalised Pareto. The goodness-of-fit figure
+(:attr:`TailFit.gof_pvalue`, Kolmogorov–Smirnov of the excesses against the fitted model)
+is optimistic, the parameters coming from the same data: a small value rejects the model,
+a large one does not prove it.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS", "SHAPE_RANGE",
+           "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError", "fit_tail", "tail_size"]
+
+#: Fewest values for the generalised Pareto tail fit.
+MIN_TAIL_FIT_RUNS = 50
+#: Fewest exceedances k of the tail fit.
+MIN_EXCEEDANCES = 20
+#: Share of the values in the fitted tail (k = max(MIN_EXCEEDANCES, ⌈0.2 n⌉)).
+TAIL_FRACTION = 0.2
+#: Fewest distinct positive excesses over u for the tail to be fitted at all.
+MIN_DISTINCT_EXCESSES = 10
+#: Range of the shape ξ of the fitted generalised Pareto distribution.
+SHAPE_RANGE = (-0.5, 1.0)
+#: ξ values over which the profile likelihood is maximised (step 0.005, ξ = 0 included).
+SHAPES = np.linspace(SHAPE_RANGE[0], SHAPE_RANGE[1], 301)
+
+
+class TailFitError(ValueError):
+    """The values cannot support a tail fit (too few, or a degenerate tail); the message
+    says why."""
+
+
+def tail_size(n: int) -> int:
+    """k = max(:data:`MIN_EXCEEDANCES`, ⌈:data:`TAIL_FRACTION`·n⌉): the values in the
+    fitted tail."""
+    return max(MIN_EXCEEDANCES, math.ceil(TAIL_FRACTION * int(n) - 1e-9))
+
+
+@dataclass(frozen=True)
+class TailEstimate:
+    """One quantity of a tail fit with its one-sided profile-likelihood bound.
+
+    estimate : the maximum-likelihood value (a quantile in the values' unit, or a
+        probability)
+    upper : the upper end of the one-sided interval at *confidence*
+    confidence : the confidence of *upper*
+    shape, scale : ξ and σ (values' unit) at the maximum of this profile
+    gof_pvalue : Kolmogorov–Smirnov p-value of the excesses against the model at
+        (shape, scale) (indicative only, see the module docstring)
+    """
+
+    estimate: float
+    upper: float
+    confidence: float
+    shape: float
+    scale: float
+    gof_pvalue: float = math.nan
+
+
+def _h(a: float, xi: np.ndarray) -> np.ndarray:
+    """(a^ξ − 1)/ξ (log a at ξ = 0): the (1 − p)-quantile's excess over u in units of σ,
+    a = (k/n)/p."""
+    xi = np.asarray(xi, float)
+    safe = np.where(xi == 0.0, 1.0, xi)
+    return np.where(xi == 0.0, math.log(a), np.expm1(safe * math.log(a)) / safe)
+
+
+def _loglik(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """Generalised Pareto log-likelihood of the excesses *y* (k,) for parameters broadcast
+    together (−inf outside the support; Coles 2001 eq. 4.10)."""
+    sigma, xi = np.broadcast_arrays(np.asarray(sigma, float), np.asarray(xi, float))
+    q = y / sigma[..., None]                             # excesses in units of σ
+    zero = xi == 0.0
+    safe = np.where(zero, 1.0, xi)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        z = safe[..., None] * q                          # ξ·y/σ
+        inside = (z > -1.0).all(axis=-1) & (sigma > 0.0)
+        tail = np.where(zero, q.sum(axis=-1),
+                        (1.0 + 1.0 / safe) * np.log1p(np.where(z > -1.0, z, 0.0)).sum(axis=-1))
+        ll = -y.size * np.log(sigma) - tail
+    return np.where(inside, ll, -np.inf)
+
+
+def _profile(y: np.ndarray, a: float, t) -> tuple[np.ndarray, np.ndarray]:
+    """Profile log-likelihood of the quantile excess *t* (maximised over ξ in
+    :data:`SHAPE_RANGE`, σ = t/h(ξ)) and the maximising ξ, for each value of *t*."""
+    t = np.atleast_1d(np.asarray(t, float))
+    h = _h(a, SHAPES)
+    out, arg = np.empty(t.size), np.empty(t.size)
+    step = max(1, 2_000_000 // (SHAPES.size * y.size))
+    for s in range(0, t.size, step):
+        ll = _loglik(y, t[s:s + step, None] / h[None, :], SHAPES[None, :])
+        j = np.argmax(ll, axis=1)
+        out[s:s + step] = ll[np.arange(ll.shape[0]), j]
+        arg[s:s + step] = SHAPES[j]
+    return out, arg
+
+
+def _profile_rate(y: np.ndarray, t: float, s) -> np.ndarray:
+    """Profile log-likelihood of s = −log q, q = P(Y > t | Y > 0) the conditional
+    exceedance probability of the excess *t* (> 0), for each value of *s* (> 0):
+    σ = t/h(e^s, ξ), maximised over ξ."""
+    s = np.atleast_1d(np.asarray(s, float))
+    out = np.empty(s.size)
+    step = max(1, 2_000_000 // (SHAPES.size * y.size))
+    xi = SHAPES[None, :]
+    safe = np.where(xi == 0.0, 1.0, xi)
+    for i in range(0, s.size, step):
+        si = s[i:i + step, None]
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            h = np.where(xi == 0.0, si, np.expm1(safe * si) / safe)
+            ll = _loglik(y, t / h, np.broadcast_to(xi, h.shape))
+        out[i:i + step] = ll.max(axis=1)
+    return out
+
+
+def _profile_maximum(y: np.ndarray, a: float):
+    """(maximum, its t, the log grid of t, the profile on it) of the quantile profile for
+    a = (k/n)/p: the profile on a wide log grid of t, its maximum refined."""
+    from scipy.optimize import minimize_scalar
+
+    t0 = math.log(a)                              # the exponential tail's quantile (ξ = 0)
+    grid = t0 * np.logspace(-2.0, 4.0, 61)
+    prof, _ = _profile(y, a, grid)
+    i = int(np.argmax(prof))
+    lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, grid.size - 1)])
+    best = minimize_scalar(lambda s: -_profile(y, a, math.exp(s))[0][0], bounds=(lo, hi),
+                           method="bounded", options={"xatol": 1e-10})
+    ll_max, t_hat = max((float(prof[i]), float(grid[i])), (-float(best.fun), math.exp(best.x)))
+    return ll_max, t_hat, grid, prof
+
+
+def _ks(y: np.ndarray, xi: float, sigma: float) -> float:
+    """Kolmogorov–Smirnov p-value of the excesses *y* against GPD(ξ, σ) (same unit)."""
+    from scipy.stats import genpareto, kstest
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return float(kstest(y, genpareto(xi, scale=sigma).cdf).pvalue)
+
+
+def fit_tail(values, k: int | None = None) -> TailFit:
+    """Fit the generalised Pareto tail of *values* (module docstring).
+
+    Parameters
+    ----------
+    values : array_like (n,)
+        Finite values (e.g. per-run maxima), n ≥ :data:`MIN_TAIL_FIT_RUNS`.
+    k : int, optional
+        Exceedances to fit (default :func:`tail_size` (n)); 2 ≤ k < n.
+
+    Raises
+    ------
+    TailFitError
+        Fewer than :data:`MIN_TAIL_FIT_RUNS` values, non-finite values, or a degenerate
+        tail (fewer than :data:`MIN_DISTINCT_EXCESSES` distinct values above u).
+    """
+    x = np.asarray(values, dtype=float).ravel()
+    if not np.isfinite(x).all():
+        raise TailFitError(f"{int((~np.isfinite(x)).sum())} non-finite value(s); drop them "
+                           "before fitting the tail")
+    n = int(x.size)
+    if n < MIN_TAIL_FIT_RUNS:
+        raise TailFitError(f"{n} values: fewer than the {MIN_TAIL_FIT_RUNS} the tail fit "
+                           "needs")
+    k = tail_size(n) if k is None else int(k)
+    if not 2 <= k < n:
+        raise TailFitError(f"k = {k}: the exceedances must be 2 ≤ k < n = {n}")
+    desc = np.sort(x)[::-1]
+    u = float(desc[k])
+    y_raw = desc[:k] - u
+    positive = y_raw[y_raw > 0.0]
+    if np.unique(positive).size < MIN_DISTINCT_EXCESSES:
+        raise TailFitError(f"the tail is degenerate: {np.unique(positive).size} distinct "
+                           f"value(s) above u = {u:g} among the top {k} (fewer than "
+                           f"{MIN_DISTINCT_EXCESSES})")
+    unit = float(y_raw.mean())                    # work in units of the mean excess
+    y = y_raw / unit
+    a = math.e                                    # any quantile: the maximum is the MLE
+    _, t_hat, _, _ = _profile_maximum(y, a)
+    xi_hat = float(_profile(y, a, t_hat)[1][0])
+    sigma_hat = float(t_hat / _h(a, xi_hat))
+    return TailFit(n=n, k=k, u=u, shape=xi_hat, scale=sigma_hat * unit,
+                   gof_pvalue=_ks(y, xi_hat, sigma_hat), largest=float(desc[0]), unit=unit,
+                   excesses=y)
+
+
+@dataclass(frozen=True, eq=False)
+class TailFit:
+    """A generalised Pareto tail fitted to *n* values (module docstring: model, rule for k,
+    profile likelihood, assumptions). Made by :func:`fit_tail`.
+
+    n : values fitted
+    k : exceedances (the values above u)
+    u : tail threshold, the (k + 1)-th largest value (values' unit)
+    shape, scale : maximum-likelihood ξ (in :data:`SHAPE_RANGE`) and σ (values' unit)
+    gof_pvalue : Kolmogorov–Smirnov p-value of the excesses against the fitted model
+        (indicative only: optimistic, the parameters come from the same data)
+    largest : the largest value
+    """
+
+    n: int
+    k: int
+    u: float
+    shape: float
+    scale: float
+    gof_pvalue: float
+    largest: float
+    unit: float = field(repr=False)                 # mean excess: the working unit
+    excesses: np.ndarray = field(repr=False)        # the k excesses over u, in units of unit
+
+    # ---- quantiles ---------------------------------------------------------------------
+    def quantile(self, p: float, confidence: float = 0.95) -> TailEstimate:
+        """The (1 − p)-quantile of the values (P(X > x) = p) and the upper end of its
+        one-sided profile-likelihood interval at *confidence*; p must be in (0, k/n).
+
+        Raises :class:`TailFitError` when the profile does not fall below its level within
+        10⁴ × the estimate (a tail too heavy to bound)."""
+        from scipy.optimize import brentq
+        from scipy.stats import genpareto, norm
+
+        n, k, u, unit, y = self.n, self.k, self.u, self.unit, self.excesses
+        if not 0.0 < p < k / n:
+            raise ValueError(f"p = {p!r}: outside the fitted tail (0, k/n = {k / n:g}); "
+                             "a quantile below u is an empirical one")
+        a = (k / n) / p
+        ll_max, t_hat, grid, prof = _profile_maximum(y, a)
+        _, xi_hat = _profile(y, a, t_hat)
+        xi_hat = float(xi_hat[0])
+        sigma_hat = float(t_hat / _h(a, xi_hat))
+        level = ll_max - 0.5 * float(norm.ppf(confidence)) ** 2   # one-sided: χ²₁(2c − 1)/2
+        above = np.flatnonzero((grid > t_hat) & (prof < level))
+        if above.size == 0:
+            raise TailFitError(f"the profile likelihood of the quantile does not fall below "
+                               f"its {confidence:g} level within 10⁴ × the estimate (the "
+                               "tail is too heavy to bound)")
+        j = int(above[0])
+        left = max(math.log(t_hat), math.log(grid[j - 1])) if j > 0 else math.log(t_hat)
+        s_up = brentq(lambda s: _profile(y, a, math.exp(s))[0][0] - level, left,
+                      math.log(grid[j]), xtol=1e-12, rtol=1e-12)
+        tau_up = u + unit * math.exp(s_up)
+        tau_hat = u + unit * float(genpareto.isf(p * n / k, xi_hat, scale=sigma_hat))
+        return TailEstimate(estimate=float(tau_hat), upper=float(tau_up),
+                            confidence=float(confidence), shape=xi_hat,
+                            scale=sigma_hat * unit, gof_pvalue=_ks(y, xi_hat, sigma_hat))
+
+    # ---- exceedance probabilities ------------------------------------------------------
+    def sf(self, x: float, confidence: float = 0.95) -> TailEstimate:
+        """P(X ≥ x) and the upper end of its one-sided profile-likelihood interval at
+        *confidence*.
+
+        *x* must be above u: (k/n)·q with q = P(Y > x − u) of the fitted tail, its bound
+        (k/n)·q_up with q_up the largest q whose profile log-likelihood is within z²/2 of
+        the maximum (k/n taken as known; q_up ≤ 1). At or below u the tail model does not
+        apply (ValueError): count the values instead.
+        """
+        from scipy.optimize import brentq, minimize_scalar
+        from scipy.stats import norm
+
+        n, k, u, unit, y = self.n, self.k, self.u, self.unit, self.excesses
+        x = float(x)
+        if not x > u:
+            raise ValueError(f"x = {x:g} is not above the tail threshold u = {u:g}: the "
+                             "tail model does not apply there; use the empirical share")
+        t = (x - u) / unit
+        grid = np.logspace(-6.0, 4.0, 201)            # s = −log q
+        prof = _profile_rate(y, t, grid)
+        i = int(np.argmax(prof))
+        lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, grid.size - 1)])
+        best = minimize_scalar(lambda v: -_profile_rate(y, t, math.exp(v))[0], bounds=(lo, hi),
+                               method="bounded", options={"xatol": 1e-10})
+        ll_max, s_hat = max((float(prof[i]), float(grid[i])),
+                            (-float(best.fun), math.exp(best.x)))
+        level = ll_max - 0.5 * float(norm.ppf(confidence)) ** 2
+        below = np.flatnonzero((grid < s_hat) & (prof < level))
+        if below.size == 0:                           # not bounded away from q = 1
+            s_up = float(grid[0])
+        else:
+            j = int(below[-1])
+            right = min(math.log(s_hat), math.log(grid[j + 1]))
+            s_up = math.exp(brentq(lambda v: _profile_rate(y, t, math.exp(v))[0] - level,
+                                   math.log(grid[j]), right, xtol=1e-12, rtol=1e-12))
+        xi_hat, sigma_hat = self._at_rate(t, s_hat)
+        return TailEstimate(estimate=float(k / n * math.exp(-s_hat)),
+                            upper=float(k / n * math.exp(-s_up)),
+                            confidence=float(confidence), shape=xi_hat, scale=sigma_hat * unit,
+                            gof_pvalue=_ks(y, xi_hat, sigma_hat))
+
+    def _at_rate(self, t: float, s: float) -> tuple[float, float]:
+        """(ξ, σ in working units) maximising the likelihood with σ tied to s = −log q."""
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            h = _h(math.exp(s), SHAPES) if s < 700 else np.full(SHAPES.size, np.inf)
+            ll = _loglik(self.excesses, t / h, SHAPES)
+        j = int(np.argmax(ll))
+        return float(SHAPES[j]), float(t / h[j])
+
+    # ---- diagnostics -------------------------------------------------------------------
+    def diagnostics(self) -> dict:
+        """k, u, ξ, σ, the goodness-of-fit p-value, n and the largest value (for tables)."""
+        return {"k": self.k, "u": self.u, "shape": self.shape, "scale": self.scale,
+                "gof_pvalue": self.gof_pvalue, "n": self.n, "largest": self.largest}
+
+    def model_sf(self, x) -> np.ndarray:
+        """P(X > x) of the fitted model at the maximum-likelihood (ξ, σ): (k/n)·(1 +
+        ξ(x − u)/σ)^(−1/ξ) above u (NaN at or below u)."""
+        from scipy.stats import genpareto
+
+        x = np.asarray(x, float)
+        out = (self.k / self.n) * genpareto.sf(x - self.u, self.shape, scale=self.scale)
+        return np.where(x > self.u, out, np.nan)
+
+    def tail_values(self) -> np.ndarray:
+        """The k exceedances over u (values' unit), largest first."""
+        return self.excesses * self.unit
