@@ -134,13 +134,16 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
                       submit, workers: int) -> Signals:
     """The signals of the learning runs; a plant that fails is named (exit 2)."""
     try:
-        return simulate_chunks(learning, settings, chunk_size, submit=submit, workers=workers)
+        signals = simulate_chunks(learning, settings, chunk_size, submit=submit,
+                                  workers=workers)
     except Exception as exc:  # noqa: BLE001 - any failure of the plant, named for the user
         raise CampaignSetupError(
             f"{plant_name(settings.plant)} failed while simulating the learning set "
             f"({len(learning)} fault-free runs): {type(exc).__name__}: {exc}; nothing was "
             "run. Fix: try one run with 'fdd-campaign simulate' (or 'fdd-campaign run smoke "
             "--plant ...') to see the plant's error") from exc
+    # the learning runs' manoeuvres, for per-class threshold calibration (docs/thresholds.md)
+    return replace(signals, classes=learning["manoeuvre"].to_numpy(dtype=str))
 
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,

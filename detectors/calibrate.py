@@ -63,7 +63,7 @@ import numpy as np
 from .params import Param
 from .state import register_state_type
 from .tail import (MIN_DISTINCT_EXCESSES, MIN_EXCEEDANCES, MIN_TAIL_FIT_RUNS, SHAPE_RANGE,
-                   TAIL_FRACTION, TailFitError, fit_tail, tail_size)
+                   TAIL_FRACTION, TAIL_KINDS, TailFitError, fit_tail, tail_size)
 
 __all__ = ["Calibration", "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_FRACTION", "THRESHOLD_METHODS", "THRESHOLD_PARAMS",
@@ -84,6 +84,10 @@ THRESHOLD_PARAMS: tuple[Param, ...] = (
           "raises a false alarm"),
     Param("threshold_confidence", "float", gt=0.5, lt=1.0,
           doc="evt: confidence that the calibrated threshold meets target_fa_per_run"),
+    Param("threshold_tail", "choice", choices=TAIL_KINDS,
+          doc="evt: the tail fit's shape: free (ξ in [-0.5, 1]), light (ξ ≤ 0: exponential or "
+          "lighter, as a maximum of sensor noise and bounded draws is), auto (light unless a "
+          "likelihood-ratio test rejects it; docs/thresholds.md)"),
 )
 
 
@@ -171,7 +175,8 @@ def min_learning_runs(target_fa_per_run: float, confidence: float = 0.95,
 
 # ---- the calibration -----------------------------------------------------------------------
 def calibrate_threshold(values, target_fa_per_run: float, confidence: float = 0.95, *,
-                        classes=None, fallback_factor: float = 1.5) -> Calibration:
+                        classes=None, fallback_factor: float = 1.5,
+                        tail: str = "free") -> Calibration:
     """The threshold τ with P(X > τ) ≤ *target_fa_per_run* at *confidence*, X the per-run
     maximum of a fault-free run, from the learning runs' maxima *values* (module docstring:
     routes, assumptions and what the confidence means).
@@ -192,6 +197,9 @@ def calibrate_threshold(values, target_fa_per_run: float, confidence: float = 0.
     fallback_factor : float
         ≥ 1: τ = the largest value × this factor when the learning set cannot support the
         target (``method = "max-factor"``, ``supported = False``).
+    tail : str
+        Shape range of the tail fit, one of :data:`detectors.tail.TAIL_KINDS` (``"free"``,
+        ``"light"``, ``"auto"``; :func:`detectors.tail.fit_tail`).
 
     Returns
     -------
@@ -216,7 +224,7 @@ def calibrate_threshold(values, target_fa_per_run: float, confidence: float = 0.
                          "set cannot support the target), e.g. 1.5")
     x = _check_values(values, "values")
     if classes is None:
-        return _calibrate_one(x, p, c, factor)
+        return _calibrate_one(x, p, c, factor, tail)
     labels = np.asarray(classes)
     if labels.shape != x.shape:
         raise ValueError(f"classes has {labels.size} entries for {x.size} values; give one "
@@ -225,7 +233,7 @@ def calibrate_threshold(values, target_fa_per_run: float, confidence: float = 0.
     for label in sorted({str(v) for v in labels.tolist()}):
         sel = np.array([str(v) == label for v in labels.tolist()])
         parts.append((label, _calibrate_one(_check_values(x[sel], f"class {label!r}"), p, c,
-                                            factor)))
+                                            factor, tail)))
     best = max(parts, key=lambda item: item[1].threshold)
     unsupported = [label for label, cal in parts if not cal.supported]
     note = (f"largest of {len(parts)} class thresholds ({best[0]!r}, {best[1].method})"
@@ -260,7 +268,8 @@ def _check_values(values, what: str) -> np.ndarray:
     return x
 
 
-def _calibrate_one(x: np.ndarray, p: float, c: float, factor: float) -> Calibration:
+def _calibrate_one(x: np.ndarray, p: float, c: float, factor: float,
+                   tail: str = "free") -> Calibration:
     n = int(x.size)
     desc = np.sort(x)[::-1]
     common = dict(target_fa_per_run=p, confidence=c, n=n, largest=float(desc[0]))
@@ -275,7 +284,7 @@ def _calibrate_one(x: np.ndarray, p: float, c: float, factor: float) -> Calibrat
     elif p >= k / n:
         why = f"p = {p:g} is not in the fitted tail (k/n = {k / n:g})"
     else:
-        fit = _gpd(desc, n, k, p, c, common)
+        fit = _gpd(desc, n, k, p, c, common, tail)
         if isinstance(fit, Calibration):
             return fit
         why = fit + f", and {n} runs are fewer than the {need} the largest value needs"
@@ -305,15 +314,24 @@ def _ordinal(r: int) -> str:
 
 
 # ---- the generalised Pareto tail (detectors.tail) -----------------------------------------
-def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict):
+def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
+         tail: str = "free"):
     """The "gpd" :class:`Calibration`, or the reason (str) the tail cannot be fitted: the
-    upper profile-likelihood bound of the (1 − p)-quantile of :func:`detectors.tail.fit_tail`."""
+    upper profile-likelihood bound of the (1 − p)-quantile of :func:`detectors.tail.fit_tail`
+    (shape range *tail*, :data:`detectors.tail.TAIL_KINDS`)."""
     try:
-        fit = fit_tail(desc, k)
+        fit = fit_tail(desc, k, tail=tail, confidence=c)
         q = fit.quantile(p, c)
     except TailFitError as exc:
         return str(exc)
-    at_bound = " (ξ at the edge of its range)" if q.shape in SHAPE_RANGE else ""
+    edges = SHAPE_RANGE if fit.tail == "free" else (SHAPE_RANGE[0],)
+    at_bound = " (ξ at the edge of its range)" if q.shape in edges else ""
+    if fit.light_rejected is not None:
+        at_bound += ("; light tail (ξ ≤ 0) rejected by the likelihood-ratio test, free shape"
+                     if fit.light_rejected else "; light tail (ξ ≤ 0), not rejected by the "
+                     "likelihood-ratio test")
+    elif fit.tail == "light":
+        at_bound += "; light tail assumed (ξ ≤ 0)"
     return Calibration(
         threshold=q.upper, method="gpd", supported=True, k=k, u=fit.u, shape=q.shape,
         scale=q.scale, estimate=q.estimate, gof_pvalue=q.gof_pvalue,
@@ -325,22 +343,33 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict):
 
 # ---- helpers for the detectors ---------------------------------------------------------------
 def learned_threshold(maxima: np.ndarray, method: str, safety: float,
-                      target_fa_per_run: float, confidence: float,
-                      ) -> tuple[float, Calibration | None]:
+                      target_fa_per_run: float, confidence: float, tail: str = "free",
+                      classes=None) -> tuple[float, Calibration | None]:
     """(threshold, calibration) of one check from the learning runs' per-run maxima.
 
     ``method = "max"``: ``safety × max(maxima)`` and no calibration (the rule of the
     built-in detectors' default); ``"evt"``: :func:`calibrate_threshold` with
     ``fallback_factor = safety`` (so a learning set that cannot support the target falls
     back to the ``"max"`` threshold); the safety factor is not applied on top of a
-    calibrated threshold.
+    calibrated threshold. *tail*: the tail fit's shape range (:func:`detectors.tail.fit_tail`);
+    *classes*: the learning runs' manoeuvres (``Signals.classes``) to calibrate each class on
+    its own, τ the largest class threshold, or None to pool the runs.
     """
     if method == "max":
         return float(safety * np.max(maxima)), None
     if method != "evt":
         raise ValueError(f"threshold_method = {method!r}: not one of "
                          f"{', '.join(THRESHOLD_METHODS)}")
-    cal = calibrate_threshold(maxima, target_fa_per_run, confidence, fallback_factor=safety)
+    x = np.asarray(maxima, dtype=float)
+    if x.size == 1 and np.isfinite(x).all() and x[0] >= 0.0:     # one learning run
+        return float(safety * x[0]), _calibrate_one(x, float(target_fa_per_run),
+                                                    float(confidence), float(safety), tail)
+    if classes is not None:
+        _, counts = np.unique(np.asarray(classes, dtype=str), return_counts=True)
+        if counts.min() < 2:            # a class of one run cannot be calibrated alone: pool
+            classes = None
+    cal = calibrate_threshold(maxima, target_fa_per_run, confidence, fallback_factor=safety,
+                              tail=tail, classes=classes)
     return cal.threshold, cal
 
 

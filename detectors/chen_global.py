@@ -256,6 +256,9 @@ class ChenGlobalEstimator(Detector):
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
+    threshold_tail : str
+        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
+        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
@@ -282,8 +285,9 @@ class ChenGlobalEstimator(Detector):
     )
 
     def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
-                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True, threshold_method="max",
-                 target_fa_per_run=1e-4, threshold_confidence=0.95):
+                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True, threshold_method="evt",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="auto"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
         self.safety = safety
@@ -295,6 +299,7 @@ class ChenGlobalEstimator(Detector):
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
+        self.threshold_tail = threshold_tail
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -399,7 +404,9 @@ class ChenGlobalEstimator(Detector):
         else:
             tau, self.calibration_ = learned_threshold(
                 np.max(np.abs(r), axis=1), "evt", float(self.safety),
-                self.target_fa_per_run, self.threshold_confidence)
+                self.target_fa_per_run, self.threshold_confidence,
+                                             tail=self.threshold_tail,
+                                             classes=signals.classes)
             self.threshold_ = max(float(tau), float(self.floor_deg))
         self.learning_runs_ = int(signals.n_runs)
 

@@ -194,6 +194,9 @@ class ChenLocalEstimator(Detector):
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
+    threshold_tail : str
+        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
+        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -224,8 +227,9 @@ class ChenLocalEstimator(Detector):
     def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
                  solid_confirm_s=1.0, schedule_margin=0.25, h_perturbation=0.0,
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
-                 post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="max",
-                 target_fa_per_run=1e-4, threshold_confidence=0.95):
+                 post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="evt",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="auto"):
         self.sensor = sensor
         self.safety = safety
         self.liquid_confirm_s = liquid_confirm_s
@@ -238,6 +242,7 @@ class ChenLocalEstimator(Detector):
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
+        self.threshold_tail = threshold_tail
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
@@ -364,7 +369,9 @@ class ChenLocalEstimator(Detector):
             for name, m in maxima.items():
                 tau, cal = learned_threshold(m, "evt", float(self.safety),
                                              self.target_fa_per_run,
-                                             self.threshold_confidence)
+                                             self.threshold_confidence,
+                                             tail=self.threshold_tail,
+                                             classes=signals.classes)
                 self.thresholds_[name] = max(float(tau), float(self.floor_mm))
                 self.calibration_[name] = cal
         self.learning_runs_ = int(signals.n_runs)

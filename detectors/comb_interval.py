@@ -390,6 +390,9 @@ class IntervalDetector(Detector):
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
+    threshold_tail : str
+        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
+        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -421,8 +424,9 @@ class IntervalDetector(Detector):
 
     def __init__(self, poles=DEFAULT_POLES, safety=1.2, kappa=(0.02, 0.02, 0.06),
                  h_radius=0.0, q_max=300, x0_radius_mm=0.5, sensor="rod_com",
-                 use_power_law=False, floor_mm=1e-4, threshold_method="max",
-                 target_fa_per_run=1e-4, threshold_confidence=0.95):
+                 use_power_law=False, floor_mm=1e-4, threshold_method="evt",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="auto"):
         self.poles = poles
         self.safety = safety
         self.kappa = kappa
@@ -435,6 +439,7 @@ class IntervalDetector(Detector):
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
+        self.threshold_tail = threshold_tail
 
     def _poles(self) -> tuple[float, ...]:
         if isinstance(self.poles, (int, float)):
@@ -555,7 +560,7 @@ class IntervalDetector(Detector):
             lam = np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
                              float(self.floor_mm))
         else:
-            lam = self._calibrated_bounds(r)
+            lam = self._calibrated_bounds(r, signals.classes)
         alpha, gamma, beta = power_law_bound(lam)
         self.lambda_q_ = lam
         self.power_law_ = {"alpha": alpha, "gamma": gamma, "beta": beta}
@@ -567,7 +572,7 @@ class IntervalDetector(Detector):
                             for a in self._poles()}
         self.learning_runs_ = int(signals.n_runs)
 
-    def _calibrated_bounds(self, r: np.ndarray) -> np.ndarray:
+    def _calibrated_bounds(self, r: np.ndarray, classes=None) -> np.ndarray:
         """λ_q = s·max(λ⁰_q, floor) with s calibrated (``threshold_method = "evt"``, module
         docstring); stores the calibration in ``calibration_``."""
         floor = float(self.floor_mm)
@@ -576,7 +581,8 @@ class IntervalDetector(Detector):
         ratios = leave_one_out_ratios(m, floor)
         cal = calibrate_threshold(ratios, float(self.target_fa_per_run),
                                   float(self.threshold_confidence),
-                                  fallback_factor=float(self.safety))
+                                  fallback_factor=float(self.safety),
+                                  tail=self.threshold_tail, classes=classes)
         self.calibration_ = cal
         return np.maximum(cal.threshold * profile, floor)
 

@@ -126,6 +126,9 @@ class PositionMonitor(Detector):
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
+    threshold_tail : str
+        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
+        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     hinge_scale : (float, float)
         (low, high) multiples of the nominal hinge moment between which the ``loop`` check
         accepts the rod (module docstring). Default (0.6, 1.6): the true hinge moment over the
@@ -156,8 +159,8 @@ class PositionMonitor(Detector):
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
-                 threshold_method="max", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 hinge_scale=(0.6, 1.6)):
+                 threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="auto", hinge_scale=(0.6, 1.6)):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks
@@ -165,6 +168,7 @@ class PositionMonitor(Detector):
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
+        self.threshold_tail = threshold_tail
         self.hinge_scale = hinge_scale
 
     # ---- residuals ---------------------------------------------------------------------
@@ -245,7 +249,9 @@ class PositionMonitor(Detector):
             self.thresholds_mm_, self.calibration_ = {}, {}
             for name, r in res.items():
                 tau, cal = learned_threshold(np.max(np.abs(r), axis=1), "evt", self.safety,
-                                             share, self.threshold_confidence)
+                                             share, self.threshold_confidence,
+                                             tail=self.threshold_tail,
+                                             classes=signals.classes)
                 self.thresholds_mm_[name] = float(max(tau, self.floor_mm))
                 self.calibration_[name] = cal
         self.learning_runs_ = int(signals.n_runs)

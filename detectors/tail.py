@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS", "SHAPE_RANGE",
+__all__ = ["LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
+           "SHAPE_RANGE", "TAIL_KINDS",
            "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError", "fit_tail", "tail_size"]
 
 #: Fewest values for the generalised Pareto tail fit.
@@ -60,6 +61,11 @@ MIN_DISTINCT_EXCESSES = 10
 SHAPE_RANGE = (-0.5, 1.0)
 #: ξ values over which the profile likelihood is maximised (step 0.005, ξ = 0 included).
 SHAPES = np.linspace(SHAPE_RANGE[0], SHAPE_RANGE[1], 301)
+#: ``tail = "light"``: ξ ≤ 0 (exponential or lighter: the Gumbel and Weibull domains).
+LIGHT_SHAPES = SHAPES[SHAPES <= 0.0]
+#: What :func:`fit_tail` may assume of the tail: ``"free"`` (ξ in :data:`SHAPE_RANGE`),
+#: ``"light"`` (ξ ≤ 0), ``"auto"`` (light unless a likelihood-ratio test rejects ξ ≤ 0).
+TAIL_KINDS = ("free", "light", "auto")
 
 
 class TailFitError(ValueError):
@@ -118,29 +124,30 @@ def _loglik(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
     return np.where(inside, ll, -np.inf)
 
 
-def _profile(y: np.ndarray, a: float, t) -> tuple[np.ndarray, np.ndarray]:
-    """Profile log-likelihood of the quantile excess *t* (maximised over ξ in
-    :data:`SHAPE_RANGE`, σ = t/h(ξ)) and the maximising ξ, for each value of *t*."""
+def _profile(y: np.ndarray, a: float, t, shapes: np.ndarray = SHAPES,
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Profile log-likelihood of the quantile excess *t* (maximised over ξ in *shapes*,
+    σ = t/h(ξ)) and the maximising ξ, for each value of *t*."""
     t = np.atleast_1d(np.asarray(t, float))
-    h = _h(a, SHAPES)
+    h = _h(a, shapes)
     out, arg = np.empty(t.size), np.empty(t.size)
-    step = max(1, 2_000_000 // (SHAPES.size * y.size))
+    step = max(1, 2_000_000 // (shapes.size * y.size))
     for s in range(0, t.size, step):
-        ll = _loglik(y, t[s:s + step, None] / h[None, :], SHAPES[None, :])
+        ll = _loglik(y, t[s:s + step, None] / h[None, :], shapes[None, :])
         j = np.argmax(ll, axis=1)
         out[s:s + step] = ll[np.arange(ll.shape[0]), j]
-        arg[s:s + step] = SHAPES[j]
+        arg[s:s + step] = shapes[j]
     return out, arg
 
 
-def _profile_rate(y: np.ndarray, t: float, s) -> np.ndarray:
+def _profile_rate(y: np.ndarray, t: float, s, shapes: np.ndarray = SHAPES) -> np.ndarray:
     """Profile log-likelihood of s = −log q, q = P(Y > t | Y > 0) the conditional
     exceedance probability of the excess *t* (> 0), for each value of *s* (> 0):
     σ = t/h(e^s, ξ), maximised over ξ."""
     s = np.atleast_1d(np.asarray(s, float))
     out = np.empty(s.size)
-    step = max(1, 2_000_000 // (SHAPES.size * y.size))
-    xi = SHAPES[None, :]
+    step = max(1, 2_000_000 // (shapes.size * y.size))
+    xi = shapes[None, :]
     safe = np.where(xi == 0.0, 1.0, xi)
     for i in range(0, s.size, step):
         si = s[i:i + step, None]
@@ -151,17 +158,17 @@ def _profile_rate(y: np.ndarray, t: float, s) -> np.ndarray:
     return out
 
 
-def _profile_maximum(y: np.ndarray, a: float):
+def _profile_maximum(y: np.ndarray, a: float, shapes: np.ndarray = SHAPES):
     """(maximum, its t, the log grid of t, the profile on it) of the quantile profile for
     a = (k/n)/p: the profile on a wide log grid of t, its maximum refined."""
     from scipy.optimize import minimize_scalar
 
     t0 = math.log(a)                              # the exponential tail's quantile (ξ = 0)
     grid = t0 * np.logspace(-2.0, 4.0, 61)
-    prof, _ = _profile(y, a, grid)
+    prof, _ = _profile(y, a, grid, shapes)
     i = int(np.argmax(prof))
     lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, grid.size - 1)])
-    best = minimize_scalar(lambda s: -_profile(y, a, math.exp(s))[0][0], bounds=(lo, hi),
+    best = minimize_scalar(lambda s: -_profile(y, a, math.exp(s), shapes)[0][0], bounds=(lo, hi),
                            method="bounded", options={"xatol": 1e-10})
     ll_max, t_hat = max((float(prof[i]), float(grid[i])), (-float(best.fun), math.exp(best.x)))
     return ll_max, t_hat, grid, prof
@@ -176,7 +183,8 @@ def _ks(y: np.ndarray, xi: float, sigma: float) -> float:
         return float(kstest(y, genpareto(xi, scale=sigma).cdf).pvalue)
 
 
-def fit_tail(values, k: int | None = None) -> TailFit:
+def fit_tail(values, k: int | None = None, tail: str = "free",
+             confidence: float = 0.95) -> TailFit:
     """Fit the generalised Pareto tail of *values* (module docstring).
 
     Parameters
@@ -185,6 +193,17 @@ def fit_tail(values, k: int | None = None) -> TailFit:
         Finite values (e.g. per-run maxima), n ≥ :data:`MIN_TAIL_FIT_RUNS`.
     k : int, optional
         Exceedances to fit (default :func:`tail_size` (n)); 2 ≤ k < n.
+    tail : str
+        What the shape may be (:data:`TAIL_KINDS`): ``"free"``, ξ in :data:`SHAPE_RANGE`;
+        ``"light"``, ξ ≤ 0 — an exponential or lighter tail, the domain of attraction of a
+        maximum of Gaussian noise (Gumbel) or of a bounded quantity (Weibull), which is what a
+        residual driven by sensor noise and bounded parameter draws is; ``"auto"``, light
+        unless the likelihood-ratio test of ξ ≤ 0 against the free fit rejects it at level
+        1 − *confidence* (2·Δ log-likelihood > z²_confidence, the one-sided boundary test of
+        Self & Liang 1987), in which case the free fit is used (:attr:`TailFit.tail` says
+        which, :attr:`TailFit.light_rejected` whether the test rejected).
+    confidence : float
+        ``"auto"``: the test's confidence (default 0.95).
 
     Raises
     ------
@@ -211,15 +230,28 @@ def fit_tail(values, k: int | None = None) -> TailFit:
         raise TailFitError(f"the tail is degenerate: {np.unique(positive).size} distinct "
                            f"value(s) above u = {u:g} among the top {k} (fewer than "
                            f"{MIN_DISTINCT_EXCESSES})")
+    if tail not in TAIL_KINDS:
+        raise ValueError(f"tail = {tail!r}: not one of {', '.join(TAIL_KINDS)}")
     unit = float(y_raw.mean())                    # work in units of the mean excess
     y = y_raw / unit
     a = math.e                                    # any quantile: the maximum is the MLE
-    _, t_hat, _, _ = _profile_maximum(y, a)
-    xi_hat = float(_profile(y, a, t_hat)[1][0])
+    fits = {}
+    for kind, shapes in (("free", SHAPES), ("light", LIGHT_SHAPES)):
+        if tail in (kind, "auto"):
+            ll, t_hat, _, _ = _profile_maximum(y, a, shapes)
+            fits[kind] = (ll, t_hat, float(_profile(y, a, t_hat, shapes)[1][0]), shapes)
+    rejected = None
+    if tail == "auto":
+        from scipy.stats import norm
+
+        rejected = bool(2.0 * (fits["free"][0] - fits["light"][0])
+                        > float(norm.ppf(confidence)) ** 2)
+        tail = "free" if rejected else "light"
+    _, t_hat, xi_hat, shapes = fits[tail]
     sigma_hat = float(t_hat / _h(a, xi_hat))
     return TailFit(n=n, k=k, u=u, shape=xi_hat, scale=sigma_hat * unit,
                    gof_pvalue=_ks(y, xi_hat, sigma_hat), largest=float(desc[0]), unit=unit,
-                   excesses=y)
+                   excesses=y, tail=tail, light_rejected=rejected, shapes=shapes)
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,6 +277,9 @@ class TailFit:
     largest: float
     unit: float = field(repr=False)                 # mean excess: the working unit
     excesses: np.ndarray = field(repr=False)        # the k excesses over u, in units of unit
+    tail: str = "free"                              # the shape range fitted: "free", "light"
+    light_rejected: bool | None = None              # "auto": whether ξ ≤ 0 was rejected
+    shapes: np.ndarray = field(repr=False, default_factory=lambda: SHAPES)  # its ξ grid
 
     # ---- quantiles ---------------------------------------------------------------------
     def quantile(self, p: float, confidence: float = 0.95) -> TailEstimate:
@@ -261,8 +296,9 @@ class TailFit:
             raise ValueError(f"p = {p!r}: outside the fitted tail (0, k/n = {k / n:g}); "
                              "a quantile below u is an empirical one")
         a = (k / n) / p
-        ll_max, t_hat, grid, prof = _profile_maximum(y, a)
-        _, xi_hat = _profile(y, a, t_hat)
+        shapes = self.shapes
+        ll_max, t_hat, grid, prof = _profile_maximum(y, a, shapes)
+        _, xi_hat = _profile(y, a, t_hat, shapes)
         xi_hat = float(xi_hat[0])
         sigma_hat = float(t_hat / _h(a, xi_hat))
         level = ll_max - 0.5 * float(norm.ppf(confidence)) ** 2   # one-sided: χ²₁(2c − 1)/2
@@ -273,7 +309,7 @@ class TailFit:
                                "tail is too heavy to bound)")
         j = int(above[0])
         left = max(math.log(t_hat), math.log(grid[j - 1])) if j > 0 else math.log(t_hat)
-        s_up = brentq(lambda s: _profile(y, a, math.exp(s))[0][0] - level, left,
+        s_up = brentq(lambda s: _profile(y, a, math.exp(s), shapes)[0][0] - level, left,
                       math.log(grid[j]), xtol=1e-12, rtol=1e-12)
         tau_up = u + unit * math.exp(s_up)
         tau_hat = u + unit * float(genpareto.isf(p * n / k, xi_hat, scale=sigma_hat))
@@ -301,10 +337,12 @@ class TailFit:
                              "tail model does not apply there; use the empirical share")
         t = (x - u) / unit
         grid = np.logspace(-6.0, 4.0, 201)            # s = −log q
-        prof = _profile_rate(y, t, grid)
+        shapes = self.shapes
+        prof = _profile_rate(y, t, grid, shapes)
         i = int(np.argmax(prof))
         lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, grid.size - 1)])
-        best = minimize_scalar(lambda v: -_profile_rate(y, t, math.exp(v))[0], bounds=(lo, hi),
+        best = minimize_scalar(lambda v: -_profile_rate(y, t, math.exp(v), shapes)[0],
+                               bounds=(lo, hi),
                                method="bounded", options={"xatol": 1e-10})
         ll_max, s_hat = max((float(prof[i]), float(grid[i])),
                             (-float(best.fun), math.exp(best.x)))
@@ -315,7 +353,7 @@ class TailFit:
         else:
             j = int(below[-1])
             right = min(math.log(s_hat), math.log(grid[j + 1]))
-            s_up = math.exp(brentq(lambda v: _profile_rate(y, t, math.exp(v))[0] - level,
+            s_up = math.exp(brentq(lambda v: _profile_rate(y, t, math.exp(v), shapes)[0] - level,
                                    math.log(grid[j]), right, xtol=1e-12, rtol=1e-12))
         xi_hat, sigma_hat = self._at_rate(t, s_hat)
         return TailEstimate(estimate=float(k / n * math.exp(-s_hat)),
@@ -326,16 +364,18 @@ class TailFit:
     def _at_rate(self, t: float, s: float) -> tuple[float, float]:
         """(ξ, σ in working units) maximising the likelihood with σ tied to s = −log q."""
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            h = _h(math.exp(s), SHAPES) if s < 700 else np.full(SHAPES.size, np.inf)
-            ll = _loglik(self.excesses, t / h, SHAPES)
+            shapes = self.shapes
+            h = _h(math.exp(s), shapes) if s < 700 else np.full(shapes.size, np.inf)
+            ll = _loglik(self.excesses, t / h, shapes)
         j = int(np.argmax(ll))
-        return float(SHAPES[j]), float(t / h[j])
+        return float(shapes[j]), float(t / h[j])
 
     # ---- diagnostics -------------------------------------------------------------------
     def diagnostics(self) -> dict:
         """k, u, ξ, σ, the goodness-of-fit p-value, n and the largest value (for tables)."""
         return {"k": self.k, "u": self.u, "shape": self.shape, "scale": self.scale,
-                "gof_pvalue": self.gof_pvalue, "n": self.n, "largest": self.largest}
+                "gof_pvalue": self.gof_pvalue, "n": self.n, "largest": self.largest,
+                "tail": self.tail}
 
     def model_sf(self, x) -> np.ndarray:
         """P(X > x) of the fitted model at the maximum-likelihood (ξ, σ): (k/n)·(1 +

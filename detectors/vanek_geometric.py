@@ -358,6 +358,9 @@ class VanekGeometric(Detector):
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
+    threshold_tail : str
+        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
+        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
@@ -380,8 +383,9 @@ class VanekGeometric(Detector):
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
-                 smoothing_s=2.0, variants=VARIANTS, threshold_method="max",
-                 target_fa_per_run=1e-4, threshold_confidence=0.95):
+                 smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
+                 target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="auto"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
@@ -392,6 +396,7 @@ class VanekGeometric(Detector):
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
+        self.threshold_tail = threshold_tail
 
     def validate_params(self) -> None:
         """The declared checks (:attr:`parameters`), then that the optional variants of
@@ -538,7 +543,9 @@ class VanekGeometric(Detector):
             for k, r in est.items():
                 tau, cal = learned_threshold(np.max(np.abs(r), axis=1), "evt",
                                              float(self.safety), self.target_fa_per_run,
-                                             self.threshold_confidence)
+                                             self.threshold_confidence,
+                                             tail=self.threshold_tail,
+                                             classes=signals.classes)
                 self.thresholds_deg_[k] = float(tau)
                 self.calibration_[k] = cal
         self.learning_runs_ = int(signals.n_runs)

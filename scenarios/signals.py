@@ -83,6 +83,11 @@ class Signals:
     rods : dict[str, ndarray (n_runs, n_steps)] or None
         COM rod position [mm] of every primary surface, by surface name; None at the
         actuator plant level.
+    classes : ndarray (n_runs,) of str or None
+        The fault-free manoeuvre of each run of a *learning set* (what ``fit`` receives), so
+        that a detector may calibrate its thresholds per manoeuvre class
+        (:func:`detectors.calibrate.calibrate_threshold`); None in the signals ``detect``
+        receives — a detector never knows the manoeuvre of the run it monitors.
     """
 
     ts: float
@@ -97,6 +102,7 @@ class Signals:
     run_ids: np.ndarray | None = None
     aircraft: dict | None = None
     rods: dict | None = None
+    classes: np.ndarray | None = None
 
     @property
     def n_runs(self) -> int:
@@ -132,6 +138,7 @@ class Signals:
             run_ids=None if self.run_ids is None else np.asarray(self.run_ids)[index],
             aircraft=_map(self.aircraft, lambda v: v[index]),
             rods=_map(self.rods, lambda v: v[index]),
+            classes=None if self.classes is None else np.asarray(self.classes)[index],
         )
 
     def truncate(self, n_steps: int) -> "Signals":
@@ -144,6 +151,7 @@ class Signals:
             run_ids=self.run_ids,
             aircraft=_map(self.aircraft, lambda v: v[:, :n_steps]),
             rods=_map(self.rods, lambda v: v[:, :n_steps]),
+            classes=self.classes,
         )
 
     @classmethod
@@ -161,6 +169,8 @@ class Signals:
             {k: np.concatenate([p.aircraft[k] for p in parts]) for k in first.aircraft},
             rods=None if first.rods is None else
             {k: np.concatenate([p.rods[k] for p in parts]) for k in first.rods},
+            classes=None if any(p.classes is None for p in parts)
+            else np.concatenate([p.classes for p in parts]),
         )
 
     def to_pandas(self, run: int = 0):

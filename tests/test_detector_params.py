@@ -75,7 +75,8 @@ def test_every_problem_is_reported_at_once_naming_value_allowed_and_fix():
     assert errors == [
         "safty = 1.5: no such parameter (did you mean 'safety'?); allowed: poles, safety, "
         "kappa, h_radius, q_max, x0_radius_mm, sensor, use_power_law, floor_mm, "
-        "threshold_method, target_fa_per_run, threshold_confidence; fix: rename or remove "
+        "threshold_method, target_fa_per_run, threshold_confidence, threshold_tail; fix: "
+        "rename or remove "
         "safty",
         "poles = [0.9, 0.9]: 0.9 repeated; allowed: a single number or a non-empty list of "
         "finite numbers, each in (0, 1), all different; fix: e.g. poles = "
