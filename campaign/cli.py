@@ -9,50 +9,18 @@ import textwrap
 import warnings
 from pathlib import Path
 
+from .cli_checks import UsageError, check_writable
+
 EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
-
-
-class UsageError(ValueError):
-    """Bad command-line input (exit code 2)."""
 
 
 def _err(msg: str) -> None:
     print(f"fdd-campaign: error: {msg}", file=sys.stderr)
 
 
-def check_writable(path, option: str, *, directory: bool = False) -> None:
-    """Raise :class:`UsageError` (exit 2) naming *option*, *path* and the fix when *path*
-    (a file, or a directory when *directory*) cannot be written: it exists and is not
-    writable (or not of its kind), or the nearest existing folder above it is not a
-    writable directory."""
-    import os
-
-    target = Path(path)
-    fix = "fix: choose a writable location (e.g. under your home directory)"
-    if target.exists():
-        if directory and not target.is_dir():
-            raise UsageError(f"{option} {path}: exists and is not a directory; {fix}")
-        if not directory and target.is_dir():
-            raise UsageError(f"{option} {path}: is a directory, a file name is needed; fix: "
-                             f"e.g. {option} {target / 'out'}")
-        if not os.access(target, os.W_OK | (os.X_OK if directory else 0)):
-            raise UsageError(f"{option} {path}: not writable (permission denied); {fix}, or "
-                             f"make it writable: chmod u+w {target}")
-        return
-    parent = target.absolute().parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise UsageError(f"{option} {path}: {parent} is a file, not a folder; {fix}")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise UsageError(f"{option} {path}: cannot create it, the folder {parent} is not "
-                         f"writable (permission denied); {fix}, or make that folder "
-                         f"writable: chmod u+w {parent}")
-
-
 # ---- commands ------------------------------------------------------------------------------
 def _overridden(config, args):
-    """*config* with the command line's --seed and --plant."""
+    """*config* with the command line's --seed, --plant and --manoeuvres."""
     from . import config as cfg
 
     if args.seed is not None:
@@ -74,6 +42,8 @@ def _overridden(config, args):
                              f"({', '.join(PLANT_KINDS)}){suggest(args.plant, PLANT_KINDS)} "
                              "nor an .fmu file; fix: name a kind or an existing FMU file")
         config = cfg.with_overrides(config, values=values)
+    if getattr(args, "manoeuvres", None) is not None:
+        config = cfg.with_overrides(config, values={"manoeuvres.set": args.manoeuvres})
     return config
 
 
@@ -453,6 +423,15 @@ def _sub(subs, name, help_, example, func):
     return p
 
 
+def _manoeuvres_option(p) -> None:
+    from scenarios.catalog import MANOEUVRE_SETS
+
+    p.add_argument("--manoeuvres", choices=MANOEUVRE_SETS,
+                   help="manoeuvre set (overrides [manoeuvres] set): normal operations, or "
+                        "stress (turns rolled in at 15 deg/s, amplitudes at their high end; "
+                        "docs/physics.md §7)")
+
+
 def _add_run_parsers(subs) -> None:
     """Sub-commands: run and plan a campaign."""
     p = _sub(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
@@ -484,6 +463,7 @@ def _add_run_parsers(subs) -> None:
                    help="private key of --tls-cert (PEM), unless that file holds it")
     p.add_argument("--engine", choices=["compiled", "numpy"],
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
+    _manoeuvres_option(p)
     p.add_argument("--fitted-from", metavar="DIR",
                    help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
                         "entries) without learning again (copied into --out; docs/thresholds.md)")
@@ -494,6 +474,7 @@ def _add_run_parsers(subs) -> None:
     p.add_argument("--out", required=True, help="directory to write plan.parquet into "
                    "(a suite: one subdirectory per campaign)")
     p.add_argument("--seed", type=int, help="override the campaign seed")
+    _manoeuvres_option(p)
 
 
 def _add_result_parsers(subs) -> None:
