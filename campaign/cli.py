@@ -26,7 +26,7 @@ def _err(msg: str) -> None:
 
 # ---- commands ------------------------------------------------------------------------------
 def _overridden(config, args):
-    """*config* with the command line's --seed and --plant."""
+    """*config* with the command line's --seed, --plant and --manoeuvres."""
     from . import config as cfg
 
     if args.seed is not None:
@@ -48,6 +48,8 @@ def _overridden(config, args):
                              f"({', '.join(PLANT_KINDS)}){suggest(args.plant, PLANT_KINDS)} "
                              "nor an .fmu file; fix: name a kind or an existing FMU file")
         config = cfg.with_overrides(config, values=values)
+    if getattr(args, "manoeuvres", None) is not None:
+        config = cfg.with_overrides(config, values={"manoeuvres.set": args.manoeuvres})
     return config
 
 
@@ -431,6 +433,15 @@ def _sub(subs, name, help_, example, func):
     return p
 
 
+def _manoeuvres_option(p) -> None:
+    from scenarios.catalog import MANOEUVRE_SETS
+
+    p.add_argument("--manoeuvres", choices=MANOEUVRE_SETS,
+                   help="manoeuvre set (overrides [manoeuvres] set): normal operations, or "
+                        "stress (turns rolled in at 15 deg/s, amplitudes at their high end; "
+                        "docs/physics.md §7)")
+
+
 def _add_run_parsers(subs) -> None:
     """Sub-commands: run and plan a campaign."""
     p = _sub(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
@@ -462,6 +473,7 @@ def _add_run_parsers(subs) -> None:
                    help="private key of --tls-cert (PEM), unless that file holds it")
     p.add_argument("--engine", choices=["compiled", "numpy"],
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
+    _manoeuvres_option(p)
     p.add_argument("--fitted-from", metavar="DIR",
                    help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
                         "entries) without learning again (copied into --out; docs/thresholds.md)")
@@ -472,6 +484,7 @@ def _add_run_parsers(subs) -> None:
     p.add_argument("--out", required=True, help="directory to write plan.parquet into "
                    "(a suite: one subdirectory per campaign)")
     p.add_argument("--seed", type=int, help="override the campaign seed")
+    _manoeuvres_option(p)
 
 
 def _add_result_parsers(subs) -> None:

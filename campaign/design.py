@@ -31,6 +31,7 @@ from scipy.stats import qmc
 from scenarios import envelope
 from scenarios.catalog import MANOEUVRES
 from scenarios.faults import liquid_jam_bias_mm
+from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
 from .plant import run_actuator, run_surface
 
@@ -52,19 +53,23 @@ PLAN_COLUMNS = (
     "run_id", "group", "surface", "manoeuvre", "fault", "onset_s", "magnitude", "freq_hz",
     "alt_ft", "vcas_kt", "mass_t", "cg_pct", "level", "realistic", "point",
     *envelope.DRAW_COLUMNS, "seed", "stream", "duration_s", "manoeuvre_start_s",
+    "manoeuvre_set",
 )
 
-#: Columns left out of the run id while they hold NaN (their default), so adding them
-#: did not change the identity of runs that do not use them.
-_OPTIONAL_ID_COLUMNS = ("manoeuvre_start_s",)
+#: Columns left out of the run id while they hold their default (NaN is stored as None),
+#: so adding them did not change the identity of runs that do not use them. Any other value
+#: enters the id: a run of the ``stress`` manoeuvre set never shares an id (nor a stored
+#: result, on resume) with its ``normal`` twin.
+_OPTIONAL_ID_COLUMNS: dict[str, object] = {"manoeuvre_start_s": None,
+                                           "manoeuvre_set": DEFAULT_MANOEUVRE_SET}
 
 
 def run_id(row: dict) -> str:
     """Hash of the canonical JSON of a run row (without its id) and the model version."""
     payload = {k: (None if isinstance(v, float) and math.isnan(v) else v)
                for k, v in row.items() if k != "run_id"}
-    for k in _OPTIONAL_ID_COLUMNS:
-        if payload.get(k, 0) is None:
+    for k, default in _OPTIONAL_ID_COLUMNS.items():
+        if k in payload and payload[k] == default:
             del payload[k]
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256((MODEL_VERSION + "|" + text).encode()).hexdigest()[:20]
@@ -112,7 +117,7 @@ def _scale(u, values) -> np.ndarray:
 
 
 def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray,
-               duration: float) -> pd.DataFrame:
+               duration: float, manoeuvre_set: str) -> pd.DataFrame:
     """Add fault, onset and fixed-point columns to the flight-point rows of one cell."""
     act = run_actuator(config)
     ts = config.campaign.ts_s
@@ -145,6 +150,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     out["freq_hz"] = freq
     out["duration_s"] = duration
     out["manoeuvre_start_s"] = np.nan if start is None else float(start)
+    out["manoeuvre_set"] = manoeuvre_set
     for key in ("alt_ft", "vcas_kt", "mass_t", "cg_pct"):
         fixed = getattr(group, key, None)
         if fixed is not None:
@@ -152,7 +158,8 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     return out
 
 
-def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float) -> pd.DataFrame:
+def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
+             manoeuvre_set: str) -> pd.DataFrame:
     env, widths = config.envelope, envelope.half_widths(config.uncertainty, config.mismatch)
     need, extra = n, 0
     while True:
@@ -177,10 +184,11 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float) -
     pts = pts.iloc[idx].reset_index(drop=True)
     pts["level"] = "mc"
     pts["point"] = -1
-    return _fill_runs(config, group, manoeuvre, pts, u[idx][:, -4:], duration)
+    return _fill_runs(config, group, manoeuvre, pts, u[idx][:, -4:], duration, manoeuvre_set)
 
 
-def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float) -> pd.DataFrame:
+def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float,
+               manoeuvre_set: str) -> pd.DataFrame:
     env = config.envelope
     table = envelope.GridTable(alt_ft=tuple(env.alt_ft), vcas_kt=tuple(env.vcas_kt),
                                mass_t=tuple(env.mass_t), cg_pct=tuple(env.cg_pct))
@@ -197,7 +205,7 @@ def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float) -> pd.D
         rows.append(block)
     frame = pd.concat(rows, ignore_index=True)
     u = _unit_samples(len(frame), config, cell_key)
-    return _fill_runs(config, group, manoeuvre, frame, u[:, -4:], duration)
+    return _fill_runs(config, group, manoeuvre, frame, u[:, -4:], duration, manoeuvre_set)
 
 
 def explicit_rows(config, runs) -> pd.DataFrame:
@@ -267,14 +275,15 @@ def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
 def build_plan(config) -> pd.DataFrame:
     """The evaluation run table of *config* (columns :data:`PLAN_COLUMNS`)."""
     frames, cell = [], 0
+    mset = config.manoeuvres.set
     for group in config.groups:
         for manoeuvre in _manoeuvres(group.manoeuvres):
             if config.campaign.design == "grid":
                 frames.append(_grid_cell(config, group, manoeuvre, cell,
-                                         config.campaign.duration_s))
+                                         config.campaign.duration_s, mset))
             else:
                 frames.append(_mc_cell(config, group, manoeuvre, group.count, cell,
-                                       config.campaign.duration_s))
+                                       config.campaign.duration_s, mset))
             cell += 1
     if config.runs:             # explicit runs after the groups' (whose streams stay 0…n−1)
         frames.append(explicit_rows(config, config.runs))
@@ -289,10 +298,11 @@ def build_learning_plan(config) -> pd.DataFrame:
     duration = learn.duration_s or config.campaign.duration_s
     group = SimpleNamespace(name="learning", fault="none", onset_s=None, magnitude=None,
                             freq_hz=None, alt_ft=None, vcas_kt=None, mass_t=None, cg_pct=None)
+    mset = config.manoeuvres.learning_set or config.manoeuvres.set
     frames = []
     for j, manoeuvre in enumerate(_manoeuvres(learn.manoeuvres)):
         frames.append(_mc_cell(config, group, manoeuvre, learn.runs_per_manoeuvre,
-                               _LEARNING_KEY + j, duration))
+                               _LEARNING_KEY + j, duration, mset))
     return _finish(frames, config.campaign.seed, LEARNING_STREAM_BASE)
 
 

@@ -574,7 +574,8 @@ class IntervalDetector(Detector):
 
     def _calibrated_bounds(self, r: np.ndarray, classes=None) -> np.ndarray:
         """λ_q = s·max(λ⁰_q, floor) with s calibrated (``threshold_method = "evt"``, module
-        docstring); stores the calibration in ``calibration_``."""
+        docstring); stores the calibration in ``calibration_``. When the learning set cannot
+        support the target (``calibration_.supported`` False) λ_q is the ``"max"`` rule's."""
         floor = float(self.floor_mm)
         m = moving_average_maxima(r, int(self.q_max))
         profile = np.maximum(m.max(axis=0), floor)
@@ -584,6 +585,9 @@ class IntervalDetector(Detector):
                                   fallback_factor=float(self.safety),
                                   tail=self.threshold_tail, classes=classes)
         self.calibration_ = cal
+        if not cal.supported:       # the learning set cannot support the target: the max rule
+            return np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
+                              floor)
         return np.maximum(cal.threshold * profile, floor)
 
     def _threshold_basis(self) -> np.ndarray:

@@ -25,6 +25,13 @@ MANOEUVRES: tuple[str, ...] = (
     "turn_coordination",
 )
 
+#: Manoeuvre sets (docs/physics.md §7): ``normal`` flies every manoeuvre as in normal
+#: operations (the turn rolls in at 7.5 °/s, the ranges of the shape tables); ``stress``
+#: flies them at their aggressive end (the turn rolls in at the normal law's full-stick
+#: 15 °/s, every amplitude range at its high end). A run's set is the run-table column
+#: ``manoeuvre_set``; ``normal`` is the default and leaves run ids unchanged.
+MANOEUVRE_SETS: tuple[str, ...] = ("normal", "stress")
+
 #: Fault types (docs/physics.md §5). ``none`` marks a fault-free run.
 FAULTS: tuple[str, ...] = (
     "none",

@@ -33,14 +33,19 @@ Shapes (names of :data:`scenarios.catalog.MANOEUVRES`; amplitudes at q_ref, est.
 | aoa_protection | slow excursion to −(5…15)°: 2–4 s ramps, held 2–5 s | gust reaction |
 | pitch_protection | transient to 85–100 % of the nose-up authority (to the limit), held 0.5–1.5 s; 2–4 s later the same towards the nose-down limit | gust reaction |
 | yaw_angle_mode | gust reaction (a steady sideslip needs no pitch input to first order) | ±(2…5)° held 5–10 s |
-| turn_coordination | small pull −k_g·(1/cos φ − 1) held through the turn (load factor of the bank φ) | ±(5…10)° roll-in pulse lasting φ/(15 °/s), turn held 4–7 s, opposite roll-out pulse |
+| turn_coordination | small pull −k_g·(1/cos φ − 1) held through the turn (load factor of the bank φ) | ±(5…10)° roll-in pulse lasting φ/p (roll-in rate p: 7.5 °/s in the normal set), turn held 4–7 s, opposite roll-out pulse |
+
+Manoeuvre sets (:data:`scenarios.catalog.MANOEUVRE_SETS`, :func:`set_params`): the table
+above is the ``normal`` set (:data:`MANOEUVRE_PARAMS`); the ``stress`` set
+(:data:`STRESS_MANOEUVRE_PARAMS`) rolls into the turn at the normal law's full-stick 15 °/s,
+to a 33° bank, with every amplitude range at its high end (docs/physics.md §7).
 
 Timing: a manoeuvre starts at lead_s + U(0, min(start_spread_s, room)) where room is what is
-left so that it ends ``tail_s`` before the end of the record. With the default table the
-longest manoeuvre (pitch protection at the lowest q̄, ≤ 14.6 s) fits between lead_s and
-tail_s of a ``min_duration_s`` (20 s) record, so runs of 20–60 s all contain the whole
-manoeuvre. (With a table whose manoeuvre does not fit, it starts at lead_s and is cut by the
-end of the record.) A fixed start time ``start_s`` (the run-table column ``manoeuvre_start_s``,
+left so that it ends ``tail_s`` before the end of the record. The longest manoeuvre is the
+normal set's turn at the lowest q̄ (two roll pulses of 33°/(7.5 °/s) = 4.4 s, a 7-s turn and
+the elevator's ramp: ≤ 17.7 s), so records of at least 23 s contain the whole manoeuvre; in a
+20–23 s record (``min_duration_s`` = 20 s) the longest turns start at lead_s and their
+roll-out is cut by the end of the record. A fixed start time ``start_s`` (the run-table column ``manoeuvre_start_s``,
 e.g. to place a transient at a given time as in [COMB] §4 D_V2) replaces the sampled one; the
 start uniform is still drawn, so the rest of the run's draws do not change.
 
@@ -51,6 +56,7 @@ parameters listed in :func:`_transitions`), then the turbulence (:func:`.turbule
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import types
 from dataclasses import dataclass, fields
@@ -58,7 +64,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .catalog import MANOEUVRES, SURFACES, check_name
+from .catalog import MANOEUVRE_SETS, MANOEUVRES, SURFACES, check_name
 from .params import ActuatorParams, param
 from .turbulence import MODERATE, DrydenParams, lagged_gust
 
@@ -129,7 +135,11 @@ class ManoeuvreParams:
     yaw_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "aileron held in yaw-angle mode")
     yaw_hold_s: tuple[float, float] = param("s", "est.", "hold width at half amplitude")
     turn_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "aileron roll-in/roll-out pulse")
-    turn_roll_rate_deg_s: float = param("deg/s", "docs/physics.md §7", "aircraft roll rate: pulse width = bank/rate")
+    turn_roll_rate_deg_s: float = param(
+        "deg/s", "docs/physics.md §7: normal set 7.5 °/s (est.: half the 15 °/s full-stick roll-rate "
+        "demand of the Airbus normal law, Airbus FCOM DSC-27-20-10-30; flight-guidance roll-rate "
+        "limits are 3.5–5 °/s); stress set 15 °/s (full stick)",
+        "aircraft roll rate of the roll-in: pulse width = bank/rate")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank angle φ of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the steady turn")
     turn_elevator_deg_per_g: float = param(
@@ -192,11 +202,42 @@ MANOEUVRE_PARAMS = ManoeuvreParams(
     yaw_amp_deg=(2.0, 5.0),
     yaw_hold_s=(5.0, 10.0),
     turn_amp_deg=(5.0, 10.0),
-    turn_roll_rate_deg_s=15.0,
+    turn_roll_rate_deg_s=7.5,
     turn_bank_deg=(25.0, 33.0),
     turn_hold_s=(4.0, 7.0),
     turn_elevator_deg_per_g=4.0,
 )
+
+#: The ``stress`` manoeuvre set (docs/physics.md §7): the turn rolls in at the normal law's
+#: full-stick 15 °/s (Airbus FCOM DSC-27-20-10-30) and its bank is the 33° of the bank
+#: protection; every amplitude range is at its high end and the AoA-protection ramps are the
+#: shortest. Holds, gaps and the rate bounds are those of the normal set.
+STRESS_MANOEUVRE_PARAMS = dataclasses.replace(
+    MANOEUVRE_PARAMS,
+    nose_up_amp_deg=(MANOEUVRE_PARAMS.nose_up_amp_deg[1],) * 2,
+    aoa_amp_deg=(MANOEUVRE_PARAMS.aoa_amp_deg[1],) * 2,
+    aoa_ramp_s=(MANOEUVRE_PARAMS.aoa_ramp_s[0],) * 2,
+    pitch_authority_frac=(MANOEUVRE_PARAMS.pitch_authority_frac[1],) * 2,
+    yaw_amp_deg=(MANOEUVRE_PARAMS.yaw_amp_deg[1],) * 2,
+    turn_amp_deg=(MANOEUVRE_PARAMS.turn_amp_deg[1],) * 2,
+    turn_roll_rate_deg_s=15.0,
+    turn_bank_deg=(MANOEUVRE_PARAMS.turn_bank_deg[1],) * 2,
+)
+
+#: Actuator-level shape table of each manoeuvre set (:data:`scenarios.catalog.MANOEUVRE_SETS`).
+MANOEUVRE_SET_PARAMS: Mapping[str, ManoeuvreParams] = types.MappingProxyType({
+    "normal": MANOEUVRE_PARAMS,
+    "stress": STRESS_MANOEUVRE_PARAMS,
+})
+
+
+def set_params(manoeuvre_set: str) -> ManoeuvreParams:
+    """The actuator-level shape table of manoeuvre set *manoeuvre_set* (``normal`` or
+    ``stress``, docs/physics.md §7); an unknown name raises ``ValueError`` naming the allowed
+    ones."""
+    check_name("manoeuvre set", manoeuvre_set, MANOEUVRE_SETS)
+    return MANOEUVRE_SET_PARAMS[manoeuvre_set]
+
 
 #: The reference flight point of the amplitudes (ISA, M 0.82 at FL370, mid CG; est. α).
 REFERENCE_FLIGHT: Mapping[str, float] = types.MappingProxyType({
@@ -442,15 +483,17 @@ def surface_order_deg(manoeuvre: str, surface: str, t, flight: Mapping[str, floa
 
 def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
                     rngs: Sequence[np.random.Generator], actuator: ActuatorParams, *,
-                    params: ManoeuvreParams = MANOEUVRE_PARAMS,
+                    params: ManoeuvreParams | Sequence[ManoeuvreParams] = MANOEUVRE_PARAMS,
                     turbulence: DrydenParams = MODERATE,
                     start_s: Sequence[float] | None = None) -> np.ndarray:
     """Orders [deg] of a batch of runs, shape (n_runs, n_steps).
 
     Run i is exactly ``surface_order_deg(manoeuvres[i], surface, t, {k: flight[k][i]},
-    rngs[i], actuator)``: it never depends on the other runs of the batch. ``flight`` maps
-    each of :data:`FLIGHT_KEYS` to an array of shape (n_runs,). ``start_s`` (n_runs,), when
-    given, fixes each run's manoeuvre start [s] (NaN: sampled).
+    rngs[i], actuator, params=params_i)``: it never depends on the other runs of the batch.
+    ``flight`` maps each of :data:`FLIGHT_KEYS` to an array of shape (n_runs,). ``params``
+    is one shape table for every run or one per run (e.g. the table of each run's manoeuvre
+    set, :func:`set_params`). ``start_s`` (n_runs,), when given, fixes each run's manoeuvre
+    start [s] (NaN: sampled).
     """
     if isinstance(manoeuvres, str):
         raise ValueError("manoeuvres must be a sequence of names, one per run, not a single string")
@@ -459,7 +502,12 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
         raise ValueError(f"{len(manoeuvres)} manoeuvres for {n_runs} rngs: need one per run")
     check_name("surface", surface, SURFACES)
     _check_actuator(surface, actuator)
-    t_rel, ts = _check_time(t, params)
+    per_run = [params] * n_runs if isinstance(params, ManoeuvreParams) else list(params)
+    if len(per_run) != n_runs or not all(isinstance(p, ManoeuvreParams) for p in per_run):
+        raise ValueError(f"params must be one ManoeuvreParams or one per run ({n_runs}), "
+                         f"got {params!r:.80}")
+    t_rel, ts = _check_time(t, max(per_run, key=lambda p: p.min_duration_s) if per_run
+                            else MANOEUVRE_PARAMS)
     columns = {}
     for key in FLIGHT_KEYS:
         if key not in flight:
@@ -480,5 +528,5 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
         run_flight = _check_flight({k: c[i] for k, c in columns.items()}, where)
         start = None if start_s is None else _check_start(start_s[i], where)
         orders[i] = _order(manoeuvres[i], surface, t_rel, ts, run_flight, rngs[i], actuator,
-                           params, turbulence, start)
+                           per_run[i], turbulence, start)
     return orders

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from . import envelope
-from .catalog import FAULTS, MANOEUVRES, SURFACES, suggest
+from .catalog import FAULTS, MANOEUVRE_SETS, MANOEUVRES, SURFACES, suggest
 from .faults import required_magnitude
 
 #: Columns of a run row: name → (unit, meaning). The campaign's run table carries them.
@@ -45,7 +45,12 @@ RUN_COLUMNS: dict[str, tuple[str, str]] = {
 #: Optional columns of a run row (absent or NaN: the default behaviour).
 OPTIONAL_RUN_COLUMNS: dict[str, tuple[str, str]] = {
     "manoeuvre_start_s": ("s", "fixed start of the manoeuvre (NaN: sampled per run)"),
+    "manoeuvre_set": ("-", "manoeuvre set the run flies: " + ", ".join(MANOEUVRE_SETS)
+                      + " (absent: normal; docs/physics.md §7)"),
 }
+
+#: Manoeuvre set of a run row without a ``manoeuvre_set`` column.
+DEFAULT_MANOEUVRE_SET = MANOEUVRE_SETS[0]
 
 #: Physical ranges accepted for run rows (inclusive): column → (low, high).
 RUN_RANGES: dict[str, tuple[float, float]] = {
@@ -116,8 +121,21 @@ def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> N
         if bad_start.any():
             errors.append(f"manoeuvre_start_s: {int(bad_start.sum())} run(s) with a start "
                           f"outside [0, duration_s) (first: {start[bad_start][0]!r} s)")
+    if "manoeuvre_set" in runs.columns:
+        bad = sorted(set(runs["manoeuvre_set"].astype(str)) - set(MANOEUVRE_SETS))
+        for value in bad:
+            errors.append(f"manoeuvre_set: unknown value {value!r}"
+                          f"{suggest(value, MANOEUVRE_SETS)}; allowed: "
+                          f"{', '.join(MANOEUVRE_SETS)}")
     if errors:
         raise RunSpecError(errors)
+
+
+def manoeuvre_sets(runs: pd.DataFrame) -> list[str]:
+    """The manoeuvre set of each run row (``normal`` where the column is absent)."""
+    if "manoeuvre_set" not in runs.columns:
+        return [DEFAULT_MANOEUVRE_SET] * len(runs)
+    return [str(v) for v in runs["manoeuvre_set"]]
 
 
 

@@ -38,8 +38,8 @@ from .catalog import FAULTS, SURFACES
 from .faults import FAULT_DEFAULTS, NEVER, default_magnitude, fault_arrays
 from .kernels import integrate_compiled, resolve_engine
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
-from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, run_streams,
-                   validate_runs)
+from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, manoeuvre_sets,
+                   run_streams, validate_runs)
 from .servo import authority_limits, float_step, plant_arrays, rk4_step
 from .signals import SERVO_GROUPS, Signals, Truth
 
@@ -78,6 +78,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
             {k: flight_true[k] for k in ("qbar_pa", "tas_ms", "alt_ft", "alpha_deg", "cg_pct",
                                          "mach")},
             [g[0] for g in gens], act,
+            params=[manoeuvres.set_params(m) for m in manoeuvre_sets(runs)],
             start_s=(runs["manoeuvre_start_s"].to_numpy(float)
                      if "manoeuvre_start_s" in runs.columns else None))
         lo, hi = authority_limits(plant, act)

@@ -445,7 +445,7 @@ duration_s = 60
     # to_dict is in schema order
     assert list(ca.to_dict()) == ["campaign", "envelope", "uncertainty", "mismatch",
                                   "faults", "group", "detector", "requirements",
-                                  "learning", "runner", "plant"]
+                                  "learning", "manoeuvres", "runner", "plant"]
 
 
 def _walk(value):

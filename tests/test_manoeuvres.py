@@ -13,9 +13,11 @@ from scenarios.manoeuvres import (
     FLIGHT_KEYS,
     MANOEUVRE_PARAMS,
     REFERENCE_FLIGHT,
+    STRESS_MANOEUVRE_PARAMS,
     amplitude_scale,
     elevator_trim_deg,
     orders_for_runs,
+    set_params,
     surface_order_deg,
 )
 from scenarios.params import ACTUATORS, AILERON, ELEVATOR, parameter_table
@@ -197,14 +199,38 @@ def test_turn_coordination_aileron_pulses():
         assert np.abs(np.diff(x)).max() / TS <= P.manoeuvre_rate_deg_s + 1e-6
         assert 5.0 - 1e-9 <= x.max() <= 10.0 + 1e-9
         assert x.max() == pytest.approx(-x.min())
-        # roll-in pulse lasts bank/roll-rate = 25–33°/(15 °/s) at half amplitude
+        # roll-in pulse lasts bank/roll-rate = 25–33°/(7.5 °/s) at half amplitude (normal set)
         first = x if x[np.argmax(np.abs(x))] > 0 else -x
         pulse = first[: int(np.flatnonzero(first < -0.5 * first.max())[0])]
-        assert 25 / 15 - TS <= half_width_s(pulse) <= 33 / 15 + TS
+        assert P.turn_roll_rate_deg_s == 7.5
+        assert 25 / 7.5 - TS <= half_width_s(pulse) <= 33 / 7.5 + TS
     for seed in range(20):                 # with the gust reaction: peaks within ±0.6° (> 4σ)
         x = order("turn_coordination", "aileron", seed=seed)
         assert np.abs(np.diff(x)).max() / TS <= P.rate_max_deg_s
         assert 5.0 - 0.6 <= np.abs(x).max() <= 10.0 + 0.6
+
+
+def test_stress_set_rolls_in_at_full_stick_with_the_largest_amplitudes():
+    """The stress turn's aileron pulse is 33°/(15 °/s) = 2.2 s wide (half the normal one at
+    the same bank: twice the roll rate) and 10° high at q_ref; the pitch manoeuvres reach the
+    high end of their ranges. Widths are measured at half amplitude (± one sample)."""
+    calm = dataclasses.replace(STRESS_MANOEUVRE_PARAMS, gust_gain_elevator=0.0,
+                               gust_gain_aileron=0.0)
+    assert set_params("stress") is STRESS_MANOEUVRE_PARAMS and set_params("normal") is P
+    for seed in range(10):
+        x = order("turn_coordination", "aileron", seed=seed, params=calm)
+        assert x.max() == pytest.approx(10.0) and x.min() == pytest.approx(-10.0)
+        first = x if x[np.argmax(np.abs(x))] > 0 else -x
+        pulse = first[: int(np.flatnonzero(first < -0.5 * first.max())[0])]
+        assert 33 / 15 - TS <= half_width_s(pulse) <= 33 / 15 + TS
+        normal = order("turn_coordination", "aileron", seed=seed, params=CALM)
+        first = normal if normal[np.argmax(np.abs(normal))] > 0 else -normal
+        wide = first[: int(np.flatnonzero(first < -0.5 * first.max())[0])]
+        assert half_width_s(wide) >= 25 / 7.5 - TS > half_width_s(pulse)
+        nose = order("nose_up", "elevator", seed=seed, params=calm) - trim("elevator")
+        assert -nose.min() == pytest.approx(5.0)
+    with pytest.raises(ValueError, match="unknown manoeuvre set 'stres'.*did you mean 'stress'"):
+        set_params("stres")
 
 
 def test_lateral_manoeuvres_give_small_elevator_activity_and_vice_versa():
@@ -253,17 +279,25 @@ def test_elevator_trim_law():
 @pytest.mark.parametrize("manoeuvre, surface", sorted(ACTIVE))
 def test_manoeuvre_happens_inside_the_record(manoeuvre, surface, seconds):
     # at the lowest q̄ the transitions are longest; the manoeuvre is at rest for the
-    # first lead_s and the last tail_s seconds and present in between
+    # first lead_s and the last tail_s seconds and present in between. Exception (module
+    # docstring): the normal set's longest turns (≤ 17.7 s) do not fit a 20-s record; they
+    # start at lead_s and the end of the record cuts their roll-out.
     n_lead, n_tail = int(P.lead_s / TS), int(P.tail_s / TS)
-    starts = []
+    starts, cut = [], 0
     for flight in (SLOW_LOW, REF):
         for seed in range(15):
             x = order(manoeuvre, surface, flight, seed, seconds, params=CALM) - trim(surface, flight)
-            assert np.all(x[:n_lead] == 0.0) and np.all(x[-n_tail:] == 0.0)
+            assert np.all(x[:n_lead] == 0.0)
             active = np.flatnonzero(x != 0.0)
             assert active.size > 0
             starts.append(active[0] * TS)
+            if not np.all(x[-n_tail:] == 0.0):
+                assert manoeuvre == "turn_coordination" and seconds < 23.0
+                assert active[0] * TS <= P.lead_s + 1.5 * TS    # started as early as allowed
+                cut += 1
     assert np.std(starts) > (0.5 if seconds > 20 else 0.0)   # randomised start
+    if seconds >= 23.0:
+        assert cut == 0
 
 
 def test_same_seed_same_turbulence_whatever_the_manoeuvre():

@@ -93,7 +93,7 @@ PRESET_PLANTS: dict[str, tuple[tuple[str, ...], str]] = {
            "params = { kappa = [0.01, 0.002, 0.012] } for comb-interval, valid there "
            "(docs/interval-detector.md), or run a preset valid there (e.g. smoke, chen-*, "
            "vanek-*)")
-    for name in ("addsafe-mc", "comb-table1")
+    for name in ("addsafe-mc", "comb-table1", "comb-table1-rod")
 }
 
 

@@ -29,6 +29,7 @@ from .sections import (
     FaultsSection,
     GroupSpec,
     LearningSection,
+    ManoeuvresSection,
     MismatchSection,
     PlantSection,
     RequirementsSection,
@@ -82,6 +83,9 @@ class CampaignConfig:
     learning: LearningSection = section(
         LearningSection, "learning", "Fault-free learning set for detectors that fit "
         "thresholds.")
+    manoeuvres: ManoeuvresSection = section(
+        ManoeuvresSection, "manoeuvres", "How the six manoeuvres are flown, at both plant "
+        "levels (docs/physics.md §7): the normal-operations set or the stress set.")
     runner: RunnerSection = section(RunnerSection, "runner", "Execution (does not change "
                                     "any result).")
     plant: PlantSection = section(

@@ -17,6 +17,7 @@ from scenarios.catalog import PLANT_KINDS
 from scenarios.catalog import (
     FAULT_TYPES,
     FAULTS,
+    MANOEUVRE_SETS,
     MANOEUVRES,
     REQUIRED_DETECTION_TIME_S,
     SURFACES,
@@ -45,6 +46,7 @@ __all__ = [
     "DetectorSpec",
     "RequirementsSection",
     "LearningSection",
+    "ManoeuvresSection",
     "RunnerSection",
     "PlantVariables",
     "PlantSection",
@@ -338,6 +340,20 @@ class LearningSection:
     duration_s: float | None = key("float", "duration of a learning run", unit="s", lo=20.0,
                                    hi=600.0, optional=True,
                                    default_doc="[campaign] duration_s", example=60.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ManoeuvresSection:
+    set: str = key("choice", "how the manoeuvres are flown: normal (normal operations: the turn "
+                   "rolls in at 7.5 °/s) or stress (their aggressive end: the turn rolls in at "
+                   "the normal law's full-stick 15 °/s, every amplitude range at its high end); "
+                   "part of every run's id", "normal", choices=MANOEUVRE_SETS,
+                   source="docs/physics.md §7")
+    learning_set: str | None = key("choice", "manoeuvre set of the learning runs (e.g. "
+                                   "\"normal\" to evaluate under stress detectors learned "
+                                   "in normal operations)", optional=True,
+                                   choices=MANOEUVRE_SETS, default_doc="= set",
+                                   example="normal")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -250,17 +250,16 @@ class PilotParams:
                                               "pedal sideslip order")
     yaw_hold_s: tuple[float, float] = param("s", "docs/physics.md §7", "time held")
     turn_rate_deg_s: float = param(
-        "deg/s", "est. (airline and autopilot roll-in rates are 3–8 °/s; docs/physics.md §7's 15 °/s "
-        "is the normal law's full-stick rate: with it, at the low-q̄ corner of the envelope "
-        "the law drives the ailerons to their authority limits and saturates the servo-valve "
-        "current in every turn, against docs/physics.md §7's ±5–10° aileron transients)",
-        "roll-rate order")
+        "deg/s", "docs/physics.md §7: normal operations, est. as half the 15 °/s full-stick "
+        "roll-rate demand of the Airbus normal law (Airbus FCOM DSC-27-20-10-30); passenger-"
+        "comfort turn entries are gentler than full stick (flight-guidance roll-rate limits "
+        "3.5–5 °/s); the stress set (scenarios.aircraft.pilot.PILOT_STRESS) uses 15 °/s",
+        "roll-rate order of the turn's roll-in and roll-out")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the turn")
     smooth_s: float = param("s", "est.", "rise time of every stick/pedal input but the turn's")
-    turn_smooth_s: float = param("s", "est. (a gentle roll-in: the servo-valve current "
-                                 "touches its limit only for turbulence peaks of ≤ 20 ms in "
-                                 "the turns of the realistic envelope)",
+    turn_smooth_s: float = param("s", "est. (a gradual stick input in normal operations; "
+                                 "the stress set uses smooth_s)",
                                  "rise and fall time of the turn's roll-rate order")
 
 

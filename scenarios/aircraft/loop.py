@@ -46,7 +46,8 @@ from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays
 from ..manoeuvres import elevator_trim_deg
 from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
-from ..runs import RUN_COLUMNS, RUN_RANGES, flight_of, run_streams, validate_runs
+from ..runs import (RUN_COLUMNS, RUN_RANGES, flight_of, manoeuvre_sets, run_streams,
+                    validate_runs)
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
 from ..simulate import servo_provides
@@ -152,7 +153,9 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
 
     t = np.arange(T) * ts
     gens = [run_streams(s, k) for s, k in zip(col["seed"], col["stream"])]
-    nz_c, p_c, beta_c = pilot.inputs_for_runs(col["manoeuvre"].astype(str), t, [g[0] for g in gens])
+    nz_c, p_c, beta_c = pilot.inputs_for_runs(
+        col["manoeuvre"].astype(str), t, [g[0] for g in gens],
+        [pilot.set_params(m) for m in manoeuvre_sets(runs)])
     tas = flight_true["tas_ms"]
     if turbulence is None:
         gusts = np.zeros((n, 3, T))

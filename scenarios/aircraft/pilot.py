@@ -12,17 +12,52 @@ manoeuvre stream first, whatever the manoeuvre, so the draws never depend on the
 - ``yaw_angle_mode``: a pedal sideslip order held ``yaw_hold_s``;
 - ``turn_coordination``: a roll-in at ``turn_rate_deg_s`` to the bank angle, a turn, a
   roll-out, each edge smoothed over ``turn_smooth_s``.
+
+Manoeuvre sets (:data:`scenarios.catalog.MANOEUVRE_SETS`, docs/physics.md §7): ``normal``
+flies :data:`~scenarios.aircraft.data.PILOT` (turn roll-in at 7.5 °/s over 1.5-s edges);
+``stress`` flies :data:`PILOT_STRESS` (roll-in at the normal law's full-stick 15 °/s over the
+0.5-s edges of the other inputs, to a 33° bank; every load-factor and sideslip range at its
+high end, the shortest AoA ramp).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..catalog import MANOEUVRES
+import dataclasses
+import types
+
+from ..catalog import MANOEUVRE_SETS, MANOEUVRES, check_name
 from .data import PILOT, PilotParams
 
 #: Number of uniform draws per run (fixed, whatever the manoeuvre).
 N_DRAWS = 8
+
+#: The ``stress`` manoeuvre set at the aircraft level (docs/physics.md §7): the turn at the
+#: Airbus normal law's full-stick roll-rate demand, 15 °/s (Airbus FCOM DSC-27-20-10-30),
+#: with the 0.5-s edges of the other stick inputs, to the 33° of the bank protection; every
+#: other range at its aggressive end. Holds and the start time are those of the normal set.
+PILOT_STRESS = dataclasses.replace(
+    PILOT,
+    nose_up_g=(PILOT.nose_up_g[1],) * 2,
+    aoa_g=(PILOT.aoa_g[1],) * 2,
+    aoa_ramp_s=(PILOT.aoa_ramp_s[0],) * 2,
+    pitch_g=(PILOT.pitch_g[1],) * 2,
+    yaw_beta_deg=(PILOT.yaw_beta_deg[1],) * 2,
+    turn_rate_deg_s=15.0,
+    turn_bank_deg=(PILOT.turn_bank_deg[1],) * 2,
+    turn_smooth_s=PILOT.smooth_s,
+)
+
+#: Pilot-input table of each manoeuvre set.
+PILOT_SETS = types.MappingProxyType({"normal": PILOT, "stress": PILOT_STRESS})
+
+
+def set_params(manoeuvre_set: str) -> PilotParams:
+    """The pilot-input table of manoeuvre set *manoeuvre_set* (``normal`` or ``stress``); an
+    unknown name raises ``ValueError`` naming the allowed ones."""
+    check_name("manoeuvre set", manoeuvre_set, MANOEUVRE_SETS)
+    return PILOT_SETS[manoeuvre_set]
 
 
 def _smooth(t, t0, rise):
@@ -75,8 +110,15 @@ def pilot_inputs(manoeuvre: str, t: np.ndarray, u: np.ndarray, params: PilotPara
     return nz, p, beta
 
 
-def inputs_for_runs(manoeuvres, t: np.ndarray, gens, params: PilotParams = PILOT):
+def inputs_for_runs(manoeuvres, t: np.ndarray, gens, params: PilotParams | list = PILOT):
     """Stacked pilot inputs of a batch, three (n, T) arrays; ``gens`` the runs' manoeuvre
-    generators (each advanced by :data:`N_DRAWS` uniforms)."""
-    out = [pilot_inputs(str(m), t, g.uniform(size=N_DRAWS), params) for m, g in zip(manoeuvres, gens)]
+    generators (each advanced by :data:`N_DRAWS` uniforms); ``params`` one table for every
+    run or one per run (e.g. each run's manoeuvre set, :func:`set_params`)."""
+    manoeuvres = list(manoeuvres)
+    per_run = [params] * len(manoeuvres) if isinstance(params, PilotParams) else list(params)
+    if len(per_run) != len(manoeuvres):
+        raise ValueError(f"params must be one PilotParams or one per run ({len(manoeuvres)}), "
+                         f"got {len(per_run)}")
+    out = [pilot_inputs(str(m), t, g.uniform(size=N_DRAWS), p)
+           for m, g, p in zip(manoeuvres, gens, per_run)]
     return tuple(np.array([o[j] for o in out]) for j in range(3))
