@@ -35,7 +35,8 @@ from .acquisition import (Prepared, Trajectory, acquire, acquire_com, applied_cu
                           chamber_pressure, quantize, sensor_draws)
 from .aircraft.data import AIRCRAFT_SURFACES, surface_actuator
 from .catalog import FAULTS, SURFACES
-from .faults import FAULT_DEFAULTS, NEVER, default_magnitude, fault_arrays
+from .faults import (FAULT_DEFAULTS, NEVER, default_magnitude, fault_arrays, jam_onset_position,
+                     rod_measurement_fault)
 from .kernels import integrate_compiled, resolve_engine
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, run_streams,
@@ -119,6 +120,10 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
     any_disc = bool((fa.k_disc < NEVER).any())
     loaded = np.ones(n, dtype=bool)
     for k in range(T):
+        if any_jam:   # an "offset" solid jam: the rod jumps at its onset (docs/physics.md §5)
+            x_prev, x = x, jam_onset_position(x, k, fa, pl.x_min, pl.x_max)
+            if x is not x_prev:
+                delta = np.where(x != x_prev, np.arcsin(x / pl.r_mm), delta)
         y, y_hold = acquire_com(x, k, p, sensors, y_hold)
         i_new = np.clip(pl.K * (fa.u_loop[:, k] - y), -pl.i_max, pl.i_max)
         i_app = applied_current(i_prev, k, p)
@@ -169,6 +174,8 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     else:
         traj = integrate(p, sensors)
     act = p.act
+    rod_fault = rod_measurement_fault(runs["fault"].to_numpy(), runs["onset_s"].to_numpy(float),
+                                      traj.y_com, p.u, p.plant, ts)
     p = replace(p, order_deg=None, com_noise=None)   # read by the time loop only: free them
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor)
     signals = Signals(
@@ -180,7 +187,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
         fault=runs["fault"].astype(str).to_numpy(),
         onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
-        flight=p.flight_true,
+        flight=p.flight_true, rod_fault_mm=rod_fault,
     )
     return signals, truth
 
