@@ -156,10 +156,6 @@ def cmd_run(args) -> int:
     for member, config in zip(spec.members, configs):
         print(f"\n== {member.title} ==")
         result = _run_campaign(config, Path(args.out) / member.name, args)
-        if member.reference and result.complete:
-            from reports.table import format_paper_table
-
-            print("\n" + format_paper_table(result.summary, member.reference))
         complete[member.name] = bool(result.complete)
         write_suite_json(spec, args.out, complete)
         if not result.complete:
@@ -293,20 +289,16 @@ def cmd_report(args) -> int:
     if args.html:
         raise UsageError("--html names one file; a suite directory gets one report.html per "
                          "campaign (DIR/<campaign>/report.html): leave --html out")
-    from .suite import suite_references
-
-    references = suite_references(args.dir)
     for title, member in suite_members(args.dir):
         print(f"== {title} ==")
-        _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}),
-                    references.get(member.name))
+        _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}))
     return EXIT_OK
 
 
-def _report_one(args, reference: str | None = None) -> None:
+def _report_one(args) -> None:
     from reports.table import format_table
 
-    from .runner import load_results
+    from .runner import load_results, reference_text
 
     results, summary, meta = load_results(args.dir)
     if not args.no_html:
@@ -314,11 +306,7 @@ def _report_one(args, reference: str | None = None) -> None:
     cfg = meta.get("config") or {}
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
-    print(format_table(summary))
-    if reference:
-        from reports.table import format_paper_table
-
-        print("\n" + format_paper_table(summary, reference))
+    print(format_table(summary) + reference_text(args.dir, summary))
     from reports.table import error_lines
 
     for line in error_lines(results):

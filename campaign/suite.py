@@ -41,7 +41,8 @@ from .config import CampaignConfig, ConfigError, load_config, looks_like_path, r
 from .config.load import SUITE_DIR, shipped_dir, shipped_names
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
-           "load_suite", "suite_members", "suite_references", "write_suite_json"]
+           "load_suite", "reference_text", "suite_members", "suite_references",
+           "write_suite_json"]
 
 #: Name of the file that marks a suite's output directory.
 SUITE_FILE = "suite.json"
@@ -260,3 +261,18 @@ def suite_references(directory) -> dict[str, str]:
                 if m.get("reference") in PAPER_TABLES}
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return {}
+
+
+def reference_text(directory, summary) -> str:
+    """The published table a suite member names (``reference``) beside *summary*
+    (:func:`reports.table.format_paper_table`), after a blank line, when *directory* is
+    that member's directory inside a suite directory; '' otherwise (a campaign run alone,
+    a member without ``reference``, no results yet)."""
+    from reports.table import format_paper_table
+
+    path = Path(directory)
+    reference = suite_references(path.parent).get(path.name) if is_suite_dir(path.parent) \
+        else None
+    if not reference or summary is None or len(summary) == 0:
+        return ""
+    return "\n\n" + format_paper_table(summary, reference)

@@ -128,7 +128,7 @@ class FaultArrays:
     k_osc: np.ndarray         # onset step of the COM replacement (ofc_solid) (n,)
     k_jam: np.ndarray         # onset step of a solid jam (n,)
     k_disc: np.ndarray        # onset step of a disconnection (n,)
-    jam_offset: np.ndarray    # rod offset of an "offset" solid jam at its onset [mm] (n,); 0: seized
+    jam_offset: np.ndarray    # jump of an "offset" solid jam at onset [mm] (n,); 0: seized
 
 
 def onset_steps(onset_s, ts: float) -> np.ndarray:
@@ -208,38 +208,3 @@ def required_magnitude(fault: str) -> bool:
 
 #: Fault types whose additive effect on the rod measurement is defined ([CHEN] eq. 4).
 ROD_MEASUREMENT_FAULTS: tuple[str, ...] = ("liquid_jam", "solid_jam")
-
-
-def rod_measurement_fault(fault, onset_s, y_com, order_mm, plant, ts: float):
-    """The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of each jam run,
-    from its onset on: f = y − x, y the COM acquisition of the run, x the rod of the
-    *healthy, noise-free* servo-loop driven by the same order (true plant of the run,
-    :func:`scenarios.kernels.servo_model`) — [CHEN]'s "fault-free rod sensor output"
-    (docs/physics.md §5). For a liquid jam f starts at the bias and fades as the loop
-    re-centres the biased measurement on the order; for a solid jam f = y_jam − x follows
-    the order away from the stuck measurement.
-
-    fault, onset_s (n,); y_com, order_mm (n, T) [mm]; *plant* the true
-    :class:`scenarios.servo.PlantArrays` of the batch. Returns (n, T): NaN before onset
-    and for runs of other fault types; None when the batch holds no jam (nothing to
-    compute). A fault estimate f̂ built from y with an identity fault-to-estimate gain
-    then errs by f̂ − f = (y − x̂) − (y − x) = x − x̂ after onset: the estimator's model
-    error alone, sensor noise cancelling.
-    """
-    from .kernels import servo_model
-    from .servo import PlantArrays
-
-    fault = np.asarray(fault).astype(str)
-    jam = np.flatnonzero(np.isin(fault, ROD_MEASUREMENT_FAULTS))
-    if jam.size == 0:
-        return None
-    y_com = np.asarray(y_com, dtype=float)
-    n, T = y_com.shape
-    sub = PlantArrays(**{k: np.asarray(v)[jam] for k, v in vars(plant).items()})
-    order = np.asarray(order_mm, dtype=float)[jam]
-    healthy = servo_model(order, np.clip(order[:, 0], sub.x_min, sub.x_max), sub, ts)
-    k0 = onset_steps(np.asarray(onset_s, dtype=float)[jam], ts)
-    after = np.arange(T)[None, :] >= k0[:, None]
-    out = np.full((n, T), np.nan)
-    out[jam] = np.where(after, y_com[jam] - healthy, np.nan)
-    return out

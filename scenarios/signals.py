@@ -198,7 +198,7 @@ class Truth:
         True deflection [deg] of every primary surface at the aircraft plant level.
     rod_fault_mm : ndarray (n_runs, n_steps) or None
         The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of the jam runs
-        from their onset on (:func:`scenarios.faults.rod_measurement_fault`); NaN before
+        from their onset on (:func:`scenarios.simulate.rod_measurement_fault`); NaN before
         onset and for other runs; None when the batch holds no jam.
     """
 

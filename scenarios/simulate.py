@@ -35,18 +35,18 @@ from .acquisition import (Prepared, Trajectory, acquire, acquire_com, applied_cu
                           chamber_pressure, quantize, sensor_draws)
 from .aircraft.data import AIRCRAFT_SURFACES, surface_actuator
 from .catalog import FAULTS, SURFACES
-from .faults import (FAULT_DEFAULTS, NEVER, default_magnitude, fault_arrays, jam_onset_position,
-                     rod_measurement_fault)
-from .kernels import integrate_compiled, resolve_engine
+from .faults import (FAULT_DEFAULTS, NEVER, ROD_MEASUREMENT_FAULTS, default_magnitude,
+                     fault_arrays, jam_onset_position, onset_steps)
+from .kernels import integrate_compiled, resolve_engine, servo_model
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, run_streams,
                    validate_runs)
-from .servo import authority_limits, float_step, plant_arrays, rk4_step
+from .servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from .signals import SERVO_GROUPS, Signals, Truth
 
 __all__ = ["ActuatorPlant", "DEFAULT_POINT", "Prepared", "RUN_COLUMNS", "RunSpecError",
            "Trajectory", "acquire_com", "applied_current", "chamber_pressure", "integrate",
-           "prepare", "quantize", "simulate", "single_run"]
+           "prepare", "quantize", "rod_measurement_fault", "simulate", "single_run"]
 
 
 def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
@@ -143,6 +143,38 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
         i_prev = i_new
     return Trajectory(x=xs, delta=ds, i_cmd=icmd, i_app=iapp, y_com=ycom)
 
+
+
+def rod_measurement_fault(fault, onset_s, y_com, order_mm, plant, ts: float):
+    """The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of each jam run,
+    from its onset on: f = y − x, y the COM acquisition of the run, x the rod of the
+    *healthy, noise-free* servo-loop driven by the same order (true plant of the run,
+    :func:`scenarios.kernels.servo_model`) — [CHEN]'s "fault-free rod sensor output"
+    (docs/physics.md §5). For a liquid jam f starts at the bias and fades as the loop
+    re-centres the biased measurement on the order; for a solid jam f = y_jam − x follows
+    the order away from the stuck measurement.
+
+    fault, onset_s (n,); y_com, order_mm (n, T) [mm]; *plant* the true
+    :class:`scenarios.servo.PlantArrays` of the batch. Returns (n, T): NaN before onset
+    and for runs of other fault types; None when the batch holds no jam (nothing to
+    compute). A fault estimate f̂ built from y with an identity fault-to-estimate gain
+    then errs by f̂ − f = (y − x̂) − (y − x) = x − x̂ after onset: the estimator's
+    model error alone, sensor noise cancelling.
+    """
+    fault = np.asarray(fault).astype(str)
+    jam = np.flatnonzero(np.isin(fault, ROD_MEASUREMENT_FAULTS))
+    if jam.size == 0:
+        return None
+    y_com = np.asarray(y_com, dtype=float)
+    n, T = y_com.shape
+    sub = PlantArrays(**{k: np.asarray(v)[jam] for k, v in vars(plant).items()})
+    order = np.asarray(order_mm, dtype=float)[jam]
+    healthy = servo_model(order, np.clip(order[:, 0], sub.x_min, sub.x_max), sub, ts)
+    k0 = onset_steps(np.asarray(onset_s, dtype=float)[jam], ts)
+    after = np.arange(T)[None, :] >= k0[:, None]
+    out = np.full((n, T), np.nan)
+    out[jam] = np.where(after, y_com[jam] - healthy, np.nan)
+    return out
 
 
 #: Closed-loop integrator of a prepared batch: (Prepared, SensorParams) → Trajectory.

@@ -174,7 +174,7 @@ def test_liquid_and_solid_jams_are_detected_and_fault_free_runs_are_quiet(fitted
 
 def test_both_variants_carry_the_estimate_and_it_tracks_an_offset_jam(fitted):
     # [CHEN] eq. 4 and §6.2: an "offset" solid jam of 1.8 % of the range (docs/physics.md
-    # §5); f̂ − f = x − x̂ is the model error alone (scenarios.faults.rod_measurement_fault),
+    # §5); f̂ − f = x − x̂ is the model error alone (scenarios.simulate.rod_measurement_fault),
     # far below the 1.3 mm offset, and the liquid statistic sees the offset at once
     from reports.metrics import estimation_errors
     from scenarios.faults import solid_jam_offset_mm

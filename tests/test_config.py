@@ -660,9 +660,9 @@ def test_solid_jam_variant_offset_samples_signed_offsets_and_names_the_group(tmp
     from scenarios.faults import solid_jam_offset_mm
     from scenarios.params import AILERON
 
-    seized = load_config(write(tmp_path, SOLID.replace('name = "t"', 'name = "t"\nsurface = "aileron"'), "a.toml"))
-    offset = load_config(write(tmp_path, SOLID.replace(
-        'name = "t"', 'name = "t"\nsurface = "aileron"').replace(
+    aileron = SOLID.replace('name = "t"', 'name = "t"\nsurface = "aileron"')
+    seized = load_config(write(tmp_path, aileron, "a.toml"))
+    offset = load_config(write(tmp_path, aileron.replace(
         'fault = "solid_jam"', 'fault = "solid_jam"\nvariant = "offset"'), "b.toml"))
     assert seized.groups[1].name == "solid_jam@cruise" and seized.groups[1].variant is None
     assert offset.groups[1].name == "solid_jam[offset]@cruise"
@@ -696,10 +696,10 @@ def test_solid_jam_offset_fixed_magnitude_in_percent_and_sign(tmp_path):
 
 @pytest.mark.parametrize("extra, fault, message", [
     ('magnitude = 1.8', "solid_jam",
-     'group[1].magnitude: solid_jam with variant = "seized" (the default) has no magnitude; '
-     'fix: set variant = "offset" or remove magnitude'),
+     'group[1].magnitude: fault \'solid_jam\' has no magnitude with variant = "seized" (the '
+     'default); fix: remove it, or set variant = "offset"'),
     ('variant = "seized"\nsign = "negative"', "solid_jam",
-     'group[1].sign: solid_jam with variant = "seized" has no sign'),
+     'group[1].sign: fault \'solid_jam\' has no sign with variant = "seized"; fix: remove it'),
     ('variant = "offset"', "liquid_jam",
      "group[1].variant: fault 'liquid_jam' has no variants; allowed only with: solid_jam"),
     ('variant = "stuck"', "solid_jam", "group[1].variant: unknown"),
@@ -712,7 +712,8 @@ def test_solid_jam_variant_errors(tmp_path, extra, fault, message):
 
 
 def test_variant_on_a_fault_free_group_is_refused(tmp_path):
-    errors = errors_of(tmp_path, BASE.replace('fault = "none"', 'fault = "none"\nvariant = "offset"'))
+    errors = errors_of(tmp_path, BASE.replace('fault = "none"',
+                                              'fault = "none"\nvariant = "offset"'))
     assert any("group[0].variant: a fault-free group" in e for e in errors), errors
 
 

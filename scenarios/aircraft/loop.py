@@ -43,14 +43,13 @@ import pandas as pd
 
 from ..acquisition import acquire, acquire_com, applied_current, quantize, sensor_draws
 from ..atmosphere import tas_ms as tas_from_mach
-from ..faults import (FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position,
-                      rod_measurement_fault)
+from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position
 from ..manoeuvres import elevator_trim_deg
 from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import RUN_COLUMNS, RUN_RANGES, flight_of, run_streams, validate_runs
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
-from ..simulate import servo_provides
+from ..simulate import rod_measurement_fault, servo_provides
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
 from . import laws, lpv, pilot
 from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
