@@ -699,7 +699,8 @@ def test_solid_jam_offset_fixed_magnitude_in_percent_and_sign(tmp_path):
      'group[1].magnitude: fault \'solid_jam\' has no magnitude with variant = "seized" (the '
      'default); fix: remove it, or set variant = "offset"'),
     ('variant = "seized"\nsign = "negative"', "solid_jam",
-     'group[1].sign: fault \'solid_jam\' has no sign with variant = "seized"; fix: remove it'),
+     'group[1].sign: fault \'solid_jam\' has no direction with variant = "seized"; fix: '
+     'remove it'),
     ('variant = "offset"', "liquid_jam",
      "group[1].variant: fault 'liquid_jam' has no variants; allowed only with: solid_jam"),
     ('variant = "stuck"', "solid_jam", "group[1].variant: unknown"),

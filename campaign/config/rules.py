@@ -248,7 +248,8 @@ def _without_magnitude(g: Mapping, p: str, k: str, fault: str, errors: list[str]
     variant, needed = _variant(g, fault), MAGNITUDE_VARIANT[fault]
     if variant == needed:
         return False
-    errors.append(f"{p}.{k}: fault {fault!r} has no {k} with variant = \"{variant}\""
+    what = "direction" if k == "sign" else k
+    errors.append(f"{p}.{k}: fault {fault!r} has no {what} with variant = \"{variant}\""
                   f"{' (the default)' if not _given(g, 'variant') else ''}; fix: remove it, "
                   f"or set variant = \"{needed}\"")
     return True
