@@ -278,7 +278,7 @@ def cmd_report(args) -> int:
 def _report_one(args) -> None:
     from reports.table import format_table
 
-    from .runner import load_results
+    from .runner import load_results, reference_text
 
     results, summary, meta = load_results(args.dir)
     if not args.no_html:
@@ -286,7 +286,7 @@ def _report_one(args) -> None:
     cfg = meta.get("config") or {}
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
-    print(format_table(summary))
+    print(format_table(summary) + reference_text(args.dir, summary))
     from reports.table import error_lines
 
     for line in error_lines(results):

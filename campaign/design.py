@@ -30,7 +30,7 @@ from scipy.stats import qmc
 
 from scenarios import envelope
 from scenarios.catalog import MANOEUVRES
-from scenarios.faults import liquid_jam_bias_mm
+from scenarios.faults import liquid_jam_bias_mm, solid_jam_offset_mm
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
 from .plant import run_actuator, run_surface
@@ -88,8 +88,9 @@ def _unit_samples(n: int, config, cell_key: int) -> np.ndarray:
     return np.random.default_rng(ss).random((n, len(_DIMS)))
 
 
-def _fault_values(fault: str, u_mag, u_sign, u_freq, config, act):
-    """Signed magnitude and frequency of a fault from unit samples."""
+def _fault_values(fault: str, u_mag, u_sign, u_freq, config, act, variant=None):
+    """Signed magnitude and frequency of a fault from unit samples (*variant*: the group's
+    ``variant`` key; a solid jam has a magnitude, its rod offset [mm], only as "offset")."""
     f = config.faults
     sign = np.where(u_sign < 0.5, -1.0, 1.0)
     nan = np.full_like(u_mag, np.nan)
@@ -102,6 +103,10 @@ def _fault_values(fault: str, u_mag, u_sign, u_freq, config, act):
         lo, hi = f.liquid_jam.bias_pct_range
         pct = lo + (hi - lo) * u_mag
         return sign * np.array([liquid_jam_bias_mm(act, p) for p in pct]), nan
+    if fault == "solid_jam" and variant == "offset":
+        lo, hi = f.solid_jam.offset_pct_range
+        pct = lo + (hi - lo) * u_mag
+        return sign * np.array([solid_jam_offset_mm(act, p) for p in pct]), nan
     if fault in ("ofc_liquid", "ofc_solid"):
         sub = f.ofc_liquid if fault == "ofc_liquid" else f.ofc_solid
         amp = sub.amplitude_mA if fault == "ofc_liquid" else sub.amplitude_mm
@@ -131,8 +136,12 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     else:
         onset = lo + (hi - lo) * u_rest[:, 0]
     onset = np.where(np.isfinite(onset), np.round(onset / ts) * ts, np.nan)
-    mag, freq = _fault_values(group.fault, u_rest[:, 1], u_rest[:, 2], u_rest[:, 3], config, act)
-    if group.magnitude is not None and group.fault != "none":
+    variant = getattr(group, "variant", None)
+    mag, freq = _fault_values(group.fault, u_rest[:, 1], u_rest[:, 2], u_rest[:, 3], config, act,
+                              variant)
+    if group.magnitude is not None and group.fault == "solid_jam":   # % of range → rod mm
+        mag = np.sign(mag) * solid_jam_offset_mm(act, float(group.magnitude))
+    elif group.magnitude is not None and group.fault != "none":
         mag = np.full(n, float(group.magnitude))
     if getattr(group, "freq_hz", None) is not None:
         freq = np.full(n, float(group.freq_hz))

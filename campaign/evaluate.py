@@ -23,8 +23,9 @@ import numpy as np
 import pandas as pd
 
 from detectors import Detection, as_variants, detection_problems
-from reports.metrics import RESULT_COLUMNS, score_runs
+from reports.metrics import RESULT_COLUMNS, estimation_errors, score_runs
 from scenarios import kernels
+from scenarios.faults import estimation_range_mm
 from scenarios.signals import Signals
 from scenarios.plants import Plant
 from scenarios.simulate import ActuatorPlant
@@ -189,8 +190,23 @@ def _required(fault, settings: ChunkSettings) -> np.ndarray:
     return np.array([settings.required_time_s.get(f, np.nan) for f in fault])
 
 
+def _estimate_columns(detection, truth, range_mm: float) -> dict:
+    """The fault-estimation error columns (:data:`reports.metrics.ESTIMATE_COLUMNS`) of
+    *detection* on its runs: over the post-onset samples where the truth defines the fault
+    (``Truth.rod_fault_mm``) and the detector gives an estimate; 0 samples otherwise."""
+    n = len(truth.fault)
+    estimate = getattr(detection, "estimate", None)
+    fault = getattr(truth, "rod_fault_mm", None)
+    if estimate is None or fault is None:
+        count, mean, var = np.zeros(n, np.int64), np.full(n, np.nan), np.full(n, np.nan)
+    else:
+        count, mean, var = estimation_errors(estimate, fault)
+    return {"est_err_n": count, "est_err_mean_mm": mean, "est_err_var_mm2": var,
+            "est_range_mm": np.where(count > 0, float(range_mm), np.nan)}
+
+
 def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
-            settings: ChunkSettings) -> list[pd.DataFrame]:
+            settings: ChunkSettings, range_mm: float = np.nan) -> list[pd.DataFrame]:
     frames = []
     for name, detection in detections.items():
         scored = score_runs(
@@ -202,16 +218,22 @@ def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
         scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
         scored.insert(4, "status", "ok")
         scored.insert(5, "error", "")
+        for column, values in _estimate_columns(detection, truth, range_mm).items():
+            scored[column] = values
         frames.append(scored)
     return frames
 
 
-def score(rows: pd.DataFrame, truth, detections: dict, settings: ChunkSettings) -> pd.DataFrame:
+def score(rows: pd.DataFrame, truth, detections: dict, settings: ChunkSettings,
+          actuator=None) -> pd.DataFrame:
     """Result rows (:data:`reports.metrics.RESULT_COLUMNS`, ``status="ok"``) of *detections*
     ({variant name → Detection}) on the runs *rows* whose truth is *truth*: one row per
     run × variant, scored by :func:`reports.metrics.score_runs` with the required detection
-    times and window of *settings*."""
-    frames = _scored(rows, truth, detections, _required(truth.fault, settings), settings)
+    times and window of *settings*. *actuator* (``Signals.actuator``) normalises the
+    fault-estimation error (``est_range_mm``; NaN without it)."""
+    range_mm = np.nan if actuator is None else estimation_range_mm(actuator)
+    frames = _scored(rows, truth, detections, _required(truth.fault, settings), settings,
+                     range_mm)
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
 
 
@@ -239,11 +261,12 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
                           for label in detectors], ignore_index=True)
     truth = _scoring_truth(truth)
     required = _required(truth.fault, settings)
+    range_mm = estimation_range_mm(signals.actuator)
     frames = []
     for label, det in detectors.items():
         try:
             frames.extend(_scored(rows, truth, detect(signals, {label: det}), required,
-                                  settings))
+                                  settings, range_mm))
         except Exception as exc:  # noqa: BLE001
             if len(rows) == 1:
                 frames.append(_error_rows(rows, label, failure_message(exc)))
@@ -253,7 +276,7 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
                 try:
                     frames.extend(_scored(rows.iloc[[j]], truth.take([j]),
                                           detect(signals.take([j]), {label: det}),
-                                          required[[j]], settings))
+                                          required[[j]], settings, range_mm))
                 except Exception as exc_j:  # noqa: BLE001
                     frames.append(_error_rows(rows.iloc[[j]], label,
                                               failure_message(exc_j)))
@@ -281,6 +304,8 @@ def _error_rows(rows: pd.DataFrame, detector: str, message: str,
         "false_alarm": np.zeros(n, bool), "pre_onset_alarm": np.zeros(n, bool),
         "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
         "dtp": np.nan, "margin": np.nan,
+        "est_err_n": np.zeros(n, np.int64), "est_err_mean_mm": np.nan,
+        "est_err_var_mm2": np.nan, "est_range_mm": np.nan,
     })
 
 

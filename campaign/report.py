@@ -600,7 +600,7 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
     stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
         "detector")
     # scored again with the campaign's own rules (campaign.evaluate.score)
-    again = score(match, truth, detections, settings).set_index("detector")
+    again = score(match, truth, detections, settings, signals.actuator).set_index("detector")
     residuals = {}
     for name, d in detections.items():
         res, alarm = np.asarray(d.residual[0], float), np.asarray(d.alarm[0], bool)

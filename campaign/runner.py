@@ -36,6 +36,7 @@ from .design import build_learning_plan, build_plan
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .plant import detector_problems, plant_of
 from .storage import CampaignDir, DirLock
+from .suite import reference_text
 
 #: The former name of :func:`campaign.evaluate.evaluate`, for existing callers.
 run_chunk = evaluate
@@ -305,7 +306,9 @@ class CampaignResult:
     detection_times: pd.DataFrame | None = None
 
     def table(self) -> str:
-        return format_table(self.summary)
+        """The summary table, then the published table a suite member names beside it
+        (:func:`campaign.suite.reference_text`)."""
+        return format_table(self.summary) + reference_text(self.out, self.summary)
 
 
 def settings_of(config) -> ChunkSettings:

@@ -15,6 +15,7 @@ suite file names them and gives each a title::
     [[member]]
     campaign = "chen-mc"
     title = "[CHEN] Table 4 — Monte Carlo campaign"
+    reference = "chen-table-4"     # optional: print the published table beside ours
 
 ``fdd-campaign run SUITE --out DIR`` runs every member with the campaign runner into
 ``DIR/<member campaign name>`` and prints each member's table under its title; ``DIR``
@@ -33,19 +34,21 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from reports.paper import PAPER_TABLES
 from scenarios.catalog import suggest
 
 from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
 from .config.load import SUITE_DIR, shipped_dir, shipped_names
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
-           "load_suite", "suite_members", "write_suite_json"]
+           "load_suite", "reference_text", "suite_members", "suite_references",
+           "write_suite_json"]
 
 #: Name of the file that marks a suite's output directory.
 SUITE_FILE = "suite.json"
 
 _SUITE_KEYS = ("name", "description")
-_MEMBER_KEYS = ("campaign", "title")
+_MEMBER_KEYS = ("campaign", "title", "reference")
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,8 @@ class Member:
     spec: str                 # as written in the suite file
     title: str
     config: CampaignConfig
+    #: a published table to print beside the member's (reports.paper.PAPER_TABLES), or None
+    reference: str | None = None
 
     @property
     def name(self) -> str:
@@ -161,6 +166,12 @@ def load_suite(spec) -> Suite:
         if not (isinstance(title, str) and title.strip()):
             errors.append(f"{where}.title: required, a non-empty string (printed above the "
                           "member's table)")
+        reference = m.get("reference")
+        if reference is not None and reference not in PAPER_TABLES:
+            errors.append(f"{where}.reference: unknown table {reference!r}"
+                          f"{suggest(str(reference), list(PAPER_TABLES))}; allowed: "
+                          f"{', '.join(PAPER_TABLES)} (or leave it out)")
+            reference = None
         spec_m = m.get("campaign")
         if not (isinstance(spec_m, str) and spec_m.strip()):
             errors.append(f"{where}.campaign: required, a preset name or a .toml path "
@@ -186,7 +197,8 @@ def load_suite(spec) -> Suite:
             continue
         seen[cname] = j
         if isinstance(title, str):
-            members.append(Member(spec=spec_m, title=title.strip(), config=config))
+            members.append(Member(spec=spec_m, title=title.strip(), config=config,
+                                  reference=reference))
     if errors:
         raise ConfigError(errors, source)
     return Suite(name=name.strip(), description=description, members=tuple(members),
@@ -213,7 +225,8 @@ def write_suite_json(suite: Suite, out, complete: dict[str, bool]) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     doc = {"suite": suite.name, "description": suite.description, "source": suite.source,
            "members": [{"campaign": m.name, "spec": m.spec, "title": m.title,
-                        "directory": m.name, "complete": complete.get(m.name)}
+                        "directory": m.name, "complete": complete.get(m.name),
+                        "reference": m.reference}
                        for m in suite.members]}
     path = out / SUITE_FILE
     write_text(path, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
@@ -237,3 +250,29 @@ def suite_members(directory) -> list[tuple[str, Path]]:
         raise ValueError(f"{root} is a suite directory whose member(s) {', '.join(missing)} "
                          "have not run yet; rerun 'fdd-campaign run' on the suite into it")
     return members
+
+
+def suite_references(directory) -> dict[str, str]:
+    """Member directory name → the published table its suite member names (``reference``);
+    members without one, and suites written before the key existed, are left out."""
+    try:
+        doc = json.loads((Path(directory) / SUITE_FILE).read_text())
+        return {str(m["directory"]): str(m["reference"]) for m in doc["members"]
+                if m.get("reference") in PAPER_TABLES}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}
+
+
+def reference_text(directory, summary) -> str:
+    """The published table a suite member names (``reference``) beside *summary*
+    (:func:`reports.table.format_paper_table`), after a blank line, when *directory* is
+    that member's directory inside a suite directory; '' otherwise (a campaign run alone,
+    a member without ``reference``, no results yet)."""
+    from reports.table import format_paper_table
+
+    path = Path(directory)
+    reference = suite_references(path.parent).get(path.name) if is_suite_dir(path.parent) \
+        else None
+    if not reference or summary is None or len(summary) == 0:
+        return ""
+    return "\n\n" + format_paper_table(summary, reference)

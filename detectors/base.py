@@ -50,10 +50,16 @@ class Detection:
     residual : ndarray (n_runs, n_steps) of float
         The residual normalised by its threshold, |r|/τ: ≥ 1 means alarm (before any
         confirmation logic); used for margins and plots.
+    estimate : ndarray (n_runs, n_steps) of float, or None (default)
+        For a detector that *estimates* an additive fault on the rod measurement: its
+        estimate f̂ [mm] of [CHEN] eq. 4 (e.g. ``chen-local``). The campaign then records the
+        mean and variance of f̂ − f over each jam run's post-onset window
+        (docs/chen-estimator.md §8). None: the detector gives no estimate.
     """
 
     alarm: np.ndarray
     residual: np.ndarray
+    estimate: np.ndarray | None = None
 
     def __post_init__(self):
         alarm = np.asarray(self.alarm)
@@ -170,7 +176,7 @@ def detection_problems(detection: Detection, n_runs: int, n_steps: int) -> list[
     :func:`detectors.testing.check_detector`:
 
     * ``alarm`` is a bool array and ``residual`` a float array, both exactly
-      (n_runs, n_steps), the shape of the signals;
+      (n_runs, n_steps), the shape of the signals (and ``estimate``, when given);
     * ``residual`` is finite, except NaN samples at the start of a run (a filter warming
       up: "no residual yet"), which scoring ignores (the margin of
       :func:`reports.metrics.score_runs` skips NaN); a NaN after the first non-NaN sample
@@ -179,6 +185,10 @@ def detection_problems(detection: Detection, n_runs: int, n_steps: int) -> list[
     alarm, residual = np.asarray(detection.alarm), np.asarray(detection.residual)
     want = (int(n_runs), int(n_steps))
     problems = []
+    estimate = getattr(detection, "estimate", None)
+    if estimate is not None and np.shape(estimate) != want:
+        problems.append(f"estimate, when given, must have the shape of the signals (n_runs, "
+                        f"n_steps) = {want}, got {np.shape(estimate)}")
     if alarm.dtype != np.bool_:
         problems.append(f"alarm must be a bool array, got dtype {alarm.dtype}")
     if alarm.shape != want:

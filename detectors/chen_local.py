@@ -448,5 +448,6 @@ class ChenLocalEstimator(Detector):
         need = max(float(self.liquid_confirm_s), ts)
         alarm_liq = held >= need - 0.5 * ts
         alarm_sol = norm_sol > 1.0        # beyond τ_sol over the whole window
-        return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq),
-                "solid": Detection(alarm=alarm_sol, residual=norm_sol)}
+        # both variants carry the estimate f̂ [mm] (error statistics, docs/chen-estimator.md §8)
+        return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq, estimate=f_hat),
+                "solid": Detection(alarm=alarm_sol, residual=norm_sol, estimate=f_hat)}

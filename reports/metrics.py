@@ -21,7 +21,9 @@ __all__ = [
     "ONSET_TOL_S",
     "RESULT_COLUMNS",
     "SCORE_COLUMNS",
+    "ESTIMATE_COLUMNS",
     "clopper_pearson",
+    "estimation_errors",
     "score_runs",
     "upper_bound",
 ]
@@ -33,11 +35,21 @@ FAULT_FREE = "none"
 #: far below any sampling period (ms), far above the rounding error of ``k * ts``.
 ONSET_TOL_S = 1e-9
 
+#: Fault-estimation error of a run, for detectors that estimate the fault ([CHEN] §6.2,
+#: :func:`estimation_errors`): ``est_err_n`` samples of f̂ − f after onset (0: none),
+#: their mean [mm] and population variance [mm²], and ``est_range_mm``, the rod travel of
+#: the deflection range that normalises them (:func:`scenarios.faults.estimation_range_mm`;
+#: NaN without samples).
+ESTIMATE_COLUMNS: tuple[str, ...] = (
+    "est_err_n", "est_err_mean_mm", "est_err_var_mm2", "est_range_mm",
+)
+
 #: Columns of a result row: one row per run × detector (docs/design.md §7, Command line minimum
-#: columns, plus ``error`` and ``pre_onset_alarm``).
+#: columns, plus ``error`` and ``pre_onset_alarm``, then :data:`ESTIMATE_COLUMNS`).
 RESULT_COLUMNS: tuple[str, ...] = (
     "run_id", "detector", "fault", "manoeuvre", "status", "error",
     "false_alarm", "pre_onset_alarm", "detected", "first_alarm_s", "delay_s", "dtp", "margin",
+    *ESTIMATE_COLUMNS,
 )
 
 #: Columns returned by :func:`score_runs` (the scoring part of a result row).
@@ -185,6 +197,28 @@ def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
         "dtp": dtp,
         "margin": margin,
     }, columns=list(SCORE_COLUMNS))
+
+
+def estimation_errors(estimate, fault) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-run statistics of the fault-estimation error e = f̂ − f ([CHEN] §6.2).
+
+    *estimate* f̂ and *fault* f are (n, T) in one unit; the samples where both are finite
+    count (f is NaN before onset and for runs without a defined fault, so the window is
+    each run's post-onset part). Returns ``(count, mean, variance)``, each (n,): the number
+    of samples (int64), their mean and their population variance (1/N, two-pass), NaN
+    for a run without samples. Only (n,) values leave this function, so a campaign stores
+    three numbers per run, never the series.
+    """
+    e = np.asarray(estimate, dtype=float) - np.asarray(fault, dtype=float)
+    if e.ndim != 2:
+        raise ValueError(f"estimate and fault must be (n_runs, n_steps), got {e.shape}")
+    valid = np.isfinite(e)
+    count = valid.sum(axis=1).astype(np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(valid, e, 0.0).sum(axis=1) / count
+        var = np.where(valid, (e - mean[:, None]) ** 2, 0.0).sum(axis=1) / count
+    empty = count == 0
+    return count, np.where(empty, np.nan, mean), np.where(empty, np.nan, var)
 
 
 def _as_output(x: np.ndarray):

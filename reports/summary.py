@@ -28,6 +28,16 @@ Counting rules
   window — Kaplan–Meier median and p95 delay with 95 % confidence intervals and an
   order-statistic tolerance bound on the p99 DTP (:mod:`reports.survival`); NaN for
   fault-free rows.
+* ``est_err_*``: the fault-estimation error f̂ − f of detectors that estimate the fault
+  ([CHEN] §6.2; result columns :data:`reports.metrics.ESTIMATE_COLUMNS`), pooled over every
+  post-onset sample of the group's scored runs that have one (``est_err_runs`` of them):
+  mean [mm] and population variance [mm²] of all those samples (the per-run means and
+  variances combined exactly: N = Σnᵢ, mean = Σnᵢmᵢ/N, var = Σnᵢ(vᵢ + mᵢ²)/N − mean²), and
+  the same normalised by the rod travel of the deflection range (``est_err_mean``,
+  ``est_err_var``: fraction of the range and its square). The samples of one run are
+  correlated in time, so the variance describes the spread of the error, not the
+  uncertainty of its mean. NaN without samples (and for summaries of results written
+  before these columns existed).
 """
 
 from __future__ import annotations
@@ -53,7 +63,9 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "md_count", "md_rate", "md_upper95",
     "late_count", "md_req_count", "md_req_rate", "md_req_upper95",
     "dtp_min", "dtp_mean", "dtp_max", "dtp_p95", "dtp_within",
-    "delay_mean_s", "worst_margin", *SURVIVAL_COLUMNS,
+    "delay_mean_s", "worst_margin",
+    "est_err_runs", "est_err_mean_mm", "est_err_var_mm2", "est_err_mean", "est_err_var",
+    *SURVIVAL_COLUMNS,
 )
 
 _REQUIRED = ("detector", "fault", "manoeuvre", "status", "false_alarm", "detected",
@@ -78,6 +90,7 @@ def _per_row(results: pd.DataFrame) -> pd.DataFrame:
     scored_faulty = ok & faulty
     detected = scored_faulty & _as_bool(results["detected"])
     dtp = _as_float(results["dtp"])
+    est = _estimate_sums(results, ok)
     return pd.DataFrame({
         "detector": results["detector"].astype(str).to_numpy(),
         "fault": results["fault"].astype(str).to_numpy(),
@@ -91,7 +104,30 @@ def _per_row(results: pd.DataFrame) -> pd.DataFrame:
         "dtp": np.where(detected, dtp, np.nan),
         "delay": np.where(detected, _as_float(results["delay_s"]), np.nan),
         "margin": np.where(ok, _as_float(results["margin"]), np.nan),
+        **est,
     })
+
+
+def _estimate_sums(results: pd.DataFrame, ok: np.ndarray) -> dict:
+    """Per-row sums of the fault-estimation error whose group sums give the pooled mean
+    and variance: n, Σe = n·m, Σe² = n·(v + m²), in mm and normalised by the range."""
+    n_rows = len(results)
+    if "est_err_n" not in results.columns:
+        zero = np.zeros(n_rows)
+        return {"e_runs": zero, "e_n": zero, "e_s1": zero, "e_s2": zero, "e_s1n": zero,
+                "e_s2n": zero}
+    n = np.nan_to_num(_as_float(results["est_err_n"]))
+    m, v = _as_float(results["est_err_mean_mm"]), _as_float(results["est_err_var_mm2"])
+    rng = _as_float(results["est_range_mm"])
+    has = ok & (n > 0) & np.isfinite(m) & np.isfinite(v)
+    n = np.where(has, n, 0.0)
+    s1 = np.where(has, n * m, 0.0)
+    s2 = np.where(has, n * (v + m * m), 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s1n = np.where(has, s1 / rng, 0.0)
+        s2n = np.where(has, s2 / (rng * rng), 0.0)
+    return {"e_runs": has.astype(float), "e_n": n, "e_s1": s1, "e_s2": s2, "e_s1n": s1n,
+            "e_s2n": s2n}
 
 
 def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -108,6 +144,9 @@ def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
         dtp_max=("dtp", "max"),
         delay_mean_s=("delay", "mean"),
         worst_margin=("margin", "max"),
+        est_err_runs=("e_runs", "sum"),
+        e_n=("e_n", "sum"), e_s1=("e_s1", "sum"), e_s2=("e_s2", "sum"),
+        e_s1n=("e_s1n", "sum"), e_s2n=("e_s2n", "sum"),
     )
     out["dtp_p95"] = grouped["dtp"].quantile(0.95)
     def as_key(key):
@@ -178,8 +217,15 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     out = pd.concat(parts, ignore_index=True)
 
     out["md_req_count"] = out["md_count"] + out["late_count"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n_e = np.where(out["e_n"] > 0, out["e_n"], np.nan)
+        for suffix, s1, s2 in (("_mm", "e_s1", "e_s2"), ("", "e_s1n", "e_s2n")):
+            mean = out[s1] / n_e
+            out[f"est_err_mean{suffix}"] = mean
+            out[f"est_err_var{'_mm2' if suffix else ''}"] = np.maximum(
+                out[s2] / n_e - mean * mean, 0.0)
     for c in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count",
-              "n_within"):
+              "n_within", "est_err_runs"):
         out[c] = out[c].astype("int64")
     n = out["n_runs"].to_numpy()
     has_runs = n > 0
@@ -202,6 +248,7 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
 def _dtype(column: str) -> str:
     if column in ("detector", "fault", "manoeuvre"):
         return "object"
-    if column in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count"):
+    if column in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count",
+                  "est_err_runs"):
         return "int64"
     return "float64"

@@ -13,7 +13,11 @@ fault                     mechanism (and the unit of ``magnitude``)
 ``hardover``              the servo-valve current is replaced by ±i_max; magnitude = ±1
 ``liquid_jam``            a bias f is added to the COM rod acquisition the loop closes on
                           ([CHEN] eq. 4, [VANEK] "bias on the rod sensor"); magnitude = f [mm]
-``solid_jam``             rod and surface seized at their position at t0 ([CHEN] eq. 4)
+``solid_jam``             rod and surface seized ([CHEN] eq. 4), in one of two variants
+                          chosen by ``magnitude``: NaN — *seized where it stands* at t0;
+                          finite — *offset*: at t0 the rod jumps by the signed ``magnitude``
+                          [mm] (its last uncommanded motion, [CHEN] §6.2: 1.8 % of the
+                          deflection range) and is seized there; the rod sensors read it
 ``disconnection``         rod–surface link broken at t0: the rod is unloaded, the surface
                           floats ([CHEN] eq. 5)
 ``ofc_liquid``            a sinusoid A·sin(2πf(t − t0)) added to the current; magnitude = A
@@ -50,6 +54,9 @@ class FaultDefaults:
                                       "a runaway order is clipped this far beyond the stops")
     jam_pressure_gain_mA: float = param("mA", "est. (servo-valve pressure gain)",
                                         "current that drives full ΔP across a blocked piston")
+    solid_jam_offset_pct_range: float = param(
+        "%", "[CHEN] §6.2 (1.8 % of the range)",
+        "offset of a solid jam (variant \"offset\") as a share of the deflection range")
 
 
 FAULT_DEFAULTS = FaultDefaults(
@@ -60,12 +67,38 @@ FAULT_DEFAULTS = FaultDefaults(
     ofc_freq_hz=1.0,
     runaway_margin_deg=5.0,
     jam_pressure_gain_mA=0.5,
+    solid_jam_offset_pct_range=1.8,
 )
+
+#: Variants of ``solid_jam`` (docs/physics.md §5): ``"seized"`` (run-table magnitude NaN) —
+#: rod and surface seized where they stand at onset; ``"offset"`` (finite magnitude [mm]) —
+#: seized at a position offset from the current one, [CHEN] eq. 4 and §6.2.
+SOLID_JAM_VARIANTS: tuple[str, ...] = ("seized", "offset")
 
 
 def liquid_jam_bias_mm(act: ActuatorParams, pct_of_range: float) -> float:
     """Rod-signal bias [mm] equivalent to *pct_of_range* % of the deflection range."""
     return float(act.r_mm * np.sin(np.radians(pct_of_range / 100.0 * act.deflection_range_deg)))
+
+
+def solid_jam_offset_mm(act: ActuatorParams, pct_of_range: float) -> float:
+    """Rod offset [mm] of an ``"offset"`` solid jam of *pct_of_range* % of the deflection
+    range: r·sin(p·Δδ), the rod travel of that share of the range from neutral (the same
+    conversion as :func:`liquid_jam_bias_mm`; [CHEN] §6.2 gives 1.8 %)."""
+    return liquid_jam_bias_mm(act, pct_of_range)
+
+
+def solid_jam_variant(magnitude: float) -> str:
+    """Variant of a ``solid_jam`` run of run-table *magnitude*: ``"seized"`` when NaN,
+    ``"offset"`` when finite (:data:`SOLID_JAM_VARIANTS`)."""
+    return "offset" if np.isfinite(magnitude) else "seized"
+
+
+def estimation_range_mm(act: ActuatorParams) -> float:
+    """Normaliser [mm] of a rod-measurement fault estimate: the rod travel r·Δδ of the whole
+    deflection range (Δδ in rad, small-angle), so that a fault of p % of the range reads
+    ≈ p/100 (the normalisation in which [CHEN] §6.2 states its jams, 1.3 % and 1.8 %)."""
+    return float(act.r_mm * np.radians(act.deflection_range_deg))
 
 
 def default_magnitude(fault: str, act: ActuatorParams) -> float:
@@ -95,6 +128,7 @@ class FaultArrays:
     k_osc: np.ndarray         # onset step of the COM replacement (ofc_solid) (n,)
     k_jam: np.ndarray         # onset step of a solid jam (n,)
     k_disc: np.ndarray        # onset step of a disconnection (n,)
+    jam_offset: np.ndarray    # jump of an "offset" solid jam at onset [mm] (n,); 0: seized
 
 
 def onset_steps(onset_s, ts: float) -> np.ndarray:
@@ -148,14 +182,29 @@ def fault_arrays(fault, onset_s, magnitude, freq_hz, order_deg, act: ActuatorPar
     def k_of(name):
         return np.where(fault == name, k0, NEVER)
 
+    jam_offset = np.where((fault == "solid_jam") & np.isfinite(mag), np.nan_to_num(mag), 0.0)
     return FaultArrays(
         u_loop=u_loop, com_add=com_add, cur_add=cur_add, cur_force=cur_force,
         com_osc=com_osc, k_osc=k_of("ofc_solid"), k_jam=k_of("solid_jam"),
-        k_disc=k_of("disconnection"),
+        k_disc=k_of("disconnection"), jam_offset=jam_offset,
     )
+
+
+def jam_onset_position(x, k: int, fa: FaultArrays, x_min, x_max):
+    """Rod positions [mm] at the start of step *k*, an ``"offset"`` solid jam applied: the
+    runs whose jam starts at *k* jump by their ``jam_offset`` (inside the stops), the others
+    are *x* unchanged (NumPy reference of the engines, docs/physics.md §5)."""
+    jump = (fa.k_jam == k) & (fa.jam_offset != 0.0)
+    if not jump.any():
+        return x
+    return np.where(jump, np.clip(x + fa.jam_offset, x_min, x_max), x)
 
 
 def required_magnitude(fault: str) -> bool:
     """Whether a fault type needs a finite magnitude in the run table."""
     return fault in ("runaway", "hardover", "liquid_jam", "ofc_liquid", "ofc_solid")
 
+
+
+#: Fault types whose additive effect on the rod measurement is defined ([CHEN] eq. 4).
+ROD_MEASUREMENT_FAULTS: tuple[str, ...] = ("liquid_jam", "solid_jam")

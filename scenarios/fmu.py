@@ -12,7 +12,9 @@ around the FMU. Plant-internal faults need the FMU's cooperation:
 
 * ``solid_jam``: set through the FMU's jam input when one is mapped; otherwise the engine
   emulates it by holding the FMU's outputs from the onset on (a seized rod is, for the rest
-  of the loop, a rod whose outputs stop moving).
+  of the loop, a rod whose outputs stop moving). Its ``"offset"`` variant (a finite
+  magnitude, docs/physics.md §5) is always emulated: the outputs jump by the offset at the
+  onset and stop there.
 * ``disconnection``: needs a mapped disconnection input (and the surface output), because
   the engine cannot unload a rod from outside; a campaign with disconnection runs is
   refused before it starts when the FMU has none.
@@ -544,7 +546,11 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
     for j in range(n):
         rod_limit = ROD_LIMIT_R * float(pl.r_mm[j])
         k_jam, k_disc, k_osc = int(fa.k_jam[j]), int(fa.k_disc[j]), int(fa.k_osc[j])
-        emulate_jam = k_jam < NEVER and not has_jam
+        jam_offset = float(fa.jam_offset[j])
+        # an "offset" solid jam (docs/physics.md §5) is always emulated: an FMU's jam input
+        # seizes the rod where it stands
+        emulate_jam = k_jam < NEVER and (not has_jam or jam_offset != 0.0)
+        x_lo, x_hi = float(pl.x_min[j]), float(pl.x_max[j])
         K, i_max, r_mm = float(pl.K[j]), float(pl.i_max[j]), float(pl.r_mm[j])
         scale1 = 1.0 + float(p.com_scale[j])
         bias = float(p.com_bias[j])
@@ -576,6 +582,9 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
                         d = math.radians(surf)
                     else:
                         d = math.asin(min(max(x / r_mm, -1.0), 1.0))
+                    if emulate_jam and k == k_jam and jam_offset != 0.0:
+                        x = min(max(x + jam_offset, x_lo), x_hi)    # the jump at onset
+                        d = math.asin(min(max(x / r_mm, -1.0), 1.0))
                 # COM acquisition (scenarios.simulate.acquire_com)
                 v = x * scale1 + bias + noise[k]
                 y = quant * round(v / quant)
@@ -594,7 +603,7 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
                 if cur_force is not None and math.isfinite(cur_force[k]):
                     i_app = cur_force[k]
                 xs[k], ds[k], icmd[k], iapp[k], ycom[k] = x, d, i_new, i_app, y
-                if has_jam and k == k_jam:
+                if has_jam and k == k_jam and not emulate_jam:
                     inst.set_flag("jam", True)
                 if has_disc and k == k_disc:
                     inst.set_flag("disconnect", True)

@@ -181,14 +181,16 @@ def _quantize(v, q):
 # ---- the closed-loop time loop (scenarios.simulate.integrate) --------------------------------
 @njit(nogil=True, cache=True, error_model="numpy")
 def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, com_osc, k_osc,
-                    cur_add, cur_force, k_jam, k_disc, flags, ts, d_min, d_max, rod_quant,
-                    xs, ds, icmd, iapp, ycom):
+                    cur_add, cur_force, k_jam, jam_offset, k_disc, flags, ts, d_min, d_max,
+                    rod_quant, xs, ds, icmd, iapp, ycom):
     """Closed loop of a block of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
     over the next period; RK4 plant step; faults of docs/physics.md §5 at step boundaries).
 
     *x0* (n,) is the initial rod order [mm]; the other inputs are (n, T) or (n,) as in
     :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
     says the block has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
+    *jam_offset* (n,) [mm] is the jump of an "offset" solid jam at its onset step (0: seized
+    where it stands; docs/physics.md §5).
     Writes the outputs *xs*, *ds* [rad], *icmd*, *iapp*, *ycom* (n, T) in place.
     """
     n, T = u_loop.shape
@@ -207,6 +209,11 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
         for r in range(n):
             p = plant[r]
             xr = x[r]
+            if any_jam and k == k_jam[r] and jam_offset[r] != 0.0:
+                # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+                xr = _clip(xr + jam_offset[r], p[P_XMIN], p[P_XMAX])
+                x[r] = xr
+                delta[r] = math.asin(xr / p[P_R])
             # COM acquisition (acquire_com)
             y = _quantize(xr * (1.0 + com_scale[r]) + com_bias[r] + com_noise[r, k], rod_quant)
             if has_com_add:
@@ -270,6 +277,7 @@ def integrate_compiled(p, sensors):
         np.ascontiguousarray(p.com_noise, dtype=float), arr2(fa.com_add), arr2(fa.com_osc),
         np.ascontiguousarray(fa.k_osc, dtype=np.int64), arr2(fa.cur_add), arr2(fa.cur_force),
         np.ascontiguousarray(fa.k_jam, dtype=np.int64),
+        np.ascontiguousarray(fa.jam_offset, dtype=float),
         np.ascontiguousarray(fa.k_disc, dtype=np.int64), flags, float(p.ts),
         float(np.radians(act.stop_min_deg)), float(np.radians(act.stop_max_deg)),
         float(sensors.rod_quant_mm), xs, ds, icmd, iapp, ycom)
@@ -325,7 +333,7 @@ def _warm_simulation() -> None:
     plant[:, P_XMIN] = -1.0
     outs = [np.zeros((n, T)) for _ in range(5)]
     integrate_block(z1, z2, plant, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
-                    np.zeros((0, 0)), np.zeros((0, 0)), zi, zi, np.zeros(6, dtype=np.bool_),
+                    np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
 

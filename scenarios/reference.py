@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .faults import NEVER
+from .faults import NEVER, jam_onset_position
 from .params import SENSORS, SensorParams
 from .servo import PlantArrays, float_rate_coef, rod_rate
 from .acquisition import Prepared, Trajectory, acquire_com, applied_current
@@ -64,7 +64,12 @@ def _integrate_block(p: Prepared, sensors: SensorParams, rtol: float, atol: floa
     delta = np.arcsin(x / pl.r_mm)
     i_prev = np.zeros(n)
     y_hold = np.zeros(n)
+    any_jam = bool((fa.k_jam < NEVER).any())
     for k in range(T):
+        if any_jam:   # an "offset" solid jam: the rod jumps at its onset (docs/physics.md §5)
+            x_prev, x = x, jam_onset_position(x, k, fa, pl.x_min, pl.x_max)
+            if x is not x_prev:
+                delta = np.where(x != x_prev, np.arcsin(x / pl.r_mm), delta)
         y, y_hold = acquire_com(x, k, p, sensors, y_hold)
         i_new = np.clip(pl.K * (fa.u_loop[:, k] - y), -pl.i_max, pl.i_max)
         i_app = applied_current(i_prev, k, p)

@@ -206,6 +206,10 @@ class Truth:
         at the aircraft plant level.
     surfaces_deg : dict[str, ndarray (n_runs, n_steps)] or None
         True deflection [deg] of every primary surface at the aircraft plant level.
+    rod_fault_mm : ndarray (n_runs, n_steps) or None
+        The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of the jam runs
+        from their onset on (:func:`scenarios.simulate.rod_measurement_fault`); NaN before
+        onset and for other runs; None when the batch holds no jam.
     """
 
     rod_mm: np.ndarray
@@ -217,6 +221,7 @@ class Truth:
     flight: dict = field(default_factory=dict)
     aircraft: dict | None = None
     surfaces_deg: dict | None = None
+    rod_fault_mm: np.ndarray | None = None
 
     def take(self, index) -> "Truth":
         return Truth(
@@ -229,6 +234,7 @@ class Truth:
             flight={k: np.asarray(v)[index] for k, v in self.flight.items()},
             aircraft=_map(self.aircraft, lambda v: v[index]),
             surfaces_deg=_map(self.surfaces_deg, lambda v: v[index]),
+            rod_fault_mm=None if self.rod_fault_mm is None else self.rod_fault_mm[index],
         )
 
 

@@ -35,17 +35,18 @@ from .acquisition import (Prepared, Trajectory, acquire, acquire_com, applied_cu
                           chamber_pressure, quantize, sensor_draws)
 from .aircraft.data import AIRCRAFT_SURFACES, surface_actuator
 from .catalog import FAULTS, SURFACES
-from .faults import FAULT_DEFAULTS, NEVER, default_magnitude, fault_arrays
-from .kernels import integrate_compiled, resolve_engine
+from .faults import (FAULT_DEFAULTS, NEVER, ROD_MEASUREMENT_FAULTS, default_magnitude,
+                     fault_arrays, jam_onset_position, onset_steps)
+from .kernels import integrate_compiled, resolve_engine, servo_model
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, manoeuvre_sets,
                    run_streams, validate_runs)
-from .servo import authority_limits, float_step, plant_arrays, rk4_step
+from .servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from .signals import SERVO_GROUPS, Signals, Truth
 
 __all__ = ["ActuatorPlant", "DEFAULT_POINT", "Prepared", "RUN_COLUMNS", "RunSpecError",
            "Trajectory", "acquire_com", "applied_current", "chamber_pressure", "integrate",
-           "prepare", "quantize", "simulate", "single_run"]
+           "prepare", "quantize", "rod_measurement_fault", "simulate", "single_run"]
 
 
 def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
@@ -120,6 +121,10 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
     any_disc = bool((fa.k_disc < NEVER).any())
     loaded = np.ones(n, dtype=bool)
     for k in range(T):
+        if any_jam:   # an "offset" solid jam: the rod jumps at its onset (docs/physics.md §5)
+            x_prev, x = x, jam_onset_position(x, k, fa, pl.x_min, pl.x_max)
+            if x is not x_prev:
+                delta = np.where(x != x_prev, np.arcsin(x / pl.r_mm), delta)
         y, y_hold = acquire_com(x, k, p, sensors, y_hold)
         i_new = np.clip(pl.K * (fa.u_loop[:, k] - y), -pl.i_max, pl.i_max)
         i_app = applied_current(i_prev, k, p)
@@ -139,6 +144,38 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
         i_prev = i_new
     return Trajectory(x=xs, delta=ds, i_cmd=icmd, i_app=iapp, y_com=ycom)
 
+
+
+def rod_measurement_fault(fault, onset_s, y_com, order_mm, plant, ts: float):
+    """The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of each jam run,
+    from its onset on: f = y − x, y the COM acquisition of the run, x the rod of the
+    *healthy, noise-free* servo-loop driven by the same order (true plant of the run,
+    :func:`scenarios.kernels.servo_model`) — [CHEN]'s "fault-free rod sensor output"
+    (docs/physics.md §5). For a liquid jam f starts at the bias and fades as the loop
+    re-centres the biased measurement on the order; for a solid jam f = y_jam − x follows
+    the order away from the stuck measurement.
+
+    fault, onset_s (n,); y_com, order_mm (n, T) [mm]; *plant* the true
+    :class:`scenarios.servo.PlantArrays` of the batch. Returns (n, T): NaN before onset
+    and for runs of other fault types; None when the batch holds no jam (nothing to
+    compute). A fault estimate f̂ built from y with an identity fault-to-estimate gain
+    then errs by f̂ − f = (y − x̂) − (y − x) = x − x̂ after onset: the estimator's
+    model error alone, sensor noise cancelling.
+    """
+    fault = np.asarray(fault).astype(str)
+    jam = np.flatnonzero(np.isin(fault, ROD_MEASUREMENT_FAULTS))
+    if jam.size == 0:
+        return None
+    y_com = np.asarray(y_com, dtype=float)
+    n, T = y_com.shape
+    sub = PlantArrays(**{k: np.asarray(v)[jam] for k, v in vars(plant).items()})
+    order = np.asarray(order_mm, dtype=float)[jam]
+    healthy = servo_model(order, np.clip(order[:, 0], sub.x_min, sub.x_max), sub, ts)
+    k0 = onset_steps(np.asarray(onset_s, dtype=float)[jam], ts)
+    after = np.arange(T)[None, :] >= k0[:, None]
+    out = np.full((n, T), np.nan)
+    out[jam] = np.where(after, y_com[jam] - healthy, np.nan)
+    return out
 
 
 #: Closed-loop integrator of a prepared batch: (Prepared, SensorParams) → Trajectory.
@@ -170,6 +207,8 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     else:
         traj = integrate(p, sensors)
     act = p.act
+    rod_fault = rod_measurement_fault(runs["fault"].to_numpy(), runs["onset_s"].to_numpy(float),
+                                      traj.y_com, p.u, p.plant, ts)
     p = replace(p, order_deg=None, com_noise=None)   # read by the time loop only: free them
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor)
     signals = Signals(
@@ -181,7 +220,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
         fault=runs["fault"].astype(str).to_numpy(),
         onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
-        flight=p.flight_true,
+        flight=p.flight_true, rod_fault_mm=rod_fault,
     )
     return signals, truth
 

@@ -307,3 +307,30 @@ def test_every_plant_kind_is_built_by_the_registry_and_follows_the_protocol():
         assert ("aircraft" in plant.provides(surface, pressure_sensor=True)) == (kind == "aircraft")
     with pytest.raises(ValueError, match="did you mean 'aircraft'"):
         get_plant("aircraf")
+
+
+def test_offset_solid_jam_at_the_aircraft_level():
+    # docs/physics.md §5, [CHEN] eq. 4: the monitored rod jumps by the offset at onset and
+    # stays; the COM acquisition reads it; the aircraft and the other surfaces see the jump
+    runs = pd.concat([_rows("left_inboard_aileron", "none", "cruise", duration_s=20.0),
+                      _rows("left_inboard_aileron", "solid_jam", "cruise", duration_s=20.0,
+                            onset_s=8.0)], ignore_index=True)
+    runs.loc[1, "magnitude"] = -1.1
+    sig, truth = simulate_aircraft(runs)
+    k0 = 800
+    x_free, x = truth.rod_mm[0], truth.rod_mm[1]
+    np.testing.assert_array_equal(x[:k0], x_free[:k0])                 # same run before
+    assert x[k0] == pytest.approx(x_free[k0] - 1.1, abs=1e-12)         # the jump, in mm
+    assert (x[k0:] == x[k0]).all()                                     # then seized
+    # the COM sensor reads the stuck rod: constant but for its noise (σ 0.03 mm, 0.01 mm
+    # quantum), within 3 × its 0.1 mm bias spread and its 0.5 % scale error
+    y = sig.rod_com[1, k0:]
+    assert y.std() < 2 * 0.03 + 0.01
+    assert abs(y.mean() - x[k0]) < 3 * 0.1 + 0.005 * abs(x[k0]) + 0.01
+    f = truth.rod_fault_mm[1]
+    assert np.isnan(f[:k0]).all() and f[k0] == pytest.approx(-1.1, abs=0.1)
+    assert truth.rod_fault_mm[0] is not None and np.isnan(truth.rod_fault_mm[0]).all()
+    # the roll rate departs from the fault-free run after onset only
+    p_free, p_jam = truth.aircraft["p"][0], truth.aircraft["p"][1]
+    np.testing.assert_array_equal(p_jam[:k0], p_free[:k0])
+    assert np.abs(p_jam[k0 + 10:] - p_free[k0 + 10:]).max() > 0.0

@@ -317,3 +317,49 @@ def test_every_parquet_file_says_how_it_was_made(tmp_path):
         assert meta["config"]["campaign"]["name"] == "tiny"
         assert meta["rows"] == pq.read_metadata(path).num_rows
         assert meta["engine_version"]
+
+
+def test_evaluate_stores_the_estimation_error_of_detectors_that_estimate_the_fault():
+    # a detector whose estimate is always 0 errs by −f after onset: the stored mean is
+    # minus the mean of the truth's rod-measurement fault over that window ([CHEN] §6.2),
+    # the sample count the post-onset steps; fault-free runs and detectors without an
+    # estimate store no sample
+    import pandas as pd
+
+    from detectors.base import Capabilities, Detection, Detector
+    from scenarios.faults import estimation_range_mm
+    from scenarios.params import ELEVATOR
+    from scenarios.simulate import simulate, single_run
+
+    class ZeroEstimate(Detector):
+        capabilities = Capabilities(needs_fit=False)
+
+        def __init__(self, with_estimate=True):
+            self.with_estimate = with_estimate
+
+        def _detect(self, signals):
+            shape = signals.command.shape
+            return Detection(alarm=np.zeros(shape, bool), residual=np.zeros(shape),
+                             estimate=np.zeros(shape) if self.with_estimate else None)
+
+    runs = pd.concat([single_run("elevator", "cruise", f, seed=i, onset_s=5.0,
+                                 duration_s=20.0, **extra)
+                      for i, (f, extra) in enumerate([("none", {}), ("liquid_jam", {}),
+                                                      ("solid_jam", {"magnitude": -1.0})])],
+                     ignore_index=True)
+    runs["stream"] = [0, 1, 2]
+    runs["run_id"] = ["ff", "liq", "sol"]
+    settings = ChunkSettings(ts=0.01, pressure_sensor=False,
+                             required_time_s={"liquid_jam": 2.0, "solid_jam": 2.0},
+                             window_s=None)
+    out = evaluate(runs, {"z": ZeroEstimate(), "n": ZeroEstimate(False)}, settings)
+    z = out[out["detector"] == "z"].set_index("run_id")
+    _, truth = simulate(runs)
+    f = truth.rod_fault_mm
+    assert list(z["est_err_n"]) == [0, 1500, 1500]
+    for j, rid in ((1, "liq"), (2, "sol")):
+        assert z.loc[rid, "est_err_mean_mm"] == pytest.approx(-np.nanmean(f[j]), rel=1e-12)
+        assert z.loc[rid, "est_err_var_mm2"] == pytest.approx(np.nanvar(f[j]), rel=1e-9)
+        assert z.loc[rid, "est_range_mm"] == estimation_range_mm(ELEVATOR)
+    assert np.isnan(z.loc["ff", "est_err_mean_mm"]) and np.isnan(z.loc["ff", "est_range_mm"])
+    assert (out.loc[out["detector"] == "n", "est_err_n"] == 0).all()

@@ -172,6 +172,31 @@ def test_liquid_and_solid_jams_are_detected_and_fault_free_runs_are_quiet(fitted
     assert not out["solid"].alarm[truth.fault == "liquid_jam"].any()
 
 
+def test_both_variants_carry_the_estimate_and_it_tracks_an_offset_jam(fitted):
+    # [CHEN] eq. 4 and §6.2: an "offset" solid jam of 1.8 % of the range (docs/physics.md
+    # §5); f̂ − f = x − x̂ is the model error alone (scenarios.simulate.rod_measurement_fault),
+    # far below the 1.3 mm offset, and the liquid statistic sees the offset at once
+    from reports.metrics import estimation_errors
+    from scenarios.faults import solid_jam_offset_mm
+
+    off = solid_jam_offset_mm(ELEVATOR, 1.8)
+    runs = _rows([("cruise", "solid_jam", 10.0, 0, 0.0), ("cruise", "solid_jam", 12.0, 2, 0.0)],
+                 seed=9)
+    runs["magnitude"] = [off, -off]
+    sig, truth = simulate(runs)
+    out = fitted.detect(sig)
+    assert out["liquid"].estimate is out["solid"].estimate
+    est = out["solid"].estimate
+    assert est.shape == sig.command.shape
+    k0 = np.rint(truth.onset_s / sig.ts).astype(int)
+    for j, sign in ((0, 1.0), (1, -1.0)):
+        assert est[j, k0[j]] == pytest.approx(sign * off, abs=0.2)   # at once, signed
+    n, mean, var = estimation_errors(est, truth.rod_fault_mm)
+    assert list(n) == [int(DURATION_S / sig.ts) - k for k in k0]
+    assert (np.abs(mean) < 0.1 * off).all() and (np.sqrt(var) < 0.1 * off).all()
+    assert (out["liquid"].alarm[np.arange(2), k0 + 1]).all()
+
+
 def test_bad_parameters_are_named():
     for kwargs, match in (({"sensor": "surface"}, "sensor"), ({"safety": 1.0}, "safety"),
                           ({"liquid_confirm_s": -1.0}, "liquid_confirm_s"),

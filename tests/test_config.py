@@ -13,6 +13,7 @@ import sys
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from campaign import config as cfg
@@ -30,6 +31,7 @@ from campaign.config.keys import leaf_fields
 from campaign.config.rules import check_rules, derive_group_names, normalise
 from campaign.config.schema import check_tables, iter_tables
 from detectors import registry
+from detectors.tail import MIN_TAIL_FIT_RUNS
 from scenarios.catalog import FAULTS, MANOEUVRES, REQUIRED_DETECTION_TIME_S
 
 REPO = Path(__file__).resolve().parents[1]
@@ -167,7 +169,8 @@ def test_addsafe_mc_preset_counts():
     assert per_fault == {"none": 1200, "liquid_jam": 333, "solid_jam": 333,
                          "disconnection": 334, "runaway": 200}
     assert all(g.manoeuvres == ("cruise",) for g in c.groups if g.fault != "none")
-    assert c.learning.runs_per_manoeuvre == 20
+    # 50 per manoeuvre: the fewest for a per-manoeuvre tail fit (docs/thresholds.md)
+    assert c.learning.runs_per_manoeuvre == 50 >= MIN_TAIL_FIT_RUNS
 
 
 def test_addsafe_grid_preset():
@@ -641,3 +644,85 @@ def test_init_text_lists_every_builtin_detector_parameter_from_its_declaration()
             assert f"#     {row['name']}" in block, (name, row["name"])
     assert "(built-in: position-monitor, comb-interval, chen-local, chen-global, " \
            "vanek-geometric;" in " ".join(line.lstrip("# ") for line in text.splitlines())
+
+
+# ---------------------------------------------------------------------------------------
+# solid_jam variants (docs/physics.md §5)
+# ---------------------------------------------------------------------------------------
+SOLID = BASE + """
+[[group]]
+fault = "solid_jam"
+manoeuvres = ["cruise"]
+count = 4
+"""
+
+
+def test_solid_jam_variant_offset_samples_signed_offsets_and_names_the_group(tmp_path):
+    from campaign.design import build_plan
+    from scenarios.faults import solid_jam_offset_mm
+    from scenarios.params import AILERON
+
+    aileron = SOLID.replace('name = "t"', 'name = "t"\nsurface = "aileron"')
+    seized = load_config(write(tmp_path, aileron, "a.toml"))
+    offset = load_config(write(tmp_path, aileron.replace(
+        'fault = "solid_jam"', 'fault = "solid_jam"\nvariant = "offset"'), "b.toml"))
+    assert seized.groups[1].name == "solid_jam@cruise" and seized.groups[1].variant is None
+    assert offset.groups[1].name == "solid_jam[offset]@cruise"
+    p_seized, p_offset = build_plan(seized), build_plan(offset)
+    jam_s = p_seized[p_seized["fault"] == "solid_jam"]
+    jam_o = p_offset[p_offset["fault"] == "solid_jam"]
+    assert jam_s["magnitude"].isna().all()                   # seized: no magnitude
+    mm = solid_jam_offset_mm(AILERON, 1.8)                   # [CHEN] §6.2 default
+    np.testing.assert_allclose(np.abs(jam_o["magnitude"]), mm, rtol=1e-12)
+    assert set(np.sign(jam_o["magnitude"])) == {-1.0, 1.0}   # sign drawn per run
+    # the variants never share run ids (resume cannot mix them)
+    assert not set(jam_s["run_id"]) & set(jam_o["run_id"])
+    # the fault-free group is untouched by the variant of another group
+    free = ["run_id", "alt_ft", "vcas_kt", "seed", "stream"]
+    assert p_seized[p_seized["fault"] == "none"][free].equals(
+        p_offset[p_offset["fault"] == "none"][free])
+
+
+def test_solid_jam_offset_fixed_magnitude_in_percent_and_sign(tmp_path):
+    from campaign.design import build_plan
+    from scenarios.faults import solid_jam_offset_mm
+    from scenarios.params import AILERON
+
+    text = SOLID.replace('name = "t"', 'name = "t"\nsurface = "aileron"').replace(
+        'fault = "solid_jam"',
+        'fault = "solid_jam"\nvariant = "offset"\nmagnitude = 3.0\nsign = "negative"')
+    plan = build_plan(load_config(write(tmp_path, text)))
+    jam = plan[plan["fault"] == "solid_jam"]
+    np.testing.assert_allclose(jam["magnitude"], -solid_jam_offset_mm(AILERON, 3.0), rtol=1e-12)
+
+
+@pytest.mark.parametrize("extra, fault, message", [
+    ('magnitude = 1.8', "solid_jam",
+     'group[1].magnitude: fault \'solid_jam\' has no magnitude with variant = "seized" (the '
+     'default); fix: remove it, or set variant = "offset"'),
+    ('variant = "seized"\nsign = "negative"', "solid_jam",
+     'group[1].sign: fault \'solid_jam\' has no direction with variant = "seized"; fix: '
+     'remove it'),
+    ('variant = "offset"', "liquid_jam",
+     "group[1].variant: fault 'liquid_jam' has no variants; allowed only with: solid_jam"),
+    ('variant = "stuck"', "solid_jam", "group[1].variant: unknown"),
+    ('variant = "offset"\nmagnitude = 80.0', "solid_jam", "group[1].magnitude: 80 is out of range"),
+])
+def test_solid_jam_variant_errors(tmp_path, extra, fault, message):
+    text = SOLID.replace('fault = "solid_jam"', f'fault = "{fault}"\n{extra}')
+    errors = errors_of(tmp_path, text)
+    assert any(message in e for e in errors), errors
+
+
+def test_variant_on_a_fault_free_group_is_refused(tmp_path):
+    errors = errors_of(tmp_path, BASE.replace('fault = "none"',
+                                              'fault = "none"\nvariant = "offset"'))
+    assert any("group[0].variant: a fault-free group" in e for e in errors), errors
+
+
+def test_chen_table_presets_use_the_offset_variant():
+    for name in ("chen-mc", "chen-sweep"):
+        groups = {g.fault: g for g in load_config(name).groups}
+        assert groups["solid_jam"].variant == "offset"
+    for name in ("chen-local", "addsafe-mc", "addsafe-grid", "smoke"):
+        assert all(g.variant is None for g in load_config(name).groups)

@@ -14,7 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.faults import NEVER, fault_arrays, liquid_jam_bias_mm, onset_steps
+from scenarios.faults import (NEVER, fault_arrays, liquid_jam_bias_mm, onset_steps,
+                              solid_jam_offset_mm, solid_jam_variant)
 from scenarios.params import AILERON, ELEVATOR, SensorParams
 from scenarios.simulate import prepare, simulate, single_run
 
@@ -223,6 +224,76 @@ def test_solid_jam_seizes_the_rod_where_it_is_at_onset(engine):
     assert x[k0 + 1] != free.rod_mm[0, k0 + 1]
     # the order runs away from the frozen rod: the current saturates at +i_max
     assert sig.current[0, -1] == pytest.approx(10.0)
+
+
+def test_solid_jam_offset_is_the_stated_share_of_the_range_and_variant_follows_magnitude():
+    # [CHEN] §6.2: 1.8 % of the aileron's 50° range = 0.9°, on the 70 mm lever: r·sin(0.9°)
+    assert solid_jam_offset_mm(AILERON, 1.8) == pytest.approx(70.0 * math.sin(math.radians(0.9)),
+                                                              rel=1e-12)
+    assert solid_jam_offset_mm(AILERON, 1.8) == pytest.approx(1.0995, abs=1e-4)
+    assert solid_jam_variant(np.nan) == "seized" and solid_jam_variant(-1.1) == "offset"
+    fa = fault_arrays(np.array(["solid_jam", "solid_jam", "liquid_jam"]),
+                      np.array([1.0, 1.0, 1.0]), np.array([np.nan, -1.1, 0.8]),
+                      np.full(3, np.nan), np.zeros((3, 200)), AILERON, TS, np.full(3, 10.0))
+    # seized: no offset; offset: the signed magnitude [mm]; another fault: none
+    assert list(fa.jam_offset) == [0.0, -1.1, 0.0]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_solid_jam_offset_jumps_at_onset_then_seizes_and_the_sensors_read_it(engine, sign):
+    T, k0 = 300, 100
+    off = sign * solid_jam_offset_mm(AILERON, 1.8)           # [mm], signed
+    order = 2.0 + 4.0 * np.arange(T) * TS                      # the rod is moving at onset
+    _, free = _run("none", engine, order_deg=order, surface="aileron")
+    sig, truth = _run("solid_jam", engine, order_deg=order, magnitude=off, surface="aileron")
+    x, xf = truth.rod_mm[0], free.rod_mm[0]
+    # one step before onset: the fault-free run, bit for bit
+    assert np.array_equal(x[:k0], xf[:k0])
+    # at onset: the fault-free position plus the offset, in mm on the rod, with its sign
+    assert x[k0] == pytest.approx(xf[k0] + off, abs=1e-12)
+    assert np.sign(x[k0] - xf[k0]) == sign
+    # the surface is at the jammed rod's angle δ = asin(x/r) (docs/physics.md §1)
+    assert truth.surface_deg[0, k0] == pytest.approx(
+        math.degrees(math.asin(x[k0] / AILERON.r_mm)), abs=1e-12)
+    # after: seized there, rod and surface
+    assert (x[k0:] == x[k0]).all()
+    assert (truth.surface_deg[0, k0:] == truth.surface_deg[0, k0]).all()
+    # the rod sensors read the jammed rod from onset on ([CHEN] eq. 4: y = x + f_sol(x))
+    np.testing.assert_allclose(sig.rod_com[0, k0:], x[k0], rtol=0, atol=ACQ_TOL_MM)
+    np.testing.assert_allclose(sig.rod_mon[0, k0:], x[k0], rtol=0, atol=ACQ_TOL_MM)
+    assert sig.rod_com[0, k0 - 1] == pytest.approx(xf[k0 - 1], abs=ACQ_TOL_MM)
+    # the truth's additive fault of eq. 4: NaN before onset, y − (healthy rod) from onset:
+    # the offset at onset (the healthy loop is the fault-free one on exact sensors)
+    f = truth.rod_fault_mm[0]
+    assert np.isnan(f[:k0]).all()
+    assert f[k0] == pytest.approx(off, abs=1e-6)
+    np.testing.assert_allclose(f[k0:], x[k0] - xf[k0:], rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_solid_jam_offset_at_time_zero_and_at_the_stop(engine):
+    # onset at 0 s: the jump applies to the trimmed start; an offset beyond the stop is
+    # clipped at the stop
+    T = 300
+    order = np.full(T, AILERON.stop_max_deg - 0.2)
+    _, truth = _run("solid_jam", engine, order_deg=order, onset_s=0.0, magnitude=5.0,
+                    surface="aileron")
+    x = truth.rod_mm[0]
+    assert (x == x[0]).all()
+    assert x[0] == pytest.approx(rod_mm(AILERON, AILERON.stop_max_deg), abs=1e-9)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_liquid_jam_fault_signal_starts_at_the_bias(engine):
+    # [CHEN] eq. 4, y = x + f_liq: at onset f is the bias; the loop then re-centres the
+    # biased measurement on the order, and f (against the healthy loop) fades
+    T, k0, bias = 400, 100, 0.8
+    sig, truth = _run("liquid_jam", engine, order_deg=np.full(T, 1.0), magnitude=bias)
+    f = truth.rod_fault_mm[0]
+    assert np.isnan(f[:k0]).all()
+    assert f[k0] == pytest.approx(bias, abs=1e-6)
+    assert abs(f[-1]) < 0.1 * bias
 
 
 @pytest.mark.parametrize("engine", ENGINES)

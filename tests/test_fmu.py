@@ -397,3 +397,19 @@ def test_campaign_file_plant_parameters(servo_fmu, tmp_path):
     # an output is no parameter
     with pytest.raises(FmuError, match=r"'x_mm' .* is a\(n\) output .*only real parameters"):
         inspect_fmu(FmuPlant.of(servo_fmu, parameters={"x_mm": 1.0}))
+
+
+def test_offset_jam_is_emulated_with_or_without_a_jam_input(servo_fmu):
+    # docs/physics.md §5: the "offset" solid jam is always emulated by the engine (an FMU's
+    # jam input seizes the rod where it stands); it matches the built-in plant
+    runs = _runs("elevator")
+    runs = runs[runs["fault"] == "solid_jam"].copy()
+    runs["magnitude"] = -1.7
+    p = prepare(runs)
+    builtin = integrate(p, SENSORS)
+    for variables in ({}, {"jam": ""}):
+        fmu = simulate(runs, plant=FmuPlant.of(servo_fmu, variables or None))[1]
+        assert np.abs(fmu.rod_mm - builtin.x).max() <= TOL_MM
+    k0 = int(p.faults.k_jam[0])
+    assert builtin.x[0, k0] - builtin.x[0, k0 - 1] < -1.5            # the jump
+    assert np.ptp(builtin.x[0, k0:]) == 0.0                          # then seized

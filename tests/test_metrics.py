@@ -252,3 +252,24 @@ def test_clopper_pearson_edges_and_vectorised():
 def test_bounds_reject_bad_input(k, n, conf):
     with pytest.raises(ValueError):
         clopper_pearson(k, n, confidence=conf)
+
+
+# ---- fault-estimation error ([CHEN] §6.2) ----------------------------------------------------
+def test_estimation_errors_over_the_post_onset_window_by_hand():
+    from reports.metrics import estimation_errors
+
+    nan = np.nan
+    f = np.array([[nan, nan, 1.0, 1.0, 1.0],       # fault from step 2
+                  [nan, nan, nan, nan, nan],       # no defined fault: no sample
+                  [0.5, 0.5, 0.5, 0.5, 0.5]])
+    est = np.array([[9.0, 9.0, 1.5, 0.5, 1.3],     # before onset ignored
+                    [1.0, 2.0, 3.0, 4.0, 5.0],
+                    [0.5, 0.5, 0.5, 0.5, nan]])    # a missing estimate sample is skipped
+    n, mean, var = estimation_errors(est, f)
+    assert list(n) == [3, 0, 4] and n.dtype == np.int64
+    e = np.array([0.5, -0.5, 0.3])
+    assert mean[0] == pytest.approx(e.mean()) and var[0] == pytest.approx(e.var())
+    assert np.isnan(mean[1]) and np.isnan(var[1])
+    assert mean[2] == 0.0 and var[2] == 0.0
+    with pytest.raises(ValueError, match="n_runs, n_steps"):
+        estimation_errors(np.zeros(3), np.zeros(3))

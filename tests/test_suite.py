@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import xml.etree.ElementTree as ET
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -236,3 +237,64 @@ def test_a_half_finished_suite_resumes_with_its_unfinished_member(two, tmp_path,
     pd.testing.assert_frame_equal(again, ref[again.columns], check_exact=True)
     doc = json.loads((out / "suite.json").read_text())
     assert [m["complete"] for m in doc["members"]] == [True, True]
+
+
+def test_chen_tables_members_name_their_published_tables():
+    suite = load_suite("chen-tables")
+    assert [m.reference for m in suite.members] == ["chen-table-3", "chen-table-4"]
+
+
+def test_an_unknown_reference_table_is_refused(tmp_path):
+    _campaign(tmp_path, "first")
+    path = _suite(tmp_path, [("first.toml", "A")])
+    path.write_text(path.read_text() + 'reference = "chen-table-5"\n')
+    with pytest.raises(ConfigError) as info:
+        load_suite(path)
+    assert "member[0].reference: unknown table 'chen-table-5'" in str(info.value)
+    assert "allowed: chen-table-3, chen-table-4" in str(info.value)
+
+
+def test_a_member_with_a_reference_prints_the_published_table_in_run_and_report(tmp_path,
+                                                                                capsys):
+    _campaign(tmp_path, "first")
+    path = _suite(tmp_path, [("first.toml", "A")])
+    path.write_text(path.read_text() + 'reference = "chen-table-4"\n')
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "Beside [CHEN] Table 4" in printed
+    # this campaign has no jam: the estimator rows say so, [CHEN]'s rows are still printed
+    assert "ours: chen-local[solid]" in printed and "not in this campaign" in printed
+    assert "0.001/0.001/0.001" in printed
+    assert json.loads((out / "suite.json").read_text())["members"][0]["reference"] == \
+        "chen-table-4"
+    assert main(["report", str(out), "--no-html"]) == 0
+    assert "Beside [CHEN] Table 4" in capsys.readouterr().out
+
+
+def test_paper_table_puts_our_estimator_row_beside_the_papers():
+    from reports.table import format_paper_table
+
+    def srow(detector, fault, **kw):
+        base = {"detector": detector, "fault": fault, "manoeuvre": "all", "n_runs": 10,
+                "fa_rate": 0.0, "md_rate": 0.0, "md_req_rate": 0.0, "dtp_min": np.nan,
+                "dtp_mean": np.nan, "dtp_max": np.nan, "est_err_mean": np.nan,
+                "est_err_var": np.nan}
+        return {**base, **kw}
+
+    summary = pd.DataFrame([
+        srow("chen-local[solid]", "none", n_runs=1200),
+        srow("chen-local[solid]", "solid_jam", md_req_rate=0.1, dtp_min=0.5, dtp_mean=0.7,
+             dtp_max=2.9, est_err_mean=0.00123, est_err_var=4.5e-8),
+        srow("chen-local[liquid]", "solid_jam", dtp_min=0.005),     # not the solid row
+    ])
+    text = format_paper_table(summary, "chen-table-4")
+    lines = text.splitlines()
+    ours = next(i for i, line in enumerate(lines) if "ours: chen-local[solid]" in line)
+    assert "0.5/0.7/2.9" in lines[ours] and "10.00" in lines[ours]
+    assert "0.00123" in lines[ours] and "4.5e-08" in lines[ours]
+    assert "(n=1200)" in lines[ours]
+    # the next line is [CHEN]'s: DTP 0.001 and the §6.2 error statistics
+    assert "[CHEN] Table 4" in lines[ours + 1] and "0.001/0.001/0.001" in lines[ours + 1]
+    assert "0.0014" in lines[ours + 1] and "2.7972e-08" in lines[ours + 1]
+    assert "normalised by the rod travel of the deflection range" in text

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from reports.gate import Check, GateInputError, GateResult, evaluate_gate, write_junit
-from reports.metrics import RESULT_COLUMNS, upper_bound
+from reports.metrics import ESTIMATE_COLUMNS, RESULT_COLUMNS, upper_bound
 from reports.summary import SUMMARY_COLUMNS, summarize
 from reports.table import format_table
 
@@ -64,7 +64,12 @@ def campaign(*extra):
     parts.append(faulty("runaway", "cruise", [0.1, 0.2, 0.3, 0.4]))
     parts.append(faulty("runaway", "nose_up", [0.2, 0.6]))
     parts.append(faulty("solid_jam", "cruise", [0.05, 0.05, 0.05]))
-    return pd.concat(parts + list(extra), ignore_index=True)
+    out = pd.concat(parts + list(extra), ignore_index=True)
+    # no detector of these rows estimates the fault: no estimation-error samples
+    for column in ESTIMATE_COLUMNS:
+        if column not in out.columns:
+            out[column] = 0 if column == "est_err_n" else np.nan
+    return out
 
 
 def row(summary, fault, manoeuvre, detector=DET):
@@ -374,3 +379,31 @@ def test_format_table_numbers():
     block = lines[start:start + 2 + 3]  # header, rule, runaway, solid_jam, all faults
     assert len({len(line) for line in block}) == 1
     assert format_table(summarize(campaign().iloc[:0])) == "no results"
+
+
+def test_estimation_error_is_pooled_over_samples_and_normalised_by_the_range():
+    # two runs of one fault: pooled mean/variance of all samples equal the per-run values
+    # combined (N = Σn, mean = Σn·m/N, var = Σn(v + m²)/N − mean²), by hand on raw samples
+    a, b = np.array([0.1, 0.3, 0.2]), np.array([-0.2, 0.0])
+    rows = pd.DataFrame({
+        "run_id": ["r1", "r2", "r3"], "detector": "d", "fault": ["solid_jam", "solid_jam", "none"],
+        "manoeuvre": "cruise", "status": "ok", "error": "", "false_alarm": False,
+        "pre_onset_alarm": False, "detected": [True, True, False], "first_alarm_s": np.nan,
+        "delay_s": [0.1, 0.1, np.nan], "dtp": [0.05, 0.05, np.nan], "margin": 0.5,
+        "est_err_n": [3, 2, 0], "est_err_mean_mm": [a.mean(), b.mean(), np.nan],
+        "est_err_var_mm2": [a.var(), b.var(), np.nan], "est_range_mm": [60.0, 60.0, np.nan]})
+    s = summarize(rows).set_index(["detector", "fault", "manoeuvre"])
+    row = s.loc[("d", "solid_jam", "all")]
+    pooled = np.concatenate([a, b])
+    assert row["est_err_runs"] == 2
+    assert row["est_err_mean_mm"] == pytest.approx(pooled.mean(), abs=1e-15)
+    assert row["est_err_var_mm2"] == pytest.approx(pooled.var(), rel=1e-12)
+    assert row["est_err_mean"] == pytest.approx(pooled.mean() / 60.0, abs=1e-15)
+    assert row["est_err_var"] == pytest.approx(pooled.var() / 3600.0, rel=1e-12)
+    assert s.loc[("d", "none", "all"), "est_err_runs"] == 0
+    assert np.isnan(s.loc[("d", "none", "all"), "est_err_mean_mm"])
+    # results written before the columns existed: the statistics are NaN, the rest unchanged
+    old = summarize(rows.drop(columns=list(ESTIMATE_COLUMNS)))
+    assert old["est_err_mean"].isna().all()
+    cols = [c for c in SUMMARY_COLUMNS if not c.startswith("est_err")]
+    pd.testing.assert_frame_equal(old[cols], summarize(rows)[cols])

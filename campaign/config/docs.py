@@ -21,7 +21,8 @@ from .keys import KIND_NAMES, Key, key_spec, leaf_fields
 from .load import list_presets, load_config
 from .rules import MOVED_KEYS
 from .schema import iter_tables
-from .sections import ARRAY_EXAMPLES, FAULT_MAGNITUDE_KEY, FaultsSection
+from .sections import (ARRAY_EXAMPLES, FAULT_MAGNITUDE_KEY, FAULT_VARIANTS, MAGNITUDE_VARIANT,
+                       FaultsSection)
 from .text import example_value, range_text, shown_default, toml_value
 
 __all__ = ["init_text", "schema_markdown", "main"]
@@ -210,9 +211,13 @@ def schema_markdown() -> str:
     ]
     for fault, (sub, k) in FAULT_MAGNITUDE_KEY.items():
         spec = key_spec(FaultsSection, sub, k)
-        out.append(f"| `{fault}` | `faults.{sub}.{k}` [{spec.unit}] |")
-    others = [f for f in FAULT_TYPES if f not in FAULT_MAGNITUDE_KEY]
-    out += ["", "Faults without a magnitude: " + ", ".join(f"`{f}`" for f in others) + ".", ""]
+        only = (f" (variant = \"{MAGNITUDE_VARIANT[fault]}\" only)"
+                if fault in MAGNITUDE_VARIANT else "")
+        out.append(f"| `{fault}`{only} | `faults.{sub}.{k}` [{spec.unit}] |")
+    others = [f"`{f}`" for f in FAULT_TYPES if f not in FAULT_MAGNITUDE_KEY]
+    others += [f"`{f}` with variant = \"{v}\"" for f, variants in FAULT_VARIANTS.items()
+               for v in variants if v != MAGNITUDE_VARIANT.get(f)]
+    out += ["", "Faults without a magnitude: " + ", ".join(others) + ".", ""]
     out += ["## Keys that moved", "",
             "Campaign files written with an earlier spelling keep working: the old key is "
             "read as the new one, with a one-line note naming it. Writing both, with "

@@ -30,6 +30,8 @@ from .convert import is_ok, out_of_range
 from .keys import key_spec, leaf_fields, thaw
 from .sections import (
     FAULT_MAGNITUDE_KEY,
+    FAULT_VARIANTS,
+    MAGNITUDE_VARIANT,
     OFC_FAULTS,
     SIGNED_FAULTS,
     CampaignSection,
@@ -115,7 +117,7 @@ def derive_group_names(values: Mapping[str, Any]) -> dict[str, Any]:
     """*values* with a name for every ``[[group]]`` that has none (a new dict).
 
     The name is ``fault@manoeuvres`` (``all`` for every manoeuvre, else the manoeuvres
-    joined by ``+``), with ``#2``, ``#3``, … appended when it is already taken by a
+    joined by ``+``; ``fault[variant]@…`` when the group sets a ``variant``), with ``#2``, ``#3``, … appended when it is already taken by a
     name given in the file or derived before. Groups whose fault or manoeuvres are
     invalid keep no name (the file has errors).
     """
@@ -125,7 +127,10 @@ def derive_group_names(values: Mapping[str, Any]) -> dict[str, Any]:
     for g in groups:
         if g["name"] is None and is_ok(g["fault"], g["manoeuvres"]):
             man = g["manoeuvres"]
-            base = f"{g['fault']}@{'all' if man == MANOEUVRES else '+'.join(man)}"
+            variant = g.get("variant")
+            kind = (f"{g['fault']}[{variant}]" if variant is not None and is_ok(variant)
+                    else g["fault"])
+            base = f"{kind}@{'all' if man == MANOEUVRES else '+'.join(man)}"
             name, n = base, 1
             while name in taken:
                 n += 1
@@ -198,6 +203,7 @@ def _check_groups(groups: list, design: Any, duration: Any, errors: list[str]) -
         if is_ok(fault) and fault == "none":
             _check_fault_free(g, p, errors)
         elif is_ok(fault):
+            _check_variant(g, p, fault, errors)
             _check_magnitude(g, p, fault, errors)
             _check_sign(g, p, fault, errors)
             _check_freq(g, p, fault, errors)
@@ -218,16 +224,45 @@ def _check_count(g: Mapping, p: str, design: Any, errors: list[str]) -> None:
 
 
 def _check_fault_free(g: Mapping, p: str, errors: list[str]) -> None:
-    for k in ("onset_s", "magnitude", "freq_hz", "sign"):
+    for k in ("onset_s", "magnitude", "freq_hz", "sign", "variant"):
         if _given(g, k):
             errors.append(f"{p}.{k}: a fault-free group (fault = \"none\") has "
                           f"no {k}; fix: remove it")
+
+
+def _variant(g: Mapping, fault: str) -> str | None:
+    """The group's variant of *fault* (its default when not given; None: no variants)."""
+    if fault not in FAULT_VARIANTS:
+        return None
+    return g["variant"] if _given(g, "variant") else FAULT_VARIANTS[fault][0]
+
+
+def _check_variant(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
+    if fault not in FAULT_VARIANTS and _given(g, "variant"):
+        errors.append(f"{p}.variant: fault {fault!r} has no variants; allowed only with: "
+                      f"{', '.join(FAULT_VARIANTS)}; fix: remove it")
+
+
+def _without_magnitude(g: Mapping, p: str, k: str, fault: str, errors: list[str]) -> bool:
+    """True (and an error) when *fault* has variants and the group's has no magnitude."""
+    if fault not in MAGNITUDE_VARIANT:
+        return False
+    variant, needed = _variant(g, fault), MAGNITUDE_VARIANT[fault]
+    if variant == needed:
+        return False
+    what = "direction" if k == "sign" else k
+    errors.append(f"{p}.{k}: fault {fault!r} has no {what} with variant = \"{variant}\""
+                  f"{' (the default)' if not _given(g, 'variant') else ''}; fix: remove it, "
+                  f"or set variant = \"{needed}\"")
+    return True
 
 
 def _check_magnitude(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
     """A fixed magnitude needs a fault that has one, within that fault's [faults.*]
     range."""
     if not _given(g, "magnitude"):
+        return
+    if _without_magnitude(g, p, "magnitude", fault, errors):
         return
     if fault not in FAULT_MAGNITUDE_KEY:
         errors.append(f"{p}.magnitude: fault {fault!r} has no magnitude; "
@@ -243,6 +278,8 @@ def _check_magnitude(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
 
 
 def _check_sign(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
+    if _given(g, "sign") and _without_magnitude(g, p, "sign", fault, errors):
+        return
     if fault not in SIGNED_FAULTS and _given(g, "sign"):
         errors.append(f"{p}.sign: fault {fault!r} has no direction; allowed only "
                       f"with: {', '.join(SIGNED_FAULTS)}; fix: remove it")

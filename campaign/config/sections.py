@@ -23,6 +23,8 @@ from scenarios.catalog import (
     SURFACES,
 )
 
+from scenarios.faults import SOLID_JAM_VARIANTS
+
 from .keys import key, sub_table, thaw
 
 __all__ = [
@@ -33,6 +35,9 @@ __all__ = [
     "MismatchSection",
     "RunawayRanges",
     "LiquidJamRanges",
+    "SolidJamRanges",
+    "FAULT_VARIANTS",
+    "MAGNITUDE_VARIANT",
     "OfcLiquidRanges",
     "OfcSolidRanges",
     "FaultsSection",
@@ -159,6 +164,13 @@ class LiquidJamRanges:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SolidJamRanges:
+    offset_pct_range: tuple[float, float] = _pair(
+        "offset of a solid jam with variant = \"offset\" from the rod position at onset, as a "
+        "share of the deflection range", (1.8, 1.8), "%", 50.0, "[CHEN] §6.2")
+
+
+@dataclass(frozen=True, kw_only=True)
 class OfcLiquidRanges:
     amplitude_mA: tuple[float, float] = _pair("amplitude of the sinusoid added to the "
                                               "current", (0.5, 2.0), "mA", 10.0, "est.")
@@ -182,6 +194,8 @@ class FaultsSection:
     runaway: RunawayRanges = sub_table(RunawayRanges, "runaway magnitude (sign random)")
     liquid_jam: LiquidJamRanges = sub_table(LiquidJamRanges,
                                             "liquid-jam magnitude (sign random)")
+    solid_jam: SolidJamRanges = sub_table(SolidJamRanges,
+                                          "solid-jam offset of variant \"offset\" (sign random)")
     ofc_liquid: OfcLiquidRanges = sub_table(OfcLiquidRanges,
                                             "liquid oscillatory failure (sign random)")
     ofc_solid: OfcSolidRanges = sub_table(OfcSolidRanges,
@@ -189,18 +203,24 @@ class FaultsSection:
 
 
 #: Which [faults.*] range holds the magnitude of each fault type (a [[group]] ``magnitude``
-#: is in the same unit). Faults not listed have no magnitude (hardover: ±i_max; solid_jam:
-#: frozen where it is; disconnection: floating surface).
+#: is in the same unit). Faults not listed have no magnitude (hardover: ±i_max;
+#: disconnection: floating surface); solid_jam has one with variant = "offset" only
+#: (variant "seized": frozen where it is).
 FAULT_MAGNITUDE_KEY: dict[str, tuple[str, str]] = {
     "runaway": ("runaway", "rate_deg_s"),
     "liquid_jam": ("liquid_jam", "bias_pct_range"),
+    "solid_jam": ("solid_jam", "offset_pct_range"),
     "ofc_liquid": ("ofc_liquid", "amplitude_mA"),
     "ofc_solid": ("ofc_solid", "amplitude_mm"),
 }
 #: Fault types with a sampled oscillation frequency.
 OFC_FAULTS: tuple[str, ...] = ("ofc_liquid", "ofc_solid")
 #: Fault types with a direction (sign of the magnitude), and the names of a fixed sign.
-SIGNED_FAULTS: tuple[str, ...] = ("runaway", "hardover", "liquid_jam")
+SIGNED_FAULTS: tuple[str, ...] = ("runaway", "hardover", "liquid_jam", "solid_jam")
+#: Fault types with variants (group key ``variant``), their choices and the default.
+FAULT_VARIANTS: dict[str, tuple[str, ...]] = {"solid_jam": SOLID_JAM_VARIANTS}
+#: Variant of a fault that has a magnitude and a direction; the other variants have neither.
+MAGNITUDE_VARIANT: dict[str, str] = {"solid_jam": "offset"}
 SIGNED_FAULT_DIRECTIONS: tuple[str, ...] = ("positive", "negative")
 
 
@@ -220,16 +240,25 @@ class GroupSpec:
                                 "the end of the run)",
                                 unit="s", lo=0.0, hi=600.0, optional=True,
                                 default_doc="sampled from [faults]", example=30.0)
+    variant: str | None = key("choice", "variant of the fault (solid_jam only): \"seized\" — "
+                              "rod and surface seized where they stand at onset; \"offset\" — "
+                              "seized at [faults.solid_jam] offset_pct_range of the deflection "
+                              "range from there, the rod sensors reading the jammed rod "
+                              "([CHEN] eq. 4, docs/physics.md §5)",
+                              choices=SOLID_JAM_VARIANTS, optional=True,
+                              default_doc="\"seized\"", example="offset")
     magnitude: float | None = key("float", "fixed magnitude in the unit of its [faults.*] "
-                                  "range (runaway deg/s, liquid_jam %, ofc_liquid mA, "
-                                  "ofc_solid mm); sign random unless sign is given", lo=0.0, lo_open=True,
+                                  "range (runaway deg/s, liquid_jam %, solid_jam with variant "
+                                  "= \"offset\" %, ofc_liquid mA, ofc_solid mm); sign random "
+                                  "unless sign is given", lo=0.0, lo_open=True,
                                   optional=True, default_doc="sampled from [faults]",
                                   example=5.0)
     freq_hz: float | None = key("float", "fixed OFC frequency (ofc_liquid, ofc_solid only)",
                                 unit="Hz", lo=0.0, lo_open=True, hi=20.0, optional=True,
                                 default_doc="sampled from [faults]", example=1.0)
     sign: str | None = key("choice", "fixed direction of the fault (runaway, hardover, "
-                           "liquid_jam only): positive or negative deflection",
+                           "liquid_jam, solid_jam with variant = \"offset\" only): positive "
+                           "or negative deflection",
                            choices=SIGNED_FAULT_DIRECTIONS, optional=True,
                            default_doc="random", example="negative")
     manoeuvre_start_s: float | None = key(

@@ -43,14 +43,14 @@ import pandas as pd
 
 from ..acquisition import acquire, acquire_com, applied_current, quantize, sensor_draws
 from ..atmosphere import tas_ms as tas_from_mach
-from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays
+from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position
 from ..manoeuvres import elevator_trim_deg
 from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import (RUN_COLUMNS, RUN_RANGES, flight_of, manoeuvre_sets, run_streams,
                     validate_runs)
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
-from ..simulate import servo_provides
+from ..simulate import rod_measurement_fault, servo_provides
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
 from . import laws, lpv, pilot
 from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
@@ -255,6 +255,12 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> 
     nse = p.ac_noise
     theta0 = np.radians(p.flight_true["alpha_deg"])     # trimmed level flight: θ0 = α0
     for k in range(T):
+        if any_jam:   # an "offset" solid jam: the rod jumps at its onset (docs/physics.md §5)
+            x_m = x[mon]
+            x_j = jam_onset_position(x_m, k, fa, pl.x_min[mon], pl.x_max[mon])
+            if x_j is not x_m:
+                delta[mon] = np.where(x_j != x_m, np.arcsin(x_j / r_flat[mon]), delta[mon])
+                x[mon] = x_j
         # aircraft sensors at t_k
         u_air[:, :n_s] = (delta.reshape(n_s, n) - trim_rad).T
         u_air[:, lpv.I_SPOILER] = da_prev
@@ -354,6 +360,9 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
         flight=p.flight_true,
         aircraft={s: np.degrees(traj.states[j]) for j, s in enumerate(lpv.STATES)},
         surfaces_deg={s: np.degrees(traj.surfaces[j]) for j, s in enumerate(AIRCRAFT_SURFACES)},
+        rod_fault_mm=rod_measurement_fault(runs["fault"].to_numpy(),
+                                           runs["onset_s"].to_numpy(float), traj.y_com,
+                                           traj.u, p.plant_m, ts),
     )
     return signals, truth
 
