@@ -71,10 +71,10 @@ __all__ = ["Calibration", "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_
            "min_learning_runs", "tail_size"]
 
 #: ``threshold_method`` of the built-in detectors: ``"max"`` (safety × the largest learning
-#: value) or ``"evt"`` (:func:`calibrate_threshold`).
+#: value) or ``"evt"`` (:func:`calibrate_threshold`; the default).
 THRESHOLD_METHODS = ("max", "evt")
 
-#: The three parameters every built-in detector that learns thresholds declares.
+#: The four parameters every built-in detector that learns thresholds declares.
 THRESHOLD_PARAMS: tuple[Param, ...] = (
     Param("threshold_method", "choice", choices=THRESHOLD_METHODS,
           doc="how thresholds are learned: max = safety × the largest fault-free value of the "

@@ -187,9 +187,10 @@ class ChenLocalEstimator(Detector):
         (0 < z < p); default [CHEN] §6.2's (s + 1)/(s + 5). T keeps the high-frequency gain
         1 (a jam's estimate is a step) and divides slow model mismatch by p/z.
     threshold_method : str
-        ``"max"`` (safety × the largest learning value) or ``"evt"`` (calibrated to
-        ``target_fa_per_run`` per variant by :mod:`detectors.calibrate`; ``safety`` then
-        only multiplies the largest value when the learning set cannot support the target).
+        ``"evt"`` (default: calibrated to ``target_fa_per_run`` per variant and manoeuvre
+        class by :mod:`detectors.calibrate`; ``safety`` then only multiplies the largest
+        value when the learning set cannot support the target) or ``"max"`` (safety × the
+        largest learning value).
     target_fa_per_run : float
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float

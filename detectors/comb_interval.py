@@ -384,8 +384,9 @@ class IntervalDetector(Detector):
     floor_mm : float
         Smallest λ_q [mm] (guards against a learning set whose residual is all zero).
     threshold_method : str
-        ``"max"`` (λ_q = ς × the learning maximum, [COMB] eq. 6) or ``"evt"`` (ς calibrated
-        to ``target_fa_per_run``, module docstring).
+        ``"evt"`` (default: ς calibrated to ``target_fa_per_run``, module docstring; the
+        ``"max"`` bounds when the learning set cannot support it) or ``"max"``
+        (λ_q = ς × the learning maximum, [COMB] eq. 6).
     target_fa_per_run : float
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float

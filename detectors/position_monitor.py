@@ -24,13 +24,15 @@ threshold for a confirmation time. Three consistency checks, each optional:
     a disconnection leaves the rod healthy while the surface floats away. Skipped when the
     surface has no sensor.
 
-Thresholds are learned on fault-free learning runs: τ_c = ``safety`` × the largest |r_c| seen
-(never below ``floor_mm``), or, with ``threshold_method = "evt"``, calibrated per check from the
-learning runs' per-run maxima of |r_c| (:mod:`detectors.calibrate`, docs/thresholds.md) so that
-a fault-free run exceeds it with probability ≤ ``target_fa_per_run``/m, m the number of active
-checks (the checks share the detector's target: by the union bound the run's false-alarm
-probability is then ≤ ``target_fa_per_run``); ``safety`` is not applied on top, and serves
-only as the factor on the largest value when the learning set cannot support the target. The normalised residual is max_c |r_c|/τ_c; the alarm is raised
+Thresholds are learned on fault-free learning runs. By default (``threshold_method = "evt"``)
+each check's threshold is calibrated from the learning runs' per-run maxima of |r_c|, per
+manoeuvre class (:mod:`detectors.calibrate`, docs/thresholds.md), so that a fault-free run
+exceeds it with probability ≤ ``target_fa_per_run``/m, m the number of active checks (the
+checks share the detector's target: by the union bound the run's false-alarm probability is
+then ≤ ``target_fa_per_run``); ``safety`` is not applied on top, and serves only as the
+factor on the largest value when the learning set cannot support the target. With
+``threshold_method = "max"``, τ_c = ``safety`` × the largest |r_c| seen. Never below
+``floor_mm``. The normalised residual is max_c |r_c|/τ_c; the alarm is raised
 once it has been ≥ 1 for ``confirm_s`` and is then latched.
 """
 
@@ -112,7 +114,8 @@ class PositionMonitor(Detector):
     Parameters
     ----------
     safety : float
-        Threshold = safety × largest fault-free residual of the learning set (> 1).
+        ``"max"`` (or an ``"evt"`` learning set too small for the target): threshold =
+        safety × largest fault-free residual of the learning set (> 1).
     confirm_s : float
         Confirmation time [s]: the discrepancy must persist this long (≥ 0).
     checks : sequence of str
@@ -120,8 +123,8 @@ class PositionMonitor(Detector):
     floor_mm : float
         Smallest threshold of a check [mm] (guards against a learning set without motion).
     threshold_method : str
-        ``"max"`` (safety × largest learning residual) or ``"evt"`` (calibrated to
-        ``target_fa_per_run``, module docstring).
+        ``"evt"`` (default: calibrated to ``target_fa_per_run``, module docstring) or
+        ``"max"`` (safety × largest learning residual).
     target_fa_per_run : float
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float

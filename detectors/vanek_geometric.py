@@ -351,9 +351,10 @@ class VanekGeometric(Detector):
         ``"one-step"`` (the one-step H∞ FDI filter of [VANEK] §3 at the LTI design point, no
         low-pass; for comparison: no exact decoupling).
     threshold_method : str
-        ``"max"`` (safety × the largest learning value) or ``"evt"`` (calibrated to
-        ``target_fa_per_run`` per variant by :mod:`detectors.calibrate`; ``safety`` then
-        only multiplies the largest value when the learning set cannot support the target).
+        ``"evt"`` (default: calibrated to ``target_fa_per_run`` per variant and manoeuvre
+        class by :mod:`detectors.calibrate`; ``safety`` then only multiplies the largest
+        value when the learning set cannot support the target) or ``"max"`` (safety × the
+        largest learning value).
     target_fa_per_run : float
         ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
     threshold_confidence : float
