@@ -246,6 +246,7 @@ def explicit_rows(config, runs) -> pd.DataFrame:
         row.update({col: float(draws.get(col, 0.0)) for col in envelope.DRAW_COLUMNS})
         row.update({"duration_s": float(config.campaign.duration_s),
                     "manoeuvre_start_s": number(get(run, "manoeuvre_start_s")),
+                    "manoeuvre_set": config.manoeuvres.set,
                     "explicit_stream": int(get(run, "stream"))})
         rows.append(row)
     frame = pd.DataFrame(rows)

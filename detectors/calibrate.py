@@ -67,7 +67,7 @@ from .tail import (MIN_DISTINCT_EXCESSES, MIN_EXCEEDANCES, MIN_TAIL_FIT_RUNS, SH
 
 __all__ = ["Calibration", "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_FRACTION", "THRESHOLD_METHODS", "THRESHOLD_PARAMS",
-           "calibrate_threshold", "leave_one_out_ratios", "learned_threshold",
+           "calibrate_threshold", "leave_one_out_ratios", "learned_threshold", "usable_classes",
            "min_learning_runs", "tail_size"]
 
 #: ``threshold_method`` of the built-in detectors: ``"max"`` (safety × the largest learning
@@ -342,6 +342,16 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
 
 
 # ---- helpers for the detectors ---------------------------------------------------------------
+def usable_classes(classes):
+    """*classes* (the learning runs' manoeuvres, ``Signals.classes``), or None when it is
+    None or some class has a single run, which cannot be calibrated alone: the runs are
+    then pooled."""
+    if classes is None:
+        return None
+    _, counts = np.unique(np.asarray(classes, dtype=str), return_counts=True)
+    return None if counts.min() < 2 else classes
+
+
 def learned_threshold(maxima: np.ndarray, method: str, safety: float,
                       target_fa_per_run: float, confidence: float, tail: str = "free",
                       classes=None) -> tuple[float, Calibration | None]:
@@ -364,12 +374,8 @@ def learned_threshold(maxima: np.ndarray, method: str, safety: float,
     if x.size == 1 and np.isfinite(x).all() and x[0] >= 0.0:     # one learning run
         return float(safety * x[0]), _calibrate_one(x, float(target_fa_per_run),
                                                     float(confidence), float(safety), tail)
-    if classes is not None:
-        _, counts = np.unique(np.asarray(classes, dtype=str), return_counts=True)
-        if counts.min() < 2:            # a class of one run cannot be calibrated alone: pool
-            classes = None
     cal = calibrate_threshold(maxima, target_fa_per_run, confidence, fallback_factor=safety,
-                              tail=tail, classes=classes)
+                              tail=tail, classes=usable_classes(classes))
     return cal.threshold, cal
 
 

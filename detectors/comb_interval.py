@@ -79,7 +79,8 @@ from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rat
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector
-from .calibrate import THRESHOLD_PARAMS, calibrate_threshold, leave_one_out_ratios
+from .calibrate import (THRESHOLD_PARAMS, calibrate_threshold, leave_one_out_ratios,
+                        usable_classes)
 from .params import Param
 
 #: Default residual-filter poles ([COMB] §4, Table 1).
@@ -584,7 +585,8 @@ class IntervalDetector(Detector):
         cal = calibrate_threshold(ratios, float(self.target_fa_per_run),
                                   float(self.threshold_confidence),
                                   fallback_factor=float(self.safety),
-                                  tail=self.threshold_tail, classes=classes)
+                                  tail=self.threshold_tail,
+                                  classes=usable_classes(classes))
         self.calibration_ = cal
         if not cal.supported:       # the learning set cannot support the target: the max rule
             return np.maximum(moving_average_bounds(r, int(self.q_max), float(self.safety)),
