@@ -10,6 +10,8 @@ from scenarios.aircraft import lpv
 from scenarios.aircraft.data import AIRCRAFT_SURFACES, LAYOUT
 from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS, simulate_aircraft
 from scenarios.catalog import MANOEUVRES
+from scenarios.envelope import AERO_COEFFICIENTS
+from scenarios.runs import PLANT_DRAWS
 from scenarios.servo import PlantArrays, aero_force, plant_arrays
 from scenarios.signals import Signals
 from scenarios.plants import simulate
@@ -114,7 +116,7 @@ def test_surfaces_within_limits_and_never_stall(envelope_batch):
     force S·ΔP (docs/physics.md §3: no stall in normal flight)."""
     runs, _, truth = envelope_batch
     fl = truth.flight
-    draws = {c: runs[c].to_numpy(float) for c in ("d_aero", "d_hinge", "d_supply", "d_kci")}
+    draws = {c: runs[c].to_numpy(float) for c in PLANT_DRAWS}
     for name, kind in zip(LAYOUT.names, LAYOUT.actuator):
         act = AIRCRAFT_ACTUATORS[kind]
         d = truth.surfaces_deg[name]
@@ -169,7 +171,7 @@ def test_inboard_aileron_disconnection_roll_response_countered():
     assert np.abs(diff["r"][after]).max() > 0.02
     assert np.abs(diff["phi"][t >= 37.0]).max() < 0.3 * peak
     flight = {k: np.asarray(v)[:1] for k, v in truth.flight.items()}
-    B = lpv.run_models(flight, runs["d_aero"].to_numpy()[:1]).B[0, lpv.IP]
+    B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1] for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
     late = t >= 30.0
     m = AIRCRAFT_SURFACES.index("left_inboard_aileron")
     moment = {name: B[j] * dsurf[name][late].mean() for j, name in enumerate(AIRCRAFT_SURFACES)}
@@ -264,7 +266,7 @@ def test_aircraft_step_matches_a_tight_reference_integration(surface, fault, man
     p = prepare_aircraft(runs)
     tr = integrate_aircraft(p)
     flight = {k: np.asarray(v) for k, v in p.flight_true.items()}
-    model = lpv.run_models(flight, runs["d_aero"].to_numpy())
+    model = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy() for c in AERO_COEFFICIENTS})
     A, B = model.A[0], model.B[0]
     ts, T = p.ts, p.T
     dev = tr.surfaces[:, 0, :] - np.radians(p.trim_deg[:, 0])[:, None]
