@@ -184,7 +184,6 @@ def _plan_one(config, out: Path) -> None:
 
     plan = build_plan(config)
     cdir = CampaignDir(out)
-    cdir.check_model_version(MODEL_VERSION)
     cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
     learning = build_learning_plan(config)
     counts = plan_counts(plan)

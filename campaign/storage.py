@@ -449,33 +449,27 @@ class CampaignDir:
         return self.plan_path.exists()
 
     def write_plan(self, plan: pd.DataFrame, config_json: str, model_version: str) -> None:
-        """Write the run table ``plan.parquet``, recording the version of the simulated models
-        it was planned with (:data:`campaign.design.MODEL_VERSION`)."""
+        """Write the run table ``plan.parquet`` with the version of the simulated models it
+        is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`)."""
+        self.check_model_version(model_version)
         self._write_recorded(self.plan_path, lambda: write_parquet(
             plan, self.plan_path, config_json, kind="plan", model_version=model_version))
 
-    def planned_model_version(self) -> str | None:
-        """The model version ``plan.parquet`` was planned with (None: no plan yet). A plan
-        written before the version was recorded was planned with ``servo-1``, the version
-        of every model until then."""
-        if not self.has_plan():
-            return None
-        return str(read_metadata(self.plan_path).get("model_version", "servo-1"))
-
-    def check_model_version(self, model_version: str) -> None:
-        """:class:`CampaignDirError` when ``plan.parquet`` was planned with another model
-        version than *model_version*: its run ids, its draws and any results stored beside
-        it belong to that model, so resuming would mix two models."""
-        planned = self.planned_model_version()
-        if planned is not None and planned != model_version:
-            raise CampaignDirError(
-                f"{self.root} was planned with model {planned}; this fdd-campaign simulates "
-                f"model {model_version} (docs/physics.md), whose run table, run ids and results "
-                "differ: re-plan into a new --out directory (or delete this one to start "
-                "again)")
-
     def read_plan(self) -> pd.DataFrame:
         return pd.read_parquet(self.plan_path)
+
+    def check_model_version(self, model_version: str) -> None:
+        """:class:`CampaignDirError` when ``plan.parquet`` was planned with another model than
+        *model_version* (a plan without a recorded version: ``servo-1``): its run ids, draws
+        and results belong to that model, so resuming would mix two models."""
+        if not self.has_plan():
+            return
+        planned = str(read_metadata(self.plan_path).get("model_version", "servo-1"))
+        if planned != model_version:
+            raise CampaignDirError(
+                f"{self.root} was planned with model {planned}; this fdd-campaign simulates "
+                f"model {model_version} (docs/physics.md): re-plan into a new --out directory "
+                "(or delete this one to start again)")
 
     def write_learning(self, learning: pd.DataFrame, config_json: str) -> None:
         """Write the learning-set run table ``learning.parquet``."""
