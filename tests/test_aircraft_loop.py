@@ -152,13 +152,15 @@ def test_inboard_aileron_disconnection_roll_response_countered():
 
     - response: the bank angle departs by more than 0.5° and the roll rate by more than
       0.3 °/s from the fault-free twin, the yaw rate by more than 0.02 °/s;
-    - countered: over the last 3 s the bank difference is below 30 % of its peak (the
-      floating aileron keeps moving with the turbulent hinge load, so the twins do not
-      coincide again: measured 26 %), and, averaged over the 10 s after the turn, the
-      rolling moment of the other surfaces cancels that of the floating aileron to within
-      20 % (measured 0.98; the rest is the bank-hold error and the spoilers' servo-less
-      approximation; over a 5 s window the lag with which the laws follow the float's
-      turbulent motion alone moves the ratio by up to 0.4).
+    - countered: averaged over the 10 s after the turn, the rolling moment of the other
+      surfaces cancels that of the floating aileron to within 20 % (measured 1.01; the rest
+      is the bank-hold error and the spoilers' servo-less approximation; over a 5 s window
+      the lag with which the laws follow the float's turbulent motion alone moves the ratio
+      by up to 0.4), and over the last 3 s the bank difference is below 60 % of its peak
+      (measured 55 %; 26 % when the freed aileron floated 1° instead of the aft-loaded 10°
+      of docs/physics.md §3: the bank hold has no integral action, so a steady rolling
+      moment leaves a steady bank offset, and the floating aileron keeps moving with the
+      turbulent hinge load).
     """
     # 40 s: the turn (roll-in and roll-out at 7.5 °/s) ends by 26 s at the latest
     sig, truth, diff, dsurf, runs = _twins("left_inboard_aileron", "disconnection",
@@ -169,7 +171,7 @@ def test_inboard_aileron_disconnection_roll_response_countered():
     assert peak > 0.5
     assert np.abs(diff["p"][after]).max() > 0.3
     assert np.abs(diff["r"][after]).max() > 0.02
-    assert np.abs(diff["phi"][t >= 37.0]).max() < 0.3 * peak
+    assert np.abs(diff["phi"][t >= 37.0]).max() < 0.6 * peak
     flight = {k: np.asarray(v)[:1] for k, v in truth.flight.items()}
     B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1] for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
     late = t >= 30.0
