@@ -155,12 +155,12 @@ def cmd_plan(args) -> int:
 
 
 def _plan_one(config, out: Path) -> None:
-    from .design import build_learning_plan, build_plan, plan_counts
+    from .design import MODEL_VERSION, build_learning_plan, build_plan, plan_counts
     from .storage import CampaignDir
 
     plan = build_plan(config)
     cdir = CampaignDir(out)
-    cdir.write_plan(plan, config.to_json())
+    cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
     learning = build_learning_plan(config)
     counts = plan_counts(plan)
     print(counts.to_string(index=False))

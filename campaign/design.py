@@ -36,8 +36,10 @@ from scenarios.runs import DEFAULT_MANOEUVRE_SET
 from .plant import run_actuator, run_surface
 
 #: Version of the simulated models: part of every run id, so a model change never reuses
-#: results computed with the previous model.
-MODEL_VERSION = "servo-1"
+#: results computed with the previous model. servo-2: one draw per aerodynamic coefficient
+#: and per hinge-moment coefficient, longitudinal–lateral coupling of the surfaces,
+#: aft-loaded aileron hinge moment (docs/physics.md §3, §6, §7).
+MODEL_VERSION = "servo-2"
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32

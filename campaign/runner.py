@@ -32,7 +32,7 @@ from reports.table import format_table
 from scenarios import kernels
 from scenarios.signals import Signals
 
-from .design import build_learning_plan, build_plan
+from .design import MODEL_VERSION, build_learning_plan, build_plan
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .plant import detector_problems, plant_of
 from .storage import CampaignDir, DirLock
@@ -370,9 +370,10 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     try:
         setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
                        scheduler=scheduler, engine=engine, log=log, tls=tls)
+        setup.cdir.check_model_version(MODEL_VERSION)
         plan = build_plan(config)
         if not setup.cdir.has_plan():
-            setup.cdir.write_plan(plan, config.to_json())
+            setup.cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
         detectors = _learn(config, setup, log, fitted_from)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock

@@ -45,36 +45,26 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import secrets
 from contextlib import contextmanager
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .dirlock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
+from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of,
+                    write_parquet, write_text)
 
 __all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
            "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
            "write_text"]
 
-METADATA_KEY = b"fdd_campaign"
 SHARD_GLOB = "part-*.parquet"
 MANIFEST_NAME = "manifest.json"
 #: ``format`` of manifest.json and of fitted/LABEL.json: a reader refuses any other.
 MANIFEST_FORMAT = "fdd-campaign manifest 1"
 FITTED_FORMAT = "fdd-campaign fitted detector 1"
-
-
-def engine_version() -> str:
-    try:
-        return version("fdd-campaign")
-    except PackageNotFoundError:  # running from a source tree that is not installed
-        return "0+unknown"
 
 
 class CampaignDirError(ValueError):
@@ -91,54 +81,6 @@ class ManifestError(CampaignDirError):
 
     def __reduce__(self):
         return (type(self), (str(self), self.problems))
-
-
-def _temporary_name(path: Path) -> Path:
-    """A fresh hidden name next to *path* (``.NAME.PID.RANDOM.tmp``), not created: the
-    writer creates it, with the mode the umask gives."""
-    return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
-
-
-def _atomic_write_bytes(path: Path, write) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temporary_name(path)
-    try:
-        write(str(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def write_parquet(df: pd.DataFrame, path: Path, config_json: str, **extra) -> None:
-    """Write *df* to *path* atomically with the campaign metadata in the schema."""
-    table = pa.Table.from_pandas(df, preserve_index=False)
-    meta = dict(table.schema.metadata or {})
-    meta[METADATA_KEY] = json.dumps({
-        "engine_version": engine_version(), "rows": len(df),
-        "config": json.loads(config_json), **extra,
-    }).encode()
-    table = table.replace_schema_metadata(meta)
-    _atomic_write_bytes(Path(path), lambda tmp: pq.write_table(table, tmp))
-
-
-def read_metadata(path: Path) -> dict:
-    """The campaign metadata stored in a Parquet file by :func:`write_parquet`."""
-    meta = pq.read_schema(path).metadata or {}
-    return json.loads(meta.get(METADATA_KEY, b"{}"))
-
-
-def write_text(path: Path, text: str) -> None:
-    _atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_text(text))
-
-
-def sha256_of(path: Path) -> str:
-    """The SHA-256 digest of the file *path* (hex)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 #: ``[runner]`` keys that do not change any result (rows are bit-identical across chunk
@@ -449,13 +391,28 @@ class CampaignDir:
     def has_plan(self) -> bool:
         return self.plan_path.exists()
 
-    def write_plan(self, plan: pd.DataFrame, config_json: str) -> None:
-        """Write the run table ``plan.parquet``."""
+    def write_plan(self, plan: pd.DataFrame, config_json: str, model_version: str) -> None:
+        """Write the run table ``plan.parquet`` with the version of the simulated models it
+        is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`)."""
+        self.check_model_version(model_version)
         self._write_recorded(self.plan_path, lambda: write_parquet(
-            plan, self.plan_path, config_json, kind="plan"))
+            plan, self.plan_path, config_json, kind="plan", model_version=model_version))
 
     def read_plan(self) -> pd.DataFrame:
         return pd.read_parquet(self.plan_path)
+
+    def check_model_version(self, model_version: str) -> None:
+        """:class:`CampaignDirError` when ``plan.parquet`` was planned with another model than
+        *model_version* (a plan without a recorded version: ``servo-1``): its run ids, draws
+        and results belong to that model, so resuming would mix two models."""
+        if not self.has_plan():
+            return
+        planned = str(read_metadata(self.plan_path).get("model_version", "servo-1"))
+        if planned != model_version:
+            raise CampaignDirError(
+                f"{self.root} was planned with model {planned}; this fdd-campaign simulates "
+                f"model {model_version} (docs/physics.md): re-plan into a new --out directory "
+                "(or delete this one to start again)")
 
     def write_learning(self, learning: pd.DataFrame, config_json: str) -> None:
         """Write the learning-set run table ``learning.parquet``."""
@@ -504,7 +461,7 @@ class CampaignDir:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **arrays)
 
-        _atomic_write_bytes(npz_path, save)
+        atomic_write_bytes(npz_path, save)
         write_text(doc_path, text)
         self._record(npz_path, doc_path)
 
@@ -583,7 +540,7 @@ class CampaignDir:
         for src in files:
             dst = self.root / src.relative_to(source.root)
             self._forget(dst)
-            _atomic_write_bytes(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+            atomic_write_bytes(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
             self._record(dst)
         origin = {"fitted_from": str(source.root.resolve()),
                   "fitted_sha256": source.fitted_sha256(labels),

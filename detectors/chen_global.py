@@ -133,7 +133,7 @@ def scheduling_vector(schedule: dict) -> np.ndarray:
 
 
 def lateral_models(schedule: dict) -> tuple[np.ndarray, np.ndarray]:
-    """(A_b (n, 4, 4), B_b (n, 4, 6)) of the nominal lateral model (d_aero = 0) at each
+    """(A_b (n, 4, 4), B_b (n, 4, 6)) of the nominal lateral model (every draw 0) at each
     measured flight point, from :func:`scenarios.aircraft.lpv.run_models` (states
     :data:`STATES`, inputs :data:`INPUT_SURFACES` then the spoilers; any angle unit)."""
     from scenarios.aircraft import lpv

@@ -132,10 +132,18 @@ def _discrete(gen: geo.ResidualGenerator, ts: float) -> _Filter:
 
 
 def _model(point: dict):
-    """(A, B) of the aircraft model at a flight point (arrays of one run)."""
-    from scenarios.aircraft import lpv
+    """(A, B) of the design model at a flight point (arrays of one run): the nominal aircraft
+    model with the two elevators moving in unison, as in [VANEK] §4.2, so that a left
+    elevator's direction is half the symmetric elevator column (pitch and lift only). The
+    simulated aircraft also rolls under an asymmetric elevator pair (docs/physics.md §7): that
+    part of a left-elevator fault is not in the design model and reaches the residual
+    (docs/vanek-geometric.md)."""
+    import dataclasses
 
-    m = lpv.run_models(point, np.zeros(1))
+    from scenarios.aircraft import lpv
+    from scenarios.aircraft.data import LAYOUT
+
+    m = lpv.run_models(point, np.zeros(1), layout=dataclasses.replace(LAYOUT, elevator_arm_m=0.0))
     return m.A[0], m.B[0]
 
 

@@ -16,7 +16,7 @@ CG in % of the mean aerodynamic chord (MAC), angles in deg, pressures in Pa.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -140,15 +140,38 @@ A330 = AircraftParams(
 # ---------------------------------------------------------------------------------------
 # Uncertainties
 # ---------------------------------------------------------------------------------------
+def _optional(unit: str, source: str, doc: str):
+    """A parameter field whose default ``None`` means "take the shorthand"."""
+    return field(default=None, metadata={"unit": unit, "source": source, "doc": doc})
+
+
+#: The six aerodynamic coefficients of [CHEN] Table 2 (δCx, δCy, δCz, δCl, δCm, δCn): the
+#: keys of their half-widths and, prefixed ``d_``, their run-table columns.
+AERO_COEFFICIENTS: tuple[str, ...] = ("cx", "cy", "cz", "cl", "cm", "cn")
+#: The hinge-moment coefficients Ch0, Chα, Chδ (docs/physics.md §3): the keys of their
+#: mismatch half-widths and, prefixed ``d_``, their run-table columns.
+HINGE_COEFFICIENTS: tuple[str, ...] = ("ch0", "cha", "chd")
+
+
 @dataclass(frozen=True)
 class Uncertainty:
-    """Relative half-widths of the uniform uncertainties of [CHEN] Table 2 (docs/physics.md §6)."""
+    """Relative half-widths of the uniform uncertainties of [CHEN] Table 2 (docs/physics.md §6).
 
-    aero: float = param("-", "[CHEN] Table 2", "aerodynamic coefficients δCx…δCn (hinge moment)")
+    ``aero`` is the shorthand of the six aerodynamic coefficients: each of ``cx`` … ``cn``
+    left at ``None`` takes it; one given explicitly wins over it (:meth:`coefficient`).
+    """
+
+    aero: float = param("-", "[CHEN] Table 2", "every aerodynamic coefficient δCx…δCn (shorthand)")
     vcas: float = param("-", "[CHEN] Table 2", "measured calibrated airspeed δVCAS")
     alt: float = param("-", "[CHEN] Table 2", "measured altitude δh")
     mass: float = param("-", "[CHEN] Table 2", "estimated mass δm")
     cg: float = param("-", "[CHEN] Table 2", "estimated centre of gravity δXcg")
+    cx: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "drag coefficient δCx")
+    cy: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "side-force coefficient δCy")
+    cz: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "lift coefficient δCz")
+    cl: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "rolling-moment coefficient δCl")
+    cm: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "pitching-moment coefficient δCm")
+    cn: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "yawing-moment coefficient δCn")
 
 
 @dataclass(frozen=True)
@@ -156,13 +179,19 @@ class Mismatch:
     """Plant/model mismatch beyond [CHEN] Table 2 (docs/physics.md §6, est.), relative half-widths.
 
     The plant runs with the perturbed values while model-based detectors keep the nominal
-    ones. ``enabled=False`` switches all of it off (half-widths 0).
+    ones. ``enabled=False`` switches all of it off (half-widths 0). ``hinge`` is the
+    shorthand of the three hinge-moment coefficients: each of ``ch0``, ``cha``, ``chd`` left
+    at ``None`` takes it; one given explicitly wins over it.
     """
 
     enabled: bool = param("-", "docs/physics.md §6", "whether the mismatch is sampled")
     supply: float = param("-", "est. (docs/physics.md §6)", "hydraulic supply pressure ΔP")
     kci: float = param("-", "est. (docs/physics.md §6)", "servo-valve gain Kci")
-    hinge: float = param("-", "est. (docs/physics.md §6)", "hinge-moment coefficients Ch0, Chα, Chδ")
+    hinge: float = param("-", "est. (docs/physics.md §6)",
+                         "every hinge-moment coefficient Ch0, Chα, Chδ (shorthand)")
+    ch0: float | None = _optional("-", "est. (None: hinge)", "hinge-moment coefficient Ch0")
+    cha: float | None = _optional("-", "est. (None: hinge)", "hinge-moment derivative Chα")
+    chd: float | None = _optional("-", "est. (None: hinge)", "hinge-moment derivative Chδ")
 
 
 UNCERTAINTY = Uncertainty(aero=0.05, vcas=0.10, alt=0.10, mass=0.10, cg=0.10)
@@ -170,26 +199,39 @@ MISMATCH = Mismatch(enabled=True, supply=0.05, kci=0.05, hinge=0.20)
 
 #: Run-table columns holding one run's relative deviations (true → measured/perturbed).
 DRAW_COLUMNS: tuple[str, ...] = (
-    "d_aero", "d_vcas", "d_alt", "d_mass", "d_cg", "d_supply", "d_kci", "d_hinge",
+    *(f"d_{c}" for c in AERO_COEFFICIENTS), "d_vcas", "d_alt", "d_mass", "d_cg", "d_supply",
+    "d_kci", *(f"d_{c}" for c in HINGE_COEFFICIENTS),
 )
 
 #: Grid uncertainty levels and the multiple of the half-width each one takes.
 LEVELS: dict[str, float] = {"min": -1.0, "nominal": 0.0, "max": 1.0}
 
 
+def coefficient_width(table, name: str, shorthand: str) -> float:
+    """The half-width of coefficient *name* in *table* (an :class:`Uncertainty`, a
+    :class:`Mismatch` or a campaign-file section of the same keys): its own value when it is
+    given (not ``None``), else the value of the shorthand key *shorthand*."""
+    own = getattr(table, name, None)
+    return float(getattr(table, shorthand) if own is None else own)
+
+
 def half_widths(uncertainty: Uncertainty = UNCERTAINTY,
                 mismatch: Mismatch = MISMATCH) -> dict[str, float]:
-    """Relative half-width of each draw column (mismatch columns 0 when it is disabled)."""
+    """Relative half-width of each draw column (mismatch columns 0 when it is disabled).
+
+    The six aerodynamic coefficients take ``uncertainty.aero`` unless given one by one, the
+    three hinge-moment coefficients ``mismatch.hinge`` likewise (:func:`coefficient_width`).
+    """
     on = 1.0 if mismatch.enabled else 0.0
     return {
-        "d_aero": float(uncertainty.aero),
+        **{f"d_{c}": coefficient_width(uncertainty, c, "aero") for c in AERO_COEFFICIENTS},
         "d_vcas": float(uncertainty.vcas),
         "d_alt": float(uncertainty.alt),
         "d_mass": float(uncertainty.mass),
         "d_cg": float(uncertainty.cg),
         "d_supply": on * float(mismatch.supply),
         "d_kci": on * float(mismatch.kci),
-        "d_hinge": on * float(mismatch.hinge),
+        **{f"d_{c}": on * coefficient_width(mismatch, c, "hinge") for c in HINGE_COEFFICIENTS},
     }
 
 

@@ -44,9 +44,10 @@ class ActuatorParams:
     Ka_N_per_mm_s2: float = param("N/(mm/s)²", "est.", "damping-mode neighbour coefficient Ka")
     Sc_m2: float = param("m²", "est.", "control surface area S_c")
     cc_m: float = param("m", "est.", "control surface chord c_c")
-    Ch_delta: float = param("1/rad", "est.", "hinge-moment derivative Chδ")
-    Ch_alpha: float = param("1/rad", "est.", "hinge-moment derivative Chα")
-    Ch0: float = param("-", "est.", "hinge-moment coefficient at zero α and δ")
+    Ch_delta: float = param("1/rad", "est. (see the instance)", "hinge-moment derivative Chδ")
+    Ch_alpha: float = param("1/rad", "est. (see the instance)", "hinge-moment derivative Chα")
+    Ch0: float = param("-", "est. (see the instance)",
+                       "hinge-moment coefficient at zero α and δ (negative: trailing edge up)")
     downwash: float = param("-", "est. (elevator: dε/dα; 0 for the aileron)",
                          "local AoA of the surface α_s = α·(1 − dε/dα)")
     mach_compress_cap: float = param("-", "docs/physics.md §3", "Prandtl–Glauert scaling held above this Mach")
@@ -150,6 +151,9 @@ ELEVATOR = ActuatorParams(
     cc_m=1.3,
     Ch_delta=-0.30,
     Ch_alpha=-0.15,
+    # Ch0 = 0 (est.): a symmetric tailplane section carries no zero-lift hinge moment, so a
+    # freed elevator floats with the tail's own angle of attack only, δ_f = −Chα·α_s/Chδ
+    # (0.1–2.2° trailing edge up over the realistic envelope, docs/physics.md §3).
     Ch0=0.0,
     downwash=0.35,
     mach_compress_cap=0.75,
@@ -172,9 +176,18 @@ AILERON = ActuatorParams(
     Ka_N_per_mm_s2=1.5,
     Sc_m2=4.0,
     cc_m=0.8,
-    Ch_delta=-0.40,
-    Ch_alpha=-0.20,
-    Ch0=0.0,
+    # Chδ, Chα (est.): an aerodynamically balanced aileron (nose or internal balance, as on
+    # transport ailerons) has about half the hinge-moment slopes of a plain flap (−0.4, −0.2
+    # per rad); the ratio Chα/Chδ = 0.5 is kept.
+    Ch_delta=-0.20,
+    Ch_alpha=-0.10,
+    # Ch0 (est.): a supercritical wing is aft-loaded, so its aileron has a strong
+    # trailing-edge-up hinge moment at zero deflection. −0.04 makes a freed aileron float
+    # 10.5° trailing edge up at the median realistic flight point (7.7–14.3° over the 53
+    # realistic points): 21 % of its 50° range, as [CHEN] §6.2 reports (21.4 %). Holding it
+    # at neutral takes 15–48 % of the stall force S·ΔP (docs/physics.md §3); with the
+    # unbalanced slopes above it would take up to 95 %.
+    Ch0=-0.04,
     downwash=0.0,
     mach_compress_cap=0.75,
     has_surface_sensor=False,

@@ -29,14 +29,21 @@ RUN_COLUMNS: dict[str, tuple[str, str]] = {
     "vcas_kt": ("kt", "true calibrated airspeed"),
     "mass_t": ("t", "true mass"),
     "cg_pct": ("% MAC", "true centre of gravity"),
-    "d_aero": ("-", "relative aerodynamic-coefficient error ([CHEN] Table 2)"),
+    "d_cx": ("-", "relative error of the drag coefficient Cx ([CHEN] Table 2)"),
+    "d_cy": ("-", "relative error of the side-force coefficient Cy ([CHEN] Table 2)"),
+    "d_cz": ("-", "relative error of the lift coefficient Cz ([CHEN] Table 2)"),
+    "d_cl": ("-", "relative error of the rolling-moment coefficient Cl ([CHEN] Table 2)"),
+    "d_cm": ("-", "relative error of the pitching-moment coefficient Cm ([CHEN] Table 2)"),
+    "d_cn": ("-", "relative error of the yawing-moment coefficient Cn ([CHEN] Table 2)"),
     "d_vcas": ("-", "relative VCAS measurement error ([CHEN] Table 2)"),
     "d_alt": ("-", "relative altitude measurement error ([CHEN] Table 2)"),
     "d_mass": ("-", "relative mass estimation error ([CHEN] Table 2)"),
     "d_cg": ("-", "relative CG estimation error ([CHEN] Table 2)"),
     "d_supply": ("-", "relative supply-pressure mismatch (docs/physics.md §6, est.)"),
     "d_kci": ("-", "relative servo-valve gain mismatch (docs/physics.md §6, est.)"),
-    "d_hinge": ("-", "relative hinge-moment mismatch (docs/physics.md §6, est.)"),
+    "d_ch0": ("-", "relative mismatch of the hinge-moment coefficient Ch0 (docs/physics.md §6, est.)"),
+    "d_cha": ("-", "relative mismatch of the hinge-moment derivative Chα (docs/physics.md §6, est.)"),
+    "d_chd": ("-", "relative mismatch of the hinge-moment derivative Chδ (docs/physics.md §6, est.)"),
     "seed": ("-", "campaign seed"),
     "stream": ("-", "run stream index: SeedSequence(seed, spawn_key=(stream,))"),
     "duration_s": ("s", "run duration"),
@@ -59,8 +66,10 @@ RUN_RANGES: dict[str, tuple[float, float]] = {
     "mass_t": (50.0, 300.0),
     "cg_pct": (0.0, 60.0),
     "duration_s": (1.0, 3600.0),
-    "d_aero": (-0.5, 0.5), "d_vcas": (-0.5, 0.5), "d_alt": (-0.5, 0.5), "d_mass": (-0.5, 0.5),
-    "d_cg": (-0.5, 0.5), "d_supply": (-0.5, 0.5), "d_kci": (-0.5, 0.5), "d_hinge": (-0.9, 0.9),
+    **{f"d_{c}": (-0.5, 0.5) for c in envelope.AERO_COEFFICIENTS},
+    "d_vcas": (-0.5, 0.5), "d_alt": (-0.5, 0.5), "d_mass": (-0.5, 0.5),
+    "d_cg": (-0.5, 0.5), "d_supply": (-0.5, 0.5), "d_kci": (-0.5, 0.5),
+    **{f"d_{c}": (-0.9, 0.9) for c in envelope.HINGE_COEFFICIENTS},
 }
 
 
@@ -159,3 +168,19 @@ def flight_of(f: dict) -> tuple[dict, dict]:
         f["d_alt"], f["d_vcas"], f["d_mass"], f["d_cg"])
     return flight_true, schedule
 
+
+#: Run columns of the actuator-level draws, as the keyword arguments of
+#: :func:`scenarios.servo.plant_arrays` (docs/physics.md §6).
+PLANT_DRAWS: tuple[str, ...] = ("d_ch0", "d_cha", "d_chd", "d_supply", "d_kci")
+
+
+def plant_draws(f: dict) -> dict:
+    """The actuator-level draws of the run columns *f* (keywords of
+    :func:`scenarios.servo.plant_arrays`)."""
+    return {c: f[c] for c in PLANT_DRAWS}
+
+
+def aero_draws(f: dict) -> dict:
+    """The six aerodynamic-coefficient draws of the run columns *f*, keyed by coefficient
+    (``cx`` … ``cn``, :data:`scenarios.envelope.AERO_COEFFICIENTS`; [CHEN] Table 2)."""
+    return {c: f[f"d_{c}"] for c in envelope.AERO_COEFFICIENTS}

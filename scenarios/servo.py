@@ -72,8 +72,8 @@ def compressibility_factor(mach, cap: float) -> np.ndarray:
     return 1.0 / np.sqrt(1.0 - m * m)
 
 
-def plant_arrays(act: ActuatorParams, *, qbar_pa, alpha_deg, mach, d_aero=0.0, d_hinge=0.0,
-                 d_supply=0.0, d_kci=0.0) -> PlantArrays:
+def plant_arrays(act: ActuatorParams, *, qbar_pa, alpha_deg, mach, d_ch0=0.0, d_cha=0.0,
+                 d_chd=0.0, d_supply=0.0, d_kci=0.0) -> PlantArrays:
     """True per-run plant parameters.
 
     Parameters
@@ -81,15 +81,17 @@ def plant_arrays(act: ActuatorParams, *, qbar_pa, alpha_deg, mach, d_aero=0.0, d
     act : nominal actuator parameters.
     qbar_pa : dynamic pressure [Pa]; alpha_deg : trimmed wing angle of attack [deg];
     mach : Mach number [-].
-    d_aero : relative aerodynamic-coefficient error ([CHEN] Table 2, ±5 %), scales Ch*.
-    d_hinge : relative hinge-moment mismatch (docs/physics.md §6, ±20 % est.), scales Ch*.
+    d_ch0, d_cha, d_chd : relative mismatch of Ch0, Chα and Chδ, each drawn on its own
+    (docs/physics.md §6, ±20 % est.): Ch* × (1 + d_ch*).
     d_supply : relative supply-pressure mismatch (±5 % est.); d_kci : servo-valve gain
     mismatch (±5 % est.).
     """
     qbar = np.asarray(qbar_pa, dtype=float)
     n = qbar.shape
     ones = np.ones(n)
-    coef = (1.0 + np.asarray(d_aero, float)) * (1.0 + np.asarray(d_hinge, float)) * ones
+    ch0 = act.Ch0 * (1.0 + np.asarray(d_ch0, float)) * ones
+    ch_alpha = act.Ch_alpha * (1.0 + np.asarray(d_cha, float)) * ones
+    ch_delta = act.Ch_delta * (1.0 + np.asarray(d_chd, float)) * ones
     pg = compressibility_factor(mach, act.mach_compress_cap)
     alpha_s = np.radians(np.asarray(alpha_deg, float)) * (1.0 - act.downwash)
     qsc = qbar * act.Sc_m2 * act.cc_m
@@ -104,8 +106,8 @@ def plant_arrays(act: ActuatorParams, *, qbar_pa, alpha_deg, mach, d_aero=0.0, d
         r_mm=act.r_mm * ones,
         x_min=act.x_min_mm * ones,
         x_max=act.x_max_mm * ones,
-        hm_delta=qsc * act.Ch_delta * pg * coef,
-        hm_0=qsc * (act.Ch0 + act.Ch_alpha * pg * alpha_s) * coef,
+        hm_delta=qsc * ch_delta * pg,
+        hm_0=qsc * (ch0 + ch_alpha * pg * alpha_s),
     )
 
 

@@ -40,7 +40,7 @@ from .faults import (FAULT_DEFAULTS, NEVER, ROD_MEASUREMENT_FAULTS, default_magn
 from .kernels import integrate_compiled, resolve_engine, servo_model
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, manoeuvre_sets,
-                   run_streams, validate_runs)
+                   plant_draws, run_streams, validate_runs)
 from .servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from .signals import SERVO_GROUPS, Signals, Truth
 
@@ -68,8 +68,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
 
     flight_true, schedule = flight_of(f)
     plant = plant_arrays(act, qbar_pa=flight_true["qbar_pa"], alpha_deg=flight_true["alpha_deg"],
-                         mach=flight_true["mach"], d_aero=f["d_aero"], d_hinge=f["d_hinge"],
-                         d_supply=f["d_supply"], d_kci=f["d_kci"])
+                         mach=flight_true["mach"], **plant_draws(f))
 
     t = np.arange(T) * ts
     gens = [run_streams(s, k) for s, k in zip(col["seed"], col["stream"])]

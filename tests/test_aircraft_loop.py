@@ -10,6 +10,8 @@ from scenarios.aircraft import lpv
 from scenarios.aircraft.data import AIRCRAFT_SURFACES, LAYOUT
 from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS, simulate_aircraft
 from scenarios.catalog import MANOEUVRES
+from scenarios.envelope import AERO_COEFFICIENTS
+from scenarios.runs import PLANT_DRAWS
 from scenarios.servo import PlantArrays, aero_force, plant_arrays
 from scenarios.signals import Signals
 from scenarios.plants import simulate
@@ -114,7 +116,7 @@ def test_surfaces_within_limits_and_never_stall(envelope_batch):
     force S·ΔP (docs/physics.md §3: no stall in normal flight)."""
     runs, _, truth = envelope_batch
     fl = truth.flight
-    draws = {c: runs[c].to_numpy(float) for c in ("d_aero", "d_hinge", "d_supply", "d_kci")}
+    draws = {c: runs[c].to_numpy(float) for c in PLANT_DRAWS}
     for name, kind in zip(LAYOUT.names, LAYOUT.actuator):
         act = AIRCRAFT_ACTUATORS[kind]
         d = truth.surfaces_deg[name]
@@ -150,13 +152,15 @@ def test_inboard_aileron_disconnection_roll_response_countered():
 
     - response: the bank angle departs by more than 0.5° and the roll rate by more than
       0.3 °/s from the fault-free twin, the yaw rate by more than 0.02 °/s;
-    - countered: over the last 3 s the bank difference is below 30 % of its peak (the
-      floating aileron keeps moving with the turbulent hinge load, so the twins do not
-      coincide again: measured 26 %), and, averaged over the 10 s after the turn, the
-      rolling moment of the other surfaces cancels that of the floating aileron to within
-      20 % (measured 0.98; the rest is the bank-hold error and the spoilers' servo-less
-      approximation; over a 5 s window the lag with which the laws follow the float's
-      turbulent motion alone moves the ratio by up to 0.4).
+    - countered: averaged over the 10 s after the turn, the rolling moment of the other
+      surfaces cancels that of the floating aileron to within 20 % (measured 1.01; the rest
+      is the bank-hold error and the spoilers' servo-less approximation; over a 5 s window
+      the lag with which the laws follow the float's turbulent motion alone moves the ratio
+      by up to 0.4), and over the last 3 s the bank difference is below 60 % of its peak
+      (measured 55 %; 26 % when the freed aileron floated 1° instead of the aft-loaded 10°
+      of docs/physics.md §3: the bank hold has no integral action, so a steady rolling
+      moment leaves a steady bank offset, and the floating aileron keeps moving with the
+      turbulent hinge load).
     """
     # 40 s: the turn (roll-in and roll-out at 7.5 °/s) ends by 26 s at the latest
     sig, truth, diff, dsurf, runs = _twins("left_inboard_aileron", "disconnection",
@@ -167,9 +171,9 @@ def test_inboard_aileron_disconnection_roll_response_countered():
     assert peak > 0.5
     assert np.abs(diff["p"][after]).max() > 0.3
     assert np.abs(diff["r"][after]).max() > 0.02
-    assert np.abs(diff["phi"][t >= 37.0]).max() < 0.3 * peak
+    assert np.abs(diff["phi"][t >= 37.0]).max() < 0.6 * peak
     flight = {k: np.asarray(v)[:1] for k, v in truth.flight.items()}
-    B = lpv.run_models(flight, runs["d_aero"].to_numpy()[:1]).B[0, lpv.IP]
+    B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1] for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
     late = t >= 30.0
     m = AIRCRAFT_SURFACES.index("left_inboard_aileron")
     moment = {name: B[j] * dsurf[name][late].mean() for j, name in enumerate(AIRCRAFT_SURFACES)}
@@ -264,7 +268,7 @@ def test_aircraft_step_matches_a_tight_reference_integration(surface, fault, man
     p = prepare_aircraft(runs)
     tr = integrate_aircraft(p)
     flight = {k: np.asarray(v) for k, v in p.flight_true.items()}
-    model = lpv.run_models(flight, runs["d_aero"].to_numpy())
+    model = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy() for c in AERO_COEFFICIENTS})
     A, B = model.A[0], model.B[0]
     ts, T = p.ts, p.T
     dev = tr.surfaces[:, 0, :] - np.radians(p.trim_deg[:, 0])[:, None]

@@ -33,7 +33,7 @@ def _rows(specs, seed):
         out.append(single_run("elevator", man, fault, seed=seed, onset_s=onset,
                               duration_s=DURATION_S, alt_ft=alt, vcas_kt=vcas, mass_t=mass,
                               cg_pct=cg, d_vcas=d_vcas, d_alt=-d_vcas, d_kci=0.03,
-                              d_hinge=-0.1).assign(stream=j, run_id=f"r{j}"))
+                              d_ch0=-0.1, d_cha=-0.1, d_chd=-0.1).assign(stream=j, run_id=f"r{j}"))
     return pd.concat(out, ignore_index=True)
 
 

@@ -55,8 +55,8 @@ def test_aircraft_and_uncertainty_values():
     assert (A330.wing_area_m2, A330.mac_m, A330.mmo, A330.vmo_kt, A330.buffet_margin_g) == (
         361.6, 7.27, 0.86, 330.0, 1.3)
     assert A330.tail_arm_m == pytest.approx(28.0, abs=1.0)
-    assert dataclasses.astuple(UNCERTAINTY) == (0.05, 0.10, 0.10, 0.10, 0.10)
-    assert dataclasses.astuple(MISMATCH) == (True, 0.05, 0.05, 0.20)
+    assert dataclasses.astuple(UNCERTAINTY) == (0.05, 0.10, 0.10, 0.10, 0.10) + (None,) * 6
+    assert dataclasses.astuple(MISMATCH) == (True, 0.05, 0.05, 0.20, None, None, None)
     with pytest.raises(dataclasses.FrozenInstanceError):
         A330.mmo = 0.9  # type: ignore[misc]
 
@@ -82,11 +82,21 @@ def test_grid_has_108_unique_points():
 def test_half_widths_cover_the_draw_columns():
     w = half_widths(UNCERTAINTY, MISMATCH)
     assert tuple(w) == DRAW_COLUMNS
-    assert w == {"d_aero": 0.05, "d_vcas": 0.10, "d_alt": 0.10, "d_mass": 0.10, "d_cg": 0.10,
-                 "d_supply": 0.05, "d_kci": 0.05, "d_hinge": 0.20}
+    assert w == {"d_cx": 0.05, "d_cy": 0.05, "d_cz": 0.05, "d_cl": 0.05, "d_cm": 0.05,
+                 "d_cn": 0.05, "d_vcas": 0.10, "d_alt": 0.10, "d_mass": 0.10, "d_cg": 0.10,
+                 "d_supply": 0.05, "d_kci": 0.05, "d_ch0": 0.20, "d_cha": 0.20, "d_chd": 0.20}
     off = half_widths(UNCERTAINTY, dataclasses.replace(MISMATCH, enabled=False))
-    assert off["d_supply"] == off["d_kci"] == off["d_hinge"] == 0.0
+    assert off["d_supply"] == off["d_kci"] == off["d_ch0"] == off["d_cha"] == off["d_chd"] == 0.0
     assert off["d_vcas"] == 0.10
+
+
+def test_per_coefficient_half_widths_win_over_the_shorthands():
+    """docs/physics.md §6: ``aero`` and ``hinge`` set every coefficient not given one by one."""
+    w = half_widths(dataclasses.replace(UNCERTAINTY, aero=0.02, cm=0.08),
+                    dataclasses.replace(MISMATCH, hinge=0.3, ch0=0.5))
+    assert w["d_cm"] == 0.08
+    assert w["d_cx"] == w["d_cy"] == w["d_cz"] == w["d_cl"] == w["d_cn"] == 0.02
+    assert (w["d_ch0"], w["d_cha"], w["d_chd"]) == (0.5, 0.3, 0.3)
 
 
 def test_level_draws():
@@ -96,7 +106,8 @@ def test_level_draws():
     assert set(level_draws("nominal", UNCERTAINTY, MISMATCH).values()) == {0.0}
     custom = level_draws("min", Uncertainty(0.01, 0.02, 0.03, 0.04, 0.05),
                          Mismatch(False, 0.1, 0.1, 0.1))
-    assert custom["d_mass"] == -0.04 and custom["d_hinge"] == 0.0
+    assert custom["d_mass"] == -0.04 and custom["d_ch0"] == custom["d_chd"] == 0.0
+    assert custom["d_cx"] == custom["d_cn"] == -0.01
 
 
 @pytest.mark.parametrize("bad", ["mean", "MAX", ""])

@@ -166,7 +166,7 @@ RUNS = textwrap.dedent("""\
     vcas_kt = 220.0
     mass_t = 180.0
     cg_pct = 30.0
-    draws = { d_vcas = 0.05, d_hinge = -0.2 }
+    draws = { d_vcas = 0.05, d_chd = -0.2 }
     stream = 123456
     manoeuvre_start_s = 5.5
 
@@ -182,7 +182,7 @@ def test_explicit_runs_follow_the_groups_with_their_own_streams(tmp_path):
     plan = build_plan(config)
     assert list(plan["stream"]) == [0, 1, 123456]
     row = plan.iloc[2]
-    assert (row["group"], row["level"], row["d_vcas"], row["d_hinge"], row["d_aero"]) == \
+    assert (row["group"], row["level"], row["d_vcas"], row["d_chd"], row["d_cm"]) == \
         ("runs", "run", 0.05, -0.2, 0.0)
     assert row["manoeuvre_start_s"] == 5.5
     assert row["run_id"] == explicit_plan(config, config.runs)["run_id"].iloc[0]
@@ -200,7 +200,7 @@ def test_a_campaign_without_runs_keeps_its_canonical_form():
 @pytest.mark.parametrize("line, message", [
     ("draws = { d_vcs = 0.01 }", "run[0].draws.d_vcs: unknown draw column (did you mean "
                                  "'d_vcas'?)"),
-    ("draws = { d_hinge = 0.3 }", "run[0].draws.d_hinge: 0.3 is outside the campaign's "
+    ("draws = { d_chd = 0.3 }", "run[0].draws.d_chd: 0.3 is outside the campaign's "
                                   "half-width ±0.2"),
     ('fault = "runaway"', "run[0].onset_s: missing"),
     ("onset_s = 3.0", "run[0].onset_s: a fault-free group (fault = \"none\") has no onset_s"),

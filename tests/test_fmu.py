@@ -38,7 +38,7 @@ TOL_DEG = 1e-9
 def _runs(surface: str, duration_s: float = 20.0) -> pd.DataFrame:
     """One run of every fault type at two flight points, with their own noise seeds."""
     rows = []
-    points = [dict(alt_ft=8000.0, vcas_kt=300.0, mass_t=230.0, cg_pct=20.0, d_hinge=0.15),
+    points = [dict(alt_ft=8000.0, vcas_kt=300.0, mass_t=230.0, cg_pct=20.0, d_ch0=0.15, d_cha=0.15, d_chd=0.15),
               dict(alt_ft=36000.0, vcas_kt=200.0, mass_t=130.0, cg_pct=40.0, d_kci=-0.04)]
     for i, fault in enumerate(FAULTS):
         for j, point in enumerate(points):

@@ -25,7 +25,7 @@ def _batch(manoeuvre: str, n: int, **point) -> pd.DataFrame:
 
 
 #: every hinge-moment mismatch column of the run table at −20 % (docs/physics.md §6 half-width)
-LIGHT_HINGE = {c: -0.2 for c in RUN_COLUMNS if c == "d_hinge" or c.startswith("d_ch")}
+LIGHT_HINGE = {c: -0.2 for c in RUN_COLUMNS if c.startswith("d_ch")}
 
 
 @pytest.fixture(scope="module")

@@ -226,6 +226,28 @@ def test_plant_arrays_match_the_documented_hinge_moment():
     assert math.degrees(pl.delta_f) == pytest.approx(-0.325 * alpha, rel=1e-9)
 
 
+def test_each_hinge_coefficient_carries_its_own_draw():
+    """docs/physics.md §3 and §6: Ch0·(1 + d_ch0), Chα·(1 + d_cha), Chδ·(1 + d_chd), and the
+    aileron's aft loading: Ch0 = −0.04 floats it to δ_f = −Ch0/(Chδ·pg) − α/2 (both terms
+    negative: trailing edge up)."""
+    from scenarios.params import AILERON
+    from scenarios.servo import plant_arrays
+    mach, qbar, alpha = flight(28000.0, 300.0, 180.0, 30.0)
+    pg = 1.0 / math.sqrt(1.0 - min(mach, 0.75) ** 2)
+    qsc = qbar * AILERON.Sc_m2 * AILERON.cc_m
+    a = math.radians(alpha)
+    d0, da, dd = 0.1, -0.2, 0.15
+    arr = plant_arrays(AILERON, qbar_pa=np.array([qbar]), alpha_deg=np.array([alpha]),
+                       mach=np.array([mach]), d_ch0=d0, d_cha=da, d_chd=dd)
+    assert float(arr.hm_delta[0]) == pytest.approx(qsc * -0.20 * (1 + dd) * pg, rel=1e-12)
+    assert float(arr.hm_0[0]) == pytest.approx(
+        qsc * (-0.04 * (1 + d0) + -0.10 * (1 + da) * pg * a), rel=1e-12)
+    nominal = plant_arrays(AILERON, qbar_pa=np.array([qbar]), alpha_deg=np.array([alpha]),
+                           mach=np.array([mach]))
+    assert math.degrees(float(nominal.delta_float_rad[0])) == pytest.approx(
+        math.degrees(-0.04 / (0.20 * pg)) - alpha / 2.0, rel=1e-9)
+
+
 # ---- fault-free, large deflection --------------------------------------------------------
 LARGE = {
     # high q̄: the elevator stalls on the way to −20° where the hinge load reaches S·ΔP

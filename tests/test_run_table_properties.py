@@ -23,8 +23,9 @@ from scenarios.params import ELEVATOR
 from scenarios.runs import run_streams
 
 #: docs/physics.md §6: Table-2 half-widths and the mismatch half-widths
-HALF_WIDTHS = {"d_aero": 0.05, "d_vcas": 0.10, "d_alt": 0.10, "d_mass": 0.10, "d_cg": 0.10,
-               "d_supply": 0.05, "d_kci": 0.05, "d_hinge": 0.20}
+HALF_WIDTHS = {"d_cx": 0.05, "d_cy": 0.05, "d_cz": 0.05, "d_cl": 0.05, "d_cm": 0.05,
+               "d_cn": 0.05, "d_vcas": 0.10, "d_alt": 0.10, "d_mass": 0.10, "d_cg": 0.10,
+               "d_supply": 0.05, "d_kci": 0.05, "d_ch0": 0.20, "d_cha": 0.20, "d_chd": 0.20}
 
 
 def config(**over) -> CampaignConfig:
@@ -109,6 +110,33 @@ def test_uncertainty_draws_are_symmetric_with_the_documented_half_widths(plans):
             assert abs(v.mean()) < 4 * w / math.sqrt(3 * n), col
 
 
+def test_monte_carlo_draws_each_coefficient_independently(plans):
+    """docs/physics.md §6: the six aerodynamic and the three hinge-moment draws are separate
+    dimensions of the design, not one factor: no two are equal, and their sample
+    correlations stay within 4/sqrt(n) of 0 (independent uniforms: standard error 1/sqrt(n))."""
+    _, plan, _ = plans
+    cols = [c for c in HALF_WIDTHS if c[2:] in ("cx", "cy", "cz", "cl", "cm", "cn", "ch0", "cha", "chd")]
+    assert len(cols) == 9
+    corr = np.corrcoef(plan[cols].to_numpy().T)
+    off = corr[~np.eye(len(cols), dtype=bool)]
+    assert np.abs(off).max() < 4 / math.sqrt(len(plan)), np.abs(off).max()
+
+
+def test_a_coefficient_key_wins_over_its_shorthand():
+    """[uncertainty] aero / [mismatch] hinge set every coefficient not given by its own key
+    (docs/campaign-file.md); a campaign file without the new keys keeps its meaning."""
+    cfg = config(uncertainty={"aero": 0.02, "cm": 0.08}, mismatch={"hinge": 0.1, "ch0": 0.4})
+    plan = build_plan(cfg)
+    assert np.abs(plan["d_cm"]).max() > 0.9 * 0.08
+    for c in ("d_cx", "d_cy", "d_cz", "d_cl", "d_cn"):
+        assert np.abs(plan[c]).max() <= 0.02 and np.abs(plan[c]).max() > 0.9 * 0.02, c
+    assert np.abs(plan["d_ch0"]).max() > 0.9 * 0.4
+    assert 0.9 * 0.1 < np.abs(plan["d_chd"]).max() <= 0.1
+    old = build_plan(config(uncertainty={"aero": 0.02}))
+    assert all(0.9 * 0.02 < np.abs(old[f"d_{c}"]).max() <= 0.02
+               for c in ("cx", "cy", "cz", "cl", "cm", "cn"))
+
+
 def test_grid_levels_put_every_deviation_at_its_bound():
     cfg = config(campaign={"name": "g", "seed": 3, "duration_s": 30.0, "design": "grid"},
                  group=[{"name": "ff", "fault": "none", "manoeuvres": ["cruise"]}])
@@ -156,27 +184,30 @@ def test_onsets_are_on_the_time_grid_inside_the_documented_interval(plans):
     assert plan.loc[plan["fault"] == "none", "onset_s"].isna().all()
 
 
-#: A fixed run row (no run_id) and its id: sha256 of "servo-1|" + canonical JSON, first 20
+#: A fixed run row (no run_id) and its id: sha256 of "servo-2|" + canonical JSON, first 20
 #: hex digits. If the model version or the hashing scheme must change, every stored result
-#: becomes a different run: update this literal knowingly.
+#: becomes a different run: update this literal knowingly. Changed with model version 2
+#: (servo-2: one draw per aerodynamic and per hinge-moment coefficient, in place of d_aero
+#: and d_hinge; surface coupling; aft-loaded aileron hinge moment, docs/physics.md).
 GOLDEN_ROW = {"group": "g", "surface": "elevator", "manoeuvre": "cruise", "fault": "runaway",
               "onset_s": 12.5, "magnitude": -4.0, "freq_hz": float("nan"), "alt_ft": 28000.0,
               "vcas_kt": 300.0, "mass_t": 180.0, "cg_pct": 30.0, "level": "mc",
-              "realistic": True, "point": -1, "d_aero": 0.01, "d_vcas": -0.02, "d_alt": 0.0,
-              "d_mass": 0.0, "d_cg": 0.0, "d_supply": 0.0, "d_kci": 0.0, "d_hinge": 0.1,
-              "seed": 7, "stream": 3, "duration_s": 30.0}
-GOLDEN_ID = "3099d07502627a92888e"
+              "realistic": True, "point": -1, "d_cx": 0.01, "d_cy": -0.01, "d_cz": 0.02,
+              "d_cl": 0.0, "d_cm": -0.03, "d_cn": 0.04, "d_vcas": -0.02, "d_alt": 0.0,
+              "d_mass": 0.0, "d_cg": 0.0, "d_supply": 0.0, "d_kci": 0.0, "d_ch0": 0.1,
+              "d_cha": -0.1, "d_chd": 0.05, "seed": 7, "stream": 3, "duration_s": 30.0}
+GOLDEN_ID = "2f293bd4e9dcb6d808e9"
 
 
 def test_golden_run_id():
     assert run_id(dict(GOLDEN_ROW)) == GOLDEN_ID
     # a NaN optional column (manoeuvre_start_s) leaves the id unchanged; its id field too
     assert run_id({**GOLDEN_ROW, "manoeuvre_start_s": float("nan"), "run_id": "x"}) == GOLDEN_ID
-    # the scheme, by hand: NaN → null, sorted keys, compact separators, "servo-1|" prefix
+    # the scheme, by hand: NaN → null, sorted keys, compact separators, "servo-2|" prefix
     payload = {k: (None if isinstance(v, float) and math.isnan(v) else v)
                for k, v in GOLDEN_ROW.items()}
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    assert hashlib.sha256(("servo-1|" + text).encode()).hexdigest()[:20] == GOLDEN_ID
+    assert hashlib.sha256(("servo-2|" + text).encode()).hexdigest()[:20] == GOLDEN_ID
 
 
 @pytest.mark.parametrize("field, value", [("stream", 4), ("seed", 8), ("magnitude", 4.0),

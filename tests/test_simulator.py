@@ -111,7 +111,7 @@ def _mixed_batch() -> pd.DataFrame:
     for k, fault in enumerate(faults):
         r = single_run("elevator", MANOEUVRES[k % len(MANOEUVRES)], fault, seed=11,
                        onset_s=7.0 + k, duration_s=20.0, alt_ft=8000.0 + 3000.0 * k,
-                       d_aero=0.04, d_vcas=-0.05)
+                       d_cz=0.04, d_cm=-0.03, d_ch0=0.1, d_vcas=-0.05)
         rows.append(r.assign(stream=k, run_id=f"r{k}"))
     return _batch(rows)
 
@@ -160,7 +160,7 @@ def test_same_seed_same_signals_other_seed_other_noise():
     ("alt_ft", 60000.0, "alt_ft"),
     ("vcas_kt", 30.0, "vcas_kt"),        # knots expected; 30 is a m/s figure
     ("mass_t", 180000.0, "mass_t"),      # tonnes expected, not kg
-    ("d_aero", 5.0, "d_aero"),           # relative, not percent
+    ("d_cm", 5.0, "d_cm"),               # relative, not percent
 ])
 def test_bad_run_values_are_named_with_the_allowed_ones(column, value, expected):
     runs = single_run("elevator", "cruise", "solid_jam", duration_s=20.0)

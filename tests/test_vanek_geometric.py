@@ -1,6 +1,8 @@
 """The vanek-geometric detector ([VANEK] §2, §5) on the aircraft plant level: exact
-decoupling of the left elevator, the rudder and the lateral gust on the aircraft model,
-sensitivity to the left inboard aileron, isolation in closed-loop simulation."""
+decoupling of the left elevator, the rudder and the lateral gust on its design model (the
+elevators in unison, [VANEK] §4.2), the elevator's roll that the simulated aircraft adds and
+the filter does not decouple, sensitivity to the left inboard aileron, isolation in
+closed-loop simulation."""
 
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ import pandas as pd
 import pytest
 
 from detectors import geometric as geo
-from detectors.vanek_geometric import NOMINAL, VanekGeometric, _columns, _point, design_filter
+from detectors.vanek_geometric import (NOMINAL, VanekGeometric, _columns, _model, _point,
+                                       design_filter)
 from scenarios.aircraft import lpv
 from scenarios.aircraft.loop import simulate_aircraft
 from scenarios.simulate import simulate, single_run
@@ -19,10 +22,19 @@ from scenarios.simulate import simulate, single_run
 OMEGA = np.logspace(-3, 2, 51)          # rad/s: below the spiral mode to beyond the filter
 
 
+_C = np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in ("q", "theta", "beta", "p", "r", "phi")]]
+
+
 def _aircraft(point):
+    """The simulated aircraft's nominal model (an asymmetric elevator pair rolls it)."""
     m = lpv.run_models(point, np.zeros(1))
-    C = np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in ("q", "theta", "beta", "p", "r", "phi")]]
-    return m.A[0], m.B[0], C
+    return m.A[0], m.B[0], _C
+
+
+def _design(point):
+    """The filter's design model: the elevators in unison ([VANEK] §4.2)."""
+    A, B = _model(point)
+    return A, B, _C
 
 
 def _gust_feedthrough(j):
@@ -38,7 +50,7 @@ def _gust_feedthrough(j):
 def test_elevator_rudder_and_gust_are_decoupled_aileron_is_seen(vcas, alt):
     point = _point(vcas, alt, 200.0, 30.0)
     gen, _ = design_filter(point, 0.01)
-    A, B, C = _aircraft(point)
+    A, B, C = _design(point)
     i1, i2, _ = _columns()
     aileron = np.abs(gen.fault_to_residual(A, B, C, B[:, [i1]], OMEGA)).max()
     for j in i2 + [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA]:
@@ -46,13 +58,24 @@ def test_elevator_rudder_and_gust_are_decoupled_aileron_is_seen(vcas, alt):
         # exact decoupling: round-off only (model entries O(1), filter gains O(10))
         assert leak < 1e-9 * aileron, (j, leak, aileron)
     assert np.linalg.norm(geo.dc_gain(gen)) > 1e-4
+    # the simulated aircraft: the rudder and the gusts stay decoupled (its A and their columns
+    # are the design model's), but a left elevator also rolls it (docs/physics.md §7), which
+    # the design model leaves out: that part reaches the residual, 1.21 times the aileron's
+    # transfer (its rolling moment per degree is 1.21 times one aileron's)
+    A, B, C = _aircraft(point)
+    aileron = np.abs(gen.fault_to_residual(A, B, C, B[:, [i1]], OMEGA)).max()
+    for j in i2[1:] + [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA]:
+        leak = np.abs(gen.fault_to_residual(A, B, C, B[:, [j]], OMEGA, D=_gust_feedthrough(j))).max()
+        assert leak < 1e-9 * aileron, (j, leak, aileron)
+    leak = np.abs(gen.fault_to_residual(A, B, C, B[:, [i2[0]]], OMEGA)).max()
+    assert leak / aileron == pytest.approx(1.21, abs=0.05)
     eig = np.linalg.eigvals(gen.N)
     assert np.all(eig.real < -0.5 + 1e-4) and np.all(np.abs(eig) < 20.0 + 1e-4)
 
 
 def test_affine_lpv_family_one_s_star_poles_and_decoupling_over_the_box():
     """[VANEK] §5's LPV filter (variant lpv-affine): S* is the same at every realistic point of
-    the exact model (the premise of the LPV construction); with the model affine in VCAS and
+    the exact design model (the premise of the LPV construction); with the model affine in VCAS and
     altitude, the filter at any point of the box keeps its poles in the design region (one
     injection from the corner LMIs) and decouples the elevator, the rudder and the gust of
     that model exactly."""
@@ -66,7 +89,7 @@ def test_affine_lpv_family_one_s_star_poles_and_decoupling_over_the_box():
     pts = pts[pts["realistic"]][["vcas_kt", "alt_ft"]].drop_duplicates().to_numpy()
     ref = None
     for v, h in pts:
-        A, B, C = _aircraft(_point(v, h, 200.0, 30.0))
+        A, B, C = _design(_point(v, h, 200.0, 30.0))
         S = geo.unobservability_subspace(A, C, _fault_columns(A, B, True)[1])
         ref = S if ref is None else ref
         assert geo.same_subspace(S, ref), (v, h)
@@ -88,7 +111,7 @@ def test_affine_lpv_family_one_s_star_poles_and_decoupling_over_the_box():
 def test_without_gust_decoupling_the_gust_reaches_the_residual():
     point = _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0)
     gen, _ = design_filter(point, 0.01, decouple_gusts=False)
-    A, B, C = _aircraft(point)
+    A, B, C = _design(point)
     i1, i2, _ = _columns()
     aileron = np.abs(gen.fault_to_residual(A, B, C, B[:, [i1]], OMEGA)).max()
     gust = np.abs(gen.fault_to_residual(A, B, C, B[:, [lpv.I_GUST_BETA]], OMEGA,
@@ -154,18 +177,22 @@ def _twins(surface, fault, magnitude=None):
     return simulate_aircraft(rows)
 
 
-def test_isolation_elevator_runaway_leaves_the_residual_unchanged():
+def test_isolation_elevator_runaway_reaches_the_residual_through_its_roll():
+    """The elevator is decoupled in the design model (elevators in unison, [VANEK] §4.2), but
+    the simulated aircraft rolls under an asymmetric elevator pair (docs/physics.md §7): the
+    runaway's roll is read as an aileron fault. Measured at 200 kt / 26 000 ft, 5 °/s: the
+    residual departs from the fault-free twin's by 25.6 ° (LTI) of aileron-equivalent, against
+    thresholds of about 1 °; both variants alarm: the elevator is no longer isolated
+    (docs/vanek-geometric.md)."""
     det = _fit("left_elevator")
     sig, truth = _twins("left_elevator", "runaway", magnitude=5.0)
     # the runaway does move the elevator by many degrees (the check is not vacuous)
     assert np.ptp(truth.surfaces_deg["left_elevator"][0]) > 5.0
     for variant, r in det.estimates(sig).items():
         tau = det.thresholds_deg_[variant]
-        # the elevator moves only the longitudinal states, which the filter cannot see
-        # (elevator in S*, no longitudinal-lateral coupling in the linear model): the
-        # residual equals the fault-free twin's to round-off (measured ~1e-14 °)
-        assert np.abs(r[0] - r[1]).max() < 1e-9 * tau, variant
-    assert not any(d.alarm.any() for d in det.detect(sig).values())
+        assert np.abs(r[0] - r[1]).max() > 5.0 * tau, variant
+    alarms = {k: bool(d.alarm[0].any()) for k, d in det.detect(sig).items()}
+    assert all(alarms.values()), alarms
 
 
 @pytest.mark.parametrize("fault, magnitude", [("runaway", 2.0), ("liquid_jam", None),
@@ -202,14 +229,15 @@ def test_aileron_faults_cross_the_threshold_after_onset():
     out = det.detect(sig)
     peaks = {k: d.residual.max(axis=1) for k, d in out.items()}
     # a runaway to the stop and the campaign's default liquid jam (1.3 % of the travel, 0.69 °)
-    # off the LTI design point; measured peaks/threshold LTI 23 / 2.5, LPV 57 / 2.7
-    # (thresholds 0.69 ° and 0.28 ° of aileron-equivalent), first alarms 2.0–6.3 s after onset
+    # off the LTI design point
     for variant, d in out.items():
         assert d.alarm[:, -1].all(), (variant, peaks[variant])
         first = np.argmax(d.alarm, axis=1) * sig.ts
         assert np.all(first > 10.0), (variant, first)          # never before the onset
-    # the LPV filter, designed at the measured point, sees both faults more clearly
-    assert np.all(peaks["lpv"] > peaks["lti"]), peaks
+    # the LPV filter, designed at the measured point, sees the runaway more clearly; the
+    # default liquid jam about as clearly as the LTI filter (measured peaks/threshold: runaway
+    # LTI 30, LPV 62; jam LTI 2.3, LPV 2.1, with the aft-loaded aileron of docs/physics.md §3)
+    assert peaks["lpv"][0] > peaks["lti"][0], peaks
 
 
 def test_comparison_command_refuses_a_bad_noise_scale(capsys):
@@ -245,7 +273,7 @@ def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():
     # every pole slow enough for the bilinear map at Ts = 0.01 s, and stable
     eig = np.linalg.eigvals(q.A)
     assert np.all(eig.real < 0) and np.all(np.abs(eig) < 100.0)
-    A, B, C = _aircraft(point)
+    A, B, C = _design(point)
     Ac, Bc, Cc, Dc = vh.cascade(gen, q)
     i1, i2, _ = _columns()
     n, nc = A.shape[0], Ac.shape[0]
@@ -260,7 +288,9 @@ def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():
 
     dc = abs(transfer(i1, 1e-3)[0, 0])               # the plant has an integrator (θ)
     # the H∞ problem trades tracking for noise: the steady-state gain stays near 1
-    # (T_id(0) = 1; measured 0.96) and elevator/rudder stay decoupled through Q
+    # (T_id(0) = 1; measured 0.96) and elevator/rudder stay decoupled through Q (on the
+    # design model: the elevator's roll in the simulated aircraft is not, see
+    # test_elevator_rudder_and_gust_are_decoupled_aileron_is_seen)
     assert 0.5 < dc < 1.5
     for j in i2:
         assert max(abs(transfer(j, w)[0, 0]) for w in OMEGA) < 1e-9
@@ -346,14 +376,17 @@ def test_one_step_hinf_filter_gamma_tracking_and_approximate_isolation():
     assert np.all(filt.Bd[:, len(known) + 1] == 0.0)
 
 
-def test_vanek_comparison_lpv_detects_the_jam_first_and_both_isolate():
-    """The [VANEK] §5 comparison (fdd-campaign study vanek) at the default sensors:
-    as in [VANEK], both geometric filters keep the elevator runaway below threshold, the LPV
-    filters (frozen-point and affine) have the smaller isolation peak ([VANEK]: 0.105 < 0.175)
-    and detect the [VANEK]-size liquid jam at 170 kt / 23 000 ft first ([VANEK] DTP
-    0.00508 < 0.00725). Measured: peaks 0.67 ° (LTI), 0.24 ° (LPV), 0.42 ° (LPV-affine); jam
-    alarms 2.9 s, 1.5 s and 1.7 s after onset; thresholds 1.31–1.39 °, 0.39–0.40 ° and
-    0.63–0.67 °."""
+def test_vanek_comparison_lpv_detects_the_jam_first_and_the_elevator_is_not_isolated():
+    """The [VANEK] §5 comparison (fdd-campaign study vanek) at the default sensors: the LPV
+    filters (frozen-point and affine) detect the [VANEK]-size liquid jam at 170 kt / 23 000 ft
+    first ([VANEK] DTP 0.00508 < 0.00725). The left elevator runaway is not isolated: the
+    simulated aircraft rolls under the asymmetric elevator pair (docs/physics.md §7), which
+    the design model (elevators in unison, [VANEK] §4.2) leaves out, and every geometric
+    filter reads that roll as an aileron fault ([VANEK] reports 0.175 and 0.105 normalised
+    peaks, below threshold, on its own aircraft). Measured: elevator runaway peaks 25.5 ° of
+    aileron-equivalent in every variant, 18 (LTI), 65 (LPV) and 43 (LPV-affine) times the
+    threshold; jam alarms 2.8 s, 1.5 s and 1.7 s after onset; thresholds 1.37–1.39 °,
+    0.39–0.42 ° and 0.60–0.67 °."""
     from campaign.studies.vanek import compare
 
     df = compare(1.0).set_index(["scenario", "variant"])
@@ -361,10 +394,9 @@ def test_vanek_comparison_lpv_detects_the_jam_first_and_both_isolate():
     jam = df.loc["aileron liquid jam"]
     ff = df.loc["fault-free cruise"]
     for v in ("lti", "lpv", "lpv-affine"):
-        assert iso.loc[v, "peak_over_threshold"] < 1.0 and np.isnan(iso.loc[v, "delay_s"])
+        assert iso.loc[v, "peak_over_threshold"] > 5.0 and iso.loc[v, "delay_s"] > 0.0
         assert ff.loc[v, "peak_over_threshold"] < 1.0
         assert 0.0 < jam.loc[v, "delay_s"] < 10.0
     for v in ("lpv", "lpv-affine"):
-        assert iso.loc[v, "peak_deg"] < iso.loc["lti", "peak_deg"]
         assert jam.loc[v, "delay_s"] < jam.loc["lti", "delay_s"]
         assert jam.loc[v, "dtp"] < 1.0        # within the 2 s required detection time

@@ -55,10 +55,15 @@ class CampaignConfig:
                                         "repeat a value.")
     uncertainty: UncertaintySection = section(
         UncertaintySection, "uncertainty", "Measurement and estimation errors ([CHEN] Table "
-        "2), uniform: grid uses {−w, 0, +w}, mc samples U(−w, w).")
+        "2), uniform: grid uses {−w, 0, +w} (every deviation at once), mc samples each "
+        "U(−w, w) on its own. The six aerodynamic coefficients are drawn independently; "
+        "`aero` is the shorthand that sets all six, and a coefficient given by its own key "
+        "(`cx`, `cy`, `cz`, `cl`, `cm`, `cn`) wins over it (docs/physics.md §6).")
     mismatch: MismatchSection = section(
         MismatchSection, "mismatch", "Plant/model mismatch beyond [CHEN] Table 2 (est., "
-        "docs/physics.md §6), uniform, sampled per run.")
+        "docs/physics.md §6), uniform, sampled per run. Ch0, Chα and Chδ are drawn "
+        "independently; `hinge` is the shorthand that sets all three, and a coefficient given "
+        "by its own key (`ch0`, `cha`, `chd`) wins over it.")
     faults: FaultsSection = section(
         FaultsSection, "faults", "Fault sampling: onset uniform in [onset_min_s, duration_s − "
         "onset_before_end_s] (must not be empty); magnitudes uniform in the [low, high] "

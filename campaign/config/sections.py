@@ -128,21 +128,41 @@ class EnvelopeSection:
                                               "centre-of-gravity position")
 
 
+def _coefficient_width(doc: str, shorthand: str, source: str, example: float):
+    return key("float", doc + " (relative half-width of its own uniform draw; wins over "
+               f"{shorthand})", unit="-", lo=0.0, hi=0.5, source=source, optional=True,
+               default_doc=f"the value of {shorthand}", example=example)
+
+
 @dataclass(frozen=True, kw_only=True)
 class UncertaintySection:
-    aero: float = _half_width("aerodynamic coefficients δCx…δCn", 0.05, _CHEN_T2)
+    aero: float = _half_width("every aerodynamic coefficient δCx…δCn (shorthand: sets cx, "
+                              "cy, cz, cl, cm and cn not given one by one)", 0.05, _CHEN_T2)
     vcas: float = _half_width("measured VCAS error", 0.10, _CHEN_T2)
     alt: float = _half_width("measured altitude error", 0.10, _CHEN_T2)
     mass: float = _half_width("estimated mass error", 0.10, _CHEN_T2)
     cg: float = _half_width("estimated CG error", 0.10, _CHEN_T2)
+    cx: float | None = _coefficient_width("drag coefficient δCx", "aero", _CHEN_T2, 0.05)
+    cy: float | None = _coefficient_width("side-force coefficient δCy", "aero", _CHEN_T2, 0.05)
+    cz: float | None = _coefficient_width("lift coefficient δCz", "aero", _CHEN_T2, 0.05)
+    cl: float | None = _coefficient_width("rolling-moment coefficient δCl", "aero", _CHEN_T2, 0.05)
+    cm: float | None = _coefficient_width("pitching-moment coefficient δCm", "aero", _CHEN_T2, 0.05)
+    cn: float | None = _coefficient_width("yawing-moment coefficient δCn", "aero", _CHEN_T2, 0.05)
+
+
+_EST6 = "est. (docs/physics.md §6)"
 
 
 @dataclass(frozen=True, kw_only=True)
 class MismatchSection:
     enabled: bool = key("bool", "sample the plant/model mismatch below", True)
-    supply: float = _half_width("hydraulic supply pressure", 0.05, "est. (docs/physics.md §6)")
-    kci: float = _half_width("servo-valve gain Kci", 0.05, "est. (docs/physics.md §6)")
-    hinge: float = _half_width("hinge-moment coefficients", 0.20, "est. (docs/physics.md §6)")
+    supply: float = _half_width("hydraulic supply pressure", 0.05, _EST6)
+    kci: float = _half_width("servo-valve gain Kci", 0.05, _EST6)
+    hinge: float = _half_width("every hinge-moment coefficient Ch0, Chα, Chδ (shorthand: sets "
+                               "ch0, cha and chd not given one by one)", 0.20, _EST6)
+    ch0: float | None = _coefficient_width("hinge-moment coefficient Ch0", "hinge", _EST6, 0.2)
+    cha: float | None = _coefficient_width("hinge-moment derivative Chα", "hinge", _EST6, 0.2)
+    chd: float | None = _coefficient_width("hinge-moment derivative Chδ", "hinge", _EST6, 0.2)
 
 
 def _pair(doc: str, default: tuple[float, float], unit: str, hi: float, source: str):

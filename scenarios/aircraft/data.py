@@ -135,7 +135,8 @@ class ScalingParams:
       to the reference Mach, M held at ``mach_cap`` (as CLα in :mod:`scenarios.envelope`);
     - CG: Cmα and Cmδe move with the CG, Cm_cg = Cm_ref + CLx·(h − h_ref) (Etkin & Reid
       §2.3), CLx = −Czx;
-    - aerodynamic uncertainty: every derivative times (1 + d_aero) ([CHEN] Table 2).
+    - aerodynamic uncertainty: every derivative times (1 + d) with d the draw of its own
+      coefficient (Cz, Cm, Cy, Cl, Cn; [CHEN] Table 2, docs/physics.md §6).
     """
 
     span_m: float = param("m", "A330-300 published span", "wing span b")
@@ -149,14 +150,23 @@ A330_SCALING = ScalingParams(span_m=60.3, length_m=63.7, mach_cap=0.75)
 
 @dataclass(frozen=True)
 class SurfaceLayout:
-    """The primary surfaces and their share of the control derivatives (est.).
+    """The primary surfaces, their share of the control derivatives and the geometry that
+    makes each act on every axis it physically should (docs/physics.md §7; est.).
 
-    Elevators: each moves half of the elevator derivatives. Ailerons: δa = (δ_right −
-    δ_left)/2 (Etkin & Reid), shared between the inboard and outboard pairs; the 747 set
-    at M 0.8 has its outboard ailerons locked out, so the A330 roll power (four active
-    ailerons) is ``aileron_factor`` times it. Spoilers: a fixed coupling to the roll order
-    that adds ``spoiler_factor`` times the aileron roll and yaw moments of that order
-    (spoilers are not monitored and have no servo-loop here). Rudder: the whole δr set.
+    Elevators: each moves half of the elevator derivatives (lift Czδe, pitch Cmδe) and,
+    its lift increment acting ``elevator_arm_m`` off the plane of symmetry, rolls the
+    aircraft: Clδ = side·(y_e/b)·Czδe·share (side −1 left, +1 right; a left elevator
+    trailing edge down lifts the left tail and rolls right wing down). Ailerons: δa =
+    (δ_right − δ_left)/2 (Etkin & Reid), shared between the inboard and outboard pairs; the
+    747 set at M 0.8 has its outboard ailerons locked out, so the A330 roll power (four
+    active ailerons) is ``aileron_factor`` times it (rolling moment Clδa and the published
+    747 yawing moment Cnδa). Each aileron's rolling moment is its lift increment times its
+    lateral arm, so that lift, CLδ = −side·Clδ·b/y_a, and its pitching moment about the
+    derivative set's reference point, Cmδ = −CLδ·x_a/c̄ (x_a the aft distance of the lift
+    increment), act too. Spoilers: a fixed coupling to the roll order that adds
+    ``spoiler_factor`` times the aileron rolling moment of that order and a yawing moment
+    ``spoiler_yaw_ratio`` times their own rolling moment (spoilers are not monitored and
+    have no servo-loop here). Rudder: the whole δr set.
     """
 
     names: tuple[str, ...] = param("-", "docs/physics.md §7", "surfaces, in array order")
@@ -168,8 +178,34 @@ class SurfaceLayout:
     aileron_factor: float = param("-", "est. (747 cruise: outboard ailerons locked out)",
                                   "A330 aileron roll power relative to the 747 Clδa, Cnδa")
     spoiler_factor: float = param("-", "est. (roll spoilers 2–6)",
-                                  "spoiler roll/yaw moment per unit aileron roll order, "
+                                  "spoiler rolling moment per unit aileron roll order, "
                                   "relative to the ailerons'")
+    elevator_arm_m: float = param(
+        "m", "est. (A330 horizontal tail span 19.4 m; the centroid of an elliptic load over "
+        "a 9.7 m semi-span lies at 4·s/(3π) = 4.1 m)",
+        "lateral arm of each elevator's lift increment from the plane of symmetry")
+    inboard_arm_m: float = param(
+        "m", "est. (A330 semi-span 30.15 m; inboard aileron at about 63–76 % of it)",
+        "lateral arm of an inboard aileron's lift increment")
+    outboard_arm_m: float = param(
+        "m", "est. (outboard aileron at about 78–94 % of the semi-span)",
+        "lateral arm of an outboard aileron's lift increment")
+    inboard_aft_m: float = param(
+        "m", "est. (quarter-chord sweep 30°: (21.0 − 12.6 m)·tan 30° from the MAC station "
+        "at 12.6 m, plus 0.7 m from the local quarter chord to the flap-induced load)",
+        "distance of an inboard aileron's lift increment behind 25 % MAC")
+    outboard_aft_m: float = param(
+        "m", "est. ((26.0 − 12.6 m)·tan 30° + 0.6 m, as inboard_aft_m)",
+        "distance of an outboard aileron's lift increment behind 25 % MAC")
+    spoiler_yaw_ratio: float = param(
+        "-", "est. (a roll spoiler adds drag on the down-going wing: proverse yaw, drag "
+        "increment about 0.1 of the lift it spoils, at the same arm)",
+        "spoiler yawing moment per unit of its rolling moment, Cn_sp/Cl_sp")
+    elevator_yaw: float = param(
+        "-", "est. 0: the first-order drag change of a deflected elevator is the tail's "
+        "induced-drag slope 2·C_Lt·C_Lδt/(π·e·A_t), under 4 % of its lift slope at the "
+        "small trimmed tail loads of §6 (|C_Lt| ≤ 0.2, A_t ≈ 5, e ≈ 0.85); acting at the "
+        "same arm, its yawing moment is under 4 % of its rolling moment", "elevator yawing moment per unit of its rolling moment")
 
 
 LAYOUT = SurfaceLayout(
@@ -178,6 +214,8 @@ LAYOUT = SurfaceLayout(
     actuator=("elevator", "elevator", "aileron", "aileron", "aileron", "aileron", "rudder"),
     elevator_share=0.5, inboard_share=0.5, outboard_share=0.5,
     aileron_factor=3.0, spoiler_factor=1.0,
+    elevator_arm_m=4.1, inboard_arm_m=21.0, outboard_arm_m=26.0,
+    inboard_aft_m=5.5, outboard_aft_m=8.3, spoiler_yaw_ratio=0.1, elevator_yaw=0.0,
 )
 
 #: Surfaces of the aircraft plant, in array order.

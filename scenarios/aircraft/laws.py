@@ -1,9 +1,9 @@
 """Normal-law-like flight control laws at Ts, vectorised over runs (docs/physics.md §7 phase 2).
 
 The gains are scheduled on the *measured* flight point: the FCC builds the nominal linear
-model (d_aero = 0) of :mod:`scenarios.aircraft.lpv` from the measured/estimated Mach, q̄,
-TAS, mass and CG, and places the closed-loop poles on it. The real aircraft (true flight
-point, Table-2 aero error) therefore differs from the model the gains were placed on.
+model (every aerodynamic draw 0) of :mod:`scenarios.aircraft.lpv` from the measured/estimated
+Mach, q̄, TAS, mass and CG, and places the closed-loop poles on it. The real aircraft (true
+flight point, Table-2 aero errors) therefore differs from the model the gains were placed on.
 
 Pitch — load-factor command with integral action. On the short-period model
 α̇ = a11·α + a12·q, q̇ = a21·α + a22·q + b·δe, Δn_z ≈ n_α·α, the law

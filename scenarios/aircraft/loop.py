@@ -46,8 +46,8 @@ from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position
 from ..manoeuvres import elevator_trim_deg
 from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
-from ..runs import (RUN_COLUMNS, RUN_RANGES, flight_of, manoeuvre_sets, run_streams,
-                    validate_runs)
+from ..runs import (RUN_COLUMNS, RUN_RANGES, aero_draws, flight_of, manoeuvre_sets,
+                    plant_draws, run_streams, validate_runs)
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
 from ..simulate import rod_measurement_fault, servo_provides
@@ -133,8 +133,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
 
     flight_true, schedule = flight_of(f)
     plants = [plant_arrays(a, qbar_pa=flight_true["qbar_pa"], alpha_deg=flight_true["alpha_deg"],
-                           mach=flight_true["mach"], d_aero=f["d_aero"], d_hinge=f["d_hinge"],
-                           d_supply=f["d_supply"], d_kci=f["d_kci"]) for a in acts]
+                           mach=flight_true["mach"], **plant_draws(f)) for a in acts]
     limits = [authority_limits(pl, a.replace(order_load_limit=law_params.hinge_load_limit))
               for pl, a in zip(plants, acts)]
     lo = np.array([lim[0] for lim in limits]); hi = np.array([lim[1] for lim in limits])
@@ -144,7 +143,7 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
     trim[_ELEVATORS] = e_trim
     trim = np.clip(trim, lo, hi)
 
-    model = lpv.run_models(flight_true, f["d_aero"])
+    model = lpv.run_models(flight_true, aero_draws(f))
     phi, gam, ramp = lpv.discretise_ramp(model, ts)
     measured = {"mass_t": schedule["mass_t"], "cg_pct": schedule["cg_pct"],
                 "mach": schedule["mach"], "qbar_pa": schedule["qbar_pa"],

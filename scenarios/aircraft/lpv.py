@@ -38,7 +38,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..atmosphere import G0_MS2
-from ..envelope import A330, KG_PER_T, PERCENT, AircraftParams
+from ..envelope import A330, AERO_COEFFICIENTS, KG_PER_T, PERCENT, AircraftParams
 from ..servo import compressibility_factor
 from .data import (A330_SCALING, B747, B747_CONDITION, B747_DERIVATIVES, LAYOUT, AirframeData,
                    ReferenceCondition, ScalingParams, StabilityDerivatives, SurfaceLayout)
@@ -91,38 +91,115 @@ def reference_airframe(reference: AirframeData = B747) -> Airframes:
                      c=reference.mac_m, b=reference.span_m)
 
 
-def scheduled_derivatives(mach, cg_pct, d_aero, deriv: StabilityDerivatives = B747_DERIVATIVES,
-                          ref_condition: ReferenceCondition = B747_CONDITION,
-                          ref_cg_pct: float = B747.cg_ref_pct,
-                          scaling: ScalingParams = A330_SCALING) -> dict[str, np.ndarray]:
-    """Non-dimensional derivatives of each run (arrays (n,)): Prandtl–Glauert Mach scaling
-    relative to the reference Mach, CG shift of Cmα and Cmδe, and the (1 + d_aero)
-    uncertainty ([CHEN] Table 2) — see :class:`ScalingParams`."""
-    mach, cg, d = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (mach, cg_pct, d_aero)))
+#: [CHEN] Table 2 coefficient (``scenarios.envelope.AERO_COEFFICIENTS``) each derivative of
+#: the model belongs to, by the first letters of its name (docs/physics.md §6): the
+#: speed-held model carries no drag (Cx) derivative.
+AXIS_OF_PREFIX: dict[str, str] = {"Cz": "cz", "Cm": "cm", "Cy": "cy", "Cl": "cl", "Cn": "cn"}
+
+
+def derivative_axis(name: str) -> str:
+    """The [CHEN] Table 2 coefficient (``cz``, ``cm``, ``cy``, ``cl``, ``cn``) of derivative
+    *name* (``Cm_alpha`` → ``cm``)."""
+    return AXIS_OF_PREFIX[name[:2]]
+
+
+def _axis_factors(aero, shape) -> dict[str, np.ndarray]:
+    """(1 + d) of each coefficient: *aero* a number or array (every coefficient) or a mapping
+    coefficient → draw (a coefficient left out: 0)."""
+    from collections.abc import Mapping
+
+    if isinstance(aero, Mapping):
+        unknown = sorted(set(aero) - set(AERO_COEFFICIENTS))
+        if unknown:
+            raise ValueError(f"unknown aerodynamic coefficient(s) {unknown}; allowed: "
+                             f"{', '.join(AERO_COEFFICIENTS)}")
+        draws = {c: aero.get(c, 0.0) for c in AERO_COEFFICIENTS}
+    else:
+        draws = {c: aero for c in AERO_COEFFICIENTS}
+    return {c: np.broadcast_to(1.0 + np.asarray(d, float), shape) for c, d in draws.items()}
+
+
+def _nominal_derivatives(mach, cg, deriv, ref_condition, ref_cg_pct, scaling):
+    """The derivatives of each run before the uncertainty: Prandtl–Glauert scaling relative to
+    the reference Mach, Cmα and Cmδe moved with the CG (:class:`ScalingParams`)."""
     pg = (compressibility_factor(mach, scaling.mach_cap)
           / compressibility_factor(ref_condition.mach, scaling.mach_cap))
     out = {name: getattr(deriv, name) * pg for name in deriv.__dataclass_fields__}
     dh = (cg - ref_cg_pct) / PERCENT
     out["Cm_alpha"] = out["Cm_alpha"] - out["Cz_alpha"] * dh
     out["Cm_de"] = out["Cm_de"] - out["Cz_de"] * dh
-    return {k: v * (1.0 + d) for k, v in out.items()}
+    return out, dh
 
 
-def _surface_columns(layout: SurfaceLayout) -> dict[str, np.ndarray]:
-    """Multipliers of each input column on the elevator, aileron and rudder derivatives."""
-    n_in = N_INPUTS
-    elev = np.zeros(n_in); ail = np.zeros(n_in); rud = np.zeros(n_in)
+def scheduled_derivatives(mach, cg_pct, aero=0.0, deriv: StabilityDerivatives = B747_DERIVATIVES,
+                          ref_condition: ReferenceCondition = B747_CONDITION,
+                          ref_cg_pct: float = B747.cg_ref_pct,
+                          scaling: ScalingParams = A330_SCALING) -> dict[str, np.ndarray]:
+    """Non-dimensional derivatives of each run (arrays (n,)): Prandtl–Glauert Mach scaling
+    relative to the reference Mach, CG shift of Cmα and Cmδe, and each derivative times
+    (1 + d) with d the draw of its own coefficient (:func:`derivative_axis`; [CHEN] Table 2).
+
+    *aero*: a number or array applied to every coefficient, or a mapping ``{"cz": d, …}``
+    over :data:`scenarios.envelope.AERO_COEFFICIENTS` (a coefficient left out: 0)."""
+    mach, cg = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (mach, cg_pct)))
+    out, _ = _nominal_derivatives(mach, cg, deriv, ref_condition, ref_cg_pct, scaling)
+    shape = np.broadcast_shapes(mach.shape, *(np.shape(v) for v in (
+        aero.values() if isinstance(aero, dict) else [aero])))
+    factor = _axis_factors(aero, shape)
+    return {k: v * factor[derivative_axis(k)] for k, v in out.items()}
+
+
+def _surface_rows(nom: dict, dh, layout: SurfaceLayout, span_m: float,
+                  mac_m: float) -> dict[str, np.ndarray]:
+    """Nominal non-dimensional control derivatives [1/rad] of every input column, per
+    coefficient (``Cz``, ``Cm``, ``Cy``, ``Cl``, ``Cn``; arrays (n, N_INPUTS)); the gust
+    columns are 0 here (see :func:`continuous_model`). See :class:`SurfaceLayout`."""
+    n = np.shape(nom["Cz_de"])
+    rows = {k: np.zeros(n + (N_INPUTS,)) for k in AXIS_OF_PREFIX}
     for j, (name, kind) in enumerate(zip(layout.names, layout.actuator)):
+        side = 1.0 if name.startswith("right") else -1.0
         if kind == "elevator":
-            elev[j] = layout.elevator_share
+            rows["Cz"][..., j] = layout.elevator_share * nom["Cz_de"]
+            rows["Cm"][..., j] = layout.elevator_share * nom["Cm_de"]
+            rows["Cl"][..., j] = side * layout.elevator_arm_m / span_m * rows["Cz"][..., j]
+            rows["Cn"][..., j] = layout.elevator_yaw * rows["Cl"][..., j]
         elif kind == "aileron":
-            share = layout.inboard_share if "inboard" in name else layout.outboard_share
-            side = 1.0 if name.startswith("right") else -1.0
-            ail[j] = 0.5 * side * share * layout.aileron_factor
+            inboard = "inboard" in name
+            share = layout.inboard_share if inboard else layout.outboard_share
+            arm = layout.inboard_arm_m if inboard else layout.outboard_arm_m
+            aft = layout.inboard_aft_m if inboard else layout.outboard_aft_m
+            k = 0.5 * side * share * layout.aileron_factor
+            rows["Cl"][..., j] = k * nom["Cl_da"]
+            rows["Cn"][..., j] = k * nom["Cn_da"]
+            lift = -side * rows["Cl"][..., j] * span_m / arm          # CLδ of this aileron
+            rows["Cz"][..., j] = -lift
+            rows["Cm"][..., j] = -lift * aft / mac_m - rows["Cz"][..., j] * dh
         elif kind == "rudder":
-            rud[j] = 1.0
-    ail[I_SPOILER] = layout.aileron_factor * layout.spoiler_factor
-    return {"elev": elev, "ail": ail, "rud": rud}
+            for key in ("Cy", "Cl", "Cn"):
+                rows[key][..., j] = nom[key + "_dr"]
+    rows["Cl"][..., I_SPOILER] = layout.aileron_factor * layout.spoiler_factor * nom["Cl_da"]
+    rows["Cn"][..., I_SPOILER] = layout.spoiler_yaw_ratio * rows["Cl"][..., I_SPOILER]
+    return rows
+
+
+def control_derivatives(mach, cg_pct, aero=0.0, layout: SurfaceLayout = LAYOUT,
+                        deriv: StabilityDerivatives = B747_DERIVATIVES,
+                        ref_condition: ReferenceCondition = B747_CONDITION,
+                        ref_cg_pct: float = B747.cg_ref_pct,
+                        scaling: ScalingParams = A330_SCALING,
+                        aircraft: AircraftParams = A330) -> dict[str, np.ndarray]:
+    """Non-dimensional control derivatives [1/rad] of every input column and every
+    coefficient (``Cz``, ``Cm``, ``Cy``, ``Cl``, ``Cn`` → arrays (n, N_INPUTS)): each surface
+    acts on every axis it physically should (:class:`SurfaceLayout`, docs/physics.md §7), each
+    row times (1 + d) of its own coefficient ([CHEN] Table 2; *aero* as in
+    :func:`scheduled_derivatives`)."""
+    mach, cg = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (mach, cg_pct)))
+    nom, dh = _nominal_derivatives(mach, cg, deriv, ref_condition, ref_cg_pct, scaling)
+    rows = _surface_rows(nom, dh, layout, scaling.span_m, aircraft.mac_m)
+    shape = np.broadcast_shapes(mach.shape, *(np.shape(v) for v in (
+        aero.values() if isinstance(aero, dict) else [aero])))
+    factor = _axis_factors(aero, shape)
+    return {k: v * factor[AXIS_OF_PREFIX[k]][..., None] for k, v in rows.items()}
 
 
 @dataclass(frozen=True)
@@ -136,16 +213,18 @@ class ContinuousModel:
     tas_ms: np.ndarray
 
 
-def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes,
-                     layout: SurfaceLayout = LAYOUT, g: float = G0_MS2) -> ContinuousModel:
-    """The linear model of the module docstring for each run."""
+def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes, controls: dict,
+                     g: float = G0_MS2) -> ContinuousModel:
+    """The linear model of the module docstring for each run: stability derivatives *derivs*
+    (:func:`scheduled_derivatives`), control derivatives *controls* of every input column
+    (:func:`control_derivatives`; the gust columns are set here)."""
     qbar, V = np.broadcast_arrays(np.asarray(qbar_pa, float), np.asarray(tas_ms, float))
     n = qbar.shape[0]
     d = {k: np.broadcast_to(v, (n,)) for k, v in derivs.items()}
     S, c, b, m = frames.S, frames.c, frames.b, frames.mass_kg
     qS, qSc, qSb = qbar * S, qbar * S * c, qbar * S * b
     hc, hb = c / (2.0 * V), b / (2.0 * V)
-    cols = _surface_columns(layout)
+    ctl = {k: np.broadcast_to(v, (n, N_INPUTS)) for k, v in controls.items()}
 
     E = np.zeros((n, N_STATES, N_STATES)); F = np.zeros_like(E)
     G = np.zeros((n, N_STATES, N_INPUTS))
@@ -153,13 +232,13 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes,
     E[:, IA, IA] = m * V - qS * hc * d["Cz_alphadot"]
     F[:, IA, IA] = qS * d["Cz_alpha"]
     F[:, IA, IQ] = m * V + qS * hc * d["Cz_q"]
-    G[:, IA, :] = (qS * d["Cz_de"])[:, None] * cols["elev"]
+    G[:, IA, :] = qS[:, None] * ctl["Cz"]
     G[:, IA, I_GUST_ALPHA] = qS * d["Cz_alpha"]
     E[:, IQ, IQ] = frames.Iy
     E[:, IQ, IA] = -qSc * hc * d["Cm_alphadot"]
     F[:, IQ, IA] = qSc * d["Cm_alpha"]
     F[:, IQ, IQ] = qSc * hc * d["Cm_q"]
-    G[:, IQ, :] = (qSc * d["Cm_de"])[:, None] * cols["elev"]
+    G[:, IQ, :] = qSc[:, None] * ctl["Cm"]
     G[:, IQ, I_GUST_ALPHA] = qSc * d["Cm_alpha"]
     E[:, ITH, ITH] = 1.0
     F[:, ITH, IQ] = 1.0
@@ -169,7 +248,7 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes,
     F[:, IB, IP] = qS * hb * d["Cy_p"]
     F[:, IB, IR] = qS * hb * d["Cy_r"] - m * V
     F[:, IB, IPHI] = m * g
-    G[:, IB, :] = (qS * d["Cy_dr"])[:, None] * cols["rud"]
+    G[:, IB, :] = qS[:, None] * ctl["Cy"]
     G[:, IB, I_GUST_BETA] = qS * d["Cy_beta"]
     for row, inertia, cross, key in ((IP, frames.Ix, IR, "Cl"), (IR, frames.Iz, IP, "Cn")):
         E[:, row, row] = inertia
@@ -177,8 +256,7 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes,
         F[:, row, IB] = qSb * d[key + "_beta"]
         F[:, row, IP] = qSb * hb * d[key + "_p"]
         F[:, row, IR] = qSb * hb * d[key + "_r"]
-        G[:, row, :] = ((qSb * d[key + "_da"])[:, None] * cols["ail"]
-                        + (qSb * d[key + "_dr"])[:, None] * cols["rud"])
+        G[:, row, :] = qSb[:, None] * ctl[key]
         G[:, row, I_GUST_BETA] = qSb * d[key + "_beta"]
     E[:, IPHI, IPHI] = 1.0
     F[:, IPHI, IP] = 1.0
@@ -222,12 +300,17 @@ def discretise_ramp(model: ContinuousModel, ts: float, n_ramp: int = N_SURFACES)
     return ex[:, :ns, :ns], ex[:, :ns, ns:ns + ni], ex[:, :ns, ns + ni:]
 
 
-def run_models(flight: dict, d_aero, *, aircraft: AircraftParams = A330) -> ContinuousModel:
+def run_models(flight: dict, aero, *, aircraft: AircraftParams = A330,
+               layout: SurfaceLayout = LAYOUT) -> ContinuousModel:
     """Continuous models of a batch from its true flight condition (``flight`` holds
-    ``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``, ``tas_ms`` arrays)."""
+    ``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``, ``tas_ms`` arrays) and its aerodynamic
+    draws *aero* (a mapping ``{"cx": d, …, "cn": d}`` of arrays, or one number or array
+    for every coefficient; 0: the nominal model)."""
     frames = a330_airframes(flight["mass_t"], aircraft)
-    derivs = scheduled_derivatives(flight["mach"], flight["cg_pct"], d_aero)
-    return continuous_model(flight["qbar_pa"], flight["tas_ms"], derivs, frames)
+    derivs = scheduled_derivatives(flight["mach"], flight["cg_pct"], aero)
+    controls = control_derivatives(flight["mach"], flight["cg_pct"], aero, layout,
+                                   aircraft=aircraft)
+    return continuous_model(flight["qbar_pa"], flight["tas_ms"], derivs, frames, controls)
 
 
 def reference_model(condition: ReferenceCondition = B747_CONDITION,
@@ -235,8 +318,9 @@ def reference_model(condition: ReferenceCondition = B747_CONDITION,
     """The reference airframe at its own flight condition (for the mode checks)."""
     qbar = 0.5 * condition.rho_kgm3 * condition.tas_ms ** 2
     derivs = scheduled_derivatives(condition.mach, reference.cg_ref_pct, 0.0)
+    controls = control_derivatives(condition.mach, reference.cg_ref_pct, 0.0)
     return continuous_model(np.array([qbar]), np.array([condition.tas_ms]), derivs,
-                            reference_airframe(reference))
+                            reference_airframe(reference), controls)
 
 
 def modes(model: ContinuousModel) -> dict[str, np.ndarray]:
