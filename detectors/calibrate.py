@@ -326,12 +326,13 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
         return str(exc)
     edges = SHAPE_RANGE if fit.tail == "free" else (SHAPE_RANGE[0],)
     at_bound = " (ξ at the edge of its range)" if q.shape in edges else ""
-    if fit.light_rejected is not None:
-        at_bound += ("; light tail (ξ ≤ 0) rejected by the likelihood-ratio test, free shape"
-                     if fit.light_rejected else "; light tail (ξ ≤ 0), not rejected by the "
-                     "likelihood-ratio test")
+    if fit.tail == "free" and fit.light_rejected:
+        at_bound += "; light tail (ξ ≤ 0) rejected by the likelihood-ratio test, free shape"
+    elif fit.tail == "light" and fit.light_rejected:
+        at_bound += ("; light tail assumed (ξ ≤ 0) although the likelihood-ratio test rejects "
+                     "it for this sample: check it with fdd-campaign certify")
     elif fit.tail == "light":
-        at_bound += "; light tail assumed (ξ ≤ 0)"
+        at_bound += "; light tail (ξ ≤ 0), not rejected by the likelihood-ratio test"
     return Calibration(
         threshold=q.upper, method="gpd", supported=True, k=k, u=fit.u, shape=q.shape,
         scale=q.scale, estimate=q.estimate, gof_pvalue=q.gof_pvalue,

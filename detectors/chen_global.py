@@ -258,8 +258,9 @@ class ChenGlobalEstimator(Detector):
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
     threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
-        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
+        (light unless a likelihood-ratio test rejects it) or ``"free"``
+        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
@@ -288,7 +289,7 @@ class ChenGlobalEstimator(Detector):
     def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
                  filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="auto"):
+                 threshold_tail="light"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
         self.safety = safety

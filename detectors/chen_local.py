@@ -196,8 +196,9 @@ class ChenLocalEstimator(Detector):
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
     threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
-        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
+        (light unless a likelihood-ratio test rejects it) or ``"free"``
+        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -230,7 +231,7 @@ class ChenLocalEstimator(Detector):
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
                  post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="auto"):
+                 threshold_tail="light"):
         self.sensor = sensor
         self.safety = safety
         self.liquid_confirm_s = liquid_confirm_s

@@ -393,8 +393,9 @@ class IntervalDetector(Detector):
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
     threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
-        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
+        (light unless a likelihood-ratio test rejects it) or ``"free"``
+        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -428,7 +429,7 @@ class IntervalDetector(Detector):
                  h_radius=0.0, q_max=300, x0_radius_mm=0.5, sensor="rod_com",
                  use_power_law=False, floor_mm=1e-4, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="auto"):
+                 threshold_tail="light"):
         self.poles = poles
         self.safety = safety
         self.kappa = kappa

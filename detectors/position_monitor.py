@@ -130,8 +130,9 @@ class PositionMonitor(Detector):
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
     threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
-        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
+        (light unless a likelihood-ratio test rejects it) or ``"free"``
+        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     hinge_scale : (float, float)
         (low, high) multiples of the nominal hinge moment between which the ``loop`` check
         accepts the rod (module docstring). Default (0.6, 1.6): the true hinge moment over the
@@ -163,7 +164,7 @@ class PositionMonitor(Detector):
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="auto", hinge_scale=(0.6, 1.6)):
+                 threshold_tail="light", hinge_scale=(0.6, 1.6)):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks

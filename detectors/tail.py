@@ -201,7 +201,8 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
         unless the likelihood-ratio test of ξ ≤ 0 against the free fit rejects it at level
         1 − *confidence* (2·Δ log-likelihood > z²_confidence, the one-sided boundary test of
         Self & Liang 1987), in which case the free fit is used (:attr:`TailFit.tail` says
-        which, :attr:`TailFit.light_rejected` whether the test rejected).
+        which). With ``"light"`` and ``"auto"``, :attr:`TailFit.light_rejected` says whether
+        the test rejected ξ ≤ 0 (``"light"`` keeps it and reports it).
     confidence : float
         ``"auto"``: the test's confidence (default 0.95).
 
@@ -237,16 +238,18 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
     a = math.e                                    # any quantile: the maximum is the MLE
     fits = {}
     for kind, shapes in (("free", SHAPES), ("light", LIGHT_SHAPES)):
-        if tail in (kind, "auto"):
-            ll, t_hat, _, _ = _profile_maximum(y, a, shapes)
-            fits[kind] = (ll, t_hat, float(_profile(y, a, t_hat, shapes)[1][0]), shapes)
+        if tail == "free" and kind == "light":
+            continue
+        ll, t_hat, _, _ = _profile_maximum(y, a, shapes)
+        fits[kind] = (ll, t_hat, float(_profile(y, a, t_hat, shapes)[1][0]), shapes)
     rejected = None
-    if tail == "auto":
+    if tail != "free":               # the test is reported with "light", acted on with "auto"
         from scipy.stats import norm
 
         rejected = bool(2.0 * (fits["free"][0] - fits["light"][0])
                         > float(norm.ppf(confidence)) ** 2)
-        tail = "free" if rejected else "light"
+        if tail == "auto":
+            tail = "free" if rejected else "light"
     _, t_hat, xi_hat, shapes = fits[tail]
     sigma_hat = float(t_hat / _h(a, xi_hat))
     return TailFit(n=n, k=k, u=u, shape=xi_hat, scale=sigma_hat * unit,
@@ -278,7 +281,7 @@ class TailFit:
     unit: float = field(repr=False)                 # mean excess: the working unit
     excesses: np.ndarray = field(repr=False)        # the k excesses over u, in units of unit
     tail: str = "free"                              # the shape range fitted: "free", "light"
-    light_rejected: bool | None = None              # "auto": whether ξ ≤ 0 was rejected
+    light_rejected: bool | None = None              # light/auto: whether ξ ≤ 0 was rejected
     shapes: np.ndarray = field(repr=False, default_factory=lambda: SHAPES)  # its ξ grid
 
     # ---- quantiles ---------------------------------------------------------------------

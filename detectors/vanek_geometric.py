@@ -368,8 +368,9 @@ class VanekGeometric(Detector):
     threshold_confidence : float
         ``"evt"``: confidence of the calibration, in (0.5, 1).
     threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"auto"`` (light unless rejected),
-        ``"light"`` or ``"free"`` (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
+        (light unless a likelihood-ratio test rejects it) or ``"free"``
+        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
     """
 
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
@@ -394,7 +395,7 @@ class VanekGeometric(Detector):
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="auto"):
+                 threshold_tail="light"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
