@@ -186,19 +186,10 @@ class ChenLocalEstimator(Detector):
         Zero z and pole p of the liquid-jam post-filter T(s) = (s + z)/(s + p) [rad/s]
         (0 < z < p); default [CHEN] §6.2's (s + 1)/(s + 5). T keeps the high-frequency gain
         1 (a jam's estimate is a step) and divides slow model mismatch by p/z.
-    threshold_method : str
-        ``"evt"`` (default: calibrated to ``target_fa_per_run`` per variant and manoeuvre
-        class by :mod:`detectors.calibrate`; ``safety`` then only multiplies the largest
-        value when the learning set cannot support the target) or ``"max"`` (safety × the
-        largest learning value).
-    target_fa_per_run : float
-        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
-    threshold_confidence : float
-        ``"evt"``: confidence of the calibration, in (0.5, 1).
-    threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
-        (light unless a likelihood-ratio test rejects it) or ``"free"``
-        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+    threshold_method, target_fa_per_run, threshold_confidence, threshold_tail
+        How thresholds are learned: calibrated to a per-run false-alarm target per
+        manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
+        (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)

@@ -384,18 +384,10 @@ class IntervalDetector(Detector):
         Compute the threshold from the power-law bound α·q^γ + β instead of λ_q.
     floor_mm : float
         Smallest λ_q [mm] (guards against a learning set whose residual is all zero).
-    threshold_method : str
-        ``"evt"`` (default: ς calibrated to ``target_fa_per_run``, module docstring; the
-        ``"max"`` bounds when the learning set cannot support it) or ``"max"``
-        (λ_q = ς × the learning maximum, [COMB] eq. 6).
-    target_fa_per_run : float
-        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
-    threshold_confidence : float
-        ``"evt"``: confidence of the calibration, in (0.5, 1).
-    threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
-        (light unless a likelihood-ratio test rejects it) or ``"free"``
-        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+    threshold_method, target_fa_per_run, threshold_confidence, threshold_tail
+        How thresholds are learned: calibrated to a per-run false-alarm target per
+        manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
+        (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)

@@ -122,17 +122,10 @@ class PositionMonitor(Detector):
         Which consistency checks run: any of ``"loop"``, ``"com_mon"``, ``"surface"``.
     floor_mm : float
         Smallest threshold of a check [mm] (guards against a learning set without motion).
-    threshold_method : str
-        ``"evt"`` (default: calibrated to ``target_fa_per_run``, module docstring) or
-        ``"max"`` (safety × largest learning residual).
-    target_fa_per_run : float
-        ``"evt"``: target probability of a false alarm in one fault-free run, in (0, 0.1).
-    threshold_confidence : float
-        ``"evt"``: confidence of the calibration, in (0.5, 1).
-    threshold_tail : str
-        ``"evt"``: the tail fit's shape range, ``"light"`` (ξ ≤ 0, the default), ``"auto"``
-        (light unless a likelihood-ratio test rejects it) or ``"free"``
-        (:func:`detectors.tail.fit_tail`, docs/thresholds.md).
+    threshold_method, target_fa_per_run, threshold_confidence, threshold_tail
+        How thresholds are learned: calibrated to a per-run false-alarm target per
+        manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
+        (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     hinge_scale : (float, float)
         (low, high) multiples of the nominal hinge moment between which the ``loop`` check
         accepts the rod (module docstring). Default (0.6, 1.6): the true hinge moment over the
