@@ -88,10 +88,10 @@ def _verdict(config, result) -> str:
     this result, and the command to run next."""
     from reports.gate import evaluate_gate
 
-    gate = evaluate_gate(result.summary, max_fa=config.requirements.max_fa_rate,
-                         coverage=(result.results["run_id"].nunique()
-                                   if not result.results.empty else 0, len(result.plan)),
-                         results=result.results)
+    req, done = config.requirements, result.results["run_id"].nunique()
+    gate = evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
+                         detector_max_fa=dict(req.detector_max_fa_rate),
+                         coverage=(done if not result.results.empty else 0, len(result.plan)))
     if gate.passed:
         return (f"verdict: the gate passes (all {len(gate.checks)} checks); next: "
                 f"fdd-campaign gate {result.out} --junit gate.xml, or fdd-campaign report "
@@ -204,15 +204,16 @@ def _gate_one(directory, args):
     results, summary, meta = load_results(directory)
     req = (meta.get("config") or {}).get("requirements", {})
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
+    allowances = dict(req.get("detector_max_fa_rate") or {}) if args.max_fa is None else {}
     max_md, max_dtp = args.max_md, args.max_dtp
     if args.all_requirements:        # the campaign file's MD and DTP limits too (as the report)
         max_md = max_md if max_md is not None else req.get("max_md_rate")
         max_dtp = max_dtp if max_dtp is not None else req.get("max_dtp")
-    coverage = None
-    if meta.get("runs_planned") is not None:
-        coverage = (int(meta.get("runs_done") or 0), int(meta["runs_planned"]))
+    coverage = (None if meta.get("runs_planned") is None
+                else (int(meta.get("runs_done") or 0), int(meta["runs_planned"])))
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
-                           allow_errors=args.allow_errors, coverage=coverage,
+                           detector_max_fa=allowances, allow_errors=args.allow_errors,
+                           coverage=coverage,
                            allow_incomplete=args.allow_incomplete, results=results)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .cli_evidence import fa_probability_checks
@@ -525,7 +526,8 @@ def _add_result_parsers(subs) -> None:
     p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
-    p.add_argument("--max-fa", type=float, help="largest false-alarm rate (default: campaign file)")
+    p.add_argument("--max-fa", type=float, help="largest false-alarm rate of every detector "
+                   "(default: the campaign file's, per-detector allowances included)")
     p.add_argument("--max-md", type=float, help="largest missed-detection rate (default: "
                    "unchecked, or the campaign file's with --all-requirements)")
     p.add_argument("--max-dtp", type=float, help="largest DTP (default: unchecked, or the "

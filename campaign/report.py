@@ -316,7 +316,8 @@ def _point_text(row) -> str:
 # ---- report --------------------------------------------------------------------------------
 def _requirements(config: CampaignConfig) -> dict:
     r = config.requirements
-    return {"max_fa_rate": r.max_fa_rate, "max_md_rate": r.max_md_rate, "max_dtp": r.max_dtp}
+    return {"max_fa_rate": r.max_fa_rate, "max_md_rate": r.max_md_rate, "max_dtp": r.max_dtp,
+            "detector_max_fa_rate": dict(r.detector_max_fa_rate)}
 
 
 def runs_table(camp: LoadedCampaign) -> pd.DataFrame:
@@ -395,7 +396,8 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
     detectors = camp.detectors()
     req = _requirements(camp.config)
     gate = evaluate_gate(camp.summary, max_fa=req["max_fa_rate"], max_md=req["max_md_rate"],
-                         max_dtp=req["max_dtp"])
+                         max_dtp=req["max_dtp"],
+                         detector_max_fa=req["detector_max_fa_rate"])
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "

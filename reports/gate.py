@@ -143,7 +143,8 @@ def _validate(summary: pd.DataFrame, limits: dict) -> None:
 def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float | None = None,
                   max_dtp: float | None = None, allow_errors: bool = False,
                   coverage: tuple[int, int] | None = None, allow_incomplete: bool = False,
-                  results: pd.DataFrame | None = None) -> GateResult:
+                  results: pd.DataFrame | None = None,
+                  detector_max_fa: dict | None = None) -> GateResult:
     """Evaluate the acceptance requirements on a summary (see the module docstring).
 
     Parameters
@@ -166,6 +167,12 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
     results : DataFrame or None
         The result rows behind *summary*; a failed false-alarm check then lists its first
         failing run ids.
+    detector_max_fa : dict or None
+        Detector (result-row name, e.g. ``"chen-local[solid]"``, or its base label, which
+        covers every variant) → its own largest accepted false-alarm rate, in place of
+        *max_fa* for that detector: a campaign's documented allowance for a detector known
+        not to reach zero (``[requirements] detector_max_fa_rate``). A name that matches no
+        detector of the summary is an error (GateInputError).
 
     Raises
     ------
@@ -173,6 +180,7 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         When the summary lacks columns or a limit is out of range.
     """
     _validate(summary, {"max_fa": max_fa, "max_md": max_md, "max_dtp": max_dtp})
+    allowance = _allowances(summary, detector_max_fa or {})
     checks: list[Check] = []
     if coverage is not None:
         checks.append(_coverage_check(*coverage, allow_incomplete))
@@ -183,7 +191,8 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
     fine = summary[(summary["fault"] != ALL_FAULTS) & (summary["manoeuvre"] != ALL_MANOEUVRES)]
     for detector, rows in fine.groupby("detector", sort=True):
         checks += _runs_check(detector, rows)
-        checks += _fa_checks(detector, rows, float(max_fa), _alarmed_runs(results, detector))
+        checks += _fa_checks(detector, rows, float(allowance(detector, max_fa)),
+                             _alarmed_runs(results, detector))
         if max_md is not None:
             checks += _md_checks(detector, rows, float(max_md))
         if max_dtp is not None:
@@ -193,6 +202,30 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
                             "FAIL scored runs: the summary holds no runs"))
     return GateResult(checks)
+
+
+def _allowances(summary: pd.DataFrame, limits: dict):
+    """detector → its false-alarm limit: *limits* by result-row name, else by base label
+    (the name before ``[``), else the campaign-wide one; unknown names are refused."""
+    names = set(summary["detector"]) if "detector" in summary else set()
+    bases = {n.split("[", 1)[0] for n in names}
+    problems = []
+    for name, value in limits.items():
+        if name not in names and name not in bases:
+            problems.append(f"detector_max_fa_rate names {name!r}, which is no detector of "
+                            f"these results ({', '.join(sorted(names))}); fix: use one of "
+                            "those names or remove it")
+        elif not 0.0 <= float(value) <= 1.0:
+            problems.append(f"detector_max_fa_rate {name!r} = {value!r}: a rate is a "
+                            "fraction in [0, 1], e.g. 0.05 for 5 %")
+    if problems:
+        raise GateInputError(problems)
+
+    def limit(detector: str, default: float) -> float:
+        if detector in limits:
+            return float(limits[detector])
+        return float(limits.get(detector.split("[", 1)[0], default))
+    return limit
 
 
 def _coverage_check(done: int, planned: int, allow_incomplete: bool) -> Check:

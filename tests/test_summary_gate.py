@@ -407,3 +407,28 @@ def test_estimation_error_is_pooled_over_samples_and_normalised_by_the_range():
     assert old["est_err_mean"].isna().all()
     cols = [c for c in SUMMARY_COLUMNS if not c.startswith("est_err")]
     pd.testing.assert_frame_equal(old[cols], summarize(rows)[cols])
+
+
+def test_a_detector_allowance_applies_to_that_detector_only():
+    """[requirements] detector_max_fa_rate: a documented allowance for one detector (by
+    result name, or by base label for every variant) replaces max_fa for it alone."""
+    res = pd.concat([fault_free("turn_coordination", 10, alarms=2, detector="chen-local[solid]"),
+                     fault_free("turn_coordination", 10, alarms=0, detector="chen-local[liquid]"),
+                     fault_free("turn_coordination", 10, alarms=1)], ignore_index=True)
+    summary = summarize(res)
+    plain = evaluate_gate(summary)
+    assert sorted(c.detector for c in plain.failures) == ["chen-local[solid]", DET]
+    allowed = evaluate_gate(summary, detector_max_fa={"chen-local[solid]": 0.2})
+    assert [c.detector for c in allowed.failures] == [DET]            # 2/10 ≤ 20 %
+    [solid] = [c for c in allowed.checks if c.detector == "chen-local[solid]"
+               and c.name == "false_alarm"]
+    assert solid.passed and solid.limit == 0.2 and solid.value == pytest.approx(0.2, rel=REL)
+    # 2/10 > 10 %: the allowance is a limit, not a waiver
+    assert not evaluate_gate(summary, detector_max_fa={"chen-local[solid]": 0.1}).passed
+    # a base label covers its variants; the others keep max_fa
+    by_base = evaluate_gate(summary, detector_max_fa={"chen-local": 0.2})
+    assert [c.detector for c in by_base.failures] == [DET]
+    with pytest.raises(GateInputError, match="no detector of these results"):
+        evaluate_gate(summary, detector_max_fa={"chen-global": 0.2})
+    with pytest.raises(GateInputError, match=r"fraction in \[0, 1\]"):
+        evaluate_gate(summary, detector_max_fa={"chen-local[solid]": 20})
