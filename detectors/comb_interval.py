@@ -149,16 +149,8 @@ def moving_average_bounds(r: np.ndarray, q_max: int, safety: float) -> np.ndarra
     Moving averages are taken within a run only (windows never span two runs).
     Returns an array of length q_max (index q − 1).
     """
-    r = np.atleast_2d(np.asarray(r, float))
-    T = r.shape[1]
-    if q_max > T:
-        raise ValueError(f"q_max = {q_max} exceeds the length of the learning runs "
-                         f"({T} steps); lower q_max or use longer learning runs")
-    c = np.concatenate([np.zeros((r.shape[0], 1)), np.cumsum(r, axis=1)], axis=1)
-    lam = np.empty(q_max)
-    for q in range(1, q_max + 1):
-        lam[q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q])) / q
-    return safety * lam
+    # the largest of the per-run maxima: max over rows of (max_k |…|/q) = max_k,rows |…|/q
+    return safety * moving_average_maxima(r, q_max).max(axis=0)
 
 
 def moving_average_maxima(r: np.ndarray, q_max: int) -> np.ndarray:
