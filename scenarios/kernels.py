@@ -1,7 +1,8 @@
 """Compiled kernels of the hot loops (numba), with the NumPy code as their reference.
 
 The closed-loop time loop of :func:`scenarios.simulate.integrate` and the nominal-model
-recursion of the position monitor advance every run step by step; in NumPy each step is a
+recursions of the position monitor (one model, or a band of them at several hinge moments
+integrated together: :func:`servo_band_step`) advance every run step by step; in NumPy each step is a
 few dozen array operations on arrays of shape ``(n_runs,)``, so the interpreter overhead
 dominates. The kernels here run the same recursions compiled (``@njit(nogil=True,
 cache=True)``), on a block of runs at once: the outer loop goes over the steps, the inner
