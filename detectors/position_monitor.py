@@ -44,7 +44,8 @@ from dataclasses import replace
 import numpy as np
 
 from scenarios import kernels
-from scenarios.kernels import resolve_engine, servo_model
+from scenarios.kernels import (band_plants, resolve_engine, servo_band, servo_band_step,
+                               servo_model)
 from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
 
@@ -55,52 +56,77 @@ from .params import Param
 CHECKS = ("loop", "com_mon", "surface")
 
 
-@kernels.njit(nogil=True, cache=True, error_model="numpy")
-def _decide_block(rod_com, model_lo, model_hi, rod_mon, surface_mm, tau, active, n_confirm,
-                  norm_out, alarm_out):
-    """Normalised residual and confirmed alarm of a block of runs, compiled (the NumPy
-    reference is :meth:`PositionMonitor._detect` with :func:`detectors.base.confirm`).
+#: Runs integrated together by :func:`_decide_block`: enough independent model recursions
+#: per step for the processor to overlap them, few enough rows of the (n, T) arrays it reads
+#: and writes step by step to stay in cache (est.; blocks of 4, 16 and 100 runs measured the
+#: same CPU time on 100-run chunks of 60 s, the models' arithmetic being the bound).
+_RUN_BLOCK = 16
 
+
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_confirm,
+                  norm_out, alarm_out):
+    """Normalised residual and confirmed alarm of a block of runs, the loop check's model band
+    integrated in the same pass, compiled (the NumPy reference is :meth:`PositionMonitor._detect`
+    with :meth:`PositionMonitor.model_band` and :func:`detectors.base.confirm`).
+
+    The band: the models of *plants* (m, n, 11; rows of :func:`scenarios.kernels.plant_matrix`,
+    the nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
+    by :func:`scenarios.kernels.servo_band_step` (docs/physics.md §2–3); *ts* [s].
     norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
     loop, com_mon, surface; NaN propagates as in ``np.maximum``),
-    r_loop = distance of y_COM outside [model_lo, model_hi] (|y_COM − model| when the two
-    are the same model), r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
+    r_loop = distance of y_COM outside [band low, band high] (|y_COM − model| when the band
+    is one model), r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
     alarm once norm ≥ 1 for *n_confirm* consecutive steps, latched. Writes *norm_out*,
-    *alarm_out* (n, T).
+    *alarm_out* (n, T). Runs go in blocks of :data:`_RUN_BLOCK`, steps outer and the runs of
+    the block inner; every run's arithmetic is independent of the others'.
     """
     n, T = rod_com.shape
     use_loop, use_cm, use_surf = active[0], active[1], active[2]
-    for r in range(n):
-        count = 0
-        latched = False
+    m = plants.shape[0] if (use_loop and T > 0) else 0
+    x = np.empty((m, n))
+    for j in range(m):
+        for r in range(n):
+            x[j, r] = rod_com[r, 0]
+    i_prev = np.zeros((m, n))
+    lo = np.empty(_RUN_BLOCK)
+    hi = np.empty(_RUN_BLOCK)
+    count = np.zeros(n, dtype=np.int64)
+    latched = np.zeros(n, dtype=np.bool_)
+    for b0 in range(0, n, _RUN_BLOCK):
+        b1 = min(b0 + _RUN_BLOCK, n)
         for k in range(T):
-            v = 0.0
-            if use_loop:
-                y = rod_com[r, k]
-                above = y - model_hi[r, k]
-                below = model_lo[r, k] - y
-                if math.isnan(above) or math.isnan(below):
-                    c = math.nan                        # NaN propagates as in np.abs
-                else:
-                    c = (above if above > 0.0 else max(0.0, below)) / tau[0]
-                v = c if (c > v or math.isnan(c)) else v
-            if use_cm and not math.isnan(v):
-                c = abs(rod_com[r, k] - rod_mon[r, k]) / tau[1]
-                v = c if (c > v or math.isnan(c)) else v
-            if use_surf and not math.isnan(v):
-                c = abs(surface_mm[r, k] - rod_mon[r, k]) / tau[2]
-                v = c if (c > v or math.isnan(c)) else v
-            norm_out[r, k] = v
-            count = count + 1 if v >= 1.0 else 0
-            if count >= n_confirm:
-                latched = True
-            alarm_out[r, k] = latched
+            if m > 0:
+                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi)
+            for r in range(b0, b1):
+                v = 0.0
+                if use_loop:
+                    y = rod_com[r, k]
+                    above = y - hi[r - b0]
+                    below = lo[r - b0] - y
+                    if math.isnan(above) or math.isnan(below):
+                        c = math.nan                    # NaN propagates as in np.abs
+                    else:
+                        c = (above if above > 0.0 else max(0.0, below)) / tau[0]
+                    v = c if (c > v or math.isnan(c)) else v
+                if use_cm and not math.isnan(v):
+                    c = abs(rod_com[r, k] - rod_mon[r, k]) / tau[1]
+                    v = c if (c > v or math.isnan(c)) else v
+                if use_surf and not math.isnan(v):
+                    c = abs(surface_mm[r, k] - rod_mon[r, k]) / tau[2]
+                    v = c if (c > v or math.isnan(c)) else v
+                norm_out[r, k] = v
+                count[r] = count[r] + 1 if v >= 1.0 else 0
+                if count[r] >= n_confirm:
+                    latched[r] = True
+                alarm_out[r, k] = latched[r]
 
 
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
-    _decide_block(z2, z2, z2, z2, np.zeros((0, 0)), np.ones(3),
+    plants = np.ones((2, 1, len(kernels.PLANT_FIELDS)))
+    _decide_block(z2, z2, plants, 0.01, z2, np.zeros((0, 0)), np.ones(3),
                   np.array([True, True, False]), 1, np.zeros((1, 2)),
                   np.zeros((1, 2), dtype=np.bool_))
 
@@ -176,6 +202,19 @@ class PositionMonitor(Detector):
         return checks
 
     @staticmethod
+    def model_plant(signals: Signals, hinge_scale: float = 1.0):
+        """Plant parameters (:class:`scenarios.servo.PlantArrays`) of the nominal servo model:
+        the nominal actuator at the measured flight point (docs/physics.md §3, §6), its hinge
+        moment (both HM(0) and ∂HM/∂δ) times *hinge_scale*."""
+        sch = signals.schedule
+        plant = plant_arrays(signals.actuator, qbar_pa=sch["qbar_pa"], alpha_deg=sch["alpha_deg"],
+                             mach=sch["mach"])
+        if hinge_scale != 1.0:
+            plant = replace(plant, hm_0=plant.hm_0 * hinge_scale,
+                            hm_delta=plant.hm_delta * hinge_scale)
+        return plant
+
+    @staticmethod
     def model_output(signals: Signals, engine: str | None = None,
                      hinge_scale: float = 1.0) -> np.ndarray:
         """Nominal closed-loop servo model driven by the order (docs/physics.md §2–3) [mm].
@@ -184,13 +223,7 @@ class PositionMonitor(Detector):
         reference loop below); default :func:`scenarios.kernels.current_engine`.
         *hinge_scale*: the model's hinge moment (both HM(0) and ∂HM/∂δ) times this factor.
         """
-        act = signals.actuator
-        sch = signals.schedule
-        plant = plant_arrays(act, qbar_pa=sch["qbar_pa"], alpha_deg=sch["alpha_deg"],
-                             mach=sch["mach"])
-        if hinge_scale != 1.0:
-            plant = replace(plant, hm_0=plant.hm_0 * hinge_scale,
-                            hm_delta=plant.hm_delta * hinge_scale)
+        plant = PositionMonitor.model_plant(signals, hinge_scale)
         if resolve_engine(engine) == "compiled":
             return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts)
         n, T = signals.command.shape
@@ -206,14 +239,29 @@ class PositionMonitor(Detector):
             i_prev = i_new
         return out
 
-    def model_band(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
+    def band_scales(self) -> tuple[float, ...]:
+        """The hinge-moment factors of the band's models: 1 (the nominal model) first, then
+        the other values of ``hinge_scale`` in increasing order (just (1.0,) for (1, 1))."""
+        return (1.0, *sorted({float(v) for v in self.hinge_scale} - {1.0}))
+
+    def model_band(self, signals: Signals,
+                   engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) [mm]: the hull of the model outputs at the nominal hinge moment and at
-        ``hinge_scale`` times it (one array twice when ``hinge_scale = (1, 1)``)."""
-        nominal = self.model_output(signals)
-        scales = sorted({float(v) for v in self.hinge_scale} - {1.0})
-        if not scales:
+        ``hinge_scale`` times it (one array twice when ``hinge_scale = (1, 1)``).
+
+        *engine*: ``"compiled"`` integrates the models in one pass
+        (:func:`scenarios.kernels.servo_band`), ``"numpy"`` is the reference (each model by
+        :meth:`model_output`, then ``np.minimum``/``np.maximum``); default
+        :func:`scenarios.kernels.current_engine`. Both give the same values.
+        """
+        scales = self.band_scales()
+        if len(scales) == 1:
+            nominal = self.model_output(signals, engine=engine)
             return nominal, nominal
-        outs = [nominal] + [self.model_output(signals, hinge_scale=v) for v in scales]
+        if resolve_engine(engine) == "compiled":
+            return servo_band(signals.command, signals.rod_com[:, 0],
+                              [self.model_plant(signals, v) for v in scales], signals.ts)
+        outs = [self.model_output(signals, engine="numpy", hinge_scale=v) for v in scales]
         return np.minimum.reduce(outs), np.maximum.reduce(outs)
 
     def residuals(self, signals: Signals) -> dict[str, np.ndarray]:
@@ -270,15 +318,19 @@ class PositionMonitor(Detector):
         return Detection(alarm=alarm, residual=norm)
 
     def _detect_compiled(self, signals: Signals, checks: list[str]) -> Detection:
-        """:meth:`_detect` through :func:`_decide_block` (same values; no (n, T) residual,
-        absolute value or confirmation counter arrays)."""
+        """:meth:`_detect` through :func:`_decide_block` (same values; no (n, T) model band,
+        residual, absolute value or confirmation counter arrays)."""
         empty = np.zeros((0, 0))
 
         def c(a):
             return np.ascontiguousarray(a, dtype=float)
 
         rod_com = c(signals.rod_com)
-        lo, hi = self.model_band(signals) if "loop" in checks else (empty, empty)
+        if "loop" in checks:
+            u = c(signals.command)
+            plants = band_plants([self.model_plant(signals, v) for v in self.band_scales()])
+        else:
+            u, plants = empty, np.zeros((0, signals.n_runs, len(kernels.PLANT_FIELDS)))
         rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
         surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
                    if "surface" in checks else empty)
@@ -287,5 +339,6 @@ class PositionMonitor(Detector):
         alarm = np.empty(rod_com.shape, dtype=bool)
         n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
         active = np.array([name in checks for name in CHECKS])
-        _decide_block(rod_com, c(lo), c(hi), rod_mon, surface, tau, active, n_confirm, norm, alarm)
+        _decide_block(rod_com, u, plants, float(signals.ts), rod_mon, surface, tau, active,
+                      n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)

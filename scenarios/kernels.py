@@ -1,7 +1,8 @@
 """Compiled kernels of the hot loops (numba), with the NumPy code as their reference.
 
 The closed-loop time loop of :func:`scenarios.simulate.integrate` and the nominal-model
-recursion of the position monitor advance every run step by step; in NumPy each step is a
+recursions of the position monitor (one model, or a band of them at several hinge moments
+integrated together: :func:`servo_band_step`) advance every run step by step; in NumPy each step is a
 few dozen array operations on arrays of shape ``(n_runs,)``, so the interpreter overhead
 dominates. The kernels here run the same recursions compiled (``@njit(nogil=True,
 cache=True)``), on a block of runs at once: the outer loop goes over the steps, the inner
@@ -312,6 +313,77 @@ def servo_model(u, x0, plant, ts: float) -> np.ndarray:
     return out
 
 
+@njit(nogil=True, cache=True, error_model="numpy")
+def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi):
+    """Advance runs ``r0 … r1 − 1`` of every model of a band by step *k* of
+    :func:`servo_model_block`; write the (low, high) [mm] of their outputs x_k (the rod
+    positions at the start of the step) to ``lo[r − r0]``, ``hi[r − r0]``.
+
+    *u* (n, T): the order [mm]; *plants* (m, n, 11): model j's rows of :func:`plant_matrix`;
+    *x*, *i_prev* (m, n): the models' rod positions [mm] and held currents [mA], updated in
+    place. Each model's arithmetic is that of :func:`servo_model_block`; low/high are
+    ``np.minimum``/``np.maximum`` reduced over the models in order (a NaN output makes both
+    NaN). Models outer, runs inner: each model's runs are independent recursions, which the
+    processor overlaps.
+    """
+    for j in range(plants.shape[0]):
+        xj = x[j]
+        ij = i_prev[j]
+        pj = plants[j]
+        for r in range(r0, r1):
+            p = pj[r]
+            xr = xj[r]
+            if j == 0:
+                lo[r - r0] = xr
+                hi[r - r0] = xr
+            else:
+                if xr < lo[r - r0] or math.isnan(xr):
+                    lo[r - r0] = xr
+                if xr > hi[r - r0] or math.isnan(xr):
+                    hi[r - r0] = xr
+            i_new = _clip(p[P_K] * (u[r, k] - xr), -p[P_IMAX], p[P_IMAX])
+            xj[r] = rk4_step_1(xr, ij[r], p, True, ts)
+            ij[r] = i_new
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def servo_band_block(u, x0, plants, ts, lo, hi):
+    """Band of nominal servo models driven by the order *u* (n, T) [mm] from rod position
+    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, n, 11) integrated in one time loop
+    (:func:`servo_band_step` over the whole block of runs). Writes only the element-wise
+    *lo* = min and *hi* = max of the m outputs (n, T) [mm]."""
+    m = plants.shape[0]
+    n, T = u.shape
+    x = np.empty((m, n))
+    for j in range(m):
+        x[j] = x0
+    i_prev = np.zeros((m, n))
+    lo_k = np.empty(n)
+    hi_k = np.empty(n)
+    for k in range(T):
+        servo_band_step(u, k, 0, n, plants, x, i_prev, ts, lo_k, hi_k)
+        for r in range(n):
+            lo[r, k] = lo_k[r]
+            hi[r, k] = hi_k[r]
+
+
+def band_plants(plants) -> np.ndarray:
+    """The (m, n_runs, 11) C-contiguous stack of :func:`plant_matrix` of each PlantArrays in
+    *plants* (the models of a band, in order)."""
+    return np.ascontiguousarray(np.stack([plant_matrix(p) for p in plants]))
+
+
+def servo_band(u, x0, plants, ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high), each (n, T) [mm]: the element-wise min and max of the outputs of
+    :func:`servo_model` for each PlantArrays of *plants*, bit for bit, in one pass
+    (:func:`servo_band_block`) without the m output arrays."""
+    u = np.ascontiguousarray(u, dtype=float)
+    lo, hi = np.empty(u.shape), np.empty(u.shape)
+    servo_band_block(u, np.ascontiguousarray(x0, dtype=float), band_plants(plants),
+                     float(ts), lo, hi)
+    return lo, hi
+
+
 # ---- compile / load from the cache before a campaign -----------------------------------------
 _WARMUPS: list = []
 _CACHED: list = []   # compiled functions of other modules whose cache state warm_up reports
@@ -336,11 +408,12 @@ def _warm_simulation() -> None:
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
+    servo_band_block(z2, z1, np.stack([plant, plant]), 0.01, outs[0], outs[1])
 
 
 register_warmup(_warm_simulation)
 
-_KERNELS = ("integrate_block", "servo_model_block")
+_KERNELS = ("integrate_block", "servo_model_block", "servo_band_block")
 
 
 def _cache_is_warm() -> bool:

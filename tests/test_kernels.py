@@ -54,6 +54,59 @@ def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(lib
     np.testing.assert_array_equal(fast, ref)
 
 
+def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
+    signals, _ = simulate(every_fault_batch(), engine="numpy")
+    det = PositionMonitor(hinge_scale=(0.6, 1.6))
+    ref = det.model_band(signals, engine="numpy")
+    fast = det.model_band(signals, engine="compiled")
+    for got, want in zip(fast, ref):
+        np.testing.assert_array_equal(got, want)
+    assert np.any(fast[1] > fast[0])          # the hinge moment moves the models apart
+
+
+def test_compiled_band_equals_the_hull_of_three_compiled_models():
+    signals, _ = simulate(every_fault_batch(), engine="compiled")
+    det = PositionMonitor(hinge_scale=(1.6, 0.6))
+    outs = [PositionMonitor.model_output(signals, engine="compiled", hinge_scale=s)
+            for s in (1.0, 0.6, 1.6)]
+    lo, hi = det.model_band(signals, engine="compiled")
+    np.testing.assert_array_equal(lo, np.minimum.reduce(outs))
+    np.testing.assert_array_equal(hi, np.maximum.reduce(outs))
+
+
+def test_compiled_band_propagates_a_nan_model_like_numpy():
+    signals, _ = simulate(every_fault_batch().iloc[:3], engine="compiled")
+    nominal = PositionMonitor.model_plant(signals)
+    broken = PositionMonitor.model_plant(signals, 1.6)
+    broken.hm_0[1] = np.nan                   # run 1 of the second model only
+    outs = [kernels.servo_model(signals.command, signals.rod_com[:, 0], p, signals.ts)
+            for p in (nominal, broken)]
+    lo, hi = kernels.servo_band(signals.command, signals.rod_com[:, 0], [nominal, broken],
+                                signals.ts)
+    assert np.isnan(outs[1][1, 1:]).all() and not np.isnan(outs[0]).any()
+    np.testing.assert_array_equal(lo, np.minimum.reduce(outs))
+    np.testing.assert_array_equal(hi, np.maximum.reduce(outs))
+
+
+@pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 1.0)])
+@pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("loop",), ("com_mon",)])
+def test_compiled_monitor_decision_is_bit_identical_to_numpy_with_the_same_libm(
+        libm_numpy, hinge_scale, checks):
+    signals, _ = simulate(every_fault_batch(), engine="numpy")
+    det = PositionMonitor(hinge_scale=hinge_scale, checks=checks, confirm_s=0.03)
+    # thresholds a fraction of the largest residuals, so that alarms are raised and cleared
+    det.thresholds_mm_ = {name: 0.3 * float(np.max(np.abs(r)))
+                          for name, r in det.residuals(signals).items()}
+    det.learning_runs_ = 1
+    got = {}
+    for engine in ("numpy", "compiled"):
+        with kernels.use_engine(engine):
+            got[engine] = det.detect(signals)
+    np.testing.assert_array_equal(got["compiled"].residual, got["numpy"].residual)
+    np.testing.assert_array_equal(got["compiled"].alarm, got["numpy"].alarm)
+    assert got["numpy"].alarm.any() and not got["numpy"].alarm.all()
+
+
 def test_compiled_signals_match_plain_numpy_within_last_bit_noise():
     # Tolerance: NumPy's SIMD arcsin/cos differ from the C library by ≤ 1 ulp for some
     # arguments; through the RK4 steps these stay at the 1e-14 mm level (measured ≤ 1e-14
@@ -97,6 +150,7 @@ def test_warm_up_compiles_every_registered_kernel():
         kernels._WARMUPS.pop()
     assert calls == [1]
     assert kernels.integrate_block.signatures and kernels.servo_model_block.signatures
+    assert kernels.servo_band_block.signatures
 
 
 def offset_jam_batch() -> pd.DataFrame:
