@@ -407,3 +407,68 @@ def test_estimation_error_is_pooled_over_samples_and_normalised_by_the_range():
     assert old["est_err_mean"].isna().all()
     cols = [c for c in SUMMARY_COLUMNS if not c.startswith("est_err")]
     pd.testing.assert_frame_equal(old[cols], summarize(rows)[cols])
+
+
+# ---- limits, groups without scored runs, the false-alarm probability check ----------------
+
+@pytest.mark.parametrize("limits", [{"max_fa": 1.5}, {"max_md": 1.01}, {"max_fa": -0.01}])
+def test_gate_refuses_a_rate_limit_outside_zero_one(limits):
+    with pytest.raises(GateInputError, match="fraction in \\[0, 1\\]"):
+        evaluate_gate(summarize(campaign()), **limits)
+
+
+def test_gate_accepts_the_rate_limits_zero_and_one():
+    s = summarize(campaign(faulty("runaway", "cruise", [np.nan])))
+    assert evaluate_gate(s, max_fa=1.0, max_md=1.0).passed
+    assert not evaluate_gate(s, max_fa=0.0, max_md=0.0).passed
+
+
+def test_gate_skips_rate_checks_of_a_fault_whose_runs_all_failed():
+    # every oscillatory run errored: no rate to check (0/0), only the errors check speaks
+    s = summarize(campaign(errors("oscillatory", "cruise", 2)))
+    result = evaluate_gate(s, max_md=0.0, max_dtp=1.0, allow_errors=True)
+    assert result.passed
+    assert not [c for c in result.checks if c.fault == "oscillatory"]
+    assert {c.fault for c in result.checks if c.name == "missed_detection"} == {
+        "runaway", "solid_jam"}
+
+
+def test_gate_on_an_empty_summary_is_one_failed_runs_check():
+    [check] = evaluate_gate(summarize(campaign().iloc[:0])).checks
+    # value: runs scored, limit: the least number of scored runs that proves anything
+    assert (check.name, check.value, check.limit, check.passed) == ("runs", 0.0, 1.0, False)
+
+
+def _certificate(**bounds):
+    return pd.DataFrame([{"detector": d, "level": 0.95, "fa_upper95_cp": cp,
+                          "fa_prob_evt_upper95": evt, "sampling_upper95": ss}
+                         for d, (cp, evt, ss) in bounds.items()])
+
+
+def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
+    from reports.gate import fa_probability_checks
+
+    cert = _certificate(a=(2.5e-3, 1e-6, np.nan), b=(2.5e-3, np.nan, np.nan),
+                        c=(2.5e-3, 1e-6, 3e-6), d=(2.5e-3, None, 4e-7))
+    checks = {c.detector: c for c in fa_probability_checks(cert, 2e-6)}
+    assert checks["a"].value == 1e-6 and checks["a"].passed and "(tail fit)" in checks["a"].message
+    assert checks["b"].value == 2.5e-3 and not checks["b"].passed
+    assert "counting (no tail fit)" in checks["b"].message
+    assert checks["c"].value == 3e-6 and not checks["c"].passed
+    assert "(subset simulation)" in checks["c"].message
+    assert checks["d"].value == 4e-7 and checks["d"].passed
+    assert "at 95 %" in checks["a"].message and "≤ 2e-06" in checks["a"].message
+    assert "> 2e-06" in checks["b"].message
+    assert all(c.name == "fa_probability" and c.limit == 2e-6 for c in checks.values())
+    # a bound equal to the limit passes
+    assert fa_probability_checks(cert, 1e-6)[0].passed
+
+
+@pytest.mark.parametrize("limit", [-1e-9, 1.5, "often"])
+def test_fa_probability_check_refuses_a_limit_that_is_no_probability(limit):
+    from reports.gate import fa_probability_checks
+
+    with pytest.raises(GateInputError, match="max_fa_prob"):
+        fa_probability_checks(_certificate(a=(1e-3, 1e-6, np.nan)), limit)
+    with pytest.raises(GateInputError, match="lacks column"):
+        fa_probability_checks(pd.DataFrame({"detector": ["a"]}), 1e-5)
