@@ -295,6 +295,10 @@ def test_gate_fails_on_dtp_above_limit():
     [fail] = result.failures
     assert (fail.name, fail.fault, fail.value) == ("dtp", "solid_jam", 1.25)
     assert "max DTP 1.25 > 1 (worst in nose_up)" in fail.message
+    [ok] = [c for c in evaluate_gate(s, max_dtp=1.5).checks
+            if (c.name, c.fault) == ("dtp", "solid_jam")]
+    assert ok.message == ("PASS detection time: position-monitor, solid_jam: max DTP 1.25 ≤ 1.5 "
+                          "(worst in nose_up)")
 
 
 def test_gate_dtp_fails_when_nothing_was_detected():
@@ -348,6 +352,16 @@ def test_junit_parses_with_failure_count(tmp_path):
     failures = [f.get("message") for f in suite.iter("failure")]
     assert sorted(failures) == sorted(c.message for c in result.failures)
     assert list(tmp_path.iterdir()) == [path]  # no temporary file left behind
+    assert path.read_bytes().startswith(b"<?xml version='1.0' encoding='utf-8'?>")
+
+
+def test_junit_file_that_cannot_be_replaced_leaves_no_temporary_file(tmp_path):
+    result = evaluate_gate(summarize(campaign()))
+    target = tmp_path / "gate.xml"
+    target.mkdir()                      # os.replace cannot put a file over a directory
+    with pytest.raises(OSError):
+        write_junit(result, target)
+    assert list(tmp_path.iterdir()) == [target] and list(target.iterdir()) == []
 
 
 def test_gate_result_api():
@@ -460,11 +474,13 @@ def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
     assert "at 95 %" in checks["a"].message and "≤ 2e-06" in checks["a"].message
     assert "> 2e-06" in checks["b"].message
     assert all(c.name == "fa_probability" and c.limit == 2e-6 for c in checks.values())
-    # a bound equal to the limit passes
+    # a bound equal to the limit passes; the limits 0 and 1 are probabilities
     assert fa_probability_checks(cert, 1e-6)[0].passed
+    assert [c.passed for c in fa_probability_checks(cert, 0.0)] == [False] * 4
+    assert [c.passed for c in fa_probability_checks(cert, 1.0)] == [True] * 4
 
 
-@pytest.mark.parametrize("limit", [-1e-9, 1.5, "often"])
+@pytest.mark.parametrize("limit", [-1e-9, 1.5, "often", None])
 def test_fa_probability_check_refuses_a_limit_that_is_no_probability(limit):
     from reports.gate import fa_probability_checks
 
@@ -472,3 +488,115 @@ def test_fa_probability_check_refuses_a_limit_that_is_no_probability(limit):
         fa_probability_checks(_certificate(a=(1e-3, 1e-6, np.nan)), limit)
     with pytest.raises(GateInputError, match="lacks column"):
         fa_probability_checks(pd.DataFrame({"detector": ["a"]}), 1e-5)
+
+
+def test_gate_names_exactly_three_failing_runs_without_a_count_of_more():
+    res = campaign()
+    ff = res.index[(res.fault == "none") & (res.manoeuvre == "cruise")]
+    res.loc[ff[[0, 1, 2]], "false_alarm"] = True
+    [fail] = evaluate_gate(summarize(res), results=res).failures
+    assert fail.message.endswith("runs: position-monitor-ff-cruise-0, "
+                                 "position-monitor-ff-cruise-1, position-monitor-ff-cruise-2")
+
+
+def test_passing_false_alarm_check_states_its_95_percent_bound():
+    checks = evaluate_gate(summarize(campaign())).checks
+    cruise = next(c for c in checks if (c.name, c.fault, c.manoeuvre) == ("false_alarm", "none",
+                                                                            "cruise"))
+    # 0 of 200: upper bound 1 - 0.05^(1/200) = 1.49 %
+    assert cruise.message == ("PASS false alarms: position-monitor, fault-free cruise: 0/200 "
+                              "runs (0.00 % ≤ 0.00 %; FA ≤ 1.49 % at 95 %)")
+
+
+def test_run_error_check_names_the_first_error_and_the_other_messages():
+    err = errors("runaway", "cruise", 2)
+    other = errors("solid_jam", "cruise", 1).assign(error="ValueError: NaN in the state")
+    res = campaign(err)
+    result = evaluate_gate(summarize(res), results=res)
+    [fail] = result.failures
+    assert fail.message.endswith("; first: run position-monitor-err-runaway-cruise-0: "
+                                 "RuntimeError: solver diverged")
+    res2 = campaign(err, other)
+    [fail2] = evaluate_gate(summarize(res2), results=res2).failures
+    assert fail2.message.endswith("RuntimeError: solver diverged (1 other message(s): "
+                                  "fdd-campaign report)")
+    [allowed] = [c for c in evaluate_gate(summarize(res), results=res, allow_errors=True).checks
+                 if c.name == "errors"]
+    assert allowed.passed and allowed.message.startswith("PASS (allowed) run errors: ")
+
+
+def test_missed_detection_and_dtp_checks_are_in_fault_order_whatever_the_summary_order():
+    s = summarize(campaign(faulty("hardover", "cruise", [0.3])))
+    for summary in (s, s.iloc[::-1]):
+        checks = evaluate_gate(summary, max_md=0.0, max_dtp=1.0).checks
+        for name in ("missed_detection", "dtp"):
+            assert [c.fault for c in checks if c.name == name] == [
+                "hardover", "runaway", "solid_jam"]
+
+
+def test_gate_refuses_a_zero_dtp_limit_and_a_limit_that_is_no_number():
+    s = summarize(campaign())
+    with pytest.raises(GateInputError, match="max_dtp must be a positive DTP"):
+        evaluate_gate(s, max_dtp=0.0)
+    with pytest.raises(GateInputError, match="max_fa must be a number, got 'often'"):
+        evaluate_gate(s, max_fa="often")
+    with pytest.raises(GateInputError, match=r"max_md must be a number, got \[0.1\]"):
+        evaluate_gate(s, max_md=[0.1])
+    # every limit is checked, also after one that is no number
+    with pytest.raises(GateInputError) as info:
+        evaluate_gate(s, max_fa="often", max_dtp=-1.0)
+    assert len(info.value.problems) == 2
+    # limits are keyword-only: a positional number is never taken for one
+    with pytest.raises(TypeError):
+        evaluate_gate(s, 0.01)
+
+
+def test_count_checks_state_value_and_limit():
+    s = summarize(campaign())
+    [ok] = [c for c in evaluate_gate(s).checks if c.name == "errors"]
+    assert (ok.value, ok.limit, ok.passed) == (0.0, 0.0, True)
+    s_err = summarize(campaign(errors("runaway", "cruise", 2)))
+    [bad] = [c for c in evaluate_gate(s_err).checks if c.name == "errors"]
+    assert (bad.value, bad.limit, bad.passed) == (2.0, 0.0, False)
+    [runs] = evaluate_gate(summarize(errors("none", "cruise", 3)), allow_errors=True).failures
+    assert (runs.name, runs.value, runs.limit) == ("runs", 0.0, 1.0)
+    # a summary with aggregate rows only holds no scored run
+    [agg] = evaluate_gate(s[s.manoeuvre == "all"]).checks
+    assert (agg.name, agg.value, agg.limit, agg.passed) == ("runs", 0.0, 1.0, False)
+    assert agg.message == "FAIL scored runs: the summary holds no runs"
+
+
+def test_gate_names_four_failing_runs_as_three_and_one_more():
+    res = campaign()
+    ff = res.index[(res.fault == "none") & (res.manoeuvre == "cruise")]
+    res.loc[ff[[0, 1, 2, 3]], "false_alarm"] = True
+    [fail] = evaluate_gate(summarize(res), results=res).failures
+    assert fail.message.endswith("position-monitor-ff-cruise-2 and 1 more")
+
+
+def test_results_without_error_column_and_summaries_without_late_count():
+    res = campaign(errors("runaway", "cruise", 1))
+    s = summarize(res)
+    [fail] = evaluate_gate(s, results=res.drop(columns=["error"])).failures
+    assert "first:" not in fail.message and fail.message.endswith("runaway cruise 1")
+    late = summarize(campaign(faulty("runaway", "cruise", [1.5])))
+    [md_late] = [c for c in evaluate_gate(late, max_md=0.0).checks if c.fault == "runaway"
+                 and c.name == "missed_detection"]
+    assert "1 more detected late" in md_late.message
+    [md_old] = [c for c in evaluate_gate(late.drop(columns=["late_count"]), max_md=0.0).checks
+                if c.fault == "runaway" and c.name == "missed_detection"]
+    assert "late" not in md_old.message
+
+
+def test_dtp_check_of_every_fault_after_one_without_detection():
+    s = summarize(campaign(faulty("hardover", "cruise", [np.nan])))
+    dtp = [c for c in evaluate_gate(s, max_dtp=1.0).checks if c.name == "dtp"]
+    assert [(c.fault, c.passed) for c in dtp] == [("hardover", False), ("runaway", True),
+                                                   ("solid_jam", True)]
+
+
+def test_a_check_is_an_immutable_hashable_value():
+    [check] = evaluate_gate(summarize(campaign().iloc[:0])).checks
+    assert {check, check} == {check}
+    with pytest.raises(AttributeError):
+        check.passed = True
