@@ -155,6 +155,11 @@ def test_summary_excludes_and_counts_error_rows():
     assert rr.md_rate == 0.0 and rr.dtp_within == 1.0
     assert row(s, "all-faults", "all").n_errors == 2
     assert row(s, "none", "all").n_errors == 3
+    # a group whose runs all failed has no rate: NaN, not 0
+    only_err = row(summarize(campaign(errors("hardover", "cruise", 2))), "hardover", "cruise")
+    assert only_err.n_runs == 0 and only_err.n_errors == 2
+    for rate in ("fa_rate", "md_rate", "md_req_rate", "dtp_within", "fa_upper95", "md_upper95"):
+        assert np.isnan(only_err[rate]), rate
 
 
 def test_summary_several_detectors_and_empty_input():
@@ -166,6 +171,8 @@ def test_summary_several_detectors_and_empty_input():
     assert "all-faults" not in set(s[s.detector == "b-det"].fault)  # no faulty runs
     empty = summarize(res.iloc[:0])
     assert empty.empty and tuple(empty.columns) == SUMMARY_COLUMNS
+    assert empty["n_runs"].dtype == np.int64 and empty["md_req_count"].dtype == np.int64
+    assert empty["fa_rate"].dtype == np.float64 and empty["detector"].dtype == object
     with pytest.raises(ValueError, match="dtp"):
         summarize(res.drop(columns=["dtp"]))
 
@@ -421,6 +428,14 @@ def test_estimation_error_is_pooled_over_samples_and_normalised_by_the_range():
     assert old["est_err_mean"].isna().all()
     cols = [c for c in SUMMARY_COLUMNS if not c.startswith("est_err")]
     pd.testing.assert_frame_equal(old[cols], summarize(rows)[cols])
+    # scored runs without samples change neither the pooled values nor the run count,
+    # whether their statistics read NaN or 0
+    extra = rows.iloc[[0, 0]].assign(run_id=["r4", "r5"], est_err_n=0,
+                                     est_err_mean_mm=[np.nan, 0.0], est_err_var_mm2=[np.nan, 0.0])
+    s4 = summarize(pd.concat([rows, extra], ignore_index=True)).set_index(
+        ["detector", "fault", "manoeuvre"])
+    est = ["est_err_runs", "est_err_mean_mm", "est_err_var_mm2", "est_err_mean", "est_err_var"]
+    assert list(s4.loc[("d", "solid_jam", "all"), est]) == list(row[est])
 
 
 # ---- limits, groups without scored runs, the false-alarm probability check ----------------
@@ -471,7 +486,8 @@ def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
     assert checks["c"].value == 3e-6 and not checks["c"].passed
     assert "(subset simulation)" in checks["c"].message
     assert checks["d"].value == 4e-7 and checks["d"].passed
-    assert "at 95 %" in checks["a"].message and "≤ 2e-06" in checks["a"].message
+    assert checks["a"].message == ("PASS false-alarm probability: a: P(FA per run) ≤ 1e-06 at "
+                                   "95 % (tail fit) ≤ 2e-06")
     assert "> 2e-06" in checks["b"].message
     assert all(c.name == "fa_probability" and c.limit == 2e-6 for c in checks.values())
     # a bound equal to the limit passes; the limits 0 and 1 are probabilities
@@ -600,3 +616,20 @@ def test_a_check_is_an_immutable_hashable_value():
     assert {check, check} == {check}
     with pytest.raises(AttributeError):
         check.passed = True
+
+
+def test_checks_come_per_detector_in_name_order_and_one_scored_run_is_enough():
+    two = pd.concat([fault_free("cruise", 1, detector="b-monitor"),
+                     fault_free("cruise", 1, detector="a-monitor")], ignore_index=True)
+    s = summarize(two)
+    for summary in (s, s.iloc[::-1]):
+        result = evaluate_gate(summary)
+        assert result.passed                   # one scored run per detector is a scored run
+        assert [c.detector for c in result.checks] == ["a-monitor"] * 2 + ["b-monitor"] * 2
+
+
+def test_a_bound_that_is_not_a_number_reads_n_a():
+    s = summarize(campaign()).assign(fa_upper95=np.nan)
+    cruise = next(c for c in evaluate_gate(s).checks if (c.name, c.fault, c.manoeuvre) == (
+        "false_alarm", "none", "cruise"))
+    assert cruise.message.endswith("(0.00 % ≤ 0.00 %; FA ≤ n/a at 95 %)")
