@@ -638,8 +638,9 @@ def test_a_bound_that_is_not_a_number_reads_n_a():
 def test_one_faulty_run_is_a_rate_and_one_sample_is_a_pooled_error():
     late = faulty("runaway", "cruise", [1.5])       # detected, after the required time
     within = faulty("solid_jam", "cruise", [0.5])   # detected within it
+    miss = faulty("hardover", "cruise", [np.nan])
     res = campaign().pipe(lambda c: c[c.fault == "none"])
-    res = pd.concat([res, late, within], ignore_index=True)
+    res = pd.concat([res, late, within, miss], ignore_index=True)
     for column in ESTIMATE_COLUMNS:
         res[column] = 0 if column == "est_err_n" else np.nan
     res.loc[res.run_id == within.run_id[0], ESTIMATE_COLUMNS] = [1, 0.2, 0.0, 40.0]
@@ -647,6 +648,11 @@ def test_one_faulty_run_is_a_rate_and_one_sample_is_a_pooled_error():
     r_late, r_within = row(s, "runaway", "cruise"), row(s, "solid_jam", "cruise")
     assert (r_late.md_req_rate, r_late.dtp_within) == (1.0, 0.0)
     assert (r_within.md_req_rate, r_within.dtp_within) == (0.0, 1.0)
+    assert row(s, "hardover", "cruise").md_rate == 1.0
+    # order: fault-free first even before fault names that sort below "none"; a clean index
+    assert list(s.fault.drop_duplicates()) == ["none", "hardover", "runaway", "solid_jam",
+                                               "all-faults"]
+    assert s.index.equals(pd.RangeIndex(len(s)))
     assert r_within.est_err_runs == 1 and r_within.est_err_mean_mm == pytest.approx(0.2, rel=REL)
     assert r_within.est_err_mean == pytest.approx(0.2 / 40.0, rel=REL)
     assert r_within.est_err_var_mm2 == pytest.approx(0.0, abs=1e-15)
