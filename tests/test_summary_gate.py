@@ -653,6 +653,13 @@ def test_one_faulty_run_is_a_rate_and_one_sample_is_a_pooled_error():
     assert list(s.fault.drop_duplicates()) == ["none", "hardover", "runaway", "solid_jam",
                                                "all-faults"]
     assert s.index.equals(pd.RangeIndex(len(s)))
+    for column in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count",
+                   "est_err_runs"):
+        assert s[column].dtype == np.int64, column
+    # a run that did not finish contributes no estimation samples, whatever its columns hold
+    failed = res[res.run_id == within.run_id[0]].assign(run_id="failed", status="error")
+    s_failed = summarize(pd.concat([res, failed], ignore_index=True))
+    assert row(s_failed, "solid_jam", "cruise").est_err_runs == 1
     assert r_within.est_err_runs == 1 and r_within.est_err_mean_mm == pytest.approx(0.2, rel=REL)
     assert r_within.est_err_mean == pytest.approx(0.2 / 40.0, rel=REL)
     assert r_within.est_err_var_mm2 == pytest.approx(0.0, abs=1e-15)
