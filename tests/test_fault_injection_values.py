@@ -358,3 +358,20 @@ def test_prepare_hands_the_loop_the_fault_arrays_of_the_run_table():
     deg = np.degrees(np.arcsin(p.faults.u_loop[0] / AILERON.r_mm))
     assert deg[50] == 0.0 and deg[150] == pytest.approx(-3.0, abs=1e-9)
     np.testing.assert_array_equal(p.u, 0.0)              # the command stays fault-free
+
+
+def test_single_run_default_magnitudes_are_the_documented_ones():
+    """docs/physics.md §5, Default magnitudes, column "single run"."""
+    from scenarios.faults import FAULT_DEFAULTS, default_magnitude
+    from scenarios.params import RUDDER
+
+    assert default_magnitude("runaway", ELEVATOR) == 5.0          # deg/s
+    assert default_magnitude("hardover", ELEVATOR) == 1.0         # direction +1
+    assert default_magnitude("ofc_liquid", ELEVATOR) == 1.0       # mA
+    assert default_magnitude("ofc_solid", ELEVATOR) == 1.0        # mm
+    assert FAULT_DEFAULTS.ofc_freq_hz == 1.0                      # Hz
+    for fault in ("none", "solid_jam", "disconnection"):
+        assert math.isnan(default_magnitude(fault, ELEVATOR))
+    # 1.3 % of the deflection range, to the two decimals of the table [mm]
+    for act, mm in ((ELEVATOR, 1.23), (AILERON, 0.79), (RUDDER, 1.50)):
+        assert round(default_magnitude("liquid_jam", act), 2) == mm
