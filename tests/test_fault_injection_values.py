@@ -89,7 +89,8 @@ def test_runaway_slope_and_sign_and_clip_beyond_the_stops(rate):
     assert end == pytest.approx(21.5 if rate > 0 else -36.5)
 
 
-@pytest.mark.parametrize("magnitude, sign", [(1.0, 1.0), (-1.0, -1.0), (-0.3, -1.0), (2.0, 1.0)])
+@pytest.mark.parametrize("magnitude, sign", [(1.0, 1.0), (-1.0, -1.0), (-0.3, -1.0), (2.0, 1.0),
+                                             (0.0, 1.0), (np.nan, 1.0)])  # no sign: +i_max
 def test_hardover_forces_plus_or_minus_imax_with_the_sign_of_the_magnitude(magnitude, sign):
     i_max = 8.5                      # a run's true saturation, not the nominal 10 mA
     fa = _arrays("hardover", 1.0, magnitude, np.nan, np.zeros(200), i_max=(i_max,))
@@ -358,3 +359,49 @@ def test_prepare_hands_the_loop_the_fault_arrays_of_the_run_table():
     deg = np.degrees(np.arcsin(p.faults.u_loop[0] / AILERON.r_mm))
     assert deg[50] == 0.0 and deg[150] == pytest.approx(-3.0, abs=1e-9)
     np.testing.assert_array_equal(p.u, 0.0)              # the command stays fault-free
+
+
+def test_single_run_default_magnitudes_are_the_documented_ones():
+    """docs/physics.md §5, Default magnitudes, column "single run"."""
+    from scenarios.faults import FAULT_DEFAULTS, default_magnitude
+    from scenarios.params import RUDDER
+
+    assert default_magnitude("runaway", ELEVATOR) == 5.0          # deg/s
+    assert default_magnitude("hardover", ELEVATOR) == 1.0         # direction +1
+    assert default_magnitude("ofc_liquid", ELEVATOR) == 1.0       # mA
+    assert default_magnitude("ofc_solid", ELEVATOR) == 1.0        # mm
+    assert FAULT_DEFAULTS.ofc_freq_hz == 1.0                      # Hz
+    for fault in ("none", "solid_jam", "disconnection"):
+        assert math.isnan(default_magnitude(fault, ELEVATOR))
+    # 1.3 % of the deflection range, to the two decimals of the table [mm]
+    for act, mm in ((ELEVATOR, 1.23), (AILERON, 0.79), (RUDDER, 1.50)):
+        assert round(default_magnitude("liquid_jam", act), 2) == mm
+
+
+def test_estimation_range_is_the_rod_travel_of_the_whole_deflection_range():
+    from scenarios.faults import estimation_range_mm
+
+    # r·Δδ with Δδ in rad (docs/physics.md §5), by hand
+    expected = ELEVATOR.r_mm * ELEVATOR.deflection_range_deg * math.pi / 180.0
+    assert estimation_range_mm(ELEVATOR) == pytest.approx(expected, rel=1e-12)
+
+
+def test_offset_jam_of_one_millimetre_jumps_at_its_onset_step_only():
+    from scenarios.faults import FAULT_DEFAULTS, jam_onset_position
+
+    fa = _arrays("solid_jam", 1.0, 1.0, np.nan, np.zeros(200))
+    x = np.array([2.0])
+    assert jam_onset_position(x, 100, fa, -50.0, 50.0)[0] == 3.0   # k0 = 100: +1 mm
+    assert jam_onset_position(x, 99, fa, -50.0, 50.0)[0] == 2.0
+    assert FAULT_DEFAULTS.solid_jam_offset_pct_range == 1.8         # [CHEN] §6.2
+
+
+def test_fault_descriptions_are_immutable():
+    import dataclasses
+
+    from scenarios.faults import FAULT_DEFAULTS
+
+    fa = _arrays("liquid_jam", 1.0, 1.0, np.nan, np.zeros(200))
+    for obj, name in ((FAULT_DEFAULTS, "ofc_freq_hz"), (fa, "k_jam")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, name, 0)

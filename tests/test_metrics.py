@@ -173,6 +173,9 @@ def test_per_run_window_and_required_time():
 @pytest.mark.parametrize("kwargs, match", [
     ({"onset_s": np.array([np.nan])}, "onset_s"),
     ({"required_time_s": np.array([np.nan])}, "required_time_s"),
+    ({"required_time_s": np.array([0.0])}, "required_time_s"),   # a DTP denominator of 0
+    ({"run_id": np.array(["r", "s"])}, "run_id"),
+    ({"fault": np.array(["runaway", "none"])}, "fault"),
     ({"ts": 0.0}, "ts"),
     ({"window_s": -1.0}, "window_s"),
     ({"residual": np.zeros((1, 3))}, "residual"),
@@ -184,6 +187,27 @@ def test_bad_input_is_named(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         score_runs(**args)
+
+
+def test_runs_without_samples_are_refused_and_one_sample_is_enough():
+    with pytest.raises(ValueError, match="no time steps"):
+        score_runs(run_id=np.array(["r"]), fault=np.array(["none"]), onset_s=np.array([np.nan]),
+                   alarm=np.zeros((1, 0), bool), residual=np.zeros((1, 0)), ts=TS,
+                   required_time_s=np.array([np.nan]))
+    out = score_runs(run_id=np.array(["r"]), fault=np.array(["none"]), onset_s=np.array([np.nan]),
+                     alarm=np.ones((1, 1), bool), residual=np.full((1, 1), 2.0), ts=TS,
+                     required_time_s=np.array([np.nan]))
+    assert bool(out["false_alarm"].iloc[0]) and out["first_alarm_s"].iloc[0] == 0.0
+    assert out["margin"].iloc[0] == 2.0
+
+
+def test_missing_onsets_name_the_first_five_runs():
+    n = 7
+    with pytest.raises(ValueError) as exc:
+        score_runs(run_id=np.array([f"run{i}" for i in range(n)]), fault=np.full(n, "runaway"),
+                   onset_s=np.full(n, np.nan), alarm=np.zeros((n, 10), bool),
+                   residual=np.zeros((n, 10)), ts=TS, required_time_s=np.full(n, REQUIRED))
+    assert str(exc.value).endswith("run(s) run0, run1, run2, run3, run4")
 
 
 def _reference(alarm_row, fault, onset, ts, required, window):
@@ -248,10 +272,30 @@ def test_clopper_pearson_edges_and_vectorised():
     assert ub[1] == pytest.approx(clopper_pearson(3, 100, confidence=0.90)[1], rel=1e-12)
 
 
-@pytest.mark.parametrize("k, n, conf", [(-1, 10, 0.95), (11, 10, 0.95), (1, 10, 1.0)])
+@pytest.mark.parametrize("k, n, conf", [(-1, 10, 0.95), (11, 10, 0.95), (1, 10, 1.0),
+                                        (1, 10, 0.0)])
 def test_bounds_reject_bad_input(k, n, conf):
     with pytest.raises(ValueError):
         clopper_pearson(k, n, confidence=conf)
+
+
+def test_clopper_pearson_lower_end_of_one_success():
+    # closed form for k = 1: P(X ≥ 1) = 1 - (1 - p)^n = α/2  ⇒  p = 1 - (1 - α/2)^(1/n)
+    lo, _ = clopper_pearson(1, 10)
+    assert lo == pytest.approx(1 - 0.975 ** (1 / 10), rel=1e-10)
+    assert lo > 0.0
+
+
+def test_bounds_of_a_single_run():
+    # n = 1 is information (only n = 0 gives NaN); Beta(1, 1) is uniform: upper = 1 - α/2
+    assert clopper_pearson(0, 1) == (0.0, pytest.approx(0.975, rel=1e-12))
+    assert upper_bound(0, 1) == pytest.approx(0.95, rel=1e-12)
+
+
+def test_upper_bound_of_all_failures_is_one():
+    # k = n: Beta(k+1, 0) is undefined, the bound is 1 by definition (docs/design.md §5)
+    assert upper_bound(10, 10) == 1.0
+    assert list(upper_bound(np.array([0, 5]), np.array([5, 5]))[1:]) == [1.0]
 
 
 # ---- fault-estimation error ([CHEN] §6.2) ----------------------------------------------------
@@ -273,3 +317,6 @@ def test_estimation_errors_over_the_post_onset_window_by_hand():
     assert mean[2] == 0.0 and var[2] == 0.0
     with pytest.raises(ValueError, match="n_runs, n_steps"):
         estimation_errors(np.zeros(3), np.zeros(3))
+    # one sample is a mean and a zero variance, not "no sample"
+    n1, mean1, var1 = estimation_errors(np.array([[np.nan, 2.5]]), np.array([[np.nan, 2.0]]))
+    assert list(n1) == [1] and mean1[0] == 0.5 and var1[0] == 0.0

@@ -155,6 +155,11 @@ def test_summary_excludes_and_counts_error_rows():
     assert rr.md_rate == 0.0 and rr.dtp_within == 1.0
     assert row(s, "all-faults", "all").n_errors == 2
     assert row(s, "none", "all").n_errors == 3
+    # a group whose runs all failed has no rate: NaN, not 0
+    only_err = row(summarize(campaign(errors("hardover", "cruise", 2))), "hardover", "cruise")
+    assert only_err.n_runs == 0 and only_err.n_errors == 2
+    for rate in ("fa_rate", "md_rate", "md_req_rate", "dtp_within", "fa_upper95", "md_upper95"):
+        assert np.isnan(only_err[rate]), rate
 
 
 def test_summary_several_detectors_and_empty_input():
@@ -166,6 +171,8 @@ def test_summary_several_detectors_and_empty_input():
     assert "all-faults" not in set(s[s.detector == "b-det"].fault)  # no faulty runs
     empty = summarize(res.iloc[:0])
     assert empty.empty and tuple(empty.columns) == SUMMARY_COLUMNS
+    assert empty["n_runs"].dtype == np.int64 and empty["md_req_count"].dtype == np.int64
+    assert empty["fa_rate"].dtype == np.float64 and empty["detector"].dtype == object
     with pytest.raises(ValueError, match="dtp"):
         summarize(res.drop(columns=["dtp"]))
 
@@ -295,6 +302,10 @@ def test_gate_fails_on_dtp_above_limit():
     [fail] = result.failures
     assert (fail.name, fail.fault, fail.value) == ("dtp", "solid_jam", 1.25)
     assert "max DTP 1.25 > 1 (worst in nose_up)" in fail.message
+    [ok] = [c for c in evaluate_gate(s, max_dtp=1.5).checks
+            if (c.name, c.fault) == ("dtp", "solid_jam")]
+    assert ok.message == ("PASS detection time: position-monitor, solid_jam: max DTP 1.25 ≤ 1.5 "
+                          "(worst in nose_up)")
 
 
 def test_gate_dtp_fails_when_nothing_was_detected():
@@ -348,6 +359,16 @@ def test_junit_parses_with_failure_count(tmp_path):
     failures = [f.get("message") for f in suite.iter("failure")]
     assert sorted(failures) == sorted(c.message for c in result.failures)
     assert list(tmp_path.iterdir()) == [path]  # no temporary file left behind
+    assert path.read_bytes().startswith(b"<?xml version='1.0' encoding='utf-8'?>")
+
+
+def test_junit_file_that_cannot_be_replaced_leaves_no_temporary_file(tmp_path):
+    result = evaluate_gate(summarize(campaign()))
+    target = tmp_path / "gate.xml"
+    target.mkdir()                      # os.replace cannot put a file over a directory
+    with pytest.raises(OSError):
+        write_junit(result, target)
+    assert list(tmp_path.iterdir()) == [target] and list(target.iterdir()) == []
 
 
 def test_gate_result_api():
@@ -407,6 +428,14 @@ def test_estimation_error_is_pooled_over_samples_and_normalised_by_the_range():
     assert old["est_err_mean"].isna().all()
     cols = [c for c in SUMMARY_COLUMNS if not c.startswith("est_err")]
     pd.testing.assert_frame_equal(old[cols], summarize(rows)[cols])
+    # scored runs without samples change neither the pooled values nor the run count,
+    # whether their statistics read NaN or 0
+    extra = rows.iloc[[0, 0]].assign(run_id=["r4", "r5"], est_err_n=0,
+                                     est_err_mean_mm=[np.nan, 0.0], est_err_var_mm2=[np.nan, 0.0])
+    s4 = summarize(pd.concat([rows, extra], ignore_index=True)).set_index(
+        ["detector", "fault", "manoeuvre"])
+    est = ["est_err_runs", "est_err_mean_mm", "est_err_var_mm2", "est_err_mean", "est_err_var"]
+    assert list(s4.loc[("d", "solid_jam", "all"), est]) == list(row[est])
 
 
 def test_a_detector_allowance_applies_to_that_detector_only():
@@ -432,3 +461,239 @@ def test_a_detector_allowance_applies_to_that_detector_only():
         evaluate_gate(summary, detector_max_fa={"chen-global": 0.2})
     with pytest.raises(GateInputError, match=r"fraction in \[0, 1\]"):
         evaluate_gate(summary, detector_max_fa={"chen-local[solid]": 20})
+
+
+# ---- limits, groups without scored runs, the false-alarm probability check ----------------
+
+@pytest.mark.parametrize("limits", [{"max_fa": 1.5}, {"max_md": 1.01}, {"max_fa": -0.01}])
+def test_gate_refuses_a_rate_limit_outside_zero_one(limits):
+    with pytest.raises(GateInputError, match="fraction in \\[0, 1\\]"):
+        evaluate_gate(summarize(campaign()), **limits)
+
+
+def test_gate_accepts_the_rate_limits_zero_and_one():
+    s = summarize(campaign(faulty("runaway", "cruise", [np.nan])))
+    assert evaluate_gate(s, max_fa=1.0, max_md=1.0).passed
+    assert not evaluate_gate(s, max_fa=0.0, max_md=0.0).passed
+
+
+def test_gate_skips_rate_checks_of_a_fault_whose_runs_all_failed():
+    # every oscillatory run errored: no rate to check (0/0), only the errors check speaks
+    s = summarize(campaign(errors("oscillatory", "cruise", 2)))
+    result = evaluate_gate(s, max_md=0.0, max_dtp=1.0, allow_errors=True)
+    assert result.passed
+    assert not [c for c in result.checks if c.fault == "oscillatory"]
+    assert {c.fault for c in result.checks if c.name == "missed_detection"} == {
+        "runaway", "solid_jam"}
+
+
+def test_gate_on_an_empty_summary_is_one_failed_runs_check():
+    [check] = evaluate_gate(summarize(campaign().iloc[:0])).checks
+    # value: runs scored, limit: the least number of scored runs that proves anything
+    assert (check.name, check.value, check.limit, check.passed) == ("runs", 0.0, 1.0, False)
+
+
+def _certificate(**bounds):
+    return pd.DataFrame([{"detector": d, "level": 0.95, "fa_upper95_cp": cp,
+                          "fa_prob_evt_upper95": evt, "sampling_upper95": ss}
+                         for d, (cp, evt, ss) in bounds.items()])
+
+
+def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
+    from reports.gate import fa_probability_checks
+
+    cert = _certificate(a=(2.5e-3, 1e-6, np.nan), b=(2.5e-3, np.nan, np.nan),
+                        c=(2.5e-3, 1e-6, 3e-6), d=(2.5e-3, None, 4e-7))
+    checks = {c.detector: c for c in fa_probability_checks(cert, 2e-6)}
+    assert checks["a"].value == 1e-6 and checks["a"].passed and "(tail fit)" in checks["a"].message
+    assert checks["b"].value == 2.5e-3 and not checks["b"].passed
+    assert "counting (no tail fit)" in checks["b"].message
+    assert checks["c"].value == 3e-6 and not checks["c"].passed
+    assert "(subset simulation)" in checks["c"].message
+    assert checks["d"].value == 4e-7 and checks["d"].passed
+    assert checks["a"].message == ("PASS false-alarm probability: a: P(FA per run) ≤ 1e-06 at "
+                                   "95 % (tail fit) ≤ 2e-06")
+    assert "> 2e-06" in checks["b"].message
+    assert all(c.name == "fa_probability" and c.limit == 2e-6 for c in checks.values())
+    # a bound equal to the limit passes; the limits 0 and 1 are probabilities
+    assert fa_probability_checks(cert, 1e-6)[0].passed
+    assert [c.passed for c in fa_probability_checks(cert, 0.0)] == [False] * 4
+    assert [c.passed for c in fa_probability_checks(cert, 1.0)] == [True] * 4
+
+
+@pytest.mark.parametrize("limit", [-1e-9, 1.5, "often", None])
+def test_fa_probability_check_refuses_a_limit_that_is_no_probability(limit):
+    from reports.gate import fa_probability_checks
+
+    with pytest.raises(GateInputError, match="max_fa_prob"):
+        fa_probability_checks(_certificate(a=(1e-3, 1e-6, np.nan)), limit)
+    with pytest.raises(GateInputError, match="lacks column"):
+        fa_probability_checks(pd.DataFrame({"detector": ["a"]}), 1e-5)
+
+
+def test_gate_names_exactly_three_failing_runs_without_a_count_of_more():
+    res = campaign()
+    ff = res.index[(res.fault == "none") & (res.manoeuvre == "cruise")]
+    res.loc[ff[[0, 1, 2]], "false_alarm"] = True
+    [fail] = evaluate_gate(summarize(res), results=res).failures
+    assert fail.message.endswith("runs: position-monitor-ff-cruise-0, "
+                                 "position-monitor-ff-cruise-1, position-monitor-ff-cruise-2")
+
+
+def test_passing_false_alarm_check_states_its_95_percent_bound():
+    checks = evaluate_gate(summarize(campaign())).checks
+    cruise = next(c for c in checks if (c.name, c.fault, c.manoeuvre) == ("false_alarm", "none",
+                                                                            "cruise"))
+    # 0 of 200: upper bound 1 - 0.05^(1/200) = 1.49 %
+    assert cruise.message == ("PASS false alarms: position-monitor, fault-free cruise: 0/200 "
+                              "runs (0.00 % ≤ 0.00 %; FA ≤ 1.49 % at 95 %)")
+
+
+def test_run_error_check_names_the_first_error_and_the_other_messages():
+    err = errors("runaway", "cruise", 2)
+    other = errors("solid_jam", "cruise", 1).assign(error="ValueError: NaN in the state")
+    res = campaign(err)
+    result = evaluate_gate(summarize(res), results=res)
+    [fail] = result.failures
+    assert fail.message.endswith("; first: run position-monitor-err-runaway-cruise-0: "
+                                 "RuntimeError: solver diverged")
+    res2 = campaign(err, other)
+    [fail2] = evaluate_gate(summarize(res2), results=res2).failures
+    assert fail2.message.endswith("RuntimeError: solver diverged (1 other message(s): "
+                                  "fdd-campaign report)")
+    [allowed] = [c for c in evaluate_gate(summarize(res), results=res, allow_errors=True).checks
+                 if c.name == "errors"]
+    assert allowed.passed and allowed.message.startswith("PASS (allowed) run errors: ")
+
+
+def test_missed_detection_and_dtp_checks_are_in_fault_order_whatever_the_summary_order():
+    s = summarize(campaign(faulty("hardover", "cruise", [0.3])))
+    for summary in (s, s.iloc[::-1]):
+        checks = evaluate_gate(summary, max_md=0.0, max_dtp=1.0).checks
+        for name in ("missed_detection", "dtp"):
+            assert [c.fault for c in checks if c.name == name] == [
+                "hardover", "runaway", "solid_jam"]
+
+
+def test_gate_refuses_a_zero_dtp_limit_and_a_limit_that_is_no_number():
+    s = summarize(campaign())
+    with pytest.raises(GateInputError, match="max_dtp must be a positive DTP"):
+        evaluate_gate(s, max_dtp=0.0)
+    with pytest.raises(GateInputError, match="max_fa must be a number, got 'often'"):
+        evaluate_gate(s, max_fa="often")
+    with pytest.raises(GateInputError, match=r"max_md must be a number, got \[0.1\]"):
+        evaluate_gate(s, max_md=[0.1])
+    # every limit is checked, also after one that is no number
+    with pytest.raises(GateInputError) as info:
+        evaluate_gate(s, max_fa="often", max_dtp=-1.0)
+    assert len(info.value.problems) == 2
+    # limits are keyword-only: a positional number is never taken for one
+    with pytest.raises(TypeError):
+        evaluate_gate(s, 0.01)
+
+
+def test_count_checks_state_value_and_limit():
+    s = summarize(campaign())
+    [ok] = [c for c in evaluate_gate(s).checks if c.name == "errors"]
+    assert (ok.value, ok.limit, ok.passed) == (0.0, 0.0, True)
+    s_err = summarize(campaign(errors("runaway", "cruise", 2)))
+    [bad] = [c for c in evaluate_gate(s_err).checks if c.name == "errors"]
+    assert (bad.value, bad.limit, bad.passed) == (2.0, 0.0, False)
+    [runs] = evaluate_gate(summarize(errors("none", "cruise", 3)), allow_errors=True).failures
+    assert (runs.name, runs.value, runs.limit) == ("runs", 0.0, 1.0)
+    # a summary with aggregate rows only holds no scored run
+    [agg] = evaluate_gate(s[s.manoeuvre == "all"]).checks
+    assert (agg.name, agg.value, agg.limit, agg.passed) == ("runs", 0.0, 1.0, False)
+    assert agg.message == "FAIL scored runs: the summary holds no runs"
+
+
+def test_gate_names_four_failing_runs_as_three_and_one_more():
+    res = campaign()
+    ff = res.index[(res.fault == "none") & (res.manoeuvre == "cruise")]
+    res.loc[ff[[0, 1, 2, 3]], "false_alarm"] = True
+    [fail] = evaluate_gate(summarize(res), results=res).failures
+    assert fail.message.endswith("position-monitor-ff-cruise-2 and 1 more")
+
+
+def test_results_without_error_column_and_summaries_without_late_count():
+    res = campaign(errors("runaway", "cruise", 1))
+    s = summarize(res)
+    [fail] = evaluate_gate(s, results=res.drop(columns=["error"])).failures
+    assert "first:" not in fail.message and fail.message.endswith("runaway cruise 1")
+    late = summarize(campaign(faulty("runaway", "cruise", [1.5])))
+    [md_late] = [c for c in evaluate_gate(late, max_md=0.0).checks if c.fault == "runaway"
+                 and c.name == "missed_detection"]
+    assert "1 more detected late" in md_late.message
+    [md_old] = [c for c in evaluate_gate(late.drop(columns=["late_count"]), max_md=0.0).checks
+                if c.fault == "runaway" and c.name == "missed_detection"]
+    assert "late" not in md_old.message
+
+
+def test_dtp_check_of_every_fault_after_one_without_detection():
+    s = summarize(campaign(faulty("hardover", "cruise", [np.nan])))
+    dtp = [c for c in evaluate_gate(s, max_dtp=1.0).checks if c.name == "dtp"]
+    assert [(c.fault, c.passed) for c in dtp] == [("hardover", False), ("runaway", True),
+                                                   ("solid_jam", True)]
+
+
+def test_a_check_is_an_immutable_hashable_value():
+    [check] = evaluate_gate(summarize(campaign().iloc[:0])).checks
+    assert {check, check} == {check}
+    with pytest.raises(AttributeError):
+        check.passed = True
+
+
+def test_checks_come_per_detector_in_name_order_and_one_scored_run_is_enough():
+    two = pd.concat([fault_free("cruise", 1, detector="b-monitor"),
+                     fault_free("cruise", 1, detector="a-monitor")], ignore_index=True)
+    s = summarize(two)
+    for summary in (s, s.iloc[::-1]):
+        result = evaluate_gate(summary)
+        assert result.passed                   # one scored run per detector is a scored run
+        assert [c.detector for c in result.checks] == ["a-monitor"] * 2 + ["b-monitor"] * 2
+
+
+def test_a_bound_that_is_not_a_number_reads_n_a():
+    s = summarize(campaign()).assign(fa_upper95=np.nan)
+    cruise = next(c for c in evaluate_gate(s).checks if (c.name, c.fault, c.manoeuvre) == (
+        "false_alarm", "none", "cruise"))
+    assert cruise.message.endswith("(0.00 % ≤ 0.00 %; FA ≤ n/a at 95 %)")
+
+
+def test_one_faulty_run_is_a_rate_and_one_sample_is_a_pooled_error():
+    late = faulty("runaway", "cruise", [1.5])       # detected, after the required time
+    within = faulty("solid_jam", "cruise", [0.5])   # detected within it
+    miss = faulty("hardover", "cruise", [np.nan])
+    res = campaign().pipe(lambda c: c[c.fault == "none"])
+    res = pd.concat([res, late, within, miss], ignore_index=True)
+    for column in ESTIMATE_COLUMNS:
+        res[column] = 0 if column == "est_err_n" else np.nan
+    res.loc[res.run_id == within.run_id[0], ESTIMATE_COLUMNS] = [1, 0.2, 0.0, 40.0]
+    s = summarize(res)
+    r_late, r_within = row(s, "runaway", "cruise"), row(s, "solid_jam", "cruise")
+    assert (r_late.md_req_rate, r_late.dtp_within) == (1.0, 0.0)
+    assert (r_within.md_req_rate, r_within.dtp_within) == (0.0, 1.0)
+    assert row(s, "hardover", "cruise").md_rate == 1.0
+    # order: fault-free first even before fault names that sort below "none"; a clean index
+    assert list(s.fault.drop_duplicates()) == ["none", "hardover", "runaway", "solid_jam",
+                                               "all-faults"]
+    assert s.index.equals(pd.RangeIndex(len(s)))
+    for column in ("n_runs", "n_errors", "fa_count", "md_count", "late_count", "md_req_count",
+                   "est_err_runs"):
+        assert s[column].dtype == np.int64, column
+    # a run that did not finish contributes no estimation samples, whatever its columns hold
+    failed = res[res.run_id == within.run_id[0]].assign(run_id="failed", status="error")
+    s_failed = summarize(pd.concat([res, failed], ignore_index=True))
+    assert row(s_failed, "solid_jam", "cruise").est_err_runs == 1
+    assert r_within.est_err_runs == 1 and r_within.est_err_mean_mm == pytest.approx(0.2, rel=REL)
+    assert r_within.est_err_mean == pytest.approx(0.2 / 40.0, rel=REL)
+    assert r_within.est_err_var_mm2 == pytest.approx(0.0, abs=1e-15)
+
+
+def test_survival_columns_are_nan_for_fault_free_rows_only():
+    from reports.survival import SURVIVAL_COLUMNS
+
+    s = summarize(campaign())
+    assert s.loc[s.fault == "none", list(SURVIVAL_COLUMNS)].isna().all().all()
+    # detections in every faulty group: the Kaplan-Meier median delay exists
+    assert s.loc[s.fault != "none", "delay_km_median_s"].notna().all()
