@@ -358,8 +358,8 @@ def learned_threshold(maxima: np.ndarray, method: str, safety: float,
                       classes=None) -> tuple[float, Calibration | None]:
     """(threshold, calibration) of one check from the learning runs' per-run maxima.
 
-    ``method = "max"``: ``safety × max(maxima)`` and no calibration (the rule of the
-    built-in detectors' default); ``"evt"``: :func:`calibrate_threshold` with
+    ``method = "max"``: ``safety × max(maxima)`` and no calibration; ``"evt"`` (the
+    built-in detectors' default): :func:`calibrate_threshold` with
     ``fallback_factor = safety`` (so a learning set that cannot support the target falls
     back to the ``"max"`` threshold); the safety factor is not applied on top of a
     calibrated threshold. *tail*: the tail fit's shape range (:func:`detectors.tail.fit_tail`);
@@ -372,9 +372,11 @@ def learned_threshold(maxima: np.ndarray, method: str, safety: float,
         raise ValueError(f"threshold_method = {method!r}: not one of "
                          f"{', '.join(THRESHOLD_METHODS)}")
     x = np.asarray(maxima, dtype=float)
-    if x.size == 1 and np.isfinite(x).all() and x[0] >= 0.0:     # one learning run
-        return float(safety * x[0]), _calibrate_one(x, float(target_fa_per_run),
-                                                    float(confidence), float(safety), tail)
+    if x.size == 1 and np.isfinite(x).all() and x[0] >= 0.0:
+        # one learning run: no calibration is possible, the fallback's note says why
+        cal = _calibrate_one(x, float(target_fa_per_run), float(confidence), float(safety),
+                             tail)
+        return cal.threshold, cal
     cal = calibrate_threshold(maxima, target_fa_per_run, confidence, fallback_factor=safety,
                               tail=tail, classes=usable_classes(classes))
     return cal.threshold, cal
