@@ -284,21 +284,16 @@ class PositionMonitor(Detector):
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
         res = self.residuals(signals)
-        if self.threshold_method == "max":
-            self.thresholds_mm_ = {
-                name: float(max(self.safety * np.max(np.abs(r)), self.floor_mm))
-                for name, r in res.items()
-            }
-        else:       # "evt": each check at target/m, so the run's probability is ≤ target
-            share = float(self.target_fa_per_run) / max(len(res), 1)
-            self.thresholds_mm_, self.calibration_ = {}, {}
-            for name, r in res.items():
-                tau, cal = learned_threshold(np.max(np.abs(r), axis=1), "evt", self.safety,
-                                             share, self.threshold_confidence,
-                                             tail=self.threshold_tail,
-                                             classes=signals.classes)
-                self.thresholds_mm_[name] = float(max(tau, self.floor_mm))
-                self.calibration_[name] = cal
+        # "evt": each check at target/m, so the run's probability is ≤ target (union bound)
+        share = float(self.target_fa_per_run) / max(len(res), 1)
+        self.thresholds_mm_, calibration = {}, {}
+        for name, r in res.items():
+            tau, calibration[name] = learned_threshold(
+                np.max(np.abs(r), axis=1), self.threshold_method, self.safety, share,
+                self.threshold_confidence, tail=self.threshold_tail, classes=signals.classes)
+            self.thresholds_mm_[name] = float(max(tau, self.floor_mm))
+        if self.threshold_method != "max":
+            self.calibration_ = calibration
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> Detection:
