@@ -391,16 +391,13 @@ class ChenGlobalEstimator(Detector):
                            "grid_max_discrete_modulus": disc, "grid_points": int(len(grid))}
         self.static_gain_ = (min(gains), max(gains))
         r = self._filtered(signals)
-        if self.threshold_method == "max":
-            self.threshold_ = max(float(self.safety) * float(np.max(np.abs(r))),
-                                  float(self.floor_deg))
-        else:
-            tau, self.calibration_ = learned_threshold(
-                np.max(np.abs(r), axis=1), "evt", float(self.safety),
-                self.target_fa_per_run, self.threshold_confidence,
-                                             tail=self.threshold_tail,
-                                             classes=signals.classes)
-            self.threshold_ = max(float(tau), float(self.floor_deg))
+        tau, calibration = learned_threshold(
+            np.max(np.abs(r), axis=1), self.threshold_method, float(self.safety),
+            self.target_fa_per_run, self.threshold_confidence, tail=self.threshold_tail,
+            classes=signals.classes)
+        self.threshold_ = max(float(tau), float(self.floor_deg))
+        if self.threshold_method != "max":
+            self.calibration_ = calibration
         self.learning_runs_ = int(signals.n_runs)
 
     # ---- online part -------------------------------------------------------------------

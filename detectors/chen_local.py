@@ -347,26 +347,17 @@ class ChenLocalEstimator(Detector):
             zero_rad_s=float(self.post_filter_zero_rad_s),
             pole_rad_s=float(self.post_filter_pole_rad_s)))
         f_hat, g = self._residuals(signals)
-        if self.threshold_method == "max":
-            self.thresholds_ = {
-                "liquid": max(float(self.safety) * float(np.max(np.abs(g))),
-                              float(self.floor_mm)),
-                "solid": max(float(self.safety)
-                             * float(np.max(self._solid_statistic(f_hat, ts))),
-                             float(self.floor_mm)),
-            }
-        else:           # "evt": each variant is scored on its own, each at the target
-            maxima = {"liquid": np.max(np.abs(g), axis=1),
-                      "solid": np.max(self._solid_statistic(f_hat, ts), axis=1)}
-            self.thresholds_, self.calibration_ = {}, {}
-            for name, m in maxima.items():
-                tau, cal = learned_threshold(m, "evt", float(self.safety),
-                                             self.target_fa_per_run,
-                                             self.threshold_confidence,
-                                             tail=self.threshold_tail,
-                                             classes=signals.classes)
-                self.thresholds_[name] = max(float(tau), float(self.floor_mm))
-                self.calibration_[name] = cal
+        # each variant is scored on its own, so each is calibrated at the full target
+        maxima = {"liquid": np.max(np.abs(g), axis=1),
+                  "solid": np.max(self._solid_statistic(f_hat, ts), axis=1)}
+        self.thresholds_, calibration = {}, {}
+        for name, m in maxima.items():
+            tau, calibration[name] = learned_threshold(
+                m, self.threshold_method, float(self.safety), self.target_fa_per_run,
+                self.threshold_confidence, tail=self.threshold_tail, classes=signals.classes)
+            self.thresholds_[name] = max(float(tau), float(self.floor_mm))
+        if self.threshold_method != "max":
+            self.calibration_ = calibration
         self.learning_runs_ = int(signals.n_runs)
 
     # ---- online part -------------------------------------------------------------------

@@ -536,19 +536,16 @@ class VanekGeometric(Detector):
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
         est = self.estimates(signals)
-        if self.threshold_method == "max":
-            self.thresholds_deg_ = {k: float(self.safety * np.max(np.abs(r)))
-                                    for k, r in est.items()}
-        else:           # "evt": each variant is scored on its own, each at the target
-            self.thresholds_deg_, self.calibration_ = {}, {}
-            for k, r in est.items():
-                tau, cal = learned_threshold(np.max(np.abs(r), axis=1), "evt",
-                                             float(self.safety), self.target_fa_per_run,
-                                             self.threshold_confidence,
-                                             tail=self.threshold_tail,
-                                             classes=signals.classes)
-                self.thresholds_deg_[k] = float(tau)
-                self.calibration_[k] = cal
+        # each variant is scored on its own, so each is calibrated at the full target
+        self.thresholds_deg_, calibration = {}, {}
+        for k, r in est.items():
+            tau, calibration[k] = learned_threshold(
+                np.max(np.abs(r), axis=1), self.threshold_method, float(self.safety),
+                self.target_fa_per_run, self.threshold_confidence, tail=self.threshold_tail,
+                classes=signals.classes)
+            self.thresholds_deg_[k] = float(tau)
+        if self.threshold_method != "max":
+            self.calibration_ = calibration
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> dict[str, Detection]:
