@@ -118,6 +118,22 @@ def _fault_values(fault: str, u_mag, u_sign, u_freq, config, act, variant=None):
     return nan, nan
 
 
+def _fixed_magnitude(fault: str, size: float, drawn: np.ndarray, act) -> np.ndarray:
+    """Run-table magnitudes of a group that fixes ``magnitude = size`` (in the unit of the
+    fault's ``[faults.*]`` range, docs/campaign-file.md "Fault magnitudes"): a jam's % of the
+    deflection range becomes its rod bias/offset [mm] (:func:`liquid_jam_bias_mm`,
+    :func:`solid_jam_offset_mm`), and the direction stays the one drawn per run (the sign
+    of *drawn*: both directions, unless the group's ``sign`` fixes it afterwards); the OFC
+    amplitudes have no direction."""
+    if fault == "liquid_jam":
+        size = liquid_jam_bias_mm(act, size)
+    elif fault == "solid_jam":
+        size = solid_jam_offset_mm(act, size)
+    if fault in ("ofc_liquid", "ofc_solid"):
+        return np.full(len(drawn), size)
+    return np.where(drawn < 0, -size, size)
+
+
 def _scale(u, values) -> np.ndarray:
     lo, hi = float(min(values)), float(max(values))
     return lo + (hi - lo) * u
@@ -141,10 +157,8 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     variant = getattr(group, "variant", None)
     mag, freq = _fault_values(group.fault, u_rest[:, 1], u_rest[:, 2], u_rest[:, 3], config, act,
                               variant)
-    if group.magnitude is not None and group.fault == "solid_jam":   # % of range → rod mm
-        mag = np.sign(mag) * solid_jam_offset_mm(act, float(group.magnitude))
-    elif group.magnitude is not None and group.fault != "none":
-        mag = np.full(n, float(group.magnitude))
+    if group.magnitude is not None and group.fault != "none":
+        mag = _fixed_magnitude(group.fault, float(group.magnitude), mag, act)
     if getattr(group, "freq_hz", None) is not None:
         freq = np.full(n, float(group.freq_hz))
     direction = getattr(group, "sign", None)

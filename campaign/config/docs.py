@@ -204,7 +204,9 @@ def schema_markdown() -> str:
     out += [
         "## Fault magnitudes",
         "",
-        "A `[[group]]` `magnitude` is in the unit of the fault type's range:",
+        "A `[[group]]` `magnitude` is in the unit of the fault type's range (a jam's % of "
+        "the deflection range becomes its rod bias or offset in mm, r·sin(p·Δδ), in the run "
+        "table), and its direction is drawn per run unless `sign` fixes it:",
         "",
         "| fault | range key |",
         "|---|---|",

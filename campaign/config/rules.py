@@ -275,6 +275,22 @@ def _check_magnitude(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
         errors.append(f"{p}.magnitude: {num(g['magnitude'])} is out of range "
                       f"for {fault}; allowed: "
                       f"{range_text(spec, 'magnitude')}")
+        return
+    _announce_fixed_magnitude(g, p, fault)
+
+
+def _announce_fixed_magnitude(g: Mapping, p: str, fault: str) -> None:
+    """One-line notes where a fixed magnitude reads differently than it once did:
+    a liquid jam's in % of the deflection range (it was taken as rod mm), and a signed
+    fault's direction drawn per run unless ``sign`` is given (it was always positive)."""
+    if fault == "liquid_jam":
+        warnings.warn(f"{p}.magnitude = {num(g['magnitude'])} is read in % of the deflection "
+                      "range, like [faults.liquid_jam] bias_pct_range (it was read as rod mm)",
+                      FutureWarning, stacklevel=6)
+    if fault in SIGNED_FAULTS and not _given(g, "sign"):
+        warnings.warn(f"{p}.magnitude: the direction is drawn per run (both signs; it was "
+                      "always positive); fix it with sign = \"positive\" or \"negative\"",
+                      FutureWarning, stacklevel=6)
 
 
 def _check_sign(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
