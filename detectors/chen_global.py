@@ -33,12 +33,19 @@ matrices vanish are dropped; the polytope is the box of the remaining components
 realistic point of the [CHEN] Table-1 grid seen through the corners of the Table-2
 measurement errors widened by ``schedule_margin`` (2^r vertices).
 
-Uncertainty ([CHEN] §6: "δ_g mainly affects the channels of the roll rate and the yaw
-rate"): M_g = the unit vectors of the ṗ and ṙ rows, plus the β̇ row, N = 0. Gusts: a gust
-sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls the aircraft
-like tens of degrees of one inboard aileron; with ``gust_channel`` it is a second unknown
-input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a second column along
-r or φ), and f̂ is the first component of the estimate.
+Uncertainty ([CHEN] eq. 25, Table 2): δ_g enters through M_g, realised in
+:mod:`detectors.chen_global_uncertainty` from the ±5 % coefficient errors (d_cy, d_cl, d_cn
+scale whole rows of aerodynamic terms, docs/physics.md §6) and the ±10 % flight-data errors
+(they reach the model through the measured ρ and scale the same terms): three constant
+columns, the directions in which a side force, a rolling moment and a yawing moment
+accelerate the aircraft ([CHEN] §6: "δ_g mainly affects the channels of the roll rate and
+the yaw rate"; the side-force channel is kept), N_g = 0. The H∞ objective of eq. 23 bounds
+δ_g → f̂ − f.
+
+Gusts: a gust sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls
+the aircraft like tens of degrees of one inboard aileron; with ``gust_channel`` it is a
+second unknown input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a
+second column along r or φ), and f̂ is the first component of the estimate.
 
 Synthesis: :func:`detectors.lpv_synthesis.synthesise` (vertex LMIs of eq. 23, Z1 = P⁻¹S,
 gains of eq. 20–21, L1(ρ) = −F(ρ)H† + Z1H⊥ affine in ρ). It runs once in ``fit`` and its
@@ -51,9 +58,18 @@ x̂ ← Φ x̂ + Γ [u; y] + Γ₁ Δ[u; y] and f̂ = L2 (y − C x̂), about 80
 vectorised over runs. (With y held instead, the fast observer poles turn the half-period
 lag of p during a roll-in into about 1° of f̂.)
 
-Decision: |f̂| (after a first-order low-pass of time constant ``filter_s`` against sensor
-noise) against τ = ``safety`` × its largest value on the fault-free learning set, confirmed
-over ``confirm_s``.
+Decision: |f̂| after a first-order low-pass of time constant ``filter_s`` (against sensor
+noise) against the adaptive threshold τ0 + b(t), confirmed over ``confirm_s``. b(t) =
+Σ_j k_j |w_j| (low-passed alike) is the bound the Table-2 errors put on |f̂ − f| given the
+measured lateral activity: w_j is the response of f̂, through the estimator's own error
+dynamics of eq. 17, to the aerodynamic accelerations the model computes on the measured
+p, r, φ, the estimated β and gust and the rods with the estimated fault; k_j the largest
+relative error of that term over the envelope and Table 2 (:func:`table2_error_bounds`;
+no learned factor). τ0 covers what Table 2 does not (turbulence beyond the gust channel,
+sensor noise, the plant's nonlinearities): it is learned from the fault-free learning set
+as the per-run maximum of |f̂| − b(t), through :func:`detectors.calibrate.learned_threshold`
+(calibrated to ``target_fa_per_run`` per run by default). With ``adaptive = False`` the
+threshold is the constant τ0 learned on |f̂| alone (the decision before the bound existed).
 """
 
 from __future__ import annotations
@@ -248,7 +264,7 @@ class ChenGlobalEstimator(Detector):
     h_output : str
         Output E points to: ``"phi"``, ``"p"`` or ``"r"``.
     safety : float
-        Threshold = safety × the largest fault-free |f̂| of the learning set (> 1).
+        ``"max"`` thresholds: τ0 = safety × the largest learning value (> 1).
     confirm_s : float
         Time |f̂| must stay beyond the threshold [s] (≥ 0).
     filter_s : float
@@ -257,7 +273,11 @@ class ChenGlobalEstimator(Detector):
         Relative widening of the Table-2 error widths over which the polytope is computed
         (≥ 0); scheduling data outside the box are clipped to it.
     floor_deg : float
-        Smallest threshold [deg] (> 0).
+        Smallest τ0 [deg] (> 0).
+    gust_channel : bool
+        Decouple the gust sideslip as a second unknown input.
+    adaptive : bool
+        Threshold τ0 + b(t) with the Table-2 activity bound b (module docstring); False: τ0.
     threshold_method, target_fa_per_run, threshold_confidence, threshold_tail
         How thresholds are learned: calibrated to a per-run false-alarm target per
         manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
@@ -291,9 +311,9 @@ class ChenGlobalEstimator(Detector):
     )
 
     def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
-                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True, adaptive=True,
-                 threshold_method="evt",
-                 target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True,
+                 adaptive=True,
+                 threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
                  threshold_tail="light"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
@@ -442,7 +462,7 @@ class ChenGlobalEstimator(Detector):
     def uncertainty_response(self, signals: Signals) -> np.ndarray:
         """w_j [deg], shape (5, n_runs, n_steps): the response of f̂ to each driving signal of
         the Table-2 uncertainty (:data:`detectors.chen_global_uncertainty.SIGNALS`) through
-        the estimator's error dynamics; |f̂ − f| ≤ Σ_j k_j |w_j| with k_j = ``error_bounds_``."""
+        the estimator's error dynamics; |f̂ − f| ≤ Σ_j k_j |w_j|, k_j = ``error_bounds_``."""
         return self._recursion(signals, bounds=True)[1]
 
     def _recursion(self, signals: Signals, bounds: bool):
@@ -514,7 +534,8 @@ class ChenGlobalEstimator(Detector):
             C_L2[out] = L2[0]                                       # f̂ component of L2 C
         for k in range(T):
             innov = y[:, :, k] - xh[out]
-            f_all = L2[:, 0, None] * innov[0] + L2[:, 1, None] * innov[1] + L2[:, 2, None] * innov[2]
+            f_all = (L2[:, 0, None] * innov[0] + L2[:, 1, None] * innov[1]
+                     + L2[:, 2, None] * innov[2])
             f_hat[:, k] = f_all[0]
             if bounds:
                 w[:, :, k] = (C_L2[None, :, None] * e).sum(axis=1)

@@ -18,14 +18,15 @@ the model through the scheduling vector ρ = (q̄·PG/m, q̄·PG/(m·V), q̄·PG
 aerodynamic term of one row, so the difference between the aircraft and the estimator's
 model is ::
 
-    ΔA·x + ΔB·u = M_g·δ_g,    M_g = [e_β | E⁻¹·Ix·e_p | E⁻¹·Iz·e_r] = | 1     0        0     |
-                                                                      | 0     1     Izx/Ix  |
-                                                                      | 0  Izx/Iz     1     |
-                                                                      | 0     0        0     |
+    ΔA·x + ΔB·u = M_g·δ_g,    M_g = | 1     0        0     |
+                                    | 0     1     Izx/Ix  |
+                                    | 0  Izx/Iz     1     |
+                                    | 0     0        0     |
 
-(rows β, p, r, φ; E the inertia matrix of the p, r rows, with the −Izx of the equations
-above). The three columns are the directions in which a side force, a rolling moment and a
-yawing moment accelerate the aircraft; with inertias proportional to the mass they do not
+(rows β, p, r, φ; columns e_β, E⁻¹e_p and E⁻¹e_r scaled to a unit diagonal entry, E the
+inertia matrix [[Ix, −Izx], [−Izx, Iz]] of the p, r rows). The three columns are the
+directions in which a side force, a rolling moment and a yawing moment accelerate the
+aircraft; with inertias proportional to the mass they do not
 depend on the flight point, so M_g is constant as [CHEN] eq. 25 has it (N_g = 0: the
 sensors φ, p, r are not affected by the aerodynamic data). δ_g has one entry per column,
 δ_g,c = κ_c·z_c, where z_c is the aerodynamic acceleration of group c the model computes
@@ -91,7 +92,8 @@ def error_bounds(rho_true: np.ndarray, rho_measured: np.ndarray, coefficient_wid
     """k_j ≥ |κ_j| of each signal of :data:`SIGNALS` ([CHEN] Table 2).
 
     The aircraft's term is (1 + d_c)·ρ_k·(derivative) where the model has ρ̂_k·(derivative):
-    κ = (1 + d_c)·ρ_k/ρ̂_k − 1. *rho_true*, *rho_measured*: scheduling vectors (…, 4) of the
+    κ = (1 + d_c)·ρ_k/ρ̂_k − 1. *rho_true*, *rho_measured*: scheduling vectors (…, 4) of
+    the
     same flight points seen without and with the Table-2 measurement errors (every corner);
     *coefficient_widths*: half-width of d_c per channel (``{"cy": 0.05, …}``).
     """
