@@ -55,8 +55,9 @@ run (the schedule is per run), so each run's estimator is discretised once, exac
 the rods and the aircraft sensors as ramps over the period (first-order hold; the spoiler
 angle is held over the period in the plant, so it is held here): each step is then
 x̂ ← Φ x̂ + Γ [u; y] + Γ₁ Δ[u; y] and f̂ = L2 (y − C x̂), about 80 multiply-adds per run,
-vectorised over runs. (With y held instead, the fast observer poles turn the half-period
-lag of p during a roll-in into about 1° of f̂.)
+vectorised over runs (the five filters of the activity bound below add about 150). (With y
+held instead, the fast observer poles turn the half-period lag of p during a roll-in into
+about 1° of f̂.)
 
 Decision: |f̂| after a first-order low-pass of time constant ``filter_s`` (against sensor
 noise) against the adaptive threshold τ0 + b(t), confirmed over ``confirm_s``. b(t) =
@@ -293,15 +294,15 @@ class ChenGlobalEstimator(Detector):
               source="[CHEN] Remark 4.1; value est."),
         Param("h_output", "choice", choices=OUTPUTS, doc="output E of Remark 4.1 points to",
               source="[CHEN] Remark 4.1; choice est."),
-        Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free "
-              "|f̂| over the learning set"),
+        Param("safety", "float", gt=1.0, doc="max thresholds (and the evt fallback): τ0 = "
+              "safety × the largest per-run maximum of |f̂| − b(t) over the learning set"),
         Param("confirm_s", "float", ge=0.0, unit="s", doc="time |f̂| must stay beyond the "
-              "threshold"),
+              "threshold τ0 + b(t)"),
         Param("filter_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
               "f̂ (0: none)"),
         Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 error "
               "widths over which the polytope is computed", source="[CHEN] Table 2; value est."),
-        Param("floor_deg", "float", gt=0.0, unit="deg", doc="smallest threshold"),
+        Param("floor_deg", "float", gt=0.0, unit="deg", doc="smallest τ0"),
         Param("gust_channel", "bool", doc="decouple the gust sideslip as a second unknown "
               "input (F = [B_b W, A_b[:, β]])"),
         Param("adaptive", "bool", doc="threshold τ0 + b(t), b the bound the Table-2 errors put "
