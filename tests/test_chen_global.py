@@ -38,13 +38,29 @@ def _runs(specs):
 
 
 @pytest.fixture(scope="module")
-def fitted():
-    """chen-global fitted on fault-free aircraft runs (the six manoeuvres at two points)."""
+def learning():
+    """Fault-free aircraft runs: the six manoeuvres at two points."""
     manoeuvres = ["cruise", "nose_up", "aoa_protection", "pitch_protection", "yaw_angle_mode",
                   "turn_coordination"]
     learn = _runs([(p, m, "none") for p in ("high_fast", "low_slow") for m in manoeuvres])
     sig, _ = simulate(learn, plant="aircraft")
-    return ChenGlobalEstimator().fit(sig)
+    return sig
+
+
+@pytest.fixture(scope="module")
+def fitted(learning):
+    """chen-global fitted on the fault-free runs of :func:`learning`."""
+    return ChenGlobalEstimator().fit(learning)
+
+
+def test_the_activity_bound_lowers_the_learned_threshold(fitted, learning):
+    """τ0 is learned on |f̂| − b(t): below the constant threshold learned on |f̂| alone, which
+    the turns set; without ``adaptive`` the bound is zero."""
+    constant = ChenGlobalEstimator(adaptive=False).fit(learning)
+    assert not constant.activity_bound(learning).any()
+    b = fitted.activity_bound(learning)
+    assert b.min() >= 0.0 and b.max() > 1.0
+    assert fitted.threshold_ < 0.8 * constant.threshold_
 
 
 def _vertices(det):
