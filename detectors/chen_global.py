@@ -33,12 +33,19 @@ matrices vanish are dropped; the polytope is the box of the remaining components
 realistic point of the [CHEN] Table-1 grid seen through the corners of the Table-2
 measurement errors widened by ``schedule_margin`` (2^r vertices).
 
-Uncertainty ([CHEN] §6: "δ_g mainly affects the channels of the roll rate and the yaw
-rate"): M_g = the unit vectors of the ṗ and ṙ rows, plus the β̇ row, N = 0. Gusts: a gust
-sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls the aircraft
-like tens of degrees of one inboard aileron; with ``gust_channel`` it is a second unknown
-input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a second column along
-r or φ), and f̂ is the first component of the estimate.
+Uncertainty ([CHEN] eq. 25, Table 2): δ_g enters through M_g, realised in
+:mod:`detectors.chen_global_uncertainty` from the ±5 % coefficient errors (d_cy, d_cl, d_cn
+scale whole rows of aerodynamic terms, docs/physics.md §6) and the ±10 % flight-data errors
+(they reach the model through the measured ρ and scale the same terms): three constant
+columns, the directions in which a side force, a rolling moment and a yawing moment
+accelerate the aircraft ([CHEN] §6: "δ_g mainly affects the channels of the roll rate and
+the yaw rate"; the side-force channel is kept), N_g = 0. The H∞ objective of eq. 23 bounds
+δ_g → f̂ − f.
+
+Gusts: a gust sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls
+the aircraft like tens of degrees of one inboard aileron; with ``gust_channel`` it is a
+second unknown input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a
+second column along r or φ), and f̂ is the first component of the estimate.
 
 Synthesis: :func:`detectors.lpv_synthesis.synthesise` (vertex LMIs of eq. 23, Z1 = P⁻¹S,
 gains of eq. 20–21, L1(ρ) = −F(ρ)H† + Z1H⊥ affine in ρ). It runs once in ``fit`` and its
@@ -48,12 +55,22 @@ run (the schedule is per run), so each run's estimator is discretised once, exac
 the rods and the aircraft sensors as ramps over the period (first-order hold; the spoiler
 angle is held over the period in the plant, so it is held here): each step is then
 x̂ ← Φ x̂ + Γ [u; y] + Γ₁ Δ[u; y] and f̂ = L2 (y − C x̂), about 80 multiply-adds per run,
-vectorised over runs. (With y held instead, the fast observer poles turn the half-period
-lag of p during a roll-in into about 1° of f̂.)
+vectorised over runs (the five filters of the activity bound below add about 150). (With y
+held instead, the fast observer poles turn the half-period lag of p during a roll-in into
+about 1° of f̂.)
 
-Decision: |f̂| (after a first-order low-pass of time constant ``filter_s`` against sensor
-noise) against τ = ``safety`` × its largest value on the fault-free learning set, confirmed
-over ``confirm_s``.
+Decision: |f̂| after a first-order low-pass of time constant ``filter_s`` (against sensor
+noise) against the adaptive threshold τ0 + b(t), confirmed over ``confirm_s``. b(t) =
+Σ_j k_j |w_j| (low-passed alike) is the bound the Table-2 errors put on |f̂ − f| given the
+measured lateral activity: w_j is the response of f̂, through the estimator's own error
+dynamics of eq. 17, to the aerodynamic accelerations the model computes on the measured
+p, r, φ, the estimated β and gust and the rods with the estimated fault; k_j the largest
+relative error of that term over the envelope and Table 2 (:func:`table2_error_bounds`;
+no learned factor). τ0 covers what Table 2 does not (turbulence beyond the gust channel,
+sensor noise, the plant's nonlinearities): it is learned from the fault-free learning set
+as the per-run maximum of |f̂| − b(t), through :func:`detectors.calibrate.learned_threshold`
+(calibrated to ``target_fa_per_run`` per run by default). With ``adaptive = False`` the
+threshold is the constant τ0 learned on |f̂| alone (the decision before the bound existed).
 """
 
 from __future__ import annotations
@@ -78,8 +95,6 @@ INPUT_SURFACES = ("left_inboard_aileron", "right_inboard_aileron", "left_outboar
                   "right_outboard_aileron", "rudder")
 #: Signals.aircraft entry of the spoiler input (the last column of u_b) [deg].
 SPOILER = "spoiler"
-#: Rows of M_g (uncertainty distribution): states whose derivative carries δ_g.
-UNCERTAIN_STATES = ("beta", "p", "r")
 
 
 @dataclass(frozen=True)
@@ -167,6 +182,23 @@ def envelope_schedules(schedule_margin: float) -> dict:
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
+def table2_error_bounds() -> np.ndarray:
+    """k_j of each driving signal of :data:`detectors.chen_global_uncertainty.SIGNALS`: the
+    largest relative error of its term between the aircraft and the model scheduled on the
+    measured flight data, over every realistic [CHEN] Table-1 point and every corner of the
+    Table-2 measurement errors, with the ±5 % coefficient errors on top ([CHEN] Table 2,
+    docs/physics.md §6; :func:`detectors.chen_global_uncertainty.error_bounds`)."""
+    from scenarios import envelope
+
+    from .chen_global_uncertainty import CHANNELS, error_bounds
+
+    corners = list(itertools.product(*[(-1.0, 0.0, 1.0)] * 4))
+    rho = scheduling_vector(envelope_schedules(0.0)).reshape(len(corners), -1, 4)
+    true = rho[corners.index((0.0, 0.0, 0.0, 0.0))]
+    widths = {c: envelope.coefficient_width(envelope.UNCERTAINTY, c, "aero") for c in CHANNELS}
+    return error_bounds(true[None], rho, widths)
+
+
 @dataclass
 class AffineLateralModel:
     """A_b(ρ), B_b(ρ) = coef[0] + Σ ρ_k coef[1 + k] over the kept ρ components ``keep``."""
@@ -214,11 +246,6 @@ def output_matrix() -> np.ndarray:
     return np.array([[1.0 if s == o else 0.0 for s in STATES] for o in OUTPUTS])
 
 
-def uncertainty_matrix() -> np.ndarray:
-    """M_g (4, d): unit vectors of the rows of :data:`UNCERTAIN_STATES`."""
-    return np.array([[1.0 if s == u else 0.0 for u in UNCERTAIN_STATES] for s in STATES])
-
-
 def monitored_column(surface: str) -> int:
     """Column of u_b of the monitored aileron (W of [CHEN] eq. 25 selects it)."""
     if surface not in INPUT_SURFACES[:4]:
@@ -238,7 +265,7 @@ class ChenGlobalEstimator(Detector):
     h_output : str
         Output E points to: ``"phi"``, ``"p"`` or ``"r"``.
     safety : float
-        Threshold = safety × the largest fault-free |f̂| of the learning set (> 1).
+        ``"max"`` thresholds: τ0 = safety × the largest learning value (> 1).
     confirm_s : float
         Time |f̂| must stay beyond the threshold [s] (≥ 0).
     filter_s : float
@@ -247,7 +274,11 @@ class ChenGlobalEstimator(Detector):
         Relative widening of the Table-2 error widths over which the polytope is computed
         (≥ 0); scheduling data outside the box are clipped to it.
     floor_deg : float
-        Smallest threshold [deg] (> 0).
+        Smallest τ0 [deg] (> 0).
+    gust_channel : bool
+        Decouple the gust sideslip as a second unknown input.
+    adaptive : bool
+        Threshold τ0 + b(t) with the Table-2 activity bound b (module docstring); False: τ0.
     threshold_method, target_fa_per_run, threshold_confidence, threshold_tail
         How thresholds are learned: calibrated to a per-run false-alarm target per
         manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
@@ -263,23 +294,27 @@ class ChenGlobalEstimator(Detector):
               source="[CHEN] Remark 4.1; value est."),
         Param("h_output", "choice", choices=OUTPUTS, doc="output E of Remark 4.1 points to",
               source="[CHEN] Remark 4.1; choice est."),
-        Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free "
-              "|f̂| over the learning set"),
+        Param("safety", "float", gt=1.0, doc="max thresholds (and the evt fallback): τ0 = "
+              "safety × the largest per-run maximum of |f̂| − b(t) over the learning set"),
         Param("confirm_s", "float", ge=0.0, unit="s", doc="time |f̂| must stay beyond the "
-              "threshold"),
+              "threshold τ0 + b(t)"),
         Param("filter_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
               "f̂ (0: none)"),
         Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 error "
               "widths over which the polytope is computed", source="[CHEN] Table 2; value est."),
-        Param("floor_deg", "float", gt=0.0, unit="deg", doc="smallest threshold"),
+        Param("floor_deg", "float", gt=0.0, unit="deg", doc="smallest τ0"),
         Param("gust_channel", "bool", doc="decouple the gust sideslip as a second unknown "
               "input (F = [B_b W, A_b[:, β]])"),
+        Param("adaptive", "bool", doc="threshold τ0 + b(t), b the bound the Table-2 errors put "
+              "on |f̂ − f| given the measured lateral activity (False: constant τ0)",
+              source="[CHEN] eq. 17, 25 and Table 2; [COMB] (bounds scaling with the input)"),
         *THRESHOLD_PARAMS,
     )
 
     def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
-                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True, threshold_method="evt",
-                 target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True,
+                 adaptive=True,
+                 threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
                  threshold_tail="light"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
@@ -289,6 +324,7 @@ class ChenGlobalEstimator(Detector):
         self.schedule_margin = schedule_margin
         self.floor_deg = floor_deg
         self.gust_channel = gust_channel
+        self.adaptive = adaptive
         self.threshold_method = threshold_method
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
@@ -312,6 +348,7 @@ class ChenGlobalEstimator(Detector):
 
     # ---- design (fit) ------------------------------------------------------------------
     def _vertices(self, model: AffineLateralModel, lo, hi, col: int):
+        from .chen_global_uncertainty import uncertainty_matrix
         from .lpv_synthesis import VertexSystem
 
         C, M = output_matrix(), uncertainty_matrix()
@@ -390,9 +427,10 @@ class ChenGlobalEstimator(Detector):
         self.stability_ = {"vertex_max_real_pole": vert, "grid_max_real_pole": cont,
                            "grid_max_discrete_modulus": disc, "grid_points": int(len(grid))}
         self.static_gain_ = (min(gains), max(gains))
-        r = self._filtered(signals)
+        self.error_bounds_ = table2_error_bounds()
+        excess = self._excess(signals)
         tau, calibration = learned_threshold(
-            np.max(np.abs(r), axis=1), self.threshold_method, float(self.safety),
+            np.maximum(np.max(excess, axis=1), 0.0), self.threshold_method, float(self.safety),
             self.target_fa_per_run, self.threshold_confidence, tail=self.threshold_tail,
             classes=signals.classes)
         self.threshold_ = max(float(tau), float(self.floor_deg))
@@ -420,7 +458,20 @@ class ChenGlobalEstimator(Detector):
 
     def estimate(self, signals: Signals) -> np.ndarray:
         """Fault estimate f̂ [deg] of [CHEN] eq. 16 at the global level, (n_runs, n_steps)."""
+        return self._recursion(signals, bounds=False)[0]
+
+    def uncertainty_response(self, signals: Signals) -> np.ndarray:
+        """w_j [deg], shape (5, n_runs, n_steps): the response of f̂ to each driving signal of
+        the Table-2 uncertainty (:data:`detectors.chen_global_uncertainty.SIGNALS`) through
+        the estimator's error dynamics; |f̂ − f| ≤ Σ_j k_j |w_j|, k_j = ``error_bounds_``."""
+        return self._recursion(signals, bounds=True)[1]
+
+    def _recursion(self, signals: Signals, bounds: bool):
+        """(f̂ (n, T), w (5, n, T) or None): the estimator of eq. 16 and, with *bounds*, the
+        uncertainty filters of :mod:`detectors.chen_global_uncertainty` run beside it."""
         import scipy.linalg
+
+        from .chen_global_uncertainty import signal_columns, signal_matrices, uncertainty_matrix
 
         lo, hi = self.schedule_box_
         rho = np.clip(scheduling_vector(signals.schedule), lo, hi)
@@ -438,14 +489,20 @@ class ChenGlobalEstimator(Detector):
         n_x, n_in = len(STATES), G_in.shape[2]
         ramp = [j for j in range(n_in) if j != len(INPUT_SURFACES)]   # all but the spoilers
         n_r = len(ramp)
-        aug = np.zeros((n, n_x + n_in + n_r, n_x + n_in + n_r))
+        M_g = uncertainty_matrix()
+        n_m = M_g.shape[1] if bounds else 0
+        size = n_x + n_in + n_m + n_r
+        aug = np.zeros((n, size, size))
         aug[:, :n_x, :n_x] = A_e * ts
         aug[:, :n_x, n_x:n_x + n_in] = G_in * ts
-        aug[:, n_x + np.array(ramp), n_x + n_in + np.arange(n_r)] = 1.0
+        if bounds:                                  # δ_g held over the period (ZOH)
+            aug[:, :n_x, n_x + n_in:n_x + n_in + n_m] = M_g * ts
+        aug[:, n_x + np.array(ramp), n_x + n_in + n_m + np.arange(n_r)] = 1.0
         ex = np.stack([scipy.linalg.expm(a) for a in aug])          # once per run
         Phi = ex[:, :n_x, :n_x]
         Gam = ex[:, :n_x, n_x:n_x + n_in]
-        Gam1 = ex[:, :n_x, n_x + n_in:]
+        Gam_M = ex[:, :n_x, n_x + n_in:n_x + n_in + n_m]
+        Gam1 = ex[:, :n_x, n_x + n_in + n_m:]
         u = self.inputs(signals)
         y = np.stack([np.asarray(signals.aircraft[k], float) for k in OUTPUTS])   # (3, n, T)
         uy = np.concatenate([u, y])
@@ -456,30 +513,82 @@ class ChenGlobalEstimator(Detector):
             drive += Gam[:, :, j].T[:, :, None] * uy[j][None]
         for j in range(n_r):
             drive += Gam1[:, :, j].T[:, :, None] * du[j][None]
-        L2 = d["L2"][0]
+        L2 = d["L2"]
         out = [STATES.index(o) for o in OUTPUTS]                    # C_b selects states
         xh = np.zeros((n_x, n))
         xh[out] = y[:, :, 0]
         f_hat = np.empty((n, T))
         PhiT = np.transpose(Phi, (1, 2, 0))                         # (4, 4, n)
+        if bounds:
+            Zx, Zu = signal_matrices(A, B)                          # (n, 5, 4), (n, 5, 6)
+            n_s = Zx.shape[1]
+            z_u = np.zeros((n_s, n, T))                             # rods' part of z
+            for j in range(u.shape[0]):
+                z_u += Zu[:, :, j].T[:, :, None] * u[j][None]
+            z_f = Zu[:, :, d["column"]].T                           # (5, n): per deg of f̂
+            z_g = Zx[:, :, 0].T                                     # (5, n): per deg of β_g
+            ZxT = np.transpose(Zx, (1, 2, 0))                       # (5, 4, n)
+            GmT = np.transpose(Gam_M[:, :, signal_columns()], (2, 1, 0))   # (5, 4, n)
+            e = np.zeros((n_s, n_x, n))
+            w = np.empty((n_s, n, T))
+            C_L2 = np.zeros(n_x)
+            C_L2[out] = L2[0]                                       # f̂ component of L2 C
         for k in range(T):
             innov = y[:, :, k] - xh[out]
-            f_hat[:, k] = L2[0] * innov[0] + L2[1] * innov[1] + L2[2] * innov[2]
+            f_all = (L2[:, 0, None] * innov[0] + L2[:, 1, None] * innov[1]
+                     + L2[:, 2, None] * innov[2])
+            f_hat[:, k] = f_all[0]
+            if bounds:
+                w[:, :, k] = (C_L2[None, :, None] * e).sum(axis=1)
+                xt = np.stack([xh[0], y[1, :, k], y[2, :, k], y[0, :, k]])   # [β̂, p, r, φ]
+                z = (ZxT * xt[None]).sum(axis=1) + z_u[:, :, k] + z_f * f_all[0]
+                if f_all.shape[0] > 1:                               # gust channel: β_a
+                    z = z + z_g * f_all[1]
+                e = (PhiT[None] * e[:, None, :, :]).sum(axis=2) + GmT * z[:, None, :]
             # x̂_{k+1} needs u_{k+1}, y_{k+1} (ramps over the period): known at step k + 1,
             # before f̂_{k+1} is formed, so the recursion stays causal
             xh = (PhiT * xh[None, :, :]).sum(axis=1) + drive[:, :, k]
-        return f_hat
+        return f_hat, (w if bounds else None)
 
-    def _filtered(self, signals: Signals) -> np.ndarray:
+    def _lowpass(self, x: np.ndarray, ts: float) -> np.ndarray:
+        """First-order low-pass of time constant ``filter_s`` along the last axis."""
         from scipy.signal import lfilter
 
-        f_hat = self.estimate(signals)
         if self.filter_s <= 0.0:
-            return f_hat
-        a = math.exp(-float(signals.ts) / float(self.filter_s))
-        return lfilter([1.0 - a], [1.0, -a], f_hat, axis=1)
+            return x
+        a = math.exp(-float(ts) / float(self.filter_s))
+        return lfilter([1.0 - a], [1.0, -a], x, axis=-1)
+
+    def _filtered(self, signals: Signals) -> np.ndarray:
+        return self._lowpass(self.estimate(signals), signals.ts)
+
+    def activity_bound(self, signals: Signals) -> np.ndarray:
+        """b(t) = Σ_j k_j |w_j| [deg], (n_runs, n_steps): the bound the Table-2 errors put on
+        the low-passed |f̂ − f| given the measured lateral activity (module docstring of
+        :mod:`detectors.chen_global_uncertainty`); zeros without ``adaptive``."""
+        if not self.adaptive:
+            return np.zeros(signals.command.shape)
+        f_hat, w = self._recursion(signals, bounds=True)
+        return self._bound(w, signals.ts)
+
+    def _bound(self, w: np.ndarray, ts: float) -> np.ndarray:
+        k = np.asarray(self.error_bounds_, float)
+        return (k[:, None, None] * np.abs(self._lowpass(w, ts))).sum(axis=0)
+
+    def _components(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
+        """(|f̂| low-passed, b(t)) [deg], both (n_runs, n_steps)."""
+        if not self.adaptive:
+            return np.abs(self._filtered(signals)), np.zeros(signals.command.shape)
+        f_hat, w = self._recursion(signals, bounds=True)
+        return np.abs(self._lowpass(f_hat, signals.ts)), self._bound(w, signals.ts)
+
+    def _excess(self, signals: Signals) -> np.ndarray:
+        """|f̂| low-passed minus the activity bound b(t) [deg]: what τ0 must cover."""
+        r, b = self._components(signals)
+        return r - b
 
     def _detect(self, signals: Signals) -> Detection:
-        r = np.abs(self._filtered(signals)) / self.threshold_
+        f_abs, b = self._components(signals)
+        r = f_abs / (self.threshold_ + b)
         n_c = max(int(round(float(self.confirm_s) / float(signals.ts))), 1)
         return Detection(alarm=confirm(r > 1.0, n_c), residual=r)

@@ -9,7 +9,10 @@ import pandas as pd
 import pytest
 
 from detectors.chen_global import (INPUT_SURFACES, OUTPUTS, ChenGlobalEstimator,
-                                   lateral_models, output_matrix, scheduling_vector)
+                                   lateral_models, output_matrix, scheduling_vector,
+                                   table2_error_bounds)
+from detectors.chen_global_uncertainty import (CHANNELS, SIGNALS, error_bounds, signal_matrices,
+                                               uncertainty_matrix)
 from detectors.lpv_synthesis import discretise, hinf_sweep
 from scenarios.signals import Signals
 from scenarios.plants import simulate
@@ -35,13 +38,29 @@ def _runs(specs):
 
 
 @pytest.fixture(scope="module")
-def fitted():
-    """chen-global fitted on fault-free aircraft runs (the six manoeuvres at two points)."""
+def learning():
+    """Fault-free aircraft runs: the six manoeuvres at two points."""
     manoeuvres = ["cruise", "nose_up", "aoa_protection", "pitch_protection", "yaw_angle_mode",
                   "turn_coordination"]
     learn = _runs([(p, m, "none") for p in ("high_fast", "low_slow") for m in manoeuvres])
     sig, _ = simulate(learn, plant="aircraft")
-    return ChenGlobalEstimator().fit(sig)
+    return sig
+
+
+@pytest.fixture(scope="module")
+def fitted(learning):
+    """chen-global fitted on the fault-free runs of :func:`learning`."""
+    return ChenGlobalEstimator().fit(learning)
+
+
+def test_the_activity_bound_lowers_the_learned_threshold(fitted, learning):
+    """τ0 is learned on |f̂| − b(t): below the constant threshold learned on |f̂| alone, which
+    the turns set; without ``adaptive`` the bound is zero."""
+    constant = ChenGlobalEstimator(adaptive=False).fit(learning)
+    assert not constant.activity_bound(learning).any()
+    b = fitted.activity_bound(learning)
+    assert b.min() >= 0.0 and b.max() > 1.0
+    assert fitted.threshold_ < 0.8 * constant.threshold_
 
 
 def _vertices(det):
@@ -149,6 +168,121 @@ def test_fault_estimate_converges_to_a_constant_fault_on_the_linear_model(fitted
     assert gain > 0.9
 
 
+def _true_lateral(point: dict, aero) -> tuple[np.ndarray, np.ndarray]:
+    """(A (4, 4), B (4, 6)) of the aircraft's lateral block at the true flight *point* with
+    the coefficient draws *aero* (states [β, p, r, φ], inputs of u_b)."""
+    from scenarios import envelope
+    from scenarios.aircraft import lpv
+    from scenarios.aircraft.data import LAYOUT
+
+    fc = envelope.flight_condition(**point)
+    flight = {"mass_t": point["mass_t"], "cg_pct": point["cg_pct"], "mach": fc["mach"],
+              "qbar_pa": fc["qbar_pa"], "tas_ms": fc["tas_ms"]}
+    model = lpv.run_models(flight, aero)
+    idx = [lpv.IB, lpv.IP, lpv.IR, lpv.IPHI]
+    cols = [LAYOUT.names.index(s) for s in INPUT_SURFACES] + [lpv.I_SPOILER]
+    return model.A[0][idx][:, idx], model.B[0][idx][:, cols]
+
+
+def test_m_g_realises_the_coefficient_errors_of_table_2_exactly():
+    """ΔA·x + ΔB·u of a coefficient draw d_c is M_g[:, c]·d_c·z_c, with z_c the model's
+    aerodynamic acceleration of group c (static plus rate parts), at any x, u with φ = 0
+    (z_cy also carries the gravity term g/V·φ of β̇, whose error is the measured speed's)."""
+    point = dict(alt_ft=np.array([28000.0]), vcas_kt=np.array([300.0]),
+                 mass_t=np.array([233.0]), cg_pct=np.array([41.0]))
+    A0, B0 = _true_lateral(point, 0.0)
+    Zx, Zu = signal_matrices(A0[None], B0[None])
+    M = uncertainty_matrix()
+    rng = np.random.default_rng(3)
+    for c in CHANNELS:
+        A1, B1 = _true_lateral(point, {c: 0.05})
+        for _ in range(3):
+            x, u = rng.normal(size=4), rng.normal(size=6)
+            x[3] = 0.0
+            z = Zx[0] @ x + Zu[0] @ u
+            zc = sum(z[j] for j, (ch, _) in enumerate(SIGNALS) if ch == c)
+            delta = (A1 - A0) @ x + (B1 - B0) @ u
+            np.testing.assert_allclose(delta, M[:, CHANNELS.index(c)] * 0.05 * zc,
+                                       atol=1e-12 * np.abs(delta).max())
+    # the coefficient draws alone bound each term by 5 %; the flight-data errors add to it
+    k = table2_error_bounds()
+    assert k.shape == (len(SIGNALS),) and np.all(k > 0.05)
+    same = scheduling_vector(dict(mach=np.array([0.6]), qbar_pa=np.array([1e4]),
+                                  alt_ft=np.array([2e4]), mass_t=np.array([180.0]),
+                                  cg_pct=np.array([30.0])))
+    np.testing.assert_allclose(error_bounds(same, same, dict.fromkeys(CHANNELS, 0.05)), 0.05)
+
+
+def _table2_signals(det, aero: dict, d_vcas: float, d_alt: float, d_mass: float,
+                    n_steps: int = 3000, sub: int = 10):
+    """Signals of the lateral rigid body with [CHEN] Table-2 errors and no fault: the true
+    model carries the coefficient draws *aero* at the true flight point, the schedule the
+    detector sees carries the flight-data errors. The rods fly a smooth roll doublet of the
+    four ailerons (± 15°) with the rudder following; exact in each sub-step of ts/sub."""
+    from scenarios import envelope
+    from scenarios.aircraft.data import surface_actuator as actuator_of
+    from scenarios.aircraft.loop import surface_actuator
+
+    ts = 0.01
+    point = dict(alt_ft=np.array([18000.0]), vcas_kt=np.array([220.0]),
+                 mass_t=np.array([180.0]), cg_pct=np.array([30.0]))
+    A, B = _true_lateral(point, aero)
+    Phi, Gam = discretise(A, B, ts / sub)
+    t = np.arange(n_steps * sub) * ts / sub
+    bump = lambda t0: np.where((t > t0) & (t < t0 + 2.0),                    # noqa: E731
+                               0.5 * (1.0 - np.cos(np.pi * (t - t0))), 0.0)
+    roll = 15.0 * (bump(2.0) - bump(8.0))                                    # deg
+    u = np.zeros((6, len(t)))
+    u[0], u[2] = roll, roll                      # left ailerons
+    u[1], u[3] = -roll, -roll                    # right ailerons
+    u[4] = -0.2 * roll                           # rudder
+    x = np.zeros(4)
+    y = np.empty((3, n_steps))
+    for k in range(len(t)):
+        if k % sub == 0:
+            y[:, k // sub] = output_matrix() @ x
+        x = Phi @ x + Gam @ u[:, k]
+    u = u[:, ::sub]
+    sched = envelope.measured_schedule(point["alt_ft"], point["vcas_kt"], point["mass_t"],
+                                       point["cg_pct"], d_alt, d_vcas, d_mass, 0.0)
+    zeros = np.zeros((1, n_steps))
+    aircraft = {name: y[OUTPUTS.index(name)][None] if name in OUTPUTS else zeros
+                for name in ("p", "q", "r", "phi", "theta", "nz", "ny", "beta")}
+    aircraft["spoiler"] = u[5][None]
+    rods = {s: (actuator_of(s).r_mm * np.sin(np.radians(u[j])))[None]
+            for j, s in enumerate(INPUT_SURFACES)}
+    rods.update({s: zeros for s in ("left_elevator", "right_elevator")})
+    return Signals(ts=ts, command=zeros, current=zeros, rod_com=zeros, rod_mon=zeros,
+                   surface=np.full((1, n_steps), np.nan), pressure=np.full((1, n_steps), np.nan),
+                   schedule=sched, actuator=surface_actuator(MONITORED),
+                   run_ids=np.array(["table2"]), aircraft=aircraft, rods=rods)
+
+
+@pytest.mark.parametrize("aero, d_vcas, d_alt, d_mass, corner", [
+    ({"cy": 0.05, "cl": 0.05, "cn": -0.05}, -0.10, 0.10, 0.10, True),
+    ({"cy": -0.05, "cl": -0.05, "cn": 0.05}, 0.10, -0.10, -0.10, True),
+    ({"cy": 0.05, "cl": 0.05, "cn": 0.05}, 0.0, 0.0, 0.0, False),
+])
+def test_table2_errors_stay_within_the_activity_bound_on_the_design_model(
+        fitted, aero, d_vcas, d_alt, d_mass, corner):
+    """The uncertainty input is attenuated as designed: with only Table-2 errors (corners of
+    the coefficient and flight-data errors) and no fault, |f̂| stays below the bound b(t)
+    that M_g, the error dynamics and the Table-2 widths give, hence below the threshold."""
+    sig = _table2_signals(fitted, aero, d_vcas, d_alt, d_mass)
+    f_abs, b = fitted._components(sig)
+    skip = 100                                   # the estimator's start (x̂ = y, β̂ = 0): 1 s
+    # the manoeuvre moves f̂ by degrees (the bound is not vacuous) …
+    assert f_abs[0, skip:].max() > 0.5
+    # … and b covers it at every step (to 2 % of the activity bound: z is computed on the
+    # estimated β and fault, not the true ones)
+    assert np.all(f_abs[0, skip:] <= 1.02 * b[0, skip:] + 1e-3)
+    det = fitted.detect(sig)
+    assert not det.alarm[0, skip:].any()
+    if corner:
+        # at the Table-2 corners, without the bound the run would exceed τ0 alone
+        assert f_abs[0, skip:].max() > fitted.threshold_
+
+
 def test_detects_disconnection_and_stays_quiet_on_aircraft_runs(fitted):
     runs = _runs([("mid", "cruise", "none"), ("high_heavy", "turn_coordination", "none"),
                   ("low_slow", "yaw_angle_mode", "none"),
@@ -193,6 +327,7 @@ def test_an_actuator_level_campaign_is_refused_before_it_starts():
     ({"h_output": "beta"}, "h_output"),
     ({"safety": 1.0}, "safety"),
     ({"gust_channel": 1}, "gust_channel"),
+    ({"adaptive": "yes"}, "adaptive"),
 ])
 def test_bad_parameters_are_named(params, needle):
     with pytest.raises(ValueError, match=needle):
