@@ -42,7 +42,8 @@ from scenarios import envelope
 from .design import run_id
 
 __all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
-           "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables", "sample_fa_probability"]
+           "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
+           "sample_fa_probability"]
 
 #: Columns of ``certificate.parquet``, one row per detector.
 CERTIFICATE_COLUMNS: tuple[str, ...] = (
