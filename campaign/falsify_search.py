@@ -14,7 +14,8 @@ box; the random stream (sensor noise, turbulence, manoeuvre shape) changes a mar
    warm start (``--against DIR``) the campaign's worst fault-free runs are evaluated first,
    exactly as the campaign ran them (their stream, their drawn manoeuvre start).
 2. **Concentration** on the :data:`FOCUS_CELLS` cells of largest screened margin: one
-   CMA-ES each (Hansen and Ostermeier 2001, the ``cma`` package, ask/tell) in the unit cube
+   CMA-ES each (after :data:`RACE_GENERATIONS` generations only the one whose cell holds
+   the largest margin found goes on) (Hansen and Ostermeier 2001, the ``cma`` package, ask/tell) in the unit cube
    of the continuous dimensions (bounds kept by ``cma``'s bound transform), started at the
    cell's best screened run with step :data:`CMA_SIGMA0`, the stream held at that run's
    stream (a fixed stream makes the objective deterministic, so the evolution path follows
@@ -37,7 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import qmc
 
-__all__ = ["CMA_SIGMA0", "FOCUS_CELLS", "POLISH_SHARE", "SCREEN_SHARE", "Point", "Strategy"]
+__all__ = ["CMA_SIGMA0", "FOCUS_CELLS", "POLISH_SHARE", "RACE_GENERATIONS", "SCREEN_SHARE",
+           "Point", "Strategy"]
 
 #: Share of the budget spent screening (est.: enough to rank the cells and find each one's
 #: neighbourhood of large margins; 200 runs of a 600 budget).
@@ -47,6 +49,9 @@ POLISH_SHARE: float = 1.0 / 6.0
 #: Cells the concentrated search is given to (est.: the worst manoeuvres of a campaign are
 #: often close; two hedge a screening that ranked them wrongly).
 FOCUS_CELLS: int = 2
+#: Focus generations after which only the strategy of the largest margin found goes on
+#: (est.; successive halving: the budget goes to the cell that rises).
+RACE_GENERATIONS: int = 4
 #: Initial CMA-ES step in unit coordinates (est.: a third of the box, so the corners are
 #: within reach of the first generations).
 CMA_SIGMA0: float = 0.3
@@ -179,6 +184,9 @@ class Strategy:
 
     def _focus(self) -> list[Point]:
         room = self.left() - self.n_polish
+        if len(self.strategies) > 1 and self.generation > RACE_GENERATIONS:
+            self.strategies = [max(self.strategies,
+                                   key=lambda s: (self._best_of_cell(s[1])[1], -s[1]))]
         live = [s for s in self.strategies if not s[0].stop()]
         if not live or room < self.lam * len(live):
             return []
