@@ -33,17 +33,20 @@ SMOKE = load_config("smoke")
 
 @pytest.fixture(scope="module")
 def searched(tmp_path_factory):
-    """One small search of the smoke preset (budget 20), shared by the checks below."""
+    """One small search of the smoke preset (budget 60: screening, two CMA-ES generations,
+    stream sweep), shared by the checks below."""
     out = tmp_path_factory.mktemp("falsify") / "a"
-    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "20",
+    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "60",
                  "--jobs", "1", "--seed", "3", "--keep", "4", "--out", str(out)])
     return out, code, pd.read_parquet(out / "search.parquet")
 
 
 def test_budget_respected_and_rows_complete(searched):
     _, code, search = searched
-    assert len(search) <= 20
-    assert {"run_id", "margin", "generation", *envelope.DRAW_COLUMNS} <= set(search.columns)
+    assert len(search) <= 60
+    assert {"run_id", "margin", "generation", "phase", *envelope.DRAW_COLUMNS} <= set(
+        search.columns)
+    assert list(dict.fromkeys(search["phase"])) == ["screen", "focus", "polish"]
     assert (search["fault"] == "none").all()
     assert search["generation"].min() == 0
     assert np.isfinite(search["margin"]).all()
@@ -73,7 +76,7 @@ def test_bounds_respected(searched):
 
 def test_same_seed_same_search_at_any_jobs(searched, tmp_path):
     _, _, search = searched
-    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "20",
+    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "60",
                  "--jobs", "2", "--seed", "3", "--keep", "4", "--out", str(tmp_path / "b"),
                  "--fitted-from", str(searched[0] / "learned")])
     assert code in (0, 1)
