@@ -200,12 +200,9 @@ class Strategy:
 
     # ---- stream sweep -------------------------------------------------------------------
     def _polish(self) -> list[Point]:
-        vals = [_value(m) for m in self.margins]
-        best = self.points[int(np.argmax(vals))] if vals else None
+        vals = [_value(m) for m in self.margins]     # the screening always comes first
+        best = self.points[int(np.argmax(vals))]
         n = self.left()
-        if best is None:    # nothing evaluated yet (budget below the screening): screen
-            self.phase = "screen"
-            return self._screen()
         unit = np.array(best.unit, float)
         if self.start_dim is not None and not math.isfinite(unit[self.start_dim]):
             unit[self.start_dim] = self.warm_start.get(int(np.argmax(vals)), 0.5)
