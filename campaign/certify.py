@@ -327,10 +327,12 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
                     state["simulated"] += len(ids)
                 state["done"] += len(ids)
                 elapsed = time.perf_counter() - state["t0"]
-                rate = elapsed / state["simulated"] if state["simulated"] else 0.0
+                left = max(most - state["done"], 0)
+                eta = (f"ETA ≤ {elapsed / state['simulated'] * left:.1f} s"
+                       if state["simulated"] else "ETA once a batch is simulated")
                 progress(f"sampling {name}: batch {b + 1}, {state['done']} runs "
                          f"({store.reused} read back) of at most {most}, {elapsed:.1f} s, "
-                         f"ETA ≤ {rate * max(most - state['done'], 0):.1f} s")
+                         f"{eta}")
                 margin[np.flatnonzero(ok)] = np.where(np.isfinite(got), got, -np.inf)
                 return margin
 
