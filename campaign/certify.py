@@ -353,7 +353,10 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     ``DIR/certificate.parquet`` and returns it.
 
     *detectors*: the result-row names sampled (default all; the others keep NaN sampling
-    columns). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
+    columns). With *sampling*, the runs are simulated on *jobs* local workers or on the dask
+    scheduler *scheduler* (*tls*: its :class:`campaign.execute.TlsFiles`), their batches
+    kept under ``DIR/sampling/`` (resumable), *progress* (default stderr) told each batch
+    (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
     outside (0.5, 1), ``sampling`` below 20 or not a multiple of 10, ``jobs`` below 1 or an
     unknown detector name."""
     from .report import load_campaign
