@@ -22,17 +22,15 @@ detector (result-row name, variants apart):
   per-run bound p_up then gives λ ≤ −ln(1 − p_up)/d (d the runs' mean duration; the runs
   of a campaign share one duration);
 * with ``sampling``: ``sampling_prob`` and its bounds, P(margin ≥ 1) by subset simulation
-  (:mod:`campaign.rare`) over the campaign's run variables, simulated through
-  :func:`campaign.evaluate.evaluate` on the workers (:func:`sample_fa_probability`).
+  (:mod:`campaign.rare`) over the campaign's run variables, simulated through the runner's
+  pipeline on the local workers or a dask cluster, resumable (:func:`sample_fa_probability`).
 
 Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`).
 """
 
 from __future__ import annotations
 
-import copy
 import math
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pandas as pd
@@ -42,10 +40,10 @@ from reports.metrics import FAULT_FREE
 from scenarios import envelope
 
 from .design import run_id
-from .evaluate import evaluate
 
-__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_STREAM_BASE",
-           "certificate", "certify", "evt_estimate", "run_variables", "sample_fa_probability"]
+__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
+           "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
+           "sample_fa_probability"]
 
 #: Columns of ``certificate.parquet``, one row per detector.
 CERTIFICATE_COLUMNS: tuple[str, ...] = (
@@ -164,35 +162,85 @@ def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _evaluate_rows(rows: pd.DataFrame, detectors: dict, settings, jobs: int,
-                   pool) -> pd.DataFrame:
-    if pool is None or jobs < 2 or len(rows) < 2:
-        return evaluate(rows, copy.deepcopy(detectors), settings)
-    size = -(-len(rows) // jobs)
-    futures = [pool.submit(evaluate, rows.iloc[s:s + size], copy.deepcopy(detectors), settings)
-               for s in range(0, len(rows), size)]
-    return pd.concat([f.result() for f in futures], ignore_index=True)
+class _BatchStore:
+    """The evaluated batches of one subset simulation under *root* (``DIR/sampling/…``):
+    batch b's run ids and margins in ``batch-<b>.parquet``, written atomically as each
+    batch finishes. The simulation is deterministic for its seed, so a rerun asks for the
+    same batches in the same order: a stored batch whose run ids are the ones asked for is
+    read back instead of simulated (resume after a kill), any other is simulated again."""
+
+    def __init__(self, root, config_json: str):
+        from pathlib import Path
+
+        self.root, self.config_json, self.reused = Path(root), config_json, 0
+
+    def path(self, b: int):
+        return self.root / f"batch-{b:05d}.parquet"
+
+    def get(self, b: int, run_ids: list[str]):
+        path = self.path(b)
+        if not path.exists():
+            return None
+        stored = pd.read_parquet(path)
+        if stored["run_id"].tolist() != run_ids:
+            return None
+        self.reused += len(run_ids)
+        return stored["margin"].to_numpy(float)
+
+    def put(self, b: int, run_ids: list[str], margin: np.ndarray) -> None:
+        from .files import write_parquet
+
+        write_parquet(pd.DataFrame({"run_id": run_ids, "margin": margin}), self.path(b),
+                      self.config_json, kind="certify-sampling-batch", batch=b)
 
 
-def sample_fa_probability(config, plan: pd.DataFrame, detectors: dict, settings, names, *,
-                          n: int = 500, p0: float = 0.1, max_levels: int = 6,
-                          level: float = 0.95, seed: int = 0, jobs: int = 2,
-                          log=None) -> dict:
+def _work_name(name: str, n: int, seed: int, level: float, max_levels: int) -> str:
+    """Directory of one detector's subset simulation under ``DIR/sampling/``: the detector
+    name made file-safe and the options that decide its runs (a change starts afresh)."""
+    import hashlib
+
+    safe = "".join(ch if ch.isalnum() or ch in "-_.=" else "_" for ch in name)
+    key = hashlib.sha256(f"{name}|{n}|{seed}|{level!r}|{max_levels}".encode()).hexdigest()
+    return f"{safe}-{key[:12]}"
+
+
+#: Sub-directory of a campaign directory holding the subset simulation's work (its
+#: worker setup, the fitted detectors it evaluates, and every evaluated batch).
+SAMPLING_DIR: str = "sampling"
+
+
+def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: int = 500,
+                          p0: float = 0.1, max_levels: int = 6, level: float = 0.95,
+                          seed: int = 0, jobs: int = 2, scheduler: str | None = None,
+                          tls=None, log=None, progress=None) -> dict:
     """P(margin ≥ 1) of each result-row detector name in *names* by subset simulation
-    (:func:`campaign.rare.subset_simulation`) over the campaign's fault-free population.
+    (:func:`campaign.rare.subset_simulation`) over the fault-free population of the
+    campaign in *directory* (its *config* and run table *plan*).
 
     The population: the manoeuvre (drawn with the weights of the fault-free runs of the
     plan), the continuous variables of :func:`run_variables` (uniform, mapped from
     standard normal coordinates by u = Φ(z); points outside the realistic envelope are
     outside the prior when the campaign has ``realistic_only``) and the simulation's noise
     stream (a fresh stream from :data:`SAMPLING_STREAM_BASE` on); every other column is that
-    of a fault-free run of the same manoeuvre. Each point is a plan row simulated and
-    scored by :func:`campaign.evaluate.evaluate` (the detectors owning the name only), in
-    batches on *jobs* threads. Returns {name: :class:`campaign.rare.SubsetResult`}.
-    """
+    of a fault-free run of the same manoeuvre.
+
+    Each batch of points is a run table evaluated through the runner's pipeline
+    (:func:`campaign.runner.prepare` with the campaign's own fitted detectors, then
+    :func:`campaign.runner.evaluate_rows`: the local workers, or the dask cluster at
+    *scheduler*), by the detector owning the name only, and stored under
+    ``directory/sampling/`` (:class:`_BatchStore`): killed and started again with the same
+    options it reads the stored batches back and simulates only the rest, to the same
+    result. *progress* (default: stderr) gets one line per batch with the runs done, the
+    most the simulation can take and the time left if it needs them all. Returns
+    {name: :class:`campaign.rare.SubsetResult`}."""
+    import sys
+    import time
+    from pathlib import Path
+
     from scipy.stats import norm
 
     from .rare import subset_simulation
+    from .runner import evaluate_rows, prepare
 
     if config.campaign.design != "mc":
         raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "
@@ -201,6 +249,8 @@ def sample_fa_probability(config, plan: pd.DataFrame, detectors: dict, settings,
     ff = plan[plan["fault"] == FAULT_FREE]
     if ff.empty:
         raise CertifyError("--sampling: the campaign has no fault-free run to sample around")
+    log = log or (lambda msg: None)
+    progress = progress or (lambda msg: print(msg, file=sys.stderr, flush=True))
     variables = run_variables(config, plan)
     cols = list(variables)
     lo = np.array([variables[c][0] for c in cols])
@@ -232,7 +282,9 @@ def sample_fa_probability(config, plan: pd.DataFrame, detectors: dict, settings,
         nu[:] = [(int(j), next(counter)) for j in man]
         return z, nu, admissible(values(z))
 
-    pool = ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else None
+    work = Path(directory) / SAMPLING_DIR
+    setup, detectors = prepare(config, work / "runner", jobs=jobs, scheduler=scheduler,
+                               tls=tls, fitted_from=directory, log=progress)
     out = {}
     try:
         for name in names:
@@ -241,12 +293,17 @@ def sample_fa_probability(config, plan: pd.DataFrame, detectors: dict, settings,
             if label is None:
                 continue
             owned = {label: detectors[label]}
-            evaluated = [0]
+            store = _BatchStore(work / _work_name(name, n, seed, level, max_levels),
+                                config.to_json())
+            most = n * (max_levels + 1)
+            state = {"batch": 0, "done": 0, "simulated": 0, "t0": time.perf_counter()}
 
-            def g(z, nu, name=name, owned=owned, evaluated=evaluated):
+            def g(z, nu, name=name, owned=owned, store=store, state=state, most=most):
                 v = values(z)
                 ok = admissible(v)
                 margin = np.full(len(z), -np.inf)
+                b = state["batch"]
+                state["batch"] += 1
                 if not ok.any():
                     return margin
                 records = []
@@ -260,33 +317,46 @@ def sample_fa_probability(config, plan: pd.DataFrame, detectors: dict, settings,
                     row["run_id"] = run_id(row)
                     records.append(row)
                 rows = pd.DataFrame(records, columns=plan.columns)
-                res = _evaluate_rows(rows, owned, settings, jobs, pool)
-                evaluated[0] += len(rows)
-                res = res[res["detector"] == name].set_index("run_id")
-                got = res["margin"].reindex(rows["run_id"]).to_numpy(float)
+                ids = rows["run_id"].tolist()
+                got = store.get(b, ids)
+                if got is None:
+                    res = evaluate_rows(setup, rows, owned, log=progress)
+                    res = res[res["detector"] == name].drop_duplicates("run_id")
+                    got = (res.set_index("run_id")["margin"].reindex(ids).to_numpy(float))
+                    store.put(b, ids, got)
+                    state["simulated"] += len(ids)
+                state["done"] += len(ids)
+                elapsed = time.perf_counter() - state["t0"]
+                left = max(most - state["done"], 0)
+                eta = (f"ETA ≤ {elapsed / state['simulated'] * left:.1f} s"
+                       if state["simulated"] else "ETA once a batch is simulated")
+                progress(f"sampling {name}: batch {b + 1}, {state['done']} runs "
+                         f"({store.reused} read back) of at most {most}, {elapsed:.1f} s, "
+                         f"{eta}")
                 margin[np.flatnonzero(ok)] = np.where(np.isfinite(got), got, -np.inf)
                 return margin
 
-            if log:
-                log(f"sampling {name}: subset simulation, {n} runs per level")
-            result = subset_simulation(g, sample_prior, len(cols), n=n, p0=p0,
-                                       max_levels=max_levels, confidence=level,
-                                       seed=seed, log=log)
-            out[name] = result
+            log(f"sampling {name}: subset simulation, {n} runs per level")
+            out[name] = subset_simulation(g, sample_prior, len(cols), n=n, p0=p0,
+                                          max_levels=max_levels, confidence=level,
+                                          seed=seed, log=log)
     finally:
-        if pool is not None:
-            pool.shutdown(wait=True)
+        setup.close()
     return out
 
 
 # ---- the command -----------------------------------------------------------------------------
 def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
-            seed: int = 0, detectors=None, log=print) -> pd.DataFrame:
+            seed: int = 0, detectors=None, scheduler: str | None = None, tls=None,
+            log=print, progress=None) -> pd.DataFrame:
     """Certificate of a finished campaign directory (module docstring); writes
     ``DIR/certificate.parquet`` and returns it.
 
     *detectors*: the result-row names sampled (default all; the others keep NaN sampling
-    columns). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
+    columns). With *sampling*, the runs are simulated on *jobs* local workers or on the dask
+    scheduler *scheduler* (*tls*: its :class:`campaign.execute.TlsFiles`), their batches
+    kept under ``DIR/sampling/`` (resumable), *progress* (default stderr) told each batch
+    (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
     outside (0.5, 1), ``sampling`` below 20 or not a multiple of 10, ``jobs`` below 1 or an
     unknown detector name."""
     from .report import load_campaign
@@ -320,9 +390,11 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
         raise CertifyError(f"--detector {unknown[0]}: no such detector in {directory}; "
                            f"choose among {', '.join(names)}")
     if sampling:
-        found = sample_fa_probability(loaded.config, loaded.plan, loaded.detectors(),
-                                      loaded.settings, list(detectors or names), n=int(sampling),
-                                      level=float(level), seed=seed, jobs=int(jobs), log=log)
+        found = sample_fa_probability(loaded.root, loaded.config, loaded.plan,
+                                      list(detectors or names), n=int(sampling),
+                                      level=float(level), seed=seed, jobs=int(jobs),
+                                      scheduler=scheduler, tls=tls, log=log,
+                                      progress=progress)
         for name, r in found.items():
             i = cert.index[cert["detector"] == name][0]
             cert.loc[i, ["sampling_prob", "sampling_lower95", "sampling_upper95",

@@ -10,9 +10,16 @@ def cmd_certify(args) -> int:
     """``fdd-campaign certify DIR``: write DIR/certificate.parquet and print it."""
     from .certify import certify
 
-    cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
-                   seed=args.seed, detectors=args.detector,
-                   log=lambda msg: print(msg, flush=True))
+    from .cli_common import EXIT_INTERRUPTED
+
+    try:
+        cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
+                       seed=args.seed, detectors=args.detector, scheduler=args.scheduler,
+                       log=lambda msg: print(msg, flush=True))
+    except KeyboardInterrupt:
+        print(f"fdd-campaign: interrupted; the sampled batches done so far are kept under "
+              f"{args.dir}/sampling/: the same command goes on from them")
+        return EXIT_INTERRUPTED
     print(format_certificate(cert))
     print(f"certificate written to {args.dir}/certificate.parquet; the report shows it: "
           f"fdd-campaign report {args.dir}")
@@ -62,7 +69,8 @@ def add_evidence_parsers(subs, sub) -> None:
     """Sub-command ``certify`` (*sub* makes a sub-parser as :func:`campaign.cli._sub`)."""
     p = sub(subs, "certify", "per-run false-alarm probability of each detector beyond "
             "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
-            "optionally subset simulation; writes DIR/certificate.parquet (docs/evidence.md)",
+            "optionally subset simulation (resumable: its batches are kept under DIR/sampling/); "
+            "writes DIR/certificate.parquet (docs/evidence.md)",
             "fdd-campaign certify results/ --sampling 500", cmd_certify)
     p.add_argument("dir", help="finished campaign directory written by 'fdd-campaign run'")
     p.add_argument("--level", type=float, default=0.95,
@@ -71,7 +79,10 @@ def add_evidence_parsers(subs, sub) -> None:
                    help="also estimate P(margin ≥ 1) by subset simulation with N runs per "
                         "level (a multiple of 10, ≥ 20; e.g. 500)")
     p.add_argument("--jobs", type=int, default=2,
-                   help="worker threads simulating the sampled runs (default 2)")
+                   help="local workers simulating the sampled runs (default 2)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="simulate the sampled runs on this dask.distributed scheduler's "
+                        "workers")
     p.add_argument("--detector", action="append", metavar="NAME",
                    help="sample only this detector (result-row name, e.g. position-monitor; "
                         "repeat for more; default all)")

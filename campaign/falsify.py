@@ -24,13 +24,14 @@ m ≥ 1 is a false alarm) is the objective: the search maximises the margin of o
   the group fixes) and the run's random stream in [0, :data:`STREAM_SPAN`) — its sensor
   noise, turbulence and manoeuvre shape (docs/design.md §9).
 
-The optimiser is ``scipy.optimize.differential_evolution`` (Storn & Price 1997) with
-``vectorized=True`` and ``updating="deferred"``, so each generation is one batch of runs
-evaluated through the runner's pipeline (:func:`campaign.runner.evaluate_rows`) on the local
-workers or a dask cluster; discrete dimensions are searched as continuous values and
-floored. Population and generations follow from the budget (:func:`population_size`); the
-initial population is a Latin hypercube; no gradient polish. Same seed → same runs and
-margins at any ``--jobs`` (the runs' results do not depend on how they are chunked).
+The strategy (:mod:`campaign.falsify_search`, chosen from what drives the margin) spends
+a third of the budget screening (scrambled Sobol over every cell, fresh streams; with
+``--against`` the campaign's worst runs first, as they ran), then races one CMA-ES on each of
+the two worst cells (the better goes on alone) in the unit cube of the continuous
+dimensions with the stream held at the best screened run's, and ends with a sweep of fresh streams at the best run found. Each batch is
+evaluated through the runner's pipeline (:func:`campaign.runner.evaluate_rows`) on the
+local workers or a dask cluster. Same seed → same runs and margins at any ``--jobs`` (the
+runs' results do not depend on how they are chunked, and the strategy sees margins only).
 
 It is a search, not a proof: a search that finds no margin ≥ 1 bounds nothing; what it
 gives is the worst case found with the budget, beside the worst a plain Monte Carlo found.
@@ -47,8 +48,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import differential_evolution
-from scipy.stats import qmc
 
 from scenarios import envelope
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
@@ -59,7 +58,7 @@ from .design import PLAN_COLUMNS, build_plan, explicit_plan
 from .storage import write_parquet
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
-           "monte_carlo_config", "population_size", "search_space", "worst_toml"]
+           "drawn_start_s", "monte_carlo_config", "search_space", "worst_toml"]
 
 #: Random streams searched: [0, STREAM_SPAN) (below the learning streams, 2³²).
 STREAM_SPAN: int = 2 ** 31
@@ -68,10 +67,8 @@ STREAM_SPAN: int = 2 ** 31
 REPAIR_STEPS: int = 40
 #: Group name of the searched runs in their run-table rows (and in worst.toml).
 SEARCH_GROUP: str = "falsify"
-#: Smallest population of the differential evolution (best1bin needs 4 others).
-MIN_POPULATION: int = 5
-#: Generations the population size aims at (est.: enough for the mutation to act).
-TARGET_GENERATIONS: int = 8
+#: Smallest budget: a screening run per cell of a small campaign and a stream sweep.
+MIN_BUDGET: int = 10
 
 FLIGHT_COLUMNS: tuple[str, ...] = envelope.GridTable.columns
 
@@ -113,6 +110,26 @@ class SearchSpace:
     def vector_bounds(self) -> list[tuple[float, float]]:
         return [*self.bounds.values(), (0.0, float(len(self.cells))), (0.0, float(STREAM_SPAN))]
 
+    def vectors(self, points) -> np.ndarray:
+        """The search vectors, shape (n_dims, n), of the
+        :class:`campaign.falsify_search.Point` s *points* (unit coordinates → run-table
+        units; the cell and the stream at the middle of their unit interval)."""
+        lo = np.array([b[0] for b in self.bounds.values()])
+        hi = np.array([b[1] for b in self.bounds.values()])
+        unit = np.array([p.unit for p in points], float).reshape(len(points), len(lo))
+        return np.vstack([(lo + unit * (hi - lo)).T,
+                          np.array([p.cell + 0.5 for p in points])[None],
+                          np.array([p.stream + 0.5 for p in points])[None]])
+
+    def unit_of(self, row) -> np.ndarray:
+        """Unit coordinates of the run-table *row* (clipped into the box; a missing or NaN
+        manoeuvre start stays NaN: drawn by the manoeuvre model)."""
+        out = []
+        for name, (lo, hi) in self.bounds.items():
+            v = float(row.get(name, math.nan))
+            out.append(v if math.isnan(v) else min(max((v - lo) / (hi - lo), 0.0), 1.0))
+        return np.array(out)
+
     def decode(self, x: np.ndarray) -> list[dict]:
         """The runs (dicts of :func:`campaign.design.explicit_rows`) of the search vectors
         *x*, shape (n_dims, n) — repaired into the realistic envelope when asked."""
@@ -137,7 +154,9 @@ class SearchSpace:
                    "draws": {d: float(values[d][j]) for d in envelope.DRAW_COLUMNS},
                    "stream": int(stream[j]),
                    "manoeuvre_start_s": (float(values["manoeuvre_start_s"][j])
-                                         if "manoeuvre_start_s" in values else None)}
+                                         if "manoeuvre_start_s" in values
+                                         and math.isfinite(values["manoeuvre_start_s"][j])
+                                         else None)}
             runs.append(run)
         return runs
 
@@ -217,12 +236,6 @@ def _anchor(space: SearchSpace, cell: Cell, ranges: dict) -> np.ndarray:
     span = np.where(hi > lo, hi - lo, 1.0)
     dist = np.linalg.norm((points[ok] - (lo + hi) / 2.0) / span, axis=1)
     return points[ok][int(np.argmin(dist))]
-
-
-def population_size(budget: int, n_dims: int) -> int:
-    """Population of the differential evolution for *budget* runs: budget /
-    :data:`TARGET_GENERATIONS`, between :data:`MIN_POPULATION` and 10 per dimension."""
-    return int(min(max(MIN_POPULATION, budget // TARGET_GENERATIONS), 10 * n_dims))
 
 
 @dataclass
@@ -324,59 +337,39 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     check_label(config, label)
     if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
         raise FalsifyError(f"--budget {budget!r}: must be a whole number of runs ≥ "
-                           f"{2 * MIN_POPULATION}; fix: e.g. --budget 600")
+                           f"{MIN_BUDGET}; fix: e.g. --budget 600")
     if isinstance(keep, bool) or not isinstance(keep, (int, np.integer)) or keep < 1:
         raise FalsifyError(f"--keep {keep!r}: must be a whole number ≥ 1 (runs written to "
                            "worst.toml); fix: e.g. --keep 10")
+    if budget < MIN_BUDGET:
+        raise FalsifyError(f"--budget {budget}: too small; the search needs at least "
+                           f"{MIN_BUDGET} runs (screening, then the worst cell); fix: "
+                           f"--budget {MIN_BUDGET} or more, e.g. --budget 600")
     space = search_space(config)
-    n_dims = len(space.names)
-    pop = population_size(budget, n_dims)
-    generations = budget // pop
-    if generations < 2:
-        raise FalsifyError(f"--budget {budget}: too small; the search needs at least two "
-                           f"generations of {MIN_POPULATION} runs; fix: --budget "
-                           f"{2 * MIN_POPULATION} or more")
-    baseline = _against(against, config, label, load_results) if against else None
+    baseline, warm_rows = (_against(against, config, label, load_results, keep)
+                           if against else (None, None))
+    strategy = _strategy(space, config, budget, seed, warm_rows)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     setup, detectors = prepare(config, out / "learned", jobs=jobs, scheduler=scheduler,
                                tls=tls, fitted_from=fitted_from, log=log)
     try:
         records: list[pd.DataFrame] = []
-        state = {"generation": 0, "done": 0, "t0": time.perf_counter(), "errors": 0}
-
-        def objective(x):
-            try:
-                return evaluate_batch(x)
-            except Exception as exc:   # scipy would wrap a ValueError: re-raised below
-                state["error"] = exc
-                raise _Abort from exc
-
-        def evaluate_batch(x):
-            runs = space.decode(x)
-            rows = explicit_plan(config, runs)
+        state = {"done": 0, "t0": time.perf_counter(), "errors": 0}
+        while batch := strategy.ask():
+            phase = strategy.phase
+            rows = explicit_plan(config, space.decode(space.vectors(batch)))
             results = evaluate_rows(setup, rows, detectors, log=log)
             if not state["done"]:
                 _check_variant(results, label, config)
             margin = _margins(results, rows, label)
             state["errors"] += int(np.isnan(margin).sum())
-            records.append(rows.assign(margin=margin, generation=state["generation"]))
+            records.append(rows.assign(margin=margin, generation=strategy.generation,
+                                       phase=phase))
             state["done"] += len(rows)
+            strategy.tell(batch, margin)
             if progress:
-                _progress(log, state, generations, budget, records)
-            state["generation"] += 1
-            return -np.nan_to_num(margin, nan=0.0)
-
-        rng = np.random.default_rng(np.random.SeedSequence(seed))
-        bounds = space.vector_bounds()
-        lo, hi = np.array(bounds).T
-        init = lo + (hi - lo) * qmc.LatinHypercube(d=n_dims, seed=rng).random(pop)
-        try:
-            differential_evolution(objective, bounds, maxiter=generations - 1, init=init,
-                                   rng=rng, polish=False, tol=0.0, atol=0.0,
-                                   updating="deferred", vectorized=True)
-        except _Abort:
-            raise state["error"] from None
+                _progress(log, state, phase, budget, records)
         search = pd.concat(records, ignore_index=True)
         if baseline is None:
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
@@ -390,16 +383,12 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     finally:
         setup.close()
     write_parquet(search, out / "search.parquet", config.to_json(), kind="falsify-search",
-                  detector=label, budget=budget, seed=seed, population=pop,
-                  dimensions=space.names)
+                  detector=label, budget=budget, seed=seed, dimensions=space.names,
+                  strategy="sobol screening, CMA-ES on the worst cells, stream sweep")
     worst = _write_worst(config, search, label, keep, out, fitted_from, seed, budget)
     return FalsifyResult(label=label, search=search, worst=worst, baseline_margin=baseline[0],
                          baseline_runs=baseline[1], baseline_source=baseline[2],
                          errors=state["errors"])
-
-
-class _Abort(Exception):
-    """Stops the optimiser when evaluating a generation failed (the cause is kept)."""
 
 
 def _check_variant(results: pd.DataFrame, label: str, config) -> None:
@@ -410,8 +399,12 @@ def _check_variant(results: pd.DataFrame, label: str, config) -> None:
                            f"{', '.join(names)}")
 
 
-def _against(directory, config, label, load_results) -> tuple[float, int, str]:
-    """Worst fault-free margin of *label* in the campaign directory *directory*."""
+def _against(directory, config, label, load_results, keep) -> tuple:
+    """Worst fault-free margin of *label* in the campaign directory *directory* (the
+    baseline), and the run-table rows of its *keep* worst fault-free runs (the warm start,
+    :func:`_strategy`)."""
+    from .storage import CampaignDir
+
     results, _, meta = load_results(directory)
     names = sorted(set(results["detector"]))
     if label not in names:
@@ -423,20 +416,62 @@ def _against(directory, config, label, load_results) -> tuple[float, int, str]:
         raise FalsifyError(f"--against {directory}: no fault-free run of {label!r} to "
                            "compare with")
     name = ((meta.get("config") or {}).get("campaign") or {}).get("name")
-    return (float(free["margin"].max()), len(free),
-            f"the {len(free)} fault-free runs of {directory} (campaign {name!r})")
+    worst = free.sort_values("margin", ascending=False, kind="stable").head(keep)
+    plan = CampaignDir(directory).read_plan().set_index("run_id")
+    rows = plan.reindex(worst["run_id"]).dropna(subset=["manoeuvre"]).reset_index()
+    return ((float(free["margin"].max()), len(free),
+             f"the {len(free)} fault-free runs of {directory} (campaign {name!r})"), rows)
 
 
-def _progress(log, state, generations, budget, records) -> None:
+def drawn_start_s(seed: int, stream: int, duration_s: float) -> float:
+    """The manoeuvre start [s] a run of campaign seed *seed* and *stream* draws when its
+    ``manoeuvre_start_s`` is NaN: lead_s + u₀·start_spread_s, u₀ the first uniform of the
+    run's manoeuvre generator (:func:`scenarios.runs.run_streams`, docs/physics.md §7),
+    capped at duration_s − tail_s. Exact when the manoeuvre leaves at least
+    start_spread_s of room in the record (the spread is then not shortened), else an
+    upper estimate; used only to place a warm start, never to replay a run."""
+    from scenarios.runs import run_streams
+
+    p = MANOEUVRE_PARAMS
+    u0 = float(run_streams(seed, stream)[0].random())
+    return min(p.lead_s + u0 * p.start_spread_s, duration_s - p.tail_s)
+
+
+def _strategy(space: SearchSpace, config, budget: int, seed: int, warm_rows):
+    """The search strategy (:class:`campaign.falsify_search.Strategy`) over *space*; with
+    *warm_rows* (``--against``) the campaign's worst runs as they ran (their stream, the
+    start their manoeuvre model drew) open the screening, and a CMA-ES started at one of
+    them starts at its drawn start (:func:`drawn_start_s`)."""
+    from .falsify_search import Point, Strategy
+
+    names = list(space.bounds)
+    start_dim = names.index("manoeuvre_start_s") if "manoeuvre_start_s" in names else None
+    warm, starts = [], {}
+    if warm_rows is not None:
+        for _, row in warm_rows.iterrows():
+            cells = [i for i, c in enumerate(space.cells) if c.manoeuvre == row["manoeuvre"]]
+            if not cells or int(row["seed"]) != int(config.campaign.seed):
+                continue    # another campaign seed: its streams are other runs here
+            unit = space.unit_of(row)
+            if start_dim is not None and np.isnan(unit[start_dim]):
+                lo, hi = space.bounds["manoeuvre_start_s"]
+                t0 = drawn_start_s(int(row["seed"]), int(row["stream"]),
+                                   float(config.campaign.duration_s))
+                starts[len(warm)] = min(max((t0 - lo) / (hi - lo), 0.0), 1.0)
+            warm.append(Point(tuple(unit), cells[0], int(row["stream"])))
+    return Strategy(n_dims=len(names), n_cells=len(space.cells), budget=int(budget),
+                    seed=int(seed), stream_span=STREAM_SPAN, warm=warm[:budget],
+                    start_dim=start_dim, warm_start=starts)
+
+
+def _progress(log, state, phase, budget, records) -> None:
     elapsed = time.perf_counter() - state["t0"]
     done = state["done"]
-    total = generations * len(records[0])
-    eta = elapsed / done * (total - done) if done else float("nan")
+    eta = elapsed / done * (budget - done) if done else float("nan")
     best = max((float(np.nanmax(r["margin"])) for r in records
                 if np.isfinite(r["margin"]).any()), default=float("nan"))
-    log(f"generation {state['generation'] + 1}/{generations}: {done}/{total} runs "
-        f"(budget {budget}), worst margin so far {best:.4g}, {elapsed:.1f} s, "
-        f"ETA {eta:.1f} s")
+    log(f"{phase} (batch {len(records)}): {done}/{budget} runs, worst margin so far "
+        f"{best:.4g}, {elapsed:.1f} s, ETA {eta:.1f} s")
 
 
 def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) -> pd.Series:
@@ -469,4 +504,4 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
 
 
 #: Columns of search.parquet beside the run table's.
-SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "generation")
+SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "generation", "phase")

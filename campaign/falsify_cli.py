@@ -16,7 +16,8 @@ EXAMPLE = ("fdd-campaign falsify addsafe-mc --detector position-monitor --budget
 def add_falsify_parser(subs) -> None:
     """The ``falsify`` sub-command."""
     help_ = ("search the campaign's fault-free envelope for the run of largest margin of one "
-             "detector (differential evolution; exit 1 if it finds a false alarm)")
+             "detector (Sobol screening, CMA-ES on the worst cells, stream sweep; exit 1 if it "
+             "finds a false alarm)")
     p = subs.add_parser("falsify", help=help_, description=help_,
                         epilog="example:\n  " + EXAMPLE,
                         formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -136,6 +136,48 @@ def test_constructed_case_both_estimators_cover_the_true_probability(constructed
     assert 'name="fa_probability[none/all]"' in xml and "false-alarm probability: sm" in xml
 
 
+def test_sampling_resumes_after_a_kill_without_recomputing(constructed, monkeypatch, capsys,
+                                                           tmp_path):
+    """--sampling evaluates through the runner's pipeline and keeps every batch under
+    DIR/sampling/: interrupted after three batches and started again, it simulates only the
+    batches not stored, and ends with the certificate of an uninterrupted run (which ran
+    on two workers: the result does not depend on --jobs)."""
+    import shutil
+
+    import campaign.runner as runner
+
+    out, _, _ = constructed
+    fresh = tmp_path / "fresh"
+    shutil.copytree(out, fresh)
+    real = runner.evaluate_rows
+    simulated, calls = [], []
+
+    def counting(setup, rows, detectors, log=None):
+        calls.append(len(rows))
+        if stop_after is not None and len(calls) > stop_after:
+            raise KeyboardInterrupt
+        simulated.extend(rows["run_id"])
+        return real(setup, rows, detectors, log=log)
+
+    monkeypatch.setattr(runner, "evaluate_rows", counting)
+    argv = ["certify", "--sampling", "100", "--jobs", "1", "--seed", "4"]
+    stop_after = 3
+    assert main([argv[0], str(out), *argv[1:]]) == 130
+    stored = sorted((out / "sampling").glob("*/batch-*.parquet"))
+    assert len(stored) == 3 and len(simulated) == sum(len(pd.read_parquet(f)) for f in stored)
+    assert not (out / "certificate.parquet").exists()
+    stop_after = None
+    capsys.readouterr()
+    assert main([argv[0], str(out), *argv[1:]]) == 0
+    assert "ETA" in capsys.readouterr().err
+    resumed = pd.read_parquet(out / "certificate.parquet")
+    assert len(simulated) == len(set(simulated)) == resumed["sampling_runs"].iloc[0]
+    monkeypatch.setattr(runner, "evaluate_rows", real)
+    argv[4] = "2"
+    assert main([argv[0], str(fresh), *argv[1:]]) == 0
+    pd.testing.assert_frame_equal(resumed, pd.read_parquet(fresh / "certificate.parquet"))
+
+
 def test_certify_refuses_an_unfinished_campaign_and_bad_options(constructed, capsys):
     out, _, _ = constructed
     assert main(["certify", str(out), "--level", "1.5"]) == 2

@@ -99,6 +99,24 @@ def test_smoke_on_the_cluster_is_bit_identical_to_two_local_jobs(cluster, tmp_pa
                                   check_exact=True)
 
 
+def test_certify_sampling_on_the_cluster_equals_local_workers(cluster, tmp_path):
+    """certify --sampling --scheduler: the subset simulation's batches on the cluster's
+    workers, through the runner's pipeline, give the certificate of two local workers."""
+    import shutil
+
+    address, _ = cluster
+    out = tmp_path / "local"
+    assert main(["run", "smoke", "--out", str(out), "--jobs", "1", "--quiet"]) == 0
+    shutil.copytree(out, tmp_path / "dask")
+    argv = ["--sampling", "20", "--detector", "position-monitor", "--seed", "1"]
+    assert main(["certify", str(out), *argv, "--jobs", "2"]) == 0
+    assert main(["certify", str(tmp_path / "dask"), *argv, "--scheduler", address]) == 0
+    local = pd.read_parquet(out / "certificate.parquet")
+    on_dask = pd.read_parquet(tmp_path / "dask" / "certificate.parquet")
+    assert local["sampling_runs"].iloc[0] >= 20
+    pd.testing.assert_frame_equal(on_dask, local, check_exact=True)
+
+
 def test_a_worker_killed_mid_campaign_ends_as_error_rows_and_a_rerun_completes(
         cluster, tmp_path, monkeypatch):
     address, workers = cluster

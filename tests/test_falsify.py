@@ -5,6 +5,7 @@ documented, and worst.toml replays its runs with the same margins."""
 
 from __future__ import annotations
 
+import math
 import textwrap
 import tomllib
 
@@ -32,17 +33,20 @@ SMOKE = load_config("smoke")
 
 @pytest.fixture(scope="module")
 def searched(tmp_path_factory):
-    """One small search of the smoke preset (budget 20), shared by the checks below."""
+    """One small search of the smoke preset (budget 60: screening, two CMA-ES generations,
+    stream sweep), shared by the checks below."""
     out = tmp_path_factory.mktemp("falsify") / "a"
-    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "20",
+    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "60",
                  "--jobs", "1", "--seed", "3", "--keep", "4", "--out", str(out)])
     return out, code, pd.read_parquet(out / "search.parquet")
 
 
 def test_budget_respected_and_rows_complete(searched):
     _, code, search = searched
-    assert len(search) <= 20
-    assert {"run_id", "margin", "generation", *envelope.DRAW_COLUMNS} <= set(search.columns)
+    assert len(search) <= 60
+    assert {"run_id", "margin", "generation", "phase", *envelope.DRAW_COLUMNS} <= set(
+        search.columns)
+    assert list(dict.fromkeys(search["phase"])) == ["screen", "focus", "polish"]
     assert (search["fault"] == "none").all()
     assert search["generation"].min() == 0
     assert np.isfinite(search["margin"]).all()
@@ -72,7 +76,7 @@ def test_bounds_respected(searched):
 
 def test_same_seed_same_search_at_any_jobs(searched, tmp_path):
     _, _, search = searched
-    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "20",
+    code = main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "60",
                  "--jobs", "2", "--seed", "3", "--keep", "4", "--out", str(tmp_path / "b"),
                  "--fitted-from", str(searched[0] / "learned")])
     assert code in (0, 1)
@@ -231,3 +235,82 @@ def test_worst_toml_round_trips_every_float():
     assert loaded.runs[0].cg_pct == runs[0]["cg_pct"]
     assert loaded.groups == ()
     assert loaded.detectors == SMOKE.detectors and loaded.learning == SMOKE.learning
+
+
+# ---- the strategy (campaign/falsify_search.py) ---------------------------------------------
+def _drive(strategy, objective):
+    """Run *strategy* on *objective*(point) → margin; the batches and their margins."""
+    seen = []
+    while batch := strategy.ask():
+        phase = strategy.phase
+        margins = [objective(p) for p in batch]
+        seen.append((phase, batch, margins))
+        strategy.tell(batch, margins)
+    return seen
+
+
+def _corner(point):
+    """A margin that rises towards one corner of the unit cube, in cell 2 most: the shape
+    measured on addsafe-mc (a few variables decide, the worst run in a corner)."""
+    u = np.array(point.unit)
+    return (0.4 + 0.1 * (point.cell == 2) + 0.15 * u[0] + 0.1 * (1 - u[1]) + 0.05 * u[2]
+            + 1e-3 * (point.stream % 7))
+
+
+def test_strategy_spends_its_budget_in_three_phases_deterministically():
+    from campaign.falsify_search import POLISH_SHARE, SCREEN_SHARE, Strategy
+
+    def make(seed):
+        return Strategy(n_dims=8, n_cells=4, budget=300, seed=seed, stream_span=STREAM_SPAN)
+
+    seen = _drive(make(0), _corner)
+    assert sum(len(b) for _, b, _ in seen) == 300
+    phases = [p for p, _, _ in seen]
+    assert phases[0] == "screen" and phases[-1] == "polish" and "focus" in phases
+    assert len(seen[0][1]) == int(np.ceil(300 * SCREEN_SHARE))
+    assert len(seen[-1][1]) >= int(300 * POLISH_SHARE)
+    # the screening spreads over the cells; the focus holds each strategy's stream
+    assert {p.cell for p in seen[0][1]} == {0, 1, 2, 3}
+    focus = [p for ph, b, _ in seen if ph == "focus" for p in b]
+    assert len({(p.cell, p.stream) for p in focus}) <= 2
+    assert all(0.0 <= v <= 1.0 for p in focus for v in p.unit)
+    # the concentrated search climbs beyond the screening's best, towards the corner
+    screened = max(seen[0][2])
+    best = max(m for _, _, ms in seen for m in ms)
+    assert best > screened + 0.05
+    # same seed → same points; another seed → other points
+    again = _drive(make(0), _corner)
+    assert [b for _, b, _ in again] == [b for _, b, _ in seen]
+    assert [b for _, b, _ in _drive(make(1), _corner)][0] != seen[0][1]
+
+
+def test_strategy_warm_start_comes_first_and_small_budgets_still_finish():
+    from campaign.falsify_search import Point, Strategy
+
+    warm = [Point((0.9, 0.1, math.nan), 1, 77), Point((0.5, 0.5, math.nan), 0, 78)]
+    strategy = Strategy(n_dims=3, n_cells=3, budget=60, seed=3, stream_span=STREAM_SPAN,
+                        warm=warm, start_dim=2, warm_start={0: 0.25})
+    seen = _drive(strategy, lambda p: 0.5 + (p.stream == 77) * 0.3 + 0.1 * p.unit[0])
+    assert seen[0][1][:2] == warm
+    focus = [p for ph, b, _ in seen if ph == "focus" for p in b]
+    assert focus and all(math.isfinite(v) for p in focus for v in p.unit)
+    for budget in (10, 11, 25):
+        small = Strategy(n_dims=20, n_cells=6, budget=budget, seed=0, stream_span=STREAM_SPAN)
+        assert sum(len(b) for _, b, _ in _drive(small, _corner)) == budget
+
+
+def test_against_warm_start_replays_the_campaign_worst_runs(searched, tmp_path):
+    """With --against the screening opens with the campaign's worst fault-free runs as the
+    campaign ran them (stream and drawn manoeuvre start): the same margins bit for bit."""
+    camp = tmp_path / "camp"
+    assert main(["run", "smoke", "--jobs", "1", "--quiet", "--out", str(camp)]) in (0, 1)
+    assert main(["falsify", "smoke", "--detector", "position-monitor", "--budget", "20",
+                 "--jobs", "1", "--keep", "3", "--against", str(camp), "--fitted-from",
+                 str(camp), "--out", str(tmp_path / "w")]) in (0, 1)
+    search = pd.read_parquet(tmp_path / "w" / "search.parquet")
+    results = CampaignDir(camp).read_results()
+    free = results[(results["detector"] == "position-monitor") & (results["fault"] == "none")]
+    worst = free.sort_values("margin", ascending=False, kind="stable").head(3)
+    first = search.iloc[:3]
+    assert first["manoeuvre_start_s"].isna().all() and (first["phase"] == "screen").all()
+    np.testing.assert_array_equal(first["margin"].to_numpy(), worst["margin"].to_numpy())
