@@ -49,14 +49,16 @@ Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free lea
   statistic evaluates g over two adjacent windows, the last n_a = ``liquid_window_s``/Ts
   steps against the n_b = ``liquid_reference_s``/Ts steps before them::
 
-      d_k = (1/n_a)·Σ_{j=0}^{n_a−1} g_{k−j} − (1/n_b)·Σ_{j=n_a}^{n_a+n_b−1} g_{k−j}   (g_j = 0, j < 0)
+      d_k = (1/n_a)·Σ_{j=0}^{n_a−1} g_{k−j} − (1/n_b)·Σ_{j=n_a}^{n_a+n_b−1} g_{k−j},
+      g_j = 0 for j < 0
 
   (the difference of two adjacent window means: the filtered-derivative test for a step
-  change in the mean, Basseville & Nikiforov 1993, *Detection of Abrupt Changes* §2.1). A step f gives d = f·(mean of the jam's decay
-  over the first n_a steps) ≈ 0.8·f with the default 20 ms; fault-free model mismatch,
-  which varies at the rate of the orders (its correlation time is about 0.2 s in cruise),
-  is largely the same in both windows and cancels; white sensor noise enters with
-  σ·√(1/n_a + 1/n_b). Then an integrator of the time |d| spends beyond τ_liq (it never
+  change in the mean, Basseville & Nikiforov 1993, *Detection of Abrupt Changes* §2.1).
+  A jam's step f gives d ≈ f·(mean of its decay over the first n_a steps): 0.9·f with
+  the default 20 ms (measured on ``chen-mc``). Fault-free model mismatch varies at the
+  rate of the orders (correlation time about 0.2 s in cruise; the loaded roll-ins of the
+  turns are its largest): it is nearly the same in both windows and cancels, while white
+  sensor noise enters with σ·√(1/n_a + 1/n_b). Then an integrator of the time |d| spends beyond τ_liq (it never
   resets: it "maintains the effect of the fault bias till the end of the simulation"),
   and the liquid alarm is raised once it reaches ``liquid_confirm_s``. τ_liq is learned
   on max |d| per fault-free run. ``liquid_reference_s = 0`` and ``liquid_window_s = 0``
@@ -235,10 +237,10 @@ class ChenLocalEstimator(Detector):
               source="[CHEN] §6.2; value est."),
         Param("liquid_window_s", "float", ge=0.0, unit="s", doc="window of the recent mean "
               "of T f̂ in the liquid statistic (0: one step); about the first third of the "
-              "loop's re-centring time constant", source="est. (docs/chen-estimator.md §3)"),
+              "loop's re-centring time constant", source="docs/chen-estimator.md §3; value est."),
         Param("liquid_reference_s", "float", ge=0.0, unit="s", doc="window of the reference "
               "mean of T f̂ just before the recent one, subtracted (0: no reference, the "
-              "level |T f̂| of [CHEN] §6.2)", source="est. (docs/chen-estimator.md §3)"),
+              "level |T f̂| of [CHEN] §6.2)", source="docs/chen-estimator.md §3; value est."),
         Param("solid_confirm_s", "float", ge=0.0, unit="s", doc="window over which |f̂| must "
               "stay beyond τ_sol (0: one step)"),
         Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 "
