@@ -58,9 +58,10 @@ Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free lea
   the default 20 ms (measured on ``chen-mc``). Fault-free model mismatch varies at the
   rate of the orders (correlation time about 0.2 s in cruise; the loaded roll-ins of the
   turns are its largest): it is nearly the same in both windows and cancels, while white
-  sensor noise enters with σ·√(1/n_a + 1/n_b). Then an integrator of the time |d| spends beyond τ_liq (it never
-  resets: it "maintains the effect of the fault bias till the end of the simulation"),
-  and the liquid alarm is raised once it reaches ``liquid_confirm_s``. τ_liq is learned
+  sensor noise enters with σ·√(1/n_a + 1/n_b). Then an integrator of the time |d|
+  spends beyond τ_liq (it never resets: it "maintains the effect of the fault bias till
+  the end of the simulation"), and the liquid alarm is raised once it reaches
+  ``liquid_confirm_s``. τ_liq is learned
   on max |d| per fault-free run. ``liquid_reference_s = 0`` and ``liquid_window_s = 0``
   give the level |T f̂| itself (the earlier statistic, whose calibrated threshold lay at
   the size of a 1.3 % jam on the aircraft plant: docs/chen-estimator.md §3). Integrating
