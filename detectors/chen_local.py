@@ -41,16 +41,32 @@ Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free lea
   mismatch comes in transients shorter than the window (a loaded roll-in lasts about a
   second), which the least value over the window ignores; learning τ on the raw |f̂| would
   let the largest of those transients set the threshold;
-* ``liquid``: f̂ through the post-filter T(s) = (s + 1)/(s + 5) of §6.2 (it keeps the
-  amplitude of the fast estimate, which the servo-loop makes transient: the loop re-centres
-  the biased acquisition on the order, so f̂ appears and disappears as in [CHEN] Fig. 9c,
-  and divides slow fault-free model mismatch by five), then an integrator that "maintains
-  the effect of the fault bias till the end of the simulation". Reading implemented: the
-  integrator accumulates the time the filtered estimate spends beyond τ_liq =
-  ``safety``·max |T f̂| (it never resets), and the liquid alarm is raised once it reaches
-  ``liquid_confirm_s``. Integrating T f̂ itself would accumulate the per-run sensor
-  bias and noise of the fault-free runs without bound, which no constant threshold can
-  separate from a transient of ~f·τ.
+* ``liquid``: a liquid jam adds a step f to the acquisition the loop closes on; the loop
+  re-centres the biased acquisition on the order within a few loop time constants
+  (τ = 1/(Kci·K) = 57 ms on the aileron, docs/physics.md §3, §5), so f̂ is a step of
+  size f that decays over some 50 ms ([CHEN] Fig. 9c: it "occurs and then disappears").
+  f̂ goes through the post-filter T(s) = (s + 1)/(s + 5) of §6.2, g = T f̂, and the
+  statistic evaluates g over two adjacent windows, the last n_a = ``liquid_window_s``/Ts
+  steps against the n_b = ``liquid_reference_s``/Ts steps before them::
+
+      d_k = (1/n_a)·Σ_{j=0}^{n_a−1} g_{k−j} − (1/n_b)·Σ_{j=n_a}^{n_a+n_b−1} g_{k−j},
+      g_j = 0 for j < 0
+
+  (the difference of two adjacent window means: the filtered-derivative test for a step
+  change in the mean, Basseville & Nikiforov 1993, *Detection of Abrupt Changes* §2.1).
+  A jam's step f gives d ≈ f·(mean of its decay over the first n_a steps): 0.9·f with
+  the default 20 ms (measured on ``chen-mc``). Fault-free model mismatch varies at the
+  rate of the orders (correlation time about 0.2 s in cruise; the loaded roll-ins of the
+  turns are its largest): it is nearly the same in both windows and cancels, while white
+  sensor noise enters with σ·√(1/n_a + 1/n_b). Then an integrator of the time |d|
+  spends beyond τ_liq (it never resets: it "maintains the effect of the fault bias till
+  the end of the simulation"), and the liquid alarm is raised once it reaches
+  ``liquid_confirm_s``. τ_liq is learned
+  on max |d| per fault-free run. ``liquid_reference_s = 0`` and ``liquid_window_s = 0``
+  give the level |T f̂| itself (the earlier statistic, whose calibrated threshold lay at
+  the size of a 1.3 % jam on the aircraft plant: docs/chen-estimator.md §3). Integrating
+  T f̂ itself would accumulate the per-run sensor bias and noise of the fault-free runs
+  without bound, which no constant threshold can separate from a transient of ~f·τ.
 
 The synthesis and the model identification run once in ``fit`` (cached per actuator and
 period) and are stored in the fitted state; ``detect`` is a few multiply-adds and one
@@ -112,6 +128,19 @@ def discrete_post_filter(ts: float, pf: PostFilter = POST_FILTER) -> tuple[np.nd
     return np.ravel(num), np.ravel(den)
 
 
+def liquid_window_taps(ts: float, window_s: float, reference_s: float) -> np.ndarray:
+    """FIR taps h of the liquid statistic d = h * g (module docstring): n_a = max(round(
+    *window_s*/*ts*), 1) taps of 1/n_a (the recent mean), then n_b = round(*reference_s*/*ts*)
+    taps of −1/n_b (the reference mean just before it; none for n_b = 0). The taps sum to
+    0 when n_b > 0: a constant g gives d = 0."""
+    n_a = max(int(round(window_s / ts)), 1)
+    n_b = int(round(reference_s / ts))
+    h = np.full(n_a + n_b, 1.0 / n_a)
+    if n_b:
+        h[n_a:] = -1.0 / n_b
+    return h
+
+
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
 def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ke_lo, ke_hi,
                     e_sat, kappa, ts, f_out):
@@ -171,6 +200,11 @@ class ChenLocalEstimator(Detector):
         Threshold = safety × the largest fault-free residual of the learning set (> 1).
     liquid_confirm_s : float
         Integrated time beyond τ_liq that raises the liquid alarm [s] (≥ 0; 0: first step).
+    liquid_window_s : float
+        Window n_a·Ts of the liquid statistic's recent mean [s] (≥ 0; 0: one step).
+    liquid_reference_s : float
+        Window n_b·Ts of the reference mean just before it, subtracted [s] (≥ 0; 0: no
+        reference, the statistic is the level of the recent mean).
     solid_confirm_s : float
         Window of the solid statistic: time |f̂| must stay beyond τ_sol [s] (≥ 0; 0: one
         step).
@@ -202,6 +236,12 @@ class ChenLocalEstimator(Detector):
         Param("liquid_confirm_s", "float", ge=0.0, unit="s", doc="integrated time beyond "
               "τ_liq that raises the liquid alarm (0: first step)",
               source="[CHEN] §6.2; value est."),
+        Param("liquid_window_s", "float", ge=0.0, unit="s", doc="window of the recent mean "
+              "of T f̂ in the liquid statistic (0: one step); about the first third of the "
+              "loop's re-centring time constant", source="docs/chen-estimator.md §3; value est."),
+        Param("liquid_reference_s", "float", ge=0.0, unit="s", doc="window of the reference "
+              "mean of T f̂ just before the recent one, subtracted (0: no reference, the "
+              "level |T f̂| of [CHEN] §6.2)", source="docs/chen-estimator.md §3; value est."),
         Param("solid_confirm_s", "float", ge=0.0, unit="s", doc="window over which |f̂| must "
               "stay beyond τ_sol (0: one step)"),
         Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 "
@@ -218,7 +258,8 @@ class ChenLocalEstimator(Detector):
     )
 
     def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
-                 solid_confirm_s=1.0, schedule_margin=0.25, h_perturbation=0.0,
+                 liquid_window_s=0.02, liquid_reference_s=0.04, solid_confirm_s=1.0,
+                 schedule_margin=0.25, h_perturbation=0.0,
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
                  post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
@@ -226,6 +267,8 @@ class ChenLocalEstimator(Detector):
         self.sensor = sensor
         self.safety = safety
         self.liquid_confirm_s = liquid_confirm_s
+        self.liquid_window_s = liquid_window_s
+        self.liquid_reference_s = liquid_reference_s
         self.solid_confirm_s = solid_confirm_s
         self.schedule_margin = schedule_margin
         self.h_perturbation = h_perturbation
@@ -348,7 +391,7 @@ class ChenLocalEstimator(Detector):
             pole_rad_s=float(self.post_filter_pole_rad_s)))
         f_hat, g = self._residuals(signals)
         # each variant is scored on its own, so each is calibrated at the full target
-        maxima = {"liquid": np.max(np.abs(g), axis=1),
+        maxima = {"liquid": np.max(np.abs(g), axis=1),   # g: the liquid statistic d
                   "solid": np.max(self._solid_statistic(f_hat, ts), axis=1)}
         self.thresholds_, calibration = {}, {}
         for name, m in maxima.items():
@@ -416,11 +459,17 @@ class ChenLocalEstimator(Detector):
                                 origin=(n - 1) // 2)
 
     def _residuals(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
+        """f̂ [mm] and the liquid statistic d [mm] (module docstring), each (n_runs, n_steps)."""
         from scipy.signal import lfilter
 
         f_hat = self.estimate(signals)
         b, a = self.post_filter_
-        return f_hat, lfilter(b, a, f_hat, axis=1)
+        g = lfilter(b, a, f_hat, axis=1)
+        h = liquid_window_taps(float(signals.ts), float(self.liquid_window_s),
+                               float(self.liquid_reference_s))
+        if h.size == 1:       # the level |T f̂| itself (no window, no reference)
+            return f_hat, g
+        return f_hat, lfilter(h, [1.0], g, axis=1)
 
     def _detect(self, signals: Signals) -> dict[str, Detection]:
         f_hat, g = self._residuals(signals)

@@ -4,7 +4,9 @@ on the model itself, and detection of liquid and solid jams on simulated runs.""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import types
 
 import numpy as np
 import pandas as pd
@@ -155,8 +157,9 @@ def test_liquid_and_solid_jams_are_detected_and_fault_free_runs_are_quiet(fitted
     for name in ("liquid", "solid"):
         assert not out[name].alarm[none].any(), f"false alarm of {name} on a fault-free run"
     onset = np.rint(truth.onset_s / sig.ts)
-    # liquid: the transient estimate has the size of the bias (1.2 mm, above τ_liq ≈ 0.94 mm
-    # learned here) at the first step after onset: detected within 0.1 s. solid: the seized
+    # liquid: the transient estimate has the size of the bias (1.2 mm) at the first step after
+    # onset, its two-window statistic ≈ 0.9 of it, above τ_liq ≈ 0.22 mm learned here (0.70 mm
+    # on the level |T f̂|): detected within 0.1 s. solid: the seized
     # rod is seen once the order has moved away from it by more than τ_sol (≈ 1.8 mm here):
     # measured 0.92 s and 6.71 s after jams before/early in a nose-up (the order must
     # first move) and 0.27 s during an AoA-protection excursion; the bound is the rest of
@@ -197,9 +200,84 @@ def test_both_variants_carry_the_estimate_and_it_tracks_an_offset_jam(fitted):
     assert (out["liquid"].alarm[np.arange(2), k0 + 1]).all()
 
 
+def _with_estimate(fitted, f_hat):
+    """A copy of *fitted* whose estimator returns the constructed *f_hat* (n, T) [mm]."""
+    det = copy.deepcopy(fitted)
+    det.estimate = lambda signals: f_hat
+    return det
+
+
+def _step_liquid_statistic(f, k0, n_steps, ts, n_a, n_b):
+    """d of docs/chen-estimator.md §3 for f̂ = a step f at k0, written out: T(s) = (s + 1)/
+    (s + 5) has the step response 0.2 + 0.8·e^(−5t), which its zero-order-hold
+    discretisation reproduces exactly at the samples for a step input; then the mean of
+    the last n_a values minus the mean of the n_b before them (0 before the run)."""
+    k = np.arange(n_steps)
+    g = np.where(k >= k0, f * (0.2 + 0.8 * np.exp(-5.0 * (k - k0) * ts)), 0.0)
+    gp = np.concatenate([np.zeros(n_a + n_b), g])
+    i = k + n_a + n_b
+    recent = np.array([gp[j - n_a + 1:j + 1].mean() for j in i])
+    reference = np.array([gp[j - n_a - n_b + 1:j - n_a + 1].mean() for j in i])
+    return g, recent - reference
+
+
+def test_liquid_statistic_is_the_two_window_difference_of_the_post_filtered_step(fitted):
+    ts, k0, n_steps, f = 0.01, 30, 80, 0.8
+    f_hat = np.where(np.arange(n_steps) >= k0, f, 0.0)[None, :]
+    det = _with_estimate(fitted, f_hat)
+    sig = types.SimpleNamespace(ts=ts)
+    # defaults: 20 ms recent window, 40 ms reference (n_a = 2, n_b = 4 at 10 ms)
+    assert (fitted.liquid_window_s, fitted.liquid_reference_s) == (0.02, 0.04)
+    g, d = _step_liquid_statistic(f, k0, n_steps, ts, 2, 4)
+    f_out, d_out = det._residuals(sig)
+    np.testing.assert_array_equal(f_out, f_hat)
+    np.testing.assert_allclose(d_out[0], d, rtol=1e-12, atol=1e-12)
+    # by value: d = 0 before the step, f/2 at it, then the decaying recent mean
+    assert d_out[0, k0 - 1] == pytest.approx(0.0, abs=1e-12)
+    assert d_out[0, k0] == pytest.approx(0.4, rel=1e-12)
+    assert d_out[0, k0 + 1] == pytest.approx(0.8 * (1.0 + 0.2 + 0.8 * np.exp(-0.05)) / 2,
+                                             rel=1e-12)
+    # other windows by the same formula (n_a = 3, n_b = 6)
+    det.liquid_window_s, det.liquid_reference_s = 0.03, 0.06
+    np.testing.assert_allclose(det._residuals(sig)[1][0],
+                               _step_liquid_statistic(f, k0, n_steps, ts, 3, 6)[1],
+                               rtol=1e-12, atol=1e-12)
+    # no window and no reference: the level T f̂ itself ([CHEN] §6.2's post-filter output)
+    det.liquid_window_s, det.liquid_reference_s = 0.0, 0.0
+    np.testing.assert_allclose(det._residuals(sig)[1][0], g, rtol=1e-12, atol=1e-12)
+    # a constant f̂ (a steady per-run bias) cancels once both windows hold it
+    det.liquid_window_s, det.liquid_reference_s = 0.02, 0.04
+    det.post_filter_ = (np.array([1.0]), np.array([1.0]))        # T = 1
+    const = _with_estimate(det, np.full((1, n_steps), 0.3))
+    d_const = const._residuals(sig)[1][0]
+    assert np.abs(d_const[6:]).max() < 1e-12 and d_const[0] == pytest.approx(0.15)
+
+
+def test_liquid_decision_boundary_is_the_integrated_time_beyond_the_threshold(fitted):
+    # liquid_confirm_s = 0.02 at 10 ms: the alarm needs two steps with |d| > τ_liq; with
+    # τ just below the second-largest |d| of the step it is raised (at the later of the
+    # two steps), just above it never
+    ts, k0, n_steps, f = 0.01, 30, 80, 0.8
+    det = _with_estimate(fitted, np.where(np.arange(n_steps) >= k0, -f, 0.0)[None, :])
+    _, d = _step_liquid_statistic(-f, k0, n_steps, ts, 2, 4)
+    order = np.argsort(-np.abs(d))
+    second = np.abs(d[order[1]])
+    sig = types.SimpleNamespace(ts=ts)
+    for tau, raised in ((second * (1 - 1e-9), True), (second * (1 + 1e-9), False)):
+        det.thresholds_ = dict(fitted.thresholds_, liquid=tau)
+        out = det._detect(sig)["liquid"]
+        np.testing.assert_allclose(out.residual[0], np.abs(d) / tau, rtol=1e-12)
+        assert out.alarm[0].any() == raised
+        if raised:
+            assert out.alarm[0].argmax() == max(order[0], order[1])
+            assert out.alarm[0, out.alarm[0].argmax():].all()      # never reset
+
+
 def test_bad_parameters_are_named():
     for kwargs, match in (({"sensor": "surface"}, "sensor"), ({"safety": 1.0}, "safety"),
                           ({"liquid_confirm_s": -1.0}, "liquid_confirm_s"),
+                          ({"liquid_window_s": -0.01}, "liquid_window_s"),
+                          ({"liquid_reference_s": -0.01}, "liquid_reference_s"),
                           ({"floor_mm": 0.0}, "floor_mm")):
         with pytest.raises(ValueError, match=match):
             ChenLocalEstimator(**kwargs).validate_params()
