@@ -125,12 +125,23 @@ def _sign(v):
 def rod_rate_1(x, i, p, loaded):
     """Rod speed ẋ [mm/s] of one run ([COMB] eq. 2, [CHEN] eq. 11, as
     :func:`scenarios.servo.rod_rate`); *p* is one row of :func:`plant_matrix`."""
+    return rod_rate_known(x, i, p, loaded, False, 0.0)
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def rod_rate_known(x, i, p, loaded, known, asin_x):
+    """:func:`rod_rate_1` given, when *known*, ``asin_x`` = asin(x / r) already computed
+    (the surface angle δ of the step): used when x/r lies inside the ±0.999 clip, where it
+    is the very asin the rate law evaluates, so the result is the same bits with one
+    ``asin`` call (the costliest operation of the step) fewer."""
     v0 = p[P_KCI] * i
     if loaded:
         r = p[P_R]
-        s = _clip(x / r, -0.999, 0.999)
+        q = x / r
+        s = _clip(q, -0.999, 0.999)
         cos_d = math.sqrt(1.0 - s * s)
-        hm = p[P_HM0] + p[P_HMD] * math.asin(s)             # hinge moment [N·m]
+        a = asin_x if (known and s == q) else math.asin(s)
+        hm = p[P_HM0] + p[P_HMD] * a                       # hinge moment [N·m]
         f_aero = -hm / (r / _MM_PER_M * cos_d)               # rod force [N]
         ka = p[P_KA]
     else:
@@ -150,7 +161,14 @@ def rod_rate_1(x, i, p, loaded):
 def rk4_step_1(x, i, p, loaded, h):
     """One RK4 step of the rod over *h* [s] with the current *i* [mA] held, inside the
     stops (as :func:`scenarios.servo.rk4_step`)."""
-    k1 = rod_rate_1(x, i, p, loaded)
+    return rk4_step_known(x, i, p, loaded, h, False, 0.0)
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def rk4_step_known(x, i, p, loaded, h, known, asin_x):
+    """:func:`rk4_step_1` whose first stage reuses ``asin_x`` = asin(x / r) when *known*
+    (:func:`rod_rate_known`); the same bits."""
+    k1 = rod_rate_known(x, i, p, loaded, known, asin_x)
     k2 = rod_rate_1(x + 0.5 * h * k1, i, p, loaded)
     k3 = rod_rate_1(x + 0.5 * h * k2, i, p, loaded)
     k4 = rod_rate_1(x + h * k3, i, p, loaded)
@@ -242,9 +260,12 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
             loaded = True
             if any_disc:
                 loaded = k < k_disc[r]
-            x_next = rk4_step_1(xr, i_app, p, loaded, ts)
             if any_jam and k >= k_jam[r]:
-                x_next = xr
+                x_next = xr                 # seized: the RK4 step would be discarded
+            else:
+                # while loaded, delta[r] = asin(x/r) of this very x (set below, at the
+                # start and at a jam's jump): the first RK4 stage reuses it
+                x_next = rk4_step_known(xr, i_app, p, loaded, ts, loaded, delta[r])
             if any_disc and not loaded:
                 delta[r] = float_step_1(delta[r], p, ts, d_min, d_max)
             else:
