@@ -163,8 +163,19 @@ def moving_average_maxima(r: np.ndarray, q_max: int) -> np.ndarray:
                          f"({T} steps); lower q_max or use longer learning runs")
     c = np.concatenate([np.zeros((r.shape[0], 1)), np.cumsum(r, axis=1)], axis=1)
     out = np.empty((r.shape[0], q_max))
+    finite = np.isfinite(c).all(axis=1)
+    if kernels.current_engine() == "compiled" and finite.any():
+        rows = np.flatnonzero(finite)
+        part = np.empty((rows.size, q_max))
+        _window_maxima(np.ascontiguousarray(c[rows]), part)
+        out[rows] = part
+        if finite.all():
+            return out
+        c = c[~finite]        # rows with ±inf or NaN: the reference below (NaN propagates)
+    else:
+        finite = np.zeros(r.shape[0], dtype=bool)
     for q in range(1, q_max + 1):
-        out[:, q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q]), axis=1) / q
+        out[~finite, q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q]), axis=1) / q
     return out
 
 
@@ -331,6 +342,30 @@ def _decide_block(r, a, tau, norm_out, alarm_out):
             alarm_out[i, k] = latched
 
 
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _window_maxima(c, out):
+    """out[i, q − 1] = max_k |c[i, k + q] − c[i, k]| / q for q = 1 … out.shape[1]: the
+    moving-average maxima of :func:`moving_average_maxima` from the running sums *c*
+    (n, T + 1), compiled. Rows must be finite (the maximum of exact values is the same
+    whatever the order they are compared in, so the bits are NumPy's). The window length
+    is the inner loop, over contiguous memory and without branches (SIMD-friendly)."""
+    n, T1 = c.shape
+    q_max = out.shape[1]
+    m = np.empty(q_max)
+    for i in range(n):
+        ci = c[i]
+        for q in range(q_max):
+            m[q] = -1.0
+        for k in range(T1 - 1):
+            top = min(q_max, T1 - 1 - k)
+            base = ci[k]
+            for q in range(top):
+                d = abs(ci[k + 1 + q] - base)
+                m[q] = d if d > m[q] else m[q]
+        for q in range(q_max):
+            out[i, q] = m[q] / (q + 1)
+
+
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernels of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
@@ -339,9 +374,11 @@ def _warm_kernels() -> None:
     empty = np.zeros((0, 0))
     _predict_block(z2, z2, plant, 0.01, 1e-6, np.ones(3), 0.0, 0.5, empty, empty, np.zeros((1, 2)))
     _decide_block(z2, 0.5, np.ones(2), np.zeros((1, 2)), np.zeros((1, 2), dtype=np.bool_))
+    _window_maxima(np.zeros((1, 3)), np.zeros((1, 2)))
 
 
-kernels.register_warmup(_warm_kernels, kernels=(_predict_block, _decide_block))
+kernels.register_warmup(_warm_kernels, kernels=(_predict_block, _decide_block,
+                                                _window_maxima))
 
 
 # ----------------------------------------------------------------------------------------
