@@ -198,19 +198,70 @@ def _quantize(v, q):
 
 
 # ---- the closed-loop time loop (scenarios.simulate.integrate) --------------------------------
+#: Rows of the per-block scratch array of :func:`integrate_block`.
+_PLANT_WORK_ROWS = 16
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def plant_rates(xs, cur, pf, r0, b, loaded, reuse, asin_x, s_buf, q_buf, a_buf, out):
+    """:func:`rod_rate_known` for the runs ``r0 … r0 + b − 1`` into ``out[:b]`` [mm/s]:
+    rod positions ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* (11, n)
+    of :func:`plant_fields`, ``loaded[:b]`` (1.0 loaded, 0.0 disconnected); with *reuse*,
+    ``asin_x[:b]`` = asin(x/r) stands for the rate law's asin wherever x/r is inside the
+    clip (the surface angle of the step, as :func:`rk4_step_known`). The same expressions in
+    the same order as the scalar functions, in three loops over the block: the clipped sine
+    (packed), the C library's ``asin`` one by one, and the rest of the law (packed, the
+    loaded/disconnected alternatives and the stops as selects)."""
+    for t in range(b):
+        q = xs[t] / pf[P_R, r0 + t]
+        q_buf[t] = q
+        s_buf[t] = _clip(q, -0.999, 0.999)
+    for t in range(b):
+        s = s_buf[t]
+        if reuse and loaded[t] != 0.0 and s == q_buf[t]:
+            a_buf[t] = asin_x[t]
+        else:
+            a_buf[t] = math.asin(s)
+    for t in range(b):
+        r = r0 + t
+        x = xs[t]
+        i = cur[t]
+        v0 = pf[P_KCI, r] * i
+        s = s_buf[t]
+        cos_d = math.sqrt(1.0 - s * s)
+        hm = pf[P_HM0, r] + pf[P_HMD, r] * a_buf[t]           # hinge moment [N·m]
+        f_loaded = -hm / (pf[P_R, r] / _MM_PER_M * cos_d)    # rod force [N]
+        on = loaded[t] != 0.0
+        f_aero = f_loaded if on else 0.0
+        ka = pf[P_KA, r] if on else 0.0
+        num = pf[P_SDP, r] - _sign(i) * f_aero
+        num = _clip(num, 0.0, 2.0 * pf[P_SDP, r])
+        v = v0 * math.sqrt(num / (pf[P_SDPREF, r] + ka * v0 * v0))
+        v = 0.0 if (x >= pf[P_XMAX, r] and v > 0.0) else v
+        v = 0.0 if (x <= pf[P_XMIN, r] and v < 0.0) else v
+        out[t] = v
+
+
 @njit(nogil=True, cache=True, error_model="numpy")
 def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, com_osc, k_osc,
                     cur_add, cur_force, k_jam, jam_offset, k_disc, flags, ts, d_min, d_max,
                     rod_quant, xs, ds, icmd, iapp, ycom):
-    """Closed loop of a block of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
+    """Closed loop of a batch of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
     over the next period; RK4 plant step; faults of docs/physics.md §5 at step boundaries).
 
-    *x0* (n,) is the initial rod order [mm]; the other inputs are (n, T) or (n,) as in
+    *x0* (n,) is the initial rod order [mm]; *plant* (11, n) the :func:`plant_fields` of
+    the runs; the other inputs are (n, T) or (n,) as in
     :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
-    says the block has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
+    says the batch has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
     *jam_offset* (n,) [mm] is the jump of an "offset" solid jam at its onset step (0: seized
     where it stands; docs/physics.md §5).
     Writes the outputs *xs*, *ds* [rad], *icmd*, *iapp*, *ycom* (n, T) in place.
+
+    SIMD-friendly form: blocks of :data:`BLOCK` runs, steps outer, and every stage of a
+    step one loop over the block without branches (faults as masks and selects; the RK4
+    stages in :func:`plant_rates`); each run's arithmetic is that of the scalar functions
+    (:func:`rk4_step_known`, :func:`float_step_1`), so a run computed alone equals the same
+    run inside any block. A seized rod's RK4 result is computed and discarded (a select).
     """
     n, T = u_loop.shape
     has_com_add, has_com_osc, has_cur_add, has_cur_force, any_jam, any_disc = (
@@ -220,58 +271,80 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
     i_prev = np.zeros(n)
     y_hold = np.zeros(n)
     for r in range(n):
-        x[r] = _clip(x0[r], plant[r, P_XMIN], plant[r, P_XMAX])  # trimmed: x(0) = order
-        delta[r] = math.asin(x[r] / plant[r, P_R])
-    # steps outside, runs inside: the runs of the block are independent, so the processor
-    # overlaps their (latency-bound) step computations; each run's arithmetic is unchanged
-    for k in range(T):
-        for r in range(n):
-            p = plant[r]
-            xr = x[r]
-            if any_jam and k == k_jam[r] and jam_offset[r] != 0.0:
-                # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
-                xr = _clip(xr + jam_offset[r], p[P_XMIN], p[P_XMAX])
-                x[r] = xr
-                delta[r] = math.asin(xr / p[P_R])
-            # COM acquisition (acquire_com)
-            y = _quantize(xr * (1.0 + com_scale[r]) + com_bias[r] + com_noise[r, k], rod_quant)
-            if has_com_add:
-                y = y + com_add[r, k]
-            if has_com_osc:
-                if k == k_osc[r]:
-                    y_hold[r] = y
-                if k >= k_osc[r]:
+        x[r] = _clip(x0[r], plant[P_XMIN, r], plant[P_XMAX, r])  # trimmed: x(0) = order
+        delta[r] = math.asin(x[r] / plant[P_R, r])
+    w = np.empty((_PLANT_WORK_ROWS, BLOCK))
+    xb, cur, k1, k2, k3, k4, xst = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
+    s_buf, q_buf, a_buf, loaded, dl, i_new, y_b, xn = w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]
+    for b0 in range(0, n, BLOCK):
+        b = min(b0 + BLOCK, n) - b0
+        for k in range(T):
+            if any_jam:   # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+                for t in range(b):
+                    r = b0 + t
+                    if k == k_jam[r] and jam_offset[r] != 0.0:
+                        xr = _clip(x[r] + jam_offset[r], plant[P_XMIN, r], plant[P_XMAX, r])
+                        x[r] = xr
+                        delta[r] = math.asin(xr / plant[P_R, r])
+            for t in range(b):
+                r = b0 + t
+                xr = x[r]
+                xb[t] = xr
+                dl[t] = delta[r]
+                # COM acquisition (acquire_com)
+                y = xr * (1.0 + com_scale[r]) + com_bias[r] + com_noise[r, k]
+                y = rod_quant * np.rint(y / rod_quant)
+                if has_com_add:
+                    y = y + com_add[r, k]
+                if has_com_osc:
+                    hold = y if k == k_osc[r] else y_hold[r]
+                    y_hold[r] = hold
                     osc = com_osc[r, k]
-                    y = y_hold[r] + (0.0 if math.isnan(osc) else osc)
-            i_new = _clip(p[P_K] * (u_loop[r, k] - y), -p[P_IMAX], p[P_IMAX])
-            # applied current (applied_current)
-            i_app = i_prev[r]
-            if has_cur_add:
-                i_app = i_app + cur_add[r, k]
-            if has_cur_force:
-                force = cur_force[r, k]
-                if math.isfinite(force):
-                    i_app = force
-            xs[r, k] = xr
-            ds[r, k] = delta[r]
-            icmd[r, k] = i_new
-            iapp[r, k] = i_app
-            ycom[r, k] = y
-            loaded = True
-            if any_disc:
-                loaded = k < k_disc[r]
-            if any_jam and k >= k_jam[r]:
-                x_next = xr                 # seized: the RK4 step would be discarded
-            else:
-                # while loaded, delta[r] = asin(x/r) of this very x (set below, at the
-                # start and at a jam's jump): the first RK4 stage reuses it
-                x_next = rk4_step_known(xr, i_app, p, loaded, ts, loaded, delta[r])
-            if any_disc and not loaded:
-                delta[r] = float_step_1(delta[r], p, ts, d_min, d_max)
-            else:
-                delta[r] = math.asin(x_next / p[P_R])
-            x[r] = x_next
-            i_prev[r] = i_new
+                    y = hold + (0.0 if osc != osc else osc) if k >= k_osc[r] else y
+                y_b[t] = y
+                i_new[t] = _clip(plant[P_K, r] * (u_loop[r, k] - y), -plant[P_IMAX, r],
+                                 plant[P_IMAX, r])
+                # applied current (applied_current)
+                i_app = i_prev[r]
+                if has_cur_add:
+                    i_app = i_app + cur_add[r, k]
+                if has_cur_force:
+                    force = cur_force[r, k]
+                    i_app = force if (force - force == 0.0) else i_app
+                cur[t] = i_app
+                loaded[t] = 0.0 if (any_disc and k >= k_disc[r]) else 1.0
+            for t in range(b):
+                r = b0 + t
+                xs[r, k] = xb[t]
+                ds[r, k] = dl[t]
+                icmd[r, k] = i_new[t]
+                iapp[r, k] = cur[t]
+                ycom[r, k] = y_b[t]
+            # RK4 over the period with the applied current held (rk4_step_known); while
+            # loaded, delta = asin(x/r) of this very x: the first stage reuses it
+            plant_rates(xb, cur, plant, b0, b, loaded, True, dl, s_buf, q_buf, a_buf, k1)
+            for t in range(b):
+                xst[t] = xb[t] + 0.5 * ts * k1[t]
+            plant_rates(xst, cur, plant, b0, b, loaded, False, dl, s_buf, q_buf, a_buf, k2)
+            for t in range(b):
+                xst[t] = xb[t] + 0.5 * ts * k2[t]
+            plant_rates(xst, cur, plant, b0, b, loaded, False, dl, s_buf, q_buf, a_buf, k3)
+            for t in range(b):
+                xst[t] = xb[t] + ts * k3[t]
+            plant_rates(xst, cur, plant, b0, b, loaded, False, dl, s_buf, q_buf, a_buf, k4)
+            for t in range(b):
+                r = b0 + t
+                x_new = xb[t] + (ts / 6.0) * (k1[t] + 2.0 * k2[t] + 2.0 * k3[t] + k4[t])
+                x_new = _clip(x_new, plant[P_XMIN, r], plant[P_XMAX, r])
+                xn[t] = xb[t] if (any_jam and k >= k_jam[r]) else x_new   # seized rod
+            for t in range(b):
+                r = b0 + t
+                if loaded[t] != 0.0:
+                    delta[r] = math.asin(xn[t] / plant[P_R, r])
+                else:
+                    delta[r] = float_step_1(dl[t], plant[:, r], ts, d_min, d_max)
+                x[r] = xn[t]
+                i_prev[r] = i_new[t]
 
 
 def integrate_compiled(p, sensors):
@@ -293,7 +366,8 @@ def integrate_compiled(p, sensors):
                       fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
                       bool((fa.k_disc < NEVER).any())])
     integrate_block(
-        np.ascontiguousarray(p.u[:, 0], dtype=float), np.ascontiguousarray(fa.u_loop, dtype=float), plant_matrix(p.plant),
+        np.ascontiguousarray(p.u[:, 0], dtype=float), np.ascontiguousarray(fa.u_loop, dtype=float),
+        plant_fields(p.plant),
         np.ascontiguousarray(p.com_scale, dtype=float),
         np.ascontiguousarray(p.com_bias, dtype=float),
         np.ascontiguousarray(p.com_noise, dtype=float), arr2(fa.com_add), arr2(fa.com_osc),
@@ -499,7 +573,7 @@ def _warm_simulation() -> None:
     plant = np.ones((n, len(PLANT_FIELDS)))
     plant[:, P_XMIN] = -1.0
     outs = [np.zeros((n, T)) for _ in range(5)]
-    integrate_block(z1, z2, plant, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
+    integrate_block(z1, z2, np.ascontiguousarray(plant.T), z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
