@@ -63,7 +63,7 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
     integrated in the same pass, compiled (the NumPy reference is :meth:`PositionMonitor._detect`
     with :meth:`PositionMonitor.model_band` and :func:`detectors.base.confirm`).
 
-    The band: the models of *plants* (m, 11, n; :func:`scenarios.kernels.plant_fields`, the
+    The band: the models of *plants* (m, rows, n; :func:`scenarios.kernels.plant_fields`, the
     nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
     by :func:`scenarios.kernels.servo_band_step` (docs/physics.md §2–3); *ts* [s].
     norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
@@ -120,7 +120,7 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
-    plants = np.ones((2, len(kernels.PLANT_FIELDS), 1))
+    plants = np.ones((2, kernels.FIELD_ROWS, 1))
     _decide_block(z2, z2, plants, 0.01, z2, np.zeros((0, 0)), np.ones(3),
                   np.array([True, True, False]), 1, np.zeros((1, 2)),
                   np.zeros((1, 2), dtype=np.bool_))
@@ -320,7 +320,7 @@ class PositionMonitor(Detector):
             u = c(signals.command)
             plants = band_plants([self.model_plant(signals, v) for v in self.band_scales()])
         else:
-            u, plants = empty, np.zeros((0, len(kernels.PLANT_FIELDS), signals.n_runs))
+            u, plants = empty, np.zeros((0, kernels.FIELD_ROWS, signals.n_runs))
         rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
         surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
                    if "surface" in checks else empty)

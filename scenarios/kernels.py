@@ -65,6 +65,11 @@ _MM_PER_M = 1000.0
 PLANT_FIELDS = ("K", "Kci", "i_max", "SdP", "SdP_ref", "Ka", "r_mm", "x_min", "x_max",
                 "hm_delta", "hm_0")
 (P_K, P_KCI, P_IMAX, P_SDP, P_SDPREF, P_KA, P_R, P_XMIN, P_XMAX, P_HMD, P_HM0) = range(11)
+#: Row of :func:`plant_fields` after the fields: the lever arm in metres, r/1000 [m],
+#: computed once (the same IEEE division the rate law would make at every evaluation).
+P_RM = len(PLANT_FIELDS)
+#: Rows of :func:`plant_fields`.
+FIELD_ROWS = P_RM + 1
 
 
 def check_engine(engine: str) -> str:
@@ -205,8 +210,8 @@ _PLANT_WORK_ROWS = 16
 @njit(nogil=True, cache=True, error_model="numpy")
 def plant_rates(xs, cur, pf, r0, b, loaded, reuse, asin_x, s_buf, q_buf, a_buf, out):
     """:func:`rod_rate_known` for the runs ``r0 … r0 + b − 1`` into ``out[:b]`` [mm/s]:
-    rod positions ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* (11, n)
-    of :func:`plant_fields`, ``loaded[:b]`` (1.0 loaded, 0.0 disconnected); with *reuse*,
+    rod positions ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* of
+    :func:`plant_fields`, ``loaded[:b]`` (1.0 loaded, 0.0 disconnected); with *reuse*,
     ``asin_x[:b]`` = asin(x/r) stands for the rate law's asin wherever x/r is inside the
     clip (the surface angle of the step, as :func:`rk4_step_known`). The same expressions in
     the same order as the scalar functions, in three loops over the block: the clipped sine
@@ -230,7 +235,7 @@ def plant_rates(xs, cur, pf, r0, b, loaded, reuse, asin_x, s_buf, q_buf, a_buf, 
         s = s_buf[t]
         cos_d = math.sqrt(1.0 - s * s)
         hm = pf[P_HM0, r] + pf[P_HMD, r] * a_buf[t]           # hinge moment [N·m]
-        f_loaded = -hm / (pf[P_R, r] / _MM_PER_M * cos_d)    # rod force [N]
+        f_loaded = -hm / (pf[P_RM, r] * cos_d)              # rod force [N]
         on = loaded[t] != 0.0
         f_aero = f_loaded if on else 0.0
         ka = pf[P_KA, r] if on else 0.0
@@ -249,7 +254,7 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
     """Closed loop of a batch of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
     over the next period; RK4 plant step; faults of docs/physics.md §5 at step boundaries).
 
-    *x0* (n,) is the initial rod order [mm]; *plant* (11, n) the :func:`plant_fields` of
+    *x0* (n,) is the initial rod order [mm]; *plant* the :func:`plant_fields` of
     the runs; the other inputs are (n, T) or (n,) as in
     :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
     says the batch has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
@@ -392,16 +397,20 @@ BAND_WORK_ROWS = 10
 
 
 def plant_fields(plant) -> np.ndarray:
-    """Per-run plant parameters as one C-contiguous (11, n_runs) array, the rows in the
-    order of :data:`PLANT_FIELDS`: the field-major layout of the block kernels (the runs of
-    a block are contiguous for each field)."""
-    return np.ascontiguousarray(plant_matrix(plant).T)
+    """Per-run plant parameters as one C-contiguous (:data:`FIELD_ROWS`, n_runs) array: the
+    rows of :data:`PLANT_FIELDS` in order, then r/1000 [m] (:data:`P_RM`). The field-major
+    layout of the block kernels (the runs of a block are contiguous for each field)."""
+    m = plant_matrix(plant)
+    out = np.empty((FIELD_ROWS, m.shape[0]))
+    out[:P_RM] = m.T
+    out[P_RM] = m[:, P_R] / _MM_PER_M
+    return out
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
 def loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, out):
     """:func:`rod_rate_1` of a loaded rod for the runs ``r0 … r0 + b − 1`` (rod positions
-    ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* (11, n) of
+    ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* of
     :func:`plant_fields`) into ``out[:b]`` [mm/s]: the same expressions in the same order,
     in three loops over the block — the clipped sine (packed), the ``asin`` calls (the C
     library's, one by one, as the scalar function makes them) and the rest of the rate law
@@ -419,7 +428,7 @@ def loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, out):
         s = s_buf[t]
         cos_d = math.sqrt(1.0 - s * s)
         hm = pf[P_HM0, r] + pf[P_HMD, r] * a_buf[t]           # hinge moment [N·m]
-        f_aero = -hm / (pf[P_R, r] / _MM_PER_M * cos_d)      # rod force [N]
+        f_aero = -hm / (pf[P_RM, r] * cos_d)                # rod force [N]
         ka = pf[P_KA, r]
         num = pf[P_SDP, r] - _sign(i) * f_aero
         num = _clip(num, 0.0, 2.0 * pf[P_SDP, r])
@@ -438,7 +447,8 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work):
     models' outputs x_k (the rod positions at the start of the step) to ``lo[r − r0]``,
     ``hi[r − r0]``.
 
-    *u* (n, T): the order [mm]; *plants* (m, 11, n): model j's :func:`plant_fields`;
+    *u* (n, T): the order [mm]; *plants* (m, :data:`FIELD_ROWS`, n): model j's
+    :func:`plant_fields`;
     *x*, *i_prev* (m, n): the models' rod positions [mm] and held currents [mA], updated in
     place; *work* (:data:`BAND_WORK_ROWS`, ≥ r1 − r0): scratch. Each model's arithmetic is
     :func:`rk4_step_1`'s, stage by stage over the block (:func:`loaded_rates`); low/high
@@ -495,7 +505,7 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work):
 @njit(nogil=True, cache=True, error_model="numpy")
 def servo_band_block(u, x0, plants, ts, lo, hi):
     """Band of nominal servo models driven by the order *u* (n, T) [mm] from rod position
-    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, 11, n; :func:`plant_fields`) integrated
+    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, :data:`FIELD_ROWS`, n; :func:`plant_fields`) integrated
     in one time loop per block of :data:`BLOCK` runs (:func:`servo_band_step`). Writes only
     the element-wise *lo* = min and *hi* = max of the m outputs (n, T) [mm]."""
     m = plants.shape[0]
@@ -522,8 +532,10 @@ def servo_model_block(u, x0, plant, ts, out):
     [mm] (docs/physics.md §2–3, as :meth:`detectors.position_monitor.PositionMonitor.model_output`):
     out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period. *plant*
     (n, 11): rows of :func:`plant_matrix`. The band of one model (:func:`servo_band_block`)."""
-    plants = np.empty((1, plant.shape[1], plant.shape[0]))
-    plants[0] = plant.T
+    plants = np.empty((1, FIELD_ROWS, plant.shape[0]))
+    plants[0, :P_RM] = plant.T
+    for r in range(plant.shape[0]):
+        plants[0, P_RM, r] = plant[r, P_R] / _MM_PER_M
     servo_band_block(u, x0, plants, ts, out, out)
 
 
@@ -537,7 +549,7 @@ def servo_model(u, x0, plant, ts: float) -> np.ndarray:
 
 
 def band_plants(plants) -> np.ndarray:
-    """The (m, 11, n_runs) C-contiguous stack of :func:`plant_fields` of each PlantArrays in
+    """The (m, :data:`FIELD_ROWS`, n_runs) C-contiguous stack of :func:`plant_fields` of each PlantArrays in
     *plants* (the models of a band, in order)."""
     return np.ascontiguousarray(np.stack([plant_fields(p) for p in plants]))
 
@@ -573,11 +585,12 @@ def _warm_simulation() -> None:
     plant = np.ones((n, len(PLANT_FIELDS)))
     plant[:, P_XMIN] = -1.0
     outs = [np.zeros((n, T)) for _ in range(5)]
-    integrate_block(z1, z2, np.ascontiguousarray(plant.T), z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
+    fields = np.ones((FIELD_ROWS, n))
+    fields[P_XMIN] = -1.0
+    integrate_block(z1, z2, fields, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
-    fields = np.ascontiguousarray(plant.T)
     servo_band_block(z2, z1, np.stack([fields, fields]), 0.01, outs[0], outs[1])
 
 
