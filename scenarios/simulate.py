@@ -93,7 +93,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     stack = sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
-                          order_deg, act, ts, plant.i_max)
+                          order_deg, act, ts, plant.i_max, command_mm=u)
     return Prepared(
         act=act, ts=ts, plant=plant, order_deg=order_deg, u=u, faults=faults,
         com_bias=stack[0], com_scale=stack[1], com_noise=stack[2],
