@@ -389,7 +389,8 @@ def integrate_compiled(p, sensors):
 #: Runs a block kernel advances together: steps outer, a contiguous block of runs inner, so
 #: that every stage of a step is one branch-free loop over the block that the compiler turns
 #: into packed (SIMD) instructions; 64 float64 per work row stay in the L1 cache (est.:
-#: blocks of 16, 32, 64 and 128 runs measured within 10 % of each other, 64 the fastest).
+#: blocks of 32, 64 and 256 runs measured on this 2-core machine under load, 64 the fastest
+#: for the plant and within the noise of 32 for the position monitor's band).
 BLOCK = 64
 
 #: Rows of the scratch array of :func:`servo_band_step` (see there).
