@@ -315,12 +315,13 @@ RUN_IMPORTS = ("campaign.cli", "campaign.runner", "campaign.evaluate", "campaign
 
 
 def import_seconds(modules=RUN_IMPORTS, extra=()) -> float:
-    """Wall time [s] of a fresh interpreter that imports *modules* and *extra* and exits
-    (the start-up a command pays once per process)."""
+    """CPU time [s] (user + system) of a fresh interpreter that imports *modules* and
+    *extra* and exits (the start-up a command pays once per process)."""
     code = "import " + ", ".join((*modules, *extra))
-    t0 = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
-    return time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def _spread(frame: pd.DataFrame, n: int) -> pd.DataFrame:
@@ -332,8 +333,10 @@ def _spread(frame: pd.DataFrame, n: int) -> pd.DataFrame:
 
 def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
                 learning_runs: int | None = None, imports: bool = True) -> dict:
-    """Seconds of each stage of *campaign* on one thread, scaled to its plan, and their
+    """CPU seconds of each stage of *campaign* on one thread, scaled to its plan, and their
     shares: what a run of the whole campaign spends where (docs/execution.md, Benchmark).
+    CPU time of the measuring thread (``time.thread_time``), not wall time, so that other
+    work on a shared machine changes the figures little.
 
     Per-run stages (preparation of the open-loop inputs, the plant's time loop, the sensors
     and truth, each detector's ``detect``, scoring, writing the Parquet shard) are timed on
@@ -343,8 +346,7 @@ def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
     stages are split into preparation / plant / sensors and truth on the built-in actuator
     plant, one ``simulation`` stage on other plants. Returns ``{"campaign", "runs",
     "learning_runs", "sampled_runs", "stages": [{"stage", "seconds", "share"}, …],
-    "total_s"}``; the shares add up to 1. In-process wall times on a shared machine:
-    compare shares and ratios, not seconds.
+    "total_s"}``; the shares add up to 1.
     """
     from dataclasses import replace
 
@@ -369,9 +371,9 @@ def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
     seconds: dict[str, float] = {}
 
     def timed(stage, func, *args, factor=1.0):
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         out = func(*args)
-        seconds[stage] = seconds.get(stage, 0.0) + factor * (time.perf_counter() - t0)
+        seconds[stage] = seconds.get(stage, 0.0) + factor * (time.thread_time() - t0)
         return out
 
     if imports:
@@ -411,8 +413,9 @@ def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
 
 def print_stages(costs: dict, echo=print) -> None:
     """The table of :func:`stage_costs`."""
-    echo(f"  stages of {costs['campaign']} on one thread ({costs['sampled_runs']} of "
-         f"{costs['runs']} runs timed and scaled; learning set {costs['learning_runs']} runs):")
+    echo(f"  CPU time of the stages of {costs['campaign']}, one thread "
+         f"({costs['sampled_runs']} of {costs['runs']} runs timed and scaled; learning set "
+         f"{costs['learning_runs']} runs):")
     for s in costs["stages"]:
         echo(f"    {s['stage']:<34s} {s['seconds']:7.2f} s  {100 * s['share']:5.1f} %")
     echo(f"    {'total (one thread)':<34s} {costs['total_s']:7.2f} s")

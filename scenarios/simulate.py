@@ -197,15 +197,16 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     *integrator* replaces the built-in time loop (an FMU plant advances the physical plant
     with its FMU, :mod:`scenarios.fmu`); the FCC, sensors and faults stay the engine's.
     Other plants (the aircraft, an FMU) are reached through :mod:`scenarios.plants`.
-    *timings*, a dict, receives the wall seconds of the stages (``"preparation"``,
-    ``"plant"``, ``"sensors and truth"``; added to what it holds), for ``fdd-campaign bench``.
+    *timings*, a dict, receives the CPU seconds of the calling thread in each stage
+    (``"preparation"``, ``"plant"``, ``"sensors and truth"``; added to what it holds), for
+    ``fdd-campaign bench``.
     """
     engine = resolve_engine(engine)
-    clock = [time.perf_counter()]
+    clock = [time.thread_time()]
 
     def lap(stage):
         if timings is not None:
-            now = time.perf_counter()
+            now = time.thread_time()
             timings[stage] = timings.get(stage, 0.0) + now - clock[0]
             clock[0] = now
 
