@@ -76,13 +76,24 @@ def _simulate_chunk(rows, plant="actuator"):
 def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_size: int = 275,
           reference_runs: int = 2, echo=print, campaign: str | None = "addsafe-mc",
           detectors: bool = True, cold: bool = True, backend: str = "threading",
-          plant: str | None = None, plant_runs: int = 40) -> dict:
+          plant: str | None = None, plant_runs: int = 40, stages: bool = True,
+          stage_runs: int = 200) -> dict:
     """Measure and print the figures; returns them as a dict. *campaign*: preset or file run
-    whole (None: skip); *detectors*: time each built-in detector; *cold*: also time a first
+    whole, or several separated by commas (e.g. ``"addsafe-mc,chen-mc"``; None: skip);
+    *detectors*: time each built-in detector; *cold*: also time a first
     campaign run with an empty compile cache; *backend*: joblib backend of the simulation
     part ("threading", like ``fdd-campaign run``, or "loky"); *plant*: an FMU file whose
     first *plant_runs* runs of the same load are also simulated on the FMU back end, its
-    per-run cost reported beside the built-in plant's."""
+    per-run cost reported beside the built-in plant's; *stages*: the share of each stage of
+    each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``."""
+    if isinstance(stage_runs, bool) or int(stage_runs) != stage_runs or stage_runs < 1:
+        raise ValueError(f"--stage-runs {stage_runs}: must be an integer ≥ 1 (runs timed stage "
+                         "by stage); fix: e.g. --stage-runs 200")
+    names = [c.strip() for c in (campaign or "").split(",") if c.strip()]
+    from .config import load_config
+
+    for name in names:          # a campaign that cannot load: exit 2 before any measurement
+        load_config(name)
     spec = None
     if plant is not None:
         from scenarios.fmu import FmuPlant, probe
@@ -132,9 +143,17 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
         for c in costs:
             echo(f"  detector {c['detector']:<13s}: {c['ns_per_run_step']:8.1f} ns per run-step "
                  f"({c['engine']})")
-    if campaign:
-        figures.update(bench_campaign(campaign, jobs, reference_s_per_run=ref_per_run,
-                                      cold=cold, echo=echo))
+    for i, name in enumerate(names):
+        whole = bench_campaign(name, jobs, reference_s_per_run=ref_per_run, cold=cold,
+                               echo=echo)
+        if i == 0:       # the first campaign's figures at the top level, as before
+            figures.update(whole)
+        figures.setdefault("campaigns", {})[name] = whole
+        if stages:
+            costs = stage_costs(name, sample_runs=stage_runs)
+            print_stages(costs, echo)
+            whole["stages"] = costs
+            figures.setdefault("stages", {})[name] = costs
     return figures
 
 
@@ -287,3 +306,116 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
         echo(f"  campaign vs per-run   : {figures['campaign_speedup_vs_reference']:8.0f} x "
              f"(reference: simulation only, {ref_total:,.0f} s for {len(plan)} runs)")
     return figures
+
+
+# ---- where the time of a campaign goes, stage by stage --------------------------------------
+#: What ``fdd-campaign run`` imports before its first run (timed in a fresh interpreter).
+RUN_IMPORTS = ("campaign.cli", "campaign.runner", "campaign.evaluate", "campaign.storage",
+               "detectors.registry", "scenarios.simulate", "pyarrow.parquet")
+
+
+def import_seconds(modules=RUN_IMPORTS, extra=()) -> float:
+    """CPU time [s] (user + system) of a fresh interpreter that imports *modules* and
+    *extra* and exits (the start-up a command pays once per process)."""
+    code = "import " + ", ".join((*modules, *extra))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def _spread(frame: pd.DataFrame, n: int) -> pd.DataFrame:
+    """*n* rows of *frame* spread evenly over it (every group of the plan represented)."""
+    if n >= len(frame):
+        return frame
+    return frame.iloc[np.linspace(0, len(frame) - 1, n).round().astype(int)]
+
+
+def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
+                learning_runs: int | None = None, imports: bool = True) -> dict:
+    """CPU seconds of each stage of *campaign* on one thread, scaled to its plan, and their
+    shares: what a run of the whole campaign spends where (docs/execution.md, Benchmark).
+    CPU time of the measuring thread (``time.thread_time``), not wall time, so that other
+    work on a shared machine changes the figures little.
+
+    Per-run stages (preparation of the open-loop inputs, the plant's time loop, the sensors
+    and truth, each detector's ``detect``, scoring, writing the Parquet shard) are timed on
+    *sample_runs* runs spread over the plan and scaled by its number of runs; the learning
+    set (at most *learning_runs* of its runs; None: all) is simulated and each detector
+    fitted once; *imports*: the start-up imports timed in a fresh interpreter. The plant
+    stages are split into preparation / plant / sensors and truth on the built-in actuator
+    plant, one ``simulation`` stage on other plants. Returns ``{"campaign", "runs",
+    "learning_runs", "sampled_runs", "stages": [{"stage", "seconds", "share"}, …],
+    "total_s"}``; the shares add up to 1.
+    """
+    from dataclasses import replace
+
+    from scenarios import kernels
+    from scenarios.simulate import ActuatorPlant, simulate
+
+    from .config import load_config
+    from .design import build_learning_plan, build_plan
+    from .evaluate import score
+    from .files import write_parquet
+    from .runner import build_detectors, settings_of
+
+    config = load_config(campaign)
+    plan, learning = build_plan(config), build_learning_plan(config)
+    if learning_runs is not None:
+        learning = _spread(learning, learning_runs)
+    settings = settings_of(config)
+    detectors = build_detectors(config)
+    rows = _spread(plan, sample_runs)
+    scale = len(plan) / len(rows)
+    kernels.warm_up()
+    seconds: dict[str, float] = {}
+
+    def timed(stage, func, *args, factor=1.0):
+        t0 = time.thread_time()
+        out = func(*args)
+        seconds[stage] = seconds.get(stage, 0.0) + factor * (time.thread_time() - t0)
+        return out
+
+    if imports:
+        seconds["imports"] = import_seconds(
+            extra=tuple(sorted({type(d).__module__ for d in detectors.values()})))
+    with kernels.use_engine(settings.engine):
+        learn = timed("learning set: simulation", simulate_signals, learning, settings)
+        learn = replace(learn, classes=learning["manoeuvre"].to_numpy(dtype=str))
+        for label, det in detectors.items():
+            if det.capabilities.needs_fit:
+                timed(f"fit {label}", det.fit, learn)
+        plant = settings.plant
+        if isinstance(plant, ActuatorPlant):    # the stages of the built-in servo-loop
+            laps: dict[str, float] = {}
+            signals, truth = simulate(rows, ts=settings.ts,
+                                      pressure_sensor=settings.pressure_sensor, timings=laps)
+            seconds.update({k: scale * v for k, v in laps.items()})
+        else:
+            signals, truth = timed("simulation", plant.simulate, rows, ts=settings.ts,
+                                   pressure_sensor=settings.pressure_sensor)
+            seconds["simulation"] *= scale
+        detections = {}
+        for label, det in detectors.items():
+            detections.update(timed(f"detect {label}", detect, signals, {label: det},
+                                    factor=scale))
+        frame = timed("scoring", score, rows, truth, detections, settings, signals.actuator,
+                      factor=scale)
+    with tempfile.TemporaryDirectory(prefix="fdd-bench-") as tmp:
+        timed("I/O (Parquet shard)", write_parquet, frame, Path(tmp) / "shard.parquet",
+              config.to_json(), factor=scale)
+    total = sum(seconds.values())
+    return {"campaign": campaign, "runs": len(plan), "learning_runs": len(learning),
+            "sampled_runs": len(rows), "total_s": total,
+            "stages": [{"stage": k, "seconds": v, "share": v / total}
+                       for k, v in seconds.items()]}
+
+
+def print_stages(costs: dict, echo=print) -> None:
+    """The table of :func:`stage_costs`."""
+    echo(f"  CPU time of the stages of {costs['campaign']}, one thread "
+         f"({costs['sampled_runs']} of {costs['runs']} runs timed and scaled; learning set "
+         f"{costs['learning_runs']} runs):")
+    for s in costs["stages"]:
+        echo(f"    {s['stage']:<34s} {s['seconds']:7.2f} s  {100 * s['share']:5.1f} %")
+    echo(f"    {'total (one thread)':<34s} {costs['total_s']:7.2f} s")

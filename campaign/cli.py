@@ -393,12 +393,10 @@ def cmd_simulate(args) -> int:
 
 def cmd_bench(args) -> int:
     from .bench import bench
-
-    campaign = None if args.campaign == "none" else args.campaign
-    bench(n_runs=args.runs, duration_s=args.duration, jobs=args.jobs,
-          chunk_size=args.chunk_size, reference_runs=args.reference_runs,
-          plant=args.plant, plant_runs=args.plant_runs,
-          campaign=campaign, detectors=not args.no_detectors, cold=not args.no_cold)
+    bench(n_runs=args.runs, duration_s=args.duration, jobs=args.jobs, chunk_size=args.chunk_size,
+          reference_runs=args.reference_runs, plant=args.plant, plant_runs=args.plant_runs,
+          campaign=None if args.campaign == "none" else args.campaign, cold=not args.no_cold,
+          detectors=not args.no_detectors, stages=not args.no_stages, stage_runs=args.stage_runs)
     return EXIT_OK
 
 
@@ -598,8 +596,10 @@ def _add_tool_parsers(subs) -> None:
                    help="runs per chunk (default 275)")
     p.add_argument("--reference-runs", type=int, default=2,
                    help="runs timed with the solve_ivp reference (default 2)")
-    p.add_argument("--campaign", default="addsafe-mc",
-                   help="campaign run whole in a subprocess (default addsafe-mc; none: skip)")
+    p.add_argument("--campaign", default="addsafe-mc", help="campaign(s) run whole, and "
+                   "stage by stage (default addsafe-mc; e.g. addsafe-mc,chen-mc; none: skip)")
+    p.add_argument("--no-stages", action="store_true", help="skip the stage shares")
+    p.add_argument("--stage-runs", type=int, default=200, help="runs timed stage by stage")
     p.add_argument("--no-cold", action="store_true",
                    help="skip the first campaign run with an empty compile cache")
     p.add_argument("--no-detectors", action="store_true",

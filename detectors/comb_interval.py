@@ -163,8 +163,19 @@ def moving_average_maxima(r: np.ndarray, q_max: int) -> np.ndarray:
                          f"({T} steps); lower q_max or use longer learning runs")
     c = np.concatenate([np.zeros((r.shape[0], 1)), np.cumsum(r, axis=1)], axis=1)
     out = np.empty((r.shape[0], q_max))
+    finite = np.isfinite(c).all(axis=1)
+    if kernels.current_engine() == "compiled" and finite.any():
+        rows = np.flatnonzero(finite)
+        part = np.empty((rows.size, q_max))
+        _window_maxima(np.ascontiguousarray(c[rows]), part)
+        out[rows] = part
+        if finite.all():
+            return out
+        c = c[~finite]        # rows with ±inf or NaN: the reference below (NaN propagates)
+    else:
+        finite = np.zeros(r.shape[0], dtype=bool)
     for q in range(1, q_max + 1):
-        out[:, q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q]), axis=1) / q
+        out[~finite, q - 1] = np.max(np.abs(c[:, q:] - c[:, :-q]), axis=1) / q
     return out
 
 
@@ -248,60 +259,71 @@ def stability_margin(kappa, act: ActuatorParams, ts: float, max_error_mm: float,
 # ----------------------------------------------------------------------------------------
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
 def _predict_block(u, y, plant, ts, eps_mm, kappa, hr, x0_radius, xc_out, xr_out, r_out):
-    """Interval predictor and residual of a block of runs, compiled: per step g^c of
-    [COMB] eq. 19 (:func:`g_center`, with the scalar plant law
-    :func:`scenarios.kernels.rod_rate_1`), g^r (:func:`g_radius`), eq. 14–15
+    """Interval predictor and residual of a batch of runs, compiled: per step g^c of
+    [COMB] eq. 19 (:func:`g_center`, with the plant law of
+    :func:`scenarios.kernels.loaded_rates`), g^r (:func:`g_radius`), eq. 14–15
     (:func:`predictor_step`, h^c = 1) and the dead-zone residual of eq. 18
     (:func:`dead_zone`), in the NumPy reference's order of operations.
 
-    *u*, *y* (n, T) [mm]; *plant* (n, 11) rows of :func:`scenarios.kernels.plant_matrix`;
+    *u*, *y* (n, T) [mm]; *plant* the :func:`scenarios.kernels.plant_fields` of the runs;
     *kappa* (3,). Writes x^c, x^r [mm] into *xc_out*, *xr_out* when they are (n, T) (skipped
     when they are empty) and r [mm] into *r_out* when it is (n, T).
+
+    SIMD-friendly form: blocks of :data:`scenarios.kernels.BLOCK` runs, steps outer; g^c
+    reads the measurements only, so the rate law runs as one packed pass over the block
+    (its asin calls apart), then the recursion as a branch-free loop over the block.
     """
     n, T = u.shape
     store_interval = xc_out.shape[0] == n and xc_out.shape[1] == T
     store_residual = r_out.shape[0] == n and r_out.shape[1] == T
     k1, k2, k3 = kappa[0], kappa[1], kappa[2]
-    xc_run = np.empty(n)
-    xr_run = np.empty(n)
-    for r in range(n):
-        xc_run[r] = y[r, 0]
-        xr_run[r] = x0_radius
-    # steps outside, runs inside (as scenarios.kernels): the runs' recursions are
-    # independent, so the processor overlaps them; each run's arithmetic is unchanged
-    for k in range(T):
-        for r in range(n):
-            p = plant[r]
-            uk = u[r, k]
-            yk = y[r, k]
-            xc = xc_run[r]
-            xr = xr_run[r]
-            if store_interval:
-                xc_out[r, k] = xc
-                xr_out[r, k] = xr
-            if store_residual:                       # eq. 18: dz(y, x^c ± x^r)
-                upper = xc + xr
-                lower = xc - xr
-                if yk > upper:
-                    r_out[r, k] = yk - upper
-                elif yk < lower:
-                    r_out[r, k] = yk - lower
-                else:
-                    r_out[r, k] = 0.0
+    B = kernels.BLOCK
+    xc_run = np.empty(B)
+    xr_run = np.empty(B)
+    yk = np.empty(B)
+    ek = np.empty(B)
+    ik = np.empty(B)
+    rate = np.empty(B)
+    s_buf = np.empty(B)
+    a_buf = np.empty(B)
+    for b0 in range(0, n, B):
+        b = min(b0 + B, n) - b0
+        for t in range(b):
+            xc_run[t] = y[b0 + t, 0]
+            xr_run[t] = x0_radius
+        for k in range(T):
             # g^c = 1 − γ·T, γ = ẋ/(u − y) at the measured y (eq. 19, loop_gain)
-            e = uk - yk
-            if abs(e) < eps_mm:
-                e = -eps_mm if e < 0.0 else eps_mm
-            i_mA = min(max(p[kernels.P_K] * e, -p[kernels.P_IMAX]), p[kernels.P_IMAX])
-            gc = 1.0 - kernels.rod_rate_1(yk, i_mA, p, True) / e * ts
-            # g^r = min(κ1 + κ2·|u − x^c|, κ3) (§4; NaN propagates as in np.minimum)
-            gr = k1 + k2 * abs(uk - xc)
-            if not gr < k3 and not math.isnan(gr):
-                gr = k3
-            # eq. 14–15 (predictor_step with h^c = 1)
-            xc_run[r] = gc * xc + (1.0 - gc) * 1.0 * uk
-            xr_run[r] = ((abs(gc) + gr) * xr + gr * abs(xc - 1.0 * uk)
-                         + (abs(1.0 - gc) + gr) * hr * abs(uk))
+            for t in range(b):
+                r = b0 + t
+                e = u[r, k] - y[r, k]
+                e = (-eps_mm if e < 0.0 else eps_mm) if abs(e) < eps_mm else e
+                yk[t] = y[r, k]
+                ek[t] = e
+                ik[t] = min(max(plant[kernels.P_K, r] * e, -plant[kernels.P_IMAX, r]),
+                            plant[kernels.P_IMAX, r])
+            kernels.loaded_rates(yk, ik, plant, b0, b, s_buf, a_buf, rate)
+            for t in range(b):
+                r = b0 + t
+                uk = u[r, k]
+                xc = xc_run[t]
+                xr = xr_run[t]
+                if store_interval:
+                    xc_out[r, k] = xc
+                    xr_out[r, k] = xr
+                if store_residual:                   # eq. 18: dz(y, x^c ± x^r)
+                    upper = xc + xr
+                    lower = xc - xr
+                    v = yk[t]
+                    r_out[r, k] = (v - upper if v > upper else
+                                   (v - lower if v < lower else 0.0))
+                gc = 1.0 - rate[t] / ek[t] * ts
+                # g^r = min(κ1 + κ2·|u − x^c|, κ3) (§4; NaN propagates as in np.minimum)
+                gr = k1 + k2 * abs(uk - xc)
+                gr = k3 if (not gr < k3 and gr == gr) else gr
+                # eq. 14–15 (predictor_step with h^c = 1)
+                xc_run[t] = gc * xc + (1.0 - gc) * 1.0 * uk
+                xr_run[t] = ((abs(gc) + gr) * xr + gr * abs(xc - 1.0 * uk)
+                             + (abs(1.0 - gc) + gr) * hr * abs(uk))
 
 
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
@@ -331,17 +353,43 @@ def _decide_block(r, a, tau, norm_out, alarm_out):
             alarm_out[i, k] = latched
 
 
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _window_maxima(c, out):
+    """out[i, q − 1] = max_k |c[i, k + q] − c[i, k]| / q for q = 1 … out.shape[1]: the
+    moving-average maxima of :func:`moving_average_maxima` from the running sums *c*
+    (n, T + 1), compiled. Rows must be finite (the maximum of exact values is the same
+    whatever the order they are compared in, so the bits are NumPy's). The window length
+    is the inner loop, over contiguous memory and without branches (SIMD-friendly)."""
+    n, T1 = c.shape
+    q_max = out.shape[1]
+    m = np.empty(q_max)
+    for i in range(n):
+        ci = c[i]
+        for q in range(q_max):
+            m[q] = -1.0
+        for k in range(T1 - 1):
+            top = min(q_max, T1 - 1 - k)
+            base = ci[k]
+            for q in range(top):
+                d = abs(ci[k + 1 + q] - base)
+                m[q] = d if d > m[q] else m[q]
+        for q in range(q_max):
+            out[i, q] = m[q] / (q + 1)
+
+
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernels of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
-    plant = np.ones((1, len(kernels.PLANT_FIELDS)))
-    plant[:, kernels.P_XMIN] = -1.0
+    plant = np.ones((kernels.FIELD_ROWS, 1))
+    plant[kernels.P_XMIN] = -1.0
     empty = np.zeros((0, 0))
     _predict_block(z2, z2, plant, 0.01, 1e-6, np.ones(3), 0.0, 0.5, empty, empty, np.zeros((1, 2)))
     _decide_block(z2, 0.5, np.ones(2), np.zeros((1, 2)), np.zeros((1, 2), dtype=np.bool_))
+    _window_maxima(np.zeros((1, 3)), np.zeros((1, 2)))
 
 
-kernels.register_warmup(_warm_kernels, kernels=(_predict_block, _decide_block))
+kernels.register_warmup(_warm_kernels, kernels=(_predict_block, _decide_block,
+                                                _window_maxima))
 
 
 # ----------------------------------------------------------------------------------------
@@ -470,7 +518,7 @@ class IntervalDetector(Detector):
         xc = np.empty((n, T)) if interval else empty
         xr = np.empty((n, T)) if interval else empty
         r = np.empty((n, T)) if residual else empty
-        _predict_block(u, y, kernels.plant_matrix(self._plant(signals)), float(signals.ts),
+        _predict_block(u, y, kernels.plant_fields(self._plant(signals)), float(signals.ts),
                        float(NUMERICS.gain_eps_mm),
                        np.array([float(k) for k in self.kappa]), float(self.h_radius),
                        float(self.x0_radius_mm), xc, xr, r)

@@ -44,8 +44,8 @@ from dataclasses import replace
 import numpy as np
 
 from scenarios import kernels
-from scenarios.kernels import (band_plants, resolve_engine, servo_band, servo_band_step,
-                               servo_model)
+from scenarios.kernels import (BAND_WORK_ROWS, BLOCK, band_plants, resolve_engine, servo_band,
+                               servo_band_step, servo_model)
 from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
 
@@ -56,13 +56,6 @@ from .params import Param
 CHECKS = ("loop", "com_mon", "surface")
 
 
-#: Runs integrated together by :func:`_decide_block`: enough independent model recursions
-#: per step for the processor to overlap them, few enough rows of the (n, T) arrays it reads
-#: and writes step by step to stay in cache (est.; blocks of 4, 16 and 100 runs measured the
-#: same CPU time on 100-run chunks of 60 s, the models' arithmetic being the bound).
-_RUN_BLOCK = 16
-
-
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
 def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_confirm,
                   norm_out, alarm_out):
@@ -70,16 +63,17 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
     integrated in the same pass, compiled (the NumPy reference is :meth:`PositionMonitor._detect`
     with :meth:`PositionMonitor.model_band` and :func:`detectors.base.confirm`).
 
-    The band: the models of *plants* (m, n, 11; rows of :func:`scenarios.kernels.plant_matrix`,
-    the nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
+    The band: the models of *plants* (m, rows, n; :func:`scenarios.kernels.plant_fields`, the
+    nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
     by :func:`scenarios.kernels.servo_band_step` (docs/physics.md §2–3); *ts* [s].
     norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
     loop, com_mon, surface; NaN propagates as in ``np.maximum``),
     r_loop = distance of y_COM outside [band low, band high] (|y_COM − model| when the band
     is one model), r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
     alarm once norm ≥ 1 for *n_confirm* consecutive steps, latched. Writes *norm_out*,
-    *alarm_out* (n, T). Runs go in blocks of :data:`_RUN_BLOCK`, steps outer and the runs of
-    the block inner; every run's arithmetic is independent of the others'.
+    *alarm_out* (n, T). Runs go in blocks of :data:`scenarios.kernels.BLOCK`, steps outer
+    and the runs of the block inner (the SIMD-friendly form of the band's step); every
+    run's arithmetic is independent of the others'.
     """
     n, T = rod_com.shape
     use_loop, use_cm, use_surf = active[0], active[1], active[2]
@@ -89,15 +83,16 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
         for r in range(n):
             x[j, r] = rod_com[r, 0]
     i_prev = np.zeros((m, n))
-    lo = np.empty(_RUN_BLOCK)
-    hi = np.empty(_RUN_BLOCK)
+    lo = np.empty(BLOCK)
+    hi = np.empty(BLOCK)
+    work = np.empty((BAND_WORK_ROWS, BLOCK))
     count = np.zeros(n, dtype=np.int64)
     latched = np.zeros(n, dtype=np.bool_)
-    for b0 in range(0, n, _RUN_BLOCK):
-        b1 = min(b0 + _RUN_BLOCK, n)
+    for b0 in range(0, n, BLOCK):
+        b1 = min(b0 + BLOCK, n)
         for k in range(T):
             if m > 0:
-                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi)
+                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi, work)
             for r in range(b0, b1):
                 v = 0.0
                 if use_loop:
@@ -125,7 +120,7 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
-    plants = np.ones((2, 1, len(kernels.PLANT_FIELDS)))
+    plants = np.ones((2, kernels.FIELD_ROWS, 1))
     _decide_block(z2, z2, plants, 0.01, z2, np.zeros((0, 0)), np.ones(3),
                   np.array([True, True, False]), 1, np.zeros((1, 2)),
                   np.zeros((1, 2), dtype=np.bool_))
@@ -325,7 +320,7 @@ class PositionMonitor(Detector):
             u = c(signals.command)
             plants = band_plants([self.model_plant(signals, v) for v in self.band_scales()])
         else:
-            u, plants = empty, np.zeros((0, signals.n_runs, len(kernels.PLANT_FIELDS)))
+            u, plants = empty, np.zeros((0, kernels.FIELD_ROWS, signals.n_runs))
         rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
         surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
                    if "surface" in checks else empty)

@@ -141,11 +141,16 @@ def onset_steps(onset_s, ts: float) -> np.ndarray:
 
 
 def fault_arrays(fault, onset_s, magnitude, freq_hz, order_deg, act: ActuatorParams,
-                 ts: float, i_max) -> FaultArrays:
+                 ts: float, i_max, *, command_mm=None) -> FaultArrays:
     """Build the injection arrays of a batch.
 
     fault (n,) str; onset_s, magnitude, freq_hz (n,) float; order_deg (n, T) the fault-free
-    surface order [deg]; i_max (n,) the true current saturation [mA].
+    surface order [deg]; i_max (n,) the true current saturation [mA]. *command_mm* (n, T),
+    when given, is ``act.r_mm * sin(radians(order_deg))`` (the fault-free rod order, already
+    computed by the caller): the order seen by the loop of a run it equals bit for bit (no
+    runaway, no zero order whose sign the ramp's + 0 would flip, inside the stops) is then
+    copied from it instead of computed again. Every array is computed row by row for the
+    runs of its fault type only; the values are those of the whole-batch formulas.
     """
     fault = np.asarray(fault).astype(str)
     n, T = order_deg.shape
@@ -153,31 +158,54 @@ def fault_arrays(fault, onset_s, magnitude, freq_hz, order_deg, act: ActuatorPar
     k0 = onset_steps(onset_s, ts)
     mag = np.asarray(magnitude, dtype=float)
     freq = np.asarray(freq_hz, dtype=float)
-    active = np.arange(T)[None, :] >= k0[:, None]                 # (n, T)
-    dt_on = np.where(active, t[None, :] - (k0 * ts)[:, None], 0.0)  # time since onset
 
-    def only(name):
-        return (fault == name)[:, None] & active
+    def timing(rows):
+        """(active, time since onset) of *rows*, each (len(rows), T)."""
+        active = np.arange(T)[None, :] >= k0[rows, None]
+        return active, np.where(active, t[None, :] - (k0[rows] * ts)[:, None], 0.0)
 
     # runaway: the order seen by the loop ramps away from t0 (clipped beyond the stops)
     m = FAULT_DEFAULTS.runaway_margin_deg
-    ramp = np.where(only("runaway"), np.nan_to_num(mag)[:, None] * dt_on, 0.0)
-    order_loop = np.clip(order_deg + ramp, act.stop_min_deg - m, act.stop_max_deg + m)
-    u_loop = act.r_mm * np.sin(np.radians(order_loop))
+    lo, hi = act.stop_min_deg - m, act.stop_max_deg + m
+    runaway = fault == "runaway"
+    if command_mm is None:
+        redo = np.ones(n, dtype=bool)
+        u_loop = np.empty((n, T))
+    else:
+        u_loop = np.array(command_mm, dtype=float)
+        redo = runaway | ((order_deg == 0.0) | (order_deg < lo) | (order_deg > hi)).any(axis=1)
+    rows = np.flatnonzero(redo)
+    if rows.size:
+        active, dt_on = timing(rows)
+        ramp = np.where(runaway[rows, None] & active, np.nan_to_num(mag[rows])[:, None] * dt_on,
+                        0.0)
+        order_loop = np.clip(order_deg[rows] + ramp, lo, hi)
+        u_loop[rows] = act.r_mm * np.sin(np.radians(order_loop))
 
-    com_add = cur_add = cur_force = com_osc = None
-    if (fault == "liquid_jam").any():
-        com_add = np.where(only("liquid_jam"), np.nan_to_num(mag)[:, None], 0.0)
-    if (fault == "ofc_liquid").any():
-        osc = np.nan_to_num(mag)[:, None] * np.sin(2 * np.pi * np.nan_to_num(freq)[:, None] * dt_on)
-        cur_add = np.where(only("ofc_liquid"), osc, 0.0)
-    if (fault == "hardover").any():
-        direction = np.sign(np.nan_to_num(mag, nan=1.0))
+    def injected(name, fill, values):
+        """(n, T) array: *fill*, and ``values(rows, active, dt_on)`` after the onset of the
+        runs of fault *name* (None when the batch has none)."""
+        rows = np.flatnonzero(fault == name)
+        if rows.size == 0:
+            return None
+        out = np.full((n, T), fill)
+        active, dt_on = timing(rows)
+        out[rows] = np.where(active, values(rows, dt_on), fill)
+        return out
+
+    def oscillation(rows, dt_on):
+        return (np.nan_to_num(mag[rows])[:, None]
+                * np.sin(2 * np.pi * np.nan_to_num(freq[rows])[:, None] * dt_on))
+
+    def hardover(rows, dt_on):
+        direction = np.sign(np.nan_to_num(mag[rows], nan=1.0))
         direction[direction == 0] = 1.0
-        cur_force = np.where(only("hardover"), (direction * np.asarray(i_max))[:, None], np.nan)
-    if (fault == "ofc_solid").any():
-        osc = np.nan_to_num(mag)[:, None] * np.sin(2 * np.pi * np.nan_to_num(freq)[:, None] * dt_on)
-        com_osc = np.where(only("ofc_solid"), osc, np.nan)
+        return (direction * np.asarray(i_max)[rows])[:, None]
+
+    com_add = injected("liquid_jam", 0.0, lambda rows, _: np.nan_to_num(mag[rows])[:, None])
+    cur_add = injected("ofc_liquid", 0.0, oscillation)
+    cur_force = injected("hardover", np.nan, hardover)
+    com_osc = injected("ofc_solid", np.nan, oscillation)
 
     def k_of(name):
         return np.where(fault == name, k0, NEVER)

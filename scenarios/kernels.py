@@ -65,6 +65,11 @@ _MM_PER_M = 1000.0
 PLANT_FIELDS = ("K", "Kci", "i_max", "SdP", "SdP_ref", "Ka", "r_mm", "x_min", "x_max",
                 "hm_delta", "hm_0")
 (P_K, P_KCI, P_IMAX, P_SDP, P_SDPREF, P_KA, P_R, P_XMIN, P_XMAX, P_HMD, P_HM0) = range(11)
+#: Row of :func:`plant_fields` after the fields: the lever arm in metres, r/1000 [m],
+#: computed once (the same IEEE division the rate law would make at every evaluation).
+P_RM = len(PLANT_FIELDS)
+#: Rows of :func:`plant_fields`.
+FIELD_ROWS = P_RM + 1
 
 
 def check_engine(engine: str) -> str:
@@ -125,12 +130,23 @@ def _sign(v):
 def rod_rate_1(x, i, p, loaded):
     """Rod speed ẋ [mm/s] of one run ([COMB] eq. 2, [CHEN] eq. 11, as
     :func:`scenarios.servo.rod_rate`); *p* is one row of :func:`plant_matrix`."""
+    return rod_rate_known(x, i, p, loaded, False, 0.0)
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def rod_rate_known(x, i, p, loaded, known, asin_x):
+    """:func:`rod_rate_1` given, when *known*, ``asin_x`` = asin(x / r) already computed
+    (the surface angle δ of the step): used when x/r lies inside the ±0.999 clip, where it
+    is the very asin the rate law evaluates, so the result is the same bits with one
+    ``asin`` call (the costliest operation of the step) fewer."""
     v0 = p[P_KCI] * i
     if loaded:
         r = p[P_R]
-        s = _clip(x / r, -0.999, 0.999)
+        q = x / r
+        s = _clip(q, -0.999, 0.999)
         cos_d = math.sqrt(1.0 - s * s)
-        hm = p[P_HM0] + p[P_HMD] * math.asin(s)             # hinge moment [N·m]
+        a = asin_x if (known and s == q) else math.asin(s)
+        hm = p[P_HM0] + p[P_HMD] * a                       # hinge moment [N·m]
         f_aero = -hm / (r / _MM_PER_M * cos_d)               # rod force [N]
         ka = p[P_KA]
     else:
@@ -150,7 +166,14 @@ def rod_rate_1(x, i, p, loaded):
 def rk4_step_1(x, i, p, loaded, h):
     """One RK4 step of the rod over *h* [s] with the current *i* [mA] held, inside the
     stops (as :func:`scenarios.servo.rk4_step`)."""
-    k1 = rod_rate_1(x, i, p, loaded)
+    return rk4_step_known(x, i, p, loaded, h, False, 0.0)
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def rk4_step_known(x, i, p, loaded, h, known, asin_x):
+    """:func:`rk4_step_1` whose first stage reuses ``asin_x`` = asin(x / r) when *known*
+    (:func:`rod_rate_known`); the same bits."""
+    k1 = rod_rate_known(x, i, p, loaded, known, asin_x)
     k2 = rod_rate_1(x + 0.5 * h * k1, i, p, loaded)
     k3 = rod_rate_1(x + 0.5 * h * k2, i, p, loaded)
     k4 = rod_rate_1(x + h * k3, i, p, loaded)
@@ -180,19 +203,70 @@ def _quantize(v, q):
 
 
 # ---- the closed-loop time loop (scenarios.simulate.integrate) --------------------------------
+#: Rows of the per-block scratch array of :func:`integrate_block`.
+_PLANT_WORK_ROWS = 16
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def plant_rates(xs, cur, pf, r0, b, loaded, reuse, asin_x, s_buf, q_buf, a_buf, out):
+    """:func:`rod_rate_known` for the runs ``r0 … r0 + b − 1`` into ``out[:b]`` [mm/s]:
+    rod positions ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* of
+    :func:`plant_fields`, ``loaded[:b]`` (1.0 loaded, 0.0 disconnected); with *reuse*,
+    ``asin_x[:b]`` = asin(x/r) stands for the rate law's asin wherever x/r is inside the
+    clip (the surface angle of the step, as :func:`rk4_step_known`). The same expressions in
+    the same order as the scalar functions, in three loops over the block: the clipped sine
+    (packed), the C library's ``asin`` one by one, and the rest of the law (packed, the
+    loaded/disconnected alternatives and the stops as selects)."""
+    for t in range(b):
+        q = xs[t] / pf[P_R, r0 + t]
+        q_buf[t] = q
+        s_buf[t] = _clip(q, -0.999, 0.999)
+    for t in range(b):
+        s = s_buf[t]
+        if reuse and loaded[t] != 0.0 and s == q_buf[t]:
+            a_buf[t] = asin_x[t]
+        else:
+            a_buf[t] = math.asin(s)
+    for t in range(b):
+        r = r0 + t
+        x = xs[t]
+        i = cur[t]
+        v0 = pf[P_KCI, r] * i
+        s = s_buf[t]
+        cos_d = math.sqrt(1.0 - s * s)
+        hm = pf[P_HM0, r] + pf[P_HMD, r] * a_buf[t]           # hinge moment [N·m]
+        f_loaded = -hm / (pf[P_RM, r] * cos_d)              # rod force [N]
+        on = loaded[t] != 0.0
+        f_aero = f_loaded if on else 0.0
+        ka = pf[P_KA, r] if on else 0.0
+        num = pf[P_SDP, r] - _sign(i) * f_aero
+        num = _clip(num, 0.0, 2.0 * pf[P_SDP, r])
+        v = v0 * math.sqrt(num / (pf[P_SDPREF, r] + ka * v0 * v0))
+        v = 0.0 if (x >= pf[P_XMAX, r] and v > 0.0) else v
+        v = 0.0 if (x <= pf[P_XMIN, r] and v < 0.0) else v
+        out[t] = v
+
+
 @njit(nogil=True, cache=True, error_model="numpy")
 def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, com_osc, k_osc,
                     cur_add, cur_force, k_jam, jam_offset, k_disc, flags, ts, d_min, d_max,
                     rod_quant, xs, ds, icmd, iapp, ycom):
-    """Closed loop of a block of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
+    """Closed loop of a batch of runs (docs/physics.md §2: acquire, i_k = sat(K·(u_k − y_k)), hold
     over the next period; RK4 plant step; faults of docs/physics.md §5 at step boundaries).
 
-    *x0* (n,) is the initial rod order [mm]; the other inputs are (n, T) or (n,) as in
+    *x0* (n,) is the initial rod order [mm]; *plant* the :func:`plant_fields` of
+    the runs; the other inputs are (n, T) or (n,) as in
     :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
-    says the block has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
+    says the batch has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
     *jam_offset* (n,) [mm] is the jump of an "offset" solid jam at its onset step (0: seized
     where it stands; docs/physics.md §5).
     Writes the outputs *xs*, *ds* [rad], *icmd*, *iapp*, *ycom* (n, T) in place.
+
+    SIMD-friendly form: blocks of :data:`BLOCK` runs, steps outer, and every stage of a
+    step one loop over the block without branches (faults as masks and selects; the RK4
+    stages in :func:`plant_rates`); each run's arithmetic is that of the scalar functions
+    (:func:`rk4_step_known`, :func:`float_step_1`), so a run computed alone equals the same
+    run inside any block. A seized rod's RK4 result is computed and discarded (a select).
     """
     n, T = u_loop.shape
     has_com_add, has_com_osc, has_cur_add, has_cur_force, any_jam, any_disc = (
@@ -202,55 +276,80 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
     i_prev = np.zeros(n)
     y_hold = np.zeros(n)
     for r in range(n):
-        x[r] = _clip(x0[r], plant[r, P_XMIN], plant[r, P_XMAX])  # trimmed: x(0) = order
-        delta[r] = math.asin(x[r] / plant[r, P_R])
-    # steps outside, runs inside: the runs of the block are independent, so the processor
-    # overlaps their (latency-bound) step computations; each run's arithmetic is unchanged
-    for k in range(T):
-        for r in range(n):
-            p = plant[r]
-            xr = x[r]
-            if any_jam and k == k_jam[r] and jam_offset[r] != 0.0:
-                # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
-                xr = _clip(xr + jam_offset[r], p[P_XMIN], p[P_XMAX])
-                x[r] = xr
-                delta[r] = math.asin(xr / p[P_R])
-            # COM acquisition (acquire_com)
-            y = _quantize(xr * (1.0 + com_scale[r]) + com_bias[r] + com_noise[r, k], rod_quant)
-            if has_com_add:
-                y = y + com_add[r, k]
-            if has_com_osc:
-                if k == k_osc[r]:
-                    y_hold[r] = y
-                if k >= k_osc[r]:
+        x[r] = _clip(x0[r], plant[P_XMIN, r], plant[P_XMAX, r])  # trimmed: x(0) = order
+        delta[r] = math.asin(x[r] / plant[P_R, r])
+    w = np.empty((_PLANT_WORK_ROWS, BLOCK))
+    xb, cur, k1, k2, k3, k4, xst = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
+    s_buf, q_buf, a_buf, loaded, dl, i_new, y_b, xn = w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]
+    for b0 in range(0, n, BLOCK):
+        b = min(b0 + BLOCK, n) - b0
+        for k in range(T):
+            if any_jam:   # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+                for t in range(b):
+                    r = b0 + t
+                    if k == k_jam[r] and jam_offset[r] != 0.0:
+                        xr = _clip(x[r] + jam_offset[r], plant[P_XMIN, r], plant[P_XMAX, r])
+                        x[r] = xr
+                        delta[r] = math.asin(xr / plant[P_R, r])
+            for t in range(b):
+                r = b0 + t
+                xr = x[r]
+                xb[t] = xr
+                dl[t] = delta[r]
+                # COM acquisition (acquire_com)
+                y = xr * (1.0 + com_scale[r]) + com_bias[r] + com_noise[r, k]
+                y = rod_quant * np.rint(y / rod_quant)
+                if has_com_add:
+                    y = y + com_add[r, k]
+                if has_com_osc:
+                    hold = y if k == k_osc[r] else y_hold[r]
+                    y_hold[r] = hold
                     osc = com_osc[r, k]
-                    y = y_hold[r] + (0.0 if math.isnan(osc) else osc)
-            i_new = _clip(p[P_K] * (u_loop[r, k] - y), -p[P_IMAX], p[P_IMAX])
-            # applied current (applied_current)
-            i_app = i_prev[r]
-            if has_cur_add:
-                i_app = i_app + cur_add[r, k]
-            if has_cur_force:
-                force = cur_force[r, k]
-                if math.isfinite(force):
-                    i_app = force
-            xs[r, k] = xr
-            ds[r, k] = delta[r]
-            icmd[r, k] = i_new
-            iapp[r, k] = i_app
-            ycom[r, k] = y
-            loaded = True
-            if any_disc:
-                loaded = k < k_disc[r]
-            x_next = rk4_step_1(xr, i_app, p, loaded, ts)
-            if any_jam and k >= k_jam[r]:
-                x_next = xr
-            if any_disc and not loaded:
-                delta[r] = float_step_1(delta[r], p, ts, d_min, d_max)
-            else:
-                delta[r] = math.asin(x_next / p[P_R])
-            x[r] = x_next
-            i_prev[r] = i_new
+                    y = hold + (0.0 if osc != osc else osc) if k >= k_osc[r] else y
+                y_b[t] = y
+                i_new[t] = _clip(plant[P_K, r] * (u_loop[r, k] - y), -plant[P_IMAX, r],
+                                 plant[P_IMAX, r])
+                # applied current (applied_current)
+                i_app = i_prev[r]
+                if has_cur_add:
+                    i_app = i_app + cur_add[r, k]
+                if has_cur_force:
+                    force = cur_force[r, k]
+                    i_app = force if (force - force == 0.0) else i_app
+                cur[t] = i_app
+                loaded[t] = 0.0 if (any_disc and k >= k_disc[r]) else 1.0
+            for t in range(b):
+                r = b0 + t
+                xs[r, k] = xb[t]
+                ds[r, k] = dl[t]
+                icmd[r, k] = i_new[t]
+                iapp[r, k] = cur[t]
+                ycom[r, k] = y_b[t]
+            # RK4 over the period with the applied current held (rk4_step_known); while
+            # loaded, delta = asin(x/r) of this very x: the first stage reuses it
+            plant_rates(xb, cur, plant, b0, b, loaded, True, dl, s_buf, q_buf, a_buf, k1)
+            for t in range(b):
+                xst[t] = xb[t] + 0.5 * ts * k1[t]
+            plant_rates(xst, cur, plant, b0, b, loaded, False, dl, s_buf, q_buf, a_buf, k2)
+            for t in range(b):
+                xst[t] = xb[t] + 0.5 * ts * k2[t]
+            plant_rates(xst, cur, plant, b0, b, loaded, False, dl, s_buf, q_buf, a_buf, k3)
+            for t in range(b):
+                xst[t] = xb[t] + ts * k3[t]
+            plant_rates(xst, cur, plant, b0, b, loaded, False, dl, s_buf, q_buf, a_buf, k4)
+            for t in range(b):
+                r = b0 + t
+                x_new = xb[t] + (ts / 6.0) * (k1[t] + 2.0 * k2[t] + 2.0 * k3[t] + k4[t])
+                x_new = _clip(x_new, plant[P_XMIN, r], plant[P_XMAX, r])
+                xn[t] = xb[t] if (any_jam and k >= k_jam[r]) else x_new   # seized rod
+            for t in range(b):
+                r = b0 + t
+                if loaded[t] != 0.0:
+                    delta[r] = math.asin(xn[t] / plant[P_R, r])
+                else:
+                    delta[r] = float_step_1(dl[t], plant[:, r], ts, d_min, d_max)
+                x[r] = xn[t]
+                i_prev[r] = i_new[t]
 
 
 def integrate_compiled(p, sensors):
@@ -272,7 +371,8 @@ def integrate_compiled(p, sensors):
                       fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
                       bool((fa.k_disc < NEVER).any())])
     integrate_block(
-        np.ascontiguousarray(p.u[:, 0], dtype=float), np.ascontiguousarray(fa.u_loop, dtype=float), plant_matrix(p.plant),
+        np.ascontiguousarray(p.u[:, 0], dtype=float), np.ascontiguousarray(fa.u_loop, dtype=float),
+        plant_fields(p.plant),
         np.ascontiguousarray(p.com_scale, dtype=float),
         np.ascontiguousarray(p.com_bias, dtype=float),
         np.ascontiguousarray(p.com_noise, dtype=float), arr2(fa.com_add), arr2(fa.com_osc),
@@ -285,23 +385,159 @@ def integrate_compiled(p, sensors):
     return Trajectory(x=xs, delta=ds, i_cmd=icmd, i_app=iapp, y_com=ycom)
 
 
-# ---- nominal servo-loop model of the position monitor ----------------------------------------
+# ---- nominal servo-loop models of the position monitor (SIMD-friendly block form) ------------
+#: Runs a block kernel advances together: steps outer, a contiguous block of runs inner, so
+#: that every stage of a step is one branch-free loop over the block that the compiler turns
+#: into packed (SIMD) instructions; 64 float64 per work row stay in the L1 cache (est.:
+#: blocks of 32, 64 and 256 runs measured on this 2-core machine under load, 64 the fastest
+#: for the plant and within the noise of 32 for the position monitor's band).
+BLOCK = 64
+
+#: Rows of the scratch array of :func:`servo_band_step` (see there).
+BAND_WORK_ROWS = 10
+
+
+def plant_fields(plant) -> np.ndarray:
+    """Per-run plant parameters as one C-contiguous (:data:`FIELD_ROWS`, n_runs) array: the
+    rows of :data:`PLANT_FIELDS` in order, then r/1000 [m] (:data:`P_RM`). The field-major
+    layout of the block kernels (the runs of a block are contiguous for each field)."""
+    m = plant_matrix(plant)
+    out = np.empty((FIELD_ROWS, m.shape[0]))
+    out[:P_RM] = m.T
+    out[P_RM] = m[:, P_R] / _MM_PER_M
+    return out
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, out):
+    """:func:`rod_rate_1` of a loaded rod for the runs ``r0 … r0 + b − 1`` (rod positions
+    ``xs[:b]`` [mm], held currents ``cur[:b]`` [mA], parameters *pf* of
+    :func:`plant_fields`) into ``out[:b]`` [mm/s]: the same expressions in the same order,
+    in three loops over the block — the clipped sine (packed), the ``asin`` calls (the C
+    library's, one by one, as the scalar function makes them) and the rest of the rate law
+    (packed: sqrt and division are exact IEEE operations, min/max/sign are selects, no
+    branch)."""
+    for t in range(b):
+        s_buf[t] = _clip(xs[t] / pf[P_R, r0 + t], -0.999, 0.999)
+    for t in range(b):
+        a_buf[t] = math.asin(s_buf[t])
+    for t in range(b):
+        r = r0 + t
+        x = xs[t]
+        i = cur[t]
+        v0 = pf[P_KCI, r] * i
+        s = s_buf[t]
+        cos_d = math.sqrt(1.0 - s * s)
+        hm = pf[P_HM0, r] + pf[P_HMD, r] * a_buf[t]           # hinge moment [N·m]
+        f_aero = -hm / (pf[P_RM, r] * cos_d)                # rod force [N]
+        ka = pf[P_KA, r]
+        num = pf[P_SDP, r] - _sign(i) * f_aero
+        num = _clip(num, 0.0, 2.0 * pf[P_SDP, r])
+        v = v0 * math.sqrt(num / (pf[P_SDPREF, r] + ka * v0 * v0))
+        v = 0.0 if (x >= pf[P_XMAX, r] and v > 0.0) else v
+        v = 0.0 if (x <= pf[P_XMIN, r] and v < 0.0) else v
+        out[t] = v
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work):
+    """Advance runs ``r0 … r1 − 1`` (at most :data:`BLOCK`) of every model of a band by
+    step *k* of the nominal closed loop (docs/physics.md §2–3, as
+    :meth:`detectors.position_monitor.PositionMonitor.model_output`: x_{k+1} = RK4 of the
+    rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low, high) [mm] of the
+    models' outputs x_k (the rod positions at the start of the step) to ``lo[r − r0]``,
+    ``hi[r − r0]``.
+
+    *u* (n, T): the order [mm]; *plants* (m, :data:`FIELD_ROWS`, n): model j's
+    :func:`plant_fields`;
+    *x*, *i_prev* (m, n): the models' rod positions [mm] and held currents [mA], updated in
+    place; *work* (:data:`BAND_WORK_ROWS`, ≥ r1 − r0): scratch. Each model's arithmetic is
+    :func:`rk4_step_1`'s, stage by stage over the block (:func:`loaded_rates`); low/high
+    are ``np.minimum``/``np.maximum`` reduced over the models in order (a NaN output makes
+    both NaN).
+    """
+    b = r1 - r0
+    x0 = work[0]
+    cur = work[1]
+    k1 = work[2]
+    k2 = work[3]
+    k3 = work[4]
+    k4 = work[5]
+    xs = work[6]
+    s_buf = work[7]
+    a_buf = work[8]
+    i_new = work[9]
+    for j in range(plants.shape[0]):
+        pf = plants[j]
+        xj = x[j]
+        ij = i_prev[j]
+        if j == 0:
+            for t in range(b):
+                lo[t] = xj[r0 + t]
+                hi[t] = xj[r0 + t]
+        else:
+            for t in range(b):
+                xr = xj[r0 + t]
+                lo[t] = xr if (xr < lo[t] or xr != xr) else lo[t]
+                hi[t] = xr if (xr > hi[t] or xr != xr) else hi[t]
+        for t in range(b):
+            r = r0 + t
+            xr = xj[r]
+            x0[t] = xr
+            cur[t] = ij[r]
+            i_new[t] = _clip(pf[P_K, r] * (u[r, k] - xr), -pf[P_IMAX, r], pf[P_IMAX, r])
+        loaded_rates(x0, cur, pf, r0, b, s_buf, a_buf, k1)
+        for t in range(b):
+            xs[t] = x0[t] + 0.5 * ts * k1[t]
+        loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, k2)
+        for t in range(b):
+            xs[t] = x0[t] + 0.5 * ts * k2[t]
+        loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, k3)
+        for t in range(b):
+            xs[t] = x0[t] + ts * k3[t]
+        loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, k4)
+        for t in range(b):
+            r = r0 + t
+            x_new = x0[t] + (ts / 6.0) * (k1[t] + 2.0 * k2[t] + 2.0 * k3[t] + k4[t])
+            xj[r] = _clip(x_new, pf[P_XMIN, r], pf[P_XMAX, r])
+            ij[r] = i_new[t]
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def servo_band_block(u, x0, plants, ts, lo, hi):
+    """Band of nominal servo models driven by the order *u* (n, T) [mm] from rod position
+    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, :data:`FIELD_ROWS`, n; :func:`plant_fields`) integrated
+    in one time loop per block of :data:`BLOCK` runs (:func:`servo_band_step`). Writes only
+    the element-wise *lo* = min and *hi* = max of the m outputs (n, T) [mm]."""
+    m = plants.shape[0]
+    n, T = u.shape
+    x = np.empty((m, n))
+    for j in range(m):
+        x[j] = x0
+    i_prev = np.zeros((m, n))
+    lo_k = np.empty(BLOCK)
+    hi_k = np.empty(BLOCK)
+    work = np.empty((BAND_WORK_ROWS, BLOCK))
+    for b0 in range(0, n, BLOCK):
+        b1 = min(b0 + BLOCK, n)
+        for k in range(T):
+            servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo_k, hi_k, work)
+            for r in range(b0, b1):
+                lo[r, k] = lo_k[r - b0]
+                hi[r, k] = hi_k[r - b0]
+
+
 @njit(nogil=True, cache=True, error_model="numpy")
 def servo_model_block(u, x0, plant, ts, out):
     """Nominal closed loop driven by the order *u* (n, T) [mm] from rod position *x0* (n,)
     [mm] (docs/physics.md §2–3, as :meth:`detectors.position_monitor.PositionMonitor.model_output`):
-    out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period."""
-    n, T = u.shape
-    x = x0.copy()
-    i_prev = np.zeros(n)
-    for k in range(T):
-        for r in range(n):
-            p = plant[r]
-            xr = x[r]
-            out[r, k] = xr
-            i_new = _clip(p[P_K] * (u[r, k] - xr), -p[P_IMAX], p[P_IMAX])
-            x[r] = rk4_step_1(xr, i_prev[r], p, True, ts)
-            i_prev[r] = i_new
+    out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period. *plant*
+    (n, 11): rows of :func:`plant_matrix`. The band of one model (:func:`servo_band_block`)."""
+    plants = np.empty((1, FIELD_ROWS, plant.shape[0]))
+    plants[0, :P_RM] = plant.T
+    for r in range(plant.shape[0]):
+        plants[0, P_RM, r] = plant[r, P_R] / _MM_PER_M
+    servo_band_block(u, x0, plants, ts, out, out)
 
 
 def servo_model(u, x0, plant, ts: float) -> np.ndarray:
@@ -313,64 +549,10 @@ def servo_model(u, x0, plant, ts: float) -> np.ndarray:
     return out
 
 
-@njit(nogil=True, cache=True, error_model="numpy")
-def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi):
-    """Advance runs ``r0 … r1 − 1`` of every model of a band by step *k* of
-    :func:`servo_model_block`; write the (low, high) [mm] of their outputs x_k (the rod
-    positions at the start of the step) to ``lo[r − r0]``, ``hi[r − r0]``.
-
-    *u* (n, T): the order [mm]; *plants* (m, n, 11): model j's rows of :func:`plant_matrix`;
-    *x*, *i_prev* (m, n): the models' rod positions [mm] and held currents [mA], updated in
-    place. Each model's arithmetic is that of :func:`servo_model_block`; low/high are
-    ``np.minimum``/``np.maximum`` reduced over the models in order (a NaN output makes both
-    NaN). Models outer, runs inner: each model's runs are independent recursions, which the
-    processor overlaps.
-    """
-    for j in range(plants.shape[0]):
-        xj = x[j]
-        ij = i_prev[j]
-        pj = plants[j]
-        for r in range(r0, r1):
-            p = pj[r]
-            xr = xj[r]
-            if j == 0:
-                lo[r - r0] = xr
-                hi[r - r0] = xr
-            else:
-                if xr < lo[r - r0] or math.isnan(xr):
-                    lo[r - r0] = xr
-                if xr > hi[r - r0] or math.isnan(xr):
-                    hi[r - r0] = xr
-            i_new = _clip(p[P_K] * (u[r, k] - xr), -p[P_IMAX], p[P_IMAX])
-            xj[r] = rk4_step_1(xr, ij[r], p, True, ts)
-            ij[r] = i_new
-
-
-@njit(nogil=True, cache=True, error_model="numpy")
-def servo_band_block(u, x0, plants, ts, lo, hi):
-    """Band of nominal servo models driven by the order *u* (n, T) [mm] from rod position
-    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, n, 11) integrated in one time loop
-    (:func:`servo_band_step` over the whole block of runs). Writes only the element-wise
-    *lo* = min and *hi* = max of the m outputs (n, T) [mm]."""
-    m = plants.shape[0]
-    n, T = u.shape
-    x = np.empty((m, n))
-    for j in range(m):
-        x[j] = x0
-    i_prev = np.zeros((m, n))
-    lo_k = np.empty(n)
-    hi_k = np.empty(n)
-    for k in range(T):
-        servo_band_step(u, k, 0, n, plants, x, i_prev, ts, lo_k, hi_k)
-        for r in range(n):
-            lo[r, k] = lo_k[r]
-            hi[r, k] = hi_k[r]
-
-
 def band_plants(plants) -> np.ndarray:
-    """The (m, n_runs, 11) C-contiguous stack of :func:`plant_matrix` of each PlantArrays in
+    """The (m, :data:`FIELD_ROWS`, n_runs) C-contiguous stack of :func:`plant_fields` of each PlantArrays in
     *plants* (the models of a band, in order)."""
-    return np.ascontiguousarray(np.stack([plant_matrix(p) for p in plants]))
+    return np.ascontiguousarray(np.stack([plant_fields(p) for p in plants]))
 
 
 def servo_band(u, x0, plants, ts: float) -> tuple[np.ndarray, np.ndarray]:
@@ -404,11 +586,13 @@ def _warm_simulation() -> None:
     plant = np.ones((n, len(PLANT_FIELDS)))
     plant[:, P_XMIN] = -1.0
     outs = [np.zeros((n, T)) for _ in range(5)]
-    integrate_block(z1, z2, plant, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
+    fields = np.ones((FIELD_ROWS, n))
+    fields[P_XMIN] = -1.0
+    integrate_block(z1, z2, fields, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
-    servo_band_block(z2, z1, np.stack([plant, plant]), 0.01, outs[0], outs[1])
+    servo_band_block(z2, z1, np.stack([fields, fields]), 0.01, outs[0], outs[1])
 
 
 register_warmup(_warm_simulation)

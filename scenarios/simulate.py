@@ -24,6 +24,7 @@ A run simulated alone equals the same run inside any batch, bit for bit.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 from typing import Callable
 
@@ -93,7 +94,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     stack = sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
-                          order_deg, act, ts, plant.i_max)
+                          order_deg, act, ts, plant.i_max, command_mm=u)
     return Prepared(
         act=act, ts=ts, plant=plant, order_deg=order_deg, u=u, faults=faults,
         com_bias=stack[0], com_scale=stack[1], com_noise=stack[2],
@@ -184,7 +185,8 @@ Integrator = Callable[[Prepared, SensorParams], Trajectory]
 def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
              pressure_sensor: bool = False, actuators: dict | None = None,
              orders_deg: np.ndarray | None = None, engine: str | None = None,
-             integrator: Integrator | None = None) -> tuple[Signals, Truth]:
+             integrator: Integrator | None = None,
+             timings: dict | None = None) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* on the actuator servo-loop (one surface and duration per
     call).
 
@@ -195,16 +197,29 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
     *integrator* replaces the built-in time loop (an FMU plant advances the physical plant
     with its FMU, :mod:`scenarios.fmu`); the FCC, sensors and faults stay the engine's.
     Other plants (the aircraft, an FMU) are reached through :mod:`scenarios.plants`.
+    *timings*, a dict, receives the CPU seconds of the calling thread in each stage
+    (``"preparation"``, ``"plant"``, ``"sensors and truth"``; added to what it holds), for
+    ``fdd-campaign bench``.
     """
     engine = resolve_engine(engine)
+    clock = [time.thread_time()]
+
+    def lap(stage):
+        if timings is not None:
+            now = time.thread_time()
+            timings[stage] = timings.get(stage, 0.0) + now - clock[0]
+            clock[0] = now
+
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg,
                 pressure_sensor=pressure_sensor)
+    lap("preparation")
     if integrator is not None:
         traj = integrator(p, sensors)
     elif engine == "compiled":
         traj = integrate_compiled(p, sensors)
     else:
         traj = integrate(p, sensors)
+    lap("plant")
     act = p.act
     rod_fault = rod_measurement_fault(runs["fault"].to_numpy(), runs["onset_s"].to_numpy(float),
                                       traj.y_com, p.u, p.plant, ts)
@@ -221,6 +236,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
         flight=p.flight_true, rod_fault_mm=rod_fault,
     )
+    lap("sensors and truth")
     return signals, truth
 
 

@@ -405,3 +405,32 @@ def test_fault_descriptions_are_immutable():
     for obj, name in ((FAULT_DEFAULTS, "ofc_freq_hz"), (fa, "k_jam")):
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, name, 0)
+
+
+def test_fault_arrays_reuse_of_the_command_gives_the_same_bits():
+    """``command_mm=`` (the fault-free rod order the caller computed) copies the loop's order
+    only where it is the same bits: a runaway, a −0.0 order (the ramp's + 0 makes it +0.0)
+    and an order beyond the stops are computed by the formula; every array is unchanged."""
+    rng = np.random.default_rng(4)
+    faults = np.array(["none", "runaway", "liquid_jam", "solid_jam", "disconnection",
+                       "hardover", "ofc_liquid", "ofc_solid", "none", "none"])
+    n, T = len(faults), 400
+    order = rng.uniform(-20.0, 10.0, (n, T))
+    order[8, 5] = -0.0                                  # the loop's order is +0.0 there
+    order[9, 7] = ELEVATOR.stop_max_deg + 40.0          # beyond the stops: clipped
+    onset = np.where(faults == "none", np.nan, 1.0)
+    mag = np.array([np.nan, 5.0, 1.2, np.nan, np.nan, -1.0, 2.0, 0.5, np.nan, np.nan])
+    freq = np.where(np.char.startswith(faults, "ofc"), 3.0, np.nan)
+    i_max = np.full(n, 10.0)
+    command = ELEVATOR.r_mm * np.sin(np.radians(order))
+    plain = fault_arrays(faults, onset, mag, freq, order, ELEVATOR, TS, i_max)
+    reused = fault_arrays(faults, onset, mag, freq, order, ELEVATOR, TS, i_max,
+                          command_mm=command)
+    for name in vars(plain):
+        a, b = getattr(plain, name), getattr(reused, name)
+        if a is None:
+            assert b is None, name
+            continue
+        np.testing.assert_array_equal(a, b, err_msg=name)
+        assert np.array_equal(np.signbit(a), np.signbit(b)), name
+    assert np.signbit(plain.u_loop[8, 5]) != np.signbit(command[8, 5])

@@ -1,0 +1,82 @@
+"""``fdd-campaign bench``: the structure of what it reports (never its timings)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from campaign.bench import RUN_IMPORTS, import_seconds, print_stages, stage_costs
+from campaign.cli import main
+from campaign.config import load_config
+from campaign.design import build_plan
+from scenarios.simulate import simulate, single_run
+
+SMOKE_STAGES = ("learning set: simulation", "fit position-monitor", "preparation", "plant",
+                "sensors and truth", "detect position-monitor", "scoring",
+                "I/O (Parquet shard)")
+
+
+@pytest.fixture(scope="module")
+def smoke_costs():
+    return stage_costs("smoke", sample_runs=4, learning_runs=6, imports=False)
+
+
+def test_stage_costs_name_every_stage_once(smoke_costs):
+    names = [s["stage"] for s in smoke_costs["stages"]]
+    assert names == list(SMOKE_STAGES)
+
+
+def test_stage_costs_scale_to_the_plan(smoke_costs):
+    assert smoke_costs["campaign"] == "smoke"
+    assert smoke_costs["runs"] == len(build_plan(load_config("smoke")))
+    assert smoke_costs["sampled_runs"] == 4
+    assert smoke_costs["learning_runs"] == 6
+
+
+def test_stage_shares_add_up_to_one(smoke_costs):
+    seconds = [s["seconds"] for s in smoke_costs["stages"]]
+    shares = [s["share"] for s in smoke_costs["stages"]]
+    assert all(math.isfinite(v) and v >= 0.0 for v in seconds)
+    assert math.isclose(sum(shares), 1.0, rel_tol=1e-12)
+    assert math.isclose(sum(seconds), smoke_costs["total_s"], rel_tol=1e-12)
+    for s in smoke_costs["stages"]:
+        assert math.isclose(s["share"], s["seconds"] / smoke_costs["total_s"], rel_tol=1e-12)
+
+
+def test_print_stages_one_line_per_stage_and_a_total(smoke_costs):
+    lines = []
+    print_stages(smoke_costs, echo=lines.append)
+    assert len(lines) == len(SMOKE_STAGES) + 2
+    assert "smoke" in lines[0] and "4 of" in lines[0]
+    for name, line in zip(SMOKE_STAGES, lines[1:-1]):
+        assert line.strip().startswith(name) and line.rstrip().endswith("%")
+    assert "total" in lines[-1]
+
+
+def test_import_seconds_is_a_wall_time_of_a_fresh_interpreter():
+    assert "campaign.runner" in RUN_IMPORTS
+    seconds = import_seconds(modules=("json",))
+    assert isinstance(seconds, float) and math.isfinite(seconds) and seconds > 0.0
+
+
+def test_simulate_timings_leave_the_result_unchanged():
+    runs = single_run("elevator", "nose_up", "solid_jam", seed=3, duration_s=20.0)
+    laps = {}
+    sig_t, truth_t = simulate(runs, timings=laps)
+    sig, truth = simulate(runs)
+    assert list(laps) == ["preparation", "plant", "sensors and truth"]
+    assert all(v >= 0.0 for v in laps.values())
+    for name in ("command", "current", "rod_com", "rod_mon"):
+        np.testing.assert_array_equal(getattr(sig_t, name), getattr(sig, name))
+    np.testing.assert_array_equal(truth_t.rod_fault_mm, truth.rod_fault_mm)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["bench", "--stage-runs", "0"], "--stage-runs 0"),
+    (["bench", "--campaign", "no-such-preset", "--no-detectors"], "no-such-preset"),
+])
+def test_bench_bad_input_exits_2_before_any_work(argv, message, capsys):
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
