@@ -41,7 +41,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pandas as pd
 
+from .. import kernels
 from ..acquisition import acquire, acquire_com, applied_current, quantize, sensor_draws
+from ..atmosphere import G0_MS2
 from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position
 from ..manoeuvres import elevator_trim_deg
@@ -52,7 +54,7 @@ from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
 from ..simulate import rod_measurement_fault, servo_provides
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
-from . import laws, lpv, pilot
+from . import kernel, laws, lpv, pilot
 from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
                    LAYOUT, AircraftSensorParams, surface_actuator)
 
@@ -216,8 +218,68 @@ class AircraftTrajectory:
     spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
 
 
-def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
-    """The closed-loop time loop, vectorised over runs and surfaces."""
+def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS,
+                       engine: str | None = None) -> AircraftTrajectory:
+    """The closed-loop time loop: the compiled block kernel of :mod:`.kernel` with *engine*
+    ``"compiled"`` (default: :func:`scenarios.kernels.current_engine`) where it can run bit
+    for bit (:func:`.kernel.available`), else :func:`integrate_reference`."""
+    if kernels.resolve_engine(engine) == "compiled" and kernel.available():
+        return _integrate_compiled(p, sensors)
+    return integrate_reference(p, sensors)
+
+
+def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftTrajectory:
+    """:func:`integrate_reference` through :func:`.kernel.integrate_block` (same numbers)."""
+    n, T, m = p.n, p.T, p.monitored
+    n_s = len(p.acts)
+    pl, fa = p.plant, p.faults
+    act_m = p.acts[m]
+    run_margin = FAULT_DEFAULTS.runaway_margin_deg
+    trim_rad = np.radians(p.trim_deg)
+    x = np.clip(pl.r_mm * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
+    delta = np.arcsin(x / pl.r_mm)
+    empty = np.zeros((0, 0))
+
+    def c(a, dtype=float):
+        return np.ascontiguousarray(a, dtype=dtype)
+
+    def opt(a):
+        return empty if a is None else c(a)
+
+    g, lp = p.gains, p.law_params
+    gains = c(np.stack([np.broadcast_to(np.asarray(getattr(g, f.name), float), (n,))
+                        for f in fields(laws.Gains)]))
+    law = np.array([np.radians(lp.bank_max_deg), lp.bank_gain, lp.roll_bandwidth,
+                    lp.yaw_damping, lp.sideslip_gain, lp.sideslip_integral, G0_MS2])
+    scal = np.array([p.ts, sensors.rod_quant_mm, act_m.r_mm, act_m.stop_min_deg - run_margin,
+                     act_m.stop_max_deg + run_margin, np.radians(act_m.stop_min_deg),
+                     np.radians(act_m.stop_max_deg),
+                     np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)])
+    flags = np.array([fa.com_add is not None, fa.com_osc is not None, fa.cur_add is not None,
+                      fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
+                      bool((fa.k_disc < NEVER).any())])
+    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T))
+    u_rec = np.empty((n, T)); sp_rec = np.empty((n, T))
+    kernel.integrate_block(
+        kernel.LOOPS, m, x, delta, c(trim_rad), c(p.trim_deg), c(p.lo_deg), c(p.hi_deg),
+        kernels.plant_matrix(pl), c(_PITCH), c(_ROLL), c(_YAW), c(_ELEVATORS, np.bool_),
+        c(p.step_matrix), c(p.load_matrix), gains, law,
+        c(np.radians(p.flight_true["alpha_deg"])), c(p.nz_c), c(p.p_c), c(p.beta_c),
+        c(p.gust_alpha), c(p.gust_beta), c(p.ac_noise), c(p.com_scale), c(p.com_bias),
+        c(p.com_noise), opt(fa.com_add), opt(fa.com_osc), c(fa.k_osc, np.int64),
+        opt(fa.cur_add), opt(fa.cur_force), c(fa.k_jam, np.int64), c(fa.jam_offset),
+        c(fa.k_disc, np.int64), flags, c(p.ramp_deg), scal,
+        rods, surf, states, meas_rec, xs, icmd, iapp, u_rec, sp_rec)
+    return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
+                              u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
+                              spoiler=sp_rec)
+
+
+def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
+    """The closed-loop time loop in NumPy, vectorised over runs and surfaces (the reference
+    of the compiled kernel, :mod:`.kernel`)."""
     n, T, ts, m = p.n, p.T, p.ts, p.monitored
     n_s = len(p.acts)
     pl, fa = p.plant, p.faults
