@@ -52,7 +52,7 @@ from ..runs import (RUN_COLUMNS, RUN_RANGES, aero_draws, flight_of, manoeuvre_se
                     plant_draws, run_streams, validate_runs)
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
-from ..simulate import rod_measurement_fault, servo_provides
+from ..simulate import rod_measurement_fault, servo_provides, single_run
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
 from . import kernel, laws, lpv, pilot
 from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
@@ -398,7 +398,19 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
                       ) -> tuple[Signals, Truth]:
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
-    :func:`scenarios.simulate.simulate`."""
+    :func:`scenarios.simulate.simulate`.
+
+    The runs are simulated in blocks of at most :attr:`AircraftPlant.batch_runs` (a run's
+    series never depend on its block), so the working memory of the loop stays that of one
+    block whatever the number of runs; only the results of every block are held."""
+    block = AircraftPlant.batch_runs
+    if len(runs) > block:
+        parts = [simulate_aircraft(runs.iloc[s:s + block], ts=ts, sensors=sensors,
+                                   pressure_sensor=pressure_sensor, turbulence=turbulence,
+                                   law_params=law_params, aircraft_sensors=aircraft_sensors)
+                 for s in range(0, len(runs), block)]
+        return (Signals.concat([sig for sig, _ in parts]),
+                _concat_truth([truth for _, truth in parts]))
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
                          law_params=law_params, aircraft_sensors=aircraft_sensors)
     traj = integrate_aircraft(p, sensors)
@@ -428,6 +440,28 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
     return signals, truth
 
 
+def _concat_truth(parts: list[Truth]) -> Truth:
+    """The :class:`Truth` of consecutive blocks of runs as one batch (``rod_fault_mm`` NaN
+    for the runs of a block without a jam, as :func:`rod_measurement_fault` gives them)."""
+    def cat(values):
+        return np.concatenate(values)
+
+    def series(name):
+        dicts = [getattr(t, name) for t in parts]
+        return None if dicts[0] is None else {k: cat([d[k] for d in dicts]) for k in dicts[0]}
+
+    faults = [t.rod_fault_mm for t in parts]
+    rod_fault = None if all(f is None for f in faults) else cat(
+        [np.full(np.shape(t.rod_mm), np.nan) if f is None else f for t, f in zip(parts, faults)])
+    return Truth(
+        rod_mm=cat([t.rod_mm for t in parts]), surface_deg=cat([t.surface_deg for t in parts]),
+        current_mA=cat([t.current_mA for t in parts]), fault=cat([t.fault for t in parts]),
+        onset_s=cat([t.onset_s for t in parts]), magnitude=cat([t.magnitude for t in parts]),
+        flight={k: cat([t.flight[k] for t in parts]) for k in parts[0].flight},
+        aircraft=series("aircraft"), surfaces_deg=series("surfaces_deg"),
+        rod_fault_mm=rod_fault)
+
+
 @dataclass(frozen=True)
 class AircraftPlant:
     """The aircraft in the loop (docs/physics.md §7): rigid body, control laws and every
@@ -442,6 +476,11 @@ class AircraftPlant:
     kind = "aircraft"
     #: runs on threads (no per-process state)
     needs_processes = False
+    #: runs simulated together at most (campaign.evaluate.evaluate cuts a larger chunk into
+    #: blocks): a run holds ~60 (n_steps,) float64 series while it is simulated (every
+    #: surface, the aircraft states and sensors, their noise), ~2.9 MB for 60 s at 100 Hz,
+    #: so a block of 25 holds ~70 MB where a chunk of 100 held ~290 MB (est.)
+    batch_runs = 25
 
     @property
     def surfaces(self) -> tuple[str, ...]:
@@ -465,3 +504,15 @@ class AircraftPlant:
                  pressure_sensor: bool = False) -> tuple[Signals, Truth]:
         return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
                                  aircraft_sensors=self.aircraft_sensors)
+
+
+def _warm_kernel() -> None:
+    """Load (or compile) the aircraft kernel on a one-second run (kernels.warm_up)."""
+    if not kernel.available():
+        return
+    runs = single_run("aileron", "cruise", "disconnection", duration_s=1.0, onset_s=0.5)
+    runs["surface"] = DEFAULT_MONITORED["aileron"]
+    _integrate_compiled(prepare_aircraft(runs, turbulence=None), SENSORS)
+
+
+kernels.register_warmup(_warm_kernel, kernels=(kernel.integrate_block,))
