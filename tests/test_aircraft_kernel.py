@@ -63,3 +63,31 @@ def test_numpy_inner_loops_called_from_the_kernel_equal_numpy():
     np.testing.assert_array_equal(out, np.arcsin(v))
     kernel._pow_scalar(kernel.LOOPS, v, np.full(1, 3.0), out, v.size, np.zeros(8, np.int64))
     np.testing.assert_array_equal(out, v ** 3)
+
+
+def test_blocks_of_runs_give_the_batch_results(monkeypatch):
+    """A batch simulated in blocks (AircraftPlant.batch_runs) equals it simulated at once,
+    Signals and Truth alike, and simulate_signals gives simulate's signals."""
+    runs = _batch("left_inboard_aileron", "aileron", manoeuvres=("cruise",)).iloc[:7]
+    whole_sig, whole_truth = loop.simulate_aircraft(runs)
+    monkeypatch.setattr(loop.AircraftPlant, "batch_runs", 3)
+    sig, truth = loop.simulate_aircraft(runs)
+    only = loop.AircraftPlant().simulate_signals(runs)
+    for got in (sig, only):
+        for name in ("command", "current", "rod_com", "rod_mon", "surface", "pressure"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(whole_sig, name), err_msg=name)
+        for group in ("aircraft", "rods", "schedule"):
+            ref = getattr(whole_sig, group)
+            assert list(getattr(got, group)) == list(ref)
+            for k, v in ref.items():
+                np.testing.assert_array_equal(getattr(got, group)[k], v, err_msg=f"{group} {k}")
+        np.testing.assert_array_equal(got.run_ids, whole_sig.run_ids)
+    for name in ("rod_mm", "surface_deg", "current_mA", "fault", "onset_s", "magnitude",
+                 "rod_fault_mm"):
+        np.testing.assert_array_equal(getattr(truth, name), getattr(whole_truth, name),
+                                      err_msg=name)
+    for group in ("aircraft", "surfaces_deg", "flight"):
+        for k, v in getattr(whole_truth, group).items():
+            np.testing.assert_array_equal(getattr(truth, group)[k], v, err_msg=f"{group} {k}")
+    # the blocks differ in their faults: a jam in one block only, NaN elsewhere
+    assert np.isnan(truth.rod_fault_mm[0]).all() and np.isfinite(truth.rod_fault_mm[2, -1])

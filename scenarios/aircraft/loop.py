@@ -51,7 +51,7 @@ from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import (RUN_COLUMNS, RUN_RANGES, aero_draws, flight_of, manoeuvre_sets,
                     plant_draws, run_streams, validate_runs)
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
-from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
+from ..signals import AIRCRAFT_SIGNAL_UNITS, SIGNAL_UNITS, Signals, Truth
 from ..simulate import rod_measurement_fault, servo_provides, single_run
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
 from . import kernel, laws, lpv, pilot
@@ -394,23 +394,110 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
                       pressure_sensor: bool = False,
                       turbulence: DrydenParams | None = MODERATE,
                       law_params: laws.LawParams = laws.LAWS,
-                      aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS
-                      ) -> tuple[Signals, Truth]:
+                      aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS,
+                      truth: bool = True) -> tuple[Signals, Truth | None]:
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
-    :func:`scenarios.simulate.simulate`.
+    :func:`scenarios.simulate.simulate` (*truth* False: ``(Signals, None)``, for callers
+    that read the signals only, e.g. a learning set).
 
     The runs are simulated in blocks of at most :attr:`AircraftPlant.batch_runs` (a run's
-    series never depend on its block), so the working memory of the loop stays that of one
-    block whatever the number of runs; only the results of every block are held."""
+    series never depend on its block), each written into the arrays of the whole batch as it
+    ends: the memory is that of the results plus the working set of one block."""
+    kw = dict(ts=ts, sensors=sensors, pressure_sensor=pressure_sensor, turbulence=turbulence,
+              law_params=law_params, aircraft_sensors=aircraft_sensors)
     block = AircraftPlant.batch_runs
-    if len(runs) > block:
-        parts = [simulate_aircraft(runs.iloc[s:s + block], ts=ts, sensors=sensors,
-                                   pressure_sensor=pressure_sensor, turbulence=turbulence,
-                                   law_params=law_params, aircraft_sensors=aircraft_sensors)
-                 for s in range(0, len(runs), block)]
-        return (Signals.concat([sig for sig, _ in parts]),
-                _concat_truth([truth for _, truth in parts]))
+    if len(runs) <= block:
+        return _simulate_block(runs, truth=truth, **kw)
+    n = len(runs)
+    sig_out = truth_out = None
+    sig_rest, truth_rest, faults = [], [], []
+    for start in range(0, n, block):
+        sig, tru = _simulate_block(runs.iloc[start:start + block], truth=truth, **kw)
+        rows = slice(start, start + sig.n_runs)
+        sig_out = _write(sig_out, _series_of_signals(sig), n, rows)
+        sig_rest.append(_per_run(sig, aircraft={}, rods={}, **dict.fromkeys(SIGNAL_UNITS)))
+        if tru is not None:
+            truth_out = _write(truth_out, _series_of_truth(tru), n, rows)
+            faults.append((rows, tru.rod_fault_mm))
+            truth_rest.append(_per_run(tru, rod_mm=None, surface_deg=None, current_mA=None,
+                                       aircraft={}, surfaces_deg={}, rod_fault_mm=None))
+        del sig, tru
+    signals = _signals_from(sig_rest, sig_out)
+    return signals, (None if not truth else _truth_from(truth_rest, truth_out, faults, n))
+
+
+def _per_run(block, **dropped):
+    """*block* (Signals or Truth) without its (runs, steps) series: what stays of a block
+    once they are written into the batch arrays."""
+    return types.SimpleNamespace(**{**{f.name: getattr(block, f.name) for f in fields(block)},
+                                    **dropped})
+
+
+def _series_of_signals(sig: Signals) -> dict:
+    out = {name: getattr(sig, name) for name in SIGNAL_UNITS}
+    out.update({("aircraft", k): v for k, v in sig.aircraft.items()})
+    out.update({("rods", k): v for k, v in sig.rods.items()})
+    return out
+
+
+def _series_of_truth(tru: Truth) -> dict:
+    out = {name: getattr(tru, name) for name in ("rod_mm", "surface_deg", "current_mA")}
+    out.update({("aircraft", k): v for k, v in tru.aircraft.items()})
+    out.update({("surfaces_deg", k): v for k, v in tru.surfaces_deg.items()})
+    return out
+
+
+def _write(out: dict | None, series: dict, n: int, rows: slice) -> dict:
+    """Copy a block's (runs, steps) *series* into the batch arrays *out* (allocated at the
+    first block) at *rows*; the block's own arrays can then be freed."""
+    if out is None:
+        out = {k: np.empty((n,) + np.shape(v)[1:], dtype=np.asarray(v).dtype)
+               for k, v in series.items()}
+    for k, v in series.items():
+        out[k][rows] = v
+    return out
+
+
+def _signals_from(parts: list, series: dict) -> Signals:
+    """The batch's :class:`Signals`: the written *series*, the per-run data of the blocks."""
+    first = parts[0]
+    return Signals(
+        ts=first.ts, **{name: series[name] for name in SIGNAL_UNITS},
+        schedule={k: np.concatenate([p.schedule[k] for p in parts]) for k in first.schedule},
+        actuator=first.actuator, run_ids=np.concatenate([p.run_ids for p in parts]),
+        aircraft={k[1]: v for k, v in series.items() if k[0] == "aircraft"},
+        rods={k[1]: v for k, v in series.items() if k[0] == "rods"},
+    )
+
+
+def _truth_from(parts: list, series: dict, faults: list, n: int) -> Truth:
+    """The batch's :class:`Truth` (``rod_fault_mm`` NaN for the runs of a block without a
+    jam, as :func:`rod_measurement_fault` gives them; None when no block has a jam)."""
+    first = parts[0]
+    rod_fault = None
+    if any(f is not None for _, f in faults):
+        rod_fault = np.full(series["rod_mm"].shape, np.nan)
+        for rows, f in faults:
+            if f is not None:
+                rod_fault[rows] = f
+
+    def cat(name):
+        return np.concatenate([getattr(p, name) for p in parts])
+
+    return Truth(
+        rod_mm=series["rod_mm"], surface_deg=series["surface_deg"],
+        current_mA=series["current_mA"], fault=cat("fault"), onset_s=cat("onset_s"),
+        magnitude=cat("magnitude"),
+        flight={k: np.concatenate([p.flight[k] for p in parts]) for k in first.flight},
+        aircraft={k[1]: v for k, v in series.items() if k[0] == "aircraft"},
+        surfaces_deg={k[1]: v for k, v in series.items() if k[0] == "surfaces_deg"},
+        rod_fault_mm=rod_fault)
+
+
+def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbulence,
+                    law_params, aircraft_sensors, truth: bool) -> tuple[Signals, Truth | None]:
+    """:func:`simulate_aircraft` of one block of runs."""
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
                          law_params=law_params, aircraft_sensors=aircraft_sensors)
     traj = integrate_aircraft(p, sensors)
@@ -426,6 +513,8 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
         run_ids=runs["run_id"].astype(str).to_numpy(),
         aircraft=aircraft, rods={s: traj.rods[j] for j, s in enumerate(AIRCRAFT_SURFACES)},
     )
+    if not truth:
+        return signals, None
     truth = Truth(
         rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
         fault=runs["fault"].astype(str).to_numpy(),
@@ -438,28 +527,6 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
                                            traj.u, p.plant_m, ts),
     )
     return signals, truth
-
-
-def _concat_truth(parts: list[Truth]) -> Truth:
-    """The :class:`Truth` of consecutive blocks of runs as one batch (``rod_fault_mm`` NaN
-    for the runs of a block without a jam, as :func:`rod_measurement_fault` gives them)."""
-    def cat(values):
-        return np.concatenate(values)
-
-    def series(name):
-        dicts = [getattr(t, name) for t in parts]
-        return None if dicts[0] is None else {k: cat([d[k] for d in dicts]) for k in dicts[0]}
-
-    faults = [t.rod_fault_mm for t in parts]
-    rod_fault = None if all(f is None for f in faults) else cat(
-        [np.full(np.shape(t.rod_mm), np.nan) if f is None else f for t, f in zip(parts, faults)])
-    return Truth(
-        rod_mm=cat([t.rod_mm for t in parts]), surface_deg=cat([t.surface_deg for t in parts]),
-        current_mA=cat([t.current_mA for t in parts]), fault=cat([t.fault for t in parts]),
-        onset_s=cat([t.onset_s for t in parts]), magnitude=cat([t.magnitude for t in parts]),
-        flight={k: cat([t.flight[k] for t in parts]) for k in parts[0].flight},
-        aircraft=series("aircraft"), surfaces_deg=series("surfaces_deg"),
-        rod_fault_mm=rod_fault)
 
 
 @dataclass(frozen=True)
@@ -504,6 +571,14 @@ class AircraftPlant:
                  pressure_sensor: bool = False) -> tuple[Signals, Truth]:
         return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
                                  aircraft_sensors=self.aircraft_sensors)
+
+    def simulate_signals(self, runs: pd.DataFrame, *, ts: float = TS_S,
+                         sensors: SensorParams = SENSORS,
+                         pressure_sensor: bool = False) -> Signals:
+        """The :class:`Signals` of :meth:`simulate` alone (no :class:`Truth` is built: a
+        learning set holds about half the memory)."""
+        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
+                                 aircraft_sensors=self.aircraft_sensors, truth=False)[0]
 
 
 def _warm_kernel() -> None:
