@@ -15,9 +15,11 @@ surfaces of the block inside, on contiguous float64 arrays. Bit for bit the same
   ``load_matrix @ [x; u]``) call the BLAS ``dgemv`` that ``numpy.matmul`` calls, with the
   arguments it passes (column-major, transposed), so the summation order is the library's.
 
-``sin``, ``cos`` and ``sqrt`` are the C library's, which NumPy's equal (checked with the
-others by :func:`available` on this machine before the kernel is first used: when any of
-them differs, or NumPy's BLAS cannot be found, the loop falls back to the NumPy reference).
+``sin``, ``cos`` and ``sqrt`` are the C library's: ``sqrt`` is correctly rounded in both,
+and :func:`available` checks on a sample that NumPy's ``sin`` and ``cos`` equal the C
+library's on this machine before the kernel is first used. When they differ, or NumPy's
+inner loops or BLAS cannot be found (another NumPy build), the loop falls back to the
+NumPy reference.
 """
 
 from __future__ import annotations
@@ -150,20 +152,6 @@ def _pow_scalar(loops, src, e, dst, m, scratch):
     scratch[3] = m
     scratch[4] = 8
     scratch[5] = 0
-    scratch[6] = 8
-    _call_loop(loops[3], loops[4], scratch.ctypes.data, scratch.ctypes.data + 24,
-               scratch.ctypes.data + 32, loops[5])
-
-
-@njit(nogil=True, cache=True, error_model="numpy")
-def _pow(loops, a, b, dst, m, scratch):
-    """dst[:m] = numpy.power(a[:m], b[:m])."""
-    scratch[0] = a.ctypes.data
-    scratch[1] = b.ctypes.data
-    scratch[2] = dst.ctypes.data
-    scratch[3] = m
-    scratch[4] = 8
-    scratch[5] = 8
     scratch[6] = 8
     _call_loop(loops[3], loops[4], scratch.ctypes.data, scratch.ctypes.data + 24,
                scratch.ctypes.data + 32, loops[5])
