@@ -96,6 +96,9 @@ def simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
     """The signals of plan *rows* (what a detector reads), with the kernels of
     ``settings.engine``; used for learning sets and benchmarks."""
     with kernels.use_engine(settings.engine):
+        signals_only = getattr(settings.plant, "simulate_signals", None)
+        if signals_only is not None:   # a plant that can skip the Truth (aircraft)
+            return signals_only(rows, ts=settings.ts, pressure_sensor=settings.pressure_sensor)
         return _simulate(rows, settings)[0]
 
 
@@ -241,13 +244,23 @@ def score(rows: pd.DataFrame, truth, detections: dict, settings: ChunkSettings,
 def evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:
     """Simulate, detect and score one chunk of runs; returns its result rows.
 
+    A plant with a ``batch_runs`` attribute (the aircraft plant) is simulated and scored
+    in blocks of at most that many runs, one after the other, so that a worker holds the
+    signals of one block only; the rows are those of the whole chunk (a run's result never
+    depends on its batch).
+
     Never raises for a bad run or a failing detector: those rows get ``status="error"``.
     A chunk whose simulation fails, or a detector that raises on a chunk, is retried run by
     run, so one bad run does not take the others of its chunk down with it. The kernels
     are those of ``settings.engine``.
     """
+    block = getattr(settings.plant, "batch_runs", None)
     with kernels.use_engine(settings.engine):
-        return _evaluate(rows, detectors, settings)
+        if block is None or len(rows) <= block:
+            return _evaluate(rows, detectors, settings)
+        # memory flat in the chunk size: the plant's signals of one block at a time
+        return pd.concat([_evaluate(rows.iloc[s:s + block], detectors, settings)
+                          for s in range(0, len(rows), block)], ignore_index=True)
 
 
 def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> pd.DataFrame:

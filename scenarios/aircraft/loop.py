@@ -35,13 +35,17 @@ surfaces' COM errors, then the aircraft sensor noise.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import types
 from dataclasses import dataclass, fields
 
 import numpy as np
 import pandas as pd
 
+from .. import kernels
 from ..acquisition import acquire, acquire_com, applied_current, quantize, sensor_draws
+from ..atmosphere import G0_MS2
 from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position
 from ..manoeuvres import elevator_trim_deg
@@ -49,10 +53,10 @@ from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import (RUN_COLUMNS, RUN_RANGES, aero_draws, flight_of, manoeuvre_sets,
                     plant_draws, run_streams, validate_runs)
 from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4_step
-from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
-from ..simulate import rod_measurement_fault, servo_provides
+from ..signals import AIRCRAFT_SIGNAL_UNITS, SIGNAL_UNITS, Signals, Truth
+from ..simulate import rod_measurement_fault, servo_provides, single_run
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
-from . import laws, lpv, pilot
+from . import kernel, laws, lpv, pilot
 from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
                    LAYOUT, AircraftSensorParams, surface_actuator)
 
@@ -216,8 +220,68 @@ class AircraftTrajectory:
     spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
 
 
-def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
-    """The closed-loop time loop, vectorised over runs and surfaces."""
+def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS,
+                       engine: str | None = None) -> AircraftTrajectory:
+    """The closed-loop time loop: the compiled block kernel of :mod:`.kernel` with *engine*
+    ``"compiled"`` (default: :func:`scenarios.kernels.current_engine`) where it can run bit
+    for bit (:func:`.kernel.available`), else :func:`integrate_reference`."""
+    if kernels.resolve_engine(engine) == "compiled" and kernel.available():
+        return _integrate_compiled(p, sensors)
+    return integrate_reference(p, sensors)
+
+
+def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftTrajectory:
+    """:func:`integrate_reference` through :func:`.kernel.integrate_block` (same numbers)."""
+    n, T, m = p.n, p.T, p.monitored
+    n_s = len(p.acts)
+    pl, fa = p.plant, p.faults
+    act_m = p.acts[m]
+    run_margin = FAULT_DEFAULTS.runaway_margin_deg
+    trim_rad = np.radians(p.trim_deg)
+    x = np.clip(pl.r_mm * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
+    delta = np.arcsin(x / pl.r_mm)
+    empty = np.zeros((0, 0))
+
+    def c(a, dtype=float):
+        return np.ascontiguousarray(a, dtype=dtype)
+
+    def opt(a):
+        return empty if a is None else c(a)
+
+    g, lp = p.gains, p.law_params
+    gains = c(np.stack([np.broadcast_to(np.asarray(getattr(g, f.name), float), (n,))
+                        for f in fields(laws.Gains)]))
+    law = np.array([np.radians(lp.bank_max_deg), lp.bank_gain, lp.roll_bandwidth,
+                    lp.yaw_damping, lp.sideslip_gain, lp.sideslip_integral, G0_MS2])
+    scal = np.array([p.ts, sensors.rod_quant_mm, act_m.r_mm, act_m.stop_min_deg - run_margin,
+                     act_m.stop_max_deg + run_margin, np.radians(act_m.stop_min_deg),
+                     np.radians(act_m.stop_max_deg),
+                     np.radians(AIRCRAFT_ACTUATORS["aileron"].delta_max_deg)])
+    flags = np.array([fa.com_add is not None, fa.com_osc is not None, fa.cur_add is not None,
+                      fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
+                      bool((fa.k_disc < NEVER).any())])
+    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T))
+    u_rec = np.empty((n, T)); sp_rec = np.empty((n, T))
+    kernel.integrate_block(
+        kernel.LOOPS, m, x, delta, c(trim_rad), c(p.trim_deg), c(p.lo_deg), c(p.hi_deg),
+        kernels.plant_matrix(pl), c(_PITCH), c(_ROLL), c(_YAW), c(_ELEVATORS, np.bool_),
+        c(p.step_matrix), c(p.load_matrix), gains, law,
+        c(np.radians(p.flight_true["alpha_deg"])), c(p.nz_c), c(p.p_c), c(p.beta_c),
+        c(p.gust_alpha), c(p.gust_beta), c(p.ac_noise), c(p.com_scale), c(p.com_bias),
+        c(p.com_noise), opt(fa.com_add), opt(fa.com_osc), c(fa.k_osc, np.int64),
+        opt(fa.cur_add), opt(fa.cur_force), c(fa.k_jam, np.int64), c(fa.jam_offset),
+        c(fa.k_disc, np.int64), flags, c(p.ramp_deg), scal,
+        rods, surf, states, meas_rec, xs, icmd, iapp, u_rec, sp_rec)
+    return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
+                              u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
+                              spoiler=sp_rec)
+
+
+def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
+    """The closed-loop time loop in NumPy, vectorised over runs and surfaces (the reference
+    of the compiled kernel, :mod:`.kernel`)."""
     n, T, ts, m = p.n, p.T, p.ts, p.monitored
     n_s = len(p.acts)
     pl, fa = p.plant, p.faults
@@ -332,11 +396,132 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
                       pressure_sensor: bool = False,
                       turbulence: DrydenParams | None = MODERATE,
                       law_params: laws.LawParams = laws.LAWS,
-                      aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS
-                      ) -> tuple[Signals, Truth]:
+                      aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS,
+                      truth: bool = True) -> tuple[Signals, Truth | None]:
     """Simulate every run of *runs* with the aircraft in the loop (one monitored surface and
     one duration per call); returns (:class:`Signals`, :class:`Truth`) like
-    :func:`scenarios.simulate.simulate`."""
+    :func:`scenarios.simulate.simulate` (*truth* False: ``(Signals, None)``, for callers
+    that read the signals only, e.g. a learning set).
+
+    The runs are simulated in blocks of at most :attr:`AircraftPlant.batch_runs` (a run's
+    series never depend on its block), each written into the arrays of the whole batch as it
+    ends: the memory is that of the results plus the working set of one block."""
+    kw = dict(ts=ts, sensors=sensors, pressure_sensor=pressure_sensor, turbulence=turbulence,
+              law_params=law_params, aircraft_sensors=aircraft_sensors)
+    block = AircraftPlant.batch_runs
+    if len(runs) <= block:
+        return _simulate_block(runs, truth=truth, **kw)
+    n = len(runs)
+    sig_out = truth_out = None
+    sig_rest, truth_rest, faults = [], [], []
+    for start in range(0, n, block):
+        sig, tru = _simulate_block(runs.iloc[start:start + block], truth=truth, **kw)
+        rows = slice(start, start + sig.n_runs)
+        sig_out = _write(sig_out, _series_of_signals(sig), n, rows)
+        sig_rest.append(_per_run(sig, aircraft={}, rods={}, **dict.fromkeys(SIGNAL_UNITS)))
+        if tru is not None:
+            truth_out = _write(truth_out, _series_of_truth(tru), n, rows)
+            faults.append((rows, tru.rod_fault_mm))
+            truth_rest.append(_per_run(tru, rod_mm=None, surface_deg=None, current_mA=None,
+                                       aircraft={}, surfaces_deg={}, rod_fault_mm=None))
+        del sig, tru
+    signals = _signals_from(sig_rest, sig_out)
+    result = signals, (None if not truth else _truth_from(truth_rest, truth_out, faults, n))
+    _release_freed_memory()
+    return result
+
+
+def _release_freed_memory() -> None:
+    """Give the memory the blocks freed back to the system (glibc's ``malloc_trim``; nothing
+    elsewhere). The blocks' arrays (~1 MB each) come from the allocator's heaps, which keep
+    what is freed: measured on the learning set of ``chen-mc`` (300 runs on two threads),
+    the process held 790 MB after it without the trim, 594 MB with it."""
+    trim = getattr(_LIBC, "malloc_trim", None)
+    if trim is not None:
+        trim(0)
+
+
+def _libc():
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    except OSError:  # pragma: no cover - not a glibc system
+        return None
+
+
+_LIBC = _libc()
+
+
+def _per_run(block, **dropped):
+    """*block* (Signals or Truth) without its (runs, steps) series: what stays of a block
+    once they are written into the batch arrays."""
+    return types.SimpleNamespace(**{**{f.name: getattr(block, f.name) for f in fields(block)},
+                                    **dropped})
+
+
+def _series_of_signals(sig: Signals) -> dict:
+    out = {name: getattr(sig, name) for name in SIGNAL_UNITS}
+    out.update({("aircraft", k): v for k, v in sig.aircraft.items()})
+    out.update({("rods", k): v for k, v in sig.rods.items()})
+    return out
+
+
+def _series_of_truth(tru: Truth) -> dict:
+    out = {name: getattr(tru, name) for name in ("rod_mm", "surface_deg", "current_mA")}
+    out.update({("aircraft", k): v for k, v in tru.aircraft.items()})
+    out.update({("surfaces_deg", k): v for k, v in tru.surfaces_deg.items()})
+    return out
+
+
+def _write(out: dict | None, series: dict, n: int, rows: slice) -> dict:
+    """Copy a block's (runs, steps) *series* into the batch arrays *out* (allocated at the
+    first block) at *rows*; the block's own arrays can then be freed."""
+    if out is None:
+        out = {k: np.empty((n,) + np.shape(v)[1:], dtype=np.asarray(v).dtype)
+               for k, v in series.items()}
+    for k, v in series.items():
+        out[k][rows] = v
+    return out
+
+
+def _signals_from(parts: list, series: dict) -> Signals:
+    """The batch's :class:`Signals`: the written *series*, the per-run data of the blocks."""
+    first = parts[0]
+    return Signals(
+        ts=first.ts, **{name: series[name] for name in SIGNAL_UNITS},
+        schedule={k: np.concatenate([p.schedule[k] for p in parts]) for k in first.schedule},
+        actuator=first.actuator, run_ids=np.concatenate([p.run_ids for p in parts]),
+        aircraft={k[1]: v for k, v in series.items() if k[0] == "aircraft"},
+        rods={k[1]: v for k, v in series.items() if k[0] == "rods"},
+    )
+
+
+def _truth_from(parts: list, series: dict, faults: list, n: int) -> Truth:
+    """The batch's :class:`Truth` (``rod_fault_mm`` NaN for the runs of a block without a
+    jam, as :func:`rod_measurement_fault` gives them; None when no block has a jam)."""
+    first = parts[0]
+    rod_fault = None
+    if any(f is not None for _, f in faults):
+        rod_fault = np.full(series["rod_mm"].shape, np.nan)
+        for rows, f in faults:
+            if f is not None:
+                rod_fault[rows] = f
+
+    def cat(name):
+        return np.concatenate([getattr(p, name) for p in parts])
+
+    return Truth(
+        rod_mm=series["rod_mm"], surface_deg=series["surface_deg"],
+        current_mA=series["current_mA"], fault=cat("fault"), onset_s=cat("onset_s"),
+        magnitude=cat("magnitude"),
+        flight={k: np.concatenate([p.flight[k] for p in parts]) for k in first.flight},
+        aircraft={k[1]: v for k, v in series.items() if k[0] == "aircraft"},
+        surfaces_deg={k[1]: v for k, v in series.items() if k[0] == "surfaces_deg"},
+        rod_fault_mm=rod_fault)
+
+
+def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbulence,
+                    law_params, aircraft_sensors, truth: bool) -> tuple[Signals, Truth | None]:
+    """:func:`simulate_aircraft` of one block of runs."""
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
                          law_params=law_params, aircraft_sensors=aircraft_sensors)
     traj = integrate_aircraft(p, sensors)
@@ -352,6 +537,8 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
         run_ids=runs["run_id"].astype(str).to_numpy(),
         aircraft=aircraft, rods={s: traj.rods[j] for j, s in enumerate(AIRCRAFT_SURFACES)},
     )
+    if not truth:
+        return signals, None
     truth = Truth(
         rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
         fault=runs["fault"].astype(str).to_numpy(),
@@ -380,6 +567,11 @@ class AircraftPlant:
     kind = "aircraft"
     #: runs on threads (no per-process state)
     needs_processes = False
+    #: runs simulated together at most (campaign.evaluate.evaluate cuts a larger chunk into
+    #: blocks): a run holds ~60 (n_steps,) float64 series while it is simulated (every
+    #: surface, the aircraft states and sensors, their noise), ~2.9 MB for 60 s at 100 Hz,
+    #: so a block of 25 holds ~70 MB where a chunk of 100 held ~290 MB (est.)
+    batch_runs = 25
 
     @property
     def surfaces(self) -> tuple[str, ...]:
@@ -403,3 +595,23 @@ class AircraftPlant:
                  pressure_sensor: bool = False) -> tuple[Signals, Truth]:
         return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
                                  aircraft_sensors=self.aircraft_sensors)
+
+    def simulate_signals(self, runs: pd.DataFrame, *, ts: float = TS_S,
+                         sensors: SensorParams = SENSORS,
+                         pressure_sensor: bool = False) -> Signals:
+        """The :class:`Signals` of :meth:`simulate` alone (no :class:`Truth` is built: a
+        learning set holds about half the memory)."""
+        return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
+                                 aircraft_sensors=self.aircraft_sensors, truth=False)[0]
+
+
+def _warm_kernel() -> None:
+    """Load (or compile) the aircraft kernel on a one-second run (kernels.warm_up)."""
+    if not kernel.available():
+        return
+    runs = single_run("aileron", "cruise", "disconnection", duration_s=1.0, onset_s=0.5)
+    runs["surface"] = DEFAULT_MONITORED["aileron"]
+    _integrate_compiled(prepare_aircraft(runs, turbulence=None), SENSORS)
+
+
+kernels.register_warmup(_warm_kernel, kernels=(kernel.integrate_block,))
