@@ -210,6 +210,14 @@ def test_a_single_run_cell_and_an_odd_count():
         assert plan["alt_ft"].nunique() == count
 
 
+def test_a_large_group_draws_as_many_points_as_it_needs():
+    """About 59 % of the default envelope box is realistic: 800 realistic runs need more
+    than 1 300 points of the sequence, which the design draws by doubling its candidates."""
+    plan = build_plan(config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"],
+                               "count": 800}]))
+    assert len(plan) == 800 and plan["realistic"].all() and plan["alt_ft"].is_unique
+
+
 def test_all_manoeuvres():
     cfg = config([{"name": "ff", "fault": "none", "manoeuvres": ["all"], "count": 2}])
     assert list(dict.fromkeys(build_plan(cfg)["manoeuvre"])) == list(MANOEUVRES)
