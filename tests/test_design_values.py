@@ -113,6 +113,7 @@ def test_golden_plan_without_the_realistic_rule():
 # ---- sampled values: ranges and scaling ------------------------------------------------------
 def test_columns_streams_and_cells(plan):
     assert tuple(plan.columns) == PLAN_COLUMNS
+    assert plan.index.equals(pd.RangeIndex(len(plan)))
     assert list(plan["stream"]) == list(range(len(plan)))
     assert (plan["seed"] == 5).all() and (plan["duration_s"] == 40.0).all()
     assert (plan["level"] == "mc").all() and (plan["point"] == -1).all()
@@ -216,6 +217,11 @@ def test_a_large_group_draws_as_many_points_as_it_needs():
     plan = build_plan(config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"],
                                "count": 800}]))
     assert len(plan) == 800 and plan["realistic"].all() and plan["alt_ft"].is_unique
+    # a box that is about 8 % realistic: 20 runs need two doublings of the first 80 points
+    box = {"alt_ft": [10000.0, 41000.0], "vcas_kt": [180.0, 240.0], "mass_t": [200.0, 242.0]}
+    plan = build_plan(config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"],
+                               "count": 20}], envelope=box))
+    assert len(plan) == 20 and plan["realistic"].all()
 
 
 def test_all_manoeuvres():
