@@ -56,7 +56,7 @@ def test_bad_values_name_the_first_offender():
     with pytest.raises(ValueError, match=r"values: 2 non-finite value\(s\) \(first at index 1: nan\)"):
         calibrate_threshold([1.0, np.nan, 2.0, np.inf], 1e-3)
     with pytest.raises(ValueError, match="values: negative value -0.5"):
-        calibrate_threshold([1.0, -0.5, 2.0], 1e-3)
+        calibrate_threshold([0.0, -0.5, 2.0], 1e-3)           # a zero is no offender
     with pytest.raises(ValueError, match="values: not an array of numbers"):
         calibrate_threshold(["a", "b"], 1e-3)
     with pytest.raises(ValueError, match=r"values: 1 value\(s\); at least 2"):
@@ -280,3 +280,19 @@ def test_leave_one_out_ratios_with_ties_zeros_and_a_floor():
     for bad in (np.zeros((1, 3)), np.zeros(4)):
         with pytest.raises(ValueError, match=r"maxima must be \(n_runs ≥ 2, n_checks\)"):
             leave_one_out_ratios(bad)
+
+
+# ---- the declared parameters: open ranges -------------------------------------------------------
+@pytest.mark.parametrize("name, good, bad", [
+    ("target_fa_per_run", (1e-9, 0.05, 0.0999), (0.0, 0.1)),
+    ("threshold_confidence", (0.500001, 0.9, 0.999999), (0.5, 1.0)),
+])
+def test_threshold_parameters_are_open_intervals(name, good, bad):
+    """docs/thresholds.md: target_fa_per_run in (0, 0.1), threshold_confidence in (0.5, 1)."""
+    from detectors import make_detector
+
+    for value in good:
+        assert make_detector("position-monitor", {name: value}).get_params()[name] == value
+    for value in bad:
+        with pytest.raises(ValueError, match=name):
+            make_detector("position-monitor", {name: value})
