@@ -107,7 +107,8 @@ class Calibration:
     shape, scale : ``"gpd"``: ξ and σ of the fitted tail (maximum likelihood, ξ in
         :data:`SHAPE_RANGE`); NaN otherwise
     estimate : ``"gpd"``: the point estimate τ̂ of the (1 − p)-quantile (the threshold is
-        its upper confidence bound); ``"order-statistic"``: the threshold; NaN otherwise
+        its upper confidence bound); ``"order-statistic"``: the threshold; ``"per-class"``:
+        the largest class estimate (NaN when no class has one); NaN otherwise
     gof_pvalue : ``"gpd"``: Kolmogorov–Smirnov p-value of the excesses against the fitted
         model (indicative only: the parameters come from the same data, so it is
         optimistic); NaN otherwise
@@ -239,9 +240,13 @@ def calibrate_threshold(values, target_fa_per_run: float, confidence: float = 0.
     note = (f"largest of {len(parts)} class thresholds ({best[0]!r}, {best[1].method})"
             + (f"; not supported for class(es) {', '.join(map(repr, unsupported))}"
                if unsupported else ""))
+    # the largest class estimate; a class without one (NaN, "max-factor") is left out, so
+    # the result does not depend on where that class sorts
+    estimate = max((cal.estimate for _, cal in parts if not math.isnan(cal.estimate)),
+                   default=math.nan)
     return Calibration(threshold=best[1].threshold, method="per-class",
                        supported=not unsupported, target_fa_per_run=p, confidence=c,
-                       n=int(x.size), estimate=max(cal.estimate for _, cal in parts),
+                       n=int(x.size), estimate=estimate,
                        largest=float(x.max()), note=note, per_class=tuple(parts))
 
 
