@@ -103,7 +103,7 @@ def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> N
         bad = ~np.isfinite(v) | (v < lo) | (v > hi)
         if bad.any():
             errors.append(f"{col}: {int(bad.sum())} value(s) outside [{lo:g}, {hi:g}] "
-                          f"{RUN_COLUMNS[col][0]} (first: {v[bad][0]!r})")
+                          f"{RUN_COLUMNS[col][0]} (first: {float(v[bad][0])!r})")
     if runs["surface"].nunique() > 1 or runs["duration_s"].nunique() > 1:
         errors.append("a batch must share one surface and one duration_s; split it first")
     fault = runs["fault"].astype(str).to_numpy()
@@ -113,7 +113,7 @@ def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> N
     bad_onset = faulty & (~np.isfinite(onset) | (onset < 0) | (onset >= dur))
     if bad_onset.any():
         errors.append(f"onset_s: {int(bad_onset.sum())} faulty run(s) with an onset outside "
-                      f"[0, duration_s) (first: {onset[bad_onset][0]!r} s)")
+                      f"[0, duration_s) (first: {float(onset[bad_onset][0])!r} s)")
     needs = np.array([required_magnitude(f) for f in fault])
     bad_mag = needs & ~np.isfinite(runs["magnitude"].to_numpy(float))
     if bad_mag.any():
@@ -129,7 +129,7 @@ def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> N
         bad_start = ~np.isnan(start) & ~((start >= 0) & (start < dur))
         if bad_start.any():
             errors.append(f"manoeuvre_start_s: {int(bad_start.sum())} run(s) with a start "
-                          f"outside [0, duration_s) (first: {start[bad_start][0]!r} s)")
+                          f"outside [0, duration_s) (first: {float(start[bad_start][0])!r} s)")
     if "manoeuvre_set" in runs.columns:
         bad = sorted(set(runs["manoeuvre_set"].astype(str)) - set(MANOEUVRE_SETS))
         for value in bad:

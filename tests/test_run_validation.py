@@ -54,8 +54,9 @@ def table(*rows: dict) -> pd.DataFrame:
 
 
 def first_value(error: str) -> float:
-    """The first bad value an error message shows (a float, whatever its repr)."""
-    return float(re.search(r"first: (?:np\.float64\()?([-+\w.]+)", error).group(1))
+    """The first bad value an error message shows, written as a plain float (no NumPy repr)."""
+    assert "np." not in error, error
+    return float(re.search(r"first: ([-+\w.]+)", error).group(1))
 
 
 def errors_of(runs: pd.DataFrame) -> list[str]:
