@@ -4,8 +4,9 @@ docs/evidence.md, "Worst-case search (falsify)"; docs/design.md §8. A Monte Car
 can say "0 false alarms in n runs" and nothing stronger; validation practice for monitoring
 functions adds a global search for the fault-free run that comes closest to an alarm. Every
 run's margin m = max |r|/τ over its fault-free part (:func:`reports.metrics.score_runs`;
-m ≥ 1 is a false alarm) is the objective: the search maximises the margin of one detector
-(variant) over
+m ≥ 1: the threshold is exceeded, a false alarm when the detector's confirmation holds it,
+scored as ``false_alarm``) is the objective: the search maximises the margin of one
+detector (variant) over
 
 * the flight point (alt_ft, vcas_kt, mass_t, cg_pct) within the campaign's ``[envelope]``
   box (min … max of each list); with ``realistic_only`` a point outside the realistic
@@ -251,16 +252,27 @@ class FalsifyResult:
     errors: int
 
     @property
+    def false_alarms(self) -> int:
+        """Searched runs in which the detector raised an alarm (its own decision, with its
+        confirmation: a margin ≥ 1 that lasts less than the confirmation is no alarm)."""
+        return int(self.search["false_alarm"].sum())
+
+    @property
     def false_alarm(self) -> bool:
-        return bool(self.worst["margin"] >= 1.0)
+        return self.false_alarms > 0
 
 
-def _margins(results: pd.DataFrame, rows: pd.DataFrame, label: str) -> np.ndarray:
-    """Margin of *label* per row of *rows* (NaN for a run in error)."""
+def _scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
+    """Margin of *label* per row of *rows* (NaN for a run in error) and whether the
+    detector raised a false alarm in it (scored, :func:`reports.metrics.score_runs`;
+    False for a run in error)."""
     mine = results[results["detector"] == label].drop_duplicates("run_id")
     ok = mine["status"] == "ok"
     margin = pd.Series(np.where(ok, mine["margin"], np.nan), index=mine["run_id"])
-    return rows["run_id"].map(margin).to_numpy(float)
+    alarm = pd.Series(ok & mine["false_alarm"].fillna(False).astype(bool).to_numpy(),
+                      index=mine["run_id"])
+    return (rows["run_id"].map(margin).to_numpy(float),
+            rows["run_id"].map(alarm).fillna(False).to_numpy(bool))
 
 
 def check_label(config: CampaignConfig, label: str) -> None:
@@ -299,8 +311,9 @@ def worst_toml(config: CampaignConfig, runs: list[dict], *, label: str, note: st
     data = config.to_dict()
     data.pop("group")
     data["campaign"]["name"] = f"{config.campaign.name}-worst"
-    data["campaign"]["description"] = (f"the {len(runs)} fault-free runs of largest "
-                                       f"{label} margin found by fdd-campaign falsify")
+    data["campaign"]["description"] = (f"the {len(runs)} fault-free runs found by fdd-campaign "
+                                       f"falsify for {label}: its false alarms first, "
+                                       "then by largest margin")
     data["run"] = [{k: v for k, v in r.items() if v is not None} for r in runs]
     lines = [f"# {line}" for line in note.splitlines()] + [""]
     for sec, value in data.items():
@@ -362,10 +375,10 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
             results = evaluate_rows(setup, rows, detectors, log=log)
             if not state["done"]:
                 _check_variant(results, label, config)
-            margin = _margins(results, rows, label)
+            margin, alarm = _scores(results, rows, label)
             state["errors"] += int(np.isnan(margin).sum())
-            records.append(rows.assign(margin=margin, generation=strategy.generation,
-                                       phase=phase))
+            records.append(rows.assign(margin=margin, false_alarm=alarm,
+                                       generation=strategy.generation, phase=phase))
             state["done"] += len(rows)
             strategy.tell(batch, margin)
             if progress:
@@ -375,7 +388,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
             log(f"plain Monte Carlo of the same budget: {len(mc)} fault-free runs")
             results = evaluate_rows(setup, mc, detectors, log=log)
-            mc = mc.assign(margin=_margins(results, mc, label))
+            mc = mc.assign(margin=_scores(results, mc, label)[0])
             write_parquet(mc, out / "monte-carlo.parquet", config.to_json(), kind="falsify-mc",
                           detector=label)
             baseline = (float(np.nanmax(mc["margin"])), len(mc),
@@ -478,10 +491,12 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
     ranked = (search.dropna(subset=["margin"]).sort_values("margin", ascending=False,
                                                             kind="stable")
               .drop_duplicates("run_id"))
+    # the runs with a false alarm first (a regression corpus must hold them), then by margin
+    corpus = ranked.sort_values("false_alarm", ascending=False, kind="stable")
     if ranked.empty:
         raise FalsifyError(f"every run of the search failed for {label!r}; see "
                            f"{out / 'search.parquet'} and replay one with fdd-campaign show")
-    top = ranked.head(keep)
+    top = corpus.head(keep)
     runs = [{"group": SEARCH_GROUP, "manoeuvre": r["manoeuvre"], "fault": "none",
              **{c: float(r[c]) for c in FLIGHT_COLUMNS},
              "draws": {d: float(r[d]) for d in envelope.DRAW_COLUMNS},
@@ -495,8 +510,9 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
               if fitted_from is None else
               f"fdd-campaign run worst.toml --fitted-from {learned} --out DIR (the detectors\n"
               f"the search used, taken from {fitted_from})")
-    note = (f"The {len(runs)} fault-free runs of largest {label} margin found by\n"
-            f"fdd-campaign falsify (seed {seed}, budget {budget}); margins "
+    note = (f"The {len(runs)} fault-free runs found by fdd-campaign falsify (seed {seed},\n"
+            f"budget {budget}): those where {label} raised a false alarm first "
+            f"({int(top['false_alarm'].sum())}), then by largest margin; margins "
             f"{', '.join(f'{m:.6g}' for m in top['margin'])}.\n"
             f"Replay (same margins): {replay}.")
     (out / "worst.toml").write_text(worst_toml(config, runs, label=label, note=note))
@@ -504,4 +520,4 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
 
 
 #: Columns of search.parquet beside the run table's.
-SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "generation", "phase")
+SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "false_alarm", "generation", "phase")

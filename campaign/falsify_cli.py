@@ -70,8 +70,13 @@ def cmd_falsify(args) -> int:
     if result.errors:
         print(f"runs in error (not scored): {result.errors}")
     print(f"worst margin found by the search: {w['margin']:.6g} (run {w['run_id']}, "
-          f"{w['manoeuvre']}, generation {int(w['generation'])})"
-          + ("  FALSE ALARM" if result.false_alarm else ""))
+          f"{w['manoeuvre']}, generation {int(w['generation'])})")
+    above = int((result.search["margin"] >= 1.0).sum())
+    print(f"false alarms raised by {result.label}: {result.false_alarms} of "
+          f"{len(result.search)} searched runs"
+          + ("  FALSE ALARM (the first runs of worst.toml)" if result.false_alarm else "")
+          + (f"; {above - result.false_alarms} more above the threshold for less than the "
+             "detector's confirmation" if above > result.false_alarms else ""))
     base = result.baseline_margin
     print(f"worst margin of {result.baseline_source}: "
           + (f"{base:.6g}" if math.isfinite(base) else "none scored"))
