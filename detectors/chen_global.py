@@ -477,7 +477,6 @@ class ChenGlobalEstimator(Detector):
         rho = np.clip(scheduling_vector(signals.schedule), lo, hi)
         A, B = self._model().matrices(rho)                          # (n, 4, 4), (n, 4, 6)
         d = self.design_
-        C = output_matrix()
         F = self._fault_matrix(A, B, d["column"])
         L1 = (-(F[:, :, :, None] * d["H_dagger"][None, None]).sum(axis=2)
               + d["Z1"] @ d["H_perp"])                              # (n, 4, 3), eq. 20

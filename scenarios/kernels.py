@@ -113,12 +113,14 @@ def plant_matrix(plant) -> np.ndarray:
 
 # ---- scalar plant functions (docs/physics.md §3; scenarios.servo holds the NumPy reference) --------
 @njit(nogil=True, cache=True, error_model="numpy")
-def _clip(v, lo, hi):
+def clip(v, lo, hi):
+    """v limited to [lo, hi] (a select: no branch)."""
     return min(max(v, lo), hi)
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _sign(v):
+def sign(v):
+    """np.sign of a scalar: ±1, and ±0 or NaN as they are."""
     if v > 0.0:
         return 1.0
     if v < 0.0:
@@ -143,7 +145,7 @@ def rod_rate_known(x, i, p, loaded, known, asin_x):
     if loaded:
         r = p[P_R]
         q = x / r
-        s = _clip(q, -0.999, 0.999)
+        s = clip(q, -0.999, 0.999)
         cos_d = math.sqrt(1.0 - s * s)
         a = asin_x if (known and s == q) else math.asin(s)
         hm = p[P_HM0] + p[P_HMD] * a                       # hinge moment [N·m]
@@ -152,8 +154,8 @@ def rod_rate_known(x, i, p, loaded, known, asin_x):
     else:
         f_aero = 0.0
         ka = 0.0
-    num = p[P_SDP] - _sign(i) * f_aero
-    num = _clip(num, 0.0, 2.0 * p[P_SDP])                    # stall at 0; aiding load capped
+    num = p[P_SDP] - sign(i) * f_aero
+    num = clip(num, 0.0, 2.0 * p[P_SDP])                    # stall at 0; aiding load capped
     v = v0 * math.sqrt(num / (p[P_SDPREF] + ka * v0 * v0))
     if x >= p[P_XMAX] and v > 0.0:                           # no motion further into a stop
         v = 0.0
@@ -178,7 +180,7 @@ def rk4_step_known(x, i, p, loaded, h, known, asin_x):
     k3 = rod_rate_1(x + 0.5 * h * k2, i, p, loaded)
     k4 = rod_rate_1(x + h * k3, i, p, loaded)
     x_new = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    return _clip(x_new, p[P_XMIN], p[P_XMAX])
+    return clip(x_new, p[P_XMIN], p[P_XMAX])
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
@@ -193,8 +195,8 @@ def float_step_1(delta, p, h, d_min, d_max):
     c = math.sqrt(abs(p[P_HMD]) / (ka_si * r_m ** 3.0 * cos_d ** 3.0))
     root = math.sqrt(abs(e)) - 0.5 * h * c
     m = max(root, 0.0)
-    e_new = _sign(e) * (m * m)
-    return _clip(d_f + e_new, d_min, d_max)
+    e_new = sign(e) * (m * m)
+    return clip(d_f + e_new, d_min, d_max)
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
@@ -220,7 +222,7 @@ def plant_rates(xs, cur, pf, r0, b, loaded, reuse, asin_x, s_buf, q_buf, a_buf, 
     for t in range(b):
         q = xs[t] / pf[P_R, r0 + t]
         q_buf[t] = q
-        s_buf[t] = _clip(q, -0.999, 0.999)
+        s_buf[t] = clip(q, -0.999, 0.999)
     for t in range(b):
         s = s_buf[t]
         if reuse and loaded[t] != 0.0 and s == q_buf[t]:
@@ -239,8 +241,8 @@ def plant_rates(xs, cur, pf, r0, b, loaded, reuse, asin_x, s_buf, q_buf, a_buf, 
         on = loaded[t] != 0.0
         f_aero = f_loaded if on else 0.0
         ka = pf[P_KA, r] if on else 0.0
-        num = pf[P_SDP, r] - _sign(i) * f_aero
-        num = _clip(num, 0.0, 2.0 * pf[P_SDP, r])
+        num = pf[P_SDP, r] - sign(i) * f_aero
+        num = clip(num, 0.0, 2.0 * pf[P_SDP, r])
         v = v0 * math.sqrt(num / (pf[P_SDPREF, r] + ka * v0 * v0))
         v = 0.0 if (x >= pf[P_XMAX, r] and v > 0.0) else v
         v = 0.0 if (x <= pf[P_XMIN, r] and v < 0.0) else v
@@ -276,7 +278,7 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
     i_prev = np.zeros(n)
     y_hold = np.zeros(n)
     for r in range(n):
-        x[r] = _clip(x0[r], plant[P_XMIN, r], plant[P_XMAX, r])  # trimmed: x(0) = order
+        x[r] = clip(x0[r], plant[P_XMIN, r], plant[P_XMAX, r])  # trimmed: x(0) = order
         delta[r] = math.asin(x[r] / plant[P_R, r])
     w = np.empty((_PLANT_WORK_ROWS, BLOCK))
     xb, cur, k1, k2, k3, k4, xst = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
@@ -288,7 +290,7 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
                 for t in range(b):
                     r = b0 + t
                     if k == k_jam[r] and jam_offset[r] != 0.0:
-                        xr = _clip(x[r] + jam_offset[r], plant[P_XMIN, r], plant[P_XMAX, r])
+                        xr = clip(x[r] + jam_offset[r], plant[P_XMIN, r], plant[P_XMAX, r])
                         x[r] = xr
                         delta[r] = math.asin(xr / plant[P_R, r])
             for t in range(b):
@@ -307,7 +309,7 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
                     osc = com_osc[r, k]
                     y = hold + (0.0 if osc != osc else osc) if k >= k_osc[r] else y
                 y_b[t] = y
-                i_new[t] = _clip(plant[P_K, r] * (u_loop[r, k] - y), -plant[P_IMAX, r],
+                i_new[t] = clip(plant[P_K, r] * (u_loop[r, k] - y), -plant[P_IMAX, r],
                                  plant[P_IMAX, r])
                 # applied current (applied_current)
                 i_app = i_prev[r]
@@ -340,7 +342,7 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
             for t in range(b):
                 r = b0 + t
                 x_new = xb[t] + (ts / 6.0) * (k1[t] + 2.0 * k2[t] + 2.0 * k3[t] + k4[t])
-                x_new = _clip(x_new, plant[P_XMIN, r], plant[P_XMAX, r])
+                x_new = clip(x_new, plant[P_XMIN, r], plant[P_XMAX, r])
                 xn[t] = xb[t] if (any_jam and k >= k_jam[r]) else x_new   # seized rod
             for t in range(b):
                 r = b0 + t
@@ -418,7 +420,7 @@ def loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, out):
     (packed: sqrt and division are exact IEEE operations, min/max/sign are selects, no
     branch)."""
     for t in range(b):
-        s_buf[t] = _clip(xs[t] / pf[P_R, r0 + t], -0.999, 0.999)
+        s_buf[t] = clip(xs[t] / pf[P_R, r0 + t], -0.999, 0.999)
     for t in range(b):
         a_buf[t] = math.asin(s_buf[t])
     for t in range(b):
@@ -431,8 +433,8 @@ def loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, out):
         hm = pf[P_HM0, r] + pf[P_HMD, r] * a_buf[t]           # hinge moment [N·m]
         f_aero = -hm / (pf[P_RM, r] * cos_d)                # rod force [N]
         ka = pf[P_KA, r]
-        num = pf[P_SDP, r] - _sign(i) * f_aero
-        num = _clip(num, 0.0, 2.0 * pf[P_SDP, r])
+        num = pf[P_SDP, r] - sign(i) * f_aero
+        num = clip(num, 0.0, 2.0 * pf[P_SDP, r])
         v = v0 * math.sqrt(num / (pf[P_SDPREF, r] + ka * v0 * v0))
         v = 0.0 if (x >= pf[P_XMAX, r] and v > 0.0) else v
         v = 0.0 if (x <= pf[P_XMIN, r] and v < 0.0) else v
@@ -485,7 +487,7 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work):
             xr = xj[r]
             x0[t] = xr
             cur[t] = ij[r]
-            i_new[t] = _clip(pf[P_K, r] * (u[r, k] - xr), -pf[P_IMAX, r], pf[P_IMAX, r])
+            i_new[t] = clip(pf[P_K, r] * (u[r, k] - xr), -pf[P_IMAX, r], pf[P_IMAX, r])
         loaded_rates(x0, cur, pf, r0, b, s_buf, a_buf, k1)
         for t in range(b):
             xs[t] = x0[t] + 0.5 * ts * k1[t]
@@ -499,7 +501,7 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work):
         for t in range(b):
             r = r0 + t
             x_new = x0[t] + (ts / 6.0) * (k1[t] + 2.0 * k2[t] + 2.0 * k3[t] + k4[t])
-            xj[r] = _clip(x_new, pf[P_XMIN, r], pf[P_XMAX, r])
+            xj[r] = clip(x_new, pf[P_XMIN, r], pf[P_XMAX, r])
             ij[r] = i_new[t]
 
 

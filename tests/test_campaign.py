@@ -1,7 +1,6 @@
 """The campaign engine end to end: plan, determinism across jobs and chunk sizes, resume
 after a kill, per-run errors, the gate and the command line."""
 
-import os
 import signal
 import subprocess
 import sys

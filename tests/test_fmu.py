@@ -3,7 +3,6 @@ cross-checked against the built-in Python plant, and the clear failures of bad F
 
 from __future__ import annotations
 
-import re
 import zipfile
 from pathlib import Path
 
@@ -18,7 +17,7 @@ from campaign.runner import ChunkSettings, run, run_chunk, settings_of
 from scenarios.catalog import FAULTS
 from scenarios.fmu import (_CACHE, FmuError, FmuRunError, FmuPlant, inspect_fmu, instance,
                            probe)
-from scenarios.fmu_build import build_servo_fmu, start_values
+from scenarios.fmu_build import start_values
 from scenarios.params import SENSORS
 from scenarios.plants import simulate
 from scenarios.simulate import integrate, prepare, single_run

@@ -13,7 +13,6 @@ from scipy.signal import cont2discrete, lfilter
 from scenarios.params import parameter_table
 from scenarios.turbulence import (
     MODERATE,
-    DrydenParams,
     _lagged_initial_state,
     _stationary_state_factor,
     dryden_filters,

@@ -32,7 +32,7 @@ import os
 import numpy as np
 
 from ..kernels import (HAVE_NUMBA, P_HM0, P_HMD, P_IMAX, P_K, P_KA, P_KCI, P_R, P_SDP,
-                       P_SDPREF, P_XMAX, P_XMIN, njit)
+                       P_SDPREF, P_XMAX, P_XMIN, clip, njit, sign)
 from .lpv import IB, IP, IPHI, IQ, IR, ITH
 
 __all__ = ["available", "integrate_block"]
@@ -158,25 +158,11 @@ def _pow_scalar(loops, src, e, dst, m, scratch):
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _clip(v, lo, hi):
-    return min(max(v, lo), hi)
-
-
-@njit(nogil=True, cache=True, error_model="numpy")
-def _sign(v):
-    if v > 0.0:
-        return 1.0
-    if v < 0.0:
-        return -1.0
-    return v
-
-
-@njit(nogil=True, cache=True, error_model="numpy")
 def _rod_rates(loops, xa, cur, plant, loaded, out, s, asn, scratch):
     """out = scenarios.servo.rod_rate(xa, cur, plant, loaded) for every row (docs/physics.md §3)."""
     m = xa.shape[0]
     for j in range(m):
-        s[j] = _clip(xa[j] / plant[j, P_R], -0.999, 0.999)
+        s[j] = clip(xa[j] / plant[j, P_R], -0.999, 0.999)
     _asin(loops, s, asn, m, scratch)
     for j in range(m):
         p = plant[j]
@@ -190,8 +176,8 @@ def _rod_rates(loops, xa, cur, plant, loaded, out, s, asn, scratch):
         else:
             f_aero = 0.0
             ka = 0.0
-        num = p[P_SDP] - _sign(i) * f_aero
-        num = _clip(num, 0.0, 2.0 * p[P_SDP])
+        num = p[P_SDP] - sign(i) * f_aero
+        num = clip(num, 0.0, 2.0 * p[P_SDP])
         v = v0 * math.sqrt(num / (p[P_SDPREF] + ka * v0 * v0))
         if xa[j] >= p[P_XMAX] and v > 0.0:
             v = 0.0
@@ -255,7 +241,6 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
     z_beta = np.zeros(n)
     pitch_clipped = np.zeros(n, dtype=np.bool_)
     da_prev = np.zeros(n)
-    meas = np.empty(8)
     order = np.empty(S)
     one = np.empty(1)
     one_out = np.empty(1)
@@ -273,7 +258,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             for i in range(n):
                 j = base + i
                 if k_jam[i] == k and jam_offset[i] != 0.0:
-                    xj = _clip(x[j] + jam_offset[i], plant[j, P_XMIN], plant[j, P_XMAX])
+                    xj = clip(x[j] + jam_offset[i], plant[j, P_XMIN], plant[j, P_XMAX])
                     if xj != x[j]:
                         one[0] = xj / plant[j, P_R]
                         _asin(loops, one, one_out, 1, scratch)
@@ -297,7 +282,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             y[j] = yi
         # measured elevator deflection from the COM rods
         for j in range(N):
-            sbuf[j] = _clip(y[j] / plant[j, P_R], -1.0, 1.0)
+            sbuf[j] = clip(y[j] / plant[j, P_R], -1.0, 1.0)
         _asin(loops, sbuf, abuf, N, scratch)
         for i in range(n):
             row = xu[i]
@@ -326,7 +311,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
                     n_el += 1
             de_meas = de_sum / n_el
             # laws (laws.step) and surface orders
-            nz_c = nz_c_in[i, k] + (1.0 / math.cos(_clip(mphi, -bank_max, bank_max)) - 1.0)
+            nz_c = nz_c_in[i, k] + (1.0 / math.cos(clip(mphi, -bank_max, bank_max)) - 1.0)
             p_c = p_c_in[i, k]
             dnz_p = mdnz - gains[6, i] * de_meas
             de = -gains[0, i] * dnz_p - gains[1, i] * mq - gains[2, i] * z_pitch[i]
@@ -334,7 +319,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             phi_ref[i] = phi_ref[i] + ts * p_c
             p_dem = p_c + bank_gain * (phi_ref[i] - mphi)
             da = (roll_bw * (p_dem - mp) - gains[3, i] * mp) / gains[4, i]
-            r_turn = g0 * math.sin(_clip(mphi, -bank_max, bank_max)) / gains[7, i]
+            r_turn = g0 * math.sin(clip(mphi, -bank_max, bank_max)) / gains[7, i]
             e_beta = mbeta - beta_c_in[i, k]
             dr = (-yaw_damp * (mr - r_turn) + beta_gain * e_beta
                   + beta_int * z_beta[i]) / gains[5, i]
@@ -343,13 +328,13 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             for s in range(S):
                 raw = trim_deg[s, i] + (pitch[s] * de + roll[s] * da + yaw[s] * dr) * (
                     180.0 / math.pi)
-                o = _clip(raw, lo_deg[s, i], hi_deg[s, i])
+                o = clip(raw, lo_deg[s, i], hi_deg[s, i])
                 if elevators[s] and o != raw:
                     clipped = True
                 order[s] = o
             pitch_clipped[i] = clipped
             u_rec[i, k] = r_m_act * math.sin(order[mon] * (math.pi / 180.0))
-            order[mon] = _clip(order[mon] + ramp_deg[i, k], run_lo, run_hi)
+            order[mon] = clip(order[mon] + ramp_deg[i, k], run_lo, run_hi)
             for s in range(S):
                 j = s * n + i
                 u_loop[j] = plant[j, P_R] * math.sin(order[s] * (math.pi / 180.0))
@@ -365,11 +350,11 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             meas_rec[6, i, k] = mny
             meas_rec[7, i, k] = mbeta
             sp_rec[i, k] = da_prev[i]
-            da_prev[i] = _clip(da, -roll_lim, roll_lim)   # the spoilers' order of the next period
+            da_prev[i] = clip(da, -roll_lim, roll_lim)   # the spoilers' order of the next period
         # servo-loops: currents
         for j in range(N):
             p = plant[j]
-            i_new = _clip(p[P_K] * (u_loop[j] - y[j]), -p[P_IMAX], p[P_IMAX])
+            i_new = clip(p[P_K] * (u_loop[j] - y[j]), -p[P_IMAX], p[P_IMAX])
             i_app[j] = i_prev[j]
             i_prev[j] = i_new
         for i in range(n):
@@ -405,7 +390,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
         _rod_rates(loops, xarg, i_app, plant, loaded, kk[3], sbuf, abuf, scratch)
         for j in range(N):
             xn = x[j] + (h / 6.0) * (kk[0, j] + 2.0 * kk[1, j] + 2.0 * kk[2, j] + kk[3, j])
-            x_next[j] = _clip(xn, plant[j, P_XMIN], plant[j, P_XMAX])
+            x_next[j] = clip(xn, plant[j, P_XMIN], plant[j, P_XMAX])
         if any_jam:
             for i in range(n):
                 if k >= k_jam[i]:
@@ -426,8 +411,8 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
                 c = math.sqrt(abs(p[P_HMD]) / (p[P_KA] * (_MM_PER_M ** 2.0) * rm3[i] * cos3[i]))
                 root = math.sqrt(abs(e)) - 0.5 * h * c
                 mx = max(root, 0.0)
-                e_f[i] = _sign(e) * (mx * mx)
-                floating[i] = _clip(d_f + e_f[i], d_min, d_max)
+                e_f[i] = sign(e) * (mx * mx)
+                floating[i] = clip(d_f + e_f[i], d_min, d_max)
                 if not loaded[j]:
                     delta_next[j] = floating[i]
         # advance the aircraft over [t_k, t_k+1): inputs of t_k held, the surfaces' motion
