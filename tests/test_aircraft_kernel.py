@@ -91,3 +91,16 @@ def test_blocks_of_runs_give_the_batch_results(monkeypatch):
             np.testing.assert_array_equal(getattr(truth, group)[k], v, err_msg=f"{group} {k}")
     # the blocks differ in their faults: a jam in one block only, NaN elsewhere
     assert np.isnan(truth.rod_fault_mm[0]).all() and np.isfinite(truth.rod_fault_mm[2, -1])
+
+
+def test_without_jit_the_aircraft_plant_runs_the_numpy_loop():
+    """NUMBA_DISABLE_JIT (debugging, mutation testing) leaves the compiled intrinsics without
+    an interpreted form: the plant must fall back to the NumPy loop, not crash."""
+    import subprocess
+    import sys
+
+    code = ("from scenarios.aircraft import kernel; from scenarios.aircraft.loop import "
+            "_warm_kernel; assert not kernel.available(); _warm_kernel(); print('ok')")
+    env = {**__import__("os").environ, "NUMBA_DISABLE_JIT": "1"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]

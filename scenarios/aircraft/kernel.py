@@ -432,12 +432,19 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
 
 def available() -> bool:
     """Whether the compiled aircraft loop can run bit-identical to the NumPy reference here:
-    numba, NumPy's inner loops and its BLAS found, and the C library's sin/cos equal
-    NumPy's on a sample (else the reference runs)."""
+    numba compiling (not ``NUMBA_DISABLE_JIT``: the inner-loop calls are compiled
+    intrinsics, which have no interpreted form), NumPy's inner loops and its BLAS found, and
+    the C library's sin/cos equal NumPy's on a sample (else the reference runs)."""
     global _CHECKED
     if _CHECKED is None:
-        _CHECKED = LOOPS is not None and _self_check()
+        _CHECKED = LOOPS is not None and _jit_enabled() and _self_check()
     return _CHECKED
+
+
+def _jit_enabled() -> bool:
+    from numba import config
+
+    return not config.DISABLE_JIT
 
 
 _CHECKED = None
