@@ -14,9 +14,9 @@ box; the random stream (sensor noise, turbulence, manoeuvre shape) changes a mar
    warm start (``--against DIR``) the campaign's worst fault-free runs are evaluated first,
    exactly as the campaign ran them (their stream, their drawn manoeuvre start).
 2. **Concentration** on the :data:`FOCUS_CELLS` cells of largest screened margin: one
-   CMA-ES each (after :data:`RACE_GENERATIONS` generations only the one whose cell holds
-   the largest margin found goes on) (Hansen and Ostermeier 2001, the ``cma`` package, ask/tell) in the unit cube
-   of the continuous dimensions (bounds kept by ``cma``'s bound transform), started at the
+   CMA-ES each (Hansen and Ostermeier 2001, the ``cma`` package, ask/tell; after
+   :data:`RACE_GENERATIONS` generations only the one whose cell holds the largest margin
+   found goes on) in the unit cube of the continuous dimensions (bounds kept by ``cma``'s bound transform), started at the
    cell's best screened run with step :data:`CMA_SIGMA0`, the stream held at that run's
    stream (a fixed stream makes the objective deterministic, so the evolution path follows
    the variables, not the noise). Each generation of every strategy is one batch of runs.
@@ -168,10 +168,7 @@ class Strategy:
             return
         for cell in cells[:n_focus]:
             i, _ = self._best_of_cell(cell)
-            x0 = np.array(self.points[i].unit, float)
-            if self.start_dim is not None and not math.isfinite(x0[self.start_dim]):
-                x0[self.start_dim] = self.warm_start.get(i, 0.5)
-            x0 = np.clip(x0, 0.0, 1.0)
+            x0 = np.clip(self._unit_of(i), 0.0, 1.0)
             state = np.random.get_state()    # cma seeds numpy's global generator: kept
             es = cma.CMAEvolutionStrategy(
                 x0, CMA_SIGMA0,
@@ -201,13 +198,18 @@ class Strategy:
     # ---- stream sweep -------------------------------------------------------------------
     def _polish(self) -> list[Point]:
         vals = [_value(m) for m in self.margins]     # the screening always comes first
-        best = self.points[int(np.argmax(vals))]
-        n = self.left()
-        unit = np.array(best.unit, float)
+        i = int(np.argmax(vals))
+        unit = self._unit_of(i)
+        streams = self.rng.integers(0, self.stream_span, self.left())
+        return [Point(tuple(unit), self.points[i].cell, int(s)) for s in streams]
+
+    def _unit_of(self, i: int) -> np.ndarray:
+        """Unit coordinates of evaluated point *i*, a manoeuvre start left to the model
+        (NaN, a warm point) replaced by the one it drew (*warm_start*, else mid-range)."""
+        unit = np.array(self.points[i].unit, float)
         if self.start_dim is not None and not math.isfinite(unit[self.start_dim]):
-            unit[self.start_dim] = self.warm_start.get(int(np.argmax(vals)), 0.5)
-        streams = self.rng.integers(0, self.stream_span, n)
-        return [Point(tuple(unit), best.cell, int(s)) for s in streams]
+            unit[self.start_dim] = self.warm_start.get(i, 0.5)
+        return unit
 
 
 def _value(margin: float) -> float:

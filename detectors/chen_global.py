@@ -565,10 +565,7 @@ class ChenGlobalEstimator(Detector):
         """b(t) = Σ_j k_j |w_j| [deg], (n_runs, n_steps): the bound the Table-2 errors put on
         the low-passed |f̂ − f| given the measured lateral activity (module docstring of
         :mod:`detectors.chen_global_uncertainty`); zeros without ``adaptive``."""
-        if not self.adaptive:
-            return np.zeros(signals.command.shape)
-        f_hat, w = self._recursion(signals, bounds=True)
-        return self._bound(w, signals.ts)
+        return self._components(signals)[1]
 
     def _bound(self, w: np.ndarray, ts: float) -> np.ndarray:
         k = np.asarray(self.error_bounds_, float)

@@ -13,8 +13,9 @@ FAULTS = ("none", "liquid_jam", "solid_jam", "disconnection", "runaway", "hardov
           "ofc_liquid", "ofc_solid")
 
 needs_kernel = pytest.mark.skipif(not kernel.available(),
-                                  reason="NumPy's inner loops or BLAS not found: the "
-                                         "reference runs instead")
+                                  reason="NumPy's inner loops or BLAS not found, or "
+                                         "NUMBA_DISABLE_JIT set: the NumPy reference runs "
+                                         "instead (tested there)")
 
 
 def _batch(surface, kind, manoeuvres=("cruise", "turn_coordination")):
