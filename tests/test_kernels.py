@@ -141,6 +141,9 @@ def test_engine_is_explicit_and_checked():
     assert kernels.current_engine() == "compiled"
 
 
+@pytest.mark.skipif(not kernels.HAVE_NUMBA
+                    or __import__("numba").core.config.DISABLE_JIT,
+                    reason="NUMBA_DISABLE_JIT set or numba missing: nothing is compiled")
 def test_warm_up_compiles_every_registered_kernel():
     calls = []
     kernels.register_warmup(lambda: calls.append(1))
