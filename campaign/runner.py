@@ -17,6 +17,7 @@ from __future__ import annotations
 import copy
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -100,18 +101,31 @@ def build_detectors(config) -> dict:
     return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
 
 
+#: Largest part of the learning set simulated at once [runs]: the parts are copied into the
+#: learning signals as they arrive, so the peak memory is the learning set plus a few parts.
+LEARNING_PART_RUNS = 50
+
+
 def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
                     submit=None, workers: int = 1) -> Signals:
     """Signals of every run of *plan* (used for the small learning set). *submit*
-    (an executor's ``submit``) runs the parts on *workers* threads, in parts of at most
-    *chunk_size* runs spread evenly over them; a run's signals never depend on its part."""
+    (an executor's ``submit``) runs the parts on *workers* threads. Parts hold at most
+    *chunk_size* and :data:`LEARNING_PART_RUNS` runs; a run's signals never depend on its
+    part, and each part is released once copied into the result (:meth:`Signals.concat`)."""
+    size = max(1, min(chunk_size, LEARNING_PART_RUNS))
     if submit is not None and workers > 1:
-        size = max(1, min(chunk_size, -(-len(plan) // workers)))
-        futures = [submit(simulate_signals, plan.iloc[s:s + size], settings)
-                   for s in range(0, len(plan), size)]
-        return Signals.concat([f.result() for f in futures])
-    return Signals.concat([simulate_signals(plan.iloc[start:start + chunk_size], settings)
-                           for start in range(0, len(plan), chunk_size)])
+        size = max(1, min(size, -(-len(plan) // workers)))
+        pending = deque(submit(simulate_signals, plan.iloc[s:s + size], settings)
+                        for s in range(0, len(plan), size))
+
+        def parts():
+            while pending:
+                yield pending.popleft().result()
+    else:
+        def parts():
+            for start in range(0, len(plan), size):
+                yield simulate_signals(plan.iloc[start:start + size], settings)
+    return Signals.concat(parts(), n_runs=len(plan))
 
 
 #: Learning runs the sampled batch-invariance check of third-party detectors uses

@@ -8,6 +8,7 @@ is time ``k·ts``. Per-run scheduling data are the *measured/estimated* values, 
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -155,22 +156,47 @@ class Signals:
         )
 
     @classmethod
-    def concat(cls, parts: list["Signals"]) -> "Signals":
-        """Stack batches of runs with the same time base."""
-        first = parts[0]
+    def concat(cls, parts, n_runs: int | None = None) -> "Signals":
+        """Stack batches of runs with the same time base.
+
+        *parts* is a list, or an iterator of batches as they arrive with *n_runs* their total
+        number of runs: each batch's series are then copied into the result as it is read,
+        and nothing keeps it, so the memory peaks at the result plus one batch instead of
+        twice the result (the learning set of an aircraft campaign holds about 1 MB per run).
+        """
+        if n_runs is None:
+            parts = list(parts)
+            n_runs = sum(p.n_runs for p in parts)
+        parts = iter(parts)
+        first = next(parts)
+
+        def empty(a):
+            return np.empty((n_runs,) + a.shape[1:], dtype=a.dtype)
+
+        series = {name: empty(getattr(first, name)) for name in SIGNAL_UNITS}
+        aircraft, rods = _map(first.aircraft, empty), _map(first.rods, empty)
+        small = []                      # per-run scalars: concatenated at the end (small)
+        start = 0
+        for part in itertools.chain([first], parts):
+            rows = slice(start, start + part.n_runs)
+            for name, out in series.items():
+                out[rows] = getattr(part, name)
+            for mine, theirs in ((aircraft, part.aircraft), (rods, part.rods)):
+                for k, out in (mine or {}).items():
+                    out[rows] = theirs[k]
+            small.append((part.schedule, part.run_ids, part.classes))
+            start += part.n_runs
+        if start != n_runs:
+            raise ValueError(f"Signals.concat: the batches hold {start} runs, not the "
+                             f"{n_runs} announced")
+        schedules, run_ids, classes = zip(*small)
         return cls(
-            ts=first.ts,
-            **{name: np.concatenate([getattr(p, name) for p in parts]) for name in SIGNAL_UNITS},
-            schedule={k: np.concatenate([p.schedule[k] for p in parts]) for k in first.schedule},
+            ts=first.ts, **series,
+            schedule={k: np.concatenate([sch[k] for sch in schedules]) for k in first.schedule},
             actuator=first.actuator,
-            run_ids=None if first.run_ids is None
-            else np.concatenate([p.run_ids for p in parts]),
-            aircraft=None if first.aircraft is None else
-            {k: np.concatenate([p.aircraft[k] for p in parts]) for k in first.aircraft},
-            rods=None if first.rods is None else
-            {k: np.concatenate([p.rods[k] for p in parts]) for k in first.rods},
-            classes=None if any(p.classes is None for p in parts)
-            else np.concatenate([p.classes for p in parts]),
+            run_ids=None if first.run_ids is None else np.concatenate(run_ids),
+            aircraft=aircraft, rods=rods,
+            classes=None if any(c is None for c in classes) else np.concatenate(classes),
         )
 
     def to_pandas(self, run: int = 0):

@@ -1,6 +1,8 @@
 """The aircraft-level closed loop (scenarios.aircraft.loop): stability over the realistic
 envelope, trim, and the aircraft response to faults that the laws counter."""
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -227,6 +229,29 @@ def test_monitored_surface_fills_actuator_fields_and_aircraft_signals():
     frame = sig.to_pandas(0)
     assert "nz [g]" in frame.columns and "rod_rudder [mm]" in frame.columns
     np.testing.assert_allclose(truth.surfaces_deg["left_elevator"], truth.surface_deg)
+
+
+def test_concat_streams_batches_into_the_same_signals_and_counts_them():
+    """Signals.concat reads an iterator of batches (the learning set as its parts arrive)
+    into the signals a list gives, bit for bit, including the aircraft and rod series and
+    string columns of different widths; a wrong announced total is refused."""
+    runs = pd.concat([_rows("left_elevator", "none", m, duration_s=5.0) for m in
+                      ("cruise", "turn_coordination", "nose_up")], ignore_index=True)
+    runs["stream"] = [0, 1, 2]
+    sig, _ = simulate(runs, plant="aircraft")
+    sig = replace(sig, classes=np.array(["cruise", "turn_coordination", "nose_up"]))
+    parts = [sig.take([0]), sig.take([1, 2])]
+    listed, streamed = Signals.concat(parts), Signals.concat(iter(parts), n_runs=3)
+    for name in ("command", "rod_com", "surface", "pressure"):
+        np.testing.assert_array_equal(getattr(streamed, name), getattr(listed, name))
+    for group in ("aircraft", "rods"):
+        for k, v in getattr(listed, group).items():
+            np.testing.assert_array_equal(getattr(streamed, group)[k], v)
+    np.testing.assert_array_equal(streamed.schedule["qbar_pa"], sig.schedule["qbar_pa"])
+    assert list(streamed.classes) == ["cruise", "turn_coordination", "nose_up"]
+    assert list(streamed.run_ids) == list(sig.run_ids)
+    with pytest.raises(ValueError, match="hold 3 runs, not the 4"):
+        Signals.concat(iter(parts), n_runs=4)
 
 
 def test_run_alone_equals_run_in_batch():
