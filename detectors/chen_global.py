@@ -88,6 +88,10 @@ from .base import Capabilities, Detection, Detector, confirm
 from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
+#: Steps whose inputs to the estimator's recursion are formed together (memory: a few
+#: series per run of this length instead of the whole run).
+TIME_WINDOW = 500
+
 #: Lateral states of [CHEN] eq. 25 (β stands for v_y), outputs and inputs, in array order.
 STATES = ("beta", "p", "r", "phi")
 OUTPUTS = ("phi", "p", "r")
@@ -444,16 +448,18 @@ class ChenGlobalEstimator(Detector):
         return AffineLateralModel(coef_A=m["coef_A"], coef_B=m["coef_B"], keep=m["keep"],
                                   residual=m["affine_residual"])
 
-    def inputs(self, signals: Signals) -> np.ndarray:
-        """u_b [deg], shape (6, n_runs, n_steps): rod deflections then the spoilers."""
+    def inputs(self, signals: Signals, steps: slice = slice(None)) -> np.ndarray:
+        """u_b [deg], shape (6, n_runs, len(steps)): rod deflections then the spoilers, over
+        the steps *steps* (default all)."""
         from scenarios.aircraft.data import surface_actuator
 
-        out = np.empty((len(INPUT_SURFACES) + 1,) + signals.command.shape)
+        spoiler = np.asarray(signals.aircraft[SPOILER], float)[:, steps]
+        out = np.empty((len(INPUT_SURFACES) + 1,) + spoiler.shape)
         for j, s in enumerate(INPUT_SURFACES):
             r = surface_actuator(s).r_mm
-            out[j] = np.degrees(np.arcsin(np.clip(np.asarray(signals.rods[s], float) / r,
-                                                  -1.0, 1.0)))
-        out[-1] = np.asarray(signals.aircraft[SPOILER], float)
+            out[j] = np.degrees(np.arcsin(np.clip(np.asarray(signals.rods[s], float)[:, steps]
+                                                  / r, -1.0, 1.0)))
+        out[-1] = spoiler
         return out
 
     def estimate(self, signals: Signals) -> np.ndarray:
@@ -502,16 +508,23 @@ class ChenGlobalEstimator(Detector):
         Gam = ex[:, :n_x, n_x:n_x + n_in]
         Gam_M = ex[:, :n_x, n_x + n_in:n_x + n_in + n_m]
         Gam1 = ex[:, :n_x, n_x + n_in + n_m:]
-        u = self.inputs(signals)
         y = np.stack([np.asarray(signals.aircraft[k], float) for k in OUTPUTS])   # (3, n, T)
-        uy = np.concatenate([u, y])
-        du = np.zeros_like(uy[ramp])
-        du[:, :, :-1] = np.diff(uy[ramp], axis=2)       # rods and aircraft sensors: ramps
-        drive = np.zeros((n_x, n, T))                   # Γ u_k + Γ1 (u_{k+1} − u_k), (4, n, T)
-        for j in range(n_in):                           # elementwise: batch-invariant
-            drive += Gam[:, :, j].T[:, :, None] * uy[j][None]
-        for j in range(n_r):
-            drive += Gam1[:, :, j].T[:, :, None] * du[j][None]
+        n_u = len(INPUT_SURFACES) + 1
+
+        def drive_of(u, a, b):
+            """Γ u_k + Γ1 (u_{k+1} − u_k) for k in [a, b), (4, n, b − a), *u* the inputs over
+            [a, b + 1): the rods and the aircraft sensors are ramps over the period. Formed a
+            window of steps at a time (elementwise: the window changes no bit of it)."""
+            uy = np.concatenate([u, y[:, :, a:b + 1]])
+            out = np.zeros((n_x, n, b - a))
+            for j in range(n_in):                       # elementwise: batch-invariant
+                out += Gam[:, :, j].T[:, :, None] * uy[j][None, :, :b - a]
+            du = np.zeros((n, b - a))
+            for i, j in enumerate(ramp):
+                du[:, :uy.shape[2] - 1] = np.diff(uy[j], axis=1)
+                out += Gam1[:, :, i].T[:, :, None] * du[None]
+            return out
+
         L2 = d["L2"]
         out = [STATES.index(o) for o in OUTPUTS]                    # C_b selects states
         xh = np.zeros((n_x, n))
@@ -521,9 +534,12 @@ class ChenGlobalEstimator(Detector):
         if bounds:
             Zx, Zu = signal_matrices(A, B)                          # (n, 5, 4), (n, 5, 6)
             n_s = Zx.shape[1]
-            z_u = np.zeros((n_s, n, T))                             # rods' part of z
-            for j in range(u.shape[0]):
-                z_u += Zu[:, :, j].T[:, :, None] * u[j][None]
+
+            def z_u_of(u, a, b):                                    # rods' part of z
+                out = np.zeros((n_s, n, b - a))
+                for j in range(n_u):
+                    out += Zu[:, :, j].T[:, :, None] * u[j][None, :, :b - a]
+                return out
             z_f = Zu[:, :, d["column"]].T                           # (5, n): per deg of f̂
             z_g = Zx[:, :, 0].T                                     # (5, n): per deg of β_g
             ZxT = np.transpose(Zx, (1, 2, 0))                       # (5, 4, n)
@@ -533,6 +549,13 @@ class ChenGlobalEstimator(Detector):
             C_L2 = np.zeros(n_x)
             C_L2[out] = L2[0]                                       # f̂ component of L2 C
         for k in range(T):
+            if k % TIME_WINDOW == 0:
+                window = slice(k, min(k + TIME_WINDOW, T))
+                u = self.inputs(signals, slice(k, window.stop + 1))
+                drive = drive_of(u, window.start, window.stop)
+                if bounds:
+                    z_u = z_u_of(u, window.start, window.stop)
+            kw = k - window.start
             innov = y[:, :, k] - xh[out]
             f_all = (L2[:, 0, None] * innov[0] + L2[:, 1, None] * innov[1]
                      + L2[:, 2, None] * innov[2])
@@ -540,13 +563,13 @@ class ChenGlobalEstimator(Detector):
             if bounds:
                 w[:, :, k] = (C_L2[None, :, None] * e).sum(axis=1)
                 xt = np.stack([xh[0], y[1, :, k], y[2, :, k], y[0, :, k]])   # [β̂, p, r, φ]
-                z = (ZxT * xt[None]).sum(axis=1) + z_u[:, :, k] + z_f * f_all[0]
+                z = (ZxT * xt[None]).sum(axis=1) + z_u[:, :, kw] + z_f * f_all[0]
                 if f_all.shape[0] > 1:                               # gust channel: β_a
                     z = z + z_g * f_all[1]
                 e = (PhiT[None] * e[:, None, :, :]).sum(axis=2) + GmT * z[:, None, :]
             # x̂_{k+1} needs u_{k+1}, y_{k+1} (ramps over the period): known at step k + 1,
             # before f̂_{k+1} is formed, so the recursion stays causal
-            xh = (PhiT * xh[None, :, :]).sum(axis=1) + drive[:, :, k]
+            xh = (PhiT * xh[None, :, :]).sum(axis=1) + drive[:, :, kw]
         return f_hat, (w if bounds else None)
 
     def _lowpass(self, x: np.ndarray, ts: float) -> np.ndarray:
@@ -568,8 +591,13 @@ class ChenGlobalEstimator(Detector):
         return self._components(signals)[1]
 
     def _bound(self, w: np.ndarray, ts: float) -> np.ndarray:
+        """Σ_j k_j |w_j| low-passed, accumulated one j at a time (the order of a sum over the
+        first axis: the same bits as summing the stacked terms)."""
         k = np.asarray(self.error_bounds_, float)
-        return (k[:, None, None] * np.abs(self._lowpass(w, ts))).sum(axis=0)
+        out = k[0] * np.abs(self._lowpass(w[0], ts))
+        for j in range(1, len(k)):
+            out += k[j] * np.abs(self._lowpass(w[j], ts))
+        return out
 
     def _components(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
         """(|f̂| low-passed, b(t)) [deg], both (n_runs, n_steps)."""

@@ -67,6 +67,20 @@ def _vertices(det):
     return det._vertices(det._model(), *det.schedule_box_, det.design_["column"])[0]
 
 
+def test_the_time_window_of_the_recursion_changes_no_bit(fitted, learning, monkeypatch):
+    """The estimator's inputs are formed TIME_WINDOW steps at a time (memory); a window that
+    does not divide the run, or one step, gives the bits of the whole run at once."""
+    import detectors.chen_global as cg
+
+    few = learning.take([0, 11])
+    monkeypatch.setattr(cg, "TIME_WINDOW", 10 ** 6)
+    whole = fitted._components(few)
+    for window in (997, 1):
+        monkeypatch.setattr(cg, "TIME_WINDOW", window)
+        for a, b in zip(fitted._components(few), whole):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_lateral_model_is_affine_in_the_scheduling_vector(fitted):
     # the fit is exact to round-off (1e-9 of the largest entry) over the whole envelope grid
     assert fitted.model_["affine_residual"] < 1e-9
