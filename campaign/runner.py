@@ -31,6 +31,7 @@ from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
 from reports.table import format_table
 from scenarios import kernels
+from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, build_learning_plan, build_plan
@@ -113,7 +114,8 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
     (an executor's ``submit``) runs the parts on *workers* threads. Parts hold at most
     *chunk_size* runs and the plant's ``batch_runs`` (else :data:`LEARNING_PART_RUNS`); a
     run's signals never depend on its part, and each part is released once copied into the
-    result (:meth:`Signals.concat`)."""
+    result (:meth:`Signals.concat`), its memory returned to the system
+    (:func:`scenarios.memory.release_freed_memory`)."""
     part = getattr(settings.plant, "batch_runs", None) or LEARNING_PART_RUNS
     size = max(1, min(chunk_size, part))
     if submit is not None and workers > 1:
@@ -123,12 +125,16 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
 
         def parts():
             while pending:
+                release_freed_memory()          # what the parts copied so far held
                 yield pending.popleft().result()
     else:
         def parts():
             for start in range(0, len(plan), size):
+                release_freed_memory()
                 yield simulate_signals(plan.iloc[start:start + size], settings)
-    return Signals.concat(parts(), n_runs=len(plan))
+    signals = Signals.concat(parts(), n_runs=len(plan))
+    release_freed_memory()
+    return signals
 
 
 #: Learning runs the sampled batch-invariance check of third-party detectors uses

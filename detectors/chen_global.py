@@ -592,11 +592,18 @@ class ChenGlobalEstimator(Detector):
 
     def _bound(self, w: np.ndarray, ts: float) -> np.ndarray:
         """Σ_j k_j |w_j| low-passed, accumulated one j at a time (the order of a sum over the
-        first axis: the same bits as summing the stacked terms)."""
+        first axis: the same bits as summing the stacked terms), each term formed in place
+        (*w* may be overwritten: the caller's own work array)."""
         k = np.asarray(self.error_bounds_, float)
-        out = k[0] * np.abs(self._lowpass(w[0], ts))
-        for j in range(1, len(k)):
-            out += k[j] * np.abs(self._lowpass(w[j], ts))
+        out = None
+        for j in range(len(k)):
+            term = self._lowpass(w[j], ts)
+            np.abs(term, out=term)
+            term *= k[j]
+            if out is None:
+                out = term
+            else:
+                out += term
         return out
 
     def _components(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
@@ -604,12 +611,16 @@ class ChenGlobalEstimator(Detector):
         if not self.adaptive:
             return np.abs(self._filtered(signals)), np.zeros(signals.command.shape)
         f_hat, w = self._recursion(signals, bounds=True)
-        return np.abs(self._lowpass(f_hat, signals.ts)), self._bound(w, signals.ts)
+        f_abs = self._lowpass(f_hat, signals.ts)
+        del f_hat
+        np.abs(f_abs, out=f_abs)
+        return f_abs, self._bound(w, signals.ts)
 
     def _excess(self, signals: Signals) -> np.ndarray:
         """|f̂| low-passed minus the activity bound b(t) [deg]: what τ0 must cover."""
         r, b = self._components(signals)
-        return r - b
+        r -= b
+        return r
 
     def _detect(self, signals: Signals) -> Detection:
         f_abs, b = self._components(signals)

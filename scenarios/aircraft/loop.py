@@ -35,8 +35,6 @@ surfaces' COM errors, then the aircraft sensor noise.
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import types
 from dataclasses import dataclass, fields
 
@@ -49,6 +47,7 @@ from ..atmosphere import G0_MS2
 from ..atmosphere import tas_ms as tas_from_mach
 from ..faults import FAULT_DEFAULTS, NEVER, fault_arrays, jam_onset_position
 from ..manoeuvres import elevator_trim_deg
+from ..memory import release_freed_memory
 from ..params import ELEVATOR, SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import (RUN_COLUMNS, RUN_RANGES, aero_draws, flight_of, manoeuvre_sets,
                     plant_draws, run_streams, validate_runs)
@@ -427,28 +426,8 @@ def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPa
         del sig, tru
     signals = _signals_from(sig_rest, sig_out)
     result = signals, (None if not truth else _truth_from(truth_rest, truth_out, faults, n))
-    _release_freed_memory()
+    release_freed_memory()
     return result
-
-
-def _release_freed_memory() -> None:
-    """Give the memory the blocks freed back to the system (glibc's ``malloc_trim``; nothing
-    elsewhere). The blocks' arrays (~1 MB each) come from the allocator's heaps, which keep
-    what is freed: measured on the learning set of ``chen-mc`` (300 runs on two threads),
-    the process held 790 MB after it without the trim, 594 MB with it."""
-    trim = getattr(_LIBC, "malloc_trim", None)
-    if trim is not None:
-        trim(0)
-
-
-def _libc():
-    try:
-        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-    except OSError:  # pragma: no cover - not a glibc system
-        return None
-
-
-_LIBC = _libc()
 
 
 def _per_run(block, **dropped):
