@@ -370,9 +370,9 @@ def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
     kernels.warm_up()
     seconds: dict[str, float] = {}
 
-    def timed(stage, func, *args, factor=1.0):
+    def timed(stage, func, *args, factor=1.0, **kwargs):
         t0 = time.thread_time()
-        out = func(*args)
+        out = func(*args, **kwargs)
         seconds[stage] = seconds.get(stage, 0.0) + factor * (time.thread_time() - t0)
         return out
 

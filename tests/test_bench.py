@@ -55,6 +55,25 @@ def test_print_stages_one_line_per_stage_and_a_total(smoke_costs):
     assert "total" in lines[-1]
 
 
+def test_stage_costs_of_an_aircraft_campaign_time_its_plant_as_one_stage(tmp_path):
+    """On a plant other than the built-in servo-loop (here the aircraft) the simulation is one
+    stage, timed with the campaign's sampling period and pressure sensor, scaled to the
+    plan like the others."""
+    campaign = tmp_path / "tiny-aircraft.toml"
+    campaign.write_text(
+        '[campaign]\nname = "tiny-aircraft"\nseed = 3\nsurface = "aileron"\n'
+        'duration_s = 20.0\ndesign = "mc"\n\n[plant]\nkind = "aircraft"\n'
+        'monitored_surface = "left_inboard_aileron"\n\n'
+        '[[group]]\nfault = "none"\nmanoeuvres = ["cruise"]\ncount = 4\n\n'
+        '[[detector]]\nname = "position-monitor"\n\n[learning]\nruns_per_manoeuvre = 1\n')
+    costs = stage_costs(str(campaign), sample_runs=2, learning_runs=6, imports=False)
+    names = [s["stage"] for s in costs["stages"]]
+    assert names[:2] == ["learning set: simulation", "fit position-monitor"]
+    assert "simulation" in names and "plant" not in names
+    assert costs["runs"] == 4 and costs["sampled_runs"] == 2
+    assert math.isclose(sum(s["share"] for s in costs["stages"]), 1.0, rel_tol=1e-12)
+
+
 def test_import_seconds_is_a_wall_time_of_a_fresh_interpreter():
     assert "campaign.runner" in RUN_IMPORTS
     seconds = import_seconds(modules=("json",))
