@@ -81,11 +81,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios import kernels
 from scenarios.params import param
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector, confirm
 from .calibrate import THRESHOLD_PARAMS, learned_threshold
+from .chen_global_kernel import recursion_window
 from .params import Param
 
 #: Steps whose inputs to the estimator's recursion are formed together (memory: a few
@@ -503,7 +505,7 @@ class ChenGlobalEstimator(Detector):
         if bounds:                                  # δ_g held over the period (ZOH)
             aug[:, :n_x, n_x + n_in:n_x + n_in + n_m] = M_g * ts
         aug[:, n_x + np.array(ramp), n_x + n_in + n_m + np.arange(n_r)] = 1.0
-        ex = np.stack([scipy.linalg.expm(a) for a in aug])          # once per run
+        ex = scipy.linalg.expm(aug)                 # once per run (batched, per matrix)
         Phi = ex[:, :n_x, :n_x]
         Gam = ex[:, :n_x, n_x:n_x + n_in]
         Gam_M = ex[:, :n_x, n_x + n_in:n_x + n_in + n_m]
@@ -548,28 +550,42 @@ class ChenGlobalEstimator(Detector):
             w = np.empty((n_s, n, T))
             C_L2 = np.zeros(n_x)
             C_L2[out] = L2[0]                                       # f̂ component of L2 C
-        for k in range(T):
-            if k % TIME_WINDOW == 0:
-                window = slice(k, min(k + TIME_WINDOW, T))
-                u = self.inputs(signals, slice(k, window.stop + 1))
-                drive = drive_of(u, window.start, window.stop)
-                if bounds:
-                    z_u = z_u_of(u, window.start, window.stop)
-            kw = k - window.start
-            innov = y[:, :, k] - xh[out]
-            f_all = (L2[:, 0, None] * innov[0] + L2[:, 1, None] * innov[1]
-                     + L2[:, 2, None] * innov[2])
-            f_hat[:, k] = f_all[0]
+        compiled = kernels.current_engine() == "compiled"
+        if compiled:
+            c = np.ascontiguousarray
+            PhiT, L2c, Gam_c, Gam1_c = c(PhiT), c(L2, dtype=float), c(Gam), c(Gam1)
+            ramp_c = np.asarray(ramp, dtype=np.int64)
             if bounds:
-                w[:, :, k] = (C_L2[None, :, None] * e).sum(axis=1)
-                xt = np.stack([xh[0], y[1, :, k], y[2, :, k], y[0, :, k]])   # [β̂, p, r, φ]
-                z = (ZxT * xt[None]).sum(axis=1) + z_u[:, :, kw] + z_f * f_all[0]
-                if f_all.shape[0] > 1:                               # gust channel: β_a
-                    z = z + z_g * f_all[1]
-                e = (PhiT[None] * e[:, None, :, :]).sum(axis=2) + GmT * z[:, None, :]
-            # x̂_{k+1} needs u_{k+1}, y_{k+1} (ramps over the period): known at step k + 1,
-            # before f̂_{k+1} is formed, so the recursion stays causal
-            xh = (PhiT * xh[None, :, :]).sum(axis=1) + drive[:, :, kw]
+                ZxT, GmT, Zu_c, z_f, z_g = c(ZxT), c(GmT), c(Zu), c(z_f), c(z_g)
+            else:                           # the kernel's unused arrays, empty
+                e = ZxT = GmT = np.zeros((0, n_x, n))
+                z_f = z_g = np.zeros((0, n))
+                Zu_c, C_L2, w = np.zeros((n, 0, 0)), np.zeros(n_x), np.zeros((0, n, T))
+        for a in range(0, T, TIME_WINDOW):
+            b = min(a + TIME_WINDOW, T)
+            u = self.inputs(signals, slice(a, b + 1))
+            if compiled:
+                recursion_window(y, u, a, b, xh, L2c, PhiT, Gam_c, Gam1_c, ramp_c, f_hat,
+                                 bounds, e, C_L2, ZxT, Zu_c, z_f, z_g, GmT, w)
+                continue
+            drive = drive_of(u, a, b)
+            z_u = z_u_of(u, a, b) if bounds else None
+            for k in range(a, b):                       # the NumPy reference
+                kw = k - a
+                innov = y[:, :, k] - xh[out]
+                f_all = (L2[:, 0, None] * innov[0] + L2[:, 1, None] * innov[1]
+                         + L2[:, 2, None] * innov[2])
+                f_hat[:, k] = f_all[0]
+                if bounds:
+                    w[:, :, k] = (C_L2[None, :, None] * e).sum(axis=1)
+                    xt = np.stack([xh[0], y[1, :, k], y[2, :, k], y[0, :, k]])  # [β̂, p, r, φ]
+                    z = (ZxT * xt[None]).sum(axis=1) + z_u[:, :, kw] + z_f * f_all[0]
+                    if f_all.shape[0] > 1:                           # gust channel: β_a
+                        z = z + z_g * f_all[1]
+                    e = (PhiT[None] * e[:, None, :, :]).sum(axis=2) + GmT * z[:, None, :]
+                # x̂_{k+1} needs u_{k+1}, y_{k+1} (ramps over the period): known at step
+                # k + 1, before f̂_{k+1} is formed, so the recursion stays causal
+                xh = (PhiT * xh[None, :, :]).sum(axis=1) + drive[:, :, kw]
         return f_hat, (w if bounds else None)
 
     def _lowpass(self, x: np.ndarray, ts: float) -> np.ndarray:

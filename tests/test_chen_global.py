@@ -81,6 +81,28 @@ def test_the_time_window_of_the_recursion_changes_no_bit(fitted, learning, monke
             np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("gust_channel", [True, False])
+def test_compiled_recursion_is_bit_identical_to_numpy(fitted, learning, gust_channel):
+    """The compiled step loop (detectors/chen_global_kernel.py) performs the NumPy loop's
+    operations in its order: f̂ and the uncertainty filters' responses w have the same bytes,
+    with the activity bound's filters and without, with the gust channel (two unknown
+    inputs) and without (one)."""
+    from scenarios import kernels
+
+    det = fitted if gust_channel else ChenGlobalEstimator(gust_channel=False).fit(learning)
+    few = learning.take([0, 5, 11])
+    for bounds in (True, False):
+        with kernels.use_engine("numpy"):
+            ref = det._recursion(few, bounds)
+        with kernels.use_engine("compiled"):
+            fast = det._recursion(few, bounds)
+        assert fast[0].tobytes() == ref[0].tobytes()
+        if bounds:
+            assert fast[1].tobytes() == ref[1].tobytes()
+            assert np.abs(ref[1]).max() > 0.0       # the filters were driven
+        assert np.abs(ref[0]).max() > 0.0
+
+
 def test_lateral_model_is_affine_in_the_scheduling_vector(fitted):
     # the fit is exact to round-off (1e-9 of the largest entry) over the whole envelope grid
     assert fitted.model_["affine_residual"] < 1e-9
