@@ -98,10 +98,10 @@ def test_filter_threshold_uses_the_given_initial_bound():
     assert filter_threshold(lam, 0.5, 2, mu=3.0) == pytest.approx(1.3, rel=1e-12)
 
 
-@pytest.mark.parametrize("error", [-4e-7, 4e-7, -3.0, 3.0])
+@pytest.mark.parametrize("error", [-4e-7, 0.0, 4e-7, -3.0, 3.0])
 def test_loop_gain_keeps_the_side_of_the_error_under_load(error):
     # under a hinge load the rate differs between opening and closing the error, so the
-    # limit ẋ/(u − y) at u − y → 0 depends on the side it is taken from
+    # limit ẋ/(u − y) at u − y → 0 depends on the side it is taken from (u = y: the + side)
     y = 5.0
     p = plant_arrays(ELEVATOR, qbar_pa=np.array([POINT["qbar_pa"]]),
                      alpha_deg=np.array([POINT["alpha_deg"]]), mach=np.array([POINT["mach"]]))
@@ -304,6 +304,46 @@ def test_eq17_message_names_the_room_left_for_g_radius(learning):
     text = str(exc.value)
     assert f"{margin:.4f} at altitude {where['alt_ft']:g} ft" in text
     assert f"stays below 1 − |g^c| = {1.0 - abs(where['g_c']):.4f} there" in text
+
+
+def test_stability_margin_is_the_largest_eq17_value_on_the_documented_grid():
+    """[COMB] eq. 17 over 31 deflections spanning the authority × 41 loop errors spanning
+    ±max_error, at one flight point, by brute force with γ of eq. 2 at each grid node."""
+    import pandas as pd
+
+    from scenarios import envelope
+    from scenarios.servo import authority_limits
+
+    point = pd.DataFrame({"alt_ft": [10000.0], "vcas_kt": [250.0], "mass_t": [200.0],
+                          "cg_pct": [30.0]})
+    kappa, max_err = (0.02, 0.02, 0.06), 2.0
+    margin, where = stability_margin(kappa, ELEVATOR, TS, max_err, points=point)
+    fc = envelope.flight_condition(10000.0, 250.0, 200.0, 30.0)
+    p = plant_arrays(ELEVATOR, qbar_pa=np.atleast_1d(fc["qbar_pa"]),
+                     alpha_deg=np.atleast_1d(fc["alpha_deg"]), mach=np.atleast_1d(fc["mach"]))
+    lo, hi = (float(v[0]) for v in authority_limits(p, ELEVATOR))
+    best = -1.0
+    for j in range(31):
+        y = ELEVATOR.r_mm * math.sin(math.radians(lo + (hi - lo) * j / 30))
+        for i in range(41):
+            e = -max_err + 2.0 * max_err * i / 40
+            gc = 1.0 - loop_gain(np.array([y + e]), np.array([y]), p)[0] * TS
+            best = max(best, abs(gc) + min(0.02 + 0.02 * abs(e), 0.06))
+    # the grids' nodes are computed by np.linspace there: 1e-12 relative
+    assert margin == pytest.approx(best, rel=1e-12)
+    assert 0.8 < margin < 1.0
+    assert where["alt_ft"] == 10000.0 and where["vcas_kt"] == 250.0
+    assert (where["deflection_deg"] - lo) / (hi - lo) * 30 == pytest.approx(
+        round((where["deflection_deg"] - lo) / (hi - lo) * 30), abs=1e-9)
+    assert (where["error_mm"] + max_err) / (2 * max_err) * 40 == pytest.approx(
+        round((where["error_mm"] + max_err) / (2 * max_err) * 40), abs=1e-9)
+    assert where["g_c"] + where["g_r"] == pytest.approx(margin, rel=1e-12)
+
+
+def test_the_shortest_window_is_two_steps():
+    IntervalDetector(q_max=2).validate_params()
+    with pytest.raises(ValueError, match="q_max"):
+        IntervalDetector(q_max=1).validate_params()
 
 
 def test_default_window_is_the_documented_three_seconds():
