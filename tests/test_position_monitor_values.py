@@ -300,6 +300,22 @@ def test_a_nan_acquisition_makes_the_residual_nan(engine):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("checks", [("loop",), ("loop", "com_mon", "surface")])
+def test_a_nan_com_acquisition_makes_the_residual_nan(engine, checks):
+    sig = _decision_case()
+    rod = sig.rod_com.copy()
+    rod[1, 4] = np.nan
+    sig = replace(sig, rod_com=rod)
+    det = PositionMonitor(confirm_s=0.0, checks=checks, hinge_scale=(1.0, 1.0))
+    det.thresholds_mm_ = {"loop": 0.6, "com_mon": 0.2, "surface": 2.0}
+    det.learning_runs_ = 1
+    with use_engine(engine):
+        d = det.detect(sig)
+    assert np.isnan(d.residual[1, 4]) and not np.isnan(d.residual[1, 3])
+    assert not np.isnan(d.residual[0]).any()
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 def test_a_single_step_run_starts_the_model_at_the_rod(engine):
     sig = signals(np.full((2, 1), 5.0), np.full((2, 1), 5.0), command=np.zeros((2, 1)))
     det = PositionMonitor(confirm_s=0.0, checks=("loop", "com_mon"))
