@@ -13,13 +13,15 @@ fit's from the residual and plain loops, the decision's from a residual given by
 from __future__ import annotations
 
 import math
+from dataclasses import FrozenInstanceError, replace
 
 import numpy as np
 import pytest
 from scipy.stats import binom
 
-from detectors.comb_interval import (IntervalDetector, dead_zone, filter_threshold, g_radius,
-                                     loop_gain, stability_margin)
+from detectors.comb_interval import (NUMERICS, IntervalDetector, dead_zone, filter_threshold,
+                                     g_radius, loop_gain, moving_average_maxima,
+                                     power_law_bound, predictor_step, stability_margin)
 from scenarios.kernels import use_engine
 from scenarios.params import ELEVATOR
 from scenarios.servo import plant_arrays, rod_rate
@@ -98,6 +100,36 @@ def test_filter_threshold_uses_the_given_initial_bound():
     assert filter_threshold(lam, 0.5, 2, mu=3.0) == pytest.approx(1.3, rel=1e-12)
 
 
+def test_predictor_step_defaults_and_a_static_gain_centre():
+    # defaults h^c = 1, h^r = 0: x^c' = 0.8·1 + 0.2·3 = 1.4, x^r' = 0.85·0.2 + 0.05·2 = 0.27
+    xc, xr = predictor_step(1.0, 0.2, 3.0, 0.8, 0.05)
+    assert (xc, xr) == (pytest.approx(1.4, rel=1e-12), pytest.approx(0.27, rel=1e-12))
+    # h^c = 1.1: x^c' = 0.8 + 0.2·1.1·3 = 1.46; x^r' = 0.17 + 0.05·|1 − 3.3| = 0.285
+    xc, xr = predictor_step(1.0, 0.2, 3.0, 0.8, 0.05, 1.1)
+    assert (xc, xr) == (pytest.approx(1.46, rel=1e-12), pytest.approx(0.285, rel=1e-12))
+
+
+def test_moving_averages_start_at_the_first_sample():
+    # r = (1, −1, 1, −1): every window of 2 sums to 0, so λ_2 = 0 (a window starting before
+    # the run would see 1/2); windows of 3: |1|/3; of 4: 0
+    r = np.array([[1.0, -1.0, 1.0, -1.0]])
+    for engine in ENGINES:
+        with use_engine(engine):
+            assert moving_average_maxima(r, 4)[0] == pytest.approx([1.0, 0.0, 1 / 3, 0.0],
+                                                                    rel=1e-15, abs=0.0)
+
+
+@pytest.mark.parametrize("lam, floor", [((10.0, 4e-12), 1e-11), ((0.5, 2e-13), 5e-13)])
+def test_power_law_guards_an_excess_below_1e12_of_the_largest_lambda(lam, floor):
+    # β0 = min λ / 2; an excess λ_q − β0 below 1e-12·max λ (here λ_2 − β0 = λ_2/2) is raised
+    # to it before the logarithm; with two points the fit is exact: γ = ln(e2/e1)/ln 2
+    alpha, gamma, beta = power_law_bound(np.array(lam))
+    e1, e2 = lam[0] - lam[1] / 2, floor
+    assert gamma == pytest.approx(math.log(e2 / e1) / math.log(2.0), rel=1e-9)
+    assert alpha == pytest.approx(e1, rel=1e-9)
+    assert beta >= lam[1] / 2
+
+
 @pytest.mark.parametrize("error", [-4e-7, 0.0, 4e-7, -3.0, 3.0])
 def test_loop_gain_keeps_the_side_of_the_error_under_load(error):
     # under a hinge load the rate differs between opening and closing the error, so the
@@ -116,6 +148,24 @@ def test_loop_gain_keeps_the_side_of_the_error_under_load(error):
 #: so the side of γ's limit moves x^c; then measurements leaving the interval above and below
 U = np.array([[0.0, 2.0, 2.0, 2.0], [-1.0, 3.0, 3.0, 3.0]])
 Y = np.array([[0.0, 2.0 + 5e-7, 2.0, 2.5], [-1.0, 3.0 - 3e-7, -3.0, 0.0]])
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_predictor_over_more_runs_than_one_block(engine):
+    # BLOCK + 6 runs: the compiled kernel's second block holds the last 6 runs
+    from scenarios.kernels import BLOCK
+
+    reps = BLOCK // 2 + 3
+    u, y = np.tile(U, (reps, 1)), np.tile(Y, (reps, 1))
+    y = y + np.repeat(np.arange(reps) * 1e-3, 2)[:, None]
+    kappa, hr, x0r = (0.02, 0.03, 0.08), 0.05, 0.1
+    with use_engine(engine):
+        _, xc, xr = IntervalDetector(kappa=kappa, h_radius=hr, x0_radius_mm=x0r).predict(
+            signals(u, y))
+    for i in (0, BLOCK - 1, BLOCK, 2 * reps - 1):
+        want_c, want_r, _ = predict_by_hand(u[i], y[i], kappa, hr, x0r)
+        assert xc[i] == pytest.approx(want_c, rel=1e-12, abs=1e-15), i
+        assert xr[i] == pytest.approx(want_r, rel=1e-12, abs=1e-15), i
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -173,6 +223,17 @@ def test_threshold_schedule_is_indexed_by_step_then_constant(engine):
         d = det.detect(signals(np.zeros((1, 6)), np.zeros((1, 6))))["a=0.5"]
     assert d.residual[0] == pytest.approx([0.375, 0.75, 1.5, 1.5, 1.5, 1.5], rel=1e-15)
     np.testing.assert_array_equal(d.alarm[0], [False, False, True, True, True, True])
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_the_filter_starts_at_the_first_residual(engine):
+    # ε_0 = r_0 (Corollary 2), then ε_k = a·ε_{k−1} + (1 − a)·r_k: r = (2, 0, 0, 0), a = 0.5
+    # gives 2, 1, 0.5, 0.25; a negative residual gives the same |ε|
+    det = _decider(np.array([[2.0, 0.0, 0.0, 0.0], [-2.0, 0.0, 0.0, 0.0]]), [1.0, 1.0])
+    with use_engine(engine):
+        d = det.detect(signals(np.zeros((2, 4)), np.zeros((2, 4))))["a=0.5"]
+    assert d.residual == pytest.approx(np.tile([2.0, 1.0, 0.5, 0.25], (2, 1)), rel=1e-15)
+    assert d.alarm.all()                                       # over at step 0, latched
 
 
 def test_a_pole_without_threshold_is_refused():
@@ -322,13 +383,15 @@ def test_stability_margin_is_the_largest_eq17_value_on_the_documented_grid():
     p = plant_arrays(ELEVATOR, qbar_pa=np.atleast_1d(fc["qbar_pa"]),
                      alpha_deg=np.atleast_1d(fc["alpha_deg"]), mach=np.atleast_1d(fc["mach"]))
     lo, hi = (float(v[0]) for v in authority_limits(p, ELEVATOR))
-    best = -1.0
+    best, at = -1.0, None
     for j in range(31):
-        y = ELEVATOR.r_mm * math.sin(math.radians(lo + (hi - lo) * j / 30))
+        d = lo + (hi - lo) * j / 30
+        y = ELEVATOR.r_mm * math.sin(math.radians(d))
         for i in range(41):
             e = -max_err + 2.0 * max_err * i / 40
             gc = 1.0 - loop_gain(np.array([y + e]), np.array([y]), p)[0] * TS
-            best = max(best, abs(gc) + min(0.02 + 0.02 * abs(e), 0.06))
+            if abs(gc) + min(0.02 + 0.02 * abs(e), 0.06) > best:
+                best, at = abs(gc) + min(0.02 + 0.02 * abs(e), 0.06), (d, e, gc)
     # the grids' nodes are computed by np.linspace there: 1e-12 relative
     assert margin == pytest.approx(best, rel=1e-12)
     assert 0.8 < margin < 1.0
@@ -338,6 +401,9 @@ def test_stability_margin_is_the_largest_eq17_value_on_the_documented_grid():
     assert (where["error_mm"] + max_err) / (2 * max_err) * 40 == pytest.approx(
         round((where["error_mm"] + max_err) / (2 * max_err) * 40), abs=1e-9)
     assert where["g_c"] + where["g_r"] == pytest.approx(margin, rel=1e-12)
+    # where: the deflection, the order's error u − y and g^c of that node
+    assert (where["deflection_deg"], where["error_mm"], where["g_c"]) == pytest.approx(
+        at, rel=1e-12)
 
 
 def test_the_shortest_window_is_two_steps():
@@ -346,6 +412,38 @@ def test_the_shortest_window_is_two_steps():
         IntervalDetector(q_max=1).validate_params()
 
 
-def test_default_window_is_the_documented_three_seconds():
-    # docs/interval-detector.md parameter table: q̄ = 300 steps (3 s at the 10 ms FCC period)
-    assert IntervalDetector().q_max == 300
+def test_learning_runs_as_long_as_q_max_are_enough(learning):
+    det = IntervalDetector(threshold_method="max", q_max=T_LEARN, poles=(0.9,)).fit(learning)
+    assert det.lambda_q_.shape == (T_LEARN,)
+
+
+def test_the_sensor_read_as_y():
+    rod = np.array([[1.0, 2.0, 3.0]])
+    sig = signals(np.zeros((1, 3)), rod)
+    assert IntervalDetector(sensor="rod_mon").measurement(
+        replace(sig, rod_mon=rod + 0.5)) == pytest.approx(rod + 0.5, rel=0, abs=0)
+    assert IntervalDetector().measurement(sig) == pytest.approx(rod, rel=0, abs=0)
+    surface = replace(sig, surface=np.array([[0.0, 1.0, -2.0]]))          # deg
+    assert IntervalDetector(sensor="surface").measurement(surface) == pytest.approx(
+        ELEVATOR.r_mm * np.sin(np.radians([[0.0, 1.0, -2.0]])), rel=1e-15)
+    # the surface sensor is needed only when it is read
+    with pytest.raises(ValueError, match=r"sensor='surface'\) needs a surface position"):
+        IntervalDetector(sensor="surface").check_signals(sig)
+    IntervalDetector(sensor="rod_com").check_signals(sig)
+    with pytest.raises(ValueError, match="nominal actuator parameters"):
+        IntervalDetector().check_signals(replace(sig, actuator=None))
+
+
+def test_numerical_constants_are_frozen():
+    with pytest.raises(FrozenInstanceError):
+        NUMERICS.gain_eps_mm = 1.0
+
+
+def test_defaults_are_the_documented_ones():
+    # docs/detectors.md and docs/interval-detector.md parameter tables ([COMB] §4, Table 1
+    # for the poles, ς = 1.2; q̄ = 300 steps: 3 s at the 10 ms FCC period)
+    assert IntervalDetector().get_params() == {
+        "poles": (0.6, 0.8, 0.9, 0.95, 0.99), "safety": 1.2, "kappa": (0.02, 0.02, 0.06),
+        "h_radius": 0.0, "q_max": 300, "x0_radius_mm": 0.5, "sensor": "rod_com",
+        "use_power_law": False, "floor_mm": 1e-4, "threshold_method": "evt",
+        "target_fa_per_run": 1e-4, "threshold_confidence": 0.95, "threshold_tail": "light"}
