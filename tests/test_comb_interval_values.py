@@ -434,6 +434,11 @@ def test_the_sensor_read_as_y():
         IntervalDetector().check_signals(replace(sig, actuator=None))
 
 
+def test_repeated_poles_are_refused_by_the_parameter_check():
+    with pytest.raises(ValueError, match=r"poles = \[0\.9, 0\.9\]: 0\.9 repeated"):
+        IntervalDetector(poles=[0.9, 0.9]).validate_params()
+
+
 def test_numerical_constants_are_frozen():
     with pytest.raises(FrozenInstanceError):
         NUMERICS.gain_eps_mm = 1.0
