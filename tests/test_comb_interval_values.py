@@ -439,6 +439,14 @@ def test_repeated_poles_are_refused_by_the_parameter_check():
         IntervalDetector(poles=[0.9, 0.9]).validate_params()
 
 
+def test_a_single_pole_is_one_variant(learning):
+    det = IntervalDetector(poles=0.9, threshold_method="max", q_max=5)
+    det.validate_params()                                   # a single number is accepted
+    det.fit(learning)
+    assert list(det.thresholds_) == ["a=0.9"]
+    assert list(det.detect(learning)) == ["a=0.9"]
+
+
 def test_numerical_constants_are_frozen():
     with pytest.raises(FrozenInstanceError):
         NUMERICS.gain_eps_mm = 1.0
