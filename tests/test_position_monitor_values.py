@@ -316,12 +316,37 @@ def test_a_nan_com_acquisition_makes_the_residual_nan(engine, checks):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("hinge_scale", [(0.5, 2.0), (1.0, 1.0)])
+def test_loop_decision_away_from_zero_follows_the_band(engine, hinge_scale):
+    # the rod above the band, below it and inside it, with the band far from 0 mm
+    det = PositionMonitor(confirm_s=0.0, checks=("loop",), hinge_scale=hinge_scale)
+    det.thresholds_mm_ = {"loop": 0.4}
+    det.learning_runs_ = 1
+    outs = [model_by_hand(U, X0, s) for s in {1.0, *hinge_scale}]
+    lo, hi = np.minimum.reduce(outs), np.maximum.reduce(outs)
+    assert np.median(np.abs(hi)) > 1.0                        # the band is mostly away from 0
+    k = np.arange(12)
+    y = np.where(k % 3 == 0, hi + 0.2, np.where(k % 3 == 1, lo - 0.6, 0.5 * (lo + hi)))
+    y[:, 0] = X0
+    with use_engine(engine):
+        d = det.detect(signals(y, command=U))
+    want = np.where(k % 3 == 0, 0.5, np.where(k % 3 == 1, 1.5, 0.0))
+    want[0] = 0.0
+    # 0.2 and 0.6 mm over 0.4 mm, after the subtraction of band values of a few mm: 1e-9
+    assert d.residual == pytest.approx(np.tile(want, (3, 1)), rel=1e-9, abs=1e-9)
+    np.testing.assert_array_equal(d.alarm, np.tile(k >= 1, (3, 1)))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 def test_a_single_step_run_starts_the_model_at_the_rod(engine):
-    sig = signals(np.full((2, 1), 5.0), np.full((2, 1), 5.0), command=np.zeros((2, 1)))
     det = PositionMonitor(confirm_s=0.0, checks=("loop", "com_mon"))
     det.thresholds_mm_ = {"loop": 0.1, "com_mon": 0.1}
     det.learning_runs_ = 1
+    # first a run ending with the band at −20 mm, so a band left over from it would show
+    far = signals(np.full((2, 2), -20.0), command=np.full((2, 2), -20.0))
+    sig = signals(np.full((2, 1), 5.0), np.full((2, 1), 5.0), command=np.zeros((2, 1)))
     with use_engine(engine):
+        assert not det.detect(far).alarm.any()
         d = det.detect(sig)
     np.testing.assert_array_equal(d.residual, np.zeros((2, 1)))
     assert not d.alarm.any()
@@ -333,6 +358,14 @@ def test_detect_names_the_checks_without_threshold():
     det.learning_runs_ = 1
     with pytest.raises(ValueError, match=r"no learned threshold for check\(s\) \['loop'\]"):
         det.detect(signals(np.zeros((1, 4))))
+
+
+def test_a_campaign_accepts_the_monitor_as_an_online_detector():
+    from detectors.compat import offline_problems
+
+    # causal (docs/write-a-detector.md, Capabilities): an alarm at step k uses samples up to k
+    assert offline_problems({"position-monitor": PositionMonitor.capabilities}) == []
+    assert PositionMonitor.capabilities.needs_fit
 
 
 def test_defaults_are_the_documented_ones():
