@@ -368,6 +368,13 @@ def test_a_campaign_accepts_the_monitor_as_an_online_detector():
     assert PositionMonitor.capabilities.needs_fit
 
 
+def test_detect_before_fit_is_refused():
+    from detectors.base import NotFittedError
+
+    with pytest.raises(NotFittedError, match=r"PositionMonitor\.detect\(\) called before fit"):
+        PositionMonitor().detect(signals(np.zeros((1, 4))))
+
+
 def test_defaults_are_the_documented_ones():
     # docs/detectors.md parameter table of position-monitor
     assert PositionMonitor().get_params() == {
