@@ -328,13 +328,15 @@ def test_loop_decision_away_from_zero_follows_the_band(engine, hinge_scale):
     k = np.arange(12)
     y = np.where(k % 3 == 0, hi + 0.2, np.where(k % 3 == 1, lo - 0.6, 0.5 * (lo + hi)))
     y[:, 0] = X0
+    # the three runs repeated over more runs than one compiled block (BLOCK)
+    reps = BLOCK // 3 + 2
     with use_engine(engine):
-        d = det.detect(signals(y, command=U))
+        d = det.detect(signals(np.tile(y, (reps, 1)), command=np.tile(U, (reps, 1))))
     want = np.where(k % 3 == 0, 0.5, np.where(k % 3 == 1, 1.5, 0.0))
     want[0] = 0.0
     # 0.2 and 0.6 mm over 0.4 mm, after the subtraction of band values of a few mm: 1e-9
-    assert d.residual == pytest.approx(np.tile(want, (3, 1)), rel=1e-9, abs=1e-9)
-    np.testing.assert_array_equal(d.alarm, np.tile(k >= 1, (3, 1)))
+    assert d.residual == pytest.approx(np.tile(want, (3 * reps, 1)), rel=1e-9, abs=1e-9)
+    np.testing.assert_array_equal(d.alarm, np.tile(k >= 1, (3 * reps, 1)))
 
 
 @pytest.mark.parametrize("engine", ENGINES)
