@@ -79,12 +79,14 @@ TESTS: dict[str, tuple[str, ...]] = {
     "campaign/design.py": ("tests/test_design_values.py", "tests/test_run_table_properties.py",
                            "tests/test_config.py"),
     "detectors/calibrate.py": ("tests/test_calibrate_values.py", "tests/test_calibrate.py"),
-    "detectors/position_monitor.py": ("tests/test_position_monitor_band.py",
+    "detectors/position_monitor.py": ("tests/test_position_monitor_values.py",
+                                      "tests/test_position_monitor_band.py",
                                       "tests/test_decision_boundaries.py", "tests/test_kernels.py"),
     "scenarios/servo.py": ("tests/test_servo_physics.py", "tests/test_reference_physics.py"),
     "scenarios/kernels.py": ("tests/test_kernels.py", "tests/test_detector_kernels.py",
                              "tests/test_decision_boundaries.py"),
-    "detectors/comb_interval.py": ("tests/test_interval_detector.py",),
+    "detectors/comb_interval.py": ("tests/test_comb_interval_values.py",
+                                   "tests/test_interval_detector.py"),
 }
 #: cosmic-ray operators run (see the module docstring); every other operator is skipped.
 OPERATORS: tuple[str, ...] = (
