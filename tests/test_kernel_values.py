@@ -234,11 +234,11 @@ def test_numpy_rod_force_equals_the_documented_formula(row):
 
 
 # ---- block kernels against the scalar law ----------------------------------------------------
-def fields(n=9):
-    """Plant rows that differ run by run ((FIELD_ROWS, n), :func:`kernels.plant_fields`
-    layout), each a variant of :data:`ROW`."""
-    rows = np.tile(ROW, (n, 1))
-    rows[:, HM0] = 500.0 + 300.0 * np.arange(n)
+def fields(n=18):
+    """Plant rows that differ run by run, ROW-like (even runs) and LIGHT-like (odd runs),
+    and the same as (FIELD_ROWS, n) :func:`kernels.plant_fields`."""
+    rows = np.array([ROW if r % 2 == 0 else LIGHT for r in range(n)])
+    rows[:, HM0] += 30.0 * np.arange(n)
     rows[:, KCI] = 10.0 + 0.5 * np.arange(n)
     out = np.empty((kernels.FIELD_ROWS, n))
     out[:kernels.P_RM] = rows.T
@@ -246,33 +246,42 @@ def fields(n=9):
     return rows, out
 
 
+#: Rod positions [mm] and currents [mA] of a block starting at run 1: the LIGHT-like runs
+#: (even t) at and beyond both stops with currents into and away from them and beyond the
+#: ±0.999 clip; the ROW-like runs (odd t) stalled, capped and in between.
+BLOCK_X = np.array([100.0, -72.0, 100.0, -72.0, -100.0, 0.0, -100.0, 45.0, 119.9, 7.0,
+                    -119.9, 30.0, 100.0, -50.0, -100.0, 20.0, 99.0])
+BLOCK_I = np.array([0.05, -8.0, -2.0, 8.0, -0.05, -3.0, 2.0, -8.0, -0.5, 9.0, 0.5, 1.0,
+                    -0.05, 0.3, 0.05, -0.3, 1.0])
+B = BLOCK_X.size
+
+
 def test_loaded_rates_of_a_block_equal_the_rate_law():
     rows, pf = fields()
-    r0, b = 3, 5
-    xs = np.array([-119.9, -72.0, 0.0, 100.0, 45.0, 7.0])
-    cur = np.array([2.0, 8.0, -3.0, 1.0, -8.0, 9.0])
-    out = np.full(6, 7.0)
-    kernels.loaded_rates(xs, cur, pf, r0, b, np.empty(6), np.empty(6), out)
+    r0, b = 1, B - 1
+    out = np.full(B, 7.0)
+    kernels.loaded_rates(BLOCK_X, BLOCK_I, pf, r0, b, np.empty(B), np.empty(B), out)
     for t in range(b):
-        assert close(out[t], rate(xs[t], cur[t], rows[r0 + t], True)), t
+        assert close(out[t], rate(BLOCK_X[t], BLOCK_I[t], rows[r0 + t], True)), t
     assert out[b] == 7.0                                  # only the block is written
+    assert out[0] == 0.0 and out[2] < 0.0 and out[4] == 0.0 and out[6] > 0.0   # the stops
+    assert -1.0 < out[12] < 0.0 < out[14] < 1.0             # slow, away from them
 
 
 @pytest.mark.parametrize("reuse", [True, False])
 def test_plant_rates_of_a_block_equal_the_rate_law(reuse):
     rows, pf = fields()
-    r0, b = 2, 6
-    xs = np.array([-119.9, -72.0, 0.0, 100.0, 45.0, 7.0, 1.0])
-    cur = np.array([2.0, 8.0, -3.0, 1.0, -8.0, 9.0, 1.0])
-    loaded = np.array([1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 1.0])
-    angle = np.arcsin(np.clip(xs / rows[r0:r0 + 7, R], -0.999, 0.999)) + 0.01
-    out = np.full(7, 7.0)
-    kernels.plant_rates(xs, cur, pf, r0, b, loaded, reuse, angle, np.empty(7), np.empty(7),
-                        np.empty(7), out)
+    r0, b = 1, B - 1
+    loaded = np.array([1.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0, 1.0, 1.0, 0.0,
+                       1.0, 1.0, 1.0])
+    angle = np.arcsin(np.clip(BLOCK_X / rows[r0:r0 + B, R], -0.999, 0.999)) + 0.01
+    out = np.full(B, 7.0)
+    kernels.plant_rates(BLOCK_X, BLOCK_I, pf, r0, b, loaded, reuse, angle, np.empty(B),
+                        np.empty(B), np.empty(B), out)
     for t in range(b):
-        inside = abs(xs[t] / rows[r0 + t, R]) <= 0.999
+        inside = abs(BLOCK_X[t] / rows[r0 + t, R]) <= 0.999
         a = angle[t] if (reuse and inside) else None
-        assert close(out[t], rate(xs[t], cur[t], rows[r0 + t], bool(loaded[t]), a)), t
+        assert close(out[t], rate(BLOCK_X[t], BLOCK_I[t], rows[r0 + t], bool(loaded[t]), a)), t
     assert out[b] == 7.0
 
 
@@ -499,6 +508,61 @@ def test_servo_band_propagates_a_nan_model_in_any_position(models):
         assert not np.isnan(lo[0]).any() and not np.isnan(hi[2]).any()
 
 
+# ---- a stop reached inside a step ---------------------------------------------------------
+def near_stops(rows, ts=0.01):
+    """x0 [mm] of two runs with the parameter rows *rows*, each 0.9·Ts·v_sat from a stop
+    (run 0 below the upper stop, run 1 above the lower), v_sat the saturated speed there.
+    With the current saturated towards the stop, RK4's last stage (x + Ts·k3) lies beyond
+    the stop, where the rate law gives 0, while x + Ts·(k1 + 2k2 + 2k3)/6 does not: the step
+    ends just inside the stop, not on it (docs/physics.md §3: the stops act on every
+    evaluation of the rate law)."""
+    x0 = np.empty(2)
+    for r, (stop, sgn) in enumerate(((rows[0, XMAX], 1.0), (rows[1, XMIN], -1.0))):
+        v = abs(rate(stop - sgn * 0.5, sgn * rows[r, IMAX], rows[r], True))
+        x0[r] = stop - sgn * 0.9 * ts * v
+    return x0
+
+
+def test_a_rod_reaching_its_stop_within_a_step_nominal_models():
+    pl = plant_arrays(ELEVATOR, qbar_pa=np.full(2, 3e3), alpha_deg=np.zeros(2),
+                      mach=np.full(2, 0.4))
+    rows = kernels.plant_matrix(pl)
+    x0 = near_stops(rows)
+    u = np.array([[rows[0, XMAX] + 50.0] * 4, [rows[1, XMIN] - 50.0] * 4])
+    assert (rows[:, K] * np.abs(u[:, 0] - x0) > rows[:, IMAX]).all()     # saturated
+    ref = np.array([model_reference(u[r], x0[r], rows[r], 0.01) for r in range(2)])
+    # step 0 holds i = 0; step 1 runs saturated and ends inside the stop, step 2 on it
+    assert ref[0, 1] == x0[0] and rows[0, XMAX] - 0.2 < ref[0, 2] < rows[0, XMAX]
+    assert ref[1, 1] == x0[1] and rows[1, XMIN] + 0.2 > ref[1, 2] > rows[1, XMIN]
+    assert ref[0, 3] == rows[0, XMAX] and ref[1, 3] == rows[1, XMIN]
+    np.testing.assert_allclose(kernels.servo_model(u, x0, pl, 0.01), ref, rtol=0, atol=1e-9)
+    lo, hi = kernels.servo_band(u, x0, [pl, pl], 0.01)
+    np.testing.assert_allclose(lo, ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(hi, ref, rtol=0, atol=1e-9)
+
+
+def test_a_rod_reaching_its_stop_within_a_step_closed_loop():
+    runs = pd.concat([single_run("elevator", "cruise", "none", seed=j, duration_s=1.0,
+                                 alt_ft=38000.0, vcas_kt=160.0) for j in range(2)],
+                     ignore_index=True)
+    runs["stream"] = [0, 1]
+    rows = kernels.plant_matrix(prepare(runs, orders_deg=np.zeros((2, 100))).plant)
+    # from x0 (i ≈ 0 over the first two periods: the order is where the rod is), then an
+    # order beyond the stop
+    order = np.degrees(np.arcsin(near_stops(rows) / rows[:, R]))[:, None] + np.zeros((2, 100))
+    order[0, 1:] = ELEVATOR.stop_max_deg + 5.0
+    order[1, 1:] = ELEVATOR.stop_min_deg - 5.0
+    p = prepare(runs, orders_deg=order)
+    ref = loop_reference(p, SENSORS.rod_quant_mm)
+    got = kernels.integrate_compiled(p, SENSORS)
+    for name, want in ref.items():
+        np.testing.assert_allclose(getattr(got, name), want, rtol=0, atol=1e-9, err_msg=name)
+    x_max, x_min = rows[0, XMAX], rows[1, XMIN]
+    # the saturated step ends inside the stop, the next on it
+    assert x_max - 0.2 < ref["x"][0, 3] < x_max and ref["x"][0, 4] == x_max
+    assert x_min + 0.2 > ref["x"][1, 3] > x_min and ref["x"][1, 4] == x_min
+
+
 # ---- engine selection, parameter layout, warm-up --------------------------------------------
 def test_engine_selection():
     assert kernels.HAVE_NUMBA
@@ -540,25 +604,29 @@ def test_plant_matrix_and_fields_layout():
 
 def test_register_warmup_and_warm_up(monkeypatch):
     calls, logs = [], []
-    monkeypatch.setattr(kernels, "_WARMUPS", list(kernels._WARMUPS))
-    monkeypatch.setattr(kernels, "_CACHED", list(kernels._CACHED))
+    monkeypatch.setattr(kernels, "_WARMUPS", [])
+    monkeypatch.setattr(kernels, "_CACHED", [])
 
     def warm():
         calls.append(1)
 
     kernels.register_warmup(warm, kernels=(kernels.rk4_step_1,))
-    kernels.register_warmup(warm, kernels=(kernels.rk4_step_1,))
-    assert kernels._WARMUPS.count(warm) == 1 and kernels._CACHED.count(kernels.rk4_step_1) == 1
+    kernels.register_warmup(warm, kernels=(kernels.rk4_step_1, kernels.float_step_1))
+    assert kernels._WARMUPS == [warm]
+    assert kernels._CACHED == [kernels.rk4_step_1, kernels.float_step_1]
     monkeypatch.setattr(kernels, "_cache_is_warm", lambda: False)
-    took = kernels.warm_up(logs.append)
-    assert calls == [1] and took >= 0.0
-    assert len(logs) == 2 and logs[0].startswith("compiling kernels")
-    assert logs[1].startswith("kernels compiled in ")
+    with monkeypatch.context() as m:
+        # a clock that reads 100 s, then 102.5 s: the warm-up took 2.5 s
+        m.setattr(kernels.time, "perf_counter", iter([100.0, 102.5]).__next__)
+        took = kernels.warm_up(logs.append)
+    assert calls == [1] and took == 2.5
+    assert logs == ["compiling kernels (first use; numba caches them for the next runs)…",
+                    "kernels compiled in 2.5 s"]
     monkeypatch.setattr(kernels, "_cache_is_warm", lambda: True)
-    kernels.warm_up(logs.append)
+    kernels.warm_up(logs.append)                # warm: runs the warm-ups, says nothing
     assert calls == [1, 1] and len(logs) == 2
     monkeypatch.setattr(kernels, "_cache_is_warm", lambda: False)
-    kernels.warm_up()                       # cold without a log: nothing to say
+    kernels.warm_up()                           # cold without a log: nothing to say
     assert calls == [1, 1, 1]
 
 
