@@ -240,6 +240,7 @@ def fields(n=18):
     rows = np.array([ROW if r % 2 == 0 else LIGHT for r in range(n)])
     rows[:, HM0] += 30.0 * np.arange(n)
     rows[:, KCI] = 10.0 + 0.5 * np.arange(n)
+    rows[:, R] -= 0.003 * np.arange(n)        # every field differs run by run, even r
     out = np.empty((kernels.FIELD_ROWS, n))
     out[:kernels.P_RM] = rows.T
     out[kernels.P_RM] = rows[:, R] / 1000.0
