@@ -81,9 +81,9 @@ TESTS: dict[str, tuple[str, ...]] = {
     "detectors/calibrate.py": ("tests/test_calibrate_values.py", "tests/test_calibrate.py"),
     "detectors/position_monitor.py": ("tests/test_position_monitor_band.py",
                                       "tests/test_decision_boundaries.py", "tests/test_kernels.py"),
-    "scenarios/servo.py": ("tests/test_servo_physics.py", "tests/test_reference_physics.py"),
-    "scenarios/kernels.py": ("tests/test_kernels.py", "tests/test_detector_kernels.py",
-                             "tests/test_decision_boundaries.py"),
+    "scenarios/servo.py": ("tests/test_servo_values.py", "tests/test_kernel_values.py",
+                           "tests/test_servo_physics.py", "tests/test_reference_physics.py"),
+    "scenarios/kernels.py": ("tests/test_kernel_values.py", "tests/test_kernels.py"),
     "detectors/comb_interval.py": ("tests/test_interval_detector.py",),
 }
 #: cosmic-ray operators run (see the module docstring); every other operator is skipped.
