@@ -462,9 +462,9 @@ def model_reference(u, x0, row, ts):
     return out
 
 
-@pytest.fixture(scope="module")
-def models():
-    n, T = kernels.BLOCK + 3, 40
+def models_of(n, T):
+    """(u, x0, three plants): orders [mm] of *n* runs, steps of −24° … +20° over
+    *T* steps, starting positions near the first order, three hinge-moment variants."""
     qbar = np.linspace(4e3, 18e3, n)
     base = dict(qbar_pa=qbar, alpha_deg=np.linspace(-1.0, 6.0, n), mach=np.full(n, 0.55))
     plants = [plant_arrays(ELEVATOR, **base, d_chd=d, d_ch0=d) for d in (0.0, -0.4, 0.6)]
@@ -472,6 +472,13 @@ def models():
     level = np.linspace(-24.0, 20.0, n)
     u = 120.0 * np.sin(np.radians(level[:, None] * np.clip(t / 0.08, 0, 1)[None, :] + 0.5))
     x0 = u[:, 0] + np.linspace(-0.3, 0.3, n)
+    return u, x0, plants
+
+
+@pytest.fixture(scope="module")
+def models():
+    u, x0, plants = models_of(kernels.BLOCK + 3, 40)
+    n = u.shape[0]
     ref = [np.array([model_reference(u[r], x0[r], kernels.plant_matrix(pl)[r], 0.01)
                      for r in range(n)]) for pl in plants]
     return u, x0, plants, ref
@@ -495,6 +502,21 @@ def test_servo_band_is_the_hull_of_the_documented_models(models):
         assert (np.abs(lo - ref[j]) < 1e-12).any() and (np.abs(hi - ref[j]) < 1e-12).any()
     lo1, hi1 = kernels.servo_band(u, x0, plants[:1], 0.01)
     np.testing.assert_array_equal(lo1, hi1)
+
+
+def test_a_band_of_more_models_than_parameter_rows():
+    """The band holds any number of models: 13 (more than the 12 parameter rows of a
+    model's plant_fields, which a band must not confuse with the model count)."""
+    u, x0, _ = models_of(3, 20)
+    scales = np.linspace(-0.5, 0.7, 13)
+    many = [plant_arrays(ELEVATOR, qbar_pa=np.array([4e3, 1e4, 1.8e4]),
+                         alpha_deg=np.array([-1.0, 2.0, 6.0]), mach=np.full(3, 0.55),
+                         d_chd=d, d_ch0=d) for d in scales]
+    ref = [np.array([model_reference(u[r], x0[r], kernels.plant_matrix(pl)[r], 0.01)
+                     for r in range(3)]) for pl in many]
+    lo, hi = kernels.servo_band(u, x0, many, 0.01)
+    np.testing.assert_allclose(lo, np.minimum.reduce(ref), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(hi, np.maximum.reduce(ref), rtol=0, atol=1e-9)
 
 
 def test_servo_band_propagates_a_nan_model_in_any_position(models):
