@@ -407,9 +407,10 @@ def test_closed_loop_equals_the_documented_loop(loop, engine):
                                    "disconnection", "ofc_liquid", "ofc_solid"])
 def test_a_batch_of_one_fault_type_equals_the_documented_loop(fault):
     """A batch holding one fault type beside a fault-free run: the kernel is told which
-    optional fault arrays exist (the others are passed empty) and which paths to take."""
+    optional fault arrays exist (the others are passed empty) and which paths to take. The
+    solid jam is the "offset" variant with a jump of exactly 1 mm."""
     rows = [single_run("elevator", "cruise", f, seed=j, onset_s=0.4, duration_s=1.0,
-                       **POINTS[j], **({"magnitude": 1.2} if f == "solid_jam" else {}))
+                       **POINTS[j], **({"magnitude": 1.0} if f == "solid_jam" else {}))
             for j, f in enumerate((fault, "none"))]
     runs = pd.concat(rows, ignore_index=True)
     runs["stream"] = [0, 1]
