@@ -304,9 +304,10 @@ def loop_batch() -> pd.DataFrame:
     spread over 0.3–0.6 s, every fault in both blocks."""
     rows = []
     for j in range(N_LOOP):
-        fault = FAULT_CYCLE[j % len(FAULT_CYCLE)]
+        slot = (j + 6) % len(FAULT_CYCLE)        # offset jams from run 2 on, so that both
+        fault = FAULT_CYCLE[slot]                # ends of the first block hold one
         kw = {}
-        if fault == "solid_jam" and j % len(FAULT_CYCLE) == 8:
+        if slot == 8:
             kw["magnitude"] = 1.5 if j % 2 else -1.5
         if fault == "hardover":
             kw["magnitude"] = 1.0 if j % 2 else -1.0
