@@ -122,16 +122,15 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
         size = max(1, min(size, -(-len(plan) // workers)))
         pending = deque(submit(simulate_signals, plan.iloc[s:s + size], settings)
                         for s in range(0, len(plan), size))
-
-        def parts():
-            while pending:
-                release_freed_memory()          # what the parts copied so far held
-                yield pending.popleft().result()
+        results = (pending.popleft().result() for _ in range(len(pending)))
     else:
-        def parts():
-            for start in range(0, len(plan), size):
-                release_freed_memory()
-                yield simulate_signals(plan.iloc[start:start + size], settings)
+        results = (simulate_signals(plan.iloc[s:s + size], settings)
+                   for s in range(0, len(plan), size))
+
+    def parts():
+        for part in results:
+            yield part
+            release_freed_memory()              # what the parts copied so far held
     signals = Signals.concat(parts(), n_runs=len(plan))
     release_freed_memory()
     return signals

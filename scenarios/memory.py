@@ -13,21 +13,23 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 
 
-def _libc():
+@functools.cache
+def _malloc_trim():
+    """glibc's ``malloc_trim``, or None; looked up on first use (``find_library`` may run
+    ``ldconfig``: not at import, so importing the runner stays cheap)."""
     try:
-        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
     except OSError:  # pragma: no cover - not a glibc system
         return None
-
-
-_LIBC = _libc()
+    return getattr(libc, "malloc_trim", None)
 
 
 def release_freed_memory() -> None:
     """Give the memory freed so far back to the system (glibc's ``malloc_trim``; a no-op
     where the C library has none)."""
-    trim = getattr(_LIBC, "malloc_trim", None)
+    trim = _malloc_trim()
     if trim is not None:
         trim(0)
