@@ -554,7 +554,7 @@ class ChenGlobalEstimator(Detector):
         if compiled:
             c = np.ascontiguousarray
             PhiT, L2c, Gam_c, Gam1_c = c(PhiT), c(L2, dtype=float), c(Gam), c(Gam1)
-            ramp_c = np.asarray(ramp, dtype=np.int64)
+            ramp_c, rows = np.asarray(ramp, dtype=np.int64), np.asarray(out, dtype=np.int64)
             if bounds:
                 ZxT, GmT, Zu_c, z_f, z_g = c(ZxT), c(GmT), c(Zu), c(z_f), c(z_g)
             else:                           # the kernel's unused arrays, empty
@@ -565,8 +565,8 @@ class ChenGlobalEstimator(Detector):
             b = min(a + TIME_WINDOW, T)
             u = self.inputs(signals, slice(a, b + 1))
             if compiled:
-                recursion_window(y, u, a, b, xh, L2c, PhiT, Gam_c, Gam1_c, ramp_c, f_hat,
-                                 bounds, e, C_L2, ZxT, Zu_c, z_f, z_g, GmT, w)
+                recursion_window(y, u, a, b, xh, rows, L2c, PhiT, Gam_c, Gam1_c, ramp_c,
+                                 f_hat, bounds, e, C_L2, ZxT, Zu_c, z_f, z_g, GmT, w)
                 continue
             drive = drive_of(u, a, b)
             z_u = z_u_of(u, a, b) if bounds else None

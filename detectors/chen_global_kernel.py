@@ -22,18 +22,14 @@ import numpy as np
 
 from scenarios import kernels
 
-#: Rows of the state x̂ = [β, p, r, φ] that the outputs y = [φ, p, r] read (C_b selects).
-PHI, P, R = 3, 1, 2
-
-
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
-def recursion_window(y, u, a, b, xh, L2, PhiT, Gam, Gam1, ramp, f_hat, bounds, e, C_L2, ZxT,
-                     Zu, z_f, z_g, GmT, w):
+def recursion_window(y, u, a, b, xh, rows, L2, PhiT, Gam, Gam1, ramp, f_hat, bounds, e, C_L2,
+                     ZxT, Zu, z_f, z_g, GmT, w):
     """Steps a … b − 1 of the recursion, in place, run after run.
 
     y (3, n, T) outputs [φ, p, r]; u (6, n, ≥ b − a) the inputs from step a on (one step
     more when b < T: the ramps' last increment); xh (4, n) the state x̂ at step a (updated
-    to step b); L2 (q, 3); PhiT (4, 4, n) Φ per run; Gam (n, 4, 9) and Gam1 (n, 4, len(ramp))
+    to step b); rows (3,) the state each output reads (C_b selects); L2 (q, 3); PhiT (4, 4, n) Φ per run; Gam (n, 4, 9) and Gam1 (n, 4, len(ramp))
     the input matrices on [u; y] and on the increments of the inputs *ramp* (indices into
     [u; y]); f_hat (n, T) written at the window's steps. With *bounds*: e (5, 4, n) the
     uncertainty filters' state (updated), C_L2 (4,) the f̂ row of L2·C, ZxT (5, 4, n) and
@@ -72,9 +68,9 @@ def recursion_window(y, u, a, b, xh, L2, PhiT, Gam, Gam1, ramp, f_hat, bounds, e
                         du[m] = u[j, r, kw + 1] - uy[j]
                     else:
                         du[m] = y[j - n_u, r, k + 1] - uy[j]
-            i0 = y[0, r, k] - x[PHI]
-            i1 = y[1, r, k] - x[P]
-            i2 = y[2, r, k] - x[R]
+            i0 = y[0, r, k] - x[rows[0]]
+            i1 = y[1, r, k] - x[rows[1]]
+            i2 = y[2, r, k] - x[rows[2]]
             for i in range(q):
                 f_all[i] = L2[i, 0] * i0 + L2[i, 1] * i1 + L2[i, 2] * i2
             f_hat[r, k] = f_all[0]
@@ -121,7 +117,7 @@ def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     n, T, q, s = 1, 2, 2, 5
     recursion_window(np.zeros((3, n, T)), np.zeros((6, n, T)), 0, T, np.zeros((4, n)),
-                     np.zeros((q, 3)), np.zeros((4, 4, n)), np.zeros((n, 4, 9)),
+                     np.arange(3), np.zeros((q, 3)), np.zeros((4, 4, n)), np.zeros((n, 4, 9)),
                      np.zeros((n, 4, 8)), np.arange(8), np.zeros((n, T)), True,
                      np.zeros((s, 4, n)), np.zeros(4), np.zeros((s, 4, n)), np.zeros((n, s, 6)),
                      np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, 4, n)), np.zeros((s, n, T)))
