@@ -252,3 +252,28 @@ def confirm(raw: np.ndarray, n_confirm: int) -> np.ndarray:
         np.maximum.accumulate(last_false, axis=1, out=last_false)
         confirmed = (idx - last_false) >= n_confirm
     return np.logical_or.accumulate(confirmed, axis=1)
+
+
+#: Runs a built-in detector's ``fit`` carries through its residuals at once
+#: (:func:`per_run_maxima`). A learning set of an aircraft campaign holds ~1 MB per run and
+#: a fit's residuals several series per run more, so the whole set at once added 90–140 MB
+#: to the campaign's peak (`fdd-campaign bench --campaign chen-mc`); 25 runs add a twelfth.
+FIT_BLOCK_RUNS = 25
+
+
+def per_run_maxima(signals: Signals, statistics, block_runs: int | None = None
+                   ) -> dict[str, np.ndarray]:
+    """{name: (n_runs,) array} of *statistics*, a function of a block of runs returning
+    {name: (runs, n_steps) series}, each reduced to its maximum over the run's steps.
+
+    The runs are taken *block_runs* (default :data:`FIT_BLOCK_RUNS`) at a time (views of
+    *signals*), so only one block's series exist at once. Each run's maximum is the one the whole set at once gives: a
+    built-in detector's residual of a run never depends on the other runs of its batch
+    (the batch invariance the engine relies on at any ``--jobs``, docs/design.md §4)."""
+    block_runs = max(int(FIT_BLOCK_RUNS if block_runs is None else block_runs), 1)
+    parts: dict[str, list] = {}
+    for start in range(0, signals.n_runs, block_runs):
+        block = signals.take(slice(start, start + block_runs))
+        for name, series in statistics(block).items():
+            parts.setdefault(name, []).append(np.max(series, axis=1))
+    return {name: np.concatenate(p) for name, p in parts.items()}

@@ -85,7 +85,7 @@ from scenarios import kernels
 from scenarios.params import param
 from scenarios.signals import Signals
 
-from .base import Capabilities, Detection, Detector, confirm
+from .base import Capabilities, Detection, Detector, confirm, per_run_maxima
 from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .chen_global_kernel import recursion_window
 from .params import Param
@@ -434,9 +434,9 @@ class ChenGlobalEstimator(Detector):
                            "grid_max_discrete_modulus": disc, "grid_points": int(len(grid))}
         self.static_gain_ = (min(gains), max(gains))
         self.error_bounds_ = table2_error_bounds()
-        excess = self._excess(signals)
+        excess = per_run_maxima(signals, lambda block: {"excess": self._excess(block)})
         tau, calibration = learned_threshold(
-            np.maximum(np.max(excess, axis=1), 0.0), self.threshold_method, float(self.safety),
+            np.maximum(excess["excess"], 0.0), self.threshold_method, float(self.safety),
             self.target_fa_per_run, self.threshold_confidence, tail=self.threshold_tail,
             classes=signals.classes)
         self.threshold_ = max(float(tau), float(self.floor_deg))

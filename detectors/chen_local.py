@@ -84,7 +84,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from . import chen_local_model as lm
-from .base import Capabilities, Detection, Detector
+from .base import Capabilities, Detection, Detector, per_run_maxima
 from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
@@ -389,10 +389,14 @@ class ChenLocalEstimator(Detector):
         self.post_filter_ = discrete_post_filter(ts, PostFilter(
             zero_rad_s=float(self.post_filter_zero_rad_s),
             pole_rad_s=float(self.post_filter_pole_rad_s)))
-        f_hat, g = self._residuals(signals)
+
+        def statistics(block: Signals) -> dict:
+            f_hat, g = self._residuals(block)
+            return {"liquid": np.abs(g),                # g: the liquid statistic d
+                    "solid": self._solid_statistic(f_hat, ts)}
+
         # each variant is scored on its own, so each is calibrated at the full target
-        maxima = {"liquid": np.max(np.abs(g), axis=1),   # g: the liquid statistic d
-                  "solid": np.max(self._solid_statistic(f_hat, ts), axis=1)}
+        maxima = per_run_maxima(signals, statistics)
         self.thresholds_, calibration = {}, {}
         for name, m in maxima.items():
             tau, calibration[name] = learned_threshold(

@@ -49,7 +49,7 @@ from scenarios.kernels import (BAND_WORK_ROWS, BLOCK, band_plants, resolve_engin
 from scenarios.servo import plant_arrays, rk4_step
 from scenarios.signals import Signals
 
-from .base import Capabilities, Detection, Detector, confirm
+from .base import Capabilities, Detection, Detector, confirm, per_run_maxima
 from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
@@ -278,13 +278,14 @@ class PositionMonitor(Detector):
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
-        res = self.residuals(signals)
+        maxima = per_run_maxima(
+            signals, lambda block: {name: np.abs(r) for name, r in self.residuals(block).items()})
         # "evt": each check at target/m, so the run's probability is ≤ target (union bound)
-        share = float(self.target_fa_per_run) / max(len(res), 1)
+        share = float(self.target_fa_per_run) / max(len(maxima), 1)
         self.thresholds_mm_, calibration = {}, {}
-        for name, r in res.items():
+        for name, m in maxima.items():
             tau, calibration[name] = learned_threshold(
-                np.max(np.abs(r), axis=1), self.threshold_method, self.safety, share,
+                m, self.threshold_method, self.safety, share,
                 self.threshold_confidence, tail=self.threshold_tail, classes=signals.classes)
             self.thresholds_mm_[name] = float(max(tau, self.floor_mm))
         if self.threshold_method != "max":
