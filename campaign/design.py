@@ -38,8 +38,12 @@ from .plant import run_actuator, run_surface
 #: Version of the simulated models: part of every run id, so a model change never reuses
 #: results computed with the previous model. servo-2: one draw per aerodynamic coefficient
 #: and per hinge-moment coefficient, longitudinal–lateral coupling of the surfaces,
-#: aft-loaded aileron hinge moment (docs/physics.md §3, §6, §7).
-MODEL_VERSION = "servo-2"
+#: aft-loaded aileron hinge moment (docs/physics.md §3, §6, §7). servo-3: the aircraft
+#: laws' control distributions summed per run in a fixed order (a matrix product over the
+#: block made a run's gains, hence its samples, depend at round-off on the runs simulated
+#: beside it; docs/design.md §9); actuator-level runs are unchanged, aircraft-level runs
+#: move at round-off, amplified by the sensors' quantisation.
+MODEL_VERSION = "servo-3"
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32

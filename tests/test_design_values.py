@@ -75,18 +75,20 @@ def plan():
 #: Digests of whole run tables (see :func:`digest`). They change when the sampling scheme
 #: (spawn keys, sequence, scaling of the unit samples), a default range, the run-id scheme or
 #: MODEL_VERSION changes: each such change gives every campaign other runs, so update these
-#: literals knowingly, together with MODEL_VERSION where the model changed.
+#: literals knowingly, together with MODEL_VERSION where the model changed (servo-3: each
+#: table's digest under servo-2 was checked equal to the literal it replaces, so only the
+#: version in the ids changed).
 GOLDEN = {
-    "mc": "c04865654fd8a1b5",
-    "learning": "f83b60cc68a732d9",
-    "random": "4934ebbf0678a4da",
-    "grid": "eb0a01a05518f6bd",
-    "not-realistic-only": "75849cea596e7279",
+    "mc": "c8dc9881a9f5d1af",
+    "learning": "9e59948520b4e90e",
+    "random": "87f272b75ccc7547",
+    "grid": "2b0ede6a1821b53d",
+    "not-realistic-only": "5adf95944f815462",
 }
 
 
 def test_golden_monte_carlo_plan(plan):
-    assert MODEL_VERSION == "servo-2"
+    assert MODEL_VERSION == "servo-3"
     assert digest(plan) == GOLDEN["mc"]
 
 

@@ -62,12 +62,24 @@ YAW_DISTRIBUTION = np.array([1.0 if k == "rudder" else 0.0 for k in LAYOUT.actua
                             + [0.0, 0.0, 0.0])
 
 
+def distributed(columns: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Σ_j weights[j]·columns[:, j] per run (row), summed in the order of j for every run
+    alike. A matrix product ``columns @ weights`` sums in an order that depends on the number
+    of rows (BLAS blocking), so a run's gains, and every sample after them, would depend on
+    the runs simulated in the same block; a run must be a function of its plan row alone
+    (docs/design.md §9, Determinism)."""
+    out = np.zeros(columns.shape[0])
+    for j in np.flatnonzero(weights):
+        out = out + weights[j] * columns[:, j]
+    return out
+
+
 def gains(nominal: lpv.ContinuousModel, laws: LawParams = LAWS) -> Gains:
     """Pole placement of the module docstring on each run's nominal model."""
     A, B = nominal.A, nominal.B
     a11, a12 = A[:, lpv.IA, lpv.IA], A[:, lpv.IA, lpv.IQ]
     a21, a22 = A[:, lpv.IQ, lpv.IA], A[:, lpv.IQ, lpv.IQ]
-    b = B[:, lpv.IQ, :] @ PITCH_DISTRIBUTION
+    b = distributed(B[:, lpv.IQ, :], PITCH_DISTRIBUTION)
     n_alpha = nominal.C[:, 0, lpv.IA]
     w, z, a = laws.pitch_omega, laws.pitch_zeta, laws.pitch_integral
     c2, c1, c0 = 2 * z * w + a, w * w + 2 * z * w * a, w * w * a
@@ -78,9 +90,9 @@ def gains(nominal: lpv.ContinuousModel, laws: LawParams = LAWS) -> Gains:
         k_q=(a22 - a22p) / b,
         k_i=c0 / (b * a12 * n_alpha),
         L_p=A[:, lpv.IP, lpv.IP],
-        L_da=B[:, lpv.IP, :] @ ROLL_DISTRIBUTION,
-        N_dr=B[:, lpv.IR, :] @ YAW_DISTRIBUTION,
-        nz_de=nominal.D[:, 0, :] @ PITCH_DISTRIBUTION,
+        L_da=distributed(B[:, lpv.IP, :], ROLL_DISTRIBUTION),
+        N_dr=distributed(B[:, lpv.IR, :], YAW_DISTRIBUTION),
+        nz_de=distributed(nominal.D[:, 0, :], PITCH_DISTRIBUTION),
         tas_ms=nominal.tas_ms,
     )
 
