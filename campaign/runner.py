@@ -102,9 +102,10 @@ def build_detectors(config) -> dict:
     return {d.label: make_detector(d.name, d.params_dict()) for d in config.detectors}
 
 
-#: Largest part of the learning set simulated at once [runs] (a plant's ``batch_runs``, when
-#: it has one, is used instead): the parts are copied into the learning signals as they
-#: arrive, so the peak memory is the learning set plus a few parts.
+#: Largest part of the learning set simulated at once [runs] (a plant's
+#: ``learning_part_runs`` or ``batch_runs``, when it has one, is used instead): the parts are
+#: copied into the learning signals as they arrive, so the peak memory is the learning set
+#: plus a few parts.
 LEARNING_PART_RUNS = 50
 
 
@@ -112,11 +113,13 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
                     submit=None, workers: int = 1) -> Signals:
     """Signals of every run of *plan* (used for the small learning set). *submit*
     (an executor's ``submit``) runs the parts on *workers* threads. Parts hold at most
-    *chunk_size* runs and the plant's ``batch_runs`` (else :data:`LEARNING_PART_RUNS`); a
-    run's signals never depend on its part, and each part is released once copied into the
-    result (:meth:`Signals.concat`), its memory returned to the system
-    (:func:`scenarios.memory.release_freed_memory`)."""
-    part = getattr(settings.plant, "batch_runs", None) or LEARNING_PART_RUNS
+    *chunk_size* runs and the plant's ``learning_part_runs`` or ``batch_runs`` (else
+    :data:`LEARNING_PART_RUNS`); a run's signals never depend on its part, and each part is
+    released once copied into the result (:meth:`Signals.concat`), its memory returned to
+    the system (:func:`scenarios.memory.release_freed_memory`)."""
+    plant = settings.plant
+    part = (getattr(plant, "learning_part_runs", None) or getattr(plant, "batch_runs", None)
+            or LEARNING_PART_RUNS)
     size = max(1, min(chunk_size, part))
     if submit is not None and workers > 1:
         size = max(1, min(size, -(-len(plan) // workers)))

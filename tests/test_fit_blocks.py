@@ -55,3 +55,47 @@ def test_a_fit_in_blocks_of_one_run_learns_the_whole_sets_thresholds(
     assert learned[1] == learned[1000]
     values = learned[1].values() if isinstance(learned[1], dict) else [learned[1]]
     assert all(np.isfinite(v) and v > 0 for v in values)
+
+
+class _Recording:
+    """The actuator plant, recording how many runs each call simulates."""
+
+    kind = "actuator"
+    needs_processes = False
+
+    def __init__(self, **sizes):
+        from scenarios.simulate import ActuatorPlant
+
+        self.inner, self.calls = ActuatorPlant(), []
+        for name, value in sizes.items():
+            setattr(self, name, value)
+
+    def simulate(self, runs, **kw):
+        self.calls.append(len(runs))
+        return self.inner.simulate(runs, **kw)
+
+
+@pytest.mark.parametrize("sizes, largest", [
+    ({"learning_part_runs": 3, "batch_runs": 5}, 3),   # the learning set's own part size
+    ({"batch_runs": 5}, 5),                            # else the plant's simulation blocks
+    ({}, 8),                                           # else LEARNING_PART_RUNS (patched)
+])
+def test_the_learning_set_is_simulated_in_the_plants_parts_with_the_same_signals(
+        sizes, largest, monkeypatch):
+    from campaign import runner
+    from campaign.config import load_config
+    from campaign.design import build_learning_plan
+
+    monkeypatch.setattr(runner, "LEARNING_PART_RUNS", 8)
+    config = load_config("smoke")
+    plan = build_learning_plan(config).iloc[:11]
+    plan = plan.assign(duration_s=20.0)
+    settings = replace(runner.settings_of(config), plant=_Recording(**sizes))
+    parts = runner.simulate_chunks(plan, settings, chunk_size=100)
+    whole = replace(settings, plant=_Recording(learning_part_runs=100))
+    once = runner.simulate_chunks(plan, whole, chunk_size=100)
+    assert settings.plant.calls[0] == largest and sum(settings.plant.calls) == 11
+    assert max(settings.plant.calls) == largest
+    assert whole.plant.calls == [11]
+    np.testing.assert_array_equal(parts.rod_com, once.rod_com)
+    np.testing.assert_array_equal(parts.command, once.command)

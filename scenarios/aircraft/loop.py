@@ -547,13 +547,15 @@ class AircraftPlant:
     #: runs on threads (no per-process state)
     needs_processes = False
     #: runs simulated together at most (campaign.evaluate.evaluate cuts a larger chunk into
-    #: blocks, the learning set is simulated in parts of this size): a run holds ~60
-    #: (n_steps,) float64 series while it is simulated (every surface, the aircraft states
-    #: and sensors, their noise), ~2.9 MB for 60 s at 100 Hz, so a block of 10 holds ~30 MB
-    #: (est.). Two threads simulating blocks of 25 beside chen-mc's 300-run learning set
-    #: (300 MB) raised the campaign's peak by ~180 MB; with 10, by ~70 MB, for the same CPU
-    #: time (the compiled loop runs run after run). A run's series never depend on its block.
-    batch_runs = 10
+    #: blocks): a run holds ~60 (n_steps,) float64 series while it is simulated (every
+    #: surface, the aircraft states and sensors, their noise), ~2.9 MB for 60 s at 100 Hz,
+    #: so a block of 25 holds ~70 MB where a chunk of 100 held ~290 MB (est.)
+    batch_runs = 25
+    #: runs of the learning set simulated together (campaign.runner.simulate_chunks): two
+    #: threads simulating blocks of 25 beside chen-mc's 300-run learning set (300 MB) raised
+    #: the campaign's peak by ~180 MB; parts of 10 raise it by ~70 MB, for the same CPU time
+    #: (the compiled loop runs run after run). A run's series never depend on its block.
+    learning_part_runs = 10
 
     @property
     def surfaces(self) -> tuple[str, ...]:
