@@ -403,6 +403,18 @@ def test_an_unstable_vertex_is_refused_even_with_a_stable_grid(hand_model, injec
         ChenLocalEstimator(threshold_method="max").fit(_signals(u, y))
 
 
+def test_a_vertex_pole_the_discretisation_rounds_to_one_is_refused(hand_model, injection_gain):
+    """L1 one ulp below the lower vertex: the continuous pole −(K̃ − L1) is negative (the
+    vertex and grid checks pass), but (K̃ − L1)·Ts/2 is far below the ulp of 1, so the
+    bilinear pole φ rounds to exactly 1: not stable after discretisation."""
+    k_vertex, _, u, y = _vertex_pole_gain(hand_model)
+    l1 = float(np.nextafter(k_vertex, 0.0))
+    assert _pole(k_vertex - l1) == 1.0
+    injection_gain(l1)
+    with pytest.raises(ValueError, match="discretised estimator is unstable at a vertex"):
+        ChenLocalEstimator(threshold_method="max").fit(_signals(u, y))
+
+
 # ---- the statistics and the decision ----------------------------------------------------
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 6])
 def test_solid_statistic_is_the_least_value_over_the_window(n):
