@@ -20,6 +20,7 @@ import pytest
 
 from detectors import chen_local_model as lm
 from scenarios.params import ACTUATORS
+from scenarios.servo import authority_limits, plant_arrays
 
 ACT = ACTUATORS["elevator"]
 AIL = ACTUATORS["aileron"]
@@ -303,3 +304,49 @@ def test_the_elevator_identification_gives_the_documented_fit():
     # the levels reach 2 % from each point's authority limits; the widest authority comes
     # within 20 % of the electrical limits (the load limits the nose-down side)
     assert fit.x_min_mm < 0.8 * ACT.u_min_mm and fit.x_max_mm > 0.9 * ACT.u_max_mm
+
+
+def test_an_aircraft_surface_is_identified_on_the_servo_loop_of_its_kind(monkeypatch):
+    """left_inboard_aileron has no servo-loop table of its own: the fault-free cruise runs
+    (seed 0, one per realistic point, as long as the excitation) are simulated on the
+    aileron's loop with the surface's parameters, driven by the excitation orders inside
+    each point's authority; the identification reads the measured schedule, the order and
+    the true rod position."""
+    import types
+
+    from scenarios import envelope
+    from scenarios import simulate as simulation
+
+    seen = {}
+
+    def fake_simulate(rows, ts, actuators, orders_deg):
+        seen.update(rows=rows, ts=ts, actuators=actuators, orders=orders_deg)
+        n, T = orders_deg.shape
+        return (types.SimpleNamespace(schedule={"mark": 1}, command=np.full((n, T), 2.0)),
+                types.SimpleNamespace(rod_mm=np.full((n, T), 3.0)))
+
+    monkeypatch.setattr(simulation, "simulate", fake_simulate)
+    act = AIL.replace(surface="left_inboard_aileron", i_max_mA=9.0)
+    schedule, u, x = lm.identification_runs(act, TS)
+    assert schedule == {"mark": 1} and (u == 2.0).all() and (x == 3.0).all()
+    assert seen["ts"] == TS and seen["actuators"] == {"aileron": act.replace(surface="aileron")}
+    rows, orders = seen["rows"], seen["orders"]
+    pts = envelope.realistic_points()
+    pts = pts[pts["realistic"]]
+    assert len(rows) == len(pts) == orders.shape[0] == 53
+    for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct"):
+        np.testing.assert_array_equal(rows[c].to_numpy(float), pts[c].to_numpy(float))
+    assert set(rows["surface"]) == {"aileron"} and set(rows["manoeuvre"]) == {"cruise"}
+    assert set(rows["fault"]) == {"none"} and set(rows["seed"]) == {0}
+    assert rows["stream"].tolist() == list(range(53)) and rows["run_id"].is_unique
+    np.testing.assert_allclose(rows["duration_s"], orders.shape[1] * TS, rtol=1e-12)
+    # orders [deg] inside each point's authority (the surface's own parameters), reaching
+    # within 2 % of it at both ends (levels 0.02 and 0.98, the 1 % sine)
+    fc = envelope.flight_condition(*(pts[c].to_numpy(float) for c in ("alt_ft", "vcas_kt",
+                                                                      "mass_t", "cg_pct")))
+    lo, hi = authority_limits(plant_arrays(act, qbar_pa=fc["qbar_pa"],
+                                           alpha_deg=fc["alpha_deg"], mach=fc["mach"]), act)
+    width = hi - lo
+    assert (orders.min(axis=1) >= lo).all() and (orders.max(axis=1) <= hi).all()
+    assert (orders.min(axis=1) <= lo + 0.02 * width).all()
+    assert (orders.max(axis=1) >= hi - 0.02 * width).all()
