@@ -56,6 +56,11 @@ TS = 1.0 / 128.0
 THETA = np.array([[22.0, 1.5, -4.0, 3.0],
                   [0.12, 0.05, -0.08, 0.04],
                   [6.0, -2.0, 3.0, 8.0]])
+#: the same with C2 46 mm lower and half the load term: x + C2 < 0 over every authority,
+#: so K_max comes from the direction s = −1 (with THETA both extremes come from s = +1)
+THETA_LOW_C2 = np.array([[22.0, 1.5, -4.0, 3.0],
+                         [0.06, 0.025, -0.04, 0.02],
+                         [-40.0, -2.0, 3.0, 8.0]])
 E_SAT_MM = 2.0           # current-saturation error [mm] (hand-built)
 KAPPA = 2e-4             # damping-neighbour coefficient [(s/mm)²] (hand-built)
 #: scheduling-vector scales of docs/chen-estimator.md §1 (ρ_j = value/scale)
@@ -250,19 +255,20 @@ def _fitted(hand_model, T=512, **params):
 
 
 # ---- the fit -----------------------------------------------------------------------------
-@pytest.mark.parametrize("margin", [0.25, 0.6])
-def test_polytope_box_and_gain_range_by_definition(hand_model, margin):
-    hand_model()
+@pytest.mark.parametrize("margin, theta", [(0.25, THETA), (0.6, THETA),
+                                           (0.25, THETA_LOW_C2)])
+def test_polytope_box_and_gain_range_by_definition(hand_model, margin, theta):
+    hand_model(theta=theta)
     u, y = _runs(256)
     params = {} if margin == 0.25 else {"schedule_margin": margin}   # 0.25: the default
     det = ChenLocalEstimator(threshold_method="max", **params).fit(_signals(u, y))
-    lo, hi, k_min, k_max, n_grid = _polytope(THETA, margin)
+    lo, hi, k_min, k_max, n_grid = _polytope(theta, margin)
     np.testing.assert_array_equal(det.schedule_box_[0], lo)
     np.testing.assert_array_equal(det.schedule_box_[1], hi)
     # the grid positions r·sin(δ_lo + Δδ·j/40) against linspace's j·(1/40): a few ulp
     np.testing.assert_allclose(det.k_range_, (k_min, k_max), rtol=1e-13)
     assert det.stability_["grid_points"] == n_grid
-    assert 5.0 < k_min < k_max - 10.0        # the hand-built load term moves K
+    assert 5.0 < k_min < k_max - 5.0         # the hand-built load term moves K
 
 
 @pytest.mark.parametrize("e_sat", [E_SAT_MM, 500.0])
