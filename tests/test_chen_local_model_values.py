@@ -339,6 +339,7 @@ def test_an_aircraft_surface_is_identified_on_the_servo_loop_of_its_kind(monkeyp
     assert set(rows["surface"]) == {"aileron"} and set(rows["manoeuvre"]) == {"cruise"}
     assert set(rows["fault"]) == {"none"} and set(rows["seed"]) == {0}
     assert rows["stream"].tolist() == list(range(53)) and rows["run_id"].is_unique
+    assert rows.index.tolist() == list(range(53))       # one run table, not 53 stacked
     np.testing.assert_allclose(rows["duration_s"], orders.shape[1] * TS, rtol=1e-12)
     # orders [deg] inside each point's authority (the surface's own parameters), reaching
     # within 2 % of it at both ends (levels 0.02 and 0.98, the 1 % sine)
