@@ -385,11 +385,13 @@ def test_a_zero_order_error_has_no_direction(hand_model, injection_gain, engine)
 
 
 def _vertex_pole_gain(hand_model):
+    """(lower vertex K̃ [1/s], the grid's smallest K·σ_min·D_min [1/s], orders, readings)."""
     hand_model()
     u, y = _runs(64)
     det = ChenLocalEstimator(threshold_method="max").fit(_signals(u, y))
-    return det.design_["vertex_K"][0], det.k_range_[0] * det.saturation_["sigma_min"] * \
-        det.saturation_["damping_min"], u, y
+    sat = det.saturation_
+    return (det.design_["vertex_K"][0], det.k_range_[0] * sat["sigma_min"] * sat["damping_min"],
+            u, y)
 
 
 def test_an_estimator_pole_at_zero_on_a_vertex_is_refused(hand_model, injection_gain):
