@@ -89,6 +89,16 @@ def test_scheduling_vector_basis_and_coefficients():
     assert [float(c1[m][0]) for m in range(3)] == [float(c[m][1]) for m in range(3)]
 
 
+def test_basis_keeps_any_leading_shape():
+    """φ(ρ) = [1, ρ] on the last axis, whatever the leading dimensions (…, n_ρ)."""
+    rho = np.arange(12.0).reshape(2, 2, 3)
+    out = lm.basis(rho)
+    assert out.shape == (2, 2, 4)
+    np.testing.assert_array_equal(out[..., 0], 1.0)
+    np.testing.assert_array_equal(out[..., 1:], rho)
+    np.testing.assert_array_equal(lm.basis([0.5, 2.0, 3.0]), [1.0, 0.5, 2.0, 3.0])
+
+
 def test_scheduling_vector_names_missing_data():
     with pytest.raises(ValueError, match=r"needs the scheduling data \['mach'\]"):
         lm.scheduling_vector({"qbar_pa": [1.0], "alpha_deg": [1.0]})
