@@ -99,6 +99,14 @@ def test_basis_keeps_any_leading_shape():
     np.testing.assert_array_equal(lm.basis([0.5, 2.0, 3.0]), [1.0, 0.5, 2.0, 3.0])
 
 
+def test_one_flight_point_given_as_scalars():
+    """Scalars (one flight point) give one ρ vector and one (C0, C1, C2)."""
+    point = {k: float(v[0]) for k, v in SCHEDULE.items()}
+    np.testing.assert_array_equal(lm.scheduling_vector(point), _rho(SCHEDULE)[0])
+    np.testing.assert_allclose(lm.physical_coefficients(ACT, point),
+                               lm.physical_coefficients(ACT, SCHEDULE)[0], rtol=1e-15)
+
+
 def test_scheduling_vector_names_missing_data():
     with pytest.raises(ValueError, match=r"needs the scheduling data \['mach'\]"):
         lm.scheduling_vector({"qbar_pa": [1.0], "alpha_deg": [1.0]})
@@ -271,6 +279,8 @@ def test_identification_recovers_the_model_of_a_noise_free_record(monkeypatch):
     np.testing.assert_array_equal(fit.rho_max, rho.max(axis=0))
     assert (fit.x_min_mm, fit.x_max_mm) == (x_true.min(), x_true.max())
     assert (fit.n_points, fit.ts, fit.delay) == (6, TS, 1)
+    with pytest.raises(FrozenInstanceError):
+        fit.rms_mm = 0.0
     d = fit.as_dict()
     assert d["theta"] == fit.theta.tolist() and d["rho_names"] == ["qbar_pa", "mach",
                                                                    "alpha_deg"]
