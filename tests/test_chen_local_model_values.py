@@ -312,18 +312,22 @@ def test_the_excitation_settings_as_designed():
         input_delay_steps=1, max_nfev=60)
 
 
-def test_the_elevator_identification_gives_the_documented_fit():
-    """docs/chen-estimator.md §1's table, elevator at Ts = 10 ms: output-error RMS 0.128 mm,
-    largest error 0.98 mm, RMS of the physical start 0.24 mm, 53 realistic points (within
-    the table's rounding)."""
-    fit = lm.fit_local_model(ACT, TS)
-    assert fit.rms_mm == pytest.approx(0.128, abs=5e-4)
-    assert fit.max_abs_mm == pytest.approx(0.98, abs=5e-3)
-    assert fit.rms_initial_mm == pytest.approx(0.24, abs=5e-3)
+@pytest.mark.parametrize("surface, rms, largest, start", [
+    ("elevator", 0.128, 0.98, 0.24),
+    ("aileron", 0.118, 1.15, 0.40),
+])
+def test_the_identification_gives_the_documented_fit(surface, rms, largest, start):
+    """docs/chen-estimator.md §1's table at Ts = 10 ms: output-error RMS, largest error and
+    RMS of the physical start, 53 realistic points (within the table's rounding)."""
+    fit = lm.fit_local_model(ACTUATORS[surface], TS)
+    assert fit.rms_mm == pytest.approx(rms, abs=5e-4)
+    assert fit.max_abs_mm == pytest.approx(largest, abs=5e-3)
+    assert fit.rms_initial_mm == pytest.approx(start, abs=5e-3)
     assert (fit.n_points, fit.delay, fit.ts) == (53, 1, TS)
-    # the levels reach 2 % from each point's authority limits; the widest authority comes
-    # within 20 % of the electrical limits (the load limits the nose-down side)
-    assert fit.x_min_mm < 0.8 * ACT.u_min_mm and fit.x_max_mm > 0.9 * ACT.u_max_mm
+    if surface == "elevator":
+        # the levels reach 2 % from each point's authority limits; the widest authority
+        # comes within 20 % of the electrical limits (the load limits the nose-down side)
+        assert fit.x_min_mm < 0.8 * ACT.u_min_mm and fit.x_max_mm > 0.9 * ACT.u_max_mm
 
 
 def test_an_aircraft_surface_is_identified_on_the_servo_loop_of_its_kind(monkeypatch):
