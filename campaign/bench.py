@@ -62,13 +62,15 @@ def bench_runs(n_runs: int, duration_s: float, seed: int = 1) -> pd.DataFrame:
 
 
 def _peak_rss_mb() -> float:
+    """Peak resident set [MiB, 2²⁰ bytes] of this process or its largest child (the figures'
+    ``*_rss_mb`` keys hold MiB, as the report prints them)."""
     self_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     child_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     return max(self_kb, child_kb) / 1024.0
 
 
 def _simulate_chunk(rows, plant="actuator"):
-    """Simulate *rows* on *plant*; (runs, peak resident memory [MB] of this process)."""
+    """Simulate *rows* on *plant*; (runs, peak resident memory [MiB] of this process)."""
     sig = simulate_signals(rows, bench_settings(plant))
     return sig.n_runs, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
@@ -126,7 +128,7 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     }
     echo(f"  vectorised simulation : {wall:8.2f} s wall  "
          f"({figures['run_seconds_per_wall_second']:,.0f} simulated s per wall s)")
-    echo(f"  peak memory           : {worker_peak:8.0f} MB "
+    echo(f"  peak memory           : {worker_peak:8.0f} MiB "
          + ("per worker process" if backend == "loky" else "(this process)"))
     echo(f"  per-run reference     : {ref_per_run:8.2f} s per run (solve_ivp, {reference_runs} "
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
@@ -200,7 +202,7 @@ def _tree_rss_kb(pid: int) -> int:
 
 def run_campaign_process(campaign: str, jobs: int, cache_dir: Path | None = None,
                          poll_s: float = 0.02) -> dict:
-    """Run ``fdd-campaign run CAMPAIGN`` in a subprocess; wall time [s], peak memory [MB] of
+    """Run ``fdd-campaign run CAMPAIGN`` in a subprocess; wall time [s], peak memory [MiB] of
     its process tree (sampled every *poll_s*), and its output. *cache_dir* points numba's
     compile cache there (an empty directory: a first run without a cache)."""
     env = dict(os.environ)
@@ -291,14 +293,15 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
         figures["cold_wall_s"] = first["wall_s"]
         figures["cold_peak_rss_mb"] = first["peak_rss_mb"]
         echo(f"  {campaign} first run  : {first['wall_s']:8.2f} s wall, peak "
-             f"{first['peak_rss_mb']:.0f} MB (empty compile cache: "
+             f"{first['peak_rss_mb']:.0f} MiB (empty compile cache: "
              f"{'compiling' in first['stderr'] and 'compiled' or 'no compile message!'})")
     else:
         warm = run_campaign_process(campaign, jobs)
     figures["wall_s_campaign"] = warm["wall_s"]
     figures["peak_rss_mb_campaign"] = warm["peak_rss_mb"]
     echo(f"  {campaign} warm cache : {warm['wall_s']:8.2f} s wall, peak "
-         f"{warm['peak_rss_mb']:.0f} MB for the process tree ({len(plan)} runs, every "
+         f"{warm['peak_rss_mb']:.0f} MiB ({warm['peak_rss_mb'] * 1.048576:.0f} MB) for the "
+         f"process tree ({len(plan)} runs, every "
          f"detector, scoring and Parquet; {jobs} worker(s))")
     if reference_s_per_run:
         ref_total = reference_s_per_run * len(plan)
