@@ -85,6 +85,8 @@ TESTS: dict[str, tuple[str, ...]] = {
     "scenarios/servo.py": ("tests/test_servo_values.py", "tests/test_kernel_values.py",
                            "tests/test_servo_physics.py", "tests/test_reference_physics.py"),
     "scenarios/kernels.py": ("tests/test_kernel_values.py", "tests/test_kernels.py"),
+    "detectors/base.py": ("tests/test_detector_base_values.py", "tests/test_fit_blocks.py",
+                          "tests/test_decision_boundaries.py"),
     "detectors/comb_interval.py": ("tests/test_comb_interval_values.py",
                                    "tests/test_interval_detector.py"),
     "detectors/chen_local.py": ("tests/test_chen_local_fit_values.py",
