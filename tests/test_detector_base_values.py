@@ -197,3 +197,17 @@ def test_a_detector_without_fit_checks_pressure_and_aircraft_signals():
     assert Capabilities() == Capabilities(needs_fit=True, needs_surface_sensor=False,
                                           needs_pressure_sensor=False, causal=True,
                                           needs_aircraft=False)
+
+
+def test_capabilities_and_detections_are_frozen_and_half_an_aircraft_is_refused():
+    from dataclasses import FrozenInstanceError, replace
+
+    with pytest.raises(FrozenInstanceError):
+        Capabilities().needs_fit = False
+    d = Detection(alarm=np.zeros((1, 2), bool), residual=np.zeros((1, 2)))
+    with pytest.raises(FrozenInstanceError):
+        d.alarm = d.alarm
+    full = _signals(pressure=1.0, aircraft=True)
+    for half in (replace(full, rods=None), replace(full, aircraft=None)):
+        with pytest.raises(ValueError, match=r"needs the aircraft-level signals"):
+            _NoFit().detect(half)
