@@ -296,3 +296,23 @@ def test_threshold_parameters_are_open_intervals(name, good, bad):
     for value in bad:
         with pytest.raises(ValueError, match=name):
             make_detector("position-monitor", {name: value})
+
+
+def test_min_learning_runs_defaults_to_95_percent_confidence():
+    """n ≥ ln(1 − 0.95)/ln(1 − p) (docs/thresholds.md): 29 956 runs for 10⁻⁴, 299 for 10⁻²."""
+    assert min_learning_runs(1e-4) == 29956 == min_learning_runs(1e-4, 0.95)
+    assert min_learning_runs(1e-2) == 299
+
+
+def test_unsupported_calibration_falls_back_to_one_and_a_half_times_the_largest_value():
+    cal = calibrate_threshold([1.0, 3.0, 2.0], 1e-4)         # 3 runs: nothing supported
+    assert cal.method == "max-factor" and not cal.supported
+    assert cal.threshold == 4.5
+
+
+def test_leave_one_out_ratio_of_a_run_alone_above_zero_is_infinite():
+    """Every other run at 0 (floor 0): the profile without run i is 0, so run i > 0 scales
+    it infinitely and a run at 0 by 0 (not 0/1)."""
+    np.testing.assert_array_equal(leave_one_out_ratios(np.array([[0.0], [0.0], [0.5]])),
+                                  [0.0, 0.0, np.inf])
+    np.testing.assert_array_equal(leave_one_out_ratios(np.array([[0.0], [0.0]])), [0.0, 0.0])
