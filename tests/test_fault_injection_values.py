@@ -434,3 +434,16 @@ def test_fault_arrays_reuse_of_the_command_gives_the_same_bits():
         np.testing.assert_array_equal(a, b, err_msg=name)
         assert np.array_equal(np.signbit(a), np.signbit(b)), name
     assert np.signbit(plain.u_loop[8, 5]) != np.signbit(command[8, 5])
+
+
+def test_the_blocked_pistons_pressure_gain_is_the_documented_half_milliampere():
+    """docs/physics.md §4: once a solid jam seizes the rod, the valve drives the piston to
+    ΔP·clip(i/0.5 mA, −1, 1). The pressure a jam shows is that gain's; the figure is an
+    estimate, so it is pinned against the document rather than derived."""
+    from pathlib import Path
+
+    from scenarios.faults import FAULT_DEFAULTS
+
+    assert FAULT_DEFAULTS.jam_pressure_gain_mA == 0.5
+    physics = (Path(__file__).resolve().parents[1] / "docs" / "physics.md").read_text()
+    assert "ΔP·clip(i/0.5 mA, −1, 1)" in physics
