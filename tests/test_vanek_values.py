@@ -183,6 +183,13 @@ def test_documented_constants_and_defaults():
         "decouple_gusts": True, "smoothing_s": 2.0, "variants": ("lti", "lpv"),
         "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
         "threshold_tail": "light"}
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        vg.NOMINAL.vcas_kt = 250.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        vg.AFFINE_BOX.vcas_kt = (100.0, 400.0)
+    f = vg._Filter(Ad=np.eye(1), Bd=np.eye(1), Cd=np.eye(1), Dd=np.eye(1), c=np.ones(1))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        f.c = np.zeros(1)               # a cached design cannot be altered
     caps = vg.VanekGeometric.capabilities
     assert caps.needs_fit and caps.causal and caps.needs_aircraft
 
@@ -237,6 +244,12 @@ def test_fault_directions_and_the_gust_sideslip_check():
     bad[np.argmin(np.abs(A[:, lpv.IB])), lpv.I_GUST_BETA] += 1e-6 * np.abs(A[:, lpv.IB]).max()
     with pytest.raises(ValueError, match="not the β column of A"):
         vg.gust_sideslip_direction(A, bad)
+    # round-off is accepted: a zero entry off by half of 1e-12 × the column's largest entry
+    # (that entry is 1.9 /s here, so an absolute tolerance of 1e-12 / 1.9 would refuse it)
+    assert np.abs(A[:, lpv.IB]).max() > 1.5
+    ok = B.copy()
+    ok[np.argmin(np.abs(A[:, lpv.IB])), lpv.I_GUST_BETA] += 0.5e-12 * np.abs(A[:, lpv.IB]).max()
+    np.testing.assert_array_equal(vg.gust_sideslip_direction(A, ok), e_beta)
 
 
 @pytest.mark.parametrize("gusts", [True, False])
@@ -497,3 +510,94 @@ def test_only_the_hinf_variants_need_python_control(monkeypatch):
     for variant in ("lti-hinf", "one-step"):
         with pytest.raises(ValueError, match=r"fdd-campaign\[hinf\]"):
             vg.VanekGeometric(variants=variant).validate_params()
+
+
+# ---- the H∞ variants' wiring (their synthesis: tests/test_vanek_hinf_values.py) ------------
+def test_lti_hinf_residual_is_the_cascade_with_the_sampled_noise_and_no_low_pass():
+    from detectors import vanek_hinf as vh
+
+    sig = _signals()
+    est = _fitted_max(variants=("lti-hinf",)).estimates(sig)
+    gen = _reference_generator(*dataclasses.astuple(vg.NOMINAL))
+    q = vh.post_filter(gen, vh.sensor_sigmas() * np.sqrt(TS))
+    # the geometric filter (input [u; y], output r) in series with Q (input r, output f̂)
+    m = gen.F.shape[1]
+    Bf = np.hstack([gen.F, -gen.G])
+    Df = np.hstack([np.zeros((gen.M.shape[0], m)), -gen.H])
+    nf, nq = gen.N.shape[0], q.A.shape[0]
+    A = np.block([[gen.N, np.zeros((nf, nq))], [q.B @ gen.M, q.A]])
+    B = np.vstack([Bf, q.B @ Df])
+    C = np.hstack([q.D @ gen.M, q.C])
+    D = q.D @ Df
+    _close(est["lti-hinf"], np.degrees(_run_filter(A, B, C, D, _plain_inputs(sig, "left_elevator"),
+                                                   np.ones(1))))
+
+
+def test_one_step_residual_ignores_the_pitch_attitude_and_is_not_low_passed():
+    sig = _signals()
+    est = _fitted_max(variants=("one-step",)).estimates(sig)
+    f, _ = vg.one_step_design(_point(*dataclasses.astuple(vg.NOMINAL)), TS)
+    v = _plain_inputs(sig, "left_elevator")
+    theta = len(KNOWN) + 1 + OUTPUTS.index("theta")
+    v = np.delete(v, theta, axis=2)
+    _close(est["one-step"], np.degrees(_run_filter(f.A, f.B, f.C, f.D, v, np.ones(1))))
+
+
+def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch):
+    from detectors import vanek_hinf as vh
+    from scenarios.params import SENSORS
+
+    seen = {}
+    real = vh.one_step_filter
+
+    def capture(*args, **kwargs):
+        seen["args"], seen["kwargs"] = args, kwargs
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(vh, "one_step_filter", capture)
+    point = _point(*POINTS[0])
+    vg.one_step_design(point, TS)
+    A, B, C, outs, i1, i2, known, gusts, sig_y, sig_u, ts = seen["args"]
+    A_full, B_full, _ = _design_model(point)
+    keep = [j for j, s in enumerate(lpv.STATES) if s != "theta"]
+    np.testing.assert_array_equal(A, A_full[np.ix_(keep, keep)])
+    np.testing.assert_array_equal(B, B_full[keep])
+    assert list(outs) == ["q", "beta", "p", "r", "phi"]
+    states = [lpv.STATES[j] for j in keep]
+    C_ref = np.zeros((5, len(keep)))
+    for i, o in enumerate(outs):
+        C_ref[i, states.index(o)] = 1.0
+    np.testing.assert_array_equal(C, C_ref)
+    assert (i1, list(i2), list(known)) == (2, [0, 6], _known_columns())
+    assert list(gusts) == [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA] and ts == TS
+    np.testing.assert_array_equal(sig_y, np.delete(vh.sensor_sigmas(), OUTPUTS.index("theta")))
+    rods = [SENSORS.rod_noise_mm / _lever(s) for s in KNOWN]
+    np.testing.assert_allclose(sig_u, rods + [vh.ONE_STEP.exact_sigma_rad], rtol=1e-15)
+    d_g = np.zeros((5, 2))
+    d_g[outs.index("beta"), 0] = 1.0
+    np.testing.assert_array_equal(seen["kwargs"]["gust_feedthrough"], d_g)
+
+
+def test_design_options_are_keyword_only():
+    point = _point(*POINTS[0])
+    with pytest.raises(TypeError):
+        vg.design_filter(point, TS, False)
+    with pytest.raises(TypeError):
+        vg.design_affine(TS, False)
+
+
+def test_runs_within_the_cache_resolution_share_one_design():
+    # designs are cached by flight point rounded to 1e-6 (θ of lpv-affine, the point of lpv):
+    # two runs 2e-7 kt apart get the same filter, hence bit-identical r̂ for the same inputs
+    sig = _signals(points=(POINTS[0], (POINTS[0][0] + 2e-7,) + POINTS[0][1:]))
+    same = {k: v[:1].repeat(2, axis=0) for k, v in sig.aircraft.items()}
+    rods = {k: v[:1].repeat(2, axis=0) for k, v in sig.rods.items()}
+    sig = dataclasses.replace(sig, aircraft=same, rods=rods)
+    sig.schedule["mach"] = sig.schedule["mach"][:1].repeat(2)
+    sig.schedule["qbar_pa"] = sig.schedule["qbar_pa"][:1].repeat(2)
+    det = _fitted_max(variants=("lpv", "lpv-affine"))
+    est = det.estimates(sig)
+    for k in est:
+        np.testing.assert_array_equal(est[k][0], est[k][1], err_msg=k)
+    assert sum(key[0] == "affine" for key in det._cache) == 1
+    assert sum(key[0] == "geometric" for key in det._cache) == 1
