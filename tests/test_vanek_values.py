@@ -495,6 +495,9 @@ def test_bad_signals_and_parameters_are_refused_before_work():
         vg.VanekGeometric(smoothing_s=-1.0).validate_params()
     with pytest.raises(ValueError, match="decay"):
         vg.VanekGeometric(decay=0.0).validate_params()
+    # the declared bounds' edges are accepted
+    vg.VanekGeometric(safety=1.01, confirm_s=0.0, smoothing_s=0.0, decay=0.01,
+                      radius=0.02).validate_params()
 
 
 def test_only_the_hinf_variants_need_python_control(monkeypatch):
@@ -588,8 +591,10 @@ def test_design_options_are_keyword_only():
 
 def test_runs_within_the_cache_resolution_share_one_design():
     # designs are cached by flight point rounded to 1e-6 (θ of lpv-affine, the point of lpv):
-    # two runs 2e-7 kt apart get the same filter, hence bit-identical r̂ for the same inputs
-    sig = _signals(points=(POINTS[0], (POINTS[0][0] + 2e-7,) + POINTS[0][1:]))
+    # two runs 2e-7 kt and 2e-7 t apart get the same filter, hence bit-identical r̂ for the
+    # same inputs (the mass enters the lpv point, the speed the lpv-affine one)
+    v, h, mass, cg = POINTS[0]
+    sig = _signals(points=(POINTS[0], (v + 2e-7, h, mass + 2e-7, cg)))
     same = {k: v[:1].repeat(2, axis=0) for k, v in sig.aircraft.items()}
     rods = {k: v[:1].repeat(2, axis=0) for k, v in sig.rods.items()}
     sig = dataclasses.replace(sig, aircraft=same, rods=rods)
