@@ -70,34 +70,39 @@ def test_sensor_sigmas_and_one_step_weights():
         w.eps = 1.0
 
 
-def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatch):
-    seen = _capture_hinfsyn(monkeypatch)
-    gen = _generator()
-    sigma = vh.sensor_sigmas() * np.sqrt(TS)         # as the lti-hinf variant uses it
-    q = vh.post_filter(gen, sigma)          # defaults: f_s 0.1, ω_id 1, ε 0.1, 100 rad/s
-    fs, om, eps = 0.1, 1.0, 0.1
+def _model_matching(gen, sigma, fs, om, eps):
+    """(A, B, C, D) of the post-filter's interconnection, from the module docstring: states
+    [e; x_id]; inputs [w_f = f1/f_s; n (p); f̂]; outputs [x_id − f̂; ε f̂; r]."""
     N, M, H, G = gen.N, gen.M, gen.H, gen.G
     Sig = np.diag(sigma)
     nw, nq, p = N.shape[0], M.shape[0], len(sigma)
     pl1 = gen.P @ gen.L1[:, 0]
-    # states [e; x_id]; inputs [w_f = f1/f_s; n (p); f̂]; outputs [x_id − f̂; ε f̂; r]
     A = np.zeros((nw + 1, nw + 1))
     A[:nw, :nw] = N
     A[nw, nw] = -om
     B = np.zeros((nw + 1, 1 + p + 1))
-    B[:nw, 0] = -pl1 * fs
+    B[:nw, 0] = -pl1 * fs                               # ė = N e − P L1 f1 − G Σ n
     B[:nw, 1:1 + p] = -G @ Sig
-    B[nw, 0] = om * fs
+    B[nw, 0] = om * fs                                  # ẋ_id = −ω x_id + ω f1
     C = np.zeros((2 + nq, nw + 1))
     C[0, nw] = 1.0
     C[2:, :nw] = M
     D = np.zeros((2 + nq, 1 + p + 1))
     D[0, -1], D[1, -1] = -1.0, eps
-    D[2:, 1:1 + p] = -H @ Sig
+    D[2:, 1:1 + p] = -H @ Sig                           # r = M e − H Σ n
+    return A, B, C, D
+
+
+def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatch):
+    seen = _capture_hinfsyn(monkeypatch)
+    gen = _generator()
+    sigma = vh.sensor_sigmas() * np.sqrt(TS)         # as the lti-hinf variant uses it
+    q = vh.post_filter(gen, sigma)          # defaults: f_s 0.1, ω_id 1, ε 0.1, 100 rad/s
     plant = seen["plant"]
-    for got, want in ((plant.A, A), (plant.B, B), (plant.C, C), (plant.D, D)):
+    for got, want in zip((plant.A, plant.B, plant.C, plant.D),
+                         _model_matching(gen, sigma, 0.1, 1.0, 0.1)):
         _same(got, want)
-    assert (seen["nmeas"], seen["ncon"]) == (nq, 1)
+    assert (seen["nmeas"], seen["ncon"]) == (gen.M.shape[0], 1)
     K = seen["K"]
     reduced = vh.residualise(np.asarray(K.A), np.asarray(K.B), np.asarray(K.C),
                              np.asarray(K.D), 100.0)
@@ -106,12 +111,26 @@ def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatc
     assert q.gamma == float(seen["gamma"])
     # the reduction is exercised: one mode of the central filter (measured 269 rad/s) goes
     assert np.abs(np.linalg.eigvals(K.A)).max() > 100.0 and q.A.shape[0] < K.A.shape[0]
-    # other scales reach the interconnection
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        q.gamma = 0.0
+
+
+def test_post_filter_of_a_hand_built_filter_with_fewer_residuals_than_states(monkeypatch):
+    # two filter states, one residual, two sensors (the aircraft's filter has q = n − s)
+    import types
+
+    seen = _capture_hinfsyn(monkeypatch)
+    gen = types.SimpleNamespace(N=np.array([[-1.0, 0.3], [0.0, -2.0]]),
+                                M=np.array([[1.0, 0.5]]), H=np.array([[0.2, -0.1]]),
+                                G=np.array([[0.4, 0.0], [0.1, 0.3]]), P=np.eye(2),
+                                L1=np.array([[1.0], [0.5]]))
+    sigma = np.array([0.01, 0.02])
     vh.post_filter(gen, sigma, fault_scale=0.2, omega_id=2.0, eps=0.3)
     plant = seen["plant"]
-    assert plant.A[nw, nw] == -2.0 and plant.B[nw, 0] == pytest.approx(0.4, rel=1e-15)
-    _same(plant.B[:nw, 0], -pl1 * 0.2)
-    assert (plant.D[0, -1], plant.D[1, -1]) == (-1.0, 0.3)
+    for got, want in zip((plant.A, plant.B, plant.C, plant.D),
+                         _model_matching(gen, sigma, 0.2, 2.0, 0.3)):
+        _same(got, want)
+    assert (seen["nmeas"], seen["ncon"]) == (1, 1)
 
 
 @pytest.mark.parametrize("kwargs", [{"omega_id": 0.0}, {"eps": 0.0}, {"omega_id": -1.0},
@@ -243,6 +262,8 @@ def test_one_step_interconnection_is_the_documented_one(monkeypatch, feedthrough
     for got, want in zip((f.A, f.B, f.C, f.D), reduced):
         np.testing.assert_array_equal(got, want)
     assert f.gamma == float(seen["gamma"]) and f.outputs == outs
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        f.gamma = 0.0
 
 
 def test_one_step_refuses_a_model_that_is_not_stable():
