@@ -606,3 +606,8 @@ def test_runs_within_the_cache_resolution_share_one_design():
         np.testing.assert_array_equal(est[k][0], est[k][1], err_msg=k)
     assert sum(key[0] == "affine" for key in det._cache) == 1
     assert sum(key[0] == "geometric" for key in det._cache) == 1
+    # sampling periods are told apart to 1e-9 s: 2e-10 s more reuses the designs, 2e-9 s not
+    det.estimates(dataclasses.replace(sig, ts=TS + 2e-10))
+    assert len(det._cache) == 3                 # the affine family, its filter, the lpv one
+    det.estimates(dataclasses.replace(sig, ts=TS + 2e-9))
+    assert len(det._cache) == 6
