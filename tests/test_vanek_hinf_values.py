@@ -95,6 +95,13 @@ def _model_matching(gen, sigma, fs, om, eps):
 
 def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatch):
     seen = _capture_hinfsyn(monkeypatch)
+    real_residualise = vh.residualise
+
+    def residualise(*args):
+        seen["max_pole"] = args[-1]
+        return real_residualise(*args)
+
+    monkeypatch.setattr(vh, "residualise", residualise)
     gen = _generator()
     sigma = vh.sensor_sigmas() * np.sqrt(TS)         # as the lti-hinf variant uses it
     q = vh.post_filter(gen, sigma)          # defaults: f_s 0.1, ω_id 1, ε 0.1, 100 rad/s
@@ -103,6 +110,7 @@ def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatc
                          _model_matching(gen, sigma, 0.1, 1.0, 0.1)):
         _same(got, want)
     assert (seen["nmeas"], seen["ncon"]) == (gen.M.shape[0], 1)
+    assert seen["max_pole"] == 100.0                  # the documented default
     K = seen["K"]
     reduced = vh.residualise(np.asarray(K.A), np.asarray(K.B), np.asarray(K.C),
                              np.asarray(K.D), 100.0)
@@ -116,14 +124,15 @@ def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatc
 
 
 def test_post_filter_of_a_hand_built_filter_with_fewer_residuals_than_states(monkeypatch):
-    # two filter states, one residual, two sensors (the aircraft's filter has q = n − s)
+    # two filter states, one residual, two sensors (the aircraft's filter has q = n − s),
+    # two fault columns of which the post-filter tracks the first
     import types
 
     seen = _capture_hinfsyn(monkeypatch)
     gen = types.SimpleNamespace(N=np.array([[-1.0, 0.3], [0.0, -2.0]]),
                                 M=np.array([[1.0, 0.5]]), H=np.array([[0.2, -0.1]]),
                                 G=np.array([[0.4, 0.0], [0.1, 0.3]]), P=np.eye(2),
-                                L1=np.array([[1.0], [0.5]]))
+                                L1=np.array([[1.0, 0.0], [0.5, 1.0]]))   # f1 is the first
     sigma = np.array([0.01, 0.02])
     vh.post_filter(gen, sigma, fault_scale=0.2, omega_id=2.0, eps=0.3)
     plant = seen["plant"]
