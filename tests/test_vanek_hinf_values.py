@@ -42,6 +42,9 @@ def _capture_hinfsyn(monkeypatch):
     real = control.hinfsyn
 
     def hinfsyn(plant, nmeas, ncon):
+        # a non-finite interconnection is wrong whatever it is, and SLICOT may take minutes
+        # on one: refuse it before the synthesis
+        assert all(np.isfinite(m).all() for m in (plant.A, plant.B, plant.C, plant.D))
         out = real(plant, nmeas, ncon)
         seen.update(plant=plant, nmeas=nmeas, ncon=ncon, K=out[0], gamma=out[2])
         return out
