@@ -145,6 +145,11 @@ def test_post_filter_of_a_hand_built_filter_with_fewer_residuals_than_states(mon
     assert (seen["nmeas"], seen["ncon"]) == (1, 1)
 
 
+def test_post_filter_weights_are_keyword_only():
+    with pytest.raises(TypeError):
+        vh.post_filter(_generator(), vh.sensor_sigmas(), 0.2)
+
+
 @pytest.mark.parametrize("kwargs", [{"omega_id": 0.0}, {"eps": 0.0}, {"omega_id": -1.0},
                                     {"eps": -0.1}])
 def test_post_filter_refuses_non_positive_bandwidth_or_penalty(kwargs):
@@ -190,6 +195,10 @@ def test_residualise_keeps_the_slow_mode_and_the_dc_gain():
                 + sum(np.outer(c[:, i], b[i]) / -lam[i] for i in (1, 2)))
         np.testing.assert_allclose(_tf(Ar, Br, Cr, Dr, s), want, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(_tf(Ar, Br, Cr, Dr, 0.0), _tf(A, B, C, D, 0.0), rtol=1e-10)
+    # a mode exactly at the limit is not slow (|λ| < max_pole): diagonal A, no round-off
+    Ad = np.diag([-1.0, -100.0])
+    assert vh.residualise(Ad, B[:2], C[:, :2], D, 100.0)[0].shape == (1, 1)
+    assert vh.residualise(Ad, B[:2], C[:, :2], D, 100.0 + 1e-9)[0].shape == (2, 2)
     # nothing faster than the limit: the system is returned as it is
     out = vh.residualise(A, B, C, D, 1000.0)
     for got, want in zip(out, (A, B, C, D)):
