@@ -96,8 +96,10 @@ TESTS: dict[str, tuple[str, ...]] = {
                                       "tests/test_chen_local_fit_values.py",
                                       "tests/test_chen_local_values.py",
                                       "tests/test_chen_estimator.py"),
-    "detectors/vanek_geometric.py": ("tests/test_vanek_geometric.py",),
-    "detectors/vanek_hinf.py": ("tests/test_vanek_geometric.py",),
+    "detectors/vanek_geometric.py": ("tests/test_vanek_values.py",
+                                     "tests/test_vanek_geometric.py"),
+    "detectors/vanek_hinf.py": ("tests/test_vanek_hinf_values.py", "tests/test_vanek_values.py",
+                                "tests/test_vanek_geometric.py"),
     "detectors/chen_global.py": ("tests/test_chen_global.py",),
 }
 #: cosmic-ray operators run (see the module docstring); every other operator is skipped.
