@@ -645,3 +645,33 @@ def test_components_decision_and_learned_threshold(fitted, learning, test_signal
     f_abs0, b0 = flat._components(test_signals)
     assert not b0.any() and b0.shape == f_abs0.shape
     np.testing.assert_allclose(f_abs0, f_abs, rtol=0, atol=1e-9 * f_abs.max())
+
+
+def test_quiet_learning_runs_leave_the_floor_and_a_calibration(learning):
+    """Runs without any lateral activity: f̂ ≡ 0 and b ≡ 0, so every per-run maximum of
+    (|f̂| − b)⁺ is 0, the calibrated threshold (the default "evt" rule, one manoeuvre) is 0
+    and τ0 is the floor; the calibration is kept with the fitted state."""
+    quiet = replace(learning, aircraft={k: np.zeros_like(v) for k, v in learning.aircraft.items()},
+                    rods={k: np.zeros_like(v) for k, v in learning.rods.items()},
+                    classes=np.array(["cruise"] * 3))
+    det = ChenGlobalEstimator(floor_deg=0.3).fit(quiet)
+    assert det.threshold_ == 0.3
+    assert det.calibration_.largest == 0.0 and det.calibration_.threshold == 0.0
+    assert not det._excess(quiet).any()
+
+
+def test_an_estimator_unstable_on_the_polytope_is_refused(learning, monkeypatch):
+    """The stability checks of the fit (continuous and discretised, every vertex and the
+    grid of the box) refuse gains that do not stabilise the error dynamics (eq. 17)."""
+    from detectors import lpv_synthesis
+
+    real = lpv_synthesis.synthesise
+
+    def unstable(*args, **kwargs):
+        design = real(*args, **kwargs)
+        design.Z1 = design.Z1 + 1e3       # L1 = −F H† + Z1 H⊥: a pole far in the right half
+        return design
+
+    monkeypatch.setattr(lpv_synthesis, "synthesise", unstable)
+    with pytest.raises(ValueError, match="not stable over the scheduling polytope"):
+        ChenGlobalEstimator(threshold_method="max").fit(learning)
