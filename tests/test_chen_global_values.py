@@ -16,6 +16,7 @@ measured flight points, one of them outside the scheduling box (clipped).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import itertools
 import math
 from dataclasses import replace
@@ -294,7 +295,8 @@ def test_output_matrix_and_monitored_column():
     for j, s in enumerate(SURFACES[:4]):
         assert cg.monitored_column(s) == j
     with pytest.raises(ValueError, match="set \\[plant\\] monitored_surface to one of "
-                                         "left_inboard_aileron, right_inboard_aileron"):
+                                         "left_inboard_aileron, right_inboard_aileron, "
+                                         "left_outboard_aileron, right_outboard_aileron$"):
         cg.monitored_column("rudder")
 
 
@@ -384,6 +386,30 @@ def test_a_model_that_is_not_affine_in_rho_is_refused(monkeypatch):
         cg.fit_affine(_schedule(LEARNING_POINTS + TEST_POINTS))
 
 
+def test_a_component_below_the_negligible_share_is_dropped(monkeypatch):
+    """A ρ component whose coefficients stay below 1e-9 of the largest model entry is
+    dropped (NUMERICS.negligible), and the fit without it is still accepted: here a term
+    1e-9·ρ2/max ρ2 [deg/s per deg] added to L_p, 1/11.5 of the 1e-9 share of the largest
+    entry (|Y| ≤ 11.5), leaves a relative residual below 1e-9/11.5."""
+    real = cg.lateral_models
+
+    def tiny_rho2(schedule):
+        A, B = real(schedule)
+        rho2 = plain_rho(schedule)[:, 2]
+        A = A.copy()
+        A[:, 1, 1] += 1e-9 * rho2 / rho2.max()
+        return A, B
+
+    sched = {k: np.concatenate([s[k][::5] for _, s in plain_envelope(0.25)[::4]])
+             for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "mach", "qbar_pa")}
+    Y = np.concatenate([m.reshape(len(m), -1) for m in real(sched)], axis=1)
+    assert 11.0 < np.abs(Y).max() < 12.0
+    monkeypatch.setattr(cg, "lateral_models", tiny_rho2)
+    model = cg.fit_affine(sched)
+    np.testing.assert_array_equal(model.keep, [0, 1, 3])
+    assert 1e-13 < model.residual < 1e-9 / 11.0
+
+
 @pytest.mark.parametrize("gust", [True, False])
 def test_fault_matrix_and_h_direction(gust):
     rng = np.random.default_rng(1)
@@ -426,6 +452,8 @@ def test_the_documented_defaults_and_parameter_limits():
         (True, False, True, True)
     assert cg.NUMERICS == cg.GlobalNumerics(affine_tolerance=1e-9, negligible=1e-9,
                                             grid_per_axis=9, polytope_margin=0.02)
+    with pytest.raises(dataclasses.FrozenInstanceError):    # constants, not settings
+        cg.NUMERICS.grid_per_axis = 5
 
 
 def test_bad_signals_are_named(learning):
@@ -497,8 +525,9 @@ def test_lowpass_and_bound_are_the_documented_filters():
     x = rng.normal(size=(2, 50))
     for tau in (0.5, 0.05, 0.0):
         det = ChenGlobalEstimator(filter_s=tau)
-        np.testing.assert_allclose(det._lowpass(x, TS), plain_lowpass(x, tau, TS),
-                                   rtol=1e-12, atol=1e-14)
+        for xi in (x, x[0], rng.normal(size=(3, 2, 50))):         # along the last axis
+            np.testing.assert_allclose(det._lowpass(xi, TS), plain_lowpass(xi, tau, TS),
+                                       rtol=1e-12, atol=1e-14)
         w = rng.normal(size=(5, 2, 50))
         det.error_bounds_ = np.array([0.4, 0.6, 0.45, 0.55, 0.3])
         expected = sum(k * np.abs(plain_lowpass(w[j], tau, TS))
