@@ -363,6 +363,11 @@ def test_compiled_window_is_the_documented_step(q, bounds):
 def test_scheduling_vector_is_the_documented_formula():
     sched = _schedule([(28000.0, 300.0, 180.0, 30.0), (2000.0, 150.0, 233.0, 41.0)])
     np.testing.assert_allclose(cg.scheduling_vector(sched), plain_rho(sched), rtol=1e-13)
+    # the components along the last axis, whatever the shape of the schedule's entries
+    grid = {k: np.stack([v, v[::-1], v]) for k, v in sched.items()}           # (3, 2)
+    np.testing.assert_allclose(cg.scheduling_vector(grid),
+                               plain_rho({k: v.ravel() for k, v in grid.items()})
+                               .reshape(3, 2, 4), rtol=1e-13)
     del sched["cg_pct"]
     with pytest.raises(ValueError, match=r"scheduling data \['cg_pct'\] in Signals.schedule"):
         cg.scheduling_vector(sched)
