@@ -6,6 +6,8 @@ LMI, no simulation: a few seconds, most of it compiling the kernel)."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -44,13 +46,31 @@ def plain_window(y, u, a, b, xh, rows, L2, PhiT, Gam, Gam1, ramp, bounds, e, C_L
     return f_out, w_out, xh, e
 
 
+@functools.cache
+def _kernel(checked: bool):
+    """The compiled kernel, or (*checked*) its Python source compiled afresh with numba's
+    bounds checks: an index past an array's end (which the production build, without
+    checks, reads or writes silently) raises IndexError."""
+    from detectors.chen_global_kernel import recursion_window
+
+    if not checked:
+        return recursion_window
+    numba = pytest.importorskip("numba")
+    source = getattr(recursion_window, "py_func", None)
+    if source is None:
+        pytest.skip("the kernels run interpreted (no numba)")
+    return numba.njit(boundscheck=True, error_model="numpy")(source)
+
+
+@pytest.mark.parametrize("checked", [False, True], ids=["cached", "bounds-checked"])
 @pytest.mark.parametrize("q", [1, 2])
 @pytest.mark.parametrize("bounds", [True, False])
-def test_compiled_window_is_the_documented_step(q, bounds):
+def test_compiled_window_is_the_documented_step(q, bounds, checked):
     """recursion_window on random arrays (3 runs, 23 steps), run over windows [0, 9),
     [9, 23) and over the whole run at once, against the plain loop: f̂, w, and the states
-    x̂, e it leaves for the next window; steps outside the window are not written."""
-    from detectors.chen_global_kernel import recursion_window
+    x̂, e it leaves for the next window; steps outside the window are not written; no index
+    leaves its array (the bounds-checked build)."""
+    recursion_window = _kernel(checked)
 
     rng = np.random.default_rng(11 + q)
     n, T = 3, 23
