@@ -106,3 +106,21 @@ def test_compiled_window_is_the_documented_step(q, bounds, checked):
                 assert np.isnan(w).all()
                 np.testing.assert_array_equal(e, e0)
         assert not np.isnan(f_hat).any()
+
+
+def test_the_compiled_kernel_is_cached_on_disk():
+    """cache=True: after a call, numba's on-disk index holds the kernel (what
+    scenarios.kernels.warm_up reports on), so later runs load it instead of compiling."""
+    numba = pytest.importorskip("numba")
+    if numba.core.config.DISABLE_JIT:
+        pytest.skip("the kernels run interpreted (NUMBA_DISABLE_JIT)")
+    recursion_window = _kernel(False)
+    n, T = 1, 2
+    recursion_window(np.zeros((3, n, T)), np.zeros((6, n, T)), 0, T, np.zeros((4, n)),
+                     np.array([3, 1, 2]), np.zeros((1, 3)), np.zeros((4, 4, n)),
+                     np.zeros((n, 4, 9)), np.zeros((n, 4, 8)), np.arange(8), np.zeros((n, T)),
+                     False, np.zeros((0, 4, n)), np.zeros(4), np.zeros((0, 4, n)),
+                     np.zeros((n, 0, 0)), np.zeros((0, n)), np.zeros((0, n)),
+                     np.zeros((0, 4, n)), np.zeros((0, n, T)))
+    # numba's cache internals, as scenarios.kernels reads them (a NullCache without cache=True)
+    assert recursion_window._cache._cache_file._load_index()
