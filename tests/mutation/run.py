@@ -100,7 +100,11 @@ TESTS: dict[str, tuple[str, ...]] = {
                                      "tests/test_vanek_geometric.py"),
     "detectors/vanek_hinf.py": ("tests/test_vanek_hinf_values.py", "tests/test_vanek_values.py",
                                 "tests/test_vanek_geometric.py"),
-    "detectors/chen_global.py": ("tests/test_chen_global.py",),
+    "detectors/chen_global.py": ("tests/test_chen_global_values.py",
+                                 "tests/test_chen_global.py"),
+    "detectors/chen_global_kernel.py": ("tests/test_chen_global_kernel_values.py",
+                                        "tests/test_chen_global_values.py",
+                                        "tests/test_chen_global.py"),
 }
 #: cosmic-ray operators run (see the module docstring); every other operator is skipped.
 OPERATORS: tuple[str, ...] = (
