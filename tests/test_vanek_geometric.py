@@ -297,21 +297,6 @@ def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():
     assert q.gamma > 0
 
 
-def test_hinf_variant_needs_its_optional_dependencies(monkeypatch):
-    import builtins
-
-    real = builtins.__import__
-
-    def no_control(name, *args, **kwargs):
-        if name in ("control", "slycot"):
-            raise ImportError(f"No module named {name!r}")
-        return real(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_control)
-    with pytest.raises(ValueError, match=r"fdd-campaign\[hinf\]"):
-        VanekGeometric(variants=("lti", "lti-hinf")).validate_params()
-
-
 def test_fault_free_residual_floor_at_the_default_sensor_noise():
     # The trimmed runs start at zero rates, sideslip, bank and spoiler angle: those inputs
     # enter as measured. Referenced to their first (noisy) sample instead, each run carried

@@ -510,7 +510,7 @@ def test_only_the_hinf_variants_need_python_control(monkeypatch):
 
     monkeypatch.setattr(builtins, "__import__", no_control)
     vg.VanekGeometric(variants=("lti", "lpv", "lpv-affine")).validate_params()
-    for variant in ("lti-hinf", "one-step"):
+    for variant in ("lti-hinf", "one-step", ("lti", "lti-hinf")):
         with pytest.raises(ValueError, match=r"fdd-campaign\[hinf\]"):
             vg.VanekGeometric(variants=variant).validate_params()
 
