@@ -380,3 +380,17 @@ def test_run_id_leaves_out_only_default_optional_columns():
     assert run_id({**row, "run_id": "anything"}) == base
     assert len(base) == 20 and all(ch in "0123456789abcdef" for ch in base)
     assert not math.isnan(row["alt_ft"])
+
+
+def test_the_drawn_direction_splits_the_unit_interval_at_one_half():
+    """A fault's sign is −1 on [0, 0.5) and +1 on [0.5, 1) of its unit sample: each half of
+    the interval, so both directions are equally likely; exactly 0.5 belongs to +1."""
+    from types import SimpleNamespace
+
+    from campaign import design
+
+    below = np.nextafter(0.5, 0.0)
+    sign, freq = design._fault_values("hardover", np.zeros(4), np.array([0.0, below, 0.5, 0.75]),
+                                      np.zeros(4), SimpleNamespace(faults=None), None)
+    np.testing.assert_array_equal(sign, [-1.0, -1.0, 1.0, 1.0])
+    assert np.isnan(freq).all()
