@@ -394,3 +394,28 @@ def test_the_drawn_direction_splits_the_unit_interval_at_one_half():
                                       np.zeros(4), SimpleNamespace(faults=None), None)
     np.testing.assert_array_equal(sign, [-1.0, -1.0, 1.0, 1.0])
     assert np.isnan(freq).all()
+
+
+def _sliver(vcas_max: float, seed: int, count: int):
+    """A box on the edge of the realistic envelope (high, slow, heavy): about 0.07–0.3 % of
+    its points are realistic, so a Monte Carlo cell needs several doublings of its draw."""
+    return config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"], "count": count}],
+                  campaign={"seed": seed},
+                  envelope={"alt_ft": [30000.0, 38000.0], "vcas_kt": [160.0, vcas_max],
+                            "mass_t": [200.0, 233.0]})
+
+
+def test_a_rare_realistic_region_is_drawn_up_to_six_doublings_and_no_further():
+    """A cell draws max(4·n, 16) unit points, doubled at most six times (1024 for one run)
+    until n of them are realistic; the first n are kept (a Sobol sequence's prefix does not
+    depend on its length). The cases below were found by scanning seeds for where the
+    realistic points of each cell's sequence fall (indices in the comments)."""
+    # one run, the only realistic point of the first 1024 at index 889: the sixth doubling
+    plan = build_plan(_sliver(252.0, 3, 1))
+    assert len(plan) == 1 and bool(plan["realistic"].iloc[0])
+    # one run, the first realistic point at 1043: beyond the sixth doubling (1024)
+    with pytest.raises(ValueError, match="group 'ff': fewer than 1 realistic flight points"):
+        build_plan(_sliver(252.0, 99, 1))
+    # five runs: 4·5 = 20 points doubled six times is 1280; the fifth realistic is at 1496
+    with pytest.raises(ValueError, match="group 'ff': fewer than 5 realistic flight points"):
+        build_plan(_sliver(256.0, 41, 5))
