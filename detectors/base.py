@@ -267,9 +267,10 @@ def per_run_maxima(signals: Signals, statistics, block_runs: int | None = None
     {name: (runs, n_steps) series}, each reduced to its maximum over the run's steps.
 
     The runs are taken *block_runs* (default :data:`FIT_BLOCK_RUNS`) at a time (views of
-    *signals*), so only one block's series exist at once. Each run's maximum is the one the whole set at once gives: a
-    built-in detector's residual of a run never depends on the other runs of its batch
-    (the batch invariance the engine relies on at any ``--jobs``, docs/design.md §4)."""
+    *signals*), so only one block's series exist at once. Each run's maximum is the one the
+    whole set at once gives: a built-in detector's residual of a run never depends on the
+    other runs of its batch (the batch invariance the engine relies on at any ``--jobs``,
+    docs/design.md §4)."""
     block_runs = max(int(FIT_BLOCK_RUNS if block_runs is None else block_runs), 1)
     parts: dict[str, list] = {}
     for start in range(0, signals.n_runs, block_runs):
