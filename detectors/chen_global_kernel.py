@@ -29,13 +29,16 @@ def recursion_window(y, u, a, b, xh, rows, L2, PhiT, Gam, Gam1, ramp, f_hat, bou
 
     y (3, n, T) outputs [φ, p, r]; u (6, n, ≥ b − a) the inputs from step a on (one step
     more when b < T: the ramps' last increment); xh (4, n) the state x̂ at step a (updated
-    to step b); rows (3,) the state each output reads (C_b selects); L2 (q, 3); PhiT (4, 4, n) Φ per run; Gam (n, 4, 9) and Gam1 (n, 4, len(ramp))
-    the input matrices on [u; y] and on the increments of the inputs *ramp* (indices into
-    [u; y]); f_hat (n, T) written at the window's steps. With *bounds*: e (5, 4, n) the
+    to step b); rows (3,) the state each output reads (C_b selects); L2 (q, 3); PhiT
+    (4, 4, n) Φ per run; Gam (n, 4, 9) and Gam1 (n, 4, len(ramp)) the input matrices on
+    [u; y] and on the increments of the inputs *ramp* (indices into [u; y]); f_hat (n, T)
+    written at the window's steps. With *bounds*: e (5, 4, n) the
     uncertainty filters' state (updated), C_L2 (4,) the f̂ row of L2·C, ZxT (5, 4, n) and
     Zu (n, 5, 6) the state and input parts of the uncertainty signals, z_f, z_g (5, n) their
     parts per degree of f̂ and of the gust estimate, GmT (5, 4, n) Γ_M per signal, w (5, n,
     T) written at the window's steps (unused arrays may be empty when *bounds* is False).
+    The four states of x_b (docs/chen-estimator.md §5) are unrolled in the sums, so the loops
+    over states run to 4.
     """
     n, T = f_hat.shape
     q = L2.shape[0]
