@@ -277,7 +277,7 @@ def fitted(learning):
 
 
 @pytest.fixture(scope="module")
-def test_signals():
+def eval_signals():
     return make_signals(TEST_POINTS, 200, phase=0.4)
 
 
@@ -605,34 +605,34 @@ def test_fit_stability_checks_and_static_gain(fitted):
 
 
 @pytest.mark.parametrize("engine", ["numpy", "compiled"])
-def test_recursion_and_bound_follow_the_documented_loop(fitted, test_signals, engine,
+def test_recursion_and_bound_follow_the_documented_loop(fitted, eval_signals, engine,
                                                         monkeypatch):
     """f̂ and w against the plain loop, over windows of 64 steps that do not divide the
     200-step runs (the ramps' increments cross the windows' edges) and at once; one run's
     ρ beyond the box (clipped), one rod beyond its lever arm (δ clipped)."""
     lo, hi = fitted.schedule_box_
-    rho = plain_rho(test_signals.schedule)
+    rho = plain_rho(eval_signals.schedule)
     assert (rho[2] > hi).any() and ((rho[:2] > lo) & (rho[:2] < hi)).all()
-    ref_f, ref_w = plain_recursion(fitted, test_signals, bounds=True)
+    ref_f, ref_w = plain_recursion(fitted, eval_signals, bounds=True)
     scale_f, scale_w = np.abs(ref_f).max(), np.abs(ref_w).max(axis=(1, 2))
     assert scale_f > 1.0 and (scale_w > 0.01).all()      # every channel drives them
     for window in (64, 500):
         monkeypatch.setattr(cg, "TIME_WINDOW", window)
         with kernels.use_engine(engine):
-            f_hat, w = fitted._recursion(test_signals, bounds=True)
-            f_only, none = fitted._recursion(test_signals, bounds=False)
+            f_hat, w = fitted._recursion(eval_signals, bounds=True)
+            f_only, none = fitted._recursion(eval_signals, bounds=False)
         # closed-form discretisation vs the augmented matrix exponential, and the observer's
         # 1/ε output gain: agreement to 1e-9 of each series' size (6e-11 measured for f̂)
         np.testing.assert_allclose(f_hat, ref_f, rtol=0, atol=1e-9 * scale_f)
         for j in range(5):
             np.testing.assert_allclose(w[j], ref_w[j], rtol=0, atol=1e-9 * scale_w[j])
         assert f_only.tobytes() == f_hat.tobytes() and none is None
-    np.testing.assert_array_equal(fitted.estimate(test_signals), f_hat)
-    np.testing.assert_array_equal(fitted.uncertainty_response(test_signals), w)
+    np.testing.assert_array_equal(fitted.estimate(eval_signals), f_hat)
+    np.testing.assert_array_equal(fitted.uncertainty_response(eval_signals), w)
 
 
 @pytest.mark.parametrize("engine", ["numpy", "compiled"])
-def test_one_unknown_input_recursion(fitted, test_signals, engine):
+def test_one_unknown_input_recursion(fitted, eval_signals, engine):
     """Without the gust channel (q = 1: F = B_b W, L2 one row), on the fitted arrays cut to
     the fault's column (a hand-built estimator: the recursion's equations do not depend on
     where its gains come from)."""
@@ -642,14 +642,14 @@ def test_one_unknown_input_recursion(fitted, test_signals, engine):
     d = dict(fitted.design_)
     d["H_dagger"], d["L2"] = d["H_dagger"][:1], d["L2"][:1]
     det.design_ = d
-    ref_f, ref_w = plain_recursion(det, test_signals, bounds=True)
+    ref_f, ref_w = plain_recursion(det, eval_signals, bounds=True)
     with kernels.use_engine(engine):
-        f_hat, w = det._recursion(test_signals, bounds=True)
+        f_hat, w = det._recursion(eval_signals, bounds=True)
     np.testing.assert_allclose(f_hat, ref_f, rtol=0, atol=1e-9 * np.abs(ref_f).max())
     np.testing.assert_allclose(w, ref_w, rtol=0, atol=1e-9 * np.abs(ref_w).max())
 
 
-def test_components_decision_and_learned_threshold(fitted, learning, test_signals):
+def test_components_decision_and_learned_threshold(fitted, learning, eval_signals):
     """|f̂| and b low-passed, r = |f̂|/(τ0 + b) confirmed over 0.1 s; τ0 = max(safety ×
     the largest per-run max of (|f̂| − b)⁺, floor) on the learning runs ("max")."""
     f_abs, b = plain_components(fitted, learning)
@@ -657,18 +657,18 @@ def test_components_decision_and_learned_threshold(fitted, learning, test_signal
     assert fitted.threshold_ == pytest.approx(expected, rel=1e-9)
     np.testing.assert_allclose(fitted._excess(learning), f_abs - b, rtol=0,
                                atol=1e-9 * f_abs.max())
-    f_abs, b = plain_components(fitted, test_signals)
-    got_f, got_b = fitted._components(test_signals)
+    f_abs, b = plain_components(fitted, eval_signals)
+    got_f, got_b = fitted._components(eval_signals)
     np.testing.assert_allclose(got_f, f_abs, rtol=0, atol=1e-9 * f_abs.max())
     np.testing.assert_allclose(got_b, b, rtol=0, atol=1e-9 * b.max())
-    np.testing.assert_allclose(fitted.activity_bound(test_signals), got_b, rtol=0)
+    np.testing.assert_allclose(fitted.activity_bound(eval_signals), got_b, rtol=0)
     # the decision at a lower τ0 (a copy of the fitted detector), so that some runs alarm:
     # τ0 = 332° on these hand-built runs, whose outputs no aircraft would fly
     low = copy.copy(fitted)
     low.threshold_ = 40.0
     r = f_abs / (low.threshold_ + b)
     assert np.abs(r - 1.0).min() > 1e-6            # no step on the boundary
-    out = low.detect(test_signals)
+    out = low.detect(eval_signals)
     np.testing.assert_allclose(out.residual, r, rtol=0, atol=1e-9 * r.max())
     np.testing.assert_array_equal(out.alarm, plain_confirm(r > 1.0, 10))
     assert out.alarm.any() and not out.alarm.all()
@@ -676,7 +676,7 @@ def test_components_decision_and_learned_threshold(fitted, learning, test_signal
     flat = ChenGlobalEstimator(adaptive=False)
     for name in ("schedule_box_", "model_", "design_", "error_bounds_", "threshold_"):
         setattr(flat, name, getattr(fitted, name))
-    f_abs0, b0 = flat._components(test_signals)
+    f_abs0, b0 = flat._components(eval_signals)
     assert not b0.any() and b0.shape == f_abs0.shape
     np.testing.assert_allclose(f_abs0, f_abs, rtol=0, atol=1e-9 * f_abs.max())
 
