@@ -216,6 +216,8 @@ def residual_breaches(residual: np.ndarray) -> np.ndarray:
     """(n_runs, n_steps) bool: the samples of *residual* the output contract refuses (±inf,
     and NaN after the first non-NaN sample of its run; :func:`detection_problems`)."""
     residual = np.asarray(residual, dtype=float)
+    if np.isfinite(residual).all():     # the usual case, in one pass: nothing refused
+        return np.zeros(residual.shape, dtype=bool)
     nan = np.isnan(residual)
     started = np.logical_or.accumulate(~nan, axis=1) if residual.ndim == 2 else ~nan
     return np.isinf(residual) | (nan & started)

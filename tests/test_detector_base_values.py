@@ -89,6 +89,9 @@ def test_residual_breaches_allow_leading_nan_only():
                                                          [0, 0, 0, 0], [0, 1, 1, 0]])
     np.testing.assert_array_equal(residual_breaches(np.array([np.nan, 1.0, np.inf])),
                                   [False, False, True])
+    # an all-finite residual (the usual case, checked in one pass): nothing refused
+    finite = residual_breaches(np.array([[0.0, -1e300, 5.0], [1e-300, 2.0, 0.5]]))
+    assert finite.dtype == np.bool_ and finite.shape == (2, 3) and not finite.any()
 
 
 def test_detection_problems_name_each_rule_broken():
