@@ -127,3 +127,6 @@ def _warm_kernels() -> None:
 
 
 kernels.register_warmup(_warm_kernels, kernels=(recursion_window,))
+
+
+kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

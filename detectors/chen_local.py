@@ -488,3 +488,6 @@ class ChenLocalEstimator(Detector):
         # both variants carry the estimate f̂ [mm] (error statistics, docs/chen-estimator.md §8)
         return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq, estimate=f_hat),
                 "solid": Detection(alarm=alarm_sol, residual=norm_sol, estimate=f_hat)}
+
+
+kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

@@ -656,3 +656,6 @@ class IntervalDetector(Detector):
             alarm = np.logical_or.accumulate(norm > 1.0, axis=1)
             out[name] = Detection(alarm=alarm, residual=norm)
         return out
+
+
+kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

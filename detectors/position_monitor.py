@@ -333,3 +333,6 @@ class PositionMonitor(Detector):
         _decide_block(rod_com, u, plants, float(signals.ts), rod_mon, surface, tau, active,
                       n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)
+
+
+kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

@@ -38,9 +38,15 @@ registry).
 from __future__ import annotations
 
 import contextvars
+import hashlib
+import importlib.util
+import json
 import math
+import os
+import sys
 import time
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 
@@ -612,6 +618,57 @@ def _cache_is_warm() -> bool:
         return False
 
 
+#: The modules whose compiled functions numba caches on disk (``cache=True``); a test keeps
+#: the list complete.
+KERNEL_MODULES = ("scenarios.kernels", "scenarios.aircraft.kernel", "detectors.position_monitor",
+                  "detectors.comb_interval", "detectors.chen_local", "detectors.chen_global_kernel")
+
+
+def kernel_sources_digest(modules=KERNEL_MODULES) -> str:
+    """SHA-256 of the source files of *modules* (found without importing them)."""
+    digest = hashlib.sha256()
+    for name in modules:
+        origin = importlib.util.find_spec(name).origin
+        digest.update(name.encode() + b"\0" + Path(origin).read_bytes())
+    return digest.hexdigest()
+
+
+def invalidate_stale_cache(name: str, modules=KERNEL_MODULES, stamp: Path | None = None) -> bool:
+    """Flush numba's on-disk cache of the compiled functions of module *name* when it was
+    built from other sources of *modules* than those there are now; returns whether it
+    flushed. Every kernel module calls it on its last line, so before any of its functions
+    is loaded. *stamp*: the JSON file {module: digest of the sources its cache was built
+    from}; default: beside the module's cache.
+
+    numba checks a cached function against its own source file only, so a kernel that calls
+    a compiled function of another module (the position monitor's decision calls
+    :func:`servo_band_step` of this one) would be loaded as it was compiled before that
+    module changed — the old arithmetic, silently. A flushed function is compiled again on
+    its next call. Best effort: nothing happens without numba, with a numba without these
+    internals or with a cache that cannot be written."""
+    try:
+        funcs = [v for v in vars(sys.modules[name]).values()
+                 if getattr(getattr(v, "py_func", None), "__module__", None) == name
+                 and hasattr(v, "_cache")]
+        if not funcs:
+            return False
+        stamp = stamp or Path(funcs[0]._cache._cache_path) / "fdd-kernel-sources.json"
+        digest = kernel_sources_digest(modules)
+        stamps = json.loads(stamp.read_text()) if stamp.is_file() else {}
+        if stamps.get(name) == digest:
+            return False
+        for func in funcs:
+            func._cache.flush()
+        stamps[name] = digest
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        part = stamp.with_name(f"{stamp.name}.{os.getpid()}.part")
+        part.write_text(json.dumps(stamps, indent=1, sort_keys=True))
+        os.replace(part, stamp)
+        return True
+    except (AttributeError, KeyError, OSError, TypeError, ValueError):  # pragma: no cover
+        return False
+
+
 def warm_up(log=None) -> float:
     """Compile every registered kernel (or load it from numba's cache) now; returns the
     seconds it took. Says so on *log* when the cache is cold (first use)."""
@@ -627,3 +684,6 @@ def warm_up(log=None) -> float:
     if cold and log is not None:
         log(f"kernels compiled in {elapsed:.1f} s")
     return elapsed
+
+
+invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

@@ -32,7 +32,7 @@ import os
 import numpy as np
 
 from ..kernels import (HAVE_NUMBA, P_HM0, P_HMD, P_IMAX, P_K, P_KA, P_KCI, P_R, P_SDP,
-                       P_SDPREF, P_XMAX, P_XMIN, clip, njit, sign)
+                       P_SDPREF, P_XMAX, P_XMIN, clip, invalidate_stale_cache, njit, sign)
 from .lpv import IB, IP, IPHI, IQ, IR, ITH
 
 __all__ = ["available", "integrate_block"]
@@ -457,3 +457,6 @@ def _self_check() -> bool:
     if not (np.array_equal(libm[0], np.sin(v)) and np.array_equal(libm[1], np.cos(v))):
         return False
     return True
+
+
+invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

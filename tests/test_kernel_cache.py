@@ -1,0 +1,75 @@
+"""numba's on-disk cache of a kernel module is flushed when another kernel module changes
+(scenarios.kernels.invalidate_stale_cache, on the last line of every kernel module, so
+before any of its functions is loaded).
+
+numba checks a cached function against its own source file only: a kernel calling a
+compiled function of another module would otherwise be loaded with that function's old
+arithmetic after the other module changed.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from scenarios import kernels
+
+ROOT = Path(__file__).resolve().parents[1]
+
+GUARD = ("from scenarios.kernels import invalidate_stale_cache\n"
+         "FLUSHED = invalidate_stale_cache(__name__, modules=('kmod_a', 'kmod_b'))\n")
+CALLEE = "from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + {add}\n" + GUARD
+CALLER = ("from numba import njit\nfrom kmod_a import f\n\n@njit(cache=True)\n"
+          "def g(x):\n    return f(x) * 2.0\n" + GUARD)
+SCRIPT = """
+import kmod_a, kmod_b
+flushed = [m.__name__ for m in (kmod_a, kmod_b) if m.FLUSHED]
+print(kmod_b.g(1.0), ",".join(flushed))
+"""
+
+
+def _run(tmp_path: Path) -> tuple[float, str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+    env.pop("NUMBA_CACHE_DIR", None)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    out = subprocess.run([sys.executable, "-c", SCRIPT],
+                         env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    value, flushed = out.stdout.split()[0], (out.stdout.split() + [""])[1]
+    return float(value), flushed
+
+
+@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
+def test_a_cached_caller_is_compiled_again_when_its_callee_module_changes(tmp_path):
+    (tmp_path / "kmod_a.py").write_text(CALLEE.format(add="1.0"))
+    (tmp_path / "kmod_b.py").write_text(CALLER)
+    # first use: no stamp yet, both modules' caches flushed (empty anyway), g = (1 + 1)·2
+    assert _run(tmp_path) == (4.0, "kmod_a,kmod_b")
+    # same sources: nothing flushed, g loaded from the cache
+    assert _run(tmp_path) == (4.0, "")
+    assert list((tmp_path / "__pycache__").glob("kmod_b.g-*.nbi"))
+    assert (tmp_path / "__pycache__" / "fdd-kernel-sources.json").is_file()
+    # only the callee's module changes: the caller's cache entry must not be used as it is
+    (tmp_path / "kmod_a.py").write_text(CALLEE.format(add="2.0"))
+    assert _run(tmp_path) == (6.0, "kmod_a,kmod_b")
+    assert _run(tmp_path) == (6.0, "")
+
+
+def test_the_list_of_kernel_modules_is_complete():
+    """Every module of the package whose compiled functions numba caches is listed in
+    KERNEL_MODULES (its sources are in the digest), and only those; each calls the guard on
+    its last line, after its last compiled function."""
+    cached = set()
+    for package in ("campaign", "detectors", "reports", "scenarios"):
+        for path in (ROOT / package).rglob("*.py"):
+            if re.search(r"\bcache=True\b", path.read_text()):
+                cached.add(".".join(path.relative_to(ROOT).with_suffix("").parts))
+    assert cached == set(kernels.KERNEL_MODULES)
+    for name in kernels.KERNEL_MODULES:
+        lines = (ROOT / Path(*name.split("."))).with_suffix(".py").read_text().splitlines()
+        assert lines[-1].split("#")[0].strip().endswith("invalidate_stale_cache(__name__)"), name
