@@ -618,13 +618,7 @@ def _cache_is_warm() -> bool:
         return False
 
 
-#: The modules whose compiled functions numba caches on disk (``cache=True``); a test keeps
-#: the list complete.
-KERNEL_MODULES = ("scenarios.kernels", "scenarios.aircraft.kernel", "detectors.position_monitor",
-                  "detectors.comb_interval", "detectors.chen_local", "detectors.chen_global_kernel")
-
-
-def kernel_sources_digest(modules=KERNEL_MODULES) -> str:
+def sources_digest(modules) -> str:
     """SHA-256 of the source files of *modules* (found without importing them)."""
     digest = hashlib.sha256()
     for name in modules:
@@ -633,12 +627,14 @@ def kernel_sources_digest(modules=KERNEL_MODULES) -> str:
     return digest.hexdigest()
 
 
-def invalidate_stale_cache(name: str, modules=KERNEL_MODULES, stamp: Path | None = None) -> bool:
+def invalidate_stale_cache(name: str, depends=(__name__,), stamp: Path | None = None) -> bool:
     """Flush numba's on-disk cache of the compiled functions of module *name* when it was
-    built from other sources of *modules* than those there are now; returns whether it
-    flushed. Every kernel module calls it on its last line, so before any of its functions
-    is loaded. *stamp*: the JSON file {module: digest of the sources its cache was built
-    from}; default: beside the module's cache.
+    built from other sources of the modules *depends* than those there are now; returns
+    whether it flushed. Every module with cached kernels calls it on its last line, so
+    before any of its functions is loaded, naming the modules whose compiled functions or
+    constants its kernels use (default: this one, where they all come from today).
+    *stamp*: the JSON file {module: digest of the sources its cache was built from};
+    default: beside the module's cache.
 
     numba checks a cached function against its own source file only, so a kernel that calls
     a compiled function of another module (the position monitor's decision calls
@@ -653,7 +649,7 @@ def invalidate_stale_cache(name: str, modules=KERNEL_MODULES, stamp: Path | None
         if not funcs:
             return False
         stamp = stamp or Path(funcs[0]._cache._cache_path) / "fdd-kernel-sources.json"
-        digest = kernel_sources_digest(modules)
+        digest = sources_digest(depends)
         stamps = json.loads(stamp.read_text()) if stamp.is_file() else {}
         if stamps.get(name) == digest:
             return False
