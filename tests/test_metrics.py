@@ -222,18 +222,28 @@ def _reference(alarm_row, fault, onset, ts, required, window):
     return pre, bool(post), (post[0] if post else math.nan)
 
 
+def _reference_margin(residual_row, fault, onset, ts):
+    """The largest non-NaN residual before onset (the whole run when fault-free), NaN when
+    there is none (docs/design.md §5, Metrics)."""
+    before = [r for k, r in enumerate(residual_row)
+              if (fault == "none" or k * ts < onset - 1e-9) and not math.isnan(r)]
+    return max(before) if before else math.nan
+
+
 # database=None: nothing is written into the source tree
 @settings(max_examples=150, deadline=None, database=None)
 @given(alarm=hnp.arrays(bool, (6, 25)),
        onset_step=st.lists(st.integers(0, 30), min_size=6, max_size=6),
        free=st.lists(st.booleans(), min_size=6, max_size=6),
-       window=st.floats(0.0, 3.0))
-def test_matches_step_by_step_reference(alarm, onset_step, free, window):
+       window=st.floats(0.0, 3.0),
+       residual=hnp.arrays(float, (6, 25), elements=st.one_of(
+           st.floats(-2.0, 5.0, allow_subnormal=False), st.just(math.nan))))
+def test_matches_step_by_step_reference(alarm, onset_step, free, window, residual):
     ts = 0.1
     fault = np.where(free, "none", "runaway")
     onset = np.where(free, np.nan, np.array(onset_step) * ts)
     out = score_runs(run_id=np.arange(6).astype(str), fault=fault, onset_s=onset, alarm=alarm,
-                     residual=np.zeros(alarm.shape), ts=ts,
+                     residual=residual, ts=ts,
                      required_time_s=np.where(free, np.nan, 1.0), window_s=window)
     for i in range(6):
         fa, det, first = _reference(alarm[i], fault[i], onset[i], ts, 1.0, window)
@@ -241,6 +251,9 @@ def test_matches_step_by_step_reference(alarm, onset_step, free, window):
         assert out["detected"].iloc[i] == det
         got = out["first_alarm_s"].iloc[i]
         assert (math.isnan(got) and math.isnan(first)) or got == pytest.approx(first)
+        margin = _reference_margin(residual[i], fault[i], onset[i], ts)
+        got = out["margin"].iloc[i]
+        assert (math.isnan(got) and math.isnan(margin)) or got == margin
 
 
 # ---- exact binomial bounds -------------------------------------------------------------
