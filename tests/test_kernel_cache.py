@@ -77,3 +77,32 @@ def test_every_module_with_cached_kernels_calls_the_guard_last():
     for name, text in cached.items():
         last = text.rstrip().splitlines()[-1].split("#")[0].strip()
         assert last.endswith("invalidate_stale_cache(__name__)"), name
+
+
+@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
+def test_the_guard_is_best_effort_and_never_raises(tmp_path, monkeypatch):
+    """A guard that cannot do its work leaves the cache as it is and returns False: an
+    unknown module, a module without cached functions, a dependency that cannot be found or
+    is not a sequence, a stamp that cannot be read or written."""
+    (tmp_path / "kguard_mod.py").write_text(
+        "from numba import njit\n\n@njit(cache=True)\ndef h(x):\n    return x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import kguard_mod  # noqa: F401 - the module the guard looks at
+
+    stamp = tmp_path / "stamp.json"
+    guard = kernels.invalidate_stale_cache
+    assert guard("no_such_module_here", stamp=stamp) is False              # KeyError
+    assert guard("json", stamp=stamp) is False                             # nothing cached
+    assert guard("kguard_mod", depends=("no_such_module_here",), stamp=stamp) is False
+    assert guard("kguard_mod", depends=None, stamp=stamp) is False         # TypeError
+    assert not stamp.exists()
+    stamp.write_text("{not json")                                          # ValueError
+    assert guard("kguard_mod", depends=("kguard_mod",), stamp=stamp) is False
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert guard("kguard_mod", depends=("kguard_mod",),                   # OSError
+                 stamp=blocker / "stamp.json") is False
+    # and the same call with a usable stamp does its work: flushed once, then not again
+    good = tmp_path / "cache" / "stamp.json"
+    assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is True
+    assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is False
