@@ -65,7 +65,8 @@ def test_a_cached_caller_is_compiled_again_when_its_callee_module_changes(tmp_pa
 def test_every_module_with_cached_kernels_calls_the_guard_last():
     """Every module of the package whose compiled functions numba caches ends with the
     guard, after its last compiled function; scenarios.kernels, whose functions and
-    constants the others compile in, is among them (the default dependency)."""
+    constants the others compile in, is among them (the default dependency). The aircraft
+    kernel also names scenarios.aircraft.lpv, whose state indices it compiles in."""
     cached = {}
     for package in ("campaign", "detectors", "reports", "scenarios"):
         for path in (ROOT / package).rglob("*.py"):
@@ -76,7 +77,9 @@ def test_every_module_with_cached_kernels_calls_the_guard_last():
             "scenarios.aircraft.kernel"} <= set(cached)
     for name, text in cached.items():
         last = text.rstrip().splitlines()[-1].split("#")[0].strip()
-        assert last.endswith("invalidate_stale_cache(__name__)"), name
+        assert re.fullmatch(r"(kernels\.)?invalidate_stale_cache\(__name__(, depends=.*)?\)",
+                            last), name
+    assert '"scenarios.aircraft.lpv"' in cached["scenarios.aircraft.kernel"].rstrip().splitlines()[-1]
 
 
 @pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")

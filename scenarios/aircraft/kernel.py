@@ -459,4 +459,5 @@ def _self_check() -> bool:
     return True
 
 
-invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed
+# the kernel compiles in the shared kernels and the state indices of lpv (IB, IP, …)
+invalidate_stale_cache(__name__, depends=("scenarios.kernels", "scenarios.aircraft.lpv"))
