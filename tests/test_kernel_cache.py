@@ -79,7 +79,8 @@ def test_every_module_with_cached_kernels_calls_the_guard_last():
         last = text.rstrip().splitlines()[-1].split("#")[0].strip()
         assert re.fullmatch(r"(kernels\.)?invalidate_stale_cache\(__name__(, depends=.*)?\)",
                             last), name
-    assert '"scenarios.aircraft.lpv"' in cached["scenarios.aircraft.kernel"].rstrip().splitlines()[-1]
+    aircraft = cached["scenarios.aircraft.kernel"].rstrip().splitlines()[-1]
+    assert '"scenarios.aircraft.lpv"' in aircraft
 
 
 @pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
