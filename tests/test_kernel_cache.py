@@ -110,3 +110,25 @@ def test_the_guard_is_best_effort_and_never_raises(tmp_path, monkeypatch):
     good = tmp_path / "cache" / "stamp.json"
     assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is True
     assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is False
+
+
+@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
+def test_the_guard_flushes_the_modules_own_functions_only(tmp_path, monkeypatch):
+    """A compiled function another module imports into the guarded one (as the detectors
+    import the shared kernels) keeps its cache: it is checked by its own module's guard."""
+    (tmp_path / "kguard_dep.py").write_text(
+        "from numba import njit\n\n@njit(cache=True)\ndef d(x):\n    return x + 1.0\n")
+    (tmp_path / "kguard_own.py").write_text(
+        "from numba import njit\nfrom kguard_dep import d\n\n@njit(cache=True)\n"
+        "def e(x):\n    return d(x) * 3.0\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import kguard_dep
+    import kguard_own
+
+    assert kguard_own.e(1.0) == 6.0                  # compiles both, saves both caches
+    index = lambda f: f._cache._cache_file._load_index()   # noqa: E731 - numba's own index
+    assert index(kguard_dep.d) and index(kguard_own.e)
+    assert kernels.invalidate_stale_cache("kguard_own", depends=("kguard_dep",),
+                                          stamp=tmp_path / "stamp.json") is True
+    assert not index(kguard_own.e)                   # its own function: flushed
+    assert index(kguard_dep.d)                       # the imported one: kept
