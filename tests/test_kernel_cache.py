@@ -107,7 +107,7 @@ def test_the_guard_is_best_effort_and_never_raises(tmp_path, monkeypatch):
     assert guard("kguard_mod", depends=("kguard_mod",),                   # OSError
                  stamp=blocker / "stamp.json") is False
     # and the same call with a usable stamp does its work: flushed once, then not again
-    good = tmp_path / "cache" / "stamp.json"
+    good = tmp_path / "cache" / "deeper" / "stamp.json"      # parents made
     assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is True
     assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is False
 
