@@ -21,6 +21,16 @@ from scenarios import kernels
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: numba's on-disk cache exists only with numba installed (a core dependency; the guard is a
+#: no-op without it). The subprocess test compiles with NUMBA_DISABLE_JIT removed from its
+#: environment; the in-process tests need this process to compile as well.
+needs_numba = pytest.mark.skipif(not kernels.HAVE_NUMBA,
+                                 reason="numba is not installed: nothing is cached to flush")
+needs_compiling = pytest.mark.skipif(
+    not kernels.HAVE_NUMBA or __import__("numba").core.config.DISABLE_JIT,
+    reason="numba missing or NUMBA_DISABLE_JIT set: this process compiles nothing, caches "
+           "nothing (the subprocess test still runs the guard on compiled code)")
+
 GUARD = ("from scenarios.kernels import invalidate_stale_cache\n"
          "FLUSHED = invalidate_stale_cache(__name__, depends=DEPENDS)\n")
 CALLEE = ("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + {add}\n"
@@ -45,7 +55,7 @@ def _run(tmp_path: Path) -> tuple[float, str]:
     return float(value), flushed
 
 
-@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
+@needs_numba
 def test_a_cached_caller_is_compiled_again_when_its_callee_module_changes(tmp_path):
     (tmp_path / "kmod_a.py").write_text(CALLEE.format(add="1.0"))
     (tmp_path / "kmod_b.py").write_text(CALLER)
@@ -83,7 +93,7 @@ def test_every_module_with_cached_kernels_calls_the_guard_last():
     assert '"scenarios.aircraft.lpv"' in aircraft
 
 
-@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
+@needs_compiling
 def test_the_guard_is_best_effort_and_never_raises(tmp_path, monkeypatch):
     """A guard that cannot do its work leaves the cache as it is and returns False: an
     unknown module, a module without cached functions, a dependency that cannot be found or
@@ -112,7 +122,7 @@ def test_the_guard_is_best_effort_and_never_raises(tmp_path, monkeypatch):
     assert guard("kguard_mod", depends=("kguard_mod",), stamp=good) is False
 
 
-@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba's cache needs numba")
+@needs_compiling
 def test_the_guard_flushes_the_modules_own_functions_only(tmp_path, monkeypatch):
     """A compiled function another module imports into the guarded one (as the detectors
     import the shared kernels) keeps its cache: it is checked by its own module's guard."""
