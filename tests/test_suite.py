@@ -299,6 +299,12 @@ def test_paper_table_puts_our_estimator_row_beside_the_papers():
     assert "0.12/0.12/0.12" in lines[ours + 1]
     assert "our required times liquid_jam 2 s, solid_jam 2 s, disconnection 1 s" in text
     assert "not comparable" in text and "12000 steps = 120 s" in text
+    # a summary written before delay_min_s/delay_max_s existed: our delays read '-'
+    old = format_paper_table(summary.drop(columns=["delay_min_s", "delay_max_s"]),
+                             "chen-table-4").splitlines()
+    row = next(line for line in old if "ours: chen-local[solid]" in line)
+    assert "0.09/" not in row and " - " in row and "0.5/0.7/2.9" in row
+    assert "our required times (the campaign's [requirements])" in "\n".join(old)
     assert "0.00123" in lines[ours] and "4.5e-08" in lines[ours]
     assert "(n=1200)" in lines[ours]
     # the next line is [CHEN]'s: DTP 0.001 and the §6.2 error statistics
