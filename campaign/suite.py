@@ -275,4 +275,15 @@ def reference_text(directory, summary) -> str:
         else None
     if not reference or summary is None or len(summary) == 0:
         return ""
-    return "\n\n" + format_paper_table(summary, reference)
+    return "\n\n" + format_paper_table(summary, reference, _required_times(path))
+
+
+def _required_times(directory: Path) -> dict | None:
+    """The member's required detection times (fault → s) from its stored ``campaign.json``;
+    None when they cannot be read (the table then names them without values)."""
+    try:
+        times = json.loads((directory / "campaign.json").read_text())["requirements"][
+            "detection_time_s"]
+        return {str(f): float(t) for f, t in dict(times).items()}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None

@@ -34,13 +34,25 @@ with K̃_k held inside the polytope (scheduling data projected onto it).
 
 Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free learning set:
 
-* ``solid``: a seized rod leaves y frozen while the model follows the order, so |f̂| grows
-  and stays. The statistic is the least |f̂| over the last ``solid_confirm_s`` (the alarm
-  needs |f̂| beyond the threshold over the whole window), and the threshold is learned on
-  that same statistic: τ_sol = ``safety``·max over the learning set. Fault-free model
-  mismatch comes in transients shorter than the window (a loaded roll-in lasts about a
-  second), which the least value over the window ignores; learning τ on the raw |f̂| would
-  let the largest of those transients set the threshold;
+* ``solid``: [CHEN]'s solid jam (eq. 4, §6.2; the ``"offset"`` jam of docs/physics.md §5)
+  leaves the measurement stuck 1.8 % of the range away from the healthy rod, so f̂ steps by
+  that offset at onset and stays there. The statistic asks whether f̂ has stepped away from
+  where it just was and stayed away over a short confirmation window: with n_c =
+  ``solid_confirm_s``/Ts and n_b = ``solid_reference_s``/Ts,
+
+      r_k = (1/n_b)·Σ_{j=n_c}^{n_c+n_b−1} f̂_{k−j},   s_k = min_{0≤j<n_c} |f̂_{k−j} − r_k|,
+      f̂_j = 0 for j < 0
+
+  (the reference r is the mean of f̂ over the n_b steps before the window; the least
+  distance from it over the window is the persistence). Slow model mismatch (correlation
+  time about 0.2 s) is nearly the same in the reference and the window and cancels, as in
+  the liquid statistic, so the turns' loaded roll-ins no longer set the threshold at the
+  size of the jam; a liquid jam's step decays within the window. τ_sol is learned on
+  max s per fault-free run. ``solid_reference_s = 0`` gives the earlier level statistic,
+  the least |f̂| over the window, for a rod seized where it stands (the ``"seized"`` jam:
+  f̂ grows only as the order moves away, with no step): its threshold must then sit at the
+  noise level, which 50 learning runs per manoeuvre do not calibrate
+  (docs/chen-estimator.md §3);
 * ``liquid``: a liquid jam adds a step f to the acquisition the loop closes on; the loop
   re-centres the biased acquisition on the order within a few loop time constants
   (τ = 1/(Kci·K) = 57 ms on the aileron, docs/physics.md §3, §5), so f̂ is a step of
@@ -206,8 +218,11 @@ class ChenLocalEstimator(Detector):
         Window n_b·Ts of the reference mean just before it, subtracted [s] (≥ 0; 0: no
         reference, the statistic is the level of the recent mean).
     solid_confirm_s : float
-        Window of the solid statistic: time |f̂| must stay beyond τ_sol [s] (≥ 0; 0: one
-        step).
+        Confirmation window n_c·Ts of the solid statistic: time f̂ must stay beyond τ_sol
+        away from its reference mean [s] (≥ 0; 0: one step).
+    solid_reference_s : float
+        Window n_b·Ts of the reference mean of f̂ just before the confirmation window [s]
+        (≥ 0; 0: no reference, the statistic is the least |f̂| over the window).
     schedule_margin : float
         Relative widening of the [CHEN] Table-2 measurement-error widths (±10 % VCAS, h,
         m, Xcg) over which the polytope of eq. 8 is computed (0.25: errors up to ±12.5 %);
@@ -242,8 +257,13 @@ class ChenLocalEstimator(Detector):
         Param("liquid_reference_s", "float", ge=0.0, unit="s", doc="window of the reference "
               "mean of T f̂ just before the recent one, subtracted (0: no reference, the "
               "level |T f̂| of [CHEN] §6.2)", source="docs/chen-estimator.md §3; value est."),
-        Param("solid_confirm_s", "float", ge=0.0, unit="s", doc="window over which |f̂| must "
-              "stay beyond τ_sol (0: one step)"),
+        Param("solid_confirm_s", "float", ge=0.0, unit="s", doc="confirmation window over "
+              "which f̂ must stay beyond τ_sol away from its reference mean (0: one step)",
+              source="[CHEN] §6.2 (a fixed confirmation); value est."),
+        Param("solid_reference_s", "float", ge=0.0, unit="s", doc="window of the reference "
+              "mean of f̂ just before the confirmation window (0: no reference, the level "
+              "|f̂|, for a jam seized where it stands)",
+              source="docs/chen-estimator.md §3; value est."),
         Param("schedule_margin", "float", ge=0.0, doc="relative widening of the Table-2 "
               "measurement-error widths over which the polytope of eq. 8 is computed",
               source="[CHEN] Table 2, eq. 8; value est."),
@@ -258,8 +278,8 @@ class ChenLocalEstimator(Detector):
     )
 
     def __init__(self, sensor="rod_com", safety=1.5, liquid_confirm_s=0.02,
-                 liquid_window_s=0.02, liquid_reference_s=0.04, solid_confirm_s=1.0,
-                 schedule_margin=0.25, h_perturbation=0.0,
+                 liquid_window_s=0.02, liquid_reference_s=0.04, solid_confirm_s=0.1,
+                 solid_reference_s=0.2, schedule_margin=0.25, h_perturbation=0.0,
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
                  post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
@@ -270,6 +290,7 @@ class ChenLocalEstimator(Detector):
         self.liquid_window_s = liquid_window_s
         self.liquid_reference_s = liquid_reference_s
         self.solid_confirm_s = solid_confirm_s
+        self.solid_reference_s = solid_reference_s
         self.schedule_margin = schedule_margin
         self.h_perturbation = h_perturbation
         self.floor_mm = floor_mm
@@ -395,6 +416,7 @@ class ChenLocalEstimator(Detector):
             return {"liquid": np.abs(g),                # g: the liquid statistic d
                     "solid": self._solid_statistic(f_hat, ts)}
 
+        self.solid_windows_ = self._solid_windows(ts, fitting=True)
         # each variant is scored on its own, so each is calibrated at the full target
         maxima = per_run_maxima(signals, statistics)
         self.thresholds_, calibration = {}, {}
@@ -452,15 +474,36 @@ class ChenLocalEstimator(Detector):
             xh = target + (xh - target) * lm.tustin_pole(a, ts)
         return f_hat
 
-    def _solid_statistic(self, f_hat: np.ndarray, ts: float) -> np.ndarray:
-        """Least |f̂| [mm] over the last ``solid_confirm_s`` at each step (causal; 0 until a
-        full window exists)."""
-        from scipy.ndimage import minimum_filter1d
+    def _solid_windows(self, ts: float, fitting: bool = False) -> tuple[int, int]:
+        """(n_c, n_b) of the solid statistic in steps of *ts*. A detector fitted before the
+        reference existed (no ``solid_windows_``) keeps the statistic it learned on: the
+        least |f̂| over its window, n_b = 0."""
+        n_c = max(int(round(float(self.solid_confirm_s) / ts)), 1)
+        if fitting or hasattr(self, "solid_windows_") or not hasattr(self, "thresholds_"):
+            return n_c, int(round(float(self.solid_reference_s) / ts))
+        return n_c, 0
 
-        n = max(int(round(float(self.solid_confirm_s) / ts)), 1)
-        # the window [k − n + 1, k]: origin (n − 1)//2 shifts the centred window left
-        return minimum_filter1d(np.abs(f_hat), n, axis=1, mode="constant", cval=0.0,
-                                origin=(n - 1) // 2)
+    def _solid_statistic(self, f_hat: np.ndarray, ts: float) -> np.ndarray:
+        """The solid statistic s [mm] at each step (module docstring; causal, f̂ taken as 0
+        before the run): the least distance of f̂ from its reference mean over the last
+        n_c steps, or for n_b = 0 the least |f̂| over them (0 until a full window exists)."""
+        from scipy.ndimage import minimum_filter1d
+        from scipy.signal import lfilter
+
+        n_c, n_b = self._solid_windows(ts)
+        if n_b == 0:
+            # the window [k − n + 1, k]: origin (n − 1)//2 shifts the centred window left
+            return minimum_filter1d(np.abs(f_hat), n_c, axis=1, mode="constant", cval=0.0,
+                                    origin=(n_c - 1) // 2)
+        taps = np.zeros(n_c + n_b)
+        taps[n_c:] = 1.0 / n_b                       # r_k: mean of f̂_{k−n_c−n_b+1 … k−n_c}
+        ref = lfilter(taps, [1.0], f_hat, axis=1)
+        stat = np.abs(f_hat - ref)
+        for j in range(1, n_c):                      # f̂_{k−j} − r_k, f̂ = 0 before the run
+            lagged = np.zeros_like(f_hat)
+            lagged[:, j:] = f_hat[:, :-j]
+            np.minimum(stat, np.abs(lagged - ref), out=stat)
+        return stat
 
     def _residuals(self, signals: Signals) -> tuple[np.ndarray, np.ndarray]:
         """f̂ [mm] and the liquid statistic d [mm] (module docstring), each (n_runs, n_steps)."""
@@ -484,7 +527,7 @@ class ChenLocalEstimator(Detector):
         held = np.cumsum(norm_liq > 1.0, axis=1) * ts
         need = max(float(self.liquid_confirm_s), ts)
         alarm_liq = held >= need - 0.5 * ts
-        alarm_sol = norm_sol > 1.0        # beyond τ_sol over the whole window
+        alarm_sol = norm_sol > 1.0        # beyond τ_sol over the whole confirmation window
         # both variants carry the estimate f̂ [mm] (error statistics, docs/chen-estimator.md §8)
         return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq, estimate=f_hat),
                 "solid": Detection(alarm=alarm_sol, residual=norm_sol, estimate=f_hat)}

@@ -19,7 +19,8 @@ Counting rules
   required detection time (DTP > 1, ``late_count``). ``md_req_*`` count the runs *not
   detected within the required time* — missed or late — the reading of a table whose MD
   and DTP together say "detected in time" ([CHEN] Tables 3–4).
-* ``dtp_min/mean/max/p95`` and ``delay_mean_s`` are over detected runs only, so misses sit
+* ``dtp_min/mean/max/p95`` and ``delay_min/mean/max_s`` (seconds after onset) are over
+  detected runs only, so misses sit
   next to them in ``md_count``, and ``dtp_within`` is the share of all scored faulty runs
   with DTP ≤ 1, a miss counting as not within. ``dtp_p95`` uses linear interpolation
   between order statistics (numpy's default).
@@ -63,7 +64,7 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "md_count", "md_rate", "md_upper95",
     "late_count", "md_req_count", "md_req_rate", "md_req_upper95",
     "dtp_min", "dtp_mean", "dtp_max", "dtp_p95", "dtp_within",
-    "delay_mean_s", "worst_margin",
+    "delay_min_s", "delay_mean_s", "delay_max_s", "worst_margin",
     "est_err_runs", "est_err_mean_mm", "est_err_var_mm2", "est_err_mean", "est_err_var",
     *SURVIVAL_COLUMNS,
 )
@@ -142,7 +143,9 @@ def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
         dtp_min=("dtp", "min"),
         dtp_mean=("dtp", "mean"),
         dtp_max=("dtp", "max"),
+        delay_min_s=("delay", "min"),
         delay_mean_s=("delay", "mean"),
+        delay_max_s=("delay", "max"),
         worst_margin=("margin", "max"),
         est_err_runs=("e_runs", "sum"),
         e_n=("e_n", "sum"), e_s1=("e_s1", "sum"), e_s2=("e_s2", "sum"),

@@ -37,6 +37,14 @@ def _dtp(row) -> str:
     return "-" if parts == ["-", "-", "-"] else "/".join(parts)
 
 
+def _delays(row) -> str:
+    """Min/mean/max delay [s] of a summary row; '-' when missing (summaries written before
+    ``delay_min_s``/``delay_max_s`` existed, or nothing detected)."""
+    parts = [_num(getattr(row, c, None), ".3g")
+             for c in ("delay_min_s", "delay_mean_s", "delay_max_s")]
+    return "-" if "-" in parts else "/".join(parts)
+
+
 def late_text(row) -> str:
     """Late detections (DTP > 1) of a summary row; '-' for summaries written before the
     column existed."""
@@ -128,22 +136,27 @@ def _sci(x) -> str:
     return _num(x, ".4g")
 
 
-def format_paper_table(summary: pd.DataFrame, reference: str) -> str:
+def format_paper_table(summary: pd.DataFrame, reference: str,
+                       required_time_s: dict | None = None) -> str:
     """The campaign's figures beside a published table (:data:`reports.paper.PAPER_TABLES`),
     two rows per fault: ``ours`` (the fault read on its estimator's row,
     :data:`reports.paper.CHEN_ESTIMATOR`) then the paper's.
 
     Columns: FA (%) — ours over the estimator's fault-free runs of every manoeuvre (their
     count given) and, after ``/``, before onset in the fault's runs; MD (%) — never detected
-    in the run; MD in T (%) — not detected within the required time (missed or late);
-    Min/Mean/Max DTP; the mean and variance of the fault-estimation error f̂ − f normalised
-    by the deflection range (pooled over the post-onset samples, ``reports.summary``).
+    in the run; MD in T (%) — not detected within our required time (missed or late);
+    Min/Mean/Max delay [s] after onset — ours measured, the paper's its DTP × its inferred
+    denominator (:meth:`reports.paper.PaperTable.delays_s`); Min/Mean/Max DTP, each over its
+    own required time; the mean and variance of the fault-estimation error f̂ − f
+    normalised by the deflection range (pooled over the post-onset samples,
+    ``reports.summary``). *required_time_s*: fault → our required time [s] (the campaign's
+    ``[requirements] detection_time_s``), named in the notes when given.
     """
     table = PAPER_TABLES[reference]
     if summary is None or len(summary) == 0:
         return "no results"
     header = ["Fault scenario", "source", "FA (%) free / pre-onset", "MD (%)", "MD in T (%)",
-              "Min/Mean/Max DTP", "error mean", "error variance"]
+              "Min/Mean/Max delay (s)", "Min/Mean/Max DTP", "error mean", "error variance"]
     body = []
     for fault, paper in table.rows.items():
         name = CHEN_ESTIMATOR[fault]
@@ -155,27 +168,39 @@ def format_paper_table(summary: pd.DataFrame, reference: str) -> str:
             fa_free = (f"{_pct(free.iloc[0].fa_rate)} (n={int(free.iloc[0].n_runs)})"
                        if len(free) else "-")
             body.append([fault, f"ours: {name}", f"{fa_free} / {_pct(r.fa_rate)}",
-                         _pct(r.md_rate), _pct(r.get("md_req_rate", math.nan)), _dtp(r),
-                         _sci(r.get("est_err_mean", math.nan)),
+                         _pct(r.md_rate), _pct(r.get("md_req_rate", math.nan)), _delays(r),
+                         _dtp(r), _sci(r.get("est_err_mean", math.nan)),
                          _sci(r.get("est_err_var", math.nan))])
         else:
-            body.append([fault, f"ours: {name}", "not in this campaign", "", "", "", "", ""])
+            body.append([fault, f"ours: {name}", "not in this campaign", "", "", "", "", "",
+                         ""])
+        delays = table.delays_s(fault)
         body.append(["", table.cite.split(" (")[0], f"{paper.fa_pct:g}", f"{paper.md_pct:g}",
-                     "-", "/".join(f"{v:g}" for v in paper.dtp),
+                     "-", "-" if delays is None else "/".join(f"{v:g}" for v in delays),
+                     "/".join(f"{v:g}" for v in paper.dtp),
                      "-" if paper.err_mean is None else f"{paper.err_mean:g}",
                      "-" if paper.err_var is None else f"{paper.err_var:g}"])
+    ours_t = ("our required times " + ", ".join(
+        f"{f} {float(required_time_s[f]):g} s" for f in table.rows if f in required_time_s)
+        if required_time_s else "our required times (the campaign's [requirements])")
+    paper_t = (f"{table.dtp_denominator_s:g} s" if table.dtp_denominator_s is not None
+               else "its own, not known")
     lines = [f"Beside {table.cite}:", ""]
-    lines += _render(header, body, "llrrrlrr")
+    lines += _render(header, body, "llrrrllrr")
     lines += [
         "(ours: each fault on the row of its estimator. FA free: false alarms of that "
         "estimator on every fault-free run; pre-onset: alarms before onset in the fault's "
-        "runs. MD: never detected; MD in T: not detected within the required time (missed or "
-        "late); the paper gives MD only, with DTP ≤ 1 throughout. DTP = delay / required "
-        "time; the required times differ: the paper's are not published)",
+        "runs. MD: never detected; MD in T: not detected within our required time (missed "
+        "or late); the paper gives MD only. Delay: seconds from onset to the first alarm, "
+        "the unit to compare. DTP = delay / required time: ours over " + ours_t + ", the "
+        "paper's over " + paper_t + ", so the two DTP columns are not comparable)",
+    ]
+    if table.denominator_note:
+        lines.append(f"({table.denominator_note})")
+    lines.append(
         "(error: f̂ − f after onset, f the jam's additive effect on the rod measurement "
         "([CHEN] eq. 4), normalised by the rod travel of the deflection range, variance in "
         "its square; ours pooled over all post-onset samples of the fault's runs. The paper "
         "does not state its normalisation; '-': not given, the disconnection's cannot be "
-        "computed without a surface sensor ([CHEN] §6.2))",
-    ]
+        "computed without a surface sensor ([CHEN] §6.2))")
     return "\n".join(lines)

@@ -247,6 +247,20 @@ def _least_over_window(values, n):
     return out
 
 
+def _step_persistence(values, n_c, n_b):
+    """s_k = min over j ∈ [k − n_c + 1, k] of |f̂_j − r_k|, r_k the mean of f̂ over
+    [k − n_c − n_b + 1, k − n_c] (docs/chen-estimator.md §3), f̂ = 0 before the run."""
+    f = np.asarray(values, float)
+    out = np.empty_like(f)
+    for r in range(f.shape[0]):
+        def at(j):
+            return f[r, j] if j >= 0 else 0.0
+        for k in range(f.shape[1]):
+            ref = sum(at(k - j) for j in range(n_c, n_c + n_b)) / n_b
+            out[r, k] = min(abs(at(k - j) - ref) for j in range(n_c))
+    return out
+
+
 def _fitted(hand_model, T=512, **params):
     hand_model()
     u, y = _runs(T)
@@ -307,12 +321,14 @@ def test_thresholds_are_safety_times_the_largest_learning_statistic(hand_model):
     np.testing.assert_allclose(b, [1.0, beta - E], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(a, [1.0, -E], rtol=1e-12)
     f_hat = det.estimate(_signals(u, y))
-    # defaults: n_a = round(0.02/Ts) = 3, n_b = round(0.04/Ts) = 5, window round(1/Ts) = 128
+    # defaults: n_a = round(0.02/Ts) = 3, n_b = round(0.04/Ts) = 5; solid n_c = round(0.1/Ts)
+    # = 13, its reference round(0.2/Ts) = 26
     d = _liquid_statistic(f_hat, 3, 5)
-    solid = _least_over_window(f_hat, 128)
-    # lfilter's recursion against the plain loop: rounding only
+    solid = _step_persistence(f_hat, 13, 26)
+    # lfilter's recursions against the plain loops: rounding only
     assert det.thresholds_["liquid"] == pytest.approx(1.7 * np.abs(d).max(), rel=1e-9)
-    assert det.thresholds_["solid"] == pytest.approx(1.7 * solid.max(), rel=1e-12)
+    assert det.thresholds_["solid"] == pytest.approx(1.7 * solid.max(), rel=1e-9)
+    assert det.solid_windows_ == (13, 26)
     assert det.thresholds_["solid"] > 1e-3 and det.thresholds_["liquid"] > 1e-3
     assert not hasattr(det, "calibration_")          # "max": no calibration
     assert det.learning_runs_ == 3
@@ -428,10 +444,38 @@ def test_a_vertex_pole_the_discretisation_rounds_to_one_is_refused(hand_model, i
 def test_solid_statistic_is_the_least_value_over_the_window(n):
     f_hat = np.array([[3.0, -5.0, 4.0, 2.5, -6.0, 7.0, 1.5, 8.0, -9.0, 3.5, 2.0, -4.5],
                       [-2.0, 1.0, 6.0, -3.0, 5.5, 2.2, -7.0, 4.4, 1.1, 9.0, -3.3, 2.7]])
-    # solid_confirm_s = n·Ts, and 0 (one step)
-    det = ChenLocalEstimator(solid_confirm_s=0.0 if n == 1 else n * TS)
+    # solid_confirm_s = n·Ts, and 0 (one step); no reference: the level statistic
+    det = ChenLocalEstimator(solid_confirm_s=0.0 if n == 1 else n * TS, solid_reference_s=0.0)
     np.testing.assert_array_equal(det._solid_statistic(f_hat, TS),
                                   _least_over_window(f_hat, n))
+
+
+@pytest.mark.parametrize("n_c, n_b", [(1, 1), (1, 3), (2, 2), (3, 4), (4, 1), (10, 20)])
+def test_solid_statistic_is_the_least_distance_from_the_reference_mean(n_c, n_b):
+    rng = np.random.default_rng(7)
+    f_hat = rng.normal(0.0, 1.0, (3, 40))
+    f_hat[2, 17:] += 1.1                                  # an offset jam's step at k = 17
+    det = ChenLocalEstimator(solid_confirm_s=n_c * TS, solid_reference_s=n_b * TS)
+    # 1e-12: the reference mean is a sum of n_b terms in another order than the plain loop
+    np.testing.assert_allclose(det._solid_statistic(f_hat, TS),
+                               _step_persistence(f_hat, n_c, n_b), rtol=1e-12, atol=1e-12)
+
+
+def test_solid_statistic_of_a_step_is_the_step_over_the_confirmation_window():
+    """f̂ = a step m at k0 (an offset jam without noise): s = m from k0 + n_c − 1 (the whole
+    window after the step, the reference before it) until the reference reaches the step;
+    a pulse shorter than the window (a liquid jam's estimate, gone as the loop re-centres)
+    gives at most its share of the reference mean, m·(n_c − 1)/n_b."""
+    n_c, n_b, k0, m = 10, 20, 50, 1.1
+    det = ChenLocalEstimator(solid_confirm_s=n_c * TS, solid_reference_s=n_b * TS)
+    step = np.where(np.arange(120) >= k0, m, 0.0)[None, :]
+    s = det._solid_statistic(step, TS)[0]
+    assert (s[:k0 + n_c - 1] < 1e-12).all()
+    np.testing.assert_allclose(s[k0 + n_c - 1:k0 + n_c], m, rtol=1e-12)
+    # r_k covers only pre-step values up to k = k0 + n_c − 1; then it climbs, s falls
+    assert s[k0 + n_c] < m and s[k0 + n_c + n_b - 1:].max() < 1e-12
+    pulse = np.where((np.arange(120) >= k0) & (np.arange(120) < k0 + n_c - 1), m, 0.0)
+    assert det._solid_statistic(pulse[None, :], TS).max() <= m * (n_c - 1) / n_b + 1e-12
 
 
 def test_one_step_windows_give_the_filtered_estimate_itself(hand_model):
@@ -458,8 +502,12 @@ def test_residuals_are_the_statistics_over_their_thresholds(hand_model):
     np.testing.assert_allclose(out["liquid"].residual,
                                np.abs(_liquid_statistic(f_hat, 3, 5)) / 0.3, rtol=1e-9,
                                atol=1e-12)
-    np.testing.assert_allclose(out["solid"].residual, _least_over_window(f_hat, 32) / 0.2,
-                               rtol=1e-12)
+    # solid_confirm_s = 0.25 s → 32 steps, the default 0.2 s reference → 26 steps at Ts =
+    # 1/128 s
+    n_c, n_b = int(round(0.25 / TS)), int(round(0.2 / TS))
+    np.testing.assert_allclose(out["solid"].residual,
+                               _step_persistence(f_hat, n_c, n_b) / 0.2, rtol=1e-9,
+                               atol=1e-12)
     np.testing.assert_array_equal(out["solid"].alarm, out["solid"].residual > 1.0)
     assert out["solid"].alarm.any() and not out["solid"].alarm.all()
 
@@ -499,8 +547,9 @@ def test_documented_defaults_and_capabilities():
     det = ChenLocalEstimator()
     # docs/chen-estimator.md §3 and the class docstring
     assert (det.safety, det.liquid_confirm_s, det.liquid_window_s, det.liquid_reference_s,
-            det.solid_confirm_s, det.schedule_margin, det.h_perturbation, det.floor_mm) == \
-        (1.5, 0.02, 0.02, 0.04, 1.0, 0.25, 0.0, 0.05)
+            det.solid_confirm_s, det.solid_reference_s, det.schedule_margin,
+            det.h_perturbation, det.floor_mm) == (1.5, 0.02, 0.02, 0.04, 0.1, 0.2, 0.25, 0.0,
+                                                  0.05)
     assert (det.post_filter_zero_rad_s, det.post_filter_pole_rad_s) == (1.0, 5.0)
     assert ChenLocalEstimator.capabilities == Capabilities(
         needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -518,3 +567,19 @@ def test_numerical_constants_are_frozen():
     with pytest.raises(FrozenInstanceError):
         POST_FILTER.pole_rad_s = 2.0
     assert (NUMERICS.grid_x, NUMERICS.grid_rho) == (41, 7)
+
+
+def test_a_detector_fitted_before_the_solid_reference_keeps_its_level_statistic(hand_model):
+    """A fitted detector stored before ``solid_reference_s`` existed has no
+    ``solid_windows_``: read back, its threshold was learned on the least |f̂| over the
+    window, so that is the statistic it must keep deciding on (a resumed directory is not
+    scored with a threshold learned on another statistic)."""
+    det, u, y = _fitted(hand_model, solid_confirm_s=0.25)
+    f_hat = np.random.default_rng(3).normal(0.0, 1.0, (2, 64))
+    assert det._solid_windows(TS) == (32, 26)
+    del det.solid_windows_
+    assert det._solid_windows(TS) == (32, 0)
+    np.testing.assert_array_equal(det._solid_statistic(f_hat, TS), _least_over_window(f_hat, 32))
+    # fitting again records the windows of its parameters
+    det.fit(_signals(u, y))
+    assert det.solid_windows_ == (32, 26)

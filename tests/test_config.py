@@ -721,8 +721,21 @@ def test_variant_on_a_fault_free_group_is_refused(tmp_path):
 
 
 def test_chen_table_presets_use_the_offset_variant():
-    for name in ("chen-mc", "chen-sweep"):
+    for name in ("chen-mc", "chen-sweep", "chen-local"):
         groups = {g.fault: g for g in load_config(name).groups}
         assert groups["solid_jam"].variant == "offset"
-    for name in ("chen-local", "addsafe-mc", "addsafe-grid", "smoke"):
+    for name in ("addsafe-mc", "addsafe-grid", "smoke"):
         assert all(g.variant is None for g in load_config(name).groups)
+
+
+@pytest.mark.parametrize("preset", [p for p in cfg.list_presets() if p.startswith("chen-")])
+def test_chen_presets_fly_chens_solid_jam_and_allow_no_false_alarm(preset):
+    """The presets that reproduce [CHEN] fly its solid jam (eq. 4: the measurement stuck
+    1.8 % of the range away, variant "offset", docs/physics.md §5), and their gate holds
+    every detector to zero false alarms: chen-local[solid] needs no allowance since it
+    decides on f̂'s step from its reference mean (docs/chen-estimator.md §3–4)."""
+    config = cfg.load_config(preset)
+    solid = [g for g in config.groups if g.fault == "solid_jam"]
+    assert solid and all(g.variant == "offset" for g in solid)
+    assert dict(config.requirements.detector_max_fa_rate) == {}
+    assert config.requirements.max_fa_rate == 0.0

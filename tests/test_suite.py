@@ -285,16 +285,59 @@ def test_paper_table_puts_our_estimator_row_beside_the_papers():
     summary = pd.DataFrame([
         srow("chen-local[solid]", "none", n_runs=1200),
         srow("chen-local[solid]", "solid_jam", md_req_rate=0.1, dtp_min=0.5, dtp_mean=0.7,
-             dtp_max=2.9, est_err_mean=0.00123, est_err_var=4.5e-8),
+             dtp_max=2.9, delay_min_s=0.09, delay_mean_s=0.4, delay_max_s=3.5,
+             est_err_mean=0.00123, est_err_var=4.5e-8),
         srow("chen-local[liquid]", "solid_jam", dtp_min=0.005),     # not the solid row
     ])
-    text = format_paper_table(summary, "chen-table-4")
+    text = format_paper_table(summary, "chen-table-4",
+                              {"liquid_jam": 2.0, "solid_jam": 2.0, "disconnection": 1.0})
     lines = text.splitlines()
     ours = next(i for i, line in enumerate(lines) if "ours: chen-local[solid]" in line)
     assert "0.5/0.7/2.9" in lines[ours] and "10.00" in lines[ours]
+    # our delays in seconds beside the paper's (0.001 × 120 s = 0.12 s, inferred)
+    assert "0.09/0.4/3.5" in lines[ours]
+    assert "0.12/0.12/0.12" in lines[ours + 1]
+    assert "our required times liquid_jam 2 s, solid_jam 2 s, disconnection 1 s" in text
+    assert "not comparable" in text and "12000 steps = 120 s" in text
+    # a summary written before delay_min_s/delay_max_s existed: our delays read '-'
+    old = format_paper_table(summary.drop(columns=["delay_min_s", "delay_max_s"]),
+                             "chen-table-4").splitlines()
+    row = next(line for line in old if "ours: chen-local[solid]" in line)
+    assert "0.09/" not in row and " - " in row and "0.5/0.7/2.9" in row
+    assert "our required times (the campaign's [requirements])" in "\n".join(old)
     assert "0.00123" in lines[ours] and "4.5e-08" in lines[ours]
     assert "(n=1200)" in lines[ours]
     # the next line is [CHEN]'s: DTP 0.001 and the §6.2 error statistics
     assert "[CHEN] Table 4" in lines[ours + 1] and "0.001/0.001/0.001" in lines[ours + 1]
     assert "0.0014" in lines[ours + 1] and "2.7972e-08" in lines[ours + 1]
     assert "normalised by the rod travel of the deflection range" in text
+
+
+def test_chen_delays_are_the_dtp_times_the_inferred_120_s():
+    """[CHEN] prints DTP, not delays: every DTP extreme of Tables 3–4 is a whole multiple of
+    1/12000 within the rounding of its six printed digits (a relative error ≤ 5e-6 of the
+    printed value), and not of 1/6000; at the 10 ms step that is 12000 steps = 120 s
+    (reports.paper's docstring), so the delays are the whole steps below."""
+    from reports.paper import CHEN_DTP_DENOMINATOR_S, PAPER_TABLES
+
+    assert CHEN_DTP_DENOMINATOR_S == pytest.approx(120.0, rel=1e-15)
+    steps = {}
+    for name, table in PAPER_TABLES.items():
+        for fault, row in table.rows.items():
+            for which, dtp in (("min", row.dtp[0]), ("max", row.dtp[2])):
+                n = dtp * 12000
+                assert abs(n - round(n)) <= 5e-6 * n, (name, fault, which, dtp)
+                steps[(name, fault, which)] = round(n)
+    assert any(abs(dtp * 6000 - round(dtp * 6000)) > 0.4 for table in PAPER_TABLES.values()
+               for row in table.rows.values() for dtp in (row.dtp[0], row.dtp[2]))
+    assert steps[("chen-table-3", "disconnection", "min")] == 91
+    assert steps[("chen-table-3", "disconnection", "max")] == 701
+    assert steps[("chen-table-4", "disconnection", "min")] == 96
+    assert steps[("chen-table-4", "disconnection", "max")] == 452
+    assert steps[("chen-table-4", "liquid_jam", "max")] == 14
+    assert steps[("chen-table-4", "solid_jam", "max")] == 12
+    t3, t4 = PAPER_TABLES["chen-table-3"], PAPER_TABLES["chen-table-4"]
+    assert t4.delays_s("liquid_jam") == (0.14, 0.14, 0.14)
+    assert t4.delays_s("solid_jam") == (0.12, 0.12, 0.12)
+    assert (t3.delays_s("disconnection")[0], t3.delays_s("disconnection")[2]) == (0.91, 7.01)
+    assert (t4.delays_s("disconnection")[0], t4.delays_s("disconnection")[2]) == (0.96, 4.52)

@@ -127,6 +127,9 @@ def test_summary_dtp_stats_with_misses():
     # the miss and the late detection are both "not within": 4 of 6
     assert r.dtp_within == pytest.approx(4 / 6, rel=REL)
     assert r.delay_mean_s == pytest.approx(0.5 * detected.mean(), rel=REL)
+    # delays in seconds (required time 0.5 s here), over the detected runs only
+    assert (r.delay_min_s, r.delay_max_s) == (pytest.approx(0.05, rel=REL),
+                                              pytest.approx(0.75, rel=REL))
 
 
 def test_summary_pre_onset_alarms_and_aggregates():
