@@ -306,7 +306,7 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=SMALL_PT, frameon=False)
     text = title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s) else "")
     # above the top panel, wrapped to the figure's width (never cut at its right edge)
-    fig.suptitle(textwrap.fill(text, 100), x=0.01, y=0.955, ha="left", va="bottom",
+    fig.suptitle(textwrap.fill(text, 100, break_on_hyphens=False), x=0.01, y=0.955, ha="left", va="bottom",
                  fontsize=TITLE_PT)
     return fig
 

@@ -479,3 +479,32 @@ def test_the_aircraft_plot_keeps_its_legends_off_the_curves():
         # wholly right of the panel: it covers none of its curves
         assert legend.x0 >= ax.get_window_extent(renderer).x1
     pyplot().close(fig)
+
+
+def test_overview_counts_each_run_in_error_once():
+    from reports.gate import evaluate_gate
+    from reports.html import render_report
+    from reports.summary import summarize
+
+    # detector d: 4 fault-free runs (1 in error) and 3 + 3 faulty runs of two fault types
+    # (1 in error in each): 3 runs in error, whatever the aggregates over faults
+    rows = []
+    for i, (fault, man) in enumerate([("none", "cruise")] * 4 + [("runaway", "cruise")] * 3
+                                     + [("solid_jam", "cruise")] * 3):
+        err = i in (0, 4, 7)
+        rows.append({"run_id": f"r{i}", "detector": "d", "fault": fault, "manoeuvre": man,
+                     "status": "error" if err else "ok", "error": "boom" if err else "",
+                     "false_alarm": False, "pre_onset_alarm": False,
+                     "detected": fault != "none" and not err, "first_alarm_s": np.nan,
+                     "delay_s": 0.1 if fault != "none" and not err else np.nan,
+                     "dtp": 0.5 if fault != "none" and not err else np.nan, "margin": 0.4})
+    results = pd.DataFrame(rows)
+    summary = summarize(results)
+    page = render_report(meta={"name": "x"}, summary=summary,
+                         gate=evaluate_gate(summary, results=results), requirements={},
+                         runs=results.assign(alt_ft=1e4, vcas_kt=250.0, mass_t=60.0,
+                                             cg_pct=30.0, onset_s=5.0), figures=[])
+    row = re.search(r'<tr><td><a href="#runs-detector-d">d</a></td>(.*?)</tr>',
+                    _section(page, "requirements")).group(1)
+    cells = re.findall(r"<td>(.*?)</td>", row)
+    assert cells[6] == "3"                          # the "errors" column
