@@ -44,6 +44,8 @@ TITLE_PT = 11
 #: colour maps of the envelope maps; fewer (64) were seen to merge tab:orange into tab:red
 #: and to band the maps' colour scales. The palette PNG is about 40 % of the full-colour one.
 PALETTE_COLOURS = 256
+#: Colour classes of the envelope maps' scale.
+MAP_LEVELS = 10
 
 
 def pyplot():
@@ -312,22 +314,28 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
 
 
 def _residual_panel(ax, t: np.ndarray, residuals: dict) -> None:
-    """Every detector's |r|/τ against the threshold line, its alarm span shaded."""
+    """Every detector's |r|/τ against the threshold line; the alarm span of one detector
+    shaded, of several a strip each along the top (overlapping shades would hide which
+    detector alarmed when)."""
     top = 1.15
+    strip = 0.04 if len(residuals) > 1 else 0.0    # height of an alarm strip [axes]
     for k, (name, (res, alarm)) in enumerate(residuals.items()):
         res = np.asarray(res, dtype=float)
         line, = ax.plot(t, res, lw=0.9, label=f"{name} |r|/τ")
         alarm = np.asarray(alarm, dtype=bool)
         if alarm.any():
             first = t[int(np.argmax(alarm))]
-            ax.fill_between(t, 0, 1, where=alarm, step="post", color=line.get_color(),
-                            alpha=0.15, transform=ax.get_xaxis_transform(),
-                            label=(f"{name} " if len(residuals) > 1 else "")
+            lo, hi, alpha = ((1 - (k + 1) * strip, 1 - (k + 0.15) * strip, 0.9) if strip
+                             else (0, 1, 0.15))
+            ax.fill_between(t, lo, hi, where=alarm, step="post", color=line.get_color(),
+                            alpha=alpha, lw=0, transform=ax.get_xaxis_transform(),
+                            label=(f"{name} " if strip else "")
                             + f"alarm, first at {first:.2f} s")
         if np.isfinite(res).any():
             top = max(top, float(np.nanmax(res)) * 1.08)
     ax.axhline(1.0, color=THRESHOLD_COLOUR, ls="--", lw=1.3, label="threshold")
-    ax.set_ylim(0, min(top, 50.0))
+    # room above the curves for the strips
+    ax.set_ylim(0, min(top, 50.0) / (1 - len(residuals) * strip))
     ax.set_ylabel("|r|/τ [-]")
 
 
@@ -360,9 +368,12 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
     pts = points.iloc[order]
     vv = v[order]
     sc = None
+    # MAP_LEVELS colour classes, drawn as such (the palette of figure_png would otherwise
+    # merge nearby shades of a continuous scale unevenly)
+    cmap = plt.get_cmap("YlOrRd", MAP_LEVELS)
     for ax, (x, y, xl, yl) in zip(axes, [("vcas_kt", "alt_ft", "VCAS [kt]", "altitude [ft]"),
                                          ("cg_pct", "mass_t", "CG [% MAC]", "mass [t]")]):
-        sc = ax.scatter(pts[x], pts[y], c=vv, cmap="YlOrRd", vmin=vmin, vmax=vmax, s=16,
+        sc = ax.scatter(pts[x], pts[y], c=vv, cmap=cmap, vmin=vmin, vmax=vmax, s=16,
                         edgecolors="0.4", linewidths=0.3)
         if flagged is not None:
             over = pts[flagged].to_numpy(dtype=bool)
@@ -380,8 +391,11 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
                        label=f"missed ({len(missed)})")
         if finite.any():
             i = order[-1]
-            ax.annotate(f"worst {v[i]:.3g}", (points[x].iloc[i], points[y].iloc[i]),
-                        xytext=(6, 6), textcoords="offset points", fontsize=SMALL_PT)
+            px = points[x].iloc[i]
+            right = px > np.mean(ax.get_xlim())           # text towards the panel's inside
+            ax.annotate(f"worst {v[i]:.3g}", (px, points[y].iloc[i]),
+                        xytext=(-6 if right else 6, 6), textcoords="offset points",
+                        ha="right" if right else "left", fontsize=SMALL_PT)
         ax.set_xlabel(xl)
         ax.set_ylabel(yl)
         ax.grid(alpha=0.3)
