@@ -162,12 +162,13 @@ def _gate_section(gate: GateResult | None, requirements: dict) -> str:
     allow = requirements.get("detector_max_fa_rate") or {}
     out.append(
         '<p class="note">What <code>fdd-campaign gate DIR</code> prints for this directory, in '
-        "its words: the campaign has finished its plan, no detector exceeds the false-alarm "
-        f"limit max_fa_rate = {_e(requirements.get('max_fa_rate'))}"
+        "its words. It checks that the campaign has finished its plan, that no detector "
+        f"exceeds the false-alarm limit max_fa_rate = {_e(requirements.get('max_fa_rate'))}"
         + (f" (per-detector allowances {_e(allow)})" if allow else "")
-        + " in any fault-free manoeuvre or before any fault onset, and every run finished. "
-        "The campaign file's missed-detection and detection-time limits are not part of it: "
-        'they are in the overview below, under <a href="#requirements">all requirements</a> '
+        + " in any fault-free manoeuvre or before any fault onset, and that every run "
+        "finished. The campaign file's missed-detection and detection-time limits are not part "
+        'of it: they are in the overview below, under <a href="#requirements">all '
+        "requirements</a> "
         "(<code>fdd-campaign gate --all-requirements</code>).</p>")
     failures = gate.failures
     if failures:
