@@ -198,7 +198,6 @@ def _envelope_subset(free: pd.DataFrame, results: pd.DataFrame, cfg: ReportSetti
     return pd.concat(keep) if keep else free.iloc[:0]
 
 
-
 def _envelope_runs(camp: LoadedCampaign, cfg: ReportSettings):
     """(fault-free plan rows to re-simulate, number of fault-free runs scored ok)."""
     ok_ids = set(camp.results.loc[camp.results["status"] == "ok", "run_id"])
@@ -255,10 +254,11 @@ def _margin_check(env, results: pd.DataFrame) -> float:
 
 
 # ---- example runs --------------------------------------------------------------------------
-def _example_ids(results: pd.DataFrame, n_per_fault: int) -> list[tuple[str, str, str]]:
+def _example_ids(results: pd.DataFrame, n_per_fault: int,
+                 detectors: list[str] = ()) -> list[tuple[str, str, str]]:
     """(fault, run_id, why) of the runs shown as examples: per fault type the slowest or a
     missed run, the median and the fastest (DTP worst over detectors); the fault-free run
-    of largest margin. None when *n_per_fault* is 0."""
+    of largest margin. None when *n_per_fault* is 0. Detectors named in *detectors* order."""
     if n_per_fault <= 0:
         return []
     ok = results[results["status"] == "ok"]
@@ -274,7 +274,7 @@ def _example_ids(results: pd.DataFrame, n_per_fault: int) -> list[tuple[str, str
         per_run = pd.Series(dtp, index=g["run_id"].to_numpy()).groupby(level=0).max()
         per_run = per_run.sort_values(kind="stable")
         missers = (g.loc[~detected].groupby("run_id")["detector"]
-                   .agg(lambda d: ", ".join(sorted(d))))
+                   .agg(lambda d: ", ".join(x for x in detectors if x in set(d))))
         worst_by = (g.assign(_d=dtp).sort_values("_d", kind="stable")
                     .groupby("run_id")["detector"].last())
 
@@ -326,6 +326,17 @@ def runs_table(camp: LoadedCampaign) -> pd.DataFrame:
     return camp.results.merge(point, on="run_id", how="left", validate="many_to_one")
 
 
+def campaign_gate(camp: LoadedCampaign, req: dict, *, all_requirements: bool = False):
+    """:func:`reports.gate.evaluate_gate` with the arguments of ``fdd-campaign gate DIR``
+    (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
+    m = camp.meta
+    return evaluate_gate(
+        camp.summary, max_fa=req["max_fa_rate"], results=camp.results,
+        max_md=req["max_md_rate"] if all_requirements else None,
+        max_dtp=req["max_dtp"] if all_requirements else None,
+        detector_max_fa=req["detector_max_fa_rate"], coverage=None if m.get(
+            "runs_planned") is None else (int(m.get("runs_done") or 0), int(m["runs_planned"])))
+
 
 @dataclass
 class _ReportData:
@@ -334,7 +345,9 @@ class _ReportData:
     camp: LoadedCampaign
     cfg: ReportSettings
     requirements: dict
-    gate: object                   # reports.gate.GateResult
+    gate: object                   # reports.gate.GateResult of `fdd-campaign gate DIR`, and
+    all_requirements: object       # of `fdd-campaign gate DIR --all-requirements`
+    detectors: list                # detector names in the summary's order (the page's)
     runs: pd.DataFrame             # runs_table(camp)
     plan: pd.DataFrame             # the plan indexed by run id
     n_free: int                    # fault-free runs scored ok
@@ -395,16 +408,14 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
     detectors = camp.detectors()
     req = _requirements(camp.config)
-    gate = evaluate_gate(camp.summary, max_fa=req["max_fa_rate"], max_md=req["max_md_rate"],
-                         max_dtp=req["max_dtp"],
-                         detector_max_fa=req["detector_max_fa_rate"])
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "
                         f"{camp.meta.get('runs_planned')} runs; rerun 'fdd-campaign run' into "
                         "this directory to finish it.")
     free, n_free = _envelope_runs(camp, cfg)
-    examples = _example_ids(camp.results, cfg.examples_per_fault)
+    order = list(dict.fromkeys(camp.summary["detector"].astype(str)))
+    examples = _example_ids(camp.results, cfg.examples_per_fault, order)
     example_ids = frozenset(rid for _, rid, _ in examples)
     plan = camp.plan.set_index("run_id", drop=False)
     extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
@@ -417,7 +428,9 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
     warnings += error_lines(camp.results)
     warnings += _resimulation_warnings([p[4] for p in parts])
     return _ReportData(
-        camp=camp, cfg=cfg, requirements=req, gate=gate, runs=runs_table(camp), plan=plan,
+        camp=camp, cfg=cfg, requirements=req, gate=campaign_gate(camp, req),
+        all_requirements=campaign_gate(camp, req, all_requirements=True),
+        detectors=order, runs=runs_table(camp), plan=plan,
         n_free=n_free, env=_gather_envelopes(parts, free, settings), examples=examples,
         traces={rid: tr for p in parts for rid, tr in p[3].items()}, t_sim=t_sim,
         warnings=warnings)
@@ -440,8 +453,8 @@ def _figure_specs(data: _ReportData) -> list[tuple]:
     """Every figure of the report, in page order (phase 2 draws them); adds the notes and
     warnings that go with them."""
     ok = data.runs[data.runs["status"] == "ok"]
-    return (_envelope_specs(data) + _fault_specs(ok, data.requirements)
-            + _example_specs(data) + _map_specs(ok, data.requirements))
+    return (_envelope_specs(data) + _fault_specs(ok, data.requirements, data.detectors)
+            + _example_specs(data) + _map_specs(ok, data.requirements, data.detectors))
 
 
 def _envelope_specs(data: _ReportData) -> list[tuple]:
@@ -467,34 +480,36 @@ def _envelope_specs(data: _ReportData) -> list[tuple]:
                              "campaign ran; the envelopes show the current code, the tables "
                              "the stored results.")
     specs = []
-    for name in env["binned"]:
+    for name in [d for d in data.detectors if d in env["binned"]]:
+        panels, worst_ids = [], []
         for man in dict.fromkeys(env["manoeuvre"]):
             sel = env["manoeuvre"] == man
-            b = env["binned"][name][sel]
-            m = env["margin"][name][sel]
+            b, m = env["binned"][name][sel], env["margin"][name][sel]
             worst = int(np.nanargmax(m)) if np.isfinite(m).any() else 0
-            wid = env["run_ids"][sel][worst]
-            specs.append((
-                "envelope", name, f"Residual envelope — {name} — {man}",
-                f"|r|/τ of {len(b)} fault-free runs; threshold at 1; worst run {wid} "
-                f"({show_command(wid)}).", "envelope", (env["t_s"], b, worst),
-                {"title": f"{name} — {man}: {len(b)} fault-free runs",
-                 "worst_label": f"worst run {wid} (margin {m[worst]:.3f})"}))
+            worst_ids.append(f"{man}: {(wid := env['run_ids'][sel][worst])}")
+            panels.append((man, b, worst, f"worst {wid} (margin {m[worst]:.3f})"))
+        specs.append((
+            "envelope", name, f"Residual envelopes — {name}",
+            f"|r|/τ of the fault-free runs, a panel per manoeuvre; threshold at 1; worst run "
+            f"of each manoeuvre in red ({'; '.join(worst_ids)}; re-simulate one with "
+            f"{show_command('RUN_ID')}).", "envelope", (env["t_s"], panels),
+            {"title": f"{name}: residual envelopes of the fault-free runs"}))
     return specs
 
 
-def _fault_specs(ok: pd.DataFrame, req: dict) -> list[tuple]:
+def _fault_specs(ok: pd.DataFrame, req: dict, detectors: list[str]) -> list[tuple]:
+    """One figure per fault type across every detector (in *detectors* order)."""
     specs = []
     for fault, g in ok[ok["fault"] != FAULT_FREE].groupby("fault", sort=True):
-        for name, gd in g.groupby("detector", sort=True):
+        rows, words = [], []
+        for name, gd in sorted(g.groupby("detector"), key=lambda x: detectors.index(x[0])):
             hit = gd["detected"].astype(bool).to_numpy()
-            specs.append((
-                "fault", fault, f"Detection of {fault} — {name}",
-                f"{int(hit.sum())} detected, {int((~hit).sum())} missed (the missed runs are "
-                "the red bar, not part of the delay and DTP histograms).", "fault",
-                (gd["delay_s"].to_numpy(float)[hit], gd["dtp"].to_numpy(float)[hit],
-                 int((~hit).sum())),
-                {"title": f"{name} — {fault}: {len(gd)} runs", "max_dtp": req["max_dtp"]}))
+            rows.append((name, gd["dtp"].to_numpy(float)[hit], int((~hit).sum())))
+            words.append(f"{name} {int(hit.sum())}/{len(gd)}")
+        specs.append(("fault", fault, f"Detection of {fault}", f"Runs detected per detector: "
+                      f"{', '.join(words)}. The missed runs are the red bars, not part of the "
+                      "DTP boxes.", "fault", (rows,), {"title": f"{fault}: detection time "
+                      f"performance of {g['run_id'].nunique()} runs", "max_dtp": req["max_dtp"]}))
     return specs
 
 
@@ -502,6 +517,7 @@ def _example_specs(data: _ReportData) -> list[tuple]:
     specs = []
     for fault, rid, why in data.examples:
         frame, residuals, onset = data.traces[rid]
+        residuals = {d: residuals[d] for d in data.detectors if d in residuals}
         row = data.plan.loc[rid]
         label = "fault-free" if fault == FAULT_FREE else fault
         specs.append((
@@ -517,9 +533,9 @@ def _example_specs(data: _ReportData) -> list[tuple]:
     return specs
 
 
-def _map_specs(ok: pd.DataFrame, req: dict) -> list[tuple]:
+def _map_specs(ok: pd.DataFrame, req: dict, detectors: list[str]) -> list[tuple]:
     specs = []
-    for name, gd in ok.groupby("detector", sort=True):
+    for name, gd in sorted(ok.groupby("detector"), key=lambda x: detectors.index(x[0])):
         free_runs = gd[gd["fault"] == FAULT_FREE]
         if len(free_runs):
             specs.append((
@@ -552,14 +568,15 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
         "surface": c.surface, "seed": c.seed, "run duration [s]": c.duration_s,
         "runs done / planned": f"{camp.meta.get('runs_done')} / {camp.meta.get('runs_planned')}",
         "complete": camp.meta.get("complete"),
-        "detectors": ", ".join(sorted(camp.results["detector"].unique())),
+        "detectors": ", ".join(data.detectors),
         "engine version": camp.meta.get("engine_version"),
         "report written (UTC)": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
     }
     return render_report(meta=meta, summary=camp.summary, gate=data.gate,
                          requirements=data.requirements, runs=data.runs, figures=figures,
                          notes=data.notes, warnings=data.warnings,
-                         certificate=CampaignDir(camp.root).read_certificate())
+                         certificate=CampaignDir(camp.root).read_certificate(),
+                         all_requirements=data.all_requirements, detectors=data.detectors)
 
 
 # ---- show ----------------------------------------------------------------------------------

@@ -6,8 +6,18 @@ import numpy as np
 
 
 def plot_aircraft_run(frame, *, onset_s: float, title: str, path, monitored: str) -> None:
+    """Write :func:`aircraft_run_figure` of *frame* to *path* (PNG)."""
+    import matplotlib.pyplot as plt
+
+    fig = aircraft_run_figure(frame, onset_s=onset_s, title=title, monitored=monitored)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def aircraft_run_figure(frame, *, onset_s: float, title: str, monitored: str):
     """The monitored surface's rod signals, every surface's true deflection, and the
-    aircraft response (measured p, q, r; φ, θ, β; n_z, n_y) with the fault onset.
+    aircraft response (measured p, q, r; φ, θ, β; n_z, n_y) with the fault onset; each
+    panel's legend beside it, never over a curve.
 
     *frame*: :meth:`scenarios.Signals.to_pandas` output of an aircraft-level run plus
     ``true_<surface> [deg]`` columns.
@@ -41,9 +51,9 @@ def plot_aircraft_run(frame, *, onset_s: float, title: str, path, monitored: str
     axes[-1].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize=7, ncol=4)
+        # beside the panel, never over it: inside, some position always covers a curve
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
         if np.isfinite(onset_s):
             ax.axvline(onset_s, color="r", ls=":", lw=1.2)
     axes[0].set_title(title + (f" (onset {onset_s:.2f} s, red)" if np.isfinite(onset_s) else ""))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig

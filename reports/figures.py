@@ -1,12 +1,16 @@
 """Figures of the campaign report, drawn from plain arrays and DataFrames (matplotlib, Agg).
 
-Every function returns a matplotlib Figure; :func:`figure_png` turns one into PNG bytes.
-Nothing here knows how a campaign is run or stored: the caller passes the numbers.
+Every function returns a matplotlib Figure; :func:`figure_png` turns one into PNG bytes
+(trimmed to what is drawn, so no title or legend is cut; palette-compressed). Text is at
+least :data:`SMALL_PT` points, which at the report's :data:`REPORT_DPI` is 12 pixels: legible
+on a screen where the page shows images at their own size. Nothing here knows how a campaign
+is run or stored: the caller passes the numbers.
 
-* :func:`envelope_figure` — |r|/τ of fault-free runs over time, band of runs, worst run,
-  threshold line at 1 (the presentation of [CHEN] Figs. 3–8);
-* :func:`fault_figure` — detection delay and DTP distributions of one fault type with the
-  missed runs counted beside them ([CHEN] §5 DTP; [CHEN] Table 4);
+* :func:`envelope_figure` — one detector's |r|/τ of fault-free runs over time, a panel per
+  manoeuvre: band of runs, worst run, threshold line at 1 (the presentation of [CHEN]
+  Figs. 3–8);
+* :func:`fault_figure` — one fault type across every detector: the DTP distribution of the
+  detected runs and the runs in time / late / missed ([CHEN] §5 DTP; [CHEN] Table 4);
 * :func:`run_figure` — one run: order, rod, surface, current, every detector's |r|/τ and
   alarm, fault onset (the presentation of [CHEN] Figs. 9–11, [COMB] Figs. 3–5);
 * :func:`envelope_map_figure` — a per-run value (margin, DTP) over altitude × VCAS and
@@ -16,6 +20,7 @@ Nothing here knows how a campaign is run or stored: the caller passes the number
 from __future__ import annotations
 
 import io
+import textwrap
 
 import numpy as np
 import pandas as pd
@@ -27,6 +32,21 @@ __all__ = ["bin_max", "envelope_figure", "envelope_map_figure", "fault_figure",
 THRESHOLD_COLOUR = "tab:green"
 #: Colour of the worst run / the onset marker.
 WORST_COLOUR = "tab:red"
+#: Resolution of the report's figures [dots per inch]: 100 dpi makes a point 1.39 px.
+REPORT_DPI = 100
+#: Size of the smallest text (legends, tick labels, annotations) [pt]: 9 pt = 12.5 px at
+#: REPORT_DPI, about the size of the page's own table text (13 px).
+SMALL_PT = 9
+#: Size of axis and figure titles [pt].
+TITLE_PT = 11
+#: Colours kept by the palette compression of :func:`figure_png` (the most a PNG palette
+#: holds): the figures use about a dozen line colours, their anti-aliased blends and the
+#: colour maps of the envelope maps; fewer (64) were seen to merge tab:orange into tab:red
+#: and to band the maps' colour scales. The palette PNG is
+#: 36 % of the full-colour one (measured on addsafe-mc's report).
+PALETTE_COLOURS = 256
+#: Colour classes of the envelope maps' scale.
+MAP_LEVELS = 10
 
 
 def pyplot():
@@ -39,13 +59,23 @@ def pyplot():
     return plt
 
 
-def figure_png(fig, dpi: int = 80) -> bytes:
-    """PNG bytes of *fig*; the figure is closed."""
+def figure_png(fig, dpi: int = REPORT_DPI) -> bytes:
+    """PNG bytes of *fig*, trimmed to its drawn content (``bbox_inches="tight"``: a title or
+    legend that reaches past the canvas is kept whole, never cut) and reduced to an
+    adaptive palette of :data:`PALETTE_COLOURS` colours; the figure is closed."""
+    from PIL import Image
+
     plt = pyplot()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight", pad_inches=0.06,
+                facecolor="white")
     plt.close(fig)
-    return buf.getvalue()
+    buf.seek(0)
+    image = Image.open(buf).convert("RGB").quantize(
+        colors=PALETTE_COLOURS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    out = io.BytesIO()
+    image.save(out, format="PNG", optimize=True)
+    return out.getvalue()
 
 
 def bin_max(values: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
@@ -72,38 +102,53 @@ def bin_max(values: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
     return starts, binned.astype(np.float32)
 
 
-def envelope_figure(t_s: np.ndarray, binned: np.ndarray, worst: int, *, title: str,
-                    worst_label: str):
-    """Normalised residual of fault-free runs over time.
+def envelope_figure(t_s: np.ndarray, panels: list, *, title: str):
+    """Normalised residual of fault-free runs over time, one panel per manoeuvre.
 
     Parameters
     ----------
     t_s : ndarray (n_b,) [s] start time of each bin
-    binned : ndarray (n_runs, n_b) [-] per-run max of |r|/τ in each bin (:func:`bin_max`)
-    worst : index of the run to highlight (the largest margin)
+    panels : list of (heading, binned, worst, worst_label): ``binned`` ndarray (n_runs, n_b)
+        [-] per-run max of |r|/τ in each bin (:func:`bin_max`), ``worst`` the index of the
+        run to highlight (the largest margin), ``worst_label`` its legend text
     """
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.2, 3.3))
-    fig.subplots_adjust(left=0.08, right=0.98, top=0.91, bottom=0.32)
-    with np.errstate(all="ignore"), _quiet():
-        lo, hi = np.nanmin(binned, axis=0), np.nanmax(binned, axis=0)
-        p05, p50, p95 = np.nanpercentile(binned, [5, 50, 95], axis=0)
-    ax.fill_between(t_s, lo, hi, step="post", color="tab:blue", alpha=0.18, lw=0,
-                    label=f"all {binned.shape[0]} runs (min–max)")
-    ax.fill_between(t_s, p05, p95, step="post", color="tab:blue", alpha=0.35, lw=0,
-                    label="5–95 % of runs")
-    ax.step(t_s, p50, where="post", color="tab:blue", lw=0.8, label="median")
-    ax.step(t_s, binned[worst], where="post", color=WORST_COLOUR, lw=1.0, label=worst_label)
-    ax.axhline(1.0, color=THRESHOLD_COLOUR, lw=1.5, ls="--", label="threshold |r|/τ = 1")
-    top = float(np.nanmax(binned)) if np.isfinite(binned).any() else 1.0
-    ax.set_ylim(0.0, max(1.15, 1.08 * top))
-    ax.set_xlim(t_s[0], t_s[-1] + (t_s[1] - t_s[0] if len(t_s) > 1 else 1.0))
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("|r|/τ [-]")
-    ax.set_title(title, fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize=7, ncol=3,
-              frameon=False)
+    ncols = min(3, len(panels))
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.0 * ncols, 2.5 * nrows + 0.5),
+                             sharex=True, sharey=True, squeeze=False)
+    top = 1.15
+    for ax, (heading, binned, worst, worst_label) in zip(axes.flat, panels):
+        with np.errstate(all="ignore"), _quiet():
+            lo, hi = np.nanmin(binned, axis=0), np.nanmax(binned, axis=0)
+            p05, p50, p95 = np.nanpercentile(binned, [5, 50, 95], axis=0)
+        ax.fill_between(t_s, lo, hi, step="post", color="tab:blue", alpha=0.18, lw=0,
+                        label="all runs (min–max)")
+        ax.fill_between(t_s, p05, p95, step="post", color="tab:blue", alpha=0.35, lw=0,
+                        label="5–95 % of runs")
+        ax.step(t_s, p50, where="post", color="tab:blue", lw=0.8, label="median")
+        ax.step(t_s, binned[worst], where="post", color=WORST_COLOUR, lw=1.0,
+                label="worst run (largest margin)")
+        ax.axhline(1.0, color=THRESHOLD_COLOUR, lw=1.5, ls="--", label="threshold |r|/τ = 1")
+        if np.isfinite(binned).any():
+            top = max(top, 1.08 * float(np.nanmax(binned)))
+        ax.set_title(f"{heading}: {binned.shape[0]} runs\n{worst_label}", fontsize=SMALL_PT)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=SMALL_PT)
+    for ax in axes.flat[len(panels):]:
+        ax.remove()                     # no empty panel
+    axes[0, 0].set_ylim(0.0, top)
+    axes[0, 0].set_xlim(t_s[0], t_s[-1] + (t_s[1] - t_s[0] if len(t_s) > 1 else 1.0))
+    for ax in axes[:, 0]:
+        ax.set_ylabel("|r|/τ [-]", fontsize=SMALL_PT)
+    for ax in axes.flat[max(0, len(panels) - ncols):len(panels)]:
+        ax.set_xlabel("time [s]", fontsize=SMALL_PT)
+        ax.xaxis.set_tick_params(labelbottom=True)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.suptitle(title, fontsize=TITLE_PT)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+               ncol=len(labels), fontsize=SMALL_PT, frameon=False)
     return fig
 
 
@@ -136,55 +181,86 @@ def _hist(ax, x: np.ndarray, color: str) -> None:
     ax.ticklabel_format(axis="x", useOffset=False)
 
 
-def fault_figure(delay_s: np.ndarray, dtp: np.ndarray, n_missed: int, *, title: str,
-                 max_dtp: float | None = None):
-    """Distributions of detection delay [s] and DTP [-] of the detected runs of one fault
-    type, with the missed runs as their own bar beside (never dropped).
+def _horizontal() -> dict:
+    """Keyword of a horizontal box plot: ``orientation`` from matplotlib 3.10, ``vert``
+    before (deprecated since)."""
+    import inspect
+
+    from matplotlib.axes import Axes
+
+    if "orientation" in inspect.signature(Axes.boxplot).parameters:
+        return {"orientation": "horizontal"}
+    return {"vert": False}
+
+
+def fault_figure(rows: list, *, title: str, max_dtp: float | None = None):
+    """One fault type across detectors: the DTP of the detected runs (box: quartiles and
+    median, whiskers: min and max, diamond: mean) and the runs in time / late / missed as
+    bars beside (misses are never dropped). A detector that detected no run has no box,
+    only its bar; when no detector detected any run, the DTP panel is not drawn.
 
     Parameters
     ----------
-    delay_s, dtp : ndarray (n_detected,) of the detected runs
-    n_missed : number of scored runs of this fault type without detection
-    max_dtp : required DTP limit drawn as a line (1 = the required detection time)
+    rows : list of (detector, dtp, n_missed), top to bottom: ``dtp`` ndarray
+        (n_detected,) [-] of the detected runs, ``n_missed`` the scored runs without
+        detection
+    max_dtp : required DTP limit drawn as a line (1 = the required detection time); runs
+        above it are "late" (None: late is DTP > 1)
     """
     plt = pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(9.0, 2.8), gridspec_kw={"width_ratios": [3, 3, 1.3]})
-    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.17, wspace=0.28)
-    n_det = len(dtp)
-    ax = axes[0]
-    if n_det:
-        _hist(ax, delay_s, "tab:blue")
+    horizontal = _horizontal()
+    limit = 1.0 if max_dtp is None else float(max_dtp)
+    names = [r[0] for r in rows]
+    y = np.arange(len(rows))[::-1]              # first detector on top
+    any_detected = any(len(r[1]) for r in rows)
+    height = 0.42 * len(rows) + 1.5
+    if any_detected:
+        fig, (ax, axc) = plt.subplots(1, 2, figsize=(11.0, height), sharey=True,
+                                      gridspec_kw={"width_ratios": [3, 2]})
+        data = [np.asarray(r[1], float) for r in rows]
+        have = [i for i, d in enumerate(data) if len(d)]
+        ax.boxplot([data[i] for i in have], positions=y[have], **horizontal, whis=(0, 100),
+                   widths=0.5, showmeans=True, manage_ticks=False,
+                   meanprops={"marker": "D", "markerfacecolor": "tab:purple",
+                              "markeredgecolor": "tab:purple", "markersize": 4},
+                   medianprops={"color": "tab:purple"})
+        top = max(float(np.max(d)) for d in data if len(d))
+        if top > 20 * limit:
+            ax.set_xscale("symlog", linthresh=0.1 * limit, linscale=0.5)
+        ax.axvline(limit, color=WORST_COLOUR, ls="--", lw=1.2, label=f"DTP limit {limit:g}")
+        for i, d in enumerate(data):
+            if not len(d):
+                ax.text(0.01, y[i], "no run detected", transform=ax.get_yaxis_transform(),
+                        va="center", fontsize=SMALL_PT, color="0.3")
+        ax.set_xlabel("DTP = detection delay / required time [-] (detected runs)",
+                      fontsize=SMALL_PT)
+        ax.legend(fontsize=SMALL_PT, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+                  frameon=False)                 # above the panel: covers no box
+        ax.grid(alpha=0.3, axis="x")
     else:
-        ax.text(0.5, 0.5, "no detected run", ha="center", va="center", transform=ax.transAxes)
-    ax.set_xlabel("detection delay [s]")
-    ax.set_title(f"{n_det} detected runs", fontsize=8)
-    ax.set_ylabel("runs")
-    ax = axes[1]
-    if n_det:
-        _hist(ax, dtp, "tab:purple")
-        ax.set_title(f"DTP min/mean/max {np.min(dtp):.3g}/{np.mean(dtp):.3g}/"
-                     f"{np.max(dtp):.3g}", fontsize=8)
-    else:
-        ax.text(0.5, 0.5, "no detected run", ha="center", va="center", transform=ax.transAxes)
-    if max_dtp is not None and (not n_det or np.max(dtp) > 0.5 * max_dtp):
-        ax.axvline(max_dtp, color=WORST_COLOUR, ls="--", lw=1.2, label=f"DTP limit {max_dtp:g}")
-        # clear of the "no detected run" text in the middle of an empty panel
-        ax.legend(fontsize=7, loc="center right" if n_det else "upper left")
-    ax.set_xlabel("DTP = delay / required time [-]")
-    ax = axes[2]
-    late = int(np.sum(dtp > max_dtp)) if max_dtp is not None else 0
-    counts = [n_det - late, late, n_missed]
-    bars = ax.bar(["in time", "late", "missed"], counts,
-                  color=["tab:green", "tab:orange", WORST_COLOUR])
-    for b, c in zip(bars, counts):
-        ax.text(b.get_x() + b.get_width() / 2, b.get_height(), str(c), ha="center",
-                va="bottom", fontsize=8)
-    ax.set_ylim(0, max(counts + [1]) * 1.2)
-    ax.tick_params(axis="x", labelsize=7)
-    ax.set_title("runs", fontsize=8)
-    for a in axes:
-        a.grid(alpha=0.3)
-    fig.suptitle(title, fontsize=10)
+        fig, axc = plt.subplots(figsize=(6.0, height))
+        ax = axc
+    ax.set_yticks(y, names, fontsize=SMALL_PT)
+    ax.set_ylim(-0.6, len(rows) - 0.4)
+    counts = np.array([[int(np.sum(np.asarray(r[1]) <= limit)),
+                        int(np.sum(np.asarray(r[1]) > limit)), int(r[2])] for r in rows])
+    left = np.zeros(len(rows))
+    for k, (label, colour) in enumerate([("in time", "tab:green"), ("late", "tab:orange"),
+                                         ("missed", WORST_COLOUR)]):
+        axc.barh(y, counts[:, k], left=left, height=0.6, color=colour, label=label)
+        for yi, c, x0 in zip(y, counts[:, k], left):
+            if c >= 0.06 * counts.sum(axis=1).max():     # a count fits inside its bar
+                axc.text(x0 + c / 2, yi, str(c), ha="center", va="center",
+                         fontsize=SMALL_PT, color="white" if k != 1 else "black")
+        left += counts[:, k]
+    axc.set_xlim(0, max(1, float(left.max())))
+    axc.set_xlabel("runs", fontsize=SMALL_PT)
+    axc.legend(fontsize=SMALL_PT, ncol=3, loc="lower center", bbox_to_anchor=(0.5, 1.0),
+               frameon=False)
+    for a in {ax, axc}:
+        a.tick_params(labelsize=SMALL_PT)
+    fig.suptitle(title, fontsize=TITLE_PT)
+    fig.tight_layout()
     return fig
 
 
@@ -230,29 +306,37 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
         ax.grid(alpha=0.3)
         if np.isfinite(onset_s):
             ax.axvline(onset_s, color=WORST_COLOUR, ls=":", lw=1.2)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
-    fig.suptitle(title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s)
-                          else ""), x=0.01, ha="left", fontsize=10)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=SMALL_PT, frameon=False)
+    text = title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s) else "")
+    # above the top panel, wrapped to the figure's width (never cut at its right edge)
+    fig.suptitle(textwrap.fill(text, 100, break_on_hyphens=False), x=0.01, y=0.955, ha="left", va="bottom",
+                 fontsize=TITLE_PT)
     return fig
 
 
 def _residual_panel(ax, t: np.ndarray, residuals: dict) -> None:
-    """Every detector's |r|/τ against the threshold line, its alarm span shaded."""
+    """Every detector's |r|/τ against the threshold line; the alarm span of one detector
+    shaded, of several a strip each along the top (overlapping shades would hide which
+    detector alarmed when)."""
     top = 1.15
+    strip = 0.04 if len(residuals) > 1 else 0.0    # height of an alarm strip [axes]
     for k, (name, (res, alarm)) in enumerate(residuals.items()):
         res = np.asarray(res, dtype=float)
         line, = ax.plot(t, res, lw=0.9, label=f"{name} |r|/τ")
         alarm = np.asarray(alarm, dtype=bool)
         if alarm.any():
             first = t[int(np.argmax(alarm))]
-            ax.fill_between(t, 0, 1, where=alarm, step="post", color=line.get_color(),
-                            alpha=0.15, transform=ax.get_xaxis_transform(),
-                            label=(f"{name} " if len(residuals) > 1 else "")
+            lo, hi, alpha = ((1 - (k + 1) * strip, 1 - (k + 0.15) * strip, 0.9) if strip
+                             else (0, 1, 0.15))
+            ax.fill_between(t, lo, hi, where=alarm, step="post", color=line.get_color(),
+                            alpha=alpha, lw=0, transform=ax.get_xaxis_transform(),
+                            label=(f"{name} " if strip else "")
                             + f"alarm, first at {first:.2f} s")
         if np.isfinite(res).any():
             top = max(top, float(np.nanmax(res)) * 1.08)
     ax.axhline(1.0, color=THRESHOLD_COLOUR, ls="--", lw=1.3, label="threshold")
-    ax.set_ylim(0, min(top, 50.0))
+    # room above the curves for the strips
+    ax.set_ylim(0, min(top, 50.0) / (1 - len(residuals) * strip))
     ax.set_ylabel("|r|/τ [-]")
 
 
@@ -274,7 +358,7 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
     """
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9.6, 3.6))
-    fig.subplots_adjust(left=0.08, right=0.9, top=0.88, bottom=0.14, wspace=0.25)
+    fig.subplots_adjust(left=0.08, right=0.9, top=0.82, bottom=0.14, wspace=0.25)
     v = points[value].to_numpy(dtype=float)
     finite = np.isfinite(v)
     vmax = float(np.nanmax(v)) if finite.any() else 1.0
@@ -285,9 +369,12 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
     pts = points.iloc[order]
     vv = v[order]
     sc = None
+    # MAP_LEVELS colour classes, drawn as such (the palette of figure_png would otherwise
+    # merge nearby shades of a continuous scale unevenly)
+    cmap = plt.get_cmap("YlOrRd", MAP_LEVELS)
     for ax, (x, y, xl, yl) in zip(axes, [("vcas_kt", "alt_ft", "VCAS [kt]", "altitude [ft]"),
                                          ("cg_pct", "mass_t", "CG [% MAC]", "mass [t]")]):
-        sc = ax.scatter(pts[x], pts[y], c=vv, cmap="YlOrRd", vmin=vmin, vmax=vmax, s=16,
+        sc = ax.scatter(pts[x], pts[y], c=vv, cmap=cmap, vmin=vmin, vmax=vmax, s=16,
                         edgecolors="0.4", linewidths=0.3)
         if flagged is not None:
             over = pts[flagged].to_numpy(dtype=bool)
@@ -305,16 +392,20 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
                        label=f"missed ({len(missed)})")
         if finite.any():
             i = order[-1]
-            ax.annotate(f"worst {v[i]:.3g}", (points[x].iloc[i], points[y].iloc[i]),
-                        xytext=(6, 6), textcoords="offset points", fontsize=7)
+            px = points[x].iloc[i]
+            right = px > np.mean(ax.get_xlim())           # text towards the panel's inside
+            ax.annotate(f"worst {v[i]:.3g}", (px, points[y].iloc[i]),
+                        xytext=(-6 if right else 6, 6), textcoords="offset points",
+                        ha="right" if right else "left", fontsize=SMALL_PT)
         ax.set_xlabel(xl)
         ax.set_ylabel(yl)
         ax.grid(alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7, loc="upper right")
-    cax = fig.add_axes([0.92, 0.14, 0.015, 0.74])
+        if ax.get_legend_handles_labels()[0]:           # above the panel: covers no run
+            ax.legend(fontsize=SMALL_PT, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2,
+                      frameon=False)
+    cax = fig.add_axes([0.92, 0.14, 0.015, 0.68])
     fig.colorbar(sc, cax=cax, label=label)
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(title, fontsize=TITLE_PT)
     return fig
 
 
@@ -333,9 +424,9 @@ def mean_excess_figure(values: np.ndarray, u: float, *, title: str):
     ax.axvline(u, color=WORST_COLOUR, ls="--", lw=1.0, label=f"u = {u:.3g}")
     ax.set_xlabel("margin threshold v [-]")
     ax.set_ylabel("mean excess over v [-]")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=SMALL_PT)
     ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_PT)
     return fig
 
 
@@ -357,7 +448,7 @@ def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: s
     ax.set_xlabel("fitted GPD quantile of the excess [-]")
     ax.set_ylabel("observed excess over u [-]")
     ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_PT)
     return fig
 
 
@@ -378,9 +469,10 @@ def survival_figure(curves: dict, *, title: str):
     ax.set_xlabel("detection delay [s]")
     ax.set_ylabel("share of runs detected")
     ax.set_ylim(0, 1.02)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=SMALL_PT, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              frameon=False)                     # beside the axes: covers no curve
     ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_PT)
     return fig
 
 
@@ -390,7 +482,7 @@ FIGURES = {"envelope": envelope_figure, "fault": fault_figure, "run": run_figure
            "tail_qq": tail_qq_figure, "survival": survival_figure}
 
 
-def render_png(kind: str, args: tuple, kwargs: dict, dpi: int = 80) -> bytes:
+def render_png(kind: str, args: tuple, kwargs: dict, dpi: int = REPORT_DPI) -> bytes:
     """PNG bytes of the figure *kind* (a key of :data:`FIGURES`) drawn with *args* and
     *kwargs* — a picklable unit of work, so figures can be drawn in worker processes."""
     if kind not in FIGURES:

@@ -1,11 +1,15 @@
 """The campaign report as one self-contained HTML page (figures embedded, no script, no
 network).
 
-Layout: the verdict first — per detector, FA / MD with exact 95 % Clopper–Pearson intervals
-and DTP statistics in the layout of [CHEN] Tables 3–4, pass/fail against the campaign's
-requirements (:mod:`reports.gate`) — then the residual envelopes, the per-fault detection
-behaviour with example runs, the envelope maps, and the drill-down lists: every table row
-links to the runs behind it, each with the command that re-simulates it.
+Layout: the gate's verdict first — the checks of ``fdd-campaign gate DIR``, in its words,
+with the run ids it names (:mod:`reports.gate`, evaluated by the caller with the command's
+arguments) — then one overview table across detectors (FA, MD, MD in T, DTP, each
+requirement of the campaign file met or not: the verdict of ``gate --all-requirements``),
+then the detail: per detector FA / MD with exact 95 % Clopper–Pearson intervals and DTP
+statistics in the layout of [CHEN] Tables 3–4, the residual envelopes, the per-fault
+detection behaviour with example runs, the envelope maps, and the drill-down lists: every
+table row links to the runs behind it. Detectors appear in one order everywhere (the
+caller's, by default the summary's).
 
 This module only formats what it is given (DataFrames, PNG bytes); it reads no file.
 """
@@ -25,7 +29,8 @@ from .gate import GateResult
 from .metrics import FAULT_FREE, clopper_pearson
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["ReportFigure", "anchor", "count_figures", "render_report", "show_command"]
+__all__ = ["ReportFigure", "anchor", "count_figures", "gate_lines", "render_report",
+           "show_command"]
 
 #: Sections of the page that hold figures, in page order: key → heading.
 SECTIONS = {
@@ -109,8 +114,19 @@ def _img(fig: ReportFigure) -> str:
 
 
 # ---- verdict -------------------------------------------------------------------------------
+def gate_lines(gate: GateResult) -> list[str]:
+    """The lines ``fdd-campaign gate`` prints for *gate* (:meth:`GateResult.format`)."""
+    return gate.format().splitlines()
+
+
+def _passed(checks) -> bool | None:
+    """All of *checks* passed (None: there is none)."""
+    checks = list(checks)
+    return all(c.passed for c in checks) if checks else None
+
+
 def _row_passed(gate: GateResult | None, detector: str, fault: str, manoeuvre: str):
-    """Pass/fail of a summary row: the gate checks that concern exactly its runs."""
+    """Pass/fail of a summary row: the checks that concern exactly its runs."""
     if gate is None:
         return None
     mine = [c for c in gate.checks if c.detector == detector]
@@ -121,29 +137,158 @@ def _row_passed(gate: GateResult | None, detector: str, fault: str, manoeuvre: s
     else:
         rel = [c for c in mine if c.fault == fault and c.manoeuvre in (manoeuvre,
                                                                         ALL_MANOEUVRES)]
-    if not rel:
-        return None
-    return all(c.passed for c in rel)
+    return _passed(rel)
 
 
-def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict) -> str:
-    out = ['<section id="verdict"><h2>Verdict</h2>']
+def _labelled_badge(label: str, passed: bool | None) -> str:
+    """A PASS/FAIL badge that says which verdict it is (the gate, all requirements)."""
+    if passed is None:
+        return f'<span class="badge na">{_e(label)}: –</span>'
+    return (f'<span class="badge {"pass" if passed else "fail"}">{_e(label)}: '
+            f'{"PASS" if passed else "FAIL"}</span>')
+
+
+def _gate_section(gate: GateResult | None, requirements: dict) -> str:
+    """The verdict of ``fdd-campaign gate DIR``: its verdict line, its failed checks with
+    the runs they name, every line it prints (folded)."""
+    out = ['<section id="gate"><h2>Gate verdict (<code>fdd-campaign gate</code>)</h2>']
+    if gate is None:
+        out.append("<p>No gate was evaluated.</p></section>")
+        return "\n".join(out)
+    lines = gate_lines(gate)
+    # the verdict line of the command ("gate PASSED: …" / "gate FAILED: …")
+    verdict = next((x for x in lines if x.startswith("gate ")), "")
+    out.append(f'<p class="gateline {"pass" if gate.passed else "fail"}">{_e(verdict)}</p>')
+    allow = requirements.get("detector_max_fa_rate") or {}
+    out.append(
+        '<p class="note">What <code>fdd-campaign gate DIR</code> prints for this directory, in '
+        "its words. It checks that the campaign has finished its plan, that no detector "
+        f"exceeds the false-alarm limit max_fa_rate = {_e(requirements.get('max_fa_rate'))}"
+        + (f" (per-detector allowances {_e(allow)})" if allow else "")
+        + " in any fault-free manoeuvre or before any fault onset, and that every run "
+        "finished. The campaign file's missed-detection and detection-time limits are not part "
+        'of it: they are in the overview below, under <a href="#requirements">all '
+        "requirements</a> "
+        "(<code>fdd-campaign gate --all-requirements</code>).</p>")
+    failures = gate.failures
+    if failures:
+        items = []
+        for c in failures:
+            runs = "".join(f"<li><code>{_e(show_command(r))}</code></li>" for r in c.run_ids)
+            items.append(f"<li>{_e(c.message)}" + (f"<ul>{runs}</ul>" if runs else "")
+                         + "</li>")
+        out.append(f'<ul class="fails">{"".join(items)}</ul>')
+    out.append(f"<details><summary>every line of <code>fdd-campaign gate</code> "
+               f"({len(gate.checks)} checks)</summary><pre class=\"gatelines\">"
+               + _e("\n".join(lines)) + "</pre></details>")
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def _mark(text: str, passed: bool | None) -> str:
+    """A value with its requirement met (✓), not met (✗) or not required."""
+    if passed is None:
+        return text
+    return (f'<span class="met">{text} ✓</span>' if passed
+            else f'<span class="unmet">{text} ✗</span>')
+
+
+def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult | None,
+              requirements: dict, detectors: list[str]) -> str:
+    """One row per detector: FA, MD, MD in T, DTP with each requirement met or not."""
+    full_checks = full.checks if full is not None else []
+
+    def checks(det, name):
+        return [c for c in full_checks if c.detector == det and c.name == name]
+
+    rows = []
+    for det in detectors:
+        s = summary[summary["detector"] == det]
+        free = s[(s["fault"] == FAULT_FREE) & (s["manoeuvre"] == ALL_MANOEUVRES)]
+        faulty = s[(s["fault"] == ALL_FAULTS) & (s["manoeuvre"] == ALL_MANOEUVRES)]
+        per_fault = s[(s["manoeuvre"] == ALL_MANOEUVRES)
+                      & ~s["fault"].isin([FAULT_FREE, ALL_FAULTS])]
+        fa_checks = checks(det, "false_alarm")
+        cells = [f'<a href="#{anchor("detector", det)}">{_e(det)}</a>',
+                 _badge(_passed(c for c in (gate.checks if gate else [])
+                                if c.detector == det))]
+        if len(free):
+            r = free.iloc[0]
+            fa = f"{int(r.fa_count)}/{int(r.n_runs)} (≤ {_pct(r.fa_upper95)} %)"
+            cells.append(_mark(fa, _passed(c for c in fa_checks if c.fault == FAULT_FREE)))
+        else:
+            cells.append("–")
+        if len(faulty):
+            r = faulty.iloc[0]
+            cells.append(_mark(f"{int(r.fa_count)}/{int(r.n_runs)}",
+                               _passed(c for c in fa_checks if c.fault != FAULT_FREE)))
+            worst = per_fault.sort_values("md_rate", ascending=False, kind="stable").iloc[0] \
+                if len(per_fault) > 1 else None
+            md = _pct(r.md_rate) + (f'<br><small>worst: {_e(worst.fault)} '
+                                    f"{_pct(worst.md_rate)}</small>" if worst is not None
+                                    else "")
+            cells.append(_mark(md, _passed(checks(det, "missed_detection"))))
+            cells.append(_pct(getattr(r, "md_req_rate", math.nan)))
+            cells.append(_mark(_num(r.dtp_max, ".4g"), _passed(checks(det, "dtp"))))
+        else:
+            cells += ["–"] * 4
+        # runs in error: the fault-free aggregate and the all-faults one (no run twice)
+        cells.append(str(int(free["n_errors"].sum() + faulty["n_errors"].sum())))
+        cells.append(_badge(_passed(c for c in full_checks if c.detector == det)))
+        rows.append(cells)
+    req = requirements
+
+    def lim(key, fmt):
+        v = req.get(key)
+        return "not required" if v is None else fmt(v)
+
+    head = ["detector", "gate<br>(fdd-campaign gate)",
+            f"FA fault-free<br>(limit {lim('max_fa_rate', _pct)} %)",
+            "FA before onset", f"MD (%)<br>(limit {lim('max_md_rate', _pct)} %)",
+            "MD in T (%)", f"max DTP<br>(limit {lim('max_dtp', lambda v: f'{v:g}')})",
+            "errors", "all requirements<br>(--all-requirements)"]
+    verdict = ("" if full is None else
+               f'<p class="gateline {"pass" if full.passed else "fail"}">All requirements '
+               f"of the campaign file (<code>fdd-campaign gate --all-requirements</code>): "
+               + ("met" if full.passed else f"not met, {len(full.failures)} of "
+                  f"{len(full.checks)} checks fail") + "</p>")
+    return ('<section id="requirements"><h2>Overview across detectors</h2>' + verdict
+            + _table(head, rows, cls="overview", tid="overview")
+            + '<p class="note">✓ requirement of the campaign file met, ✗ not met; a value '
+            "without a mark has no requirement. FA fault-free: false alarms / fault-free "
+            "runs with the exact one-sided 95 % bound; FA before onset: faulty runs alarmed "
+            "before the fault; MD: never detected (over every faulty run; the requirement "
+            "holds per fault type); MD in T: not detected within the required time, missed "
+            "or late (no limit of its own: a late run fails the DTP requirement); max DTP: "
+            "the largest detection delay / required time. “gate” is the verdict of "
+            "<code>fdd-campaign gate</code> above (false alarms and run errors); “all "
+            "requirements” adds the MD and DTP limits.</p></section>")
+
+
+def _details(summary: pd.DataFrame, gate: GateResult | None, full: GateResult | None,
+             requirements: dict, detectors: list[str]) -> str:
+    out = ['<section id="verdict"><h2>Per detector</h2>']
     req = ", ".join(f"{k} = {v}" for k, v in requirements.items())
     out.append(f'<p class="req">Requirements of the campaign: {_e(req) or "none stored"}. '
                "Rates in %; intervals are exact two-sided 95 % Clopper–Pearson intervals, "
                "“≤95” the one-sided 95 % upper bound; DTP = detection delay / required "
                "detection time ([CHEN] §5), over detected runs only — misses are counted "
-               "in MD beside it. Each row links to the runs behind it.</p>")
-    for detector, det in summary.groupby("detector", sort=True):
-        checks = [c for c in (gate.checks if gate else []) if c.detector == detector]
-        passed = all(c.passed for c in checks) if checks else None
-        out.append(f'<h3 class="det">{_e(detector)} {_badge(passed)}</h3>')
+               "in MD beside it. The column “all requirements” checks every limit of the "
+               "campaign file (<code>fdd-campaign gate --all-requirements</code>). Each row "
+               "links to the runs behind it.</p>")
+    for detector in detectors:
+        det = summary[summary["detector"] == detector]
+        mine = [c for c in (full.checks if full else []) if c.detector == detector]
+        in_gate = _passed(c for c in (gate.checks if gate else []) if c.detector == detector)
+        out.append(f'<h3 class="det" id="{anchor("detector", detector)}">{_e(detector)} '
+                   f'{_labelled_badge("gate", in_gate)} '
+                   f'{_labelled_badge("all requirements", _passed(mine))}</h3>')
         faults = det[(det["manoeuvre"] == ALL_MANOEUVRES) & (det["fault"] != FAULT_FREE)]
         if len(faults):
             rows = []
             for r in faults.itertuples(index=False):
                 label = "all faults" if r.fault == ALL_FAULTS else r.fault
-                link = anchor(detector, "faulty" if r.fault == ALL_FAULTS else r.fault)
+                link = anchor("faulty" if r.fault == ALL_FAULTS else r.fault)
                 n = int(r.n_runs)
                 rows.append([
                     f'<a href="#{link}">{_e(label)}</a>', str(n), str(int(r.n_errors)),
@@ -153,13 +298,11 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
                     f"{_num(r.dtp_min, '.4g')}/{_num(r.dtp_mean, '.4g')}/"
                     f"{_num(r.dtp_max, '.4g')}", _num(r.dtp_p95, ".4g"),
                     _num(100 * r.dtp_within, ".1f"),
-                    _badge(_row_passed(gate, detector, r.fault, r.manoeuvre)),
-                    f'<a href="#{link}">{n + int(r.n_errors)} runs</a>'])
+                    _badge(_row_passed(full, detector, r.fault, r.manoeuvre))])
             out.append(_table(
                 ["Fault scenario", "n", "err", "FA (%)", "FA 95 % CI", "MD (%)", "MD 95 % CI",
                  "MD ≤95 (%)", "late", "MD in T (%)", "Min/Mean/Max DTP", "DTP p95",
-                 "DTP ≤ 1 (%)", "verdict",
-                 "drill-down"], rows, cls="verdict faults"))
+                 "DTP ≤ 1 (%)", "all requirements"], rows, cls="verdict faults"))
             out.append('<p class="note">FA of faulty runs: alarms before onset. MD: never '
                        'detected in the detection window; late: detected after the required '
                        'time T (DTP &gt; 1); MD in T: not detected within T, missed or late '
@@ -171,8 +314,7 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
             for r in free.itertuples(index=False):
                 n = int(r.n_runs)
                 allm = r.manoeuvre == ALL_MANOEUVRES
-                link = anchor(detector, FAULT_FREE) if allm else anchor(detector, FAULT_FREE,
-                                                                        r.manoeuvre)
+                link = anchor(FAULT_FREE) if allm else anchor(FAULT_FREE, r.manoeuvre)
                 margin = _num(r.worst_margin, ".3f")
                 if math.isfinite(float(r.worst_margin)) and float(r.worst_margin) >= 1.0:
                     margin = f'<span class="bad">{margin}</span>'
@@ -180,11 +322,10 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
                     f'<a href="#{link}">{"all manoeuvres" if allm else _e(r.manoeuvre)}</a>',
                     str(n), str(int(r.n_errors)), f"{int(r.fa_count)}/{n}", _pct(r.fa_rate),
                     _ci(r.fa_count, n), _pct(r.fa_upper95), margin,
-                    _badge(_row_passed(gate, detector, FAULT_FREE, r.manoeuvre)),
-                    f'<a href="#{link}">{n + int(r.n_errors)} runs</a>'])
+                    _badge(_row_passed(full, detector, FAULT_FREE, r.manoeuvre))])
             out.append(_table(
                 ["Fault-free manoeuvre", "n", "err", "false alarms", "FA (%)", "FA 95 % CI",
-                 "FA ≤95 (%)", "worst margin max |r|/τ", "verdict", "drill-down"], rows,
+                 "FA ≤95 (%)", "worst margin max |r|/τ", "all requirements"], rows,
                 cls="verdict faultfree"))
             tot = free[free["manoeuvre"] == ALL_MANOEUVRES]
             if len(tot) and int(tot["n_runs"].iloc[0]):
@@ -194,88 +335,97 @@ def _verdict(summary: pd.DataFrame, gate: GateResult | None, requirements: dict)
                 out.append(f'<p class="bound">{words} in {n} fault-free runs: FA ≤ '
                            f"{_pct(r.fa_upper95)} % at 95 % confidence (exact one-sided "
                            "Clopper–Pearson bound).</p>")
-        failed = [c for c in checks if not c.passed]
+        failed = [c for c in mine if not c.passed]
         if failed:
             items = "".join(f"<li>{_e(c.message)}</li>" for c in failed)
-            out.append(f'<details class="fails" open><summary>{len(failed)} failed '
-                       f"check(s)</summary><ul>{items}</ul></details>")
+            out.append(f'<details class="fails"><summary>{len(failed)} check(s) of all '
+                       f"requirements not met</summary><ul>{items}</ul></details>")
     out.append("</section>")
     return "\n".join(out)
 
 
 # ---- drill-down ----------------------------------------------------------------------------
-_RUN_HEADER = ["run id", "alt [ft]", "VCAS [kt]", "mass [t]", "CG [% MAC]",
-               "onset [s]", "status", "false alarm", "detected", "margin max |r|/τ",
-               "delay [s]", "DTP", "re-simulate (in the campaign directory)"]
+_POINT_HEADER = ["run id", "alt [ft]", "VCAS [kt]", "mass [t]", "CG [% MAC]", "onset [s]"]
 
 
-def _run_rows(runs: pd.DataFrame) -> list[list[str]]:
-    rows = []
-    for r in runs.itertuples(index=False):
-        ok = r.status == "ok"
-        fa = bool(r.false_alarm) if ok else False
-        det = bool(r.detected) if ok else False
-        faulty = r.fault != FAULT_FREE
+def _outcome(r, faulty: bool) -> str:
+    """One detector's outcome of one run: margin (fault-free) or DTP and delay (faulty),
+    false alarms, misses and errors in red, late detections in orange."""
+    if r.status != "ok":
+        return f'<span class="bad" title="{_e(r.error)}">{_e(r.status)}</span>'
+    fa = '<span class="bad">FA</span> ' if bool(r.false_alarm) else ""
+    if not faulty:
         margin = _num(r.margin, ".3f")
-        if ok and math.isfinite(float(r.margin)) and float(r.margin) >= 1.0:
-            margin = f'<span class="bad">{margin}</span>'
-        detected = ("–" if not faulty or not ok else
-                    ("yes" if det else '<span class="bad">missed</span>'))
-        status = _e(r.status) if ok else f'<span class="bad" title="{_e(r.error)}">' \
-                                          f"{_e(r.status)}</span>"
-        rows.append([
-            f"<code>{_e(r.run_id)}</code>", _num(r.alt_ft, ".0f"),
-            _num(r.vcas_kt, ".0f"), _num(r.mass_t, ".1f"), _num(r.cg_pct, ".1f"),
-            _num(r.onset_s, ".2f"), status, '<span class="bad">yes</span>' if fa else "no",
-            detected, margin, _num(r.delay_s, ".3f"), _num(r.dtp, ".4g"),
-            f"<code>{_e(show_command(r.run_id))}</code>"])
-    return rows
+        return fa + (f'<span class="bad">{margin}</span>' if fa else margin)
+    if not bool(r.detected):
+        return fa + '<span class="bad">missed</span>'
+    text = f"{_num(r.dtp, '.3g')} / {_num(r.delay_s, '.3g')} s"
+    late = math.isfinite(float(r.dtp)) and float(r.dtp) > 1.0
+    return fa + (f'<span class="late">{text}</span>' if late else text)
 
 
-def _order(runs: pd.DataFrame) -> pd.DataFrame:
-    """Most worrying runs first: errors, false alarms, misses, then by margin / DTP."""
-    ok = runs["status"].eq("ok")
+def _worry(cell: pd.DataFrame) -> pd.Series:
+    """Run id → sort key, most worrying first: errors, false alarms, misses, then the
+    largest DTP or margin over the detectors."""
+    ok = cell["status"].eq("ok")
     key = pd.DataFrame({
+        "run_id": cell["run_id"],
         "err": ~ok,
-        "fa": ok & runs["false_alarm"].astype("boolean").fillna(False).astype(bool),
-        "miss": ok & runs["fault"].ne(FAULT_FREE)
-        & ~runs["detected"].astype("boolean").fillna(False).astype(bool),
-        "dtp": pd.to_numeric(runs["dtp"], errors="coerce").fillna(-1.0),
-        "margin": pd.to_numeric(runs["margin"], errors="coerce").fillna(-1.0),
-    }, index=runs.index)
-    idx = key.sort_values(["err", "fa", "miss", "dtp", "margin"], ascending=False,
-                          kind="stable").index
-    return runs.loc[idx]
+        "fa": ok & cell["false_alarm"].astype("boolean").fillna(False).astype(bool),
+        "miss": ok & cell["fault"].ne(FAULT_FREE)
+        & ~cell["detected"].astype("boolean").fillna(False).astype(bool),
+        "dtp": pd.to_numeric(cell["dtp"], errors="coerce").fillna(-1.0),
+        "margin": pd.to_numeric(cell["margin"], errors="coerce").fillna(-1.0),
+    }).groupby("run_id", sort=False).max()
+    return key.sort_values(["err", "fa", "miss", "dtp", "margin"], ascending=False,
+                           kind="stable").index
 
 
-def _drilldown(runs: pd.DataFrame) -> str:
+def _cell_table(cell: pd.DataFrame, detectors: list[str]) -> str:
+    """The runs of one fault × manoeuvre cell: a row per run, a column per detector."""
+    faulty = cell["fault"].iloc[0] != FAULT_FREE
+    dets = [d for d in detectors if (cell["detector"] == d).any()]
+    by = {(r.run_id, r.detector): r for r in cell.itertuples(index=False)}
+    rows = []
+    for rid in _worry(cell):
+        first = next(by[(rid, d)] for d in dets if (rid, d) in by)
+        rows.append([f"<code>{_e(rid)}</code>", _num(first.alt_ft, ".0f"),
+                     _num(first.vcas_kt, ".0f"), _num(first.mass_t, ".1f"),
+                     _num(first.cg_pct, ".1f"), _num(first.onset_s, ".2f")]
+                    + [_outcome(by[(rid, d)], faulty) if (rid, d) in by else "–"
+                       for d in dets])
+    # a long detector name may break before its parameters
+    return _table(_POINT_HEADER + [_e(d).replace("[", "<wbr>[") for d in dets], rows,
+                  cls="runlist")
+
+
+def _drilldown(runs: pd.DataFrame, detectors: list[str]) -> str:
     out = ['<section id="runs"><h2>Runs behind each row (drill-down)</h2>',
-           "<p>Every run of the campaign, most worrying first (errors, false alarms, misses, "
-           "then the largest DTP or margin). A run's signals, residuals and alarms are "
-           "re-simulated from its run id and seed by the command beside it, run in the "
-           "directory that holds this report (add <code>--out RUN.parquet</code> for the "
-           "traces).</p>"]
-    for detector, det in runs.groupby("detector", sort=True):
-        out.append(f'<section id="{anchor(detector)}"><h3>{_e(detector)}</h3>')
-        faults = [f for f in sorted(det["fault"].unique()) if f != FAULT_FREE]
-        order = ([FAULT_FREE] if (det["fault"] == FAULT_FREE).any() else []) + faults
-        opened_faulty = False
-        for fault in order:
-            if fault != FAULT_FREE and not opened_faulty:
-                out.append(f'<section id="{anchor(detector, "faulty")}">')
-                opened_faulty = True
-            sub = det[det["fault"] == fault]
-            label = "fault-free" if fault == FAULT_FREE else fault
-            out.append(f'<section id="{anchor(detector, fault)}"><h4>{_e(detector)} — '
-                       f"{_e(label)} ({len(sub)} runs)</h4>")
-            for man, cell in sub.groupby("manoeuvre", sort=True):
-                out.append(f'<div class="runs" id="{anchor(detector, fault, man)}">'
-                           f"<h5>{_e(label)} × {_e(man)}: {len(cell)} runs</h5>")
-                out.append('<div class="scroll">' + _table(_RUN_HEADER, _run_rows(_order(cell)),
-                                                           cls="runlist") + "</div></div>")
-            out.append("</section>")
-        if opened_faulty:
-            out.append("</section>")
+           "<p>Every run of the campaign, a row per run and a column per detector, most "
+           "worrying first (errors, false alarms, misses, then the largest DTP or margin). "
+           "Fault-free runs: the margin max |r|/τ (a false alarm in red); faulty runs: DTP / "
+           "detection delay, <span class=\"late\">late</span> (DTP &gt; 1) in orange, "
+           '<span class="bad">missed</span> and alarms before onset (FA) in red. A run\'s '
+           "signals, residuals and alarms are re-simulated from its run id and seed, in the "
+           f"directory that holds this report, by <code>{_e(show_command('RUN_ID'))}</code> "
+           "(add <code>--out RUN_ID.parquet</code> for the traces).</p>"]
+    faults = sorted(f for f in runs["fault"].unique() if f != FAULT_FREE)
+    order = ([FAULT_FREE] if (runs["fault"] == FAULT_FREE).any() else []) + faults
+    opened_faulty = False
+    for fault in order:
+        if fault != FAULT_FREE and not opened_faulty:
+            out.append(f'<section id="{anchor("faulty")}">')
+            opened_faulty = True
+        sub = runs[runs["fault"] == fault]
+        label = "fault-free" if fault == FAULT_FREE else fault
+        out.append(f'<section id="{anchor(fault)}"><h3>{_e(label)} '
+                   f"({sub['run_id'].nunique()} runs)</h3>")
+        for man, cell in sub.groupby("manoeuvre", sort=True):
+            out.append(f'<div class="runs" id="{anchor(fault, man)}">'
+                       f"<h4>{_e(label)} × {_e(man)}: {cell['run_id'].nunique()} runs</h4>")
+            out.append('<div class="scroll">' + _cell_table(cell, detectors) + "</div></div>")
+        out.append("</section>")
+    if opened_faulty:
         out.append("</section>")
     out.append("</section>")
     return "\n".join(out)
@@ -289,7 +439,7 @@ h1{margin-bottom:.2em}h2{border-bottom:2px solid #ccd;padding-bottom:.2em;margin
 table{border-collapse:collapse;margin:.5em 0 1em 0;font-size:13px}
 th,td{border:1px solid #ccd;padding:3px 7px;text-align:right;white-space:nowrap}
 th{background:#eef;position:sticky;top:0}td:first-child,th:first-child{text-align:left}
-table.runlist td:last-child{text-align:left}
+table.runlist th{white-space:normal;vertical-align:bottom}
 .badge{display:inline-block;padding:1px 8px;border-radius:4px;font-weight:bold;color:#fff;
 font-size:12px}.pass{background:#2a8a3a}.fail{background:#c62828}.na{background:#999}
 .bad{color:#c62828;font-weight:bold}.note,.req{font-size:13px;color:#444}
@@ -299,21 +449,33 @@ figure{display:inline-block;width:min-content;margin:.4em .8em .8em 0;vertical-a
 figure img{border:1px solid #ddd}figcaption{font-size:12px}
 nav a{margin-right:1em}code{font-size:12px}.meta td{text-align:left}
 .warn{background:#fff3cd;border:1px solid #e0c060;padding:.4em .8em}
+.late{color:#b35900;font-weight:bold}.met{color:#1e6b2b}.unmet{color:#c62828;font-weight:bold}
+table.overview th{white-space:normal;vertical-align:bottom}
+table.overview td{vertical-align:top}small{font-size:11px;font-weight:normal}
+.gateline{font-size:17px;font-weight:bold;padding:.3em .6em;border-radius:4px}
+.gateline.pass{background:#e3f3e6;color:#1e6b2b}.gateline.fail{background:#fbe3e3;color:#a51d1d}
+pre.gatelines{font-size:12px;max-height:360px;overflow:auto;background:#f7f7fa;padding:.5em}
 """
 
 
 def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                   requirements: dict, runs: pd.DataFrame, figures: list[ReportFigure],
                   notes: list[str] = (), warnings: list[str] = (),
-                  certificate: pd.DataFrame | None = None) -> str:
+                  certificate: pd.DataFrame | None = None,
+                  all_requirements: GateResult | None = None,
+                  detectors: list[str] | None = None) -> str:
     """The report page.
 
     Parameters
     ----------
     meta : campaign facts shown in the header (name, description, directory, counts, …)
     summary : :func:`reports.summary.summarize` output
-    gate : :func:`reports.gate.evaluate_gate` on *summary* with the campaign's requirements
-    requirements : the limits used, shown above the verdict
+    gate : the checks of ``fdd-campaign gate DIR`` (:func:`reports.gate.evaluate_gate` with
+        that command's arguments), shown first, line for line
+    requirements : the limits of the campaign file, shown with the verdicts
+    all_requirements : the checks of ``fdd-campaign gate DIR --all-requirements`` (every
+        limit of the campaign file); the overview's and the detail's marks (None: none)
+    detectors : the order of the detectors on the whole page (default: the summary's)
     runs : one row per run × detector: result columns (:data:`reports.metrics.RESULT_COLUMNS`)
         and the flight point ``alt_ft, vcas_kt, mass_t, cg_pct, onset_s``
     figures : embedded figures, shown in :data:`SECTIONS` order, grouped by ``group``
@@ -325,6 +487,8 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     unknown = sorted({f.section for f in figures} - set(SECTIONS))
     if unknown:
         raise ValueError(f"unknown figure section(s) {unknown}; use one of {list(SECTIONS)}")
+    detectors = list(detectors) if detectors is not None else list(
+        dict.fromkeys(summary["detector"].astype(str)))
     name = meta.get("name", "campaign")
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              f"<title>fdd-campaign report — {_e(name)}</title>",
@@ -333,16 +497,21 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
              f"<h1>Campaign report — {_e(name)}</h1>"]
     if meta.get("description"):
         parts.append(f"<p>{_e(meta['description'])}</p>")
-    facts = [[_e(k), _e(v)] for k, v in meta.items() if k not in ("name", "description")]
-    parts.append(_table(["", ""], facts, cls="meta"))
-    links = ['<a href="#verdict">Verdict</a>'] + [
+    links = ['<a href="#gate">Gate verdict</a>', '<a href="#requirements">Overview</a>',
+             '<a href="#campaign">Campaign</a>', '<a href="#verdict">Per detector</a>'] + [
         f'<a href="#{key}">{_e(title)}</a>' for key, title in SECTIONS.items()
         if any(f.section == key for f in figures)
         or (key == "certificate" and certificate is not None)] + ['<a href="#runs">Runs</a>']
     parts.append("<nav>" + "".join(links) + "</nav>")
     for w in warnings:
         parts.append(f'<p class="warn">{_e(w)}</p>')
-    parts.append(_verdict(summary, gate, requirements))
+    parts.append(_gate_section(gate, requirements))
+    parts.append(_overview(summary, gate, all_requirements, requirements, detectors))
+    facts = [[_e(k), _e(v)] for k, v in meta.items() if k not in ("name", "description")]
+    parts.append('<section id="campaign"><h2>Campaign</h2>'
+                 + _table(["", ""], facts, cls="meta") + "</section>")
+    parts.append(_details(summary, gate, all_requirements, requirements, detectors))
+    rank = {d: i for i, d in enumerate(detectors)}
     for key, title in SECTIONS.items():
         figs = [f for f in figures if f.section == key]
         table_here = key == "certificate" and certificate is not None
@@ -351,14 +520,16 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
         parts.append(f'<section id="{key}"><h2>{_e(title)}</h2>')
         if table_here:
             parts.append(_certificate_table(certificate))
-        for group in dict.fromkeys(f.group for f in figs):
+        # detector groups in the page's detector order; other groups as given
+        for group in sorted(dict.fromkeys(f.group for f in figs),
+                            key=lambda g: rank.get(g, len(rank))):
             parts.append(f"<h3>{_e(group)}</h3>")
             parts += [_img(f) for f in figs if f.group == group]
         parts.append("</section>")
     if notes:
         parts.append('<section id="notes"><h2>How the figures were made</h2><ul>'
                      + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></section>")
-    parts.append(_drilldown(runs))
+    parts.append(_drilldown(runs, detectors))
     parts.append("</body></html>")
     return "\n".join(parts)
 

@@ -13,5 +13,5 @@ def plot_run(frame, *, onset_s: float, title: str, path) -> None:
     from .figures import pyplot, run_figure
 
     fig = run_figure(frame, {}, onset_s=onset_s, title=title)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")   # a wrapped title is kept whole
     pyplot().close(fig)
