@@ -295,7 +295,12 @@ def _plan_one(config, out: Path) -> None:
 
     plan = build_plan(config)
     cdir = CampaignDir(out)
-    cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
+    with cdir.locked():
+        # the campaign's directory, as run makes it (a different campaign's is refused): a
+        # run into it starts from there
+        cdir.check_model_version(MODEL_VERSION)
+        cdir.open(config.to_json(), log=partial(print, file=sys.stderr))
+        cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
     learning = build_learning_plan(config)
     counts = plan_counts(plan)
     print(counts.to_string(index=False))
@@ -681,8 +686,9 @@ def _add_result_parsers(subs) -> None:
     _requirements_option(p)
 
     p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
-             "fdd-campaign show results/ 2e961155651f65ed16c7 --plot run.png --out run.parquet",
-             cmd_show)
+             "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n"
+             "  (RUN_ID: a run id of results/plan.parquet, e.g. one that 'fdd-campaign gate "
+             "results/' names)", cmd_show)
     p.add_argument("dir", help="campaign directory written by 'fdd-campaign run'")
     p.add_argument("run_id", help="run id of plan.parquet (listed in report.html, and by "
                    "'gate' for its failing runs)")
@@ -763,7 +769,7 @@ def _add_tool_parsers(subs) -> None:
          "fdd-campaign presets", cmd_presets)
 
     p = _sub(subs, "init", "write an annotated starting campaign file",
-             "fdd-campaign init my-campaign.toml", cmd_init)
+             "fdd-campaign init campaign.toml", cmd_init)
     p.add_argument("file", nargs="?", default="campaign.toml",
                    help="campaign file to write (default campaign.toml)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")

@@ -11,7 +11,7 @@ from pathlib import Path
 from .cli_common import EXIT_GATE, EXIT_INTERRUPTED, EXIT_OK, UsageError, check_writable
 
 EXAMPLE = ("fdd-campaign falsify addsafe-mc --detector position-monitor --budget 600 "
-           "--jobs 2 --against results/ --out falsify/")
+           "--jobs 2 --against results/ --out falsify-mc/")
 
 
 def add_falsify_parser(subs) -> None:
