@@ -10,6 +10,7 @@ import warnings
 from functools import partial
 from pathlib import Path
 
+from . import cli_requirements as creq
 from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_GATE,
     EXIT_INPUT,
@@ -17,11 +18,8 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_OK,
     UsageError,
     check_writable,
+    print_error,
 )
-
-
-def _err(msg: str) -> None:
-    print(f"fdd-campaign: error: {msg}", file=sys.stderr)
 
 
 # ---- commands ------------------------------------------------------------------------------
@@ -67,132 +65,19 @@ def _tls_files(args):
 def _run_campaign(config, out, args):
     from .runner import run
 
-    before = _runs_done(out)
+    before = creq.runs_done(out)
     result = run(config, out, jobs=args.jobs, chunk_size=args.chunk_size,
                  progress=not args.quiet, backend=args.backend, scheduler=args.scheduler,
                  engine=args.engine, tls=_tls_files(args),
                  fitted_from=getattr(args, "fitted_from", None))
-    print(_runs_line(config, result, before))
+    print(creq.runs_line(config, result, before))
     if not result.summary.empty:
         print(result.table())
     if result.detection_times is not None:   # fixed-scenario campaigns, e.g. comb-table1
         from reports.detection_times import format_detection_times
 
         print(format_detection_times(result.detection_times))
-    return result, _print_verdict(config, result)
-
-
-def _runs_done(out) -> int:
-    """Runs of campaign directory *out* already done (0: none, or no campaign there yet)."""
-    from .storage import CampaignDir
-
-    cdir = CampaignDir(out)
-    return len(cdir.done_run_ids()) if cdir.is_campaign() else 0
-
-
-def _runs_line(config, result, before: int) -> str:
-    """What ``run`` did: the runs done of the plan, and how many of them it computed now
-    (*before*: runs done when it started)."""
-    done = result.results["run_id"].nunique() if not result.results.empty else 0
-    head = f"campaign {config.campaign.name!r}:"
-    if before and done <= before:
-        return (f"{head} nothing to compute, all {done} runs of the plan were already done "
-                f"-> {result.out}" if done == len(result.plan) else
-                f"{head} {done} of {len(result.plan)} runs done, none computed now -> "
-                f"{result.out}")
-    now = f" ({done - before} computed now)" if before else ""
-    return (f"{head} {done} of {len(result.plan)} runs{now} in {result.wall_s:.1f} s -> "
-            f"{result.out}")
-
-
-def _print_verdict(config, result) -> bool:
-    """Print the gate's verdict on *result* (the campaign file's false-alarm limits, as
-    ``fdd-campaign gate``) and, on the next line, what the file's other requirements (MD,
-    DTP) say, as ``gate --all-requirements``; False when the requirements cannot be
-    evaluated on these results (a detector variant they name is not among them)."""
-    from reports.gate import GateInputError
-
-    try:
-        print(_verdict(config, result))
-        print(_other_requirements(config, result))
-    except GateInputError as exc:
-        _err(f"the gate cannot be evaluated: {exc}")
-        print(f"the results are kept: correct the file's [requirements], then: fdd-campaign "
-              f"gate {result.out} --requirements FILE (nothing is run again)")
-        return False
-    return True
-
-
-def _gate_of(config, result, *, all_requirements: bool = False):
-    from reports.gate import evaluate_gate
-
-    req, done = config.requirements, result.results["run_id"].nunique()
-    return evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
-                         max_md=req.max_md_rate if all_requirements else None,
-                         max_dtp=req.max_dtp if all_requirements else None,
-                         detector_max_fa=dict(req.detector_max_fa_rate),
-                         coverage=(done if not result.results.empty else 0, len(result.plan)))
-
-
-def _verdict(config, result) -> str:
-    """One line: would ``fdd-campaign gate`` (the campaign file's false-alarm limit) pass on
-    this result, and the command to run next."""
-    gate = _gate_of(config, result)
-    if gate.passed:
-        return (f"verdict: the gate passes ({_false_alarm_count(result)}; all "
-                f"{len(gate.checks)} checks); next: fdd-campaign gate {result.out} --junit "
-                f"gate.xml, or fdd-campaign report {result.out}")
-    first = gate.failures[0]
-    runs = [run for c in gate.failures for run in c.run_ids]
-    nxt = (f"fdd-campaign show {result.out} {runs[0]} --plot run.png" if runs
-           else f"fdd-campaign report {result.out}")
-    return (f"verdict: the gate fails ({len(gate.failures)} of {len(gate.checks)} checks; "
-            f"first: {first.message.removeprefix('FAIL ')}); next: {nxt}")
-
-
-def _false_alarm_count(result) -> str:
-    """``N false alarms in M runs``: every alarm the gate counts (fault-free runs, and faulty
-    runs before their onset), over the runs scored."""
-    from reports.summary import ALL_FAULTS, ALL_MANOEUVRES
-
-    s = result.summary
-    fine = s[(s["fault"] != ALL_FAULTS) & (s["manoeuvre"] != ALL_MANOEUVRES)]
-    alarms, detectors = int(fine["fa_count"].sum()), fine["detector"].nunique()
-    runs = result.results["run_id"].nunique()
-    of = f" of {detectors} detectors" if detectors > 1 else ""
-    return f"{alarms} false alarm{'' if alarms == 1 else 's'}{of} in {runs} runs"
-
-
-#: Requirement checks that only ``gate --all-requirements`` (and report.html) apply.
-_MD_DTP = ("missed_detection", "dtp")
-
-
-def _other_requirements(config, result, shown: int = 4) -> str:
-    """One line: what the campaign file's MD and DTP limits say (``gate
-    --all-requirements``), the first *shown* unmet ones named."""
-    full = _gate_of(config, result, all_requirements=True)
-    checks = [c for c in full.checks if c.name in _MD_DTP]
-    how = f"(fdd-campaign gate {result.out} --all-requirements)"
-    req = config.requirements
-    limits = f"MD ≤ {100 * req.max_md_rate:g} %, DTP ≤ {req.max_dtp:g}"
-    if not checks:
-        return f"all requirements: no faulty run to check {limits} on {how}"
-    unmet = [c for c in checks if not c.passed]
-    if not unmet:
-        return f"all requirements met ({limits}, {len(checks)} checks) {how}"
-    said = ", ".join(_unmet_text(c) for c in unmet[:shown])
-    more = f", and {len(unmet) - shown} more" if len(unmet) > shown else ""
-    return (f"all requirements ({limits}): not met: {said}{more} {how}")
-
-
-def _unmet_text(check) -> str:
-    """A failed MD or DTP check in a few words."""
-    fault = check.fault.replace("_", " ")
-    if check.name == "missed_detection":
-        return f"{check.detector} misses {100 * check.value:.3g} % of {fault} runs"
-    if check.value != check.value:           # NaN: no detected run
-        return f"{check.detector} detects no {fault} run"
-    return f"{check.detector} {fault} DTP {check.value:.3g} > {check.limit:g}"
+    return result, creq.print_verdict(config, result)
 
 
 def cmd_run(args) -> int:
@@ -205,7 +90,7 @@ def cmd_run(args) -> int:
     check_writable(args.out, "--out", directory=True)
     if not isinstance(spec, Suite):
         config = _overridden(spec, args)
-        _refuse_limits_only_change(config, args)
+        creq.refuse_limits_only_change(config, args)
         result, evaluated = _run_campaign(config, args.out, args)
         if not result.complete:
             return EXIT_INTERRUPTED
@@ -236,45 +121,6 @@ def cmd_run(args) -> int:
     return EXIT_OK if evaluated else EXIT_INPUT
 
 
-def _refuse_limits_only_change(config, args) -> None:
-    """A campaign directory that holds this campaign run with other ``[requirements]``
-    limits only: say that nothing needs to run again, and how to gate and report it
-    against the new limits (``--requirements FILE``), instead of refusing it as a different
-    campaign."""
-    import json
-
-    from .config import SCORING_REQUIREMENTS, CampaignConfig, ConfigError, RequirementsSection
-    from .config.keys import leaf_fields
-    from .storage import CampaignDir, campaign_identity
-
-    cdir = CampaignDir(args.out)
-    if not cdir.is_campaign():
-        return
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)      # an old spelling, noted once
-            stored = json.loads(CampaignConfig.from_dict(cdir.read_config()).to_json())
-    except ConfigError:
-        return                          # not a campaign this version reads: the runner says so
-    new = json.loads(config.to_json())
-    limits = [f.name for f in leaf_fields(RequirementsSection)
-              if f.name not in SCORING_REQUIREMENTS]
-    changed = [k for k in limits
-               if stored["requirements"].get(k) != new["requirements"].get(k)]
-    if not changed:
-        return
-    stored["requirements"].update({k: new["requirements"].get(k) for k in changed})
-    if campaign_identity(stored) != campaign_identity(new):
-        return                          # more has changed: the runner refuses it
-    how = (f"--requirements {args.campaign}" if Path(args.campaign).is_file()
-           else "--requirements FILE")
-    raise UsageError(f"{args.out} holds this campaign already run with other [requirements] "
-                     f"limits ({', '.join(changed)}); limits do not change any result, so "
-                     f"nothing needs to run again: fdd-campaign gate {args.out} {how} (and "
-                     f"fdd-campaign report {args.out} {how}); to keep the new limits with the "
-                     "results, run into another --out directory")
-
-
 def cmd_plan(args) -> int:
     from .suite import Suite, load_spec
 
@@ -296,8 +142,7 @@ def _plan_one(config, out: Path) -> None:
     plan = build_plan(config)
     cdir = CampaignDir(out)
     with cdir.locked():
-        # the campaign's directory, as run makes it (a different campaign's is refused): a
-        # run into it starts from there
+        # the campaign's directory, as run makes it: a run into it starts from there
         cdir.check_model_version(MODEL_VERSION)
         cdir.open(config.to_json(), log=partial(print, file=sys.stderr))
         cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
@@ -322,7 +167,7 @@ def cmd_gate(args) -> int:
             write_junit(result, args.junit)
             print(f"JUnit report written to {args.junit}")
         return EXIT_OK if result.passed else EXIT_GATE
-    _one_campaign_requirements(args)
+    creq.refuse_on_a_suite(args)
     results, ok = [], True
     for title, member in suite_members(args.dir):
         print(f"== {title} ==")
@@ -343,7 +188,7 @@ def _gate_one(directory, args):
     from .runner import load_results
 
     results, summary, meta = load_results(directory)
-    req = _requirements(meta, args)
+    req = creq.requirements_of(meta, args)
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
     allowances = dict(req.get("detector_max_fa_rate") or {}) if args.max_fa is None else {}
     max_md, max_dtp = args.max_md, args.max_dtp
@@ -366,29 +211,6 @@ def _gate_one(directory, args):
         print(f"replay one: fdd-campaign show {directory} {failing[0]} --plot run.png; "
               f"every run, margins and envelopes: fdd-campaign report {directory}")
     return result
-
-
-def _requirements(meta: dict, args) -> dict:
-    """The ``[requirements]`` of a campaign directory (*meta*: its result metadata) in their
-    JSON form, or those of ``--requirements FILE`` in their place: limits do not change any
-    result, so a finished campaign is gated and reported against corrected ones without
-    being run again."""
-    config = meta.get("config") or {}
-    stored = config.get("requirements") or {}
-    if not getattr(args, "requirements", None):
-        return stored
-    from .config import load_requirements
-
-    labels = [d.get("label") or d.get("name") for d in config.get("detector") or []]
-    return load_requirements(args.requirements, stored, labels)
-
-
-def _one_campaign_requirements(args) -> None:
-    """``--requirements`` names the detectors of one campaign: refused on a suite."""
-    if getattr(args, "requirements", None):
-        raise UsageError(f"--requirements: {args.dir} is a suite; its campaigns have their own "
-                         f"detectors: give the directory of one of its campaigns "
-                         f"({args.dir.rstrip('/')}/NAME)")
 
 
 def cmd_verify(args) -> int:
@@ -434,7 +256,7 @@ def cmd_report(args) -> int:
     if args.html:
         raise UsageError("--html names one file; a suite directory gets one report.html per "
                          "campaign (DIR/<campaign>/report.html): leave --html out")
-    _one_campaign_requirements(args)
+    creq.refuse_on_a_suite(args)
     for title, member in suite_members(args.dir):
         print(f"== {title} ==")
         _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}))
@@ -447,7 +269,7 @@ def _report_one(args) -> None:
     from .runner import load_results, reference_text
 
     results, summary, meta = load_results(args.dir)
-    args.requirements_values = (_requirements(meta, args) if args.requirements else None)
+    args.requirements_values = (creq.requirements_of(meta, args) if args.requirements else None)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
     cfg = meta.get("config") or {}
@@ -504,9 +326,7 @@ def cmd_init(args) -> int:
 
 
 def _out_dir(file: Path) -> str:
-    """The output directory a hint suggests for *file* (a campaign file or an FMU): one
-    named after it beside it (``my-campaign.toml`` → ``my-campaign/``), not the
-    ``results/`` that the README's first command fills."""
+    """The directory a hint runs *file* into: its name (not the README's ``results/``)."""
     return f"{file.with_suffix('')}/"
 
 
@@ -662,15 +482,6 @@ def _add_run_parsers(subs) -> None:
     _manoeuvres_option(p)
 
 
-def _requirements_option(p) -> None:
-    p.add_argument("--requirements", metavar="FILE",
-                   help="use the [requirements] of FILE (the corrected campaign file, or a file "
-                        "holding only that table) in place of those the campaign ran with: its "
-                        "limits do not change any result, so nothing is computed again "
-                        "(detection_time_s and detection_window_s, which do, must keep the "
-                        "campaign's values)")
-
-
 def _add_result_parsers(subs) -> None:
     """Sub-commands: read a campaign directory: report, show, compare, verify, gate."""
     p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
@@ -683,12 +494,12 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--envelope-runs", type=int,
                    help="re-simulate at most this many fault-free runs per manoeuvre for the "
                         "envelopes (default all; the worst-margin runs are always kept)")
-    _requirements_option(p)
+    creq.add_requirements_option(p)
 
     p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
-             "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n"
-             "  (RUN_ID: a run id of results/plan.parquet, e.g. one that 'fdd-campaign gate "
-             "results/' names)", cmd_show)
+             "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n  (RUN_ID: "
+             "a run id of results/plan.parquet, e.g. one 'fdd-campaign gate results/' names)",
+             cmd_show)
     p.add_argument("dir", help="campaign directory written by 'fdd-campaign run'")
     p.add_argument("run_id", help="run id of plan.parquet (listed in report.html, and by "
                    "'gate' for its failing runs)")
@@ -729,7 +540,7 @@ def _add_result_parsers(subs) -> None:
                    help="largest per-run false-alarm probability bound of DIR/certificate.parquet "
                         "(the tail fit's, or the sampled one's when present; made by 'fdd-campaign "
                         "certify DIR' when absent; docs/evidence.md)")
-    _requirements_option(p)
+    creq.add_requirements_option(p)
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 
 
@@ -796,8 +607,7 @@ def _add_tool_parsers(subs) -> None:
                    "beside the built-in plant)")
     p.add_argument("--plant-runs", type=int, default=40,
                    help="runs timed on the FMU plant (default 40)")
-    p.add_argument("--quiet", action="store_true",
-                   help="no progress on stderr (each measurement as it starts)")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
     fmu = subs.add_parser("fmu", help="build the built-in servo-loop as an FMU",
                           description="FMU tools")
@@ -874,15 +684,15 @@ def main(argv=None) -> int:
     # (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
     # FmuError, UsageError), and a missing file; the message names the field and the fix
     except (ValueError, FileNotFoundError) as exc:
-        _err(str(exc))
+        print_error(str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
         where = f" {exc.filename}" if exc.filename else ""
-        _err(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path exists, "
+        print_error(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path exists, "
              "that you may write there and that the disk has room")
         return EXIT_INPUT
     except KeyboardInterrupt:
-        _err("interrupted")
+        print_error("interrupted")
         return EXIT_INTERRUPTED
 
 
