@@ -217,6 +217,9 @@ def test_readme_quick_start_runs(quick_start, tmp_path):
     with _working_directory(quick_start.root):
         for ran in quick_start.ran:
             _check(ran)
+            # paths are printed normalised (the README's directories end in "/")
+            doubled = re.search(r"(?<!:)//\S*", ran.out + ran.err)
+            assert doubled is None, f"{ran.line!r} printed {doubled.group(0)!r}"
     assert len(quick_start.ran) >= 20
 
 
