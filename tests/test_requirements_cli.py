@@ -182,3 +182,17 @@ def test_a_resume_with_other_limits_only_points_to_requirements(tmp_path, capsys
     assert (f"holds this campaign already run with other [requirements] limits (max_dtp); "
             "limits do not change any result") in err
     assert f"fdd-campaign gate {out} --requirements {path}" in err
+
+
+@pytest.mark.parametrize("command", ["gate", "report"])
+def test_requirements_of_one_campaign_are_refused_on_a_suite(tmp_path, capsys, command):
+    """A suite's campaigns have detectors of their own: --requirements names one campaign's,
+    so a suite directory is refused before anything is read, naming the directory to give."""
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "suite.json").write_text("{}")         # what makes a directory a suite's
+    path = _campaign(tmp_path, "max_dtp = 0.5")
+    assert main([command, str(suite), "--requirements", str(path)]) == 2
+    assert (f"--requirements: {suite} is a suite; its campaigns have their own detectors: "
+            f"give the directory of one of its campaigns ({suite}/NAME)") in \
+        capsys.readouterr().err
