@@ -269,7 +269,7 @@ def _report_one(args) -> None:
     from .runner import load_results, reference_text
 
     results, summary, meta = load_results(args.dir)
-    args.requirements_values = (creq.requirements_of(meta, args) if args.requirements else None)
+    args.requirements_values = creq.report_limits(meta, args)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
     cfg = meta.get("config") or {}

@@ -13,7 +13,7 @@ from .cli_common import UsageError, print_error
 
 __all__ = ["runs_done", "runs_line", "print_verdict", "gate_of", "verdict", "false_alarm_count",
            "other_requirements", "unmet_text", "MD_DTP_CHECKS", "refuse_limits_only_change",
-           "requirements_of", "refuse_on_a_suite", "add_requirements_option"]
+           "requirements_of", "report_limits", "refuse_on_a_suite", "add_requirements_option"]
 
 
 def runs_done(out) -> int:
@@ -178,7 +178,7 @@ def requirements_of(meta: dict, args) -> dict:
     """The ``[requirements]`` of a campaign directory (*meta*: its result metadata) in their
     JSON form, or those of ``--requirements FILE`` in their place: limits do not change any
     result, so a finished campaign is gated and reported against corrected ones without
-    being run again."""
+    being run again (which is said on stdout, with the limits that changed)."""
     config = meta.get("config") or {}
     stored = config.get("requirements") or {}
     if not getattr(args, "requirements", None):
@@ -186,7 +186,24 @@ def requirements_of(meta: dict, args) -> dict:
     from .config import load_requirements
 
     labels = [d.get("label") or d.get("name") for d in config.get("detector") or []]
-    return load_requirements(args.requirements, stored, labels)
+    out = load_requirements(args.requirements, stored, labels)
+    changed = [f"{k} = {out[k]!r} (was {stored.get(k)!r})" for k in out
+               if out[k] != stored.get(k)]
+    print(f"requirements: those of {args.requirements} in place of the campaign's; "
+          + (", ".join(changed) if changed else "the same limits"))
+    return out
+
+
+def report_limits(meta: dict, args) -> dict | None:
+    """The limits of ``--requirements FILE`` (:func:`requirements_of`) as the HTML report
+    takes them in place of the campaign's, the keys that score the runs left out (they are
+    the campaign's); None without ``--requirements``."""
+    from .config import SCORING_REQUIREMENTS
+
+    if not getattr(args, "requirements", None):
+        return None
+    return {k: v for k, v in requirements_of(meta, args).items()
+            if k not in SCORING_REQUIREMENTS}
 
 
 def refuse_on_a_suite(args) -> None:

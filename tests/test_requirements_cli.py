@@ -113,7 +113,12 @@ def test_gate_and_report_take_corrected_requirements_without_running_again(uneva
     fixed = _campaign(tmp_path, "max_dtp = 0.1", "fixed.toml")
     # the false-alarm gate passes with the corrected file ...
     assert main(["gate", str(out), "--requirements", str(fixed)]) == 0
-    assert "gate PASSED" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    # what changed is said first, then the gate
+    assert text.startswith(f"requirements: those of {fixed} in place of the campaign's; "
+                           "detector_max_fa_rate = {} (was {'position-monitor[strict]': 0.1}), "
+                           "max_dtp = 0.1 (was 1.0)\n")
+    assert "gate PASSED" in text
     # ... and its new DTP limit holds with --all-requirements, naming runs to replay
     assert main(["gate", str(out), "--requirements", str(fixed), "--all-requirements"]) == 1
     text = capsys.readouterr().out
