@@ -169,9 +169,14 @@ def test_corrected_requirements_are_checked_before_they_are_used(unevaluable, tm
 def test_a_requirements_file_without_the_table_is_refused(unevaluable, tmp_path, capsys):
     _, out = unevaluable
     path = tmp_path / "r.toml"
-    path.write_text("[campaign]\nname = 'x'\n")
+    path.write_text("[requirement]\nmax_dtp = 0.5\n")          # not the table's name
     assert main(["gate", str(out), "--requirements", str(path)]) == 2
     assert "no [requirements] table" in capsys.readouterr().err
+    # a campaign file that leaves the table out takes every default
+    path.write_text(SMOKE)
+    assert main(["gate", str(out), "--requirements", str(path)]) == 0
+    assert "detector_max_fa_rate = {} (was {'position-monitor[strict]': 0.1})" in \
+        capsys.readouterr().out
     assert main(["gate", str(out), "--requirements", str(tmp_path / "nope.toml")]) == 2
     assert "file not found" in capsys.readouterr().err
 
@@ -200,4 +205,35 @@ def test_requirements_of_one_campaign_are_refused_on_a_suite(tmp_path, capsys, c
     assert main([command, str(suite), "--requirements", str(path)]) == 2
     assert (f"--requirements: {suite} is a suite; its campaigns have their own detectors: "
             f"give the directory of one of its campaigns ({suite}/NAME)") in \
+        capsys.readouterr().err
+
+
+def test_a_directory_run_with_a_requirement_naming_no_detector_is_corrected_in_place(
+        tmp_path, capsys):
+    """A directory whose campaign names a detector it does not have in [requirements] (as
+    an earlier version let a run finish): read back, replayed, gated and reported against the
+    corrected file; a resume with that file points to --requirements."""
+    import tomllib
+
+    import pandas as pd
+
+    import campaign
+    from campaign.config import CampaignConfig
+
+    bad = _campaign(tmp_path, 'detector_max_fa_rate = { "chen-local[solid]" = 0.3 }')
+    out = tmp_path / "old"
+    # the Python API with a configuration validated as a stored one (names not checked)
+    config = CampaignConfig.from_dict(tomllib.loads(bad.read_text()), source=str(bad))
+    assert campaign.run(config, out, jobs=1, progress=False).complete
+    fixed = _campaign(tmp_path, "", "fixed.toml")
+    assert main(["gate", str(out)]) == 2
+    capsys.readouterr()
+    assert main(["gate", str(out), "--requirements", str(fixed)]) == 0
+    assert main(["report", str(out), "--no-html", "--requirements", str(fixed)]) == 0
+    run_id = str(pd.read_parquet(out / "plan.parquet")["run_id"].iloc[0])
+    assert main(["show", str(out), run_id]) == 0
+    capsys.readouterr()
+    assert main(["run", str(fixed), "--out", str(out), "--quiet", "--jobs", "1"]) == 2
+    assert (f"limits (detector_max_fa_rate); limits do not change any result, so nothing needs "
+            f"to run again: fdd-campaign gate {out} --requirements {fixed}") in \
         capsys.readouterr().err

@@ -170,7 +170,7 @@ def load_config(spec: str | Path) -> CampaignConfig:
     if isinstance(data, dict) and "suite" in data:
         raise ConfigError([f"{path}: a suite file ([suite] table), not a campaign file; run it "
                            "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], source)
-    return validate(data, source)
+    return validate(data, source, requirement_names=True)
 
 
 def with_overrides(config: CampaignConfig, seed: int | None = None, *,
@@ -201,7 +201,7 @@ def with_overrides(config: CampaignConfig, seed: int | None = None, *,
         node[parts[-1]] = value
     if errors:
         raise ConfigError(errors, f"overrides of {config.source}")
-    return validate(data, f"{config.source} (with overrides)")
+    return validate(data, f"{config.source} (with overrides)", requirement_names=True)
 
 
 # ----------------------------------------------------------------------------------------
@@ -230,7 +230,9 @@ def load_requirements(path, stored: Mapping[str, Any], labels) -> dict[str, Any]
         raise ConfigError([f"{path}: {what}; fix: name the campaign file whose [requirements] "
                            "you corrected, or a file holding only a [requirements] table"],
                           source)
-    raw = read_toml(file, source).get("requirements")
+    data = read_toml(file, source)
+    # a campaign file that leaves [requirements] out takes every default
+    raw = data.get("requirements", {} if "campaign" in data else None)
     if not isinstance(raw, dict):
         raise ConfigError(["requirements: the file has no [requirements] table; fix: name the "
                            "campaign file whose [requirements] you corrected, or a file holding "
