@@ -83,7 +83,7 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
           reference_runs: int = 2, echo=print, campaign: str | None = "addsafe-mc",
           detectors: bool = True, cold: bool = True, backend: str = "threading",
           plant: str | None = None, plant_runs: int = 40, stages: bool = True,
-          stage_runs: int = 200) -> dict:
+          stage_runs: int = 200, progress=None) -> dict:
     """Measure and print the figures; returns them as a dict. *campaign*: preset or file run
     whole, or several separated by commas (e.g. ``"addsafe-mc,chen-mc"``; None: skip);
     *detectors*: time each built-in detector; *cold*: also time a first
@@ -91,7 +91,8 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     part ("threading", like ``fdd-campaign run``, or "loky"); *plant*: an FMU file whose
     first *plant_runs* runs of the same load are also simulated on the FMU back end, its
     per-run cost reported beside the built-in plant's; *stages*: the share of each stage of
-    each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``."""
+    each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``;
+    *progress*: called with a line naming each measurement as it starts (None: silent)."""
     if isinstance(stage_runs, bool) or int(stage_runs) != stage_runs or stage_runs < 1:
         raise ValueError(f"--stage-runs {stage_runs}: must be an integer ≥ 1 (runs timed stage "
                          "by stage); fix: e.g. --stage-runs 200")
@@ -114,11 +115,14 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     from scenarios import kernels
 
     kernels.warm_up(echo)                  # compile (or load) outside the timing
+    step = _Steps(progress)
+    step(f"simulating {n_runs} runs")
     out = Parallel(n_jobs=jobs, backend=backend)(delayed(_simulate_chunk)(c) for c in chunks)
     wall = time.perf_counter() - t0
     worker_peak = max(m for _, m in out)
 
     ref = runs.iloc[:reference_runs]
+    step(f"timing the per-run reference on {reference_runs} run(s)")
     t1 = time.perf_counter()
     integrate_reference(prepare(ref))
     ref_per_run = (time.perf_counter() - t1) / reference_runs
@@ -138,12 +142,15 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
     if spec is not None:
+        step(f"timing the FMU plant {plant}")
         figures.update(_fmu_cost(runs.iloc[:min(plant_runs, n_runs)], spec, jobs,
                                  builtin_per_run=wall / n_runs, label=plant, echo=echo))
     from .plant_bench import plant_cost
 
+    step("timing the plants (actuator, aircraft)")
     figures.update(plant_cost(runs.iloc[:min(n_runs, chunk_size)], echo=echo))
     if detectors:
+        step("timing each built-in detector")
         costs = detector_costs(duration_s=duration_s)
         figures["detectors"] = costs
         for c in costs:
@@ -151,16 +158,34 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
                  f"({c['engine']})")
     for i, name in enumerate(names):
         whole = bench_campaign(name, jobs, reference_s_per_run=ref_per_run, cold=cold,
-                               echo=echo)
+                               echo=echo, step=step)
         if i == 0:       # the first campaign's figures at the top level, as before
             figures.update(whole)
         figures.setdefault("campaigns", {})[name] = whole
         if stages:
+            step(f"timing the stages of {name} on {stage_runs} of its runs")
             costs = stage_costs(name, sample_runs=stage_runs)
             print_stages(costs, echo)
             whole["stages"] = costs
             figures.setdefault("stages", {})[name] = costs
+    step.done()
     return figures
+
+
+class _Steps:
+    """Progress of :func:`bench`: each measurement announced as it starts, with the time
+    since the first, through *progress* (a callable taking one line; None: silent)."""
+
+    def __init__(self, progress=None):
+        self.progress, self.t0 = progress, time.perf_counter()
+
+    def __call__(self, what: str, end: str = "…") -> None:
+        if self.progress is not None:
+            self.progress(f"bench [{time.perf_counter() - self.t0:6.1f} s] {what}{end}")
+
+    def done(self) -> None:
+        """Every measurement finished."""
+        self("done", end="")
 
 
 def _fmu_cost(rows: pd.DataFrame, spec, jobs: int, *, builtin_per_run: float, label: str,
@@ -283,8 +308,10 @@ def detector_costs(n_runs: int = 200, duration_s: float = 60.0, learning_runs: i
 
 
 def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_run=None,
-                   cold: bool = True, echo=print) -> dict:
-    """Whole-campaign figures (see the module docstring)."""
+                   cold: bool = True, echo=print, step=None) -> dict:
+    """Whole-campaign figures (see the module docstring); *step* announces each run
+    (:class:`_Steps`)."""
+    step = step or _Steps()
     from .config import load_config
     from .design import build_plan
 
@@ -292,7 +319,9 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
     figures = {"campaign": campaign, "campaign_runs": len(plan)}
     if cold:
         with tempfile.TemporaryDirectory(prefix="fdd-numba-cache-") as cache:
+            step(f"running {campaign} ({len(plan)} runs) with an empty compile cache")
             first = run_campaign_process(campaign, jobs, cache_dir=Path(cache))
+            step(f"running {campaign} again, the compile cache warm")
             warm = run_campaign_process(campaign, jobs, cache_dir=Path(cache))
         figures["cold_wall_s"] = first["wall_s"]
         figures["cold_peak_rss_mb"] = first["peak_rss_mb"]
@@ -300,6 +329,7 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
              f"{first['peak_rss_mb']:.0f} MiB (empty compile cache: "
              f"{'compiling' in first['stderr'] and 'compiled' or 'no compile message!'})")
     else:
+        step(f"running {campaign} ({len(plan)} runs)")
         warm = run_campaign_process(campaign, jobs)
     figures["wall_s_campaign"] = warm["wall_s"]
     figures["peak_rss_mb_campaign"] = warm["peak_rss_mb"]

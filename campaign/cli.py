@@ -10,6 +10,7 @@ import warnings
 from functools import partial
 from pathlib import Path
 
+from . import cli_requirements as creq
 from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_GATE,
     EXIT_INPUT,
@@ -17,11 +18,8 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_OK,
     UsageError,
     check_writable,
+    print_error,
 )
-
-
-def _err(msg: str) -> None:
-    print(f"fdd-campaign: error: {msg}", file=sys.stderr)
 
 
 # ---- commands ------------------------------------------------------------------------------
@@ -67,41 +65,19 @@ def _tls_files(args):
 def _run_campaign(config, out, args):
     from .runner import run
 
+    before = creq.runs_done(out)
     result = run(config, out, jobs=args.jobs, chunk_size=args.chunk_size,
                  progress=not args.quiet, backend=args.backend, scheduler=args.scheduler,
                  engine=args.engine, tls=_tls_files(args),
                  fitted_from=getattr(args, "fitted_from", None))
-    print(f"campaign {config.campaign.name!r}: {result.results['run_id'].nunique() if not result.results.empty else 0}"
-          f" of {len(result.plan)} runs in {result.wall_s:.1f} s -> {result.out}")
+    print(creq.runs_line(config, result, before))
     if not result.summary.empty:
         print(result.table())
     if result.detection_times is not None:   # fixed-scenario campaigns, e.g. comb-table1
         from reports.detection_times import format_detection_times
 
         print(format_detection_times(result.detection_times))
-    print(_verdict(config, result))
-    return result
-
-
-def _verdict(config, result) -> str:
-    """One line: would ``fdd-campaign gate`` (the campaign file's false-alarm limit) pass on
-    this result, and the command to run next."""
-    from reports.gate import evaluate_gate
-
-    req, done = config.requirements, result.results["run_id"].nunique()
-    gate = evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
-                         detector_max_fa=dict(req.detector_max_fa_rate),
-                         coverage=(done if not result.results.empty else 0, len(result.plan)))
-    if gate.passed:
-        return (f"verdict: the gate passes (all {len(gate.checks)} checks); next: "
-                f"fdd-campaign gate {result.out} --junit gate.xml, or fdd-campaign report "
-                f"{result.out}")
-    first = gate.failures[0]
-    runs = [run for c in gate.failures for run in c.run_ids]
-    nxt = (f"fdd-campaign show {result.out} {runs[0]} --plot run.png" if runs
-           else f"fdd-campaign report {result.out}")
-    return (f"verdict: the gate fails ({len(gate.failures)} of {len(gate.checks)} checks; "
-            f"first: {first.message.removeprefix('FAIL ')}); next: {nxt}")
+    return result, creq.print_verdict(config, result)
 
 
 def cmd_run(args) -> int:
@@ -113,8 +89,12 @@ def cmd_run(args) -> int:
     spec = load_spec(args.campaign)
     check_writable(args.out, "--out", directory=True)
     if not isinstance(spec, Suite):
-        result = _run_campaign(_overridden(spec, args), args.out, args)
-        return EXIT_OK if result.complete else EXIT_INTERRUPTED
+        config = _overridden(spec, args)
+        creq.refuse_limits_only_change(config, args)
+        result, evaluated = _run_campaign(config, args.out, args)
+        if not result.complete:
+            return EXIT_INTERRUPTED
+        return EXIT_OK if evaluated else EXIT_INPUT
     if getattr(args, "fitted_from", None):
         raise UsageError(f"--fitted-from: one campaign only, not the suite {spec.name!r}")
     # a suite: every member validated (with the overrides) before the first one runs
@@ -127,17 +107,18 @@ def cmd_run(args) -> int:
         raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
                          "campaigns into subdirectories of a directory of its own: choose "
                          "another --out")
-    complete = {}
+    complete, evaluated = {}, True
     write_suite_json(spec, args.out, complete)
     for member, config in zip(spec.members, configs):
         print(f"\n== {member.title} ==")
-        result = _run_campaign(config, Path(args.out) / member.name, args)
+        result, ok = _run_campaign(config, Path(args.out) / member.name, args)
         complete[member.name] = bool(result.complete)
+        evaluated = evaluated and ok
         write_suite_json(spec, args.out, complete)
         if not result.complete:
             return EXIT_INTERRUPTED
-    print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {args.out}")
-    return EXIT_OK
+    print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {Path(args.out)}")
+    return EXIT_OK if evaluated else EXIT_INPUT
 
 
 def cmd_plan(args) -> int:
@@ -160,7 +141,11 @@ def _plan_one(config, out: Path) -> None:
 
     plan = build_plan(config)
     cdir = CampaignDir(out)
-    cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
+    with cdir.locked():
+        # the campaign's directory, as run makes it: a run into it starts from there
+        cdir.check_model_version(MODEL_VERSION)
+        cdir.open(config.to_json(), log=partial(print, file=sys.stderr))
+        cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
     learning = build_learning_plan(config)
     counts = plan_counts(plan)
     print(counts.to_string(index=False))
@@ -182,6 +167,7 @@ def cmd_gate(args) -> int:
             write_junit(result, args.junit)
             print(f"JUnit report written to {args.junit}")
         return EXIT_OK if result.passed else EXIT_GATE
+    creq.refuse_on_a_suite(args)
     results, ok = [], True
     for title, member in suite_members(args.dir):
         print(f"== {title} ==")
@@ -202,7 +188,7 @@ def _gate_one(directory, args):
     from .runner import load_results
 
     results, summary, meta = load_results(directory)
-    req = (meta.get("config") or {}).get("requirements", {})
+    req = creq.requirements_of(meta, args)
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
     allowances = dict(req.get("detector_max_fa_rate") or {}) if args.max_fa is None else {}
     max_md, max_dtp = args.max_md, args.max_dtp
@@ -270,6 +256,7 @@ def cmd_report(args) -> int:
     if args.html:
         raise UsageError("--html names one file; a suite directory gets one report.html per "
                          "campaign (DIR/<campaign>/report.html): leave --html out")
+    creq.refuse_on_a_suite(args)
     for title, member in suite_members(args.dir):
         print(f"== {title} ==")
         _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}))
@@ -282,6 +269,7 @@ def _report_one(args) -> None:
     from .runner import load_results, reference_text
 
     results, summary, meta = load_results(args.dir)
+    args.requirements_values = creq.report_limits(meta, args)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
     cfg = meta.get("config") or {}
@@ -332,8 +320,14 @@ def cmd_init(args) -> int:
         raise UsageError(f"{path} exists; use --force to overwrite it")
     check_writable(path, "init")
     path.write_text(init_text())
-    print(f"wrote {path}; run it with: fdd-campaign run {path} --out results/")
+    print(f"wrote {path}; check it with: fdd-campaign plan {path} --out {_out_dir(path)}, run "
+          f"it with: fdd-campaign run {path} --out {_out_dir(path)}")
     return EXIT_OK
+
+
+def _out_dir(file: Path) -> str:
+    """The directory a hint runs *file* into: its name (not the README's ``results/``)."""
+    return f"{file.with_suffix('')}/"
 
 
 def cmd_simulate(args) -> int:
@@ -396,7 +390,8 @@ def cmd_bench(args) -> int:
     bench(n_runs=args.runs, duration_s=args.duration, jobs=args.jobs, chunk_size=args.chunk_size,
           reference_runs=args.reference_runs, plant=args.plant, plant_runs=args.plant_runs,
           campaign=None if args.campaign == "none" else args.campaign, cold=not args.no_cold,
-          detectors=not args.no_detectors, stages=not args.no_stages, stage_runs=args.stage_runs)
+          detectors=not args.no_detectors, stages=not args.no_stages, stage_runs=args.stage_runs,
+          progress=None if args.quiet else partial(print, file=sys.stderr, flush=True))
     return EXIT_OK
 
 
@@ -419,7 +414,8 @@ def cmd_fmu(args) -> int:
     except FmuBuildError as exc:
         raise UsageError(str(exc)) from None
     print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); run a "
-          f"campaign on it with: fdd-campaign run smoke --plant {out} --out results/")
+          f"campaign on it with: fdd-campaign run smoke --plant {out} --out "
+          f"{_out_dir(Path(out))}")
     return EXIT_OK
 
 
@@ -498,9 +494,11 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--envelope-runs", type=int,
                    help="re-simulate at most this many fault-free runs per manoeuvre for the "
                         "envelopes (default all; the worst-margin runs are always kept)")
+    creq.add_requirements_option(p)
 
     p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
-             "fdd-campaign show results/ 2e961155651f65ed16c7 --plot run.png --out run.parquet",
+             "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n  (RUN_ID: "
+             "a run id of results/plan.parquet, e.g. one 'fdd-campaign gate results/' names)",
              cmd_show)
     p.add_argument("dir", help="campaign directory written by 'fdd-campaign run'")
     p.add_argument("run_id", help="run id of plan.parquet (listed in report.html, and by "
@@ -542,6 +540,7 @@ def _add_result_parsers(subs) -> None:
                    help="largest per-run false-alarm probability bound of DIR/certificate.parquet "
                         "(the tail fit's, or the sampled one's when present; made by 'fdd-campaign "
                         "certify DIR' when absent; docs/evidence.md)")
+    creq.add_requirements_option(p)
     p.add_argument("--junit", help="write a JUnit XML report to this file")
 
 
@@ -581,7 +580,7 @@ def _add_tool_parsers(subs) -> None:
          "fdd-campaign presets", cmd_presets)
 
     p = _sub(subs, "init", "write an annotated starting campaign file",
-             "fdd-campaign init my-campaign.toml", cmd_init)
+             "fdd-campaign init campaign.toml", cmd_init)
     p.add_argument("file", nargs="?", default="campaign.toml",
                    help="campaign file to write (default campaign.toml)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
@@ -608,6 +607,7 @@ def _add_tool_parsers(subs) -> None:
                    "beside the built-in plant)")
     p.add_argument("--plant-runs", type=int, default=40,
                    help="runs timed on the FMU plant (default 40)")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
     fmu = subs.add_parser("fmu", help="build the built-in servo-loop as an FMU",
                           description="FMU tools")
@@ -684,15 +684,15 @@ def main(argv=None) -> int:
     # (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
     # FmuError, UsageError), and a missing file; the message names the field and the fix
     except (ValueError, FileNotFoundError) as exc:
-        _err(str(exc))
+        print_error(str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
         where = f" {exc.filename}" if exc.filename else ""
-        _err(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path exists, "
+        print_error(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path exists, "
              "that you may write there and that the disk has room")
         return EXIT_INPUT
     except KeyboardInterrupt:
-        _err("interrupted")
+        print_error("interrupted")
         return EXIT_INTERRUPTED
 
 

@@ -6,6 +6,7 @@ from :mod:`campaign.cli` so that commands defined in their own modules
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 #: BLAS libraries run one thread per process under the command line. The campaign's
@@ -24,6 +25,11 @@ EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 class UsageError(ValueError):
     """Bad command-line input (exit code 2)."""
+
+
+def print_error(msg: str) -> None:
+    """*msg* on stderr as the command line's error line (``fdd-campaign: error: …``)."""
+    print(f"fdd-campaign: error: {msg}", file=sys.stderr)
 
 
 def check_writable(path, option: str, *, directory: bool = False) -> None:

@@ -3,6 +3,8 @@ certify`` and the ``gate --max-fa-prob`` checks. Registered by :mod:`campaign.cl
 
 from __future__ import annotations
 
+from pathlib import Path
+
 __all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks"]
 
 
@@ -18,10 +20,11 @@ def cmd_certify(args) -> int:
                        log=lambda msg: print(msg, flush=True))
     except KeyboardInterrupt:
         print(f"fdd-campaign: interrupted; the sampled batches done so far are kept under "
-              f"{args.dir}/sampling/: the same command goes on from them")
+              f"{Path(args.dir) / 'sampling'}/: the same command goes on from them")
         return EXIT_INTERRUPTED
     print(format_certificate(cert))
-    print(f"certificate written to {args.dir}/certificate.parquet; the report shows it: "
+    print(f"certificate written to {Path(args.dir) / 'certificate.parquet'}; the report "
+          "shows it: "
           f"fdd-campaign report {args.dir}")
     return 0
 

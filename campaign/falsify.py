@@ -288,6 +288,18 @@ def check_label(config: CampaignConfig, label: str) -> None:
                            "comb-interval[a=0.9])")
 
 
+def _mc_size_text(mc: pd.DataFrame, budget: int) -> str:
+    """The size of the plain Monte Carlo *mc* beside the search's *budget*, as it is: whole
+    runs per fault-free cell (:func:`monte_carlo_config`), so it may be below the budget."""
+    runs = f"{len(mc)} fault-free run{'s' if len(mc) != 1 else ''}"
+    if len(mc) == budget:
+        return runs
+    cells = mc.groupby(["group", "manoeuvre"], sort=False).ngroups
+    return (f"{runs}: the budget of {budget} in whole runs per cell, {len(mc) // cells} in each "
+            f"of {cells} cells" if len(mc) % cells == 0 else
+            f"{runs} for the budget of {budget}, in whole runs per cell")
+
+
 def monte_carlo_config(config: CampaignConfig, budget: int) -> CampaignConfig:
     """*config* reduced to its fault-free groups, as a Monte Carlo (Sobol) design of about
     *budget* runs (runs per manoeuvre = budget / cells, at least 1): the plain Monte Carlo
@@ -386,13 +398,14 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
         search = pd.concat(records, ignore_index=True)
         if baseline is None:
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
-            log(f"plain Monte Carlo of the same budget: {len(mc)} fault-free runs")
+            log(f"plain Monte Carlo of about the same budget: {_mc_size_text(mc, budget)}")
             results = evaluate_rows(setup, mc, detectors, log=log)
             mc = mc.assign(margin=_scores(results, mc, label)[0])
             write_parquet(mc, out / "monte-carlo.parquet", config.to_json(), kind="falsify-mc",
                           detector=label)
             baseline = (float(np.nanmax(mc["margin"])), len(mc),
-                        f"a plain Monte Carlo of the same budget ({len(mc)} runs)")
+                        f"a plain Monte Carlo of about the same budget "
+                        f"({_mc_size_text(mc, budget)})")
     finally:
         setup.close()
     write_parquet(search, out / "search.parquet", config.to_json(), kind="falsify-search",

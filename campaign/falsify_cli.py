@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 from .cli_common import EXIT_GATE, EXIT_INTERRUPTED, EXIT_OK, UsageError, check_writable
 
 EXAMPLE = ("fdd-campaign falsify addsafe-mc --detector position-monitor --budget 600 "
-           "--jobs 2 --against results/ --out falsify/")
+           "--jobs 2 --against results/ --out falsify-mc/")
 
 
 def add_falsify_parser(subs) -> None:
@@ -65,8 +66,9 @@ def cmd_falsify(args) -> int:
     except FalsifyError as exc:
         raise UsageError(str(exc)) from None
     w = result.worst
+    out = Path(args.out)
     print(f"falsify {config.campaign.name!r}, {result.label}: {len(result.search)} runs "
-          f"(budget {args.budget}) -> {args.out}/search.parquet, {args.out}/worst.toml")
+          f"(budget {args.budget}) -> {out / 'search.parquet'}, {out / 'worst.toml'}")
     if result.errors:
         print(f"runs in error (not scored): {result.errors}")
     print(f"worst margin found by the search: {w['margin']:.6g} (run {w['run_id']}, "
@@ -80,5 +82,7 @@ def cmd_falsify(args) -> int:
     base = result.baseline_margin
     print(f"worst margin of {result.baseline_source}: "
           + (f"{base:.6g}" if math.isfinite(base) else "none scored"))
-    print(f"replay: fdd-campaign run {args.out}/worst.toml --out DIR, then fdd-campaign gate DIR")
+    replay = f"{out.parent / 'worst'}/"
+    print(f"replay: fdd-campaign run {out / 'worst.toml'} --out {replay}, then fdd-campaign "
+          f"gate {replay}")
     return EXIT_GATE if result.false_alarm else EXIT_OK

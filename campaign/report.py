@@ -360,7 +360,7 @@ class _ReportData:
 
 
 def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings | None = None,
-                 log=None) -> Path:
+                 log=None, requirements: dict | None = None) -> Path:
     """Write the HTML report of a campaign directory; returns its path.
 
     Two parallel phases over *jobs* processes: (1) re-simulate the fault-free runs (for the
@@ -372,6 +372,8 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     out : HTML file (default ``DIR/report.html``)
     jobs : worker processes
     settings : :class:`ReportSettings`
+    requirements : the ``[requirements]`` to report against, in their JSON form, in place of
+        the campaign's (``report --requirements FILE``; :func:`campaign.config.load_requirements`)
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
@@ -381,7 +383,7 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
         raise ValueError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
-    data = _gather_report_data(directory, cfg, jobs, t0)
+    data = _gather_report_data(directory, cfg, jobs, t0, requirements)
     specs = _figure_specs(data) + evidence_figure_specs(data.camp)
     t1 = time.perf_counter()
     pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
@@ -400,14 +402,15 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     return path
 
 
-def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) -> _ReportData:
+def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
+                        requirements: dict | None = None) -> _ReportData:
     """Read the directory and re-simulate, on *jobs* processes, the fault-free runs (for
     the envelopes) with the example runs riding along (phase 1)."""
     camp = load_campaign(directory)
     if camp.results.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
     detectors = camp.detectors()
-    req = _requirements(camp.config)
+    req = _requirements(camp.config) if requirements is None else requirements
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "
@@ -696,5 +699,6 @@ def cmd_compare(args) -> int:
 def write_html_report(args) -> None:
     """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
     path = build_report(args.dir, out=args.html, jobs=args.jobs,
-                        settings=ReportSettings(envelope_runs=args.envelope_runs))
+                        settings=ReportSettings(envelope_runs=args.envelope_runs),
+                        requirements=getattr(args, "requirements_values", None))
     print(f"HTML report written to {path}")

@@ -17,8 +17,9 @@ targets, [CHEN] §5):
   its plan fails, unless ``allow_incomplete``: a gate is never green on part of the
   evidence.
 
-A failed false-alarm check names its first runs (``Check.run_ids``) when the result rows
-are given, so that one can be replayed (``fdd-campaign show DIR RUN_ID``).
+A failed check names its first runs (``Check.run_ids``) when the result rows are given, so
+that one can be replayed (``fdd-campaign show DIR RUN_ID``): the false alarms, the missed
+detections, the runs detected later than the DTP limit (worst first).
 
 Limits on rates are fractions (``max_fa=0.01`` is 1 %).
 """
@@ -76,7 +77,7 @@ class Check:
     limit: float
     passed: bool
     message: str
-    #: the first failing runs (false alarms), for replaying one
+    #: the first failing runs (false alarms, misses, late detections), for replaying one
     run_ids: tuple[str, ...] = ()
 
 
@@ -165,8 +166,8 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         When given, a campaign with fewer runs done than planned fails the ``coverage``
         check (the first check), unless *allow_incomplete*.
     results : DataFrame or None
-        The result rows behind *summary*; a failed false-alarm check then lists its first
-        failing run ids.
+        The result rows behind *summary*; a failed false-alarm, missed-detection or DTP
+        check then lists its first failing run ids.
     detector_max_fa : dict or None
         Detector (result-row name, e.g. ``"chen-local[solid]"``, or its base label, which
         covers every variant) → its own largest accepted false-alarm rate, in place of
@@ -193,10 +194,11 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         checks += _runs_check(detector, rows)
         checks += _fa_checks(detector, rows, float(allowance(detector, max_fa)),
                              _alarmed_runs(results, detector))
+        scored = _faulty_runs(results, detector)
         if max_md is not None:
-            checks += _md_checks(detector, rows, float(max_md))
+            checks += _md_checks(detector, rows, float(max_md), scored)
         if max_dtp is not None:
-            checks += _dtp_checks(detector, rows, float(max_dtp))
+            checks += _dtp_checks(detector, rows, float(max_dtp), scored)
         checks += _error_checks(detector, rows, allow_errors, _first_error(results, detector))
     if fine.empty:
         checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
@@ -214,7 +216,8 @@ def _allowances(summary: pd.DataFrame, limits: dict):
         if name not in names and name not in bases:
             problems.append(f"detector_max_fa_rate names {name!r}, which is no detector of "
                             f"these results ({', '.join(sorted(names))}); fix: use one of "
-                            "those names or remove it")
+                            "those names or remove it (a finished campaign: correct its file "
+                            "and gate it with --requirements FILE, nothing is run again)")
         elif not 0.0 <= float(value) <= 1.0:
             problems.append(f"detector_max_fa_rate {name!r} = {value!r}: a rate is a "
                             "fraction in [0, 1], e.g. 0.05 for 5 %")
@@ -251,6 +254,40 @@ def _alarmed_runs(results: pd.DataFrame | None, detector: str) -> dict:
             r.groupby(["fault", "manoeuvre"], sort=False)}
 
 
+def _faulty_runs(results: pd.DataFrame | None, detector: str) -> pd.DataFrame:
+    """*detector*'s faulty runs scored ok, in plan order: ``run_id``, ``fault``,
+    ``detected`` and ``dtp`` (empty without result rows)."""
+    columns = ["run_id", "fault", "detected", "dtp"]
+    if results is None or results.empty:
+        return pd.DataFrame(columns=columns)
+    r = results[(results["detector"] == detector) & (results["status"] == "ok")
+                & (results["fault"] != FAULT_FREE)]
+    return pd.DataFrame({"run_id": r["run_id"].astype(str), "fault": r["fault"],
+                         "detected": r["detected"].astype("boolean").fillna(False).astype(bool),
+                         "dtp": pd.to_numeric(r["dtp"], errors="coerce")})
+
+
+def _missed(scored: pd.DataFrame, fault: str) -> tuple[str, ...]:
+    """Run ids of the *fault* runs of *scored* (:func:`_faulty_runs`) never detected."""
+    r = scored[(scored["fault"] == fault) & ~scored["detected"]]
+    return tuple(r["run_id"])
+
+
+def _late(scored: pd.DataFrame, fault: str, limit: float) -> tuple[str, ...]:
+    """Run ids of the *fault* runs of *scored* detected with a DTP above *limit*, worst
+    first."""
+    r = scored[(scored["fault"] == fault) & scored["detected"] & (scored["dtp"] > limit)]
+    return tuple(r.sort_values("dtp", ascending=False, kind="stable")["run_id"])
+
+
+def _runs_text(ids: tuple[str, ...], what: str = "runs") -> str:
+    """``; runs: a, b, c and N more`` for a failure message ('' without ids)."""
+    if not ids:
+        return ""
+    return (f"; {what}: {', '.join(ids[:3])}"
+            + (f" and {len(ids) - 3} more" if len(ids) > 3 else ""))
+
+
 def _runs_check(detector, rows) -> list[Check]:
     n = int(rows["n_runs"].sum())
     if n > 0:
@@ -271,15 +308,14 @@ def _fa_checks(detector, rows, limit, alarmed: dict) -> list[Check]:
         msg = (f"{'PASS' if passed else 'FAIL'} {what}: {detector}, "
                f"{_where(r.fault, r.manoeuvre)}: {r.fa_count}/{r.n_runs} runs "
                f"({_pct(rate)} {rel} {_pct(limit)}{bound if passed else ''})")
-        if not passed and ids:
-            msg += f"; runs: {', '.join(ids[:3])}" + (f" and {len(ids) - 3} more"
-                                                       if len(ids) > 3 else "")
+        if not passed:
+            msg += _runs_text(ids)
         out.append(Check("false_alarm", detector, r.fault, r.manoeuvre, rate, limit,
                          bool(passed), msg, ids[:3] if not passed else ()))
     return out
 
 
-def _md_checks(detector, rows, limit) -> list[Check]:
+def _md_checks(detector, rows, limit, scored: pd.DataFrame) -> list[Check]:
     out = []
     faulty = rows[(rows["fault"] != FAULT_FREE) & (rows["n_runs"] > 0)]
     for fault, g in faulty.groupby("fault", sort=True):
@@ -296,12 +332,14 @@ def _md_checks(detector, rows, limit) -> list[Check]:
             where = ", ".join(f"{m} {c}/{t}" for m, c, t in
                               zip(g["manoeuvre"], g["md_count"], g["n_runs"]) if c)
             msg += f"; misses in: {where}"
+        ids = () if passed else _missed(scored, fault)
+        msg += _runs_text(ids, "missed runs")
         out.append(Check("missed_detection", detector, fault, ALL_MANOEUVRES, rate, limit,
-                         bool(passed), msg))
+                         bool(passed), msg, ids[:3]))
     return out
 
 
-def _dtp_checks(detector, rows, limit) -> list[Check]:
+def _dtp_checks(detector, rows, limit, scored: pd.DataFrame) -> list[Check]:
     out = []
     faulty = rows[(rows["fault"] != FAULT_FREE) & (rows["n_runs"] > 0)]
     for fault, g in faulty.groupby("fault", sort=True):
@@ -310,18 +348,22 @@ def _dtp_checks(detector, rows, limit) -> list[Check]:
         dtp = g["dtp_max"].to_numpy(dtype=float)
         miss_note = f" ({misses} of {n} runs missed, not in DTP)" if misses else ""
         if np.all(np.isnan(dtp)):
+            ids = _missed(scored, fault)
             out.append(Check("dtp", detector, fault, ALL_MANOEUVRES, math.nan, limit, False,
                              f"FAIL detection time: {detector}, {fault}: no detected run, "
-                             f"DTP ≤ {limit:g} not shown{miss_note}"))
+                             f"DTP ≤ {limit:g} not shown{miss_note}"
+                             + _runs_text(ids, "missed runs"), ids[:3]))
             continue
         i = int(np.nanargmax(dtp))
         worst, where = float(dtp[i]), g["manoeuvre"].iloc[i]
         passed = worst <= limit
         rel = "≤" if passed else ">"
+        ids = () if passed else _late(scored, fault, limit)
         msg = (f"{'PASS' if passed else 'FAIL'} detection time: {detector}, {fault}: "
-               f"max DTP {worst:.3g} {rel} {limit:g} (worst in {where}){miss_note}")
+               f"max DTP {worst:.3g} {rel} {limit:g} (worst in {where}){miss_note}"
+               + _runs_text(ids, "runs above it, worst first"))
         out.append(Check("dtp", detector, fault, ALL_MANOEUVRES, worst, limit, bool(passed),
-                         msg))
+                         msg, ids[:3]))
     return out
 
 

@@ -99,3 +99,24 @@ def test_simulate_timings_leave_the_result_unchanged():
 def test_bench_bad_input_exits_2_before_any_work(argv, message, capsys):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+QUICK_BENCH = ["bench", "--runs", "4", "--duration", "20", "--reference-runs", "1",
+               "--campaign", "none", "--no-cold", "--no-detectors"]
+
+
+def test_bench_announces_each_measurement_on_stderr_unless_quiet(capsys):
+    """Progress: one stderr line per measurement as it starts (the figures stay on stdout),
+    none with --quiet, which leaves the figures as they are."""
+    assert main(QUICK_BENCH) == 0
+    out, err = capsys.readouterr()
+    steps = [line for line in err.splitlines() if line.startswith("bench [")]
+    assert [s.split("] ", 1)[1] for s in steps] == [
+        "simulating 4 runs…", "timing the per-run reference on 1 run(s)…",
+        "timing the plants (actuator, aircraft)…", "done"]
+    assert "vectorised simulation" in out and "bench [" not in out
+    assert main([*QUICK_BENCH, "--quiet"]) == 0
+    quiet_out, quiet_err = capsys.readouterr()
+    assert "bench [" not in quiet_err
+    labels = [line.split(":")[0] for line in out.splitlines()]
+    assert [line.split(":")[0] for line in quiet_out.splitlines()] == labels

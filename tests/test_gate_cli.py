@@ -106,6 +106,13 @@ def test_gate_without_results_says_what_is_missing(smoke_dir, tmp_path, capsys, 
 def test_run_ends_with_the_gate_verdict_and_the_next_command(tmp_path, capsys):
     out = tmp_path / "s"
     assert main(["run", "smoke", "--out", str(out), "--quiet", "--jobs", "1"]) == 0
-    last = capsys.readouterr().out.strip().splitlines()[-1]
-    assert last == (f"verdict: the gate passes (all 16 checks); next: fdd-campaign gate {out} "
-                    f"--junit gate.xml, or fdd-campaign report {out}")
+    verdict, others = capsys.readouterr().out.strip().splitlines()[-2:]
+    # smoke: 12 fault-free and 8 faulty runs, one detector; 16 checks: coverage, 14
+    # false-alarm cells (6 fault-free manoeuvres, 8 fault × manoeuvre cells before onset)
+    # and run errors
+    assert verdict == (f"verdict: the gate passes (0 false alarms in 20 runs; all 16 checks); "
+                       f"next: fdd-campaign gate {out} --junit gate.xml, or fdd-campaign report "
+                       f"{out}")
+    # the file's MD and DTP limits, one check of each per fault type (4 faults)
+    assert others == (f"all requirements met (MD ≤ 0 %, DTP ≤ 1, 8 checks) (fdd-campaign "
+                      f"gate {out} --all-requirements)")

@@ -20,22 +20,31 @@ Quick equivalents, so that the block runs in about a minute (the documented mapp
 
 ``gate`` and ``falsify`` may exit 1: their documented "a false alarm" (counted, or found by
 the search), not a failure of the command.
+
+What the quick start's commands print as the next command to run (``next: …``, ``run it
+with: …``, ``replay: …``) runs as printed, one hint of each shape, in the directories the
+block made; so does the example of every ``--help`` (its quick equivalent as above, with
+``falsify --budget 40`` and ``certify --sampling 200``).
 """
 
 from __future__ import annotations
 
+import argparse
+import contextlib
+import io
 import os
 import re
 import shlex
 import shutil
 import subprocess
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from campaign.cli import main
+from campaign.cli import build_parser, main
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -112,8 +121,90 @@ def test_readme_first_commands_are_two():
     assert len(_block("# fdd-campaign")) == 2
 
 
+@dataclass
+class Ran:
+    """One command run: the line it came from, the argv run, its exit code and output."""
+
+    line: str
+    argv: list[str]
+    code: int
+    out: str
+    err: str
+
+
+@dataclass
+class QuickStart:
+    """The quick start run once in a fresh working directory (:func:`quick_start`)."""
+
+    root: Path
+    ran: list[Ran] = field(default_factory=list)
+    has_fmpy: bool = True
+
+
+@contextlib.contextmanager
+def _working_directory(path: Path):
+    before = Path.cwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(before)
+
+
+def _call(argv: list[str], line: str) -> Ran:
+    """Run ``fdd-campaign ARGV`` through the entry point, its output captured."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    return Ran(line, argv, code, out.getvalue(), err.getvalue())
+
+
+def _skipped(argv: list[str], has_fmpy: bool) -> bool:
+    """Whether *argv* needs fmpy where it is not installed."""
+    return not has_fmpy and ("fmu" in argv[:1] or any(a.endswith(".fmu") for a in argv))
+
+
+def _with_run_id(argv: list[str]) -> list[str]:
+    """*argv* with ``RUN_ID`` replaced by the first run id of the directory's plan."""
+    if "RUN_ID" in argv:
+        plan = pd.read_parquet(Path(argv[1]) / "plan.parquet")
+        argv[argv.index("RUN_ID")] = str(plan["run_id"].iloc[0])
+    return argv
+
+
+def _check(ran: Ran) -> None:
+    """The command exited as documented and wrote the files it names."""
+    # gate and falsify: exit 1 is their documented "a false alarm" (found or counted)
+    allowed = {0, 1} if ran.argv[0] in ("gate", "falsify") else {0}
+    assert ran.code in allowed, (f"{ran.line!r} → fdd-campaign {' '.join(ran.argv)}: exit "
+                                 f"{ran.code}\n{ran.err[-2000:]}")
+    for path in _named_files(ran.argv):
+        assert path.exists(), f"{ran.line!r} did not write {path}"
+
+
+@pytest.fixture(scope="module")
+def quick_start(tmp_path_factory) -> QuickStart:
+    """Every command of the quick start, in order, in a fresh working directory."""
+    root = tmp_path_factory.mktemp("readme")
+    state = QuickStart(root)
+    try:
+        import fmpy  # noqa: F401
+    except ImportError:
+        state.has_fmpy = False
+    with _working_directory(root):
+        for line in _block("## Quick start")[1:]:
+            words = shlex.split(line, comments=True)
+            if not words:                  # a comment continuing the line above
+                continue
+            assert words[0] == "fdd-campaign", line
+            argv = _quick(words[1:])
+            if not _skipped(argv, state.has_fmpy):
+                state.ran.append(_call(_with_run_id(argv), line))
+    return state
+
+
 @pytest.mark.slow
-def test_readme_quick_start_runs(tmp_path, monkeypatch, capsys):
+def test_readme_quick_start_runs(quick_start, tmp_path):
     lines = _block("## Quick start")
     assert lines[0].startswith("source .venv/bin/activate")
     # what activating the venv gives: a bare fdd-campaign on PATH
@@ -123,32 +214,105 @@ def test_readme_quick_start_runs(tmp_path, monkeypatch, capsys):
     assert exe is not None and Path(exe).parent == bindir
     assert subprocess.run(["fdd-campaign", "--version"], env=env, capture_output=True,
                           text=True, cwd=tmp_path).returncode == 0
+    with _working_directory(quick_start.root):
+        for ran in quick_start.ran:
+            _check(ran)
+            # paths are printed normalised (the README's directories end in "/")
+            doubled = re.search(r"(?<!:)//\S*", ran.out + ran.err)
+            assert doubled is None, f"{ran.line!r} printed {doubled.group(0)!r}"
+    assert len(quick_start.ran) >= 20
 
-    monkeypatch.chdir(tmp_path)
-    has_fmpy = True
-    try:
-        import fmpy  # noqa: F401
-    except ImportError:
-        has_fmpy = False
-    ran = 0
-    for line in lines[1:]:
-        words = shlex.split(line, comments=True)
-        if not words:                  # a comment continuing the line above
-            continue
-        assert words[0] == "fdd-campaign", line
-        argv = _quick(words[1:])
-        if not has_fmpy and ("fmu" in argv[:1] or any(a.endswith(".fmu") for a in argv)):
-            continue
-        if "RUN_ID" in argv:
-            plan = pd.read_parquet(Path(argv[1]) / "plan.parquet")
-            argv[argv.index("RUN_ID")] = str(plan["run_id"].iloc[0])
-        code = main(argv)
-        out = capsys.readouterr()
-        # gate and falsify: exit 1 is their documented "a false alarm" (found or counted)
-        allowed = {0, 1} if argv[0] in ("gate", "falsify") else {0}
-        assert code in allowed, f"{line!r} → fdd-campaign {' '.join(argv)}: exit {code}\n" \
-                                f"{out.err[-2000:]}"
-        for path in _named_files(argv):
-            assert path.exists(), f"{line!r} did not write {path}"
-        ran += 1
-    assert ran >= 20
+
+#: A command printed as a hint: ``fdd-campaign`` and the words after it (a word is a name, a
+#: path or an option; a hint ends at a comma, a semicolon, a bracket or the end of the line).
+HINT = re.compile(r"fdd-campaign(?: (?!or\b|then\b|and\b)[\w./:=@+-]+)+")
+
+
+def _hints(text: str) -> list[str]:
+    """The commands *text* suggests (``next: …``, ``run it with: …``, ``replay: …``)."""
+    return [m.group(0).rstrip(".") for m in HINT.finditer(text)
+            if len(m.group(0).split()) > 2]
+
+
+def _shape(hint: str, root: Path) -> str:
+    """*hint* with its directories and run ids replaced by placeholders: hints of one shape
+    differ only in the campaign they name, and one of each is run."""
+    words = hint.split()[1:]
+    for i, word in enumerate(words):
+        if re.fullmatch(r"[0-9a-f]{20}", word):
+            words[i] = "RUN_ID"
+        elif (root / word).is_dir() and not (i == 1 and words[0] in ("run", "plan")):
+            words[i] = "DIR"         # (run and plan take a campaign there, e.g. smoke)
+    return " ".join(words)
+
+
+@pytest.mark.slow
+def test_every_hint_of_the_quick_start_runs_as_printed(quick_start):
+    """Each command the quick start's commands print as a suggestion (one of each shape) runs
+    as printed, in the directories they made."""
+    shapes: dict[str, tuple[str, str]] = {}
+    for ran in quick_start.ran:
+        for hint in _hints(ran.out):
+            shapes.setdefault(_shape(hint, quick_start.root), (hint, ran.line))
+    # the hints of run, init, gate, falsify and fmu build
+    expected = {"gate DIR --junit gate.xml", "report DIR", "gate DIR --all-requirements",
+                "plan my-campaign.toml --out DIR", "run my-campaign.toml --out DIR",
+                "run falsify/worst.toml --out DIR", "gate DIR"}
+    if quick_start.has_fmpy:
+        expected.add("run smoke --plant servo.fmu --out servo/")
+    assert expected <= set(shapes), sorted(shapes)
+    with _working_directory(quick_start.root):
+        for hint, line in shapes.values():
+            argv = shlex.split(hint)[1:]
+            assert "results/" not in argv[2:] or argv[0] != "run", \
+                f"{line!r} suggests running into results/, which the README's first command filled"
+            if _skipped(argv, quick_start.has_fmpy):
+                continue
+            _check(_call(argv, f"{hint} (printed by {line})"))
+
+
+def _help_examples() -> list[str]:
+    """The example of every sub-command's --help and of the top-level --help."""
+    parser = build_parser()
+    texts = [parser.epilog]
+
+    def walk(p):
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    texts.append(sub.epilog or "")
+                    walk(sub)
+    walk(parser)
+    lines = []
+    for text in texts:
+        for line in text.replace("\\\n", " ").splitlines():
+            line = line.strip()
+            if line.startswith("fdd-campaign "):
+                lines.append(" ".join(line.split()))
+    return lines
+
+
+#: Quick equivalents of the help examples' long options (beside :func:`_quick`).
+QUICK_OPTIONS = {"--budget": "40", "--sampling": "200"}
+
+
+@pytest.mark.slow
+def test_every_help_example_runs_as_printed(quick_start):
+    """The example of every ``--help`` runs (its quick equivalent: :func:`_quick`, a smaller
+    falsify budget and certify sample) in the directories the quick start made."""
+    examples = _help_examples()
+    assert len(examples) >= 16
+    readme = {" ".join(shlex.split(x, comments=True)) for x in _block("## Quick start")}
+    ran = set()
+    with _working_directory(quick_start.root):
+        for example in examples:
+            if example in readme:          # run by the quick start already
+                continue
+            argv = _quick(shlex.split(example)[1:])
+            argv = [QUICK_OPTIONS.get(argv[i - 1], a) if i else a for i, a in enumerate(argv)]
+            if _skipped(argv, quick_start.has_fmpy):
+                continue
+            _check(_call(_with_run_id(argv), example))
+            ran.add(argv[0])
+    # the examples the quick start does not show as they are
+    assert {"plan", "show", "verify", "gate", "init", "bench", "falsify", "certify"} <= ran

@@ -700,3 +700,33 @@ def test_survival_columns_are_nan_for_fault_free_rows_only():
     assert s.loc[s.fault == "none", list(SURVIVAL_COLUMNS)].isna().all().all()
     # detections in every faulty group: the Kaplan-Meier median delay exists
     assert s.loc[s.fault != "none", "delay_km_median_s"].notna().all()
+
+
+def test_missed_detection_and_dtp_failures_name_their_runs_to_replay():
+    """Given the result rows, a failed MD check names the runs never detected (plan order), a
+    failed DTP check the runs above the limit, worst first, and one with no detected run its
+    missed runs: each can be replayed with ``fdd-campaign show DIR RUN_ID``."""
+    res = campaign(faulty("runaway", "nose_up", [np.nan, 1.5, np.nan, 3.0, 0.2]),
+                   faulty("liquid_jam", "cruise", [np.nan, np.nan]))
+    gate = evaluate_gate(summarize(res), max_md=0.0, max_dtp=1.0, results=res)
+    fails = {(c.name, c.fault): c for c in gate.failures}
+    md = fails[("missed_detection", "runaway")]
+    assert md.run_ids == ("position-monitor-runaway-nose_up-0",
+                          "position-monitor-runaway-nose_up-2")
+    assert md.message.endswith("; missed runs: position-monitor-runaway-nose_up-0, "
+                               "position-monitor-runaway-nose_up-2")
+    dtp = fails[("dtp", "runaway")]
+    # DTP 3.0 (run 3) before 1.5 (run 1); 0.2 and the campaign's own runaways are in time
+    assert dtp.run_ids == ("position-monitor-runaway-nose_up-3",
+                           "position-monitor-runaway-nose_up-1")
+    assert "runs above it, worst first: position-monitor-runaway-nose_up-3, " in dtp.message
+    none = fails[("dtp", "liquid_jam")]
+    assert "no detected run" in none.message
+    assert none.run_ids == ("position-monitor-liquid_jam-cruise-0",
+                            "position-monitor-liquid_jam-cruise-1")
+    # without the result rows the same checks fail, naming no run
+    bare = evaluate_gate(summarize(res), max_md=0.0, max_dtp=1.0)
+    assert [c.name for c in bare.failures] == [c.name for c in gate.failures]
+    assert all(c.run_ids == () for c in bare.checks)
+    # passing checks name none
+    assert all(c.run_ids == () for c in gate.checks if c.passed)

@@ -108,13 +108,25 @@ def init_text() -> str:
         out.extend(_wrap_comment(doc))
         out.append(f"[{path}]")
         for f in leaves:
-            spec = f.metadata["key"]
-            out.extend(_wrap_comment(_key_comment(spec, f.name)))
-            shown = example_value(spec, f.default)
-            prefix = "# " if spec.optional else ""
-            out.append(f"{prefix}{f.name} = {toml_value(shown)}")
+            out += _table_key_lines(f.metadata["key"], f.name, f.default)
         out.append("")
     return "\n".join(out).rstrip() + "\n"
+
+
+def _table_key_lines(spec: Key, name: str, default: Any) -> list[str]:
+    """The lines of key *name* of a (non-array) table in the starting file: its comment,
+    then the key. An optional key is shown commented out; so is the example of a key whose
+    default is not its example (e.g. ``detector_max_fa_rate``, whose example names a detector
+    the file may not have), with the default written in force below it, so that the file
+    runs as written."""
+    lines = _wrap_comment(_key_comment(spec, name))
+    shown = example_value(spec, default)
+    if spec.optional:
+        return lines + [f"# {name} = {toml_value(shown)}"]
+    plain = shown_default(spec, default) if not spec.required else shown
+    if spec.required or shown == plain:
+        return lines + [f"{name} = {toml_value(shown)}"]
+    return lines + [f"# e.g. {name} = {toml_value(shown)}", f"{name} = {toml_value(plain)}"]
 
 
 def _builtin_detector_comments() -> list[str]:

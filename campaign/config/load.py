@@ -17,8 +17,12 @@ from typing import Any, Mapping
 
 from scenarios.catalog import suggest
 
-from .convert import ConfigError
+from .convert import ConfigError, build_table, is_ok
+from .keys import leaf_fields, thaw
+from .rules import requirement_name_problems
 from .schema import CampaignConfig, validate
+from .sections import RequirementsSection
+from .text import toml_value
 
 __all__ = [
     "PRESET_PACKAGE",
@@ -32,6 +36,8 @@ __all__ = [
     "looks_like_path",
     "load_config",
     "with_overrides",
+    "SCORING_REQUIREMENTS",
+    "load_requirements",
     "PRESET_PLANTS",
     "preset_plant_problem",
 ]
@@ -164,7 +170,7 @@ def load_config(spec: str | Path) -> CampaignConfig:
     if isinstance(data, dict) and "suite" in data:
         raise ConfigError([f"{path}: a suite file ([suite] table), not a campaign file; run it "
                            "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], source)
-    return validate(data, source)
+    return validate(data, source, requirement_names=True)
 
 
 def with_overrides(config: CampaignConfig, seed: int | None = None, *,
@@ -195,4 +201,70 @@ def with_overrides(config: CampaignConfig, seed: int | None = None, *,
         node[parts[-1]] = value
     if errors:
         raise ConfigError(errors, f"overrides of {config.source}")
-    return validate(data, f"{config.source} (with overrides)")
+    return validate(data, f"{config.source} (with overrides)", requirement_names=True)
+
+
+# ----------------------------------------------------------------------------------------
+# Requirements of a finished campaign
+# ----------------------------------------------------------------------------------------
+#: ``[requirements]`` keys that decide how each run is scored (its DTP, whether it counts as
+#: detected): stored in the results, so a finished campaign cannot take other values of them
+#: without being run again. The other keys are limits that only the gate and the report read.
+SCORING_REQUIREMENTS: tuple[str, ...] = ("detection_time_s", "detection_window_s")
+
+
+def load_requirements(path, stored: Mapping[str, Any], labels) -> dict[str, Any]:
+    """The ``[requirements]`` of TOML file *path* (a campaign file, or a file holding only
+    that table), in place of *stored* (those of a finished campaign, in their JSON form), to
+    gate and report that campaign again without recomputing it (``--requirements FILE``).
+
+    The limits are read as in a campaign file (a limit left out takes its default); a key of
+    :data:`SCORING_REQUIREMENTS` must keep the campaign's value (left out, it does); every
+    detector named must be one of *labels* (the campaign's [[detector]] labels) or a variant
+    of one. Returns the requirements in their JSON form; raises :class:`ConfigError` listing
+    every problem.
+    """
+    file, source = Path(path), f"--requirements {path}"
+    if not file.is_file():
+        what = "is a directory" if file.is_dir() else "file not found"
+        raise ConfigError([f"{path}: {what}; fix: name the campaign file whose [requirements] "
+                           "you corrected, or a file holding only a [requirements] table"],
+                          source)
+    data = read_toml(file, source)
+    # a campaign file that leaves [requirements] out takes every default
+    raw = data.get("requirements", {} if "campaign" in data else None)
+    if not isinstance(raw, dict):
+        raise ConfigError(["requirements: the file has no [requirements] table; fix: name the "
+                           "campaign file whose [requirements] you corrected, or a file holding "
+                           "only that table"], source)
+    errors: list[str] = []
+    table = build_table(RequirementsSection, raw, "requirements", errors)
+    out = dict(stored)
+    for f in leaf_fields(RequirementsSection):
+        scoring = f.name in SCORING_REQUIREMENTS
+        if not is_ok(table[f.name]) or (scoring and f.name not in table["__present__"]):
+            continue
+        value = thaw(table[f.name], f.metadata["key"].kind)
+        if scoring and value != stored.get(f.name):
+            errors.append(_scoring_change(f.name, value, stored.get(f.name)))
+        elif not scoring:
+            out[f.name] = value
+    errors += requirement_name_problems(list(out.get("detector_max_fa_rate") or {}),
+                                        list(labels))
+    if errors:
+        raise ConfigError(errors, source)
+    return out
+
+
+def _scoring_change(name: str, value: Any, was: Any) -> str:
+    """The message refusing another value of the scoring requirement *name*."""
+    if isinstance(value, dict) and isinstance(was, dict):
+        differ = [f"{k} = {toml_value(v)} (the campaign's: {toml_value(was.get(k))})"
+                  for k, v in value.items() if was.get(k) != v]
+        what = f"requirements.{name}: " + ", ".join(differ)
+    else:
+        what = (f"requirements.{name}: {toml_value(value)} (the campaign's: "
+                f"{'not set' if was is None else toml_value(was)})")
+    return (f"{what}; it decides how each run was scored, so another value needs a new run; "
+            "fix: keep the campaign's value (or leave the key out), or run the campaign with "
+            "it into another directory")

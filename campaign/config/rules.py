@@ -19,6 +19,7 @@ as it is.
 from __future__ import annotations
 
 import inspect
+import re
 import warnings
 from types import SimpleNamespace
 from typing import Any, Mapping
@@ -42,7 +43,8 @@ from .sections import (
 )
 from .text import num, range_text
 
-__all__ = ["normalise", "check_rules", "check_detectors", "derive_group_names"]
+__all__ = ["normalise", "check_rules", "check_detectors", "requirement_name_problems",
+           "derive_group_names"]
 
 
 # ----------------------------------------------------------------------------------------
@@ -144,10 +146,11 @@ def derive_group_names(values: Mapping[str, Any]) -> dict[str, Any]:
 # ----------------------------------------------------------------------------------------
 # The rules
 # ----------------------------------------------------------------------------------------
-def check_rules(values: Mapping[str, Any], errors: list[str]) -> None:
+def check_rules(values: Mapping[str, Any], errors: list[str], *,
+                requirement_names: bool = False) -> None:
     """Append to *errors* every problem that involves several keys of the (normalised)
     *values*, in the order of the file: [campaign], [faults], each [[group]], each
-    [[detector]], [plant]."""
+    [[detector]], with *requirement_names* the detectors [requirements] names, [plant]."""
     camp = values["campaign"]
     design, duration = camp["design"], camp["duration_s"]
     _check_mc_only_keys(camp, "campaign", CampaignSection, design, errors)
@@ -156,6 +159,8 @@ def check_rules(values: Mapping[str, Any], errors: list[str]) -> None:
     _check_groups(values["groups"], design, duration, errors)
     _check_runs(values, errors)
     check_detectors(values["detectors"], camp, values["plant"], errors)
+    if requirement_names:
+        _check_requirement_names(values["requirements"], values["detectors"], errors)
     _check_plant(values["plant"], camp, errors)
 
 
@@ -495,6 +500,41 @@ def signature_text(cls: type) -> str:
             continue
         parts.append(prm.name if prm.default is prm.empty else f"{prm.name}={prm.default!r}")
     return ", ".join(parts) or "(none)"
+
+
+# ---- [requirements] -----------------------------------------------------------------------
+def requirement_name_problems(names, labels) -> list[str]:
+    """The problems of the detector names *names* of ``[requirements] detector_max_fa_rate``
+    against the campaign's detector *labels*: each must be a label, or a label followed by
+    a variant (``label[variant]``; which variants a detector has is known from its results,
+    where :func:`reports.gate.evaluate_gate` checks them)."""
+    known = ", ".join(labels) or "(none)"
+    problems = []
+    for name in names:
+        base = name.split("[", 1)[0]
+        if base in labels and (name == base or name.endswith("]")):
+            continue
+        problems.append(
+            f"requirements.detector_max_fa_rate.{_quoted_key(name)}: names no detector of "
+            f"this campaign{suggest(base, list(labels))}; its detectors ([[detector]] labels): "
+            f"{known} (or one of their variants: LABEL[VARIANT]); fix: name one of "
+            "them or remove the entry")
+    return problems
+
+
+def _quoted_key(name: str) -> str:
+    """*name* as a key of a dotted TOML path (quoted unless bare)."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else f'"{name}"'
+
+
+def _check_requirement_names(req: Mapping, dets: list, errors: list[str]) -> None:
+    """Every detector named by ``detector_max_fa_rate`` is one of the campaign's
+    [[detector]] labels (its variants included), found before anything runs."""
+    limits = req["detector_max_fa_rate"]
+    labels = [d["label"] for d in dets]
+    if not limits or not is_ok(limits, *labels) or None in labels:
+        return                  # nothing named, or the detectors have errors of their own
+    errors.extend(requirement_name_problems([name for name, _ in limits], labels))
 
 
 # ---- [plant] ------------------------------------------------------------------------------

@@ -171,12 +171,15 @@ def table_to_dict(obj) -> dict:
 # ----------------------------------------------------------------------------------------
 # Validation of a whole file
 # ----------------------------------------------------------------------------------------
-def validate(data: Any, source: str) -> CampaignConfig:
+def validate(data: Any, source: str, *, requirement_names: bool = False) -> CampaignConfig:
     """Validate *data* (the content of a campaign file) and freeze it.
 
     *source* names the file in the error. Raises :class:`ConfigError` listing every
     problem: unknown sections, then each table's keys in file order, then the rules that
-    involve several keys.
+    involve several keys. With *requirement_names* the detectors ``[requirements]`` names
+    must be the file's too (:func:`campaign.config.load.load_config` checks it before a
+    campaign runs; a campaign read back from its directory is not refused for it, its
+    requirements are corrected with ``--requirements FILE``).
     """
     if not isinstance(data, Mapping):
         raise ConfigError([f"<top>: expected a table of sections, got {type_word(data)}"],
@@ -184,7 +187,7 @@ def validate(data: Any, source: str) -> CampaignConfig:
     errors: list[str] = []
     data = migrate(data, errors)
     values = normalise(check_tables(data, errors))
-    check_rules(values, errors)
+    check_rules(values, errors, requirement_names=requirement_names)
     if errors:
         raise ConfigError(errors, source)
     return _instantiate(derive_group_names(values), source)

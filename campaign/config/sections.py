@@ -368,7 +368,8 @@ class RequirementsSection:
                              lo=0.0, hi=1.0)
     detector_max_fa_rate: tuple[tuple[str, float], ...] = key(
         "number_table", "gate: a detector's own highest accepted false-alarm rate in place of "
-        "max_fa_rate (result name, e.g. \"chen-local[solid]\", or base label = rate): the "
+        "max_fa_rate (result name, e.g. \"chen-local[solid]\", or base label = rate; each "
+        "must name a [[detector]] label of the file, checked before anything runs): the "
         "documented allowance of a detector known not to reach zero; the command-line "
         "--max-fa overrides it", (), lo=0.0, hi=1.0, example={"chen-local[solid]": 0.3})
     max_md_rate: float = key("float", "gate: highest accepted missed-detection rate", 0.0,
