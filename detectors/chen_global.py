@@ -101,6 +101,9 @@ INPUT_SURFACES = ("left_inboard_aileron", "right_inboard_aileron", "left_outboar
                   "right_outboard_aileron", "rudder")
 #: Signals.aircraft entry of the spoiler input (the last column of u_b) [deg].
 SPOILER = "spoiler"
+#: Uncertainty distributions of the H∞ objective (:func:`detectors.chen_global_uncertainty.
+#: design_uncertainty_matrix`).
+UNCERTAINTY_DESIGNS = ("table2", "fault-removed")
 
 
 @dataclass(frozen=True)
@@ -300,6 +303,13 @@ class ChenGlobalEstimator(Detector):
               source="[CHEN] Remark 4.1; value est."),
         Param("h_output", "choice", choices=OUTPUTS, doc="output E of Remark 4.1 points to",
               source="[CHEN] Remark 4.1; choice est."),
+        Param("h_rate_weight", "float", ge=0.0, unit="s", doc="c of E ∝ e_out + c·e_p (Remark "
+              "4.1's free perturbation direction; 0: E = e_out): gives the fault a path "
+              "through the roll rate", source="[CHEN] Remark 4.1; value est."),
+        Param("uncertainty", "choice", choices=UNCERTAINTY_DESIGNS, doc="M of the H∞ "
+              "objective of eq. 23: \"table2\" the Table-2 realisation M_g (F lies in its "
+              "span), \"fault-removed\" M_g with the fault column's direction projected out",
+              source="[CHEN] eq. 25, Table 2; choice est."),
         Param("safety", "float", gt=1.0, doc="max thresholds (and the evt fallback): τ0 = "
               "safety × the largest per-run maximum of |f̂| − b(t) over the learning set"),
         Param("confirm_s", "float", ge=0.0, unit="s", doc="time |f̂| must stay beyond the "
@@ -317,13 +327,16 @@ class ChenGlobalEstimator(Detector):
         *THRESHOLD_PARAMS,
     )
 
-    def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
+    def __init__(self, h_perturbation=0.03, h_output="phi", h_rate_weight=0.0,
+                 uncertainty="table2", safety=1.5, confirm_s=0.1,
                  filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True,
                  adaptive=True,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
                  threshold_tail="light"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
+        self.h_rate_weight = h_rate_weight
+        self.uncertainty = uncertainty
         self.safety = safety
         self.confirm_s = confirm_s
         self.filter_s = filter_s
@@ -354,15 +367,20 @@ class ChenGlobalEstimator(Detector):
 
     # ---- design (fit) ------------------------------------------------------------------
     def _vertices(self, model: AffineLateralModel, lo, hi, col: int):
-        from .chen_global_uncertainty import uncertainty_matrix
+        from .chen_global_uncertainty import design_uncertainty_matrix
         from .lpv_synthesis import VertexSystem
 
-        C, M = output_matrix(), uncertainty_matrix()
-        verts, rhos = [], []
+        C = output_matrix()
+        corners = []
         for corner in itertools.product(*[(0, 1)] * len(model.keep)):
             rho = lo.copy()
             for k, c in zip(model.keep, corner):
                 rho[k] = (lo[k], hi[k])[c]
+            corners.append(rho)
+        _, B_all = model.matrices(np.array(corners))
+        M = design_uncertainty_matrix(self.uncertainty, B_all[:, :, col])
+        verts, rhos = [], []
+        for rho in corners:
             A, B = model.matrices(rho)
             F = self._fault_matrix(A[None], B[None], col)[0]
             verts.append(VertexSystem.make(A=A, B=B, C=C, F=F,
@@ -380,11 +398,15 @@ class ChenGlobalEstimator(Detector):
         return np.concatenate(cols, axis=-1)
 
     def _h_direction(self) -> np.ndarray:
-        """E of Remark 4.1 (3, q): unit vectors of ``h_output`` (fault), then of the other
-        output of (φ, r) for the gust channel."""
+        """E of Remark 4.1 (3, q): the fault's column along e_out + c·e_p (e_out the unit
+        vector of ``h_output``, c = ``h_rate_weight``), normalised; then, for the gust
+        channel, the unit vector of the other output of (φ, r)."""
         names = [self.h_output] + ([o for o in ("r", "phi") if o != self.h_output][:1]
                                    if self.gust_channel else [])
-        return np.array([[1.0 if o == n else 0.0 for n in names] for o in OUTPUTS])
+        E = np.array([[1.0 if o == n else 0.0 for n in names] for o in OUTPUTS])
+        E[OUTPUTS.index("p"), 0] += float(self.h_rate_weight)
+        E[:, 0] /= np.linalg.norm(E[:, 0])
+        return E
 
     def _fit(self, signals: Signals) -> None:
         from .lpv_synthesis import discretise, synthesise
@@ -643,3 +665,41 @@ class ChenGlobalEstimator(Detector):
         r = f_abs / (self.threshold_ + b)
         n_c = max(int(round(float(self.confirm_s) / float(signals.ts))), 1)
         return Detection(alarm=confirm(r > 1.0, n_c), residual=r)
+
+
+class ChenGlobalPaper(ChenGlobalEstimator):
+    """``chen-global-paper``: the global estimator as [CHEN] §4–6 specifies it, beside the
+    project's variants of :class:`ChenGlobalEstimator` (docs/chen-estimator.md §5).
+
+    The same estimator with other defaults, each one [CHEN]'s:
+
+    * no wind input: ``gust_channel = False`` (footnote 1: "In ADDSAFE, the wind effect is not
+      taken into account (i.e. u_w = 0)");
+    * a constant threshold on |f̂|: ``adaptive = False`` (§6.1: "values of constant
+      thresholds"), learned like every threshold of the project (docs/thresholds.md);
+    * Remark 4.1's free perturbation E along φ + c·p, c = ``h_rate_weight`` = 0.01 s: the
+      fault reaches f̂ through the perturbed channel at once (on the design model the step
+      response is above 0.94 of the fault at every vertex 0.25 s after a step, where E = e_φ
+      leaves 0.01–0.16), while the H∞ objective keeps the whole Table-2 M_g. The fault and the
+      uncertainty are thus separated by the design (E) rather than by removing F's direction
+      from M_g, which ``uncertainty = "fault-removed"`` offers and which measured slower
+      (docs/chen-estimator.md §5).
+
+    Every parameter of :class:`ChenGlobalEstimator` stays available.
+    """
+
+    def __init__(self, h_perturbation=0.03, h_output="phi", h_rate_weight=0.01,
+                 uncertainty="table2", safety=1.5, confirm_s=0.1,
+                 filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=False,
+                 adaptive=False,
+                 threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="light"):
+        super().__init__(h_perturbation=h_perturbation, h_output=h_output,
+                         h_rate_weight=h_rate_weight, uncertainty=uncertainty, safety=safety,
+                         confirm_s=confirm_s, filter_s=filter_s,
+                         schedule_margin=schedule_margin, floor_deg=floor_deg,
+                         gust_channel=gust_channel, adaptive=adaptive,
+                         threshold_method=threshold_method,
+                         target_fa_per_run=target_fa_per_run,
+                         threshold_confidence=threshold_confidence,
+                         threshold_tail=threshold_tail)

@@ -652,6 +652,7 @@ def test_init_text_lists_every_builtin_detector_parameter_from_its_declaration()
         for row in parameter_table(load_detector_class(name)):
             assert f"#     {row['name']}" in block, (name, row["name"])
     assert "(built-in: position-monitor, comb-interval, chen-local, chen-global, " \
+           "chen-global-paper, " \
            "vanek-geometric;" in " ".join(line.lstrip("# ") for line in text.splitlines())
 
 
