@@ -11,7 +11,8 @@ import pytest
 import scipy.linalg
 
 import detectors.chen_global as cg
-from detectors.chen_global import ChenGlobalEstimator, ChenGlobalPaper
+from detectors.chen_global import ChenGlobalEstimator
+from detectors.chen_global_paper import ChenGlobalPaper
 from detectors.chen_global_uncertainty import design_uncertainty_matrix, uncertainty_matrix
 from detectors.lpv_synthesis import synthesise
 from detectors.registry import make_detector
