@@ -19,7 +19,7 @@ aircraft sees u = u_0 + f_dis, with u_0 the deflection of the rod measurement an
 difference between the true (floating) deflection and it [deg]. W selects the monitored
 aileron: F(ρ) = B_b(ρ)·W is its column of B_b. The fault has no feed-through (H = 0), so H
 is perturbed to ε·E (Remark 4.1; ε = ``h_perturbation``, E the unit vector of the output
-``h_output``) and the design is exact for that perturbed model (G_f̂f = I); on the
+``h_output``, or of e_out + c·e_p with c = ``h_rate_weight``) and the design is exact for that perturbed model (G_f̂f = I); on the
 unperturbed model the static gain from f_dis to f̂ is below one and tends to one as ε → 0
 (reported in the fitted state as ``static_gain_``).
 
@@ -45,7 +45,10 @@ the yaw rate"; the side-force channel is kept), N_g = 0. The H∞ objective of e
 Gusts: a gust sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls
 the aircraft like tens of degrees of one inboard aileron; with ``gust_channel`` it is a
 second unknown input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a
-second column along r or φ), and f̂ is the first component of the estimate.
+second column along r or φ), and f̂ is the first component of the estimate. [CHEN]'s model
+has no such input (u_w = 0, its footnote 1); ``chen-mc`` and ``chen-sweep`` run without it
+by default, and :mod:`detectors.chen_global_paper` is the variant with every [CHEN] choice
+(docs/chen-estimator.md §5.1).
 
 Synthesis: :func:`detectors.lpv_synthesis.synthesise` (vertex LMIs of eq. 23, Z1 = P⁻¹S,
 gains of eq. 20–21, L1(ρ) = −F(ρ)H† + Z1H⊥ affine in ρ). It runs once in ``fit`` and its
@@ -273,6 +276,13 @@ class ChenGlobalEstimator(Detector):
         ε of [CHEN] Remark 4.1 (> 0): H = ε·E [deg of output per deg of fault].
     h_output : str
         Output E points to: ``"phi"``, ``"p"`` or ``"r"``.
+    h_rate_weight : float
+        c [s] of E ∝ e_out + c·e_p (≥ 0): Remark 4.1 leaves E free; along φ + c·p the fault
+        reaches f̂ through the roll rate at once (docs/chen-estimator.md §5.1).
+    uncertainty : str
+        M of the H∞ objective: ``"table2"`` (M_g) or ``"fault-removed"`` (M_g without the
+        fault column's direction, :func:`detectors.chen_global_uncertainty.
+        design_uncertainty_matrix`).
     safety : float
         ``"max"`` thresholds: τ0 = safety × the largest learning value (> 1).
     confirm_s : float
@@ -665,4 +675,3 @@ class ChenGlobalEstimator(Detector):
         r = f_abs / (self.threshold_ + b)
         n_c = max(int(round(float(self.confirm_s) / float(signals.ts))), 1)
         return Detection(alarm=confirm(r > 1.0, n_c), residual=r)
-
