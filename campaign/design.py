@@ -29,7 +29,7 @@ import pandas as pd
 from scipy.stats import qmc
 
 from scenarios import envelope
-from scenarios.catalog import MANOEUVRES
+from scenarios.catalog import MANOEUVRES, latest_onset_s
 from scenarios.faults import liquid_jam_bias_mm, solid_jam_offset_mm
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
@@ -42,8 +42,13 @@ from .plant import run_actuator, run_surface
 #: laws' control distributions summed per run in a fixed order (a matrix product over the
 #: block made a run's gains, hence its samples, depend at round-off on the runs simulated
 #: beside it; docs/design.md §9); actuator-level runs are unchanged, aircraft-level runs
-#: move at round-off, amplified by the sensors' quantisation.
-MODEL_VERSION = "servo-3"
+#: move at round-off, amplified by the sensors' quantisation. servo-4: drawn onsets leave the
+#: fault's detection budget before the end of the run
+#: (:data:`scenarios.catalog.DETECTION_BUDGET_S`; the
+#: disconnection's onsets of every preset change), and the aircraft plant may fly in calm
+#: air (``[plant] turbulence``); the models themselves are unchanged.
+MODEL_VERSION = "servo-4"
+
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32
@@ -150,7 +155,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     ts = config.campaign.ts_s
     n = len(frame)
     fl = config.faults
-    lo, hi = fl.onset_min_s, duration - fl.onset_before_end_s
+    lo, hi = fl.onset_min_s, latest_onset_s(group.fault, duration, fl.onset_before_end_s)
     if group.fault == "none":
         onset = np.full(n, np.nan)
     elif group.onset_s is not None:

@@ -8,6 +8,7 @@ check of the configured detectors against that plant (:func:`detectors.compat.in
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from detectors.compat import incompatibilities, offline_problems
@@ -26,7 +27,10 @@ def plant_of(config) -> Plant:
         return FmuPlant.of(Path(section.fmu).expanduser().resolve(), variables,
                            push_parameters=section.push_parameters,
                            parameters=dict(section.parameters))
-    return get_plant(section.kind)
+    plant = get_plant(section.kind)
+    if section.kind == "aircraft" and section.turbulence != plant.turbulence:
+        plant = dataclasses.replace(plant, turbulence=section.turbulence)
+    return plant
 
 
 def run_surface(config, plant: Plant | None = None) -> str:

@@ -19,7 +19,7 @@ aircraft sees u = u_0 + f_dis, with u_0 the deflection of the rod measurement an
 difference between the true (floating) deflection and it [deg]. W selects the monitored
 aileron: F(ρ) = B_b(ρ)·W is its column of B_b. The fault has no feed-through (H = 0), so H
 is perturbed to ε·E (Remark 4.1; ε = ``h_perturbation``, E the unit vector of the output
-``h_output``) and the design is exact for that perturbed model (G_f̂f = I); on the
+``h_output``, or of e_out + c·e_p with c = ``h_rate_weight``) and the design is exact for that perturbed model (G_f̂f = I); on the
 unperturbed model the static gain from f_dis to f̂ is below one and tends to one as ε → 0
 (reported in the fitted state as ``static_gain_``).
 
@@ -45,7 +45,10 @@ the yaw rate"; the side-force channel is kept), N_g = 0. The H∞ objective of e
 Gusts: a gust sideslip β_g enters the lateral equations exactly as A_b[:, β]·β_g and rolls
 the aircraft like tens of degrees of one inboard aileron; with ``gust_channel`` it is a
 second unknown input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a
-second column along r or φ), and f̂ is the first component of the estimate.
+second column along r or φ), and f̂ is the first component of the estimate. [CHEN]'s model
+has no such input (u_w = 0, its footnote 1); ``chen-mc`` and ``chen-sweep`` run without it
+by default, and :mod:`detectors.chen_global_paper` is the variant with every [CHEN] choice
+(docs/chen-estimator.md §5.1).
 
 Synthesis: :func:`detectors.lpv_synthesis.synthesise` (vertex LMIs of eq. 23, Z1 = P⁻¹S,
 gains of eq. 20–21, L1(ρ) = −F(ρ)H† + Z1H⊥ affine in ρ). It runs once in ``fit`` and its
@@ -101,6 +104,9 @@ INPUT_SURFACES = ("left_inboard_aileron", "right_inboard_aileron", "left_outboar
                   "right_outboard_aileron", "rudder")
 #: Signals.aircraft entry of the spoiler input (the last column of u_b) [deg].
 SPOILER = "spoiler"
+#: Uncertainty distributions of the H∞ objective (:func:`detectors.chen_global_uncertainty.
+#: design_uncertainty_matrix`).
+UNCERTAINTY_DESIGNS = ("table2", "fault-removed")
 
 
 @dataclass(frozen=True)
@@ -270,6 +276,13 @@ class ChenGlobalEstimator(Detector):
         ε of [CHEN] Remark 4.1 (> 0): H = ε·E [deg of output per deg of fault].
     h_output : str
         Output E points to: ``"phi"``, ``"p"`` or ``"r"``.
+    h_rate_weight : float
+        c [s] of E ∝ e_out + c·e_p (≥ 0): Remark 4.1 leaves E free; along φ + c·p the fault
+        reaches f̂ through the roll rate at once (docs/chen-estimator.md §5.1).
+    uncertainty : str
+        M of the H∞ objective: ``"table2"`` (M_g) or ``"fault-removed"`` (M_g without the
+        fault column's direction, :func:`detectors.chen_global_uncertainty.
+        design_uncertainty_matrix`).
     safety : float
         ``"max"`` thresholds: τ0 = safety × the largest learning value (> 1).
     confirm_s : float
@@ -300,6 +313,13 @@ class ChenGlobalEstimator(Detector):
               source="[CHEN] Remark 4.1; value est."),
         Param("h_output", "choice", choices=OUTPUTS, doc="output E of Remark 4.1 points to",
               source="[CHEN] Remark 4.1; choice est."),
+        Param("h_rate_weight", "float", ge=0.0, unit="s", doc="c of E ∝ e_out + c·e_p (Remark "
+              "4.1's free perturbation direction; 0: E = e_out): gives the fault a path "
+              "through the roll rate", source="[CHEN] Remark 4.1; value est."),
+        Param("uncertainty", "choice", choices=UNCERTAINTY_DESIGNS, doc="M of the H∞ "
+              "objective of eq. 23: \"table2\" the Table-2 realisation M_g (F lies in its "
+              "span), \"fault-removed\" M_g with the fault column's direction projected out",
+              source="[CHEN] eq. 25, Table 2; choice est."),
         Param("safety", "float", gt=1.0, doc="max thresholds (and the evt fallback): τ0 = "
               "safety × the largest per-run maximum of |f̂| − b(t) over the learning set"),
         Param("confirm_s", "float", ge=0.0, unit="s", doc="time |f̂| must stay beyond the "
@@ -317,13 +337,16 @@ class ChenGlobalEstimator(Detector):
         *THRESHOLD_PARAMS,
     )
 
-    def __init__(self, h_perturbation=0.03, h_output="phi", safety=1.5, confirm_s=0.1,
+    def __init__(self, h_perturbation=0.03, h_output="phi", h_rate_weight=0.0,
+                 uncertainty="table2", safety=1.5, confirm_s=0.1,
                  filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True,
                  adaptive=True,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
                  threshold_tail="light"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
+        self.h_rate_weight = h_rate_weight
+        self.uncertainty = uncertainty
         self.safety = safety
         self.confirm_s = confirm_s
         self.filter_s = filter_s
@@ -354,15 +377,20 @@ class ChenGlobalEstimator(Detector):
 
     # ---- design (fit) ------------------------------------------------------------------
     def _vertices(self, model: AffineLateralModel, lo, hi, col: int):
-        from .chen_global_uncertainty import uncertainty_matrix
+        from .chen_global_uncertainty import design_uncertainty_matrix
         from .lpv_synthesis import VertexSystem
 
-        C, M = output_matrix(), uncertainty_matrix()
-        verts, rhos = [], []
+        C = output_matrix()
+        corners = []
         for corner in itertools.product(*[(0, 1)] * len(model.keep)):
             rho = lo.copy()
             for k, c in zip(model.keep, corner):
                 rho[k] = (lo[k], hi[k])[c]
+            corners.append(rho)
+        _, B_all = model.matrices(np.array(corners))
+        M = design_uncertainty_matrix(self.uncertainty, B_all[:, :, col])
+        verts, rhos = [], []
+        for rho in corners:
             A, B = model.matrices(rho)
             F = self._fault_matrix(A[None], B[None], col)[0]
             verts.append(VertexSystem.make(A=A, B=B, C=C, F=F,
@@ -380,11 +408,15 @@ class ChenGlobalEstimator(Detector):
         return np.concatenate(cols, axis=-1)
 
     def _h_direction(self) -> np.ndarray:
-        """E of Remark 4.1 (3, q): unit vectors of ``h_output`` (fault), then of the other
-        output of (φ, r) for the gust channel."""
+        """E of Remark 4.1 (3, q): the fault's column along e_out + c·e_p (e_out the unit
+        vector of ``h_output``, c = ``h_rate_weight``), normalised; then, for the gust
+        channel, the unit vector of the other output of (φ, r)."""
         names = [self.h_output] + ([o for o in ("r", "phi") if o != self.h_output][:1]
                                    if self.gust_channel else [])
-        return np.array([[1.0 if o == n else 0.0 for n in names] for o in OUTPUTS])
+        E = np.array([[1.0 if o == n else 0.0 for n in names] for o in OUTPUTS])
+        E[OUTPUTS.index("p"), 0] += float(self.h_rate_weight)
+        E[:, 0] /= np.linalg.norm(E[:, 0])
+        return E
 
     def _fit(self, signals: Signals) -> None:
         from .lpv_synthesis import discretise, synthesise

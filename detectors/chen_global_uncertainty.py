@@ -139,3 +139,43 @@ def signal_matrices(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def signal_columns() -> np.ndarray:
     """Index into :data:`CHANNELS` (the column of M_g) of each signal of :data:`SIGNALS`."""
     return np.array([CHANNELS.index(c) for c, _ in SIGNALS])
+
+
+#: Largest spread of the fault column's direction over the vertices for which
+#: ``"fault-removed"`` still gives a constant M (numerical, not a physical parameter).
+DIRECTION_TOLERANCE = 1e-9
+
+
+def design_uncertainty_matrix(design: str, fault_columns: np.ndarray) -> np.ndarray:
+    """M of the H∞ objective of [CHEN] eq. 23 for the global estimator (4, 3).
+
+    ``"table2"``: :func:`uncertainty_matrix`. The fault column F = B_b·W lies in its span
+    (the monitored aileron's rolling and yawing moments are sums of the L and N terms that
+    d_cl, d_cn scale), so minimising the gain from δ_g to f̂ also lowers the gain of every
+    input that enters along F, the fault's own path included, where H = 0 leaves the fault
+    only the small ε of Remark 4.1.
+
+    ``"fault-removed"``: (I − f fᵀ)·M_g, f the unit direction of F. The part of the Table-2
+    uncertainty along F cannot be told apart from the fault in the state equation (a 5 % error
+    on L_δa is a fault of 5 % of δa); it is left out of the objective, so γ no longer
+    penalises the fault's path, and the rest of δ_g (side force, the moments off F) is kept.
+    F = ρ₁·(Y_δ, L_δ, N_δ)-column with inertias proportional to the mass, so its direction
+    is the same at every vertex and M stays constant, as [CHEN] eq. 25 has it.
+
+    *fault_columns*: F at every vertex (n_vertices, 4); ValueError when its direction varies
+    (the projection would then depend on ρ and the vertex property would not hold).
+    """
+    M = uncertainty_matrix()
+    if design == "table2":
+        return M
+    if design != "fault-removed":
+        raise ValueError(f"unknown uncertainty design {design!r}; allowed: table2, "
+                         "fault-removed")
+    F = np.asarray(fault_columns, float)
+    f = F / np.linalg.norm(F, axis=-1, keepdims=True)
+    f = f * np.sign(f @ f[0])[:, None]
+    if float(np.abs(f - f[0]).max()) > DIRECTION_TOLERANCE:
+        raise ValueError("the fault column's direction varies over the scheduling polytope: "
+                         "uncertainty = \"fault-removed\" needs a constant direction; use "
+                         "uncertainty = \"table2\"")
+    return M - np.outer(f[0], f[0] @ M)

@@ -31,6 +31,7 @@ BUILTIN: dict[str, str] = {
     "comb-interval": "detectors.comb_interval:IntervalDetector",
     "chen-local": "detectors.chen_local:ChenLocalEstimator",
     "chen-global": "detectors.chen_global:ChenGlobalEstimator",
+    "chen-global-paper": "detectors.chen_global_paper:ChenGlobalPaper",
     "vanek-geometric": "detectors.vanek_geometric:VanekGeometric",
 }
 

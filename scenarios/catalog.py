@@ -63,6 +63,25 @@ REQUIRED_DETECTION_TIME_S: dict[str, float] = {
 }
 
 
+#: Detection budget of a fault [s]: the time a drawn onset leaves before the end of the run
+#: (docs/physics.md §5, "Onsets that leave time to detect"; applied by
+#: campaign.design where onsets are drawn). The latest drawn onset is
+#: duration_s − max(``[faults] onset_before_end_s``, budget): a fault that starts too late
+#: to be detected is a miss of the campaign design, not of the detector. disconnection:
+#: twice the slowest delay [CHEN] prints for it, 7.01 s (Table 3: DTP 0.0584167 =
+#: 701/12000 steps of 10 ms of a 120 s run), rounded up to 15 s. The other faults keep the
+#: 10 s of onset_before_end_s, at least 5 times each of their required times
+#: (docs/physics.md §5).
+DETECTION_BUDGET_S: dict[str, float] = {"disconnection": 15.0}
+
+
+def latest_onset_s(fault: str, duration_s: float, onset_before_end_s: float) -> float:
+    """Latest onset [s] a group of *fault* may draw in a run of *duration_s*: the run leaves
+    at least ``onset_before_end_s`` and the fault's :data:`DETECTION_BUDGET_S` after it."""
+    return float(duration_s) - max(float(onset_before_end_s),
+                                   DETECTION_BUDGET_S.get(fault, 0.0))
+
+
 def suggest(value: str, allowed: tuple[str, ...] | list[str]) -> str:
     """Return a `` (did you mean 'x'?)`` hint for a misspelt name, or an empty string."""
     close = difflib.get_close_matches(str(value), list(allowed), n=1, cutoff=0.6)

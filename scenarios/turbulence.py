@@ -85,6 +85,17 @@ MODERATE = DrydenParams(
     name="moderate",
 )
 
+#: Turbulence levels a campaign may choose (``[plant] turbulence``, aircraft plant): name →
+#: Dryden table, ``None`` for calm air ([CHEN] footnote 1: the ADDSAFE runs had no wind).
+LEVELS: dict[str, DrydenParams | None] = {"moderate": MODERATE, "none": None}
+
+
+def level(name: str) -> DrydenParams | None:
+    """The Dryden table of turbulence level *name* (:data:`LEVELS`; ``None``: calm air)."""
+    if name not in LEVELS:
+        raise ValueError(f"unknown turbulence level {name!r}; allowed: {', '.join(LEVELS)}")
+    return LEVELS[name]
+
 
 class DiscreteFilter(NamedTuple):
     """A discrete filter for ``scipy.signal.lfilter``: coefficients in z⁻¹, ``a[0] = 1``."""

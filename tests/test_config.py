@@ -248,6 +248,15 @@ BAD_FILES = {
     "pair is not a pair": (
         BASE + "\n[faults.ofc_solid]\nfreq_hz = 2.0\n",
         "faults.ofc_solid.freq_hz: expected [low, high]", "fix: e.g. freq_hz = [0.5, 5.0]"),
+    "no time left to detect a disconnection": (
+        BASE.replace('name = "t"', 'name = "t"\nduration_s = 20.0')
+        + '\n[[group]]\nfault = "disconnection"\ncount = 2\n\n[faults]\nonset_min_s = 8.0\n',
+        "group[1].fault: a disconnection needs its detection budget of 15 s after the onset",
+        "fix: lengthen campaign.duration_s to at least 23 s"),
+    "turbulence on the actuator plant": (
+        BASE + '\n[plant]\nturbulence = "none"\n',
+        "plant.turbulence: only used with kind = \"aircraft\"",
+        'fix: remove it or set [plant] kind = "aircraft"'),
     "empty onset window": (
         BASE.replace('name = "t"', 'name = "t"\nduration_s = 20.0')
         + "\n[faults]\nonset_min_s = 15.0\n",
@@ -643,6 +652,7 @@ def test_init_text_lists_every_builtin_detector_parameter_from_its_declaration()
         for row in parameter_table(load_detector_class(name)):
             assert f"#     {row['name']}" in block, (name, row["name"])
     assert "(built-in: position-monitor, comb-interval, chen-local, chen-global, " \
+           "chen-global-paper, " \
            "vanek-geometric;" in " ".join(line.lstrip("# ") for line in text.splitlines())
 
 

@@ -254,3 +254,28 @@ def test_lagged_gust_bad_options_raise():
         lagged_gust(10, TS, 200.0, 1e4, rng, component="x")
     with pytest.raises(ValueError, match="lag_s"):
         lagged_gust(10, TS, 200.0, 1e4, rng, lag_s=-1.0)
+
+
+def test_calm_air_on_the_aircraft_plant():
+    """``[plant] turbulence = "none"`` (docs/physics.md §7.2, [CHEN] footnote 1): the plant of
+    the campaign flies without gusts. In cruise with no pilot input, what moves the roll rate
+    is then only the sensor noise (σ = 0.02 deg/s, docs/physics.md §7) and its echo through
+    the laws, while moderate turbulence rolls the aircraft by tenths of a degree per second:
+    a factor 5 between the two standard deviations is far inside that gap."""
+    from campaign.config import CampaignConfig
+    from campaign.plant import plant_of
+    from scenarios.simulate import single_run
+
+    def plant(level):
+        return plant_of(CampaignConfig.from_dict({
+            "campaign": {"name": "calm", "surface": "aileron"},
+            "plant": {"kind": "aircraft", "turbulence": level},
+            "group": [{"fault": "none", "count": 1}],
+            "detector": [{"name": "position-monitor"}]}))
+
+    assert plant("none").turbulence == "none" and plant("moderate").turbulence == "moderate"
+    runs = single_run("aileron", "cruise", duration_s=20.0)
+    runs["surface"] = "left_inboard_aileron"
+    p_std = {level: float(np.std(plant(level).simulate(runs)[0].aircraft["p"][0, 500:]))
+             for level in ("none", "moderate")}
+    assert p_std["moderate"] > 5.0 * p_std["none"], p_std

@@ -25,7 +25,7 @@ from types import SimpleNamespace
 from typing import Any, Mapping
 
 from detectors.compat import incompatibilities, offline_problems
-from scenarios.catalog import MANOEUVRES, suggest
+from scenarios.catalog import DETECTION_BUDGET_S, MANOEUVRES, latest_onset_s, suggest
 
 from .convert import is_ok, out_of_range
 from .keys import key_spec, leaf_fields, thaw
@@ -155,8 +155,9 @@ def check_rules(values: Mapping[str, Any], errors: list[str], *,
     design, duration = camp["design"], camp["duration_s"]
     _check_mc_only_keys(camp, "campaign", CampaignSection, design, errors)
     _check_monitored_surface(values["plant"], errors)
+    _check_turbulence(values["plant"], errors)
     _check_onset_window(values["faults"], duration, errors)
-    _check_groups(values["groups"], design, duration, errors)
+    _check_groups(values["groups"], design, duration, errors, values["faults"])
     _check_runs(values, errors)
     check_detectors(values["detectors"], camp, values["plant"], errors)
     if requirement_names:
@@ -173,6 +174,14 @@ def _check_mc_only_keys(table: Mapping, path: str, cls: type, design: Any,
         if f.metadata["key"].only == "mc" and f.name in table["__present__"]:
             errors.append(f"{path}.{f.name}: only used with design = \"mc\"; fix: "
                           f"remove it (grid runs one run per case)")
+
+
+def _check_turbulence(plant: Mapping, errors: list[str]) -> None:
+    """The turbulence level belongs to the aircraft plant (the actuator plant's orders carry
+    the control law's reaction to moderate turbulence, docs/physics.md §7)."""
+    if plant["kind"] != "aircraft" and plant.get("turbulence", "moderate") != "moderate":
+        errors.append("plant.turbulence: only used with kind = \"aircraft\"; fix: remove it "
+                      "or set [plant] kind = \"aircraft\"")
 
 
 def _check_monitored_surface(plant: Mapping, errors: list[str]) -> None:
@@ -197,7 +206,8 @@ def _check_onset_window(faults: Mapping, duration: Any, errors: list[str]) -> No
 
 
 # ---- [[group]] ----------------------------------------------------------------------------
-def _check_groups(groups: list, design: Any, duration: Any, errors: list[str]) -> None:
+def _check_groups(groups: list, design: Any, duration: Any, errors: list[str],
+                  faults: Mapping | None = None) -> None:
     """The rules of each [[group]], group by group; names given must be unique."""
     explicit: dict[str, str] = {}
     for i, g in enumerate(groups):
@@ -213,8 +223,28 @@ def _check_groups(groups: list, design: Any, duration: Any, errors: list[str]) -
             _check_sign(g, p, fault, errors)
             _check_freq(g, p, fault, errors)
             _check_onset(g, p, duration, errors)
+            _check_detection_budget(g, p, fault, duration, faults, errors)
         _check_manoeuvre_start(g, p, duration, errors)
         _check_unique_name(g, p, explicit, errors)
+
+
+def _check_detection_budget(g: Mapping, p: str, fault: str, duration: Any,
+                            faults: Mapping | None, errors: list[str]) -> None:
+    """A group that draws its onsets must leave the fault's detection budget before the end
+    of the run (:data:`scenarios.catalog.DETECTION_BUDGET_S`, docs/physics.md §5)."""
+    if faults is None or _given(g, "onset_s") or fault not in DETECTION_BUDGET_S:
+        return
+    onset_min, before_end = faults["onset_min_s"], faults["onset_before_end_s"]
+    if not is_ok(duration, onset_min, before_end):
+        return
+    latest = latest_onset_s(fault, duration, before_end)
+    if onset_min > latest:
+        errors.append(
+            f"{p}.fault: a {fault} needs its detection budget of "
+            f"{num(DETECTION_BUDGET_S[fault])} s after the onset (docs/physics.md §5), so its "
+            f"onsets lie in [{num(onset_min)}, {num(latest)}] s: empty; fix: lengthen "
+            f"campaign.duration_s to at least {num(onset_min + DETECTION_BUDGET_S[fault])} s, "
+            f"lower faults.onset_min_s, or fix the group's onset_s")
 
 
 def _given(g: Mapping, k: str) -> bool:

@@ -14,6 +14,7 @@ from typing import Any
 from detectors.registry import BUILTIN
 from scenarios.aircraft.data import AIRCRAFT_SURFACES
 from scenarios.catalog import PLANT_KINDS
+from scenarios.turbulence import LEVELS as TURBULENCE_LEVELS
 from scenarios.catalog import (
     FAULT_TYPES,
     FAULTS,
@@ -458,6 +459,10 @@ class PlantSection:
         "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
         default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
         example="left_inboard_aileron")
+    turbulence: str = key("choice", "aircraft plant only: the Dryden turbulence the aircraft "
+                          "flies in (moderate, docs/physics.md §7; none: calm air, as the "
+                          "ADDSAFE runs of [CHEN] footnote 1)", "moderate",
+                          choices=tuple(TURBULENCE_LEVELS))
     fmu: str | None = key("str", "FMI 2.0/3.0 co-simulation FMU that replaces the built-in "
                           "servo-loop plant (path relative to the working directory; "
                           "`fdd-campaign fmu build` makes the built-in one)", optional=True,

@@ -55,6 +55,7 @@ from ..servo import PlantArrays, authority_limits, float_step, plant_arrays, rk4
 from ..signals import AIRCRAFT_SIGNAL_UNITS, SIGNAL_UNITS, Signals, Truth
 from ..simulate import rod_measurement_fault, servo_provides, single_run
 from ..turbulence import MODERATE, DrydenParams, dryden_gusts
+from ..turbulence import level as turbulence_level
 from . import kernel, laws, lpv, pilot
 from .data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES, DEFAULT_MONITORED,
                    LAYOUT, AircraftSensorParams, surface_actuator)
@@ -540,9 +541,13 @@ class AircraftPlant:
 
     aircraft_sensors : the noise of the aircraft sensors (default :data:`AIRCRAFT_SENSORS`,
         docs/physics.md §7).
+    turbulence : the Dryden level the aircraft flies in, a name of
+        :data:`scenarios.turbulence.LEVELS` (default ``"moderate"``; ``"none"``: calm air,
+        the turbulence-free runs of [CHEN] footnote 1).
     """
 
     aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS
+    turbulence: str = "moderate"
     kind = "aircraft"
     #: runs on threads (no per-process state)
     needs_processes = False
@@ -578,7 +583,8 @@ class AircraftPlant:
     def simulate(self, runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
                  pressure_sensor: bool = False) -> tuple[Signals, Truth]:
         return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
-                                 aircraft_sensors=self.aircraft_sensors)
+                                 aircraft_sensors=self.aircraft_sensors,
+                                 turbulence=turbulence_level(self.turbulence))
 
     def simulate_signals(self, runs: pd.DataFrame, *, ts: float = TS_S,
                          sensors: SensorParams = SENSORS,
@@ -586,7 +592,8 @@ class AircraftPlant:
         """The :class:`Signals` of :meth:`simulate` alone (no :class:`Truth` is built: a
         learning set holds about half the memory)."""
         return simulate_aircraft(runs, ts=ts, sensors=sensors, pressure_sensor=pressure_sensor,
-                                 aircraft_sensors=self.aircraft_sensors, truth=False)[0]
+                                 aircraft_sensors=self.aircraft_sensors,
+                                 turbulence=turbulence_level(self.turbulence), truth=False)[0]
 
 
 def _warm_kernel() -> None:
