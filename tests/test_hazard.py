@@ -4,6 +4,7 @@ categories; the [requirements] fault_rate_per_fh key's validation."""
 
 from __future__ import annotations
 
+import html
 import math
 
 import numpy as np
@@ -114,3 +115,55 @@ def test_fault_rates_key_defaults_merge_and_validation():
     assert "1/FH" in msg
     assert "fault_rate_per_fh.hardover: 2 is out of range" in msg
     assert "fault_rate_per_fh.disconnection: expected a number" in msg
+
+
+def test_certify_writes_and_prints_the_hazard_table(tmp_path, capsys):
+    """``certify`` on the smoke campaign with given fault rates: the hazard table is
+    written (recorded in the manifest), printed with its assumptions, and holds, per
+    fault type, λ_f times the share of missed runs."""
+    from campaign import run
+    from campaign.cli import main
+    from campaign.config import load_config
+    from campaign.storage import CampaignDir
+
+    config = load_config("smoke")
+    data = config.to_dict()
+    data["requirements"]["fault_rate_per_fh"] = {"runaway": 4e-6}
+    config = CampaignConfig.from_dict(data)
+    out = tmp_path / "smoke"
+    run(config, out, jobs=1, progress=False, log=lambda m: None)
+    capsys.readouterr()
+    assert main(["certify", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "Hazard per flight hour" in printed and "Assumptions:" in printed
+    assert "independent Poisson processes" in printed
+    cdir = CampaignDir(out)
+    hazard = cdir.read_hazard()
+    assert cdir.verify() == []
+    from campaign.report import load_campaign
+
+    results = load_campaign(out).results
+    runaway = results[(results["fault"] == "runaway") & (results["status"] == "ok")]
+    row = hazard[(hazard["detector"] == "position-monitor") & (hazard["fault"] == "runaway")]
+    missed = int((~runaway[runaway["detector"] == "position-monitor"]["detected"]).sum())
+    assert row["rate_per_fh"].iloc[0] == 4e-6
+    assert row["per_fh"].iloc[0] == pytest.approx(4e-6 * missed / 2, abs=1e-20)
+    assert set(hazard["fault"]) == {"runaway", "liquid_jam", "solid_jam", "disconnection",
+                                    "all", "none"}
+
+
+def test_the_report_section_lists_every_row_and_assumption():
+    from campaign.hazard import ASSUMPTIONS
+    from campaign.report import _with_hazard_section
+    from reports.hazard_section import hazard_section
+
+    results, plan = _results()
+    table = hazard_table(results, plan, {"runaway": 1e-6, "solid_jam": 2e-6})
+    section = hazard_section(table, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)
+    assert section.count("<tr") == 1 + len(table)
+    assert "false alarm" in section and "all faults (undetected)" in section
+    assert all(html.escape(a) in section for a in ASSUMPTIONS)
+    page = '<html><body><section id="runs">runs</section></body></html>'
+    placed = _with_hazard_section(page, table)
+    assert placed.index('id="hazard"') < placed.index('id="runs"')
+    assert _with_hazard_section(page, None) == page
