@@ -382,9 +382,12 @@ def sampling_note(r, *, seed: int, n: int) -> str:
     chains' diagnostics (acceptance per level, the effective sample sizes, δ)."""
     acc = ", ".join(f"{d.acceptance:.2f}" for d in r.diagnostics if d.acceptance == d.acceptance)
     ess = min((d.ess for d in r.diagnostics), default=math.nan)
+    streams = [d.distinct_nuisance for d in r.diagnostics if d.distinct_nuisance]
     head = (f"subset simulation, seed {seed}, {n} runs per level, p0 = 0.1, "
             f"{len(r.levels)} levels, {r.evaluations} runs; acceptance per level {acc}; "
-            f"smallest effective sample size {ess:.0f}; δ = {r.cov:.2f}")
+            f"smallest effective sample size {ess:.0f}; δ = {r.cov:.2f}"
+            + (f"; distinct (manoeuvre, noise stream) pairs at the last level "
+               f"{streams[-1]} of {n}" if streams else ""))
     if r.reached:
         return head
     if not math.isfinite(r.reached_level):

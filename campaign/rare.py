@@ -64,7 +64,7 @@ __all__ = ["SAMPLER_VERSION", "SubsetLevel", "SubsetResult", "subset_simulation"
 
 #: Version of the chains' moves: the points a seed leads to change with it, so stored
 #: evaluations of another version are not reused (``campaign.certify``'s batch store).
-SAMPLER_VERSION = "acs-1"
+SAMPLER_VERSION = "acs-2"
 
 #: Target acceptance rate of the normal-coordinate moves (Papaioannou et al. 2015, §5:
 #: 0.44, the optimum of a one-dimensional random walk, which they found robust).
@@ -93,6 +93,10 @@ class SubsetLevel:
     acceptance_nuisance : that of their nuisance moves alone (NaN without any)
     scale : λ, the scale of the proposal spreads at the level's last step
     seeds : distinct points ≥ b_i the level's chains started from
+    distinct_nuisance : distinct nuisance values (e.g. noise streams) among the n points
+        the level's chains produced (0 when none were produced): when it collapses, the
+        chains explore the normal coordinates for a few nuisance values only and the
+        estimate rests on those
     """
 
     threshold: float
@@ -105,6 +109,7 @@ class SubsetLevel:
     acceptance_nuisance: float = math.nan
     scale: float = math.nan
     seeds: int = 0
+    distinct_nuisance: int = 0
 
 
 @dataclass(frozen=True)
@@ -152,7 +157,8 @@ class SubsetResult:
         rows = [dataclasses.asdict(d) for d in self.diagnostics]
         out = pd.DataFrame(rows, columns=names)
         out.insert(0, "level", np.arange(1, len(out) + 1, dtype="int64"))
-        out["seeds"] = out["seeds"].astype("int64")
+        for c in ("seeds", "distinct_nuisance"):
+            out[c] = out[c].astype("int64")
         return out
 
 
@@ -168,6 +174,14 @@ def _gamma(indicator: np.ndarray) -> float:
         r_k = float((indicator[:, :-k] * indicator[:, k:]).mean()) - p * p
         out += 2.0 * (1.0 - k / n_s) * r_k / r0
     return max(out, 0.0)
+
+
+def _distinct(values: list) -> int:
+    """Distinct values among the object arrays *values* (0 when they cannot be hashed)."""
+    try:
+        return len({v for arr in values for v in arr.tolist()})
+    except TypeError:
+        return 0
 
 
 def _next_threshold(y: np.ndarray, n_c: int, previous: float | None) -> float | None:
@@ -300,15 +314,14 @@ def subset_simulation(g, sample_prior, n_dims: int, *, n: int = 500, p0: float =
             moved, accepted = moved + n_move, accepted + a_move
             moved_nu, accepted_nu = moved_nu + int(which_nu.sum()), accepted_nu + int(
                 (accept & which_nu).sum())
-            if n_move:                     # adapt λ (Papaioannou et al. 2015, §5)
-                scale = math.exp(math.log(scale)
-                                 + (a_move / n_move - TARGET_ACCEPTANCE) / math.sqrt(step))
+        if moved:      # adapt λ for the next level (Papaioannou et al. 2015, §5)
+            scale *= math.exp(accepted / moved - TARGET_ACCEPTANCE)
         diag.append(SubsetLevel(
             threshold=b, conditional=p_i, probability=p_prod, gamma=gamma,
             cov=math.sqrt(d2), ess=n / (1.0 + gamma),
             acceptance=accepted / moved if moved else math.nan,
             acceptance_nuisance=accepted_nu / moved_nu if moved_nu else math.nan,
-            scale=scale, seeds=n_seeds))
+            scale=scale, seeds=n_seeds, distinct_nuisance=_distinct(chain_nu)))
         # states of chain c at step s are at s·n_c + c: the chains' states interleaved
         z = np.concatenate(chain_z)
         nu = np.concatenate(chain_nu)

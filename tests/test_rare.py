@@ -35,10 +35,10 @@ def test_a_small_probability_in_20_dimensions():
         assert r.reached and r.reached_level == 1.0 and r.probability == r.reached_probability
         estimates.append(r.probability)
         covs.append(r.cov)
-        # the adapted moves keep the acceptance near its target 0.44 at every level
-        # (within 0.25–0.65: λ adapts per step, 9 steps a level)
+        # the adapted moves keep the acceptance around its target 0.44 (λ adapts between
+        # levels only; measured 0.20–0.65 over 30 seeds): never stuck, never all accepted
         acc = [lv.acceptance for lv in r.diagnostics[:-1]]
-        assert len(acc) == len(r.levels) and all(0.25 <= a <= 0.65 for a in acc)
+        assert len(acc) == len(r.levels) and all(0.15 <= a <= 0.75 for a in acc)
         # diagnostics: one per threshold and the last (b = 1), the product of conditionals
         assert len(r.diagnostics) == len(r.levels) + 1
         assert r.diagnostics[-1].threshold == 1.0
@@ -46,14 +46,15 @@ def test_a_small_probability_in_20_dimensions():
         assert all(0 < lv.ess <= 500 for lv in r.diagnostics)
         assert r.cov == pytest.approx(math.sqrt(sum(lv.cov ** 2 for lv in r.diagnostics)))
     p = np.array(estimates)
-    # unbiased up to O(1/n): the seeds' estimates spread by about 0.7 of the truth (measured
-    # over 20 seeds), so the mean of 12 has a standard deviation of ≈ 0.2 of it: 50 % is
-    # 2.5 of them. Every estimate within a decade of the truth.
-    assert p.mean() == pytest.approx(true, rel=0.5)
+    # unbiased up to O(1/n): the seeds' estimates spread by about 0.5 of the truth (measured
+    # over 30 seeds: mean 1.08, median 0.99 of it), so the mean of 12 has a standard
+    # deviation of ≈ 0.15 of it: 45 % is 3 of them. Every estimate within a decade.
+    assert p.mean() == pytest.approx(true, rel=0.45)
     assert np.all((true / 10 < p) & (p < 10 * true))
-    # Au and Beck's δ (levels taken as uncorrelated) understates that spread, not by more
-    # than a factor 2 (measured: 0.49 against 0.70)
-    assert p.std(ddof=1) / true / 2 <= np.mean(covs) <= p.std(ddof=1) / true * 1.5
+    # Au and Beck's δ matches that spread (measured 0.52 against 0.51), within a factor 1.5
+    # (a 12-sample standard deviation is itself uncertain by ~20 %)
+    spread = p.std(ddof=1) / true
+    assert spread / 1.5 <= np.mean(covs) <= spread * 1.5
 
 
 def test_a_mixture_over_a_held_choice_with_a_redrawn_noise():
@@ -93,6 +94,9 @@ def test_a_mixture_over_a_held_choice_with_a_redrawn_noise():
     assert spread / 1.5 <= mean_cov <= 1.5 * spread
     r = runs[0]
     assert all(0.0 < lv.acceptance_nuisance < 1.0 for lv in r.diagnostics[:-1])
+    # the noise values the chains hold: more than their 50 seeds' (redraws accepted), fewer
+    # than the 500 points
+    assert all(50 < lv.distinct_nuisance < 500 for lv in r.diagnostics[:-1])
     # the choice is held: the choice of larger c dominates the event (P(j = 1 | g ≥ 1) =
     # 0.2 Φ(−3/√1.25)/P ≈ 0.87 here), which the points of the last level show
     top = np.array([a for a, _ in r.samples["nuisance"]])[r.samples["g"] >= 1.0]
@@ -104,30 +108,42 @@ def test_a_plateau_below_1_reports_the_level_reached_never_0():
     def g(z, nu):
         return np.minimum(z[:, 0] / 4.0, 0.8)
 
-    r = subset_simulation(g, _normal_prior(3), 3, n=500, seed=2, max_levels=10)
-    assert not r.reached and r.stalled
-    assert math.isnan(r.probability)          # no estimate of P(g ≥ 1) is claimed
-    assert r.reached_level == 0.8
     true = stats.norm.sf(3.2)
-    assert r.reached_probability > 0.0 and r.lower <= true <= r.upper
+    runs = [subset_simulation(g, _normal_prior(3), 3, n=500, seed=s, max_levels=10)
+            for s in range(12)]
+    for r in runs:
+        assert not r.reached and r.stalled
+        assert math.isnan(r.probability)          # no estimate of P(g ≥ 1) is claimed
+        assert r.reached_level == 0.8 and r.reached_probability > 0.0
+        assert 0.0 < r.lower < r.reached_probability < r.upper
+    # unbiased: measured over 30 seeds, mean 1.01 of the truth, spread 0.71 of it; the
+    # mean of 12 has a standard deviation of ≈ 0.2 of it: 60 % is 3 of them
+    p = np.array([r.reached_probability for r in runs])
+    assert p.mean() == pytest.approx(true, rel=0.6)
 
 
-def test_a_bounded_limit_state_reports_its_highest_level_with_a_covering_interval():
+def test_a_bounded_limit_state_reports_its_highest_level():
     # g = 0.9 tanh(z₀/2) < 0.9 everywhere: the levels climb towards 0.9 without reaching
     # it; the level reached b* has P(g ≥ b*) = Φ(−2 artanh(b*/0.9)) exactly
     def g(z, nu):
         return 0.9 * np.tanh(z[:, 0] / 2.0)
 
-    r = subset_simulation(g, _normal_prior(4), 4, n=500, seed=5, max_levels=5)
-    assert not r.reached and not r.stalled and len(r.levels) == 5
-    assert r.levels[-1] < r.reached_level < 0.9
-    true = stats.norm.sf(2.0 * math.atanh(r.reached_level / 0.9))
-    assert r.reached_probability > 0.0 and r.lower <= true <= r.upper
-    # P(g ≥ 1) = 0 ≤ its upper bound: the bound of the level reached bounds it too
-    assert r.upper > 0.0
+    ratios = []
+    for seed in range(12):
+        r = subset_simulation(g, _normal_prior(4), 4, n=500, seed=seed, max_levels=5)
+        assert not r.reached and not r.stalled and len(r.levels) == 5
+        assert r.levels[-1] < r.reached_level < 0.9
+        # P(g ≥ 1) = 0 ≤ the upper bound of P(g ≥ b*): a bound of it too, never 0
+        assert r.reached_probability > 0.0 and r.upper > r.reached_probability
+        ratios.append(r.reached_probability
+                      / stats.norm.sf(2.0 * math.atanh(r.reached_level / 0.9)))
+    # P̂(g ≥ b*) at the random level b*: within 60 % of the exact value on average (as
+    # the plateau case, 3 standard deviations of a mean of 12)
+    assert np.mean(ratios) == pytest.approx(1.0, rel=0.6)
     frame = r.to_pandas()
     assert list(frame["level"]) == list(range(1, 7))
-    assert set(frame.columns) >= {"threshold", "conditional", "acceptance", "ess", "cov"}
+    assert set(frame.columns) >= {"threshold", "conditional", "acceptance", "ess", "cov",
+                                  "distinct_nuisance"}
 
 
 def test_deterministic_for_a_seed_and_refuses_bad_options():
