@@ -10,8 +10,11 @@ simulation*, Probabilistic Engineering Mechanics 41, 89–103 (§4.2 and §5: co
 moves to z'_k = ρ_k z_k + σ_k ξ_k, σ_k = min(1, λ σ̂_k), ρ_k = √(1 − σ_k²), which leaves
 N(0, I) invariant, accepted when it stays in the current level's domain; σ̂_k is the
 spread of the level's seeds in coordinate k and λ is adapted towards an acceptance rate of
-0.44: λ ← λ·exp((â − 0.44)/√i) after the i-th step of the chains, â that step's
-acceptance rate, λ carried from one level to the next).
+0.44: the level's chains run in groups of a fifth of them, one group after the other, each
+with λ fixed over its steps, and λ ← λ·exp((â − 0.44)/√i) after the i-th group, â its
+acceptance rate; λ is carried from one level to the next). Adapting λ after every step of
+all chains at once instead made each chain's kernel depend on its own last states, and on
+addsafe-mc the chains drifted below the conditional distribution within a level.
 
 Level 0 draws *n* points from the prior. At each level the p₀-quantile b of g over the
 level's points is the next intermediate threshold; the level's conditional probability is
@@ -64,7 +67,7 @@ __all__ = ["SAMPLER_VERSION", "SubsetLevel", "SubsetResult", "subset_simulation"
 
 #: Version of the chains' moves: the points a seed leads to change with it, so stored
 #: evaluations of another version are not reused (``campaign.certify``'s batch store).
-SAMPLER_VERSION = "acs-2"
+SAMPLER_VERSION = "acs-3"
 
 #: Target acceptance rate of the normal-coordinate moves (Papaioannou et al. 2015, §5:
 #: 0.44, the optimum of a one-dimensional random walk, which they found robust).
@@ -174,6 +177,16 @@ def _gamma(indicator: np.ndarray) -> float:
         r_k = float((indicator[:, :-k] * indicator[:, k:]).mean()) - p * p
         out += 2.0 * (1.0 - k / n_s) * r_k / r0
     return max(out, 0.0)
+
+
+#: Chains per adaptation group as a share of a level's chains (Papaioannou et al. 2015,
+#: §5: 0.1–0.2; 0.2 keeps a batch of runs at 10 for 50 chains).
+GROUP_SHARE = 0.2
+
+
+def _groups(n_c: int) -> int:
+    """Number of adaptation groups of *n_c* chains."""
+    return max(1, int(round(1.0 / GROUP_SHARE))) if n_c >= 5 else 1
 
 
 def _distinct(values: list) -> int:
@@ -287,35 +300,43 @@ def subset_simulation(g, sample_prior, n_dims: int, *, n: int = 500, p0: float =
         distinct = np.unique(z[starts], axis=0)
         spread_hat = (np.std(distinct, axis=0) if len(distinct) >= MIN_DISTINCT_SEEDS
                       else np.ones(n_dims))
-        cz, cnu, cy = z[starts].copy(), nu[starts].copy(), y[starts].copy()
-        chain_z, chain_nu, chain_y = [cz.copy()], [cnu.copy()], [cy.copy()]
+        st_z = np.empty((n_s, n_c, n_dims))
+        st_nu = np.empty((n_s, n_c), dtype=object)
+        st_y = np.empty((n_s, n_c))
+        st_z[0], st_nu[0], st_y[0] = z[starts], nu[starts], y[starts]
         moved = accepted = moved_nu = accepted_nu = 0
-        for step in range(1, n_s):
+        # groups of chains run one after the other, each with λ fixed over its steps and
+        # adapted after it from its acceptance (Papaioannou et al. 2015, §5): a chain's
+        # kernel never depends on its own states
+        for i_group, group in enumerate(np.array_split(np.arange(n_c), _groups(n_c)), 1):
             sigma = np.minimum(scale * spread_hat, 1.0)
             rho = np.sqrt(1.0 - sigma * sigma)
-            xi = rng.standard_normal(cz.shape)
-            which_nu = rng.random(n_c) < share_nu
-            cand_z = np.where(which_nu[:, None], cz, rho * cz + sigma * xi)
-            cand_nu = cnu.copy()
-            if redraw is not None:
-                fresh = redraw(rng, cnu)
-                cand_nu[which_nu] = fresh[which_nu]
-            cand_y = evaluate(cand_z, cand_nu)
-            evaluations += n_c
-            accept = cand_y >= b
-            cz = np.where(accept[:, None], cand_z, cz)
-            cnu = np.where(accept, cand_nu, cnu)
-            cy = np.where(accept, cand_y, cy)
-            chain_z.append(cz.copy())
-            chain_nu.append(cnu.copy())
-            chain_y.append(cy.copy())
-            n_move = int((~which_nu).sum())
-            a_move = int((accept & ~which_nu).sum())
-            moved, accepted = moved + n_move, accepted + a_move
-            moved_nu, accepted_nu = moved_nu + int(which_nu.sum()), accepted_nu + int(
-                (accept & which_nu).sum())
-        if moved:      # adapt λ for the next level (Papaioannou et al. 2015, §5)
-            scale *= math.exp(accepted / moved - TARGET_ACCEPTANCE)
+            cz, cnu, cy = st_z[0, group].copy(), st_nu[0, group].copy(), st_y[0, group].copy()
+            g_moved = g_accepted = 0
+            for step in range(1, n_s):
+                xi = rng.standard_normal(cz.shape)
+                which_nu = rng.random(len(group)) < share_nu
+                cand_z = np.where(which_nu[:, None], cz, rho * cz + sigma * xi)
+                cand_nu = cnu.copy()
+                if redraw is not None:
+                    fresh = redraw(rng, cnu)
+                    cand_nu[which_nu] = fresh[which_nu]
+                cand_y = evaluate(cand_z, cand_nu)
+                evaluations += len(group)
+                accept = cand_y >= b
+                cz = np.where(accept[:, None], cand_z, cz)
+                cnu = np.where(accept, cand_nu, cnu)
+                cy = np.where(accept, cand_y, cy)
+                st_z[step, group], st_nu[step, group], st_y[step, group] = cz, cnu, cy
+                g_moved += int((~which_nu).sum())
+                g_accepted += int((accept & ~which_nu).sum())
+                moved_nu += int(which_nu.sum())
+                accepted_nu += int((accept & which_nu).sum())
+            moved, accepted = moved + g_moved, accepted + g_accepted
+            if g_moved:
+                scale = math.exp(math.log(scale) + (g_accepted / g_moved - TARGET_ACCEPTANCE)
+                                 / math.sqrt(i_group))
+        chain_nu = list(st_nu)
         diag.append(SubsetLevel(
             threshold=b, conditional=p_i, probability=p_prod, gamma=gamma,
             cov=math.sqrt(d2), ess=n / (1.0 + gamma),
@@ -323,10 +344,10 @@ def subset_simulation(g, sample_prior, n_dims: int, *, n: int = 500, p0: float =
             acceptance_nuisance=accepted_nu / moved_nu if moved_nu else math.nan,
             scale=scale, seeds=n_seeds, distinct_nuisance=_distinct(chain_nu)))
         # states of chain c at step s are at s·n_c + c: the chains' states interleaved
-        z = np.concatenate(chain_z)
-        nu = np.concatenate(chain_nu)
-        y = np.concatenate(chain_y)
-        chains_y = np.stack(chain_y, axis=1)          # (n_c, n_s)
+        z = st_z.reshape(n_s * n_c, n_dims)
+        nu = st_nu.reshape(n_s * n_c)
+        y = st_y.reshape(n_s * n_c)
+        chains_y = st_y.T                              # (n_c, n_s)
 
     # -- the last level: g ≥ 1 if any point reached it, else the highest level reached ----
     reached = bool((y >= 1.0).any())
