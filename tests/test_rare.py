@@ -158,3 +158,11 @@ def test_deterministic_for_a_seed_and_refuses_bad_options():
         subset_simulation(g, _normal_prior(2), 2, n=105, seed=9)
     with pytest.raises(ValueError, match="nuisance_share"):
         subset_simulation(g, _normal_prior(2), 2, n=100, nuisance_share=1.0)
+
+
+def test_certify_refuses_a_level_cap_out_of_range(tmp_path, capsys):
+    from campaign.cli import main
+
+    assert main(["certify", str(tmp_path), "--sampling", "100", "--max-levels", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--max-levels 0" in err and "[1, 30]" in err
