@@ -49,7 +49,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["AMC_25_1309_BUDGETS_PER_FH", "ASSUMPTIONS", "DEFAULT_FAULT_RATES_PER_FH",
-           "HAZARD_COLUMNS", "hazard_table", "meets"]
+           "HAZARD_COLUMNS", "hazard_table", "meets", "report_section"]
 
 #: Occurrence rate of each actuator fault mode per flight hour [1/FH], the default of
 #: ``[requirements] fault_rate_per_fh``. Estimates (est.): one order of magnitude for a
@@ -193,3 +193,14 @@ def _total(per_fault: list[dict], detector: str, level: float) -> dict:
             "meets": meets(bound),
             "late_or_missed": sum(r["late_or_missed"] for r in per_fault),
             "in_time_per_fh_upper95": in_time, "level": level}
+
+
+def report_section(hazard: pd.DataFrame | None) -> str:
+    """The report's HTML section of a hazard table (:func:`reports.hazard_section.
+    hazard_section` with the AMC 25.1309 budgets and :data:`ASSUMPTIONS`); empty for None
+    (``certify`` has not run)."""
+    if hazard is None:
+        return ""
+    from reports.hazard_section import hazard_section
+
+    return hazard_section(hazard, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)

@@ -560,24 +560,11 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
                          requirements=data.requirements, runs=data.runs, figures=figures,
                          notes=data.notes, warnings=data.warnings,
                          certificate=CampaignDir(camp.root).read_certificate())
-    return _with_hazard_section(page, CampaignDir(camp.root).read_hazard())
+    from reports.hazard_section import insert_section
 
+    from .hazard import report_section    # "Hazard per flight hour", when certified
 
-def _with_hazard_section(page: str, hazard) -> str:
-    """*page* with the section "Hazard per flight hour" (:func:`reports.hazard_section.
-    hazard_section`) placed before the runs' drill-down, when ``certify`` wrote a hazard
-    table (*hazard* not None)."""
-    if hazard is None:
-        return page
-    from reports.hazard_section import hazard_section
-
-    from .hazard import AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS
-
-    section = hazard_section(hazard, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)
-    anchor = '<section id="runs">'
-    if anchor in page:
-        return page.replace(anchor, section + anchor, 1)
-    return page.replace("</body>", section + "</body>", 1)
+    return insert_section(page, report_section(CampaignDir(camp.root).read_hazard()))
 
 
 # ---- show ----------------------------------------------------------------------------------

@@ -13,7 +13,7 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-__all__ = ["hazard_section"]
+__all__ = ["hazard_section", "insert_section"]
 
 
 def _e(x) -> str:
@@ -56,3 +56,14 @@ def hazard_section(hazard: pd.DataFrame, budgets: Mapping[str, float],
             "most severe category whose budget the bound does not exceed.</p>" + table
             + "<p>Assumptions:</p><ul>" + "".join(f"<li>{_e(a)}</li>" for a in assumptions)
             + "</ul></section>")
+
+
+def insert_section(page: str, section: str) -> str:
+    """*page* with *section* placed before the runs' drill-down (``<section id="runs">``),
+    or before ``</body>`` without one; *page* itself when *section* is empty."""
+    if not section:
+        return page
+    anchor = '<section id="runs">'
+    if anchor in page:
+        return page.replace(anchor, section + anchor, 1)
+    return page.replace("</body>", section + "</body>", 1)

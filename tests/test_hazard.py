@@ -153,17 +153,17 @@ def test_certify_writes_and_prints_the_hazard_table(tmp_path, capsys):
 
 
 def test_the_report_section_lists_every_row_and_assumption():
-    from campaign.hazard import ASSUMPTIONS
-    from campaign.report import _with_hazard_section
-    from reports.hazard_section import hazard_section
+    from campaign.hazard import ASSUMPTIONS, report_section
+    from reports.hazard_section import hazard_section, insert_section
 
     results, plan = _results()
     table = hazard_table(results, plan, {"runaway": 1e-6, "solid_jam": 2e-6})
     section = hazard_section(table, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)
+    assert section == report_section(table)
     assert section.count("<tr") == 1 + len(table)
     assert "false alarm" in section and "all faults (undetected)" in section
     assert all(html.escape(a) in section for a in ASSUMPTIONS)
     page = '<html><body><section id="runs">runs</section></body></html>'
-    placed = _with_hazard_section(page, table)
+    placed = insert_section(page, section)
     assert placed.index('id="hazard"') < placed.index('id="runs"')
-    assert _with_hazard_section(page, None) == page
+    assert insert_section(page, report_section(None)) == page
