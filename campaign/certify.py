@@ -25,7 +25,10 @@ detector (result-row name, variants apart):
   (:mod:`campaign.rare`) over the campaign's run variables, simulated through the runner's
   pipeline on the local workers or a dask cluster, resumable (:func:`sample_fa_probability`).
 
-Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`).
+Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`), beside
+``DIR/certificate-hazard.parquet``, the hazard per flight hour of both sides (false alarms,
+undetected faults; :mod:`campaign.hazard`), and, with ``sampling``, the levels of every
+subset simulation in ``DIR/sampling/levels.parquet``.
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ CERTIFICATE_COLUMNS: tuple[str, ...] = (
     "fa_per_hour_evt_upper95", "worst_margin", "evt_k", "evt_u", "evt_shape", "evt_scale",
     "evt_gof_pvalue", "evt_note", "sampling_runs", "sampling_prob", "sampling_lower95",
     "sampling_upper95", "sampling_cov", "sampling_levels", "sampling_note",
+    "sampling_reached_level", "sampling_reached_prob",
 )
 
 #: Flight-point columns of the run table that an ``mc`` design samples in the envelope box
@@ -135,7 +139,8 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95) 
             if g["margin"].notna().any() else math.nan, **evt,
             "sampling_runs": 0, "sampling_prob": math.nan, "sampling_lower95": math.nan,
             "sampling_upper95": math.nan, "sampling_cov": math.nan, "sampling_levels": 0,
-            "sampling_note": "",
+            "sampling_note": "", "sampling_reached_level": math.nan,
+            "sampling_reached_prob": math.nan,
         })
     out = pd.DataFrame(rows, columns=list(CERTIFICATE_COLUMNS))
     for c in ("n_runs", "fa_count", "evt_k", "sampling_runs", "sampling_levels"):
@@ -194,13 +199,17 @@ class _BatchStore:
                       self.config_json, kind="certify-sampling-batch", batch=b)
 
 
-def _work_name(name: str, n: int, seed: int, level: float, max_levels: int) -> str:
+def _work_name(name: str, n: int, seed: int, level: float) -> str:
     """Directory of one detector's subset simulation under ``DIR/sampling/``: the detector
-    name made file-safe and the options that decide its runs (a change starts afresh)."""
+    name made file-safe and what decides its runs — the options and the sampler's version
+    (a change starts afresh). The level cap is not among them: its levels are those of a
+    lower cap, so raising it goes on from the stored batches."""
     import hashlib
 
+    from .rare import SAMPLER_VERSION
+
     safe = "".join(ch if ch.isalnum() or ch in "-_.=" else "_" for ch in name)
-    key = hashlib.sha256(f"{name}|{n}|{seed}|{level!r}|{max_levels}".encode()).hexdigest()
+    key = hashlib.sha256(f"{name}|{n}|{seed}|{level!r}|{SAMPLER_VERSION}".encode()).hexdigest()
     return f"{safe}-{key[:12]}"
 
 
@@ -210,7 +219,7 @@ SAMPLING_DIR: str = "sampling"
 
 
 def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: int = 500,
-                          p0: float = 0.1, max_levels: int = 6, level: float = 0.95,
+                          p0: float = 0.1, max_levels: int = 12, level: float = 0.95,
                           seed: int = 0, jobs: int = 2, scheduler: str | None = None,
                           tls=None, log=None, progress=None) -> dict:
     """P(margin ≥ 1) of each result-row detector name in *names* by subset simulation
@@ -282,6 +291,13 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
         nu[:] = [(int(j), next(counter)) for j in man]
         return z, nu, admissible(values(z))
 
+    def new_stream(rng, nu):
+        """The chains' nuisance move: a fresh noise stream, the manoeuvre kept (streams are
+        i.i.d. under the prior, so this independence proposal is reversible)."""
+        out = np.empty(len(nu), dtype=object)
+        out[:] = [(j, next(counter)) for j, _ in nu]
+        return out
+
     work = Path(directory) / SAMPLING_DIR
     setup, detectors = prepare(config, work / "runner", jobs=jobs, scheduler=scheduler,
                                tls=tls, fitted_from=directory, log=progress)
@@ -293,7 +309,7 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
             if label is None:
                 continue
             owned = {label: detectors[label]}
-            store = _BatchStore(work / _work_name(name, n, seed, level, max_levels),
+            store = _BatchStore(work / _work_name(name, n, seed, level),
                                 config.to_json())
             most = n * (max_levels + 1)
             state = {"batch": 0, "done": 0, "simulated": 0, "t0": time.perf_counter()}
@@ -339,16 +355,75 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
             log(f"sampling {name}: subset simulation, {n} runs per level")
             out[name] = subset_simulation(g, sample_prior, len(cols), n=n, p0=p0,
                                           max_levels=max_levels, confidence=level,
-                                          seed=seed, log=log)
+                                          seed=seed, redraw=new_stream, log=log)
     finally:
         setup.close()
     return out
 
 
+def fill_sampling_columns(cert: pd.DataFrame, found: dict, *, seed: int, n: int) -> None:
+    """Write the ``sampling_*`` columns of *cert* from :func:`sample_fa_probability`'s
+    results *found*: when margin 1 was reached, P̂(margin ≥ 1) and its bounds; otherwise
+    no estimate of it (NaN), the level reached and its probability
+    (``sampling_reached_level``, ``sampling_reached_prob``) with its bounds, whose upper
+    one bounds P(margin ≥ 1) too; the note says which, with the chains' diagnostics."""
+    for name, r in found.items():
+        i = cert.index[cert["detector"] == name][0]
+        cert.loc[i, ["sampling_prob", "sampling_lower95", "sampling_upper95", "sampling_cov",
+                     "sampling_reached_level", "sampling_reached_prob"]] = [
+            r.probability, r.lower if r.reached else math.nan, r.upper, r.cov,
+            r.reached_level, r.reached_probability]
+        cert.loc[i, ["sampling_runs", "sampling_levels"]] = [r.evaluations, len(r.levels)]
+        cert.loc[i, "sampling_note"] = sampling_note(r, seed=seed, n=n)
+
+
+def sampling_note(r, *, seed: int, n: int) -> str:
+    """The certificate's words on one subset simulation *r*: what it estimated, and its
+    chains' diagnostics (acceptance per level, the effective sample sizes, δ)."""
+    acc = ", ".join(f"{d.acceptance:.2f}" for d in r.diagnostics if d.acceptance == d.acceptance)
+    ess = min((d.ess for d in r.diagnostics), default=math.nan)
+    streams = [d.distinct_nuisance for d in r.diagnostics if d.distinct_nuisance]
+    head = (f"subset simulation, seed {seed}, {n} runs per level, p0 = 0.1, "
+            f"{len(r.levels)} levels, {r.evaluations} runs; acceptance per level {acc}; "
+            f"smallest effective sample size {ess:.0f}; δ = {r.cov:.2f}"
+            + (f"; distinct (manoeuvre, noise stream) pairs at the last level "
+               f"{streams[-1]} of {n}" if streams else ""))
+    if r.reached:
+        return head
+    if not math.isfinite(r.reached_level):
+        return head + "; no sampled run could be evaluated: no estimate"
+    return (head + f"; margin 1 not reached: the highest level reached is {r.reached_level:.4g}"
+            f" with P(margin ≥ {r.reached_level:.4g}) ≈ {r.reached_probability:.3g}, "
+            f"≤ {r.upper:.3g}, which bounds P(margin ≥ 1) from above"
+            + (" (the chains stopped climbing: no run above the last level)"
+               if r.stalled else "; more levels (--max-levels) would go further"))
+
+
+#: File under :data:`SAMPLING_DIR` with the levels of every sampled detector.
+SAMPLING_LEVELS_FILE = "levels.parquet"
+
+
+def write_sampling_levels(directory, found: dict, config_json: str) -> None:
+    """``DIR/sampling/levels.parquet``: one row per sampled detector × level with its
+    threshold, conditional probability, probability, γ, δ, effective sample size,
+    acceptance rates, proposal scale and seeds (:meth:`campaign.rare.SubsetResult.to_pandas`)."""
+    from pathlib import Path
+
+    from .files import write_parquet
+
+    frames = [r.to_pandas().assign(detector=name) for name, r in found.items()]
+    if not frames:
+        return
+    out = pd.concat(frames, ignore_index=True)
+    out = out[["detector", *[c for c in out.columns if c != "detector"]]]
+    write_parquet(out, Path(directory) / SAMPLING_DIR / SAMPLING_LEVELS_FILE, config_json,
+                  kind="certify-sampling-levels")
+
+
 # ---- the command -----------------------------------------------------------------------------
 def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
             seed: int = 0, detectors=None, scheduler: str | None = None, tls=None,
-            log=print, progress=None) -> pd.DataFrame:
+            log=print, progress=None, max_levels: int = 12) -> pd.DataFrame:
     """Certificate of a finished campaign directory (module docstring); writes
     ``DIR/certificate.parquet`` and returns it.
 
@@ -359,6 +434,7 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
     outside (0.5, 1), ``sampling`` below 20 or not a multiple of 10, ``jobs`` below 1 or an
     unknown detector name."""
+    from .hazard import hazard_table
     from .report import load_campaign
     from .storage import CampaignDir
 
@@ -370,6 +446,9 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
                         "must be a multiple of 10 and ≥ 20 (p0 = 0.1), e.g. --sampling 500")
     if int(jobs) < 1:
         problems.append(f"--jobs {jobs!r}: must be ≥ 1, e.g. --jobs 2")
+    if not 1 <= int(max_levels) <= 30:
+        problems.append(f"--max-levels {max_levels!r}: levels of the subset simulation after "
+                        "the first, in [1, 30] (p0 = 0.1: 12 reach 1e-12), e.g. --max-levels 12")
     if problems:
         raise CertifyError("; ".join(problems))
     loaded = load_campaign(directory)
@@ -394,18 +473,13 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
                                       list(detectors or names), n=int(sampling),
                                       level=float(level), seed=seed, jobs=int(jobs),
                                       scheduler=scheduler, tls=tls, log=log,
-                                      progress=progress)
-        for name, r in found.items():
-            i = cert.index[cert["detector"] == name][0]
-            cert.loc[i, ["sampling_prob", "sampling_lower95", "sampling_upper95",
-                         "sampling_cov"]] = [r.probability, r.lower, r.upper, r.cov]
-            cert.loc[i, ["sampling_runs", "sampling_levels"]] = [r.evaluations, len(r.levels)]
-            cert.loc[i, "sampling_note"] = (
-                f"subset simulation, seed {seed}, {int(sampling)} runs per level, p0 = 0.1"
-                + ("" if r.reached else f"; margin 1 not reached in {len(r.levels)} levels"
-                   + (" (the chains stopped climbing)" if r.stalled else "")
-                   + ": the estimate is incomplete, its upper bound indicative only"))
+                                      progress=progress, max_levels=int(max_levels))
+        fill_sampling_columns(cert, found, seed=int(seed), n=int(sampling))
+        write_sampling_levels(loaded.root, found, loaded.config.to_json())
+    hazard = hazard_table(loaded.results, loaded.plan,
+                          dict(loaded.config.requirements.fault_rate_per_fh), float(level))
     cdir = CampaignDir(loaded.root)
     with cdir.locked():
         cdir.write_certificate(cert, loaded.config.to_json(), sampling_seed=int(seed))
+        cdir.write_hazard(hazard, loaded.config.to_json())
     return cert

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks"]
+__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks", "format_hazard",
+           "format_sampling"]
 
 
 def cmd_certify(args) -> int:
@@ -17,12 +18,14 @@ def cmd_certify(args) -> int:
     try:
         cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
                        seed=args.seed, detectors=args.detector, scheduler=args.scheduler,
-                       log=lambda msg: print(msg, flush=True))
+                       log=lambda msg: print(msg, flush=True), max_levels=args.max_levels)
     except KeyboardInterrupt:
         print(f"fdd-campaign: interrupted; the sampled batches done so far are kept under "
               f"{Path(args.dir) / 'sampling'}/: the same command goes on from them")
         return EXIT_INTERRUPTED
     print(format_certificate(cert))
+    print(format_sampling(cert))
+    print(format_hazard_of(args.dir))
     print(f"certificate written to {Path(args.dir) / 'certificate.parquet'}; the report "
           "shows it: "
           f"fdd-campaign report {args.dir}")
@@ -91,3 +94,52 @@ def add_evidence_parsers(subs, sub) -> None:
                         "repeat for more; default all)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the subset simulation (default 0)")
+    p.add_argument("--max-levels", type=int, default=12, metavar="L",
+                   help="levels of the subset simulation after the first before it reports "
+                        "the highest level reached instead of margin 1 (default 12: down to "
+                        "about 1e-12 per run; raising it goes on from the stored batches)")
+
+
+# ---- the subset simulations' outcome and the hazard table (docs/evidence.md) ----------------
+def format_sampling(cert) -> str:
+    """One paragraph per sampled detector: what its subset simulation estimated and its
+    chains' diagnostics (the certificate's ``sampling_note``); empty without --sampling."""
+    rows = [r for r in cert.to_dict(orient="records") if r["sampling_runs"]]
+    return "\n".join(f"{r['detector']}: {r['sampling_note']}" for r in rows)
+
+
+def format_hazard_of(directory) -> str:
+    """:func:`format_hazard` of the hazard table ``certify`` wrote into *directory*."""
+    from .storage import CampaignDir
+
+    hazard = CampaignDir(directory).read_hazard()
+    return "" if hazard is None else format_hazard(hazard)
+
+
+def format_hazard(hazard) -> str:
+    """The hazard per flight hour as a terminal table: per detector, each fault type's
+    missed detections and undetected-fault rate, their total, and the false alarms, each
+    bound set against the AMC 25.1309 budgets; then the assumptions."""
+    from .hazard import AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS
+
+    def g(x):
+        return "n/a" if x != x else f"{x:.3g}"
+
+    budgets = ", ".join(f"{k} ≤ {v:g}" for k, v in AMC_25_1309_BUDGETS_PER_FH.items())
+    level = float(hazard["level"].iloc[0]) if len(hazard) else 0.95
+    lines = [f"Hazard per flight hour (both sides; AMC 25.1309 budgets /FH: {budgets})",
+             f"{'detector':24s} {'fault':14s} {'runs':>5s} {'missed':>6s} {'P bound':>9s} "
+             f"{'rate /FH':>9s} {'per FH':>9s} {'bound /FH':>9s} {'meets':>12s} "
+             f"{'in time':>9s}"]
+    for r in hazard.to_dict(orient="records"):
+        fault = "false alarm" if r["fault"] == "none" else r["fault"]
+        lines.append(f"{r['detector']:24s} {fault:14s} {r['n_runs']:5d} {r['events']:6d} "
+                     f"{g(r['p_run_upper95']):>9s} {g(r['rate_per_fh']):>9s} "
+                     f"{g(r['per_fh']):>9s} {g(r['per_fh_upper95']):>9s} {r['meets']:>12s} "
+                     f"{g(r['in_time_per_fh_upper95']):>9s}")
+    lines.append(f"bounds one-sided at {100 * level:g} % (fault rates as given); 'all': "
+                 "undetected faults of every type; 'meets': the most severe category whose "
+                 "budget the bound does not exceed; 'in time': the bound when a detection "
+                 "after the required time counts as undetected. Assumptions:")
+    lines.extend(f"  - {a}" for a in ASSUMPTIONS)
+    return "\n".join(lines)

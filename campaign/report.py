@@ -575,11 +575,16 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
         "engine version": camp.meta.get("engine_version"),
         "report written (UTC)": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
     }
-    return render_report(meta=meta, summary=camp.summary, gate=data.gate,
+    page = render_report(meta=meta, summary=camp.summary, gate=data.gate,
                          requirements=data.requirements, runs=data.runs, figures=figures,
                          notes=data.notes, warnings=data.warnings,
                          certificate=CampaignDir(camp.root).read_certificate(),
                          all_requirements=data.all_requirements, detectors=data.detectors)
+    from reports.hazard_section import insert_section
+
+    from .hazard import report_section    # "Hazard per flight hour", when certified
+
+    return insert_section(page, report_section(CampaignDir(camp.root).read_hazard()))
 
 
 # ---- show ----------------------------------------------------------------------------------

@@ -120,7 +120,8 @@ def campaign_identity(config: dict) -> dict:
 #: ``runs/`` and ``fitted/``).
 MANIFEST_TOP_FILES: tuple[str, ...] = ("campaign.json", "plan.parquet", "learning.parquet",
                                        "summary.parquet", "detection-times.parquet",
-                                       "fitted-origin.json", "certificate.parquet")
+                                       "fitted-origin.json", "certificate.parquet",
+                                       "certificate-hazard.parquet")
 
 
 def identity_sha256(config_json: str) -> str:
@@ -152,6 +153,7 @@ class CampaignDir:
         self.summary_path = self.root / "summary.parquet"
         self.detection_times_path = self.root / "detection-times.parquet"
         self.certificate_path = self.root / "certificate.parquet"
+        self.hazard_path = self.root / "certificate-hazard.parquet"
         self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
@@ -599,6 +601,18 @@ class CampaignDir:
         if not self.certificate_path.exists():
             return None
         return pd.read_parquet(self.certificate_path)
+
+    def write_hazard(self, hazard: pd.DataFrame, config_json: str) -> None:
+        """Write ``certificate-hazard.parquet``, the hazard per flight hour
+        (:func:`campaign.hazard.hazard_table`, written by ``certify``)."""
+        self._write_recorded(self.hazard_path, lambda: write_parquet(
+            hazard, self.hazard_path, config_json, kind="certificate-hazard"))
+
+    def read_hazard(self) -> pd.DataFrame | None:
+        """The stored hazard table, or None when ``certify`` has not made one."""
+        if not self.hazard_path.exists():
+            return None
+        return pd.read_parquet(self.hazard_path)
 
     def write_report(self, page: str, path=None) -> Path:
         """Write the HTML report *page* to *path* (default ``report.html`` here)."""

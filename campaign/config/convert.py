@@ -92,6 +92,7 @@ class _Check:
     def __init__(self, spec: Key, name: str, value: Any, path: str, errors: list[str],
                  default: Any):
         self.spec, self.name, self.path, self.errors = spec, name, path, errors
+        self.default = default
         self.got = f"got {type_word(value)} {short(value)}"
         self.fix = f"fix: e.g. {name} = {toml_value(example_value(spec, default))}"
 
@@ -233,7 +234,11 @@ def _to_number_table(c: _Check, value: Any) -> Any:
                      f"{toml_value(c.spec.example or {'h_max_s': 0.005})}")
     ok = True
     for k, x in value.items():
-        if not is_number(x):
+        if c.spec.choices and k not in c.spec.choices:
+            c.errors.append(f"{c.path}.{k}: unknown name {k!r}{suggest(k, c.spec.choices)}; "
+                            f"allowed: {', '.join(c.spec.choices)}")
+            ok = False
+        elif not is_number(x):
             c.errors.append(f"{c.path}.{k}: expected a number, got {type_word(x)} "
                             f"{short(x)}; fix: e.g. {k} = 1.0")
             ok = False
@@ -241,7 +246,12 @@ def _to_number_table(c: _Check, value: Any) -> Any:
             c.errors.append(f"{c.path}.{k}: {num(x)} is out of range; allowed: "
                             f"{range_text(c.spec, k) or 'a finite number'}")
             ok = False
-    return tuple(sorted((k, float(x)) for k, x in value.items())) if ok else BAD
+    if not ok:
+        return BAD
+    # a table of fixed names (choices): the entries given replace the default's
+    merged = dict(c.default or ()) if c.spec.choices else {}
+    merged.update((k, float(x)) for k, x in value.items())
+    return tuple(sorted(merged.items()))
 
 
 _CONVERTERS: dict[str, Callable[[_Check, Any], Any]] = {

@@ -26,6 +26,8 @@ from scenarios.catalog import (
 
 from scenarios.faults import SOLID_JAM_VARIANTS
 
+from ..hazard import DEFAULT_FAULT_RATES_PER_FH
+
 from .keys import key, sub_table, thaw
 
 __all__ = [
@@ -377,6 +379,13 @@ class RequirementsSection:
                              lo=0.0, hi=1.0)
     max_dtp: float = key("float", "gate: highest accepted detection time performance "
                          "(delay / required time)", 1.0, lo=0.0, lo_open=True)
+    fault_rate_per_fh: tuple[tuple[str, float], ...] = key(
+        "number_table", "occurrence rate of each actuator fault mode per flight hour, for "
+        "the hazard table of `fdd-campaign certify` (rate of undetected faults per flight "
+        "hour, docs/evidence.md); entries given replace the defaults, 0 for a mode that "
+        "cannot occur", tuple(sorted(DEFAULT_FAULT_RATES_PER_FH.items())), unit="1/FH",
+        lo=0.0, hi=1.0, choices=FAULT_TYPES, example={"runaway": 1e-6},
+        source="est. (campaign.hazard.DEFAULT_FAULT_RATES_PER_FH)")
     detection_window_s: float | None = key("float", "a fault counts as detected only within "
                                            "this time after onset", unit="s", lo=0.0,
                                            lo_open=True, hi=600.0, optional=True,
