@@ -24,7 +24,7 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
 
 # ---- commands ------------------------------------------------------------------------------
 def _overridden(config, args):
-    """*config* with the command line's --seed, --plant and --manoeuvres."""
+    """*config* with the command line's --seed, --plant, --manoeuvres and --turbulence."""
     from . import config as cfg
 
     if args.seed is not None:
@@ -48,6 +48,8 @@ def _overridden(config, args):
         config = cfg.with_overrides(config, values=values)
     if getattr(args, "manoeuvres", None) is not None:
         config = cfg.with_overrides(config, values={"manoeuvres.set": args.manoeuvres})
+    if getattr(args, "turbulence", None) is not None:
+        config = cfg.with_overrides(config, values={"plant.turbulence": args.turbulence})
     return config
 
 
@@ -430,11 +432,16 @@ def _sub(subs, name, help_, example, func):
 
 def _manoeuvres_option(p) -> None:
     from scenarios.catalog import MANOEUVRE_SETS
+    from scenarios.turbulence import LEVELS
 
     p.add_argument("--manoeuvres", choices=MANOEUVRE_SETS,
                    help="manoeuvre set (overrides [manoeuvres] set): normal operations, or "
                         "stress (turns rolled in at 15 deg/s, amplitudes at their high end; "
                         "docs/physics.md §7)")
+    p.add_argument("--turbulence", choices=tuple(LEVELS),
+                   help="aircraft plant: the Dryden turbulence it flies in (overrides [plant] "
+                        "turbulence; none: calm air, as the ADDSAFE runs of [CHEN]; "
+                        "docs/physics.md §7.2)")
 
 
 def _add_run_parsers(subs) -> None:

@@ -128,3 +128,20 @@ def test_report_resimulates_an_aircraft_campaign_on_its_plant(tmp_path):
     page = build_report(out, jobs=1, log=lambda _: None).read_text()
     assert "reproduce the stored ones of all 4 runs (largest difference 0.0e+00)" in page
     assert 'class="warn"' not in page
+
+
+def test_turbulence_option_of_plan_and_run(tmp_path, capsys):
+    """``--turbulence none`` sets [plant] turbulence (docs/physics.md §7.2): written into the
+    campaign the plan records; on the actuator plant it is refused before any work
+    (exit code 2, the key and the fix named)."""
+    from campaign.storage import read_metadata
+
+    out = tmp_path / "calm"
+    assert main(["plan", "chen-mc", "--turbulence", "none", "--out", str(out)]) == 0
+    config = read_metadata(out / "plan.parquet")["config"]
+    assert config["plant"]["turbulence"] == "none"
+    bad = tmp_path / "bad"
+    assert main(["plan", "smoke", "--turbulence", "none", "--out", str(bad)]) == 2
+    assert ("plant.turbulence: only used with kind = \"aircraft\"; fix: remove it or set "
+            "[plant] kind = \"aircraft\"") in capsys.readouterr().err
+    assert not bad.exists()
