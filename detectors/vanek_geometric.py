@@ -131,19 +131,27 @@ def _discrete(gen: geo.ResidualGenerator, ts: float) -> _Filter:
     return _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=g / float(g @ g))
 
 
-def _model(point: dict):
-    """(A, B) of the design model at a flight point (arrays of one run): the nominal aircraft
-    model with the two elevators moving in unison, as in [VANEK] §4.2, so that a left
-    elevator's direction is half the symmetric elevator column (pitch and lift only). The
-    simulated aircraft also rolls under an asymmetric elevator pair (docs/physics.md §7): that
-    part of a left-elevator fault is not in the design model and reaches the residual
-    (docs/vanek-geometric.md)."""
+#: Design models of :func:`_model` (parameter ``design_model``): ``"aircraft"`` the plant's own
+#: surface layout, each elevator's lift acting ``elevator_arm_m`` off the plane of symmetry
+#: (docs/physics.md §7.3); ``"unison"`` the two elevators moving in unison as in [VANEK]
+#: §4.2 (elevator arm 0), kept as an ablation: its left elevator has pitch and lift only, and
+#: the roll of an asymmetric elevator pair leaks into the residual (docs/vanek-geometric.md).
+DESIGN_MODELS = ("aircraft", "unison")
+
+
+def _model(point: dict, design_model: str = "aircraft"):
+    """(A, B) of the design model at a flight point (arrays of one run) on the surface
+    layout *design_model* (:data:`DESIGN_MODELS`)."""
     import dataclasses
 
     from scenarios.aircraft import lpv
     from scenarios.aircraft.data import LAYOUT
 
-    m = lpv.run_models(point, np.zeros(1), layout=dataclasses.replace(LAYOUT, elevator_arm_m=0.0))
+    if design_model not in DESIGN_MODELS:
+        raise ValueError(f"design_model {design_model!r}: one of {list(DESIGN_MODELS)}")
+    layout = LAYOUT if design_model == "aircraft" else dataclasses.replace(LAYOUT,
+                                                                          elevator_arm_m=0.0)
+    m = lpv.run_models(point, np.zeros(1), layout=layout)
     return m.A[0], m.B[0]
 
 
@@ -178,12 +186,14 @@ def gust_sideslip_direction(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
-                  radius: float = 20.0) -> tuple[geo.ResidualGenerator, _Filter]:
+                  radius: float = 20.0, design_model: str = "aircraft"
+                  ) -> tuple[geo.ResidualGenerator, _Filter]:
     """The geometric filter at *point* (``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``,
-    ``tas_ms`` arrays of one element), continuous and discretised at *ts* [s]. Input order
-    of the discrete filter: the known surfaces of :func:`_columns` [rad], then
-    :data:`OUTPUTS` [rad, rad/s]."""
-    A, B = _model(point)
+    ``tas_ms`` arrays of one element) on the design model *design_model*
+    (:data:`DESIGN_MODELS`), continuous and discretised at *ts* [s]. Input order of the
+    discrete filter: the known surfaces of :func:`_columns` [rad], then :data:`OUTPUTS`
+    [rad, rad/s]."""
+    A, B = _model(point, design_model)
     _, _, known = _columns()
     C = _output_matrix()
     L1, L2 = _fault_columns(A, B, decouple_gusts)
@@ -207,7 +217,8 @@ AFFINE_BOX = AffineBox(vcas_kt=(160.0, 300.0), alt_ft=(8000.0, 38000.0))
 AFFINE_SCHEDULE = ("vcas_kt", "alt_ft")
 
 
-def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct):
+def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct,
+                 design_model: str = "aircraft"):
     """The aircraft model affine in VCAS [kt] and altitude [ft] ([VANEK] §5):
     [A, B](v, h) = K0 + v·Kv + h·Kh, fitted by least squares on the exact models of the
     realistic (VCAS, altitude) points of the envelope (``scenarios.envelope``) at *mass_t*
@@ -220,7 +231,7 @@ def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct)
 
     pts = envelope.realistic_points()
     pts = pts[pts["realistic"]][list(AFFINE_SCHEDULE)].drop_duplicates().to_numpy(float)
-    models = [_model(_point(v, h, mass_t, cg_pct)) for v, h in pts]
+    models = [_model(_point(v, h, mass_t, cg_pct), design_model) for v, h in pts]
     AB = np.array([np.hstack(m) for m in models])                    # (k, n, n + m)
     X = np.column_stack([np.ones(len(pts)), pts])                    # [1, v, h]
     coef = np.linalg.lstsq(X, AB.reshape(len(pts), -1), rcond=None)[0]
@@ -254,17 +265,43 @@ def _fault_columns(A, B, decouple_gusts: bool):
 
 
 def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
-                  radius: float = 20.0):
-    """The ``lpv-affine`` filter family ([VANEK] §5): the aircraft model affine in VCAS and
-    altitude (:func:`affine_model`, at [VANEK]'s 200 t and 30 % CG), the LPV construction of
-    :func:`detectors.geometric.design_lpv` at the four corners of :data:`AFFINE_BOX` (S* is the
-    same at every point; one output injection for the box). Returns a function
-    θ → (the continuous residual generator, the :class:`_Filter` discretised at *ts*), θ the
-    values of :data:`AFFINE_SCHEDULE` (clipped to the box)."""
-    model, _ = affine_model()
+                  radius: float = 20.0, design_model: str = "aircraft"):
+    """The ``lpv-affine`` filter family ([VANEK] §5) on the aircraft model affine in VCAS and
+    altitude (:func:`affine_model`, at [VANEK]'s 200 t and 30 % CG, surface layout
+    *design_model* of :data:`DESIGN_MODELS`). Returns a function θ → (the continuous residual
+    generator, the :class:`_Filter` discretised at *ts*), θ the values of
+    :data:`AFFINE_SCHEDULE` (clipped to :data:`AFFINE_BOX`).
+
+    ``"unison"``: [VANEK] §5's construction, :func:`detectors.geometric.design_lpv` at the
+    four corners of the box (S* the same at every point, checked; S*, P, H, M fixed, one
+    output injection for the box).
+
+    ``"aircraft"``: that construction has no solution. The left elevator's column of B turns
+    with the flight point (its α : q : p proportions), so the smallest unobservability
+    subspace containing the elevator's direction at *every* point of the box — what a
+    parameter-independent S* must contain — has dimension 5 and contains the aileron's
+    direction (measured at the four corners, also without the gust direction). S* (dimension
+    3) is therefore computed at each θ from the affine model, with its own output injection
+    (the LMI of eq. 3–4 at that θ): the filter is exact for the affine model at every θ, but
+    no longer affine in θ (a run's flight point is constant here, so it is designed once per
+    run, like ``lpv``)."""
+    model, _ = affine_model(design_model=design_model)
     C = _output_matrix()
     _, _, known = _columns()
     ranges = [getattr(AFFINE_BOX, k) for k in AFFINE_SCHEDULE]
+
+    def clipped(theta):
+        return model(*[float(np.clip(t, *r)) for t, r in zip(theta, ranges)])
+
+    if design_model == "aircraft":
+        def at(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
+            A, B = clipped(theta)
+            L1, L2 = _fault_columns(A, B, decouple_gusts)
+            gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
+                             names1=[FAULT_SURFACE])
+            return gen, _discrete(gen, ts)
+
+        return at
     corners = np.array(np.meshgrid(*ranges, indexing="ij")).reshape(len(ranges), -1).T
     As, L1s, L2s = [], [], []
     for theta in corners:
@@ -273,16 +310,16 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
         As.append(A); L1s.append(L1); L2s.append(L2)
     fam = geo.design_lpv(As, C, L1s, L2s, decay=decay, radius=radius, names1=[FAULT_SURFACE])
 
-    def at(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
-        A, B = model(*[float(np.clip(t, *r)) for t, r in zip(theta, ranges)])
+    def at_common(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
+        A, B = clipped(theta)
         L1, L2 = _fault_columns(A, B, decouple_gusts)
         gen = fam.at(A, B[:, known], L1, L2)
         return gen, _discrete(gen, ts)
 
-    return at
+    return at_common
 
 
-def one_step_design(point: dict, ts: float):
+def one_step_design(point: dict, ts: float, design_model: str = "unison"):
     """The one-step H∞ FDI filter of [VANEK] §3 (:func:`detectors.vanek_hinf.one_step_filter`)
     at *point*, and its discretisation as a :class:`_Filter` on the inputs of
     :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
@@ -290,7 +327,7 @@ def one_step_design(point: dict, ts: float):
     filter ignores the measured θ. The gust sideslip reaches the β output directly (the
     sensor reads the air-relative sideslip). Noise: the aircraft sensors' σ and the rods'
     (0.03 mm over the lever arm) for the known surfaces; the spoiler angle is known exactly
-    (a small σ keeps the problem regular)."""
+    (a small σ keeps the problem regular). *design_model*: :data:`DESIGN_MODELS`."""
     from scenarios.aircraft import lpv
     from scenarios.aircraft.data import LAYOUT
     from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
@@ -298,7 +335,7 @@ def one_step_design(point: dict, ts: float):
 
     from .vanek_hinf import ONE_STEP, one_step_filter, sensor_sigmas
 
-    A, B = _model(point)
+    A, B = _model(point, design_model)
     i1, i2, known = _columns()
     keep = [j for j, name in enumerate(lpv.STATES) if name != "theta"]
     outs = [o for o in OUTPUTS if o != "theta"]
@@ -350,6 +387,10 @@ class VanekGeometric(Detector):
         Largest filter pole modulus [rad/s] (> decay; well below π/Ts for the bilinear map).
     decouple_gusts : bool
         Also decouple the lateral gust direction (module docstring).
+    design_model : str
+        Surface layout of the design model (:data:`DESIGN_MODELS`): ``"aircraft"`` (default,
+        the simulated aircraft's, elevator arm included) or ``"unison"`` (the elevators in
+        unison as in [VANEK] §4.2; an ablation that does not isolate the left elevator's roll).
     smoothing_s : float
         Time constant of the low-pass on r̂ [s] (≥ 0; 0: none).
     variants : sequence of str
@@ -375,6 +416,11 @@ class VanekGeometric(Detector):
         Param("radius", "float", gt="decay", unit="rad/s", doc="largest filter pole modulus "
               "(well below π/Ts for the bilinear map)", source="[VANEK] eq. 3–4; value est."),
         Param("decouple_gusts", "bool", doc="also decouple the gust sideslip direction e_β"),
+        Param("design_model", "choice", choices=DESIGN_MODELS,
+              doc="surface layout of the design model: aircraft = the simulated aircraft's "
+              "(elevator arm included, docs/physics.md §7.3); unison = the elevators in unison "
+              "(ablation: the left elevator's roll leaks into the residual)",
+              source="[VANEK] §4.2 (unison); docs/physics.md §7.3 (aircraft)"),
         Param("smoothing_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
               "r̂ (0: none); stands for the band limit of [VANEK] §5"),
         Param("variants", "choices", choices=VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS,
@@ -386,7 +432,7 @@ class VanekGeometric(Detector):
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light"):
+                 threshold_tail="light", design_model="aircraft"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
@@ -398,6 +444,7 @@ class VanekGeometric(Detector):
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
         self.threshold_tail = threshold_tail
+        self.design_model = design_model
 
     def validate_params(self) -> None:
         """The declared checks (:attr:`parameters`), then that the optional variants of
@@ -421,19 +468,35 @@ class VanekGeometric(Detector):
             raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
 
     # ---- design ------------------------------------------------------------------------
+    def _layout(self) -> str:
+        """The design model (:data:`DESIGN_MODELS`) the filters are built on: the one the
+        thresholds were learned with (``design_model_``) once fitted, else the parameter. A
+        detector fitted before the parameter existed (learned thresholds, no
+        ``design_model_``) was fitted on the unison model and keeps it, so a campaign
+        directory of that version resumes with the filters its thresholds belong to."""
+        learned = vars(self)
+        if "design_model_" in learned:
+            return learned["design_model_"]
+        return "unison" if "thresholds_deg_" in learned else self.design_model
+
     def _design(self, point: dict, ts: float, kind: str = "geometric") -> _Filter:
         """The discretised filter of *kind* at *point* (cached): ``"geometric"`` (the
         variants lti and lpv), ``"lti-hinf"`` or ``"one-step"``."""
         cache = self.__dict__.setdefault("_cache", {})
-        key = (kind, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
-                                                  for k in sorted(point))
+        layout = self._layout()
+        key = (kind, layout, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+                                                          for k in sorted(point))
         if key in cache:
             return cache[key]
         if kind == "one-step":
-            f = one_step_design(point, ts)[1]
+            # on the unison model whatever design_model says: on the aircraft's layout the
+            # synthesis returns a filter whose closed loop exceeds its γ (measured peak 0.49
+            # against γ = 0.186 at the LTI design point), so it is not a valid H∞ design
+            f = one_step_design(point, ts, "unison")[1]
         else:
             gen, f = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
-                                   decay=float(self.decay), radius=float(self.radius))
+                                   decay=float(self.decay), radius=float(self.radius),
+                                   design_model=layout)
             if kind == "lti-hinf":
                 from .vanek_hinf import cascade, post_filter, sensor_sigmas
 
@@ -447,11 +510,14 @@ class VanekGeometric(Detector):
         """The ``lpv-affine`` filter at θ (:data:`AFFINE_SCHEDULE`; family and filters
         cached)."""
         cache = self.__dict__.setdefault("_cache", {})
-        fam_key = ("affine-family", round(float(ts), 9))
+        layout = self._layout()
+        fam_key = ("affine-family", layout, round(float(ts), 9))
         if fam_key not in cache:
             cache[fam_key] = design_affine(ts, decouple_gusts=self.decouple_gusts,
-                                           decay=float(self.decay), radius=float(self.radius))
-        key = ("affine", round(float(ts), 9)) + tuple(round(float(t), 6) for t in theta)
+                                           decay=float(self.decay), radius=float(self.radius),
+                                           design_model=layout)
+        key = ("affine", layout, round(float(ts), 9)) + tuple(round(float(t), 6)
+                                                              for t in theta)
         if key not in cache:
             cache[key] = cache[fam_key](*theta)[1]
         return cache[key]
@@ -535,6 +601,7 @@ class VanekGeometric(Detector):
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
+        self.design_model_ = str(self.design_model)     # the model the thresholds belong to
         est = self.estimates(signals)
         # each variant is scored on its own, so each is calibrated at the full target
         self.thresholds_deg_, calibration = {}, {}

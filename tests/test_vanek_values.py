@@ -91,10 +91,11 @@ def _plain_inputs(sig, monitored):
     return np.stack(cols, axis=2)
 
 
-def _design_model(point):
-    """(A, B, C) of the design model: the elevators in unison (no elevator roll arm),
-    outputs q, θ, β, p, r, φ."""
-    layout = dataclasses.replace(LAYOUT, elevator_arm_m=0.0)
+def _design_model(point, design_model="aircraft"):
+    """(A, B, C) of the design model: the simulated aircraft's layout, or the elevators in
+    unison (no elevator roll arm), outputs q, θ, β, p, r, φ."""
+    layout = LAYOUT if design_model == "aircraft" else dataclasses.replace(LAYOUT,
+                                                                          elevator_arm_m=0.0)
     m = lpv.run_models(point, np.zeros(1), layout=layout)
     C = np.zeros((6, lpv.N_STATES))
     for i, o in enumerate(OUTPUTS):
@@ -182,7 +183,8 @@ def test_documented_constants_and_defaults():
         "safety": 1.5, "confirm_s": 0.05, "decay": 0.5, "radius": 20.0,
         "decouple_gusts": True, "smoothing_s": 2.0, "variants": ("lti", "lpv"),
         "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
-        "threshold_tail": "light"}
+        "threshold_tail": "light", "design_model": "aircraft"}
+    assert vg.DESIGN_MODELS == ("aircraft", "unison")
     with pytest.raises(dataclasses.FrozenInstanceError):
         vg.NOMINAL.vcas_kt = 250.0
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -213,17 +215,23 @@ def test_columns_output_matrix_and_flight_point():
     assert p["tas_ms"] == pytest.approx(tas_ms(np.array([0.5]), np.array([20000.0])), rel=1e-12)
 
 
-def test_design_model_moves_the_elevators_in_unison():
+def test_design_model_is_the_aircrafts_and_the_ablation_moves_the_elevators_in_unison():
     point = _point(*POINTS[0])
-    A, B = vg._model(point)
-    A_ref, B_ref, _ = _design_model(point)
+    left, right = LAYOUT.names.index("left_elevator"), LAYOUT.names.index("right_elevator")
+    plant = lpv.run_models(point, np.zeros(1))
+    A, B = vg._model(point)                      # default: the simulated aircraft's layout
+    np.testing.assert_array_equal(A, plant.A[0])
+    np.testing.assert_array_equal(B, plant.B[0])
+    p = lpv.STATES.index("p")
+    assert B[p, left] == -B[p, right] != 0.0      # an asymmetric elevator pair rolls it
+    A, B = vg._model(point, "unison")
+    A_ref, B_ref, _ = _design_model(point, "unison")
     np.testing.assert_array_equal(A, A_ref)
     np.testing.assert_array_equal(B, B_ref)
-    left, right = LAYOUT.names.index("left_elevator"), LAYOUT.names.index("right_elevator")
     np.testing.assert_allclose(B[:, left], B[:, right], rtol=1e-12, atol=0.0)
-    # no roll from an elevator in the design model; the simulated aircraft has one
-    assert B[lpv.STATES.index("p"), left] == 0.0
-    assert lpv.run_models(point, np.zeros(1)).B[0][lpv.STATES.index("p"), left] != 0.0
+    assert B[p, left] == 0.0                      # no roll from an elevator in the ablation
+    with pytest.raises(ValueError, match="design_model 'both'"):
+        vg._model(point, "both")
 
 
 def test_fault_directions_and_the_gust_sideslip_check():
@@ -388,8 +396,23 @@ def _affine_family():
     return vg.design_affine(TS)
 
 
-def test_design_affine_is_the_corner_lmi_family_clipped_to_the_box():
+def test_design_affine_on_the_aircraft_is_designed_at_each_point_clipped_to_the_box():
     model, _ = vg.affine_model()
+    C = _design_model(_point(*POINTS[0]))[2]
+    at = _affine_family()
+    for theta, inside in (((230.0, 20000.0), (230.0, 20000.0)),
+                          ((400.0, 50000.0), (300.0, 38000.0))):
+        A, B = model(*inside)
+        L1, L2 = _directions(A, B)
+        ref = geo.design(A, B[:, _known_columns()], C, L1, L2, decay=0.5, radius=20.0)
+        gen, f = at(*theta)
+        for name in ("N", "G", "F", "H", "M"):
+            np.testing.assert_allclose(getattr(gen, name), getattr(ref, name), rtol=0.0,
+                                       atol=1e-7 * np.abs(getattr(ref, name)).max())
+
+
+def test_design_affine_unison_is_the_corner_lmi_family_clipped_to_the_box():
+    model, _ = vg.affine_model(design_model="unison")
     corners = [(160.0, 8000.0), (160.0, 38000.0), (300.0, 8000.0), (300.0, 38000.0)]
     As, L1s, L2s = [], [], []
     for c in corners:
@@ -398,7 +421,7 @@ def test_design_affine_is_the_corner_lmi_family_clipped_to_the_box():
         As.append(A); L1s.append(L1); L2s.append(L2)
     C = _design_model(_point(*POINTS[0]))[2]
     fam = geo.design_lpv(As, C, L1s, L2s, decay=0.5, radius=20.0)
-    at = _affine_family()
+    at = vg.design_affine(TS, design_model="unison")
     for theta, inside in (((230.0, 20000.0), (230.0, 20000.0)),
                           ((400.0, 50000.0), (300.0, 38000.0)),
                           ((100.0, 1000.0), (160.0, 8000.0))):
@@ -561,7 +584,7 @@ def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch):
     point = _point(*POINTS[0])
     vg.one_step_design(point, TS)
     A, B, C, outs, i1, i2, known, gusts, sig_y, sig_u, ts = seen["args"]
-    A_full, B_full, _ = _design_model(point)
+    A_full, B_full, _ = _design_model(point, "unison")     # the one-step filter's model
     keep = [j for j, s in enumerate(lpv.STATES) if s != "theta"]
     np.testing.assert_array_equal(A, A_full[np.ix_(keep, keep)])
     np.testing.assert_array_equal(B, B_full[keep])
