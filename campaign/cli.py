@@ -89,8 +89,11 @@ def _verdict(config, result) -> str:
     from reports.gate import evaluate_gate
 
     req, done = config.requirements, result.results["run_id"].nunique()
+    from .isolation import isolation_of
+
     gate = evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
                          detector_max_fa=dict(req.detector_max_fa_rate),
+                         isolation=isolation_of(config),
                          coverage=(done if not result.results.empty else 0, len(result.plan)))
     if gate.passed:
         return (f"verdict: the gate passes (all {len(gate.checks)} checks); next: "
@@ -201,6 +204,8 @@ def _gate_one(directory, args):
 
     from .runner import load_results
 
+    from .isolation import isolation_of_stored
+
     results, summary, meta = load_results(directory)
     req = (meta.get("config") or {}).get("requirements", {})
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
@@ -214,7 +219,8 @@ def _gate_one(directory, args):
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
                            detector_max_fa=allowances, allow_errors=args.allow_errors,
                            coverage=coverage,
-                           allow_incomplete=args.allow_incomplete, results=results)
+                           allow_incomplete=args.allow_incomplete, results=results,
+                           isolation=isolation_of_stored(meta.get("config")))
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .cli_evidence import fa_probability_checks
 

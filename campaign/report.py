@@ -34,6 +34,7 @@ from reports.metrics import FAULT_FREE
 from reports.table import error_lines
 
 from .config import CampaignConfig
+from .isolation import isolation_of
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .fitted import compare_fitted
 from .evidence_report import evidence_figure_specs
@@ -397,7 +398,8 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float) ->
     req = _requirements(camp.config)
     gate = evaluate_gate(camp.summary, max_fa=req["max_fa_rate"], max_md=req["max_md_rate"],
                          max_dtp=req["max_dtp"],
-                         detector_max_fa=req["detector_max_fa_rate"])
+                         detector_max_fa=req["detector_max_fa_rate"],
+                         isolation=isolation_of(camp.config))
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "

@@ -405,7 +405,10 @@ class VanekGeometric(Detector):
         (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     """
 
-    capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
+    #: an aileron filter, blind to the left elevator and the rudder: an alarm on their faults
+    #: is an isolation failure (docs/vanek-geometric.md, "Isolation in the gate")
+    capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True,
+                                fault_surfaces=(FAULT_SURFACE,))
 
     parameters = (
         Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free |r̂| "
