@@ -18,6 +18,7 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
     UsageError,
     check_writable,
 )
+from .isolation import isolation_of, isolation_of_stored
 
 
 def _err(msg: str) -> None:
@@ -84,16 +85,12 @@ def _run_campaign(config, out, args):
 
 
 def _verdict(config, result) -> str:
-    """One line: would ``fdd-campaign gate`` (the campaign file's false-alarm limit) pass on
-    this result, and the command to run next."""
+    """One line: the verdict of ``fdd-campaign gate`` on this result, and what to run next."""
     from reports.gate import evaluate_gate
 
-    req, done = config.requirements, result.results["run_id"].nunique()
-    from .isolation import isolation_of
-
+    req, done, iso = config.requirements, result.results["run_id"].nunique(), isolation_of(config)
     gate = evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
-                         detector_max_fa=dict(req.detector_max_fa_rate),
-                         isolation=isolation_of(config),
+                         detector_max_fa=dict(req.detector_max_fa_rate), isolation=iso,
                          coverage=(done if not result.results.empty else 0, len(result.plan)))
     if gate.passed:
         return (f"verdict: the gate passes (all {len(gate.checks)} checks); next: "
@@ -204,8 +201,6 @@ def _gate_one(directory, args):
 
     from .runner import load_results
 
-    from .isolation import isolation_of_stored
-
     results, summary, meta = load_results(directory)
     req = (meta.get("config") or {}).get("requirements", {})
     max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
@@ -218,9 +213,8 @@ def _gate_one(directory, args):
                 else (int(meta.get("runs_done") or 0), int(meta["runs_planned"])))
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
                            detector_max_fa=allowances, allow_errors=args.allow_errors,
-                           coverage=coverage,
-                           allow_incomplete=args.allow_incomplete, results=results,
-                           isolation=isolation_of_stored(meta.get("config")))
+                           coverage=coverage, isolation=isolation_of_stored(meta.get("config")),
+                           allow_incomplete=args.allow_incomplete, results=results)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .cli_evidence import fa_probability_checks
 

@@ -2,15 +2,20 @@
 [VANEK] §2 and §5 on the aircraft plant level: ``vanek-geometric``.
 
 Design model: the rigid-body linear model of :mod:`scenarios.aircraft.lpv` (states α, q, θ,
-β, p, r, φ in rad) at a flight point, outputs y = (q, θ, β, p, r, φ) — the load factors are
-left out as in [VANEK] §5 (their direct feed-through complicates the synthesis). Fault
-directions ([VANEK] §5: "successive input directions from the B matrix"):
+β, p, r, φ in rad) at a flight point, on the simulated aircraft's surface layout (each
+elevator's lift acting 4.1 m off the plane of symmetry, docs/physics.md §7.3; parameter
+``design_model``, :data:`DESIGN_MODELS`, keeps [VANEK] §4.2's elevators in unison as an
+ablation), outputs y = (q, θ, β, p, r, φ) — the load factors are left out as in [VANEK] §5
+(their direct feed-through complicates the synthesis). Fault directions ([VANEK] §5:
+"successive input directions from the B matrix"):
 
 * L1 — the left inboard aileron's column of B (the fault to detect);
 * L2 — the left elevator's and the rudder's columns (the faults to isolate from), and, with
   ``decouple_gusts``, the gust sideslip's direction e_β (the β output is the air-relative
-  sideslip: :func:`gust_sideslip_direction`; the gust angle of attack acts along the
-  short-period directions, already inside S*, so it is decoupled in any case).
+  sideslip: :func:`gust_sideslip_direction`). The gust angle of attack is decoupled only by
+  the unison model, whose S* holds the short-period directions; on the aircraft's layout S*
+  (dimension 3) does not hold it, and it cannot be added: S* holding the elevator, the
+  rudder, e_β and e_α contains L1 (docs/vanek-geometric.md).
 
 Known inputs u: the other surfaces' COM rod positions converted to deflections
 (δ = asin(x/r)), the spoilers' roll order and the left inboard aileron's *expected*
@@ -57,15 +62,24 @@ Variants (those chosen, all computed by one ``detect``; default ``lti`` and ``lp
 ``lpv-affine``
     the LPV filter of [VANEK] §5: the aircraft model affine in VCAS and altitude
     (:func:`affine_model`, least squares over the realistic envelope at [VANEK]'s 200 t and
-    30 % CG; largest fit error 9 % of the largest entry), S* the same at every point (checked),
-    so S*, P, H, M are fixed, the friend Ĝ(VCAS, h) is linear in A and the filter affine in
-    (VCAS, h); one output injection for the whole box :data:`AFFINE_BOX`, from the LMI of
-    eq. 3–4 at its four corners with a common X (quadratic stability in the box). The filter
-    of a run is this family at its measured VCAS and altitude (clipped to the box).
+    30 % CG; largest fit error 9 % of the largest entry). With the unison model S* is the
+    same at every point (checked), so S*, P, H, M are fixed, the friend Ĝ(VCAS, h) is linear
+    in A and the filter affine in (VCAS, h); one output injection for the whole box
+    :data:`AFFINE_BOX`, from the LMI of eq. 3–4 at its four corners with a common X
+    (quadratic stability in the box). On the aircraft's layout no parameter-independent S*
+    exists (:func:`design_affine`): S* and the injection are designed at each run's point of
+    the affine model. The filter of a run is this family at its measured VCAS and altitude
+    (clipped to the box).
 
-Thresholds ([VANEK] §5): τ = ``safety`` × the largest |r̂| over the fault-free learning
-runs, per variant; normalised residual |r̂|/τ; alarm once it has stayed ≥ 1 for
-``confirm_s``, then latched.
+Thresholds: per variant, calibrated to a per-run false-alarm target (``threshold_method =
+"evt"``, docs/thresholds.md) or ``safety`` × the largest |r̂| over the fault-free learning
+runs (``"max"``; the factor 1.5 of [VANEK] §5, which applies it to the residual's peak in the
+elevator runaway, 0.175 LTI and 0.105 LPV, not to fault-free runs); normalised residual
+|r̂|/τ; alarm once it has stayed ≥ 1 for ``confirm_s``, then latched.
+
+Isolation: :attr:`VanekGeometric.capabilities` declares the left inboard aileron as the
+surface whose faults it detects, so that in a campaign of another surface's faults an alarm
+is scored by the gate as an isolation failure (:mod:`campaign.isolation`).
 """
 
 from __future__ import annotations
@@ -378,7 +392,9 @@ class VanekGeometric(Detector):
     Parameters
     ----------
     safety : float
-        Threshold = safety × largest fault-free |r̂| of the learning set (> 1; [VANEK] §5: 1.5).
+        With ``threshold_method = "max"``: threshold = safety × largest fault-free |r̂| of
+        the learning set (> 1; 1.5 is [VANEK] §5's factor, which it applies to the elevator
+        runaway's residual peak instead).
     confirm_s : float
         Confirmation time [s] (≥ 0).
     decay : float
@@ -411,25 +427,27 @@ class VanekGeometric(Detector):
                                 fault_surfaces=(FAULT_SURFACE,))
 
     parameters = (
-        Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free |r̂| "
-              "over the learning set", source="[VANEK] §5"),
+        Param("safety", "float", gt=1.0, doc="threshold_method = max: threshold = safety × "
+              "the largest fault-free |r̂| over the learning set",
+              source="[VANEK] §5's factor 1.5, applied there to the elevator runaway's "
+              "residual peak"),
         Param("confirm_s", "float", ge=0.0, unit="s", doc="confirmation time"),
         Param("decay", "float", gt=0.0, unit="1/s", doc="decay rate imposed on the filter "
               "poles by the LMI", source="[VANEK] eq. 3–4; value est."),
         Param("radius", "float", gt="decay", unit="rad/s", doc="largest filter pole modulus "
               "(well below π/Ts for the bilinear map)", source="[VANEK] eq. 3–4; value est."),
         Param("decouple_gusts", "bool", doc="also decouple the gust sideslip direction e_β"),
-        Param("design_model", "choice", choices=DESIGN_MODELS,
-              doc="surface layout of the design model: aircraft = the simulated aircraft's "
-              "(elevator arm included, docs/physics.md §7.3); unison = the elevators in unison "
-              "(ablation: the left elevator's roll leaks into the residual)",
-              source="[VANEK] §4.2 (unison); docs/physics.md §7.3 (aircraft)"),
         Param("smoothing_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
               "r̂ (0: none); stands for the band limit of [VANEK] §5"),
         Param("variants", "choices", choices=VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS,
               doc="filters run by one detect; lti-hinf and one-step need the extra hinf",
               source="[VANEK] §3–5"),
         *THRESHOLD_PARAMS,
+        Param("design_model", "choice", choices=DESIGN_MODELS,
+              doc="surface layout of the design model: aircraft = the simulated aircraft's "
+              "(elevator arm included, docs/physics.md §7.3); unison = the elevators in unison "
+              "(ablation: the left elevator's roll leaks into the residual)",
+              source="[VANEK] §4.2 (unison); docs/physics.md §7.3 (aircraft)"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
