@@ -634,3 +634,24 @@ def test_runs_within_the_cache_resolution_share_one_design():
     assert len(det._cache) == 3                 # the affine family, its filter, the lpv one
     det.estimates(dataclasses.replace(sig, ts=TS + 2e-9))
     assert len(det._cache) == 6
+
+
+def test_the_design_model_the_thresholds_were_learned_with_is_kept():
+    """A fitted detector records its design model (``design_model_``) and detects with it;
+    one fitted before the parameter existed (learned thresholds, no ``design_model_``, as a
+    campaign directory of that version stores it) was fitted on the unison model and keeps
+    it, so its thresholds and filters stay together on a resume."""
+    sig = _signals()
+    aircraft = _fitted_max().fit(sig)
+    unison = _fitted_max(design_model="unison").fit(sig)
+    assert aircraft.design_model_ == "aircraft" and unison.design_model_ == "unison"
+    # the two designs differ on these signals (the elevator's roll, the gust α)
+    a, u = aircraft.estimates(sig), unison.estimates(sig)
+    assert np.abs(a["lpv"] - u["lpv"]).max() > 1e-3 * np.abs(u["lpv"]).max()
+    legacy = _fitted_max()                          # the default parameters of this version
+    vars(legacy).update({k: v for k, v in vars(unison).items()
+                         if k.endswith("_") and k != "design_model_"})
+    assert legacy._layout() == "unison"
+    for variant, r in legacy.estimates(sig).items():
+        np.testing.assert_array_equal(r, u[variant])
+    assert _fitted_max()._layout() == "aircraft"     # not fitted: the parameter
