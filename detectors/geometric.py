@@ -51,6 +51,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import threading
+import warnings
 
 import numpy as np
 
@@ -288,16 +289,14 @@ def _solve(prob, X, K, solver: str, what: str, times: int = 1):
     none). A solver failure is a :class:`GeometricDesignError` naming *what*.
 
     cvxpy warns "Solution may be inaccurate" whenever the solver stops at its reduced
-    tolerances (status ``optimal_inaccurate``). Here that happens at about one flight point
-    in four (of the 53 realistic points of the envelope, measured): the minimum-‖K‖ output
+    tolerances (status ``optimal_inaccurate``). On the aircraft model of ``vanek-geometric``
+    that happens at about one design in four (docs/vanek-geometric.md): the minimum-‖K‖ output
     injection puts the slowest filter pole exactly on the decay bound Re λ = −decay, a
     boundary optimum where Clarabel's last steps stall; other tolerances, iteration limits,
     equilibration or regularisation move the status between points without removing it. The
     design only uses G̃ = X⁻¹K, and :func:`_injection` checks its poles against the region
     (they are within 1e-5 of −decay when inaccurate): that check, not the warning, decides
     whether the design is used, so the warning is recorded as the status and not shown."""
-    import warnings
-
     import cvxpy as cp
 
     try:
