@@ -65,12 +65,13 @@ PAPER_JAM = {k: round(dtp * PAPER_REQUIRED_S / PAPER_STEP_S) * PAPER_STEP_S
 #: How the paper's delays in seconds are obtained (printed under the table).
 PAPER_DELAY_NOTE = (
     "[VANEK]'s delay in seconds is inferred, not printed: its simulation runs at a 0.01 s fixed "
-    "step (§5), so a delay is k × 0.01 s and DTP = k × 0.01 s / T. 0.00725 = 87/12000 and "
-    "0.00508 = 61/12000 rounded (0.0050833), i.e. T = 120 s (12000 steps; the [CHEN] Tables' "
-    "DTP are multiples of 1/12000 too): LTI 87 × 0.01 s = 0.87 s, LPV 61 × 0.01 s = 0.61 s. "
-    "T = 40 or 80 s fits the LTI value (29 or 58 steps) but no step count gives the LPV one; "
-    "120 s is the shortest T that fits both (240 s the next). Our DTP is over the campaign's "
-    "required time (2 s, est.): compare the seconds.")
+    "step (§5), so a delay is k × 0.01 s and DTP = k × 0.01 s / T, T the required time of its "
+    "specification, which it does not print. 0.00725 = 87/12000 exactly and 0.00508 is "
+    "61/12000 = 0.0050833 rounded, so both fit T = 120 s (12000 steps), the denominator of "
+    "every DTP of the [CHEN] Tables on the same ADDSAFE benchmark: LTI 87 × 0.01 s = 0.87 s, "
+    "LPV 61 × 0.01 s = 0.61 s. The two [VANEK] values alone do not fix T (e.g. 106.2 s with 77 "
+    "and 54 steps fits them too): the seconds are an inference. Our DTP is over the "
+    "campaign's required time (2 s, est.): compare the seconds.")
 
 #: Scoring settings: the campaign defaults at the aircraft plant level, 100 Hz.
 SETTINGS = ChunkSettings(ts=TS_S, pressure_sensor=False,
