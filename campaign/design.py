@@ -42,8 +42,11 @@ from .plant import run_actuator, run_surface
 #: laws' control distributions summed per run in a fixed order (a matrix product over the
 #: block made a run's gains, hence its samples, depend at round-off on the runs simulated
 #: beside it; docs/design.md §9); actuator-level runs are unchanged, aircraft-level runs
-#: move at round-off, amplified by the sensors' quantisation.
-MODEL_VERSION = "servo-3"
+#: move at round-off, amplified by the sensors' quantisation. servo-4: the aircraft plant
+#: measures the angle of attack (``Signals.aircraft["alpha"]``, the air-relative α of a vane,
+#: docs/physics.md §4), its noise drawn after every other sensor's: the other signals of a
+#: run are unchanged, bit for bit; actuator-level runs are unchanged.
+MODEL_VERSION = "servo-4"
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32
