@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from detectors import geometric as geo
-from detectors.vanek_geometric import (NOMINAL, VanekGeometric, _columns, _model,
+from detectors.vanek_geometric import (NOMINAL, OUTPUTS, VanekGeometric, _columns, _model,
                                        _output_matrix, _point, design_filter)
 from scenarios.aircraft import lpv
 from scenarios.aircraft.loop import simulate_aircraft
@@ -22,7 +22,7 @@ from scenarios.simulate import simulate, single_run
 OMEGA = np.logspace(-3, 2, 51)          # rad/s: below the spiral mode to beyond the filter
 
 
-_C = np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in ("q", "theta", "beta", "p", "r", "phi")]]
+_C = np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in OUTPUTS]]      # every state
 
 
 def _aircraft(point):
@@ -39,11 +39,13 @@ def _design(point, design_model="aircraft"):
 
 
 def _gust_feedthrough(j):
-    """Output feed-through of input j: the β sensor reads the air-relative sideslip
-    β + β_g (scenarios.aircraft.loop), so the gust sideslip reaches it directly."""
-    D = np.zeros((6, 1))
+    """Output feed-through of input j: the vanes read the air-relative sideslip β + β_g
+    and angle of attack α + α_g (scenarios.aircraft.loop), so the gusts reach them directly."""
+    D = np.zeros((len(OUTPUTS), 1))
     if j == lpv.I_GUST_BETA:
-        D[("q", "theta", "beta", "p", "r", "phi").index("beta"), 0] = 1.0
+        D[OUTPUTS.index("beta"), 0] = 1.0
+    if j == lpv.I_GUST_ALPHA:
+        D[OUTPUTS.index("alpha"), 0] = 1.0
     return D
 
 
@@ -57,30 +59,28 @@ def _leaks(gen, A, B, C):
                      for j in i2 + [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA]}
 
 
-@pytest.mark.parametrize("vcas, alt", [(NOMINAL.vcas_kt, NOMINAL.alt_ft), (170.0, 23000.0),
-                                       (200.0, 26000.0)])
-def test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft(vcas, alt):
-    """Designed on the simulated aircraft's layout (default ``design_model``), the filter is
-    exactly blind to the left elevator — its roll included (docs/physics.md §7.3) — the
-    rudder and the gusts of the aircraft itself, and sees the aileron. S* has dimension 3
-    (4 with the elevators in unison) and S* ∩ L1 = 0."""
-    point = _point(vcas, alt, 200.0, 30.0)
+@pytest.mark.parametrize("vcas, alt, mass, cg", [
+    (NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0), (170.0, 23000.0, 200.0, 30.0),
+    (200.0, 26000.0, 200.0, 30.0), (300.0, 8000.0, 120.0, 17.0), (160.0, 38000.0, 233.0, 41.0)])
+def test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft(vcas, alt, mass, cg):
+    """Designed on the simulated aircraft's layout (default ``design_model``) with the α vane
+    among the outputs (default ``aoa_sensor``), the filter is exactly blind to the left
+    elevator — its roll included (docs/physics.md §7.3) — the rudder and both gusts of the
+    aircraft itself, and sees the aileron, at points spanning the envelope's speed,
+    altitude, mass and CG. With every state measured S* is the span of L2: dimension 4, and
+    S* ∩ L1 = 0."""
+    point = _point(vcas, alt, mass, cg)
     gen, _ = design_filter(point, 0.01)
     A, B, C = _aircraft(point)
     Ad, Bd, _ = _design(point)
     assert np.array_equal(Ad, A) and np.array_equal(Bd, B)          # the plant's own model
-    assert gen.S.shape[1] == 3
+    assert gen.S.shape[1] == 4
     assert geo.intersection(gen.S, gen.L1).shape[1] == 0
     aileron, leaks = _leaks(gen, A, B, C)
-    # the vertical gust is not decoupled any more: with the elevators in unison it lay in S*
-    # (the longitudinal directions); with the elevator's roll, S* holding the elevator, the
-    # rudder, e_β and e_α contains the aileron (dimension 5), so only e_β is decoupled
-    # (measured: the gust angle of attack reaches the residual with 1.0–1.2 times the
-    # aileron's transfer)
-    assert leaks.pop(lpv.I_GUST_ALPHA) > 0.5 * aileron
+    assert set(leaks) == {*_columns()[1], lpv.I_GUST_BETA, lpv.I_GUST_ALPHA}
     for j, leak in leaks.items():
-        # exact decoupling: round-off only (measured ≤ 1.3e-12 of the aileron's transfer;
-        # model entries O(1), filter gains O(10))
+        # exact decoupling: round-off only (measured ≤ 1.1e-12 of the aileron's transfer at
+        # these five points; model entries O(1), filter gains O(10))
         assert leak < 1e-9 * aileron, (j, leak, aileron)
     assert np.linalg.norm(geo.dc_gain(gen)) > 1e-4
     eig = np.linalg.eigvals(gen.N)
@@ -90,7 +90,7 @@ def test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft(vcas, 
 @pytest.mark.parametrize("vcas, alt", [(NOMINAL.vcas_kt, NOMINAL.alt_ft), (170.0, 23000.0)])
 def test_unison_ablation_leaks_the_elevators_roll(vcas, alt):
     """The ablation ``design_model = "unison"`` ([VANEK] §4.2): decoupled exactly on its own
-    model (S* of dimension 4), but on the simulated aircraft a left elevator also rolls it,
+    model (S* of dimension 4 with α measured), but on the simulated aircraft a left elevator also rolls it,
     which that model leaves out: the elevator reaches the residual with 1.21 times the
     aileron's transfer (its rolling moment per degree is 1.21 times one aileron's); the
     rudder and the gusts stay decoupled (their columns are the same in both models)."""
@@ -145,7 +145,8 @@ def test_on_the_aircraft_layout_no_parameter_independent_s_star_exists():
     """Why ``lpv-affine`` designs S* per point on the aircraft layout: the left elevator's
     column turns with the flight point, and the smallest unobservability subspace holding
     the decoupled directions of the four corners of the box contains the aileron's
-    (dimension 5), so [VANEK] §5's fixed S* cannot be blind to the elevator there."""
+    (dimension 5, with α measured as without), so [VANEK] §5's fixed S* cannot be blind to
+    the elevator there."""
     from detectors.vanek_geometric import AFFINE_BOX, _fault_columns, affine_model
 
     model, _ = affine_model(design_model="aircraft")
@@ -166,12 +167,34 @@ def test_without_gust_decoupling_the_gust_reaches_the_residual():
     A, B, C = _design(point)
     i1, i2, _ = _columns()
     aileron = np.abs(gen.fault_to_residual(A, B, C, B[:, [i1]], OMEGA)).max()
-    gust = np.abs(gen.fault_to_residual(A, B, C, B[:, [lpv.I_GUST_BETA]], OMEGA,
-                                        D=_gust_feedthrough(lpv.I_GUST_BETA))).max()
-    assert gust > 1e-3 * aileron          # not decoupled: a sizeable transfer
+    for j in (lpv.I_GUST_BETA, lpv.I_GUST_ALPHA):
+        gust = np.abs(gen.fault_to_residual(A, B, C, B[:, [j]], OMEGA,
+                                            D=_gust_feedthrough(j))).max()
+        # not decoupled: a sizeable transfer (measured 22 and 15 times the aileron's, per rad)
+        assert gust > 1e-3 * aileron, j
     for j in i2:
         assert np.abs(gen.fault_to_residual(A, B, C, B[:, [j]], OMEGA)).max() < 1e-9 * aileron
-    assert gen.N.shape == (5, 5)          # S* one dimension smaller than with the gust
+    assert gen.N.shape == (5, 5)          # S* = span of the two surfaces' columns (C = I)
+
+
+def test_without_the_aoa_sensor_the_vertical_gust_reaches_the_residual():
+    """The ablation ``aoa_sensor = false`` (outputs q, θ, β, p, r, φ, the sensors before model
+    servo-4): S* of dimension 3 holds the elevator, the rudder and e_β, not e_α, and the
+    vertical gust reaches the residual with about the aileron's transfer (measured 1.0–1.2)."""
+    from detectors.vanek_geometric import design_outputs
+
+    assert design_outputs(False) == ("q", "theta", "beta", "p", "r", "phi")
+    point = _point(200.0, 26000.0, 200.0, 30.0)
+    gen, _ = design_filter(point, 0.01, aoa_sensor=False)
+    assert gen.S.shape[1] == 3 and gen.L2.shape[1] == 3
+    A, B = _model(point, "aircraft")
+    C = _output_matrix(False)
+    i1, i2, _ = _columns()
+    aileron = np.abs(gen.fault_to_residual(A, B, C, B[:, [i1]], OMEGA)).max()
+    gust = np.abs(gen.fault_to_residual(A, B, C, B[:, [lpv.I_GUST_ALPHA]], OMEGA)).max()
+    assert gust > 0.5 * aileron
+    for j in i2:
+        assert np.abs(gen.fault_to_residual(A, B, C, B[:, [j]], OMEGA)).max() < 1e-9 * aileron
 
 
 def test_actuator_level_signals_are_refused():
@@ -327,7 +350,7 @@ def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():
 
     point = _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0)
     gen, _ = design_filter(point, 0.01)
-    q = vh.post_filter(gen, vh.sensor_sigmas() * np.sqrt(0.01))
+    q = vh.post_filter(gen, vh.sensor_sigmas(OUTPUTS) * np.sqrt(0.01))
     # every pole slow enough for the bilinear map at Ts = 0.01 s, and stable
     eig = np.linalg.eigvals(q.A)
     assert np.all(eig.real < 0) and np.all(np.abs(eig) < 100.0)
@@ -360,22 +383,25 @@ def test_fault_free_residual_floor_at_the_default_sensor_noise():
     # enter as measured. Referenced to their first (noisy) sample instead, each run carried
     # one noise sample (σ 0.02 °/s on p, r; 0.1 ° on β) through the filter's large DC gain
     # (13–21 ° of aileron-equivalent), and the spoiler angle rebuilt from the aileron order
-    # referenced to its first value a constant 0.3 ° of spoiler (1.4 ° at 170 kt). Measured
-    # with the aircraft's design model (the vertical gust not decoupled, see
-    # test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft): LPV
-    # 0.35–1.20 °, LTI 0.35–2.04 ° (0.13–0.27 ° and 0.13–0.99 ° with the unison model).
-    # Bounds: 1.5 ° for the LPV variants, 2.5 ° for LTI: above the campaign's default liquid
-    # jam (0.69 °) at the low-q̄ corner, which is why small jams are seen there only late
-    # or not at all (docs/vanek-geometric.md).
+    # referenced to its first value a constant 0.3 ° of spoiler (1.4 ° at 170 kt); α is
+    # referenced to θ's first sample (α0 = θ0 in level flight). Measured, nominal model
+    # (no Table-2 draws): with the α vane (both gusts decoupled) LPV 0.13–0.21 °, LPV-affine
+    # 0.12–0.25 °, LTI 0.18–1.04 ° (off its design point); without it (ablation, the
+    # vertical gust reaches r̂) LPV 0.35–1.20 °, LPV-affine 0.36–1.28 °, LTI 0.35–2.04 °.
+    # Bounds: 0.5 ° for the LPV variants (below the campaign's default liquid jam, 0.69 °,
+    # twice the measured peak: another noise realisation), 1.5 ° for LTI; the ablation's LPV
+    # peak above 1 ° (the vertical gust: what the α vane removes).
     rows = pd.concat([_rows("left_inboard_aileron", "none", 100 + i, v, h, duration_s=30.0)
                       for i, (v, h) in enumerate([(170.0, 23000.0), (240.0, 30000.0),
                                                   (280.0, 33000.0)])], ignore_index=True)
     rows["stream"] = np.arange(len(rows))
     sig, _ = simulate_aircraft(rows)                       # default aircraft sensors
-    bound = {"lti": 2.5, "lpv": 1.5, "lpv-affine": 1.5}
+    bound = {"lti": 1.5, "lpv": 0.5, "lpv-affine": 0.5}
     det = VanekGeometric(variants=("lti", "lpv", "lpv-affine"))
     for variant, r in det.estimates(sig).items():
         assert np.abs(r).max() < bound[variant], (variant, np.abs(r).max(axis=1))
+    r = VanekGeometric(variants=("lpv",), aoa_sensor=False).estimates(sig)["lpv"]
+    assert np.abs(r).max() > 1.0
 
 
 def test_one_step_hinf_filter_gamma_tracking_and_approximate_isolation():
@@ -418,8 +444,8 @@ def test_one_step_hinf_filter_gamma_tracking_and_approximate_isolation():
     # not decoupled: the rudder reaches f̂ with a gain of 62 per rad (measured), the elevator
     # only through the weak lateral-longitudinal terms (5e-6)
     assert max(leak) > 1e-3 * dc, leak
-    assert filt.Bd.shape[1] == len(known) + 6        # the detector's inputs, θ ignored
-    assert np.all(filt.Bd[:, len(known) + 1] == 0.0)
+    assert filt.Bd.shape[1] == len(known) + len(OUTPUTS)   # the detector's inputs, θ ignored
+    assert np.all(filt.Bd[:, len(known) + OUTPUTS.index("theta")] == 0.0)
 
 
 def test_vanek_comparison_lpv_detects_the_jam_first_and_the_elevator_is_isolated():
@@ -427,11 +453,12 @@ def test_vanek_comparison_lpv_detects_the_jam_first_and_the_elevator_is_isolated
     designed on the simulated aircraft: the left elevator runaway stays below every
     geometric filter's threshold ([VANEK]: 0.175 LTI, 0.105 LPV normalised peaks, below its
     thresholds 1.5 × those peaks), and the LPV filters detect the [VANEK]-size liquid jam
-    at 170 kt / 23 000 ft, before the LTI filter ([VANEK] DTP 0.00508 < 0.00725). Measured:
-    elevator runaway peaks 0.27 (LTI), 0.80 (LPV), 0.65 (LPV-affine) of the threshold; jam
-    alarms 3.4 s (LPV) and 3.8 s (LPV-affine) after onset, LTI none (peak 0.92 of its
-    threshold, 4.7 °: the vertical gust, no longer decoupled, raises the off-design floor).
-    The paper's delays in seconds are printed beside ours (0.87 s and 0.61 s, inferred)."""
+    at 170 kt / 23 000 ft, before the LTI filter ([VANEK] DTP 0.00508 < 0.00725). Measured
+    with the α vane (both gusts decoupled): elevator runaway peaks 0.37 (LTI), 0.50 (LPV),
+    0.70 (LPV-affine) of the threshold; jam alarms 1.55 s (LPV), 1.64 s (LPV-affine) and
+    3.23 s (LTI) after onset (without α: 3.4 s, 3.8 s and none, the vertical gust raising
+    every threshold). The paper's delays in seconds are printed beside ours (0.87 s and
+    0.61 s, inferred)."""
     from campaign.studies.vanek import PAPER_JAM, compare, format_table
 
     df = compare(1.0)
@@ -445,7 +472,7 @@ def test_vanek_comparison_lpv_detects_the_jam_first_and_the_elevator_is_isolated
         assert ff.loc[v, "peak_over_threshold"] < 1.0
     for v in ("lpv", "lpv-affine"):
         assert 0.0 < jam.loc[v, "delay_s"] < 10.0
-        assert not jam.loc[v, "delay_s"] > jam.loc["lti", "delay_s"]    # NaN: LTI missed it
+        assert jam.loc[v, "delay_s"] < jam.loc["lti", "delay_s"]       # LTI detects it later
     # [VANEK]'s delays in seconds: 87 and 61 steps of 0.01 s (DTP × 120 s, inferred)
     assert PAPER_JAM == {"lti": pytest.approx(0.87), "lpv": pytest.approx(0.61),
                          "lpv-affine": pytest.approx(0.61)}
