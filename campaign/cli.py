@@ -20,6 +20,7 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
     check_writable,
     print_error,
 )
+from .isolation import isolation_of, isolation_of_stored
 
 
 # ---- commands ------------------------------------------------------------------------------
@@ -201,7 +202,7 @@ def _gate_one(directory, args):
                 else (int(meta.get("runs_done") or 0), int(meta["runs_planned"])))
     result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
                            detector_max_fa=allowances, allow_errors=args.allow_errors,
-                           coverage=coverage,
+                           coverage=coverage, isolation=isolation_of_stored(meta.get("config")),
                            allow_incomplete=args.allow_incomplete, results=results)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .cli_evidence import fa_probability_checks

@@ -62,11 +62,14 @@ def gate_of(config, result, *, all_requirements: bool = False):
     coverage (``fdd-campaign gate``), and with *all_requirements* its MD and DTP limits."""
     from reports.gate import evaluate_gate
 
+    from .isolation import isolation_of
+
     req, done = config.requirements, result.results["run_id"].nunique()
     return evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
                          max_md=req.max_md_rate if all_requirements else None,
                          max_dtp=req.max_dtp if all_requirements else None,
                          detector_max_fa=dict(req.detector_max_fa_rate),
+                         isolation=isolation_of(config),
                          coverage=(done if not result.results.empty else 0, len(result.plan)))
 
 

@@ -45,10 +45,12 @@ from .plant import run_actuator, run_surface
 #: move at round-off, amplified by the sensors' quantisation. servo-4: drawn onsets leave the
 #: fault's detection budget before the end of the run
 #: (:data:`scenarios.catalog.DETECTION_BUDGET_S`; the
-#: disconnection's onsets of every preset change), and the aircraft plant may fly in calm
-#: air (``[plant] turbulence``); the models themselves are unchanged.
+#: disconnection's onsets of every preset change), the aircraft plant may fly in calm
+#: air (``[plant] turbulence``), and it measures the angle of attack
+#: (``Signals.aircraft["alpha"]``, the air-relative α of a vane, docs/physics.md §4), its
+#: noise drawn after every other sensor's, so the other signals of a run are unchanged bit
+#: for bit; actuator-level runs are unchanged but for the onsets.
 MODEL_VERSION = "servo-4"
-
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32

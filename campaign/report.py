@@ -36,6 +36,7 @@ from reports.table import error_lines
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .fitted import compare_fitted
+from .isolation import isolation_of
 from .evidence_report import evidence_figure_specs
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
@@ -334,7 +335,8 @@ def campaign_gate(camp: LoadedCampaign, req: dict, *, all_requirements: bool = F
         camp.summary, max_fa=req["max_fa_rate"], results=camp.results,
         max_md=req["max_md_rate"] if all_requirements else None,
         max_dtp=req["max_dtp"] if all_requirements else None,
-        detector_max_fa=req["detector_max_fa_rate"], coverage=None if m.get(
+        detector_max_fa=req["detector_max_fa_rate"], isolation=isolation_of(camp.config),
+        coverage=None if m.get(
             "runs_planned") is None else (int(m.get("runs_done") or 0), int(m["runs_planned"])))
 
 

@@ -39,6 +39,11 @@ class Capabilities:
     #: reads the aircraft-level signals (Signals.aircraft, Signals.rods): campaigns must set
     #: [plant] kind = "aircraft" (detectors.compat)
     needs_aircraft: bool = False
+    #: the plant surfaces (names of the run rows' ``surface``) whose faults this detector
+    #: detects and isolates from every other surface's: in a campaign whose faults are on
+    #: another surface, an alarm after onset is an isolation failure, not a detection
+    #: (campaign.isolation, reports.gate). Empty: whatever surface the campaign monitors.
+    fault_surfaces: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -2,15 +2,25 @@
 [VANEK] §2 and §5 on the aircraft plant level: ``vanek-geometric``.
 
 Design model: the rigid-body linear model of :mod:`scenarios.aircraft.lpv` (states α, q, θ,
-β, p, r, φ in rad) at a flight point, outputs y = (q, θ, β, p, r, φ) — the load factors are
-left out as in [VANEK] §5 (their direct feed-through complicates the synthesis). Fault
+β, p, r, φ in rad) at a flight point, on the simulated aircraft's surface layout (each
+elevator's lift acting 4.1 m off the plane of symmetry, docs/physics.md §7.3; parameter
+``design_model``, :data:`DESIGN_MODELS`, keeps [VANEK] §4.2's elevators in unison as an
+ablation), outputs y = (α, q, θ, β, p, r, φ), every state, as [VANEK] §4.1's aircraft
+measures the aerodynamic angles (α, β) with the rates and attitudes — the load factors are
+left out as in [VANEK] §5 (their direct feed-through complicates the synthesis); parameter
+``aoa_sensor`` false leaves α out (the sensor set before model servo-4, an ablation). Fault
 directions ([VANEK] §5: "successive input directions from the B matrix"):
 
 * L1 — the left inboard aileron's column of B (the fault to detect);
 * L2 — the left elevator's and the rudder's columns (the faults to isolate from), and, with
-  ``decouple_gusts``, the gust sideslip's direction e_β (the β output is the air-relative
-  sideslip: :func:`gust_sideslip_direction`; the gust angle of attack acts along the
-  short-period directions, already inside S*, so it is decoupled in any case).
+  ``decouple_gusts``, the gust sideslip's direction e_β and the gust angle of attack's e_α
+  (the β and α outputs are the air-relative angles of the vanes:
+  :func:`gust_sideslip_direction`, :func:`gust_aoa_direction`). With C = I, S* is the span
+  of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/test_geometric.py). Without
+  α, e_α is decoupled only by the unison model, whose S* holds the short-period directions;
+  on the aircraft's layout S* (dimension 3) does not hold it, and it cannot be added: S*
+  holding the elevator, the rudder, e_β and e_α then has dimension 5 and contains L1
+  (docs/vanek-geometric.md).
 
 Known inputs u: the other surfaces' COM rod positions converted to deflections
 (δ = asin(x/r)), the spoilers' roll order and the left inboard aileron's *expected*
@@ -22,14 +32,11 @@ otherwise its COM rod. Spoilers: their equivalent aileron angle as applied,
 measurements, as in ``chen-global``). The runs start trimmed in straight, wings-level
 flight, so the filter starts at w = 0 with every signal taken as a perturbation from trim:
 the rates, the sideslip, the bank angle (:data:`ZERO_TRIM`) and the spoiler angle (zero at
-trim) as measured, the pitch attitude and the surfaces relative to their first sample.
-
-Two earlier input errors, each measured on fault-free runs: referencing the rates and the
-sideslip to their first, noisy, sample put one noise sample through the filter's large DC
-gain (13–21° of aileron-equivalent residual); reconstructing the spoiler angle from the
-aileron order, referenced to its first value, put a constant 0.3° of spoiler on the filter
-(1.4° at 170 kt), and from the other ailerons' rods (when another surface is monitored) their
-servo lag and authority limits (up to 1° of spoiler error, 2.7° in a rudder runaway).
+trim) as measured, the pitch attitude and the surfaces relative to their first sample, the
+angle of attack relative to the pitch attitude's first sample (α0 = θ0 in level flight; its
+own first sample would carry the vane's noise and the gust's α of that instant).
+(Two earlier input errors, referencing to first samples and rebuilding the spoiler angle
+from the orders, are measured in docs/vanek-geometric.md.)
 
 Filter: :func:`detectors.geometric.design` (W*, S*, P, H, M, Ĝ, LMI of eq. 3–4) then the
 bilinear transform at Ts ([VANEK] §5). Its residual r (one component per row of H) is
@@ -40,10 +47,8 @@ at Ts): the residual's direct feed-through −H y carries the sensors' white noi
 and [VANEK] §5 tracks the fault only in a limited band (T_id). This low-pass is a plain
 stand-in for that band limit, not the H∞ post-filter of [VANEK] §3.
 
-Sensitivity (measured, docs/vanek-geometric.md): at the default sensors the fault-free floor
-is 0.2–0.3° of aileron-equivalent for the LPV variant and up to about 1° for the LTI variant
-off its design point, so the [VANEK]-size liquid jam (3.35°) is detected by both, the
-campaign's default one (0.69°) by the LPV variant.
+Sensitivity (measured, docs/vanek-geometric.md): nominal fault-free floor 0.13–0.25° of
+aileron-equivalent (LPV), up to 1° (LTI off its design point); the β vane's noise sets it.
 
 Variants (those chosen, all computed by one ``detect``; default ``lti`` and ``lpv``):
 
@@ -57,15 +62,21 @@ Variants (those chosen, all computed by one ``detect``; default ``lti`` and ``lp
 ``lpv-affine``
     the LPV filter of [VANEK] §5: the aircraft model affine in VCAS and altitude
     (:func:`affine_model`, least squares over the realistic envelope at [VANEK]'s 200 t and
-    30 % CG; largest fit error 9 % of the largest entry), S* the same at every point (checked),
-    so S*, P, H, M are fixed, the friend Ĝ(VCAS, h) is linear in A and the filter affine in
-    (VCAS, h); one output injection for the whole box :data:`AFFINE_BOX`, from the LMI of
-    eq. 3–4 at its four corners with a common X (quadratic stability in the box). The filter
-    of a run is this family at its measured VCAS and altitude (clipped to the box).
+    30 % CG; largest fit error 9 % of the largest entry). With the unison model S* is the
+    same at every point (checked), so S*, P, H, M are fixed, the friend Ĝ(VCAS, h) is linear
+    in A and the filter affine in (VCAS, h); one output injection for the whole box
+    :data:`AFFINE_BOX`, from the LMI of eq. 3–4 at its four corners with a common X
+    (quadratic stability in the box). On the aircraft's layout no parameter-independent S*
+    exists (:func:`design_affine`): S* and the injection are designed at each run's point of
+    the affine model. The filter of a run is this family at its measured VCAS and altitude
+    (clipped to the box).
 
-Thresholds ([VANEK] §5): τ = ``safety`` × the largest |r̂| over the fault-free learning
-runs, per variant; normalised residual |r̂|/τ; alarm once it has stayed ≥ 1 for
-``confirm_s``, then latched.
+Thresholds: per variant, calibrated to a per-run false-alarm target (``"evt"``,
+docs/thresholds.md) or ``safety`` × the largest fault-free learning |r̂| (``"max"``; [VANEK]
+§5 applies its 1.5 to the elevator runaway's peak, 0.175 LTI, 0.105 LPV); alarm once |r̂|/τ
+has stayed ≥ 1 for ``confirm_s``, then latched. Isolation: :attr:`VanekGeometric.capabilities`
+declares the left inboard aileron, so that the gate scores an alarm on another surface's
+faults as an isolation failure (:mod:`campaign.isolation`).
 """
 
 from __future__ import annotations
@@ -90,8 +101,14 @@ AFFINE_VARIANTS = ("lpv-affine",)
 #: LTI filter followed by the H∞ post-filter of [VANEK] §3, and the one-step H∞ FDI filter
 #: of [VANEK] §3 designed at the same point, for comparison.
 HINF_VARIANTS = ("lti-hinf", "one-step")
-#: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §5.
-OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
+#: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §4.1 and §5
+#: (body rates, attitudes and the aerodynamic angles α, β; every state of the design model).
+OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")
+
+
+def design_outputs(aoa_sensor: bool = True) -> tuple[str, ...]:
+    """:data:`OUTPUTS`, or without α (*aoa_sensor* False: the sensors of model servo-3)."""
+    return OUTPUTS if aoa_sensor else tuple(o for o in OUTPUTS if o != "alpha")
 FAULT_SURFACE = "left_inboard_aileron"
 #: Outputs whose trim value is zero in the runs' trimmed, wings-level, straight flight
 #: (taken as measured, not relative to their first, noisy, sample).
@@ -131,19 +148,27 @@ def _discrete(gen: geo.ResidualGenerator, ts: float) -> _Filter:
     return _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=g / float(g @ g))
 
 
-def _model(point: dict):
-    """(A, B) of the design model at a flight point (arrays of one run): the nominal aircraft
-    model with the two elevators moving in unison, as in [VANEK] §4.2, so that a left
-    elevator's direction is half the symmetric elevator column (pitch and lift only). The
-    simulated aircraft also rolls under an asymmetric elevator pair (docs/physics.md §7): that
-    part of a left-elevator fault is not in the design model and reaches the residual
-    (docs/vanek-geometric.md)."""
+#: Design models of :func:`_model` (parameter ``design_model``): ``"aircraft"`` the plant's own
+#: surface layout, each elevator's lift acting ``elevator_arm_m`` off the plane of symmetry
+#: (docs/physics.md §7.3); ``"unison"`` the two elevators moving in unison as in [VANEK]
+#: §4.2 (elevator arm 0), kept as an ablation: its left elevator has pitch and lift only, and
+#: the roll of an asymmetric elevator pair leaks into the residual (docs/vanek-geometric.md).
+DESIGN_MODELS = ("aircraft", "unison")
+
+
+def _model(point: dict, design_model: str = "aircraft"):
+    """(A, B) of the design model at a flight point (arrays of one run) on the surface
+    layout *design_model* (:data:`DESIGN_MODELS`)."""
     import dataclasses
 
     from scenarios.aircraft import lpv
     from scenarios.aircraft.data import LAYOUT
 
-    m = lpv.run_models(point, np.zeros(1), layout=dataclasses.replace(LAYOUT, elevator_arm_m=0.0))
+    if design_model not in DESIGN_MODELS:
+        raise ValueError(f"design_model {design_model!r}: one of {list(DESIGN_MODELS)}")
+    layout = LAYOUT if design_model == "aircraft" else dataclasses.replace(LAYOUT,
+                                                                          elevator_arm_m=0.0)
+    m = lpv.run_models(point, np.zeros(1), layout=layout)
     return m.A[0], m.B[0]
 
 
@@ -158,6 +183,17 @@ def _columns():
     return i1, i2, known
 
 
+def _gust_direction(A, B, state: int, gust: int, name: str, symbol: str) -> np.ndarray:
+    """e_state, once checked that the gust input *gust* acts as B_g = A e_state."""
+    from scenarios.aircraft import lpv
+
+    b_g, a_s = B[:, gust], A[:, state]
+    if not np.allclose(b_g, a_s, rtol=1e-12, atol=1e-12 * np.abs(a_s).max()):
+        raise ValueError(f"the gust {name}'s column of B is not the {symbol} column of A: the "
+                         f"model's aerodynamics do not act on the air-relative {name}")
+    return np.eye(lpv.N_STATES)[:, state]
+
+
 def gust_sideslip_direction(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """The direction along which the gust sideslip β_g acts on the design model, whose β
     output is the *air-relative* sideslip β_a = β + β_g (:mod:`scenarios.aircraft.loop`).
@@ -169,24 +205,31 @@ def gust_sideslip_direction(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     design model keeps (A, B, C) and decouples e_β."""
     from scenarios.aircraft import lpv
 
-    e_beta = np.eye(lpv.N_STATES)[:, lpv.IB]
-    b_g, a_b = B[:, lpv.I_GUST_BETA], A[:, lpv.IB]
-    if not np.allclose(b_g, a_b, rtol=1e-12, atol=1e-12 * np.abs(a_b).max()):
-        raise ValueError("the gust sideslip's column of B is not the β column of A: the "
-                         "model's aerodynamics do not act on the air-relative sideslip")
-    return e_beta
+    return _gust_direction(A, B, lpv.IB, lpv.I_GUST_BETA, "sideslip", "β")
+
+
+def gust_aoa_direction(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """e_α, the direction of the gust angle of attack α_g for the α vane's air-relative
+    α + α_g: as :func:`gust_sideslip_direction` with α for β (the α̇ terms of
+    :mod:`scenarios.aircraft.lpv` act on the inertial α, so B_g = A e_α; checked)."""
+    from scenarios.aircraft import lpv
+
+    return _gust_direction(A, B, lpv.IA, lpv.I_GUST_ALPHA, "angle of attack", "α")
 
 
 def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
-                  radius: float = 20.0) -> tuple[geo.ResidualGenerator, _Filter]:
+                  radius: float = 20.0, design_model: str = "aircraft", aoa_sensor: bool = True
+                  ) -> tuple[geo.ResidualGenerator, _Filter]:
     """The geometric filter at *point* (``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``,
-    ``tas_ms`` arrays of one element), continuous and discretised at *ts* [s]. Input order
-    of the discrete filter: the known surfaces of :func:`_columns` [rad], then
-    :data:`OUTPUTS` [rad, rad/s]."""
-    A, B = _model(point)
+    ``tas_ms`` arrays of one element) on the design model *design_model*
+    (:data:`DESIGN_MODELS`), continuous and discretised at *ts* [s]. Input order of the
+    discrete filter: the known surfaces of :func:`_columns` [rad], then the outputs
+    :func:`design_outputs` (*aoa_sensor*)
+    [rad, rad/s]."""
+    A, B = _model(point, design_model)
     _, _, known = _columns()
-    C = _output_matrix()
-    L1, L2 = _fault_columns(A, B, decouple_gusts)
+    C = _output_matrix(aoa_sensor)
+    L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
     gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
                      names1=[FAULT_SURFACE])
     return gen, _discrete(gen, ts)
@@ -207,7 +250,8 @@ AFFINE_BOX = AffineBox(vcas_kt=(160.0, 300.0), alt_ft=(8000.0, 38000.0))
 AFFINE_SCHEDULE = ("vcas_kt", "alt_ft")
 
 
-def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct):
+def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct,
+                 design_model: str = "aircraft"):
     """The aircraft model affine in VCAS [kt] and altitude [ft] ([VANEK] §5):
     [A, B](v, h) = K0 + v·Kv + h·Kh, fitted by least squares on the exact models of the
     realistic (VCAS, altitude) points of the envelope (``scenarios.envelope``) at *mass_t*
@@ -220,7 +264,7 @@ def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct)
 
     pts = envelope.realistic_points()
     pts = pts[pts["realistic"]][list(AFFINE_SCHEDULE)].drop_duplicates().to_numpy(float)
-    models = [_model(_point(v, h, mass_t, cg_pct)) for v, h in pts]
+    models = [_model(_point(v, h, mass_t, cg_pct), design_model) for v, h in pts]
     AB = np.array([np.hstack(m) for m in models])                    # (k, n, n + m)
     X = np.column_stack([np.ones(len(pts)), pts])                    # [1, v, h]
     coef = np.linalg.lstsq(X, AB.reshape(len(pts), -1), rcond=None)[0]
@@ -237,52 +281,82 @@ def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct)
     return at, err
 
 
-def _output_matrix() -> np.ndarray:
-    """C of the design model: the states measured as :data:`OUTPUTS`."""
+def _output_matrix(aoa_sensor: bool = True) -> np.ndarray:
+    """C of the design model: the states measured as :func:`design_outputs`."""
     from scenarios.aircraft import lpv
 
-    return np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in OUTPUTS]]
+    return np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in design_outputs(aoa_sensor)]]
 
 
-def _fault_columns(A, B, decouple_gusts: bool):
-    """(L1, L2) of the design model (A, B) (module docstring)."""
+def _fault_columns(A, B, decouple_gusts: bool, aoa_sensor: bool = True):
+    """(L1, L2) of the design model (A, B) (module docstring): with *decouple_gusts* the
+    gust directions e_β and, when α is measured (*aoa_sensor*), e_α."""
     i1, i2, _ = _columns()
     L2 = B[:, i2]
     if decouple_gusts:
-        L2 = np.column_stack([L2, gust_sideslip_direction(A, B)])
+        gusts = [gust_sideslip_direction(A, B)] + ([gust_aoa_direction(A, B)] if aoa_sensor
+                                                   else [])
+        L2 = np.column_stack([L2, *gusts])
     return B[:, [i1]], L2
 
 
 def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
-                  radius: float = 20.0):
-    """The ``lpv-affine`` filter family ([VANEK] §5): the aircraft model affine in VCAS and
-    altitude (:func:`affine_model`, at [VANEK]'s 200 t and 30 % CG), the LPV construction of
-    :func:`detectors.geometric.design_lpv` at the four corners of :data:`AFFINE_BOX` (S* is the
-    same at every point; one output injection for the box). Returns a function
-    θ → (the continuous residual generator, the :class:`_Filter` discretised at *ts*), θ the
-    values of :data:`AFFINE_SCHEDULE` (clipped to the box)."""
-    model, _ = affine_model()
-    C = _output_matrix()
+                  radius: float = 20.0, design_model: str = "aircraft", aoa_sensor: bool = True):
+    """The ``lpv-affine`` filter family ([VANEK] §5) on the aircraft model affine in VCAS and
+    altitude (:func:`affine_model`, at [VANEK]'s 200 t and 30 % CG, surface layout
+    *design_model* of :data:`DESIGN_MODELS`). Returns a function θ → (the continuous residual
+    generator, the :class:`_Filter` discretised at *ts*), θ the values of
+    :data:`AFFINE_SCHEDULE` (clipped to :data:`AFFINE_BOX`).
+
+    ``"unison"``: [VANEK] §5's construction, :func:`detectors.geometric.design_lpv` at the
+    four corners of the box (S* the same at every point, checked; S*, P, H, M fixed, one
+    output injection for the box).
+
+    ``"aircraft"``: that construction has no solution. The left elevator's column of B turns
+    with the flight point (its α : q : p proportions), so the smallest unobservability
+    subspace containing the elevator's direction at *every* point of the box — what a
+    parameter-independent S* must contain — has dimension 5 and contains the aileron's
+    direction (at the four corners, with or without α and the gusts). S* (dimension 4
+    with α, 3 without) is computed at each θ from the affine model, with its own injection
+    (the LMI of eq. 3–4 at that θ): the filter is exact for the affine model at every θ, but
+    no longer affine in θ (a run's flight point is constant here, so it is designed once per
+    run, like ``lpv``)."""
+    model, _ = affine_model(design_model=design_model)
+    C = _output_matrix(aoa_sensor)
     _, _, known = _columns()
     ranges = [getattr(AFFINE_BOX, k) for k in AFFINE_SCHEDULE]
+
+    def clipped(theta):
+        return model(*[float(np.clip(t, *r)) for t, r in zip(theta, ranges)])
+
+    if design_model == "aircraft":
+        def at(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
+            A, B = clipped(theta)
+            L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
+            gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
+                             names1=[FAULT_SURFACE])
+            return gen, _discrete(gen, ts)
+
+        return at
     corners = np.array(np.meshgrid(*ranges, indexing="ij")).reshape(len(ranges), -1).T
     As, L1s, L2s = [], [], []
     for theta in corners:
         A, B = model(*theta)
-        L1, L2 = _fault_columns(A, B, decouple_gusts)
+        L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
         As.append(A); L1s.append(L1); L2s.append(L2)
     fam = geo.design_lpv(As, C, L1s, L2s, decay=decay, radius=radius, names1=[FAULT_SURFACE])
 
-    def at(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
-        A, B = model(*[float(np.clip(t, *r)) for t, r in zip(theta, ranges)])
-        L1, L2 = _fault_columns(A, B, decouple_gusts)
+    def at_common(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
+        A, B = clipped(theta)
+        L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
         gen = fam.at(A, B[:, known], L1, L2)
         return gen, _discrete(gen, ts)
 
-    return at
+    return at_common
 
 
-def one_step_design(point: dict, ts: float):
+def one_step_design(point: dict, ts: float, design_model: str = "unison",
+                    aoa_sensor: bool = True):
     """The one-step H∞ FDI filter of [VANEK] §3 (:func:`detectors.vanek_hinf.one_step_filter`)
     at *point*, and its discretisation as a :class:`_Filter` on the inputs of
     :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
@@ -290,7 +364,8 @@ def one_step_design(point: dict, ts: float):
     filter ignores the measured θ. The gust sideslip reaches the β output directly (the
     sensor reads the air-relative sideslip). Noise: the aircraft sensors' σ and the rods'
     (0.03 mm over the lever arm) for the known surfaces; the spoiler angle is known exactly
-    (a small σ keeps the problem regular)."""
+    (a small σ keeps the problem regular); with *aoa_sensor* the α vane reads α + α_g the
+    same way. *design_model*: :data:`DESIGN_MODELS`."""
     from scenarios.aircraft import lpv
     from scenarios.aircraft.data import LAYOUT
     from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
@@ -298,26 +373,29 @@ def one_step_design(point: dict, ts: float):
 
     from .vanek_hinf import ONE_STEP, one_step_filter, sensor_sigmas
 
-    A, B = _model(point)
+    A, B = _model(point, design_model)
     i1, i2, known = _columns()
     keep = [j for j, name in enumerate(lpv.STATES) if name != "theta"]
-    outs = [o for o in OUTPUTS if o != "theta"]
+    outputs = design_outputs(aoa_sensor)
+    outs = [o for o in outputs if o != "theta"]
     A = A[np.ix_(keep, keep)]
     B = B[keep]
     names = [lpv.STATES[j] for j in keep]
     C = np.eye(len(keep))[[names.index(o) for o in outs]]
-    sig_y = sensor_sigmas()[[OUTPUTS.index(o) for o in outs]]
+    sig_y = sensor_sigmas(outs)
     sig_u = np.array([SENSORS.rod_noise_mm / AIRCRAFT_ACTUATORS[LAYOUT.actuator[j]].r_mm
                       if j < len(LAYOUT.names) else ONE_STEP.exact_sigma_rad for j in known])
     gusts = [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA]
     d_g = np.zeros((len(outs), len(gusts)))
     d_g[outs.index("beta"), 0] = 1.0        # the sideslip sensor reads β + β_g
+    if aoa_sensor:
+        d_g[outs.index("alpha"), 1] = 1.0   # the α vane reads α + α_g
     f = one_step_filter(A, B, C, outs, i1, i2, known, gusts, sig_y, sig_u, ts,
                         gust_feedthrough=d_g)
     Ad, Bd, Cd, Dd = geo.bilinear_ss(f.A, f.B, f.C, f.D, ts)
-    # inputs [u_known; outputs without θ] → [u_known; OUTPUTS] (θ column zero)
-    cols = list(range(len(known))) + [len(known) + OUTPUTS.index(o) for o in outs]
-    n_in = len(known) + len(OUTPUTS)
+    # inputs [u_known; outputs without θ] → [u_known; outputs] (θ column zero)
+    cols = list(range(len(known))) + [len(known) + outputs.index(o) for o in outs]
+    n_in = len(known) + len(outputs)
     Bfull = np.zeros((Bd.shape[0], n_in)); Bfull[:, cols] = Bd
     Dfull = np.zeros((Dd.shape[0], n_in)); Dfull[:, cols] = Dd
     return f, _Filter(Ad=Ad, Bd=Bfull, Cd=Cd, Dd=Dfull, c=np.ones(1))
@@ -341,7 +419,9 @@ class VanekGeometric(Detector):
     Parameters
     ----------
     safety : float
-        Threshold = safety × largest fault-free |r̂| of the learning set (> 1; [VANEK] §5: 1.5).
+        With ``threshold_method = "max"``: threshold = safety × largest fault-free |r̂| of
+        the learning set (> 1; 1.5 is [VANEK] §5's factor, which it applies to the elevator
+        runaway's residual peak instead).
     confirm_s : float
         Confirmation time [s] (≥ 0).
     decay : float
@@ -350,6 +430,10 @@ class VanekGeometric(Detector):
         Largest filter pole modulus [rad/s] (> decay; well below π/Ts for the bilinear map).
     decouple_gusts : bool
         Also decouple the lateral gust direction (module docstring).
+    design_model : str
+        Surface layout of the design model (:data:`DESIGN_MODELS`): ``"aircraft"`` (default,
+        the simulated aircraft's, elevator arm included) or ``"unison"`` (the elevators in
+        unison as in [VANEK] §4.2; an ablation that does not isolate the left elevator's roll).
     smoothing_s : float
         Time constant of the low-pass on r̂ [s] (≥ 0; 0: none).
     variants : sequence of str
@@ -364,29 +448,44 @@ class VanekGeometric(Detector):
         (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     """
 
-    capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True)
+    #: an aileron filter, blind to the left elevator and the rudder: an alarm on their faults
+    #: is an isolation failure (docs/vanek-geometric.md, "Isolation in the gate")
+    capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True,
+                                fault_surfaces=(FAULT_SURFACE,))
 
     parameters = (
-        Param("safety", "float", gt=1.0, doc="threshold = safety × the largest fault-free |r̂| "
-              "over the learning set", source="[VANEK] §5"),
+        Param("safety", "float", gt=1.0, doc="threshold_method = max: threshold = safety × "
+              "the largest fault-free |r̂| over the learning set",
+              source="[VANEK] §5's factor 1.5, applied there to the elevator runaway's "
+              "residual peak"),
         Param("confirm_s", "float", ge=0.0, unit="s", doc="confirmation time"),
         Param("decay", "float", gt=0.0, unit="1/s", doc="decay rate imposed on the filter "
               "poles by the LMI", source="[VANEK] eq. 3–4; value est."),
         Param("radius", "float", gt="decay", unit="rad/s", doc="largest filter pole modulus "
               "(well below π/Ts for the bilinear map)", source="[VANEK] eq. 3–4; value est."),
-        Param("decouple_gusts", "bool", doc="also decouple the gust sideslip direction e_β"),
+        Param("decouple_gusts", "bool", doc="also decouple the gusts: the sideslip direction "
+              "e_β and, with aoa_sensor, the angle-of-attack direction e_α"),
         Param("smoothing_s", "float", ge=0.0, unit="s", doc="time constant of the low-pass on "
               "r̂ (0: none); stands for the band limit of [VANEK] §5"),
         Param("variants", "choices", choices=VARIANTS + AFFINE_VARIANTS + HINF_VARIANTS,
               doc="filters run by one detect; lti-hinf and one-step need the extra hinf",
               source="[VANEK] §3–5"),
         *THRESHOLD_PARAMS,
+        Param("design_model", "choice", choices=DESIGN_MODELS,
+              doc="surface layout of the design model: aircraft = the simulated aircraft's "
+              "(elevator arm included, docs/physics.md §7.3); unison = the elevators in unison "
+              "(ablation: the left elevator's roll leaks into the residual)",
+              source="[VANEK] §4.2 (unison); docs/physics.md §7.3 (aircraft)"),
+        Param("aoa_sensor", "bool", doc="read the angle-of-attack vane (Signals.aircraft "
+              "alpha) as an output of the design model; false: the outputs q, θ, β, p, r, φ "
+              "(ablation: the vertical gust is then not decoupled on the aircraft's layout)",
+              source="[VANEK] §4.1 (aerodynamic angles α, β measured)"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light"):
+                 threshold_tail="light", design_model="aircraft", aoa_sensor=True):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
@@ -398,6 +497,8 @@ class VanekGeometric(Detector):
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
         self.threshold_tail = threshold_tail
+        self.design_model = design_model
+        self.aoa_sensor = aoa_sensor
 
     def validate_params(self) -> None:
         """The declared checks (:attr:`parameters`), then that the optional variants of
@@ -416,28 +517,53 @@ class VanekGeometric(Detector):
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)              # needs_aircraft: Signals.aircraft, .rods
-        missing = [s for s in OUTPUTS + ("spoiler",) if s not in signals.aircraft]
+        missing = [s for s in design_outputs(self._reads_alpha()) + ("spoiler",)
+                   if s not in signals.aircraft]
         if missing:
-            raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}")
+            hint = (" (the angle of attack is measured from model servo-4 on; or set "
+                    "aoa_sensor = false)" if "alpha" in missing else "")
+            raise ValueError(f"{type(self).__name__}: Signals.aircraft lacks {missing}{hint}")
 
     # ---- design ------------------------------------------------------------------------
+    def _layout(self) -> str:
+        """The design model (:data:`DESIGN_MODELS`) of the filters: as fitted
+        (``design_model_``), else the parameter; a detector fitted before the parameter
+        existed was fitted on the unison model and keeps the filters of its thresholds."""
+        learned = vars(self)
+        if "design_model_" in learned:
+            return learned["design_model_"]
+        return "unison" if "thresholds_deg_" in learned else self.design_model
+
+    def _reads_alpha(self) -> bool:
+        """Whether the filters read α: as fitted (``aoa_sensor_``) once fitted, else the
+        parameter; a detector fitted before the parameter existed did not."""
+        learned = vars(self)
+        if "aoa_sensor_" in learned:
+            return learned["aoa_sensor_"]
+        return False if "thresholds_deg_" in learned else bool(self.aoa_sensor)
+
     def _design(self, point: dict, ts: float, kind: str = "geometric") -> _Filter:
         """The discretised filter of *kind* at *point* (cached): ``"geometric"`` (the
         variants lti and lpv), ``"lti-hinf"`` or ``"one-step"``."""
         cache = self.__dict__.setdefault("_cache", {})
-        key = (kind, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
-                                                  for k in sorted(point))
+        layout, aoa = self._layout(), self._reads_alpha()
+        key = (kind, layout, aoa, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+                                                          for k in sorted(point))
         if key in cache:
             return cache[key]
         if kind == "one-step":
-            f = one_step_design(point, ts)[1]
+            # on the unison model whatever design_model says: on the aircraft's layout the
+            # synthesis returns a filter whose closed loop exceeds its γ (measured peak 0.49
+            # against γ = 0.186 at the LTI design point), so it is not a valid H∞ design
+            f = one_step_design(point, ts, "unison", aoa)[1]
         else:
             gen, f = design_filter(point, ts, decouple_gusts=self.decouple_gusts,
-                                   decay=float(self.decay), radius=float(self.radius))
+                                   decay=float(self.decay), radius=float(self.radius),
+                                   design_model=layout, aoa_sensor=aoa)
             if kind == "lti-hinf":
                 from .vanek_hinf import cascade, post_filter, sensor_sigmas
 
-                q = post_filter(gen, sensor_sigmas() * np.sqrt(ts))
+                q = post_filter(gen, sensor_sigmas(design_outputs(aoa)) * np.sqrt(ts))
                 Ad, Bd, Cd, Dd = geo.bilinear_ss(*cascade(gen, q), ts)
                 f = _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=np.ones(1))
         cache[key] = f
@@ -447,11 +573,14 @@ class VanekGeometric(Detector):
         """The ``lpv-affine`` filter at θ (:data:`AFFINE_SCHEDULE`; family and filters
         cached)."""
         cache = self.__dict__.setdefault("_cache", {})
-        fam_key = ("affine-family", round(float(ts), 9))
+        layout, aoa = self._layout(), self._reads_alpha()
+        fam_key = ("affine-family", layout, aoa, round(float(ts), 9))
         if fam_key not in cache:
             cache[fam_key] = design_affine(ts, decouple_gusts=self.decouple_gusts,
-                                           decay=float(self.decay), radius=float(self.radius))
-        key = ("affine", round(float(ts), 9)) + tuple(round(float(t), 6) for t in theta)
+                                           decay=float(self.decay), radius=float(self.radius),
+                                           design_model=layout, aoa_sensor=aoa)
+        key = ("affine", layout, aoa, round(float(ts), 9)) + tuple(round(float(t), 6)
+                                                              for t in theta)
         if key not in cache:
             cache[key] = cache[fam_key](*theta)[1]
         return cache[key]
@@ -473,9 +602,10 @@ class VanekGeometric(Detector):
 
     # ---- signals -----------------------------------------------------------------------
     @staticmethod
-    def filter_inputs(signals: Signals) -> np.ndarray:
+    def filter_inputs(signals: Signals, aoa_sensor: bool = True) -> np.ndarray:
         """v = [u; y] of every run and step, shape (n_runs, n_steps, n_inputs), in rad and
-        rad/s, relative to the first sample (module docstring)."""
+        rad/s, relative to the first sample (module docstring); y the outputs
+        :func:`design_outputs` (*aoa_sensor*)."""
         from scenarios.aircraft.data import LAYOUT
         from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
 
@@ -502,17 +632,22 @@ class VanekGeometric(Detector):
         # their rod measurements, :data:`scenarios.signals.AIRCRAFT_SIGNAL_UNITS`)
         spoiler = np.radians(signals.aircraft["spoiler"])
         cols = [delta[names[j]] for j in known[:-1]] + [spoiler]
-        cols += [np.radians(signals.aircraft[s]) for s in OUTPUTS]
+        outputs = design_outputs(aoa_sensor)
+        cols += [np.radians(signals.aircraft[s]) for s in outputs]
         v = np.stack(cols, axis=2)
         ref = v[:, :1, :].copy()
-        n_u = v.shape[2] - len(OUTPUTS)
-        ref[:, :, [n_u - 1] + [n_u + OUTPUTS.index(o) for o in ZERO_TRIM]] = 0.0
+        n_u = v.shape[2] - len(outputs)
+        ref[:, :, [n_u - 1] + [n_u + outputs.index(o) for o in ZERO_TRIM]] = 0.0
+        if aoa_sensor:
+            # trimmed level flight: α0 = θ0, so α is referenced to θ's first sample (σ 0.02°)
+            # rather than its own (σ 0.1° of vane noise plus the gust's α at that instant)
+            ref[:, :, n_u + outputs.index("alpha")] = ref[:, :, n_u + outputs.index("theta")]
         return v - ref
 
     def estimates(self, signals: Signals) -> dict[str, np.ndarray]:
         """r̂ [deg] of each variant, shape (n_runs, n_steps): the reconstructed departure of
         the left inboard aileron from its expected deflection (module docstring)."""
-        v = self.filter_inputs(signals)
+        v = self.filter_inputs(signals, self._reads_alpha())
         n, T, _ = v.shape
         out = {}
         for variant in self._variant_list():
@@ -535,6 +670,8 @@ class VanekGeometric(Detector):
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
+        self.design_model_ = str(self.design_model)     # the model the thresholds belong to
+        self.aoa_sensor_ = bool(self.aoa_sensor)        # and the outputs
         est = self.estimates(signals)
         # each variant is scored on its own, so each is calibrated at the full target
         self.thresholds_deg_, calibration = {}, {}

@@ -39,13 +39,16 @@ from scenarios.params import param
 from .geometric import ResidualGenerator
 
 
-def sensor_sigmas() -> np.ndarray:
-    """σ of the design-model outputs (q, θ, β, p, r, φ) from the nominal aircraft sensor
-    table :data:`scenarios.aircraft.data.AIRCRAFT_SENSORS` [rad, rad/s]."""
+def sensor_sigmas(outputs) -> np.ndarray:
+    """σ of the design-model *outputs* (names of states: ``alpha``, ``q``, ``theta``, ``beta``,
+    ``p``, ``r``, ``phi``; :data:`detectors.vanek_geometric.OUTPUTS`) from the nominal
+    aircraft sensor table :data:`scenarios.aircraft.data.AIRCRAFT_SENSORS` [rad, rad/s]."""
     from scenarios.aircraft.data import AIRCRAFT_SENSORS as s
 
     rate, att = np.radians(s.rate_noise_deg_s), np.radians(s.attitude_noise_deg)
-    return np.array([rate, att, np.radians(s.sideslip_noise_deg), rate, rate, att])
+    sigma = {"alpha": np.radians(s.aoa_noise_deg), "q": rate, "theta": att,
+             "beta": np.radians(s.sideslip_noise_deg), "p": rate, "r": rate, "phi": att}
+    return np.array([sigma[o] for o in outputs])
 
 
 class HinfUnavailableError(ImportError):

@@ -9,6 +9,9 @@ targets, [CHEN] §5):
 * **missed detections** (only with ``max_md``) — the MD rate per detector × fault type;
   a failure lists the manoeuvres where the misses happened;
 * **detection time** (only with ``max_dtp``) — the largest DTP per detector × fault type;
+* **isolation** (only with ``isolation``) — a detector that must stay silent on the
+  campaign's faults (another surface's, :mod:`campaign.isolation`): any alarm after onset
+  fails, naming its runs; its MD and DTP limits do not apply;
 * **run errors** — any run with ``status != "ok"`` fails the gate unless ``allow_errors``;
 * every detector must have scored runs: an empty campaign proves nothing;
 * **false-alarm probability** (only with a certificate, :func:`fa_probability_checks`) —
@@ -145,7 +148,8 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
                   max_dtp: float | None = None, allow_errors: bool = False,
                   coverage: tuple[int, int] | None = None, allow_incomplete: bool = False,
                   results: pd.DataFrame | None = None,
-                  detector_max_fa: dict | None = None) -> GateResult:
+                  detector_max_fa: dict | None = None,
+                  isolation: dict | None = None) -> GateResult:
     """Evaluate the acceptance requirements on a summary (see the module docstring).
 
     Parameters
@@ -174,6 +178,11 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         *max_fa* for that detector: a campaign's documented allowance for a detector known
         not to reach zero (``[requirements] detector_max_fa_rate``). A name that matches no
         detector of the summary is an error (GateInputError).
+    isolation : dict or None
+        Detector (result-row name or base label) → the surface of the campaign's faults,
+        which it must not alarm on (:func:`campaign.isolation.isolation_of`): its faulty
+        runs are checked by :func:`_isolation_checks` instead of the missed-detection and
+        DTP limits.
 
     Raises
     ------
@@ -194,11 +203,15 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         checks += _runs_check(detector, rows)
         checks += _fa_checks(detector, rows, float(allowance(detector, max_fa)),
                              _alarmed_runs(results, detector))
-        scored = _faulty_runs(results, detector)
-        if max_md is not None:
-            checks += _md_checks(detector, rows, float(max_md), scored)
-        if max_dtp is not None:
-            checks += _dtp_checks(detector, rows, float(max_dtp), scored)
+        isolated = _isolated_surface(detector, isolation or {})
+        if isolated is not None:
+            checks += _isolation_checks(detector, rows, isolated, results)
+        else:
+            scored = _faulty_runs(results, detector)
+            if max_md is not None:
+                checks += _md_checks(detector, rows, float(max_md), scored)
+            if max_dtp is not None:
+                checks += _dtp_checks(detector, rows, float(max_dtp), scored)
         checks += _error_checks(detector, rows, allow_errors, _first_error(results, detector))
     if fine.empty:
         checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
@@ -364,6 +377,39 @@ def _dtp_checks(detector, rows, limit, scored: pd.DataFrame) -> list[Check]:
                + _runs_text(ids, "runs above it, worst first"))
         out.append(Check("dtp", detector, fault, ALL_MANOEUVRES, worst, limit, bool(passed),
                          msg, ids[:3]))
+    return out
+
+
+def _isolated_surface(detector: str, isolation: dict) -> str | None:
+    """The surface *detector* (result-row name) must not alarm on, by name or base label."""
+    if detector in isolation:
+        return str(isolation[detector])
+    base = detector.split("[", 1)[0]
+    return None if base not in isolation else str(isolation[base])
+
+
+def _isolation_checks(detector, rows, surface: str, results) -> list[Check]:
+    """One check per fault type: no run of a fault on *surface* may make *detector* alarm
+    after onset (scored as "detected"); the failing run ids are named from *results*."""
+    out = []
+    faulty = rows[(rows["fault"] != FAULT_FREE) & (rows["n_runs"] > 0)]
+    for fault, g in faulty.groupby("fault", sort=True):
+        n = int(g["n_runs"].sum())
+        k = n - int(g["md_count"].sum())
+        ids: tuple[str, ...] = ()
+        if k and results is not None and not results.empty:
+            r = results[(results["detector"] == detector) & (results["fault"] == fault)
+                        & (results["status"] == "ok") & results["detected"].astype(bool)]
+            ids = tuple(r["run_id"].astype(str))
+        passed = k == 0
+        msg = (f"{'PASS' if passed else 'FAIL'} isolation: {detector}, {fault} of "
+               f"{surface}: {k}/{n} runs alarmed after onset (it must stay silent on another "
+               "surface's faults)")
+        if ids:
+            msg += f"; runs: {', '.join(ids[:3])}" + (f" and {len(ids) - 3} more"
+                                                       if len(ids) > 3 else "")
+        out.append(Check("isolation", detector, fault, ALL_MANOEUVRES, k / n, 0.0,
+                         passed, msg, ids[:3]))
     return out
 
 

@@ -27,13 +27,14 @@ SIGNAL_UNITS: dict[str, str] = {
 
 #: Units of the optional aircraft-level signals (``Signals.aircraft``, aircraft plant only):
 #: inertial rates and attitudes (θ absolute: trimmed α plus its change; φ from wings level),
-#: load factors at the CG (n_z = 1 in level flight) and the air-relative sideslip (β plus the
-#: gust's), all with sensor noise;
+#: load factors at the CG (n_z = 1 in level flight), the air-relative sideslip (β plus the
+#: gust's) and the air-relative angle of attack (absolute: trimmed α plus its change plus the
+#: gust's, what an α vane reads), all with sensor noise;
 #: then the roll spoilers' equivalent aileron angle applied over each period (the spoilers
 #: have no servo-loop here: this stands for their rod measurements, noise-free).
 AIRCRAFT_SIGNAL_UNITS: dict[str, str] = {
     "p": "deg/s", "q": "deg/s", "r": "deg/s", "phi": "deg", "theta": "deg",
-    "nz": "g", "ny": "g", "beta": "deg", "spoiler": "deg",
+    "nz": "g", "ny": "g", "beta": "deg", "alpha": "deg", "spoiler": "deg",
 }
 #: Unit of every surface's COM rod position (``Signals.rods``, aircraft plant only).
 ROD_UNIT: str = "mm"

@@ -215,7 +215,8 @@ def test_monitored_surface_fills_actuator_fields_and_aircraft_signals():
     sig, truth = simulate(runs, plant="aircraft")
     np.testing.assert_array_equal(sig.rod_com, sig.rods["left_elevator"])
     assert sig.actuator.surface == "left_elevator" and sig.has_surface_sensor
-    assert set(sig.aircraft) == {"p", "q", "r", "phi", "theta", "nz", "ny", "beta", "spoiler"}
+    assert set(sig.aircraft) == {"p", "q", "r", "phi", "theta", "nz", "ny", "beta", "alpha",
+                                 "spoiler"}
     assert set(sig.rods) == set(AIRCRAFT_SURFACES)
     # the nose-up pull shows in the measured load factor (≥ 0.1 g above 1 g)
     assert sig.aircraft["nz"][1].max() > 1.1 and abs(np.median(sig.aircraft["nz"][0]) - 1) < 0.05
@@ -229,6 +230,32 @@ def test_monitored_surface_fills_actuator_fields_and_aircraft_signals():
     frame = sig.to_pandas(0)
     assert "nz [g]" in frame.columns and "rod_rudder [mm]" in frame.columns
     np.testing.assert_allclose(truth.surfaces_deg["left_elevator"], truth.surface_deg)
+
+
+def test_angle_of_attack_sensor_is_the_air_relative_alpha_with_its_noise():
+    """docs/physics.md §4: the α vane reads the trimmed α0 plus the perturbation plus the
+    gust's α_g, with white noise σ 0.1° (AIRCRAFT_SENSORS.aoa_noise_deg); its noise is drawn
+    after every other sensor's, so the other signals do not depend on it."""
+    from scenarios.aircraft.data import AIRCRAFT_SENSORS
+
+    runs = _rows("left_elevator", "none", "cruise", duration_s=20.0)
+    calm, truth = simulate_aircraft(runs, turbulence=None)
+    err = calm.aircraft["alpha"][0] - truth.flight["alpha_deg"][0] - truth.aircraft["alpha"][0]
+    # 2000 independent samples: the sample σ is within 5 % of σ (its relative standard error
+    # is 1/sqrt(2·2000) = 1.6 %), the mean within 4 standard errors (0.1/sqrt(2000) = 0.0022°)
+    assert np.std(err) == pytest.approx(AIRCRAFT_SENSORS.aoa_noise_deg, rel=0.05)
+    assert abs(np.mean(err)) < 4 * AIRCRAFT_SENSORS.aoa_noise_deg / np.sqrt(err.size)
+    # in turbulence the vane reads the gust's angle too: far more than its noise
+    gusty, truth = simulate_aircraft(runs)
+    err = gusty.aircraft["alpha"][0] - truth.flight["alpha_deg"][0] - truth.aircraft["alpha"][0]
+    assert np.std(err) > 3 * AIRCRAFT_SENSORS.aoa_noise_deg
+    # without α noise every other signal is the same, bit for bit
+    quiet, _ = simulate_aircraft(runs, aircraft_sensors=replace(AIRCRAFT_SENSORS,
+                                                                 aoa_noise_deg=0.0))
+    for name in gusty.aircraft:
+        if name != "alpha":
+            np.testing.assert_array_equal(quiet.aircraft[name], gusty.aircraft[name])
+    np.testing.assert_array_equal(quiet.rods["rudder"], gusty.rods["rudder"])
 
 
 def test_concat_streams_batches_into_the_same_signals_and_counts_them():

@@ -190,7 +190,8 @@ def test_onsets_are_on_the_time_grid_inside_the_documented_interval(plans):
 #: (servo-2: one draw per aerodynamic and per hinge-moment coefficient, in place of d_aero
 #: and d_hinge; surface coupling; aft-loaded aileron hinge moment, docs/physics.md) and 3
 #: (servo-3: the aircraft laws' gains of a run independent of its block at round-off) and 4
-#: (servo-4: drawn onsets leave the fault's detection budget, campaign.design).
+#: (servo-4: drawn onsets leave the fault's detection budget, campaign.design; the aircraft
+#: plant's angle-of-attack sensor).
 GOLDEN_ROW = {"group": "g", "surface": "elevator", "manoeuvre": "cruise", "fault": "runaway",
               "onset_s": 12.5, "magnitude": -4.0, "freq_hz": float("nan"), "alt_ft": 28000.0,
               "vcas_kt": 300.0, "mass_t": 180.0, "cg_pct": 30.0, "level": "mc",

@@ -61,9 +61,11 @@ def _same(actual, expected):
 def test_sensor_sigmas_and_one_step_weights():
     s = AIRCRAFT_SENSORS
     rate, att = np.radians(s.rate_noise_deg_s), np.radians(s.attitude_noise_deg)
-    # in the design outputs' order q, θ, β, p, r, φ
-    np.testing.assert_array_equal(vh.sensor_sigmas(), [rate, att, np.radians(
-        s.sideslip_noise_deg), rate, rate, att])
+    # in the design outputs' order α, q, θ, β, p, r, φ
+    np.testing.assert_array_equal(vh.sensor_sigmas(vg.OUTPUTS), [np.radians(
+        s.aoa_noise_deg), rate, att, np.radians(s.sideslip_noise_deg), rate, rate, att])
+    np.testing.assert_array_equal(vh.sensor_sigmas(("phi", "beta")),
+                                  [att, np.radians(s.sideslip_noise_deg)])
     w = vh.ONE_STEP
     assert (w.fault_rad, w.isolated_rad, w.known_rad, w.gust_rad) == pytest.approx(
         np.radians([3.0, 5.0, 5.0, 1.0]), rel=1e-15)
@@ -106,7 +108,7 @@ def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatc
 
     monkeypatch.setattr(vh, "residualise", residualise)
     gen = _generator()
-    sigma = vh.sensor_sigmas() * np.sqrt(TS)         # as the lti-hinf variant uses it
+    sigma = vh.sensor_sigmas(vg.OUTPUTS) * np.sqrt(TS)         # as the lti-hinf variant uses it
     q = vh.post_filter(gen, sigma)          # defaults: f_s 0.1, ω_id 1, ε 0.1, 100 rad/s
     plant = seen["plant"]
     for got, want in zip((plant.A, plant.B, plant.C, plant.D),
@@ -147,14 +149,14 @@ def test_post_filter_of_a_hand_built_filter_with_fewer_residuals_than_states(mon
 
 def test_post_filter_weights_are_keyword_only():
     with pytest.raises(TypeError):
-        vh.post_filter(_generator(), vh.sensor_sigmas(), 0.2)
+        vh.post_filter(_generator(), vh.sensor_sigmas(vg.OUTPUTS), 0.2)
 
 
 @pytest.mark.parametrize("kwargs", [{"omega_id": 0.0}, {"eps": 0.0}, {"omega_id": -1.0},
                                     {"eps": -0.1}])
 def test_post_filter_refuses_non_positive_bandwidth_or_penalty(kwargs):
     with pytest.raises(ValueError, match="omega_id and eps must be > 0"):
-        vh.post_filter(_generator(), vh.sensor_sigmas(), **kwargs)
+        vh.post_filter(_generator(), vh.sensor_sigmas(vg.OUTPUTS), **kwargs)
 
 
 def _no_control(monkeypatch, missing):
@@ -172,7 +174,7 @@ def _no_control(monkeypatch, missing):
 def test_missing_optional_libraries_name_the_extra(monkeypatch, missing):
     _no_control(monkeypatch, missing)
     with pytest.raises(vh.HinfUnavailableError, match=r"fdd-campaign\[hinf\]"):
-        vh.post_filter(_generator(), vh.sensor_sigmas())
+        vh.post_filter(_generator(), vh.sensor_sigmas(vg.OUTPUTS))
     with pytest.raises(vh.HinfUnavailableError, match=r"fdd-campaign\[hinf\]"):
         vh.one_step_filter(-np.eye(1), np.ones((1, 3)), np.ones((1, 1)), ("q",), 0, [1], [2],
                            [], [1e-3], [1e-3], TS)

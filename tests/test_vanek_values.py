@@ -30,7 +30,7 @@ from scenarios.signals import Signals
 
 TS = 0.01                                   # s: the aircraft plant's sampling period
 N_STEPS = 60
-OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
+OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")
 #: (VCAS kt, altitude ft, mass t, CG % MAC) of the hand-built runs: off the LTI design point
 POINTS = ((200.0, 26000.0, 180.0, 25.0), (280.0, 33000.0, 220.0, 35.0))
 #: known inputs in the documented order: every surface but the left elevator and the rudder
@@ -61,7 +61,7 @@ def _signals(points=POINTS, monitored="left_elevator", seed=0, n_steps=N_STEPS):
         rods["right_outboard_aileron"][0, 20] = 1.2 * _lever("right_outboard_aileron")
         rods["left_outboard_aileron"][n - 1, 30] = -1.3 * _lever("left_outboard_aileron")
     aircraft = {s: walk(rng.uniform(-2.0, 2.0, (n, 1)), 0.05)
-                for s in ("p", "q", "r", "phi", "theta", "nz", "ny", "beta", "spoiler")}
+                for s in ("p", "q", "r", "phi", "theta", "nz", "ny", "beta", "alpha", "spoiler")}
     order = walk(rng.uniform(-3.0, 3.0, (n, 1)), 0.5)
     rod_com = rods[monitored] if monitored in rods else order
     nan = np.full((n, n_steps), np.nan)
@@ -76,7 +76,8 @@ def _plain_inputs(sig, monitored):
     """v = [u; y] [rad, rad/s] (docs/vanek-geometric.md): the known rods as deflections
     asin(x/r) (clipped to the lever arm) relative to their first sample, the left inboard
     aileron's expected rod from the nominal servo model when it is monitored, the spoiler
-    angle as measured, the outputs as measured except θ (relative to its first sample)."""
+    angle as measured, the outputs as measured except θ (relative to its first sample) and α
+    (relative to θ's first sample: α0 = θ0 in trimmed level flight)."""
     cols = []
     for name in KNOWN:
         x = (PositionMonitor.model_output(sig) if name == monitored == vg.FAULT_SURFACE
@@ -85,18 +86,20 @@ def _plain_inputs(sig, monitored):
                       for row in x])
         cols.append(d - d[:, :1])
     cols.append(np.radians(sig.aircraft["spoiler"]))
+    theta0 = np.radians(sig.aircraft["theta"])[:, :1]
     for o in OUTPUTS:
         y = np.radians(sig.aircraft[o])
-        cols.append(y - y[:, :1] if o == "theta" else y)
+        cols.append(y - theta0 if o in ("theta", "alpha") else y)
     return np.stack(cols, axis=2)
 
 
-def _design_model(point):
-    """(A, B, C) of the design model: the elevators in unison (no elevator roll arm),
-    outputs q, θ, β, p, r, φ."""
-    layout = dataclasses.replace(LAYOUT, elevator_arm_m=0.0)
+def _design_model(point, design_model="aircraft"):
+    """(A, B, C) of the design model: the simulated aircraft's layout, or the elevators in
+    unison (no elevator roll arm), outputs α, q, θ, β, p, r, φ (every state)."""
+    layout = LAYOUT if design_model == "aircraft" else dataclasses.replace(LAYOUT,
+                                                                          elevator_arm_m=0.0)
     m = lpv.run_models(point, np.zeros(1), layout=layout)
-    C = np.zeros((6, lpv.N_STATES))
+    C = np.zeros((len(OUTPUTS), lpv.N_STATES))
     for i, o in enumerate(OUTPUTS):
         C[i, lpv.STATES.index(o)] = 1.0
     return m.A[0], m.B[0], C
@@ -110,11 +113,13 @@ def _point(v, h, mass, cg):
 
 
 def _directions(A, B, gusts=True):
-    """L1: the left inboard aileron's column; L2: the left elevator's, the rudder's and e_β."""
+    """L1: the left inboard aileron's column; L2: the left elevator's, the rudder's, e_β and
+    e_α (the gusts, with the air-relative β and α measured)."""
     col = LAYOUT.names.index
     L2 = [B[:, col("left_elevator")], B[:, col("rudder")]]
     if gusts:
         L2.append(np.eye(lpv.N_STATES)[:, lpv.STATES.index("beta")])
+        L2.append(np.eye(lpv.N_STATES)[:, lpv.STATES.index("alpha")])
     return B[:, [col(vg.FAULT_SURFACE)]], np.column_stack(L2)
 
 
@@ -182,7 +187,8 @@ def test_documented_constants_and_defaults():
         "safety": 1.5, "confirm_s": 0.05, "decay": 0.5, "radius": 20.0,
         "decouple_gusts": True, "smoothing_s": 2.0, "variants": ("lti", "lpv"),
         "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
-        "threshold_tail": "light"}
+        "threshold_tail": "light", "design_model": "aircraft", "aoa_sensor": True}
+    assert vg.DESIGN_MODELS == ("aircraft", "unison")
     with pytest.raises(dataclasses.FrozenInstanceError):
         vg.NOMINAL.vcas_kt = 250.0
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -213,17 +219,23 @@ def test_columns_output_matrix_and_flight_point():
     assert p["tas_ms"] == pytest.approx(tas_ms(np.array([0.5]), np.array([20000.0])), rel=1e-12)
 
 
-def test_design_model_moves_the_elevators_in_unison():
+def test_design_model_is_the_aircrafts_and_the_ablation_moves_the_elevators_in_unison():
     point = _point(*POINTS[0])
-    A, B = vg._model(point)
-    A_ref, B_ref, _ = _design_model(point)
+    left, right = LAYOUT.names.index("left_elevator"), LAYOUT.names.index("right_elevator")
+    plant = lpv.run_models(point, np.zeros(1))
+    A, B = vg._model(point)                      # default: the simulated aircraft's layout
+    np.testing.assert_array_equal(A, plant.A[0])
+    np.testing.assert_array_equal(B, plant.B[0])
+    p = lpv.STATES.index("p")
+    assert B[p, left] == -B[p, right] != 0.0      # an asymmetric elevator pair rolls it
+    A, B = vg._model(point, "unison")
+    A_ref, B_ref, _ = _design_model(point, "unison")
     np.testing.assert_array_equal(A, A_ref)
     np.testing.assert_array_equal(B, B_ref)
-    left, right = LAYOUT.names.index("left_elevator"), LAYOUT.names.index("right_elevator")
     np.testing.assert_allclose(B[:, left], B[:, right], rtol=1e-12, atol=0.0)
-    # no roll from an elevator in the design model; the simulated aircraft has one
-    assert B[lpv.STATES.index("p"), left] == 0.0
-    assert lpv.run_models(point, np.zeros(1)).B[0][lpv.STATES.index("p"), left] != 0.0
+    assert B[p, left] == 0.0                      # no roll from an elevator in the ablation
+    with pytest.raises(ValueError, match="design_model 'both'"):
+        vg._model(point, "both")
 
 
 def test_fault_directions_and_the_gust_sideslip_check():
@@ -250,6 +262,13 @@ def test_fault_directions_and_the_gust_sideslip_check():
     ok = B.copy()
     ok[np.argmin(np.abs(A[:, lpv.IB])), lpv.I_GUST_BETA] += 0.5e-12 * np.abs(A[:, lpv.IB]).max()
     np.testing.assert_array_equal(vg.gust_sideslip_direction(A, ok), e_beta)
+    # the same check for the gust angle of attack (the α vane reads α + α_g)
+    np.testing.assert_array_equal(vg.gust_aoa_direction(A, B),
+                                  np.eye(lpv.N_STATES)[:, lpv.STATES.index("alpha")])
+    bad = B.copy()
+    bad[:, lpv.I_GUST_ALPHA] *= 1.0 + 1e-6
+    with pytest.raises(ValueError, match="not the α column of A"):
+        vg.gust_aoa_direction(A, bad)
 
 
 @pytest.mark.parametrize("gusts", [True, False])
@@ -388,8 +407,23 @@ def _affine_family():
     return vg.design_affine(TS)
 
 
-def test_design_affine_is_the_corner_lmi_family_clipped_to_the_box():
+def test_design_affine_on_the_aircraft_is_designed_at_each_point_clipped_to_the_box():
     model, _ = vg.affine_model()
+    C = _design_model(_point(*POINTS[0]))[2]
+    at = _affine_family()
+    for theta, inside in (((230.0, 20000.0), (230.0, 20000.0)),
+                          ((400.0, 50000.0), (300.0, 38000.0))):
+        A, B = model(*inside)
+        L1, L2 = _directions(A, B)
+        ref = geo.design(A, B[:, _known_columns()], C, L1, L2, decay=0.5, radius=20.0)
+        gen, f = at(*theta)
+        for name in ("N", "G", "F", "H", "M"):
+            np.testing.assert_allclose(getattr(gen, name), getattr(ref, name), rtol=0.0,
+                                       atol=1e-7 * np.abs(getattr(ref, name)).max())
+
+
+def test_design_affine_unison_is_the_corner_lmi_family_clipped_to_the_box():
+    model, _ = vg.affine_model(design_model="unison")
     corners = [(160.0, 8000.0), (160.0, 38000.0), (300.0, 8000.0), (300.0, 38000.0)]
     As, L1s, L2s = [], [], []
     for c in corners:
@@ -398,7 +432,7 @@ def test_design_affine_is_the_corner_lmi_family_clipped_to_the_box():
         As.append(A); L1s.append(L1); L2s.append(L2)
     C = _design_model(_point(*POINTS[0]))[2]
     fam = geo.design_lpv(As, C, L1s, L2s, decay=0.5, radius=20.0)
-    at = _affine_family()
+    at = vg.design_affine(TS, design_model="unison")
     for theta, inside in (((230.0, 20000.0), (230.0, 20000.0)),
                           ((400.0, 50000.0), (300.0, 38000.0)),
                           ((100.0, 1000.0), (160.0, 8000.0))):
@@ -522,7 +556,7 @@ def test_lti_hinf_residual_is_the_cascade_with_the_sampled_noise_and_no_low_pass
     sig = _signals()
     est = _fitted_max(variants=("lti-hinf",)).estimates(sig)
     gen = _reference_generator(*dataclasses.astuple(vg.NOMINAL))
-    q = vh.post_filter(gen, vh.sensor_sigmas() * np.sqrt(TS))
+    q = vh.post_filter(gen, vh.sensor_sigmas(OUTPUTS) * np.sqrt(TS))
     # the geometric filter (input [u; y], output r) in series with Q (input r, output f̂)
     m = gen.F.shape[1]
     Bf = np.hstack([gen.F, -gen.G])
@@ -561,23 +595,25 @@ def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch):
     point = _point(*POINTS[0])
     vg.one_step_design(point, TS)
     A, B, C, outs, i1, i2, known, gusts, sig_y, sig_u, ts = seen["args"]
-    A_full, B_full, _ = _design_model(point)
+    A_full, B_full, _ = _design_model(point, "unison")     # the one-step filter's model
     keep = [j for j, s in enumerate(lpv.STATES) if s != "theta"]
     np.testing.assert_array_equal(A, A_full[np.ix_(keep, keep)])
     np.testing.assert_array_equal(B, B_full[keep])
-    assert list(outs) == ["q", "beta", "p", "r", "phi"]
+    assert list(outs) == ["alpha", "q", "beta", "p", "r", "phi"]
     states = [lpv.STATES[j] for j in keep]
-    C_ref = np.zeros((5, len(keep)))
+    C_ref = np.zeros((6, len(keep)))
     for i, o in enumerate(outs):
         C_ref[i, states.index(o)] = 1.0
     np.testing.assert_array_equal(C, C_ref)
     assert (i1, list(i2), list(known)) == (2, [0, 6], _known_columns())
     assert list(gusts) == [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA] and ts == TS
-    np.testing.assert_array_equal(sig_y, np.delete(vh.sensor_sigmas(), OUTPUTS.index("theta")))
+    np.testing.assert_array_equal(sig_y, np.delete(vh.sensor_sigmas(OUTPUTS),
+                                                   OUTPUTS.index("theta")))
     rods = [SENSORS.rod_noise_mm / _lever(s) for s in KNOWN]
     np.testing.assert_allclose(sig_u, rods + [vh.ONE_STEP.exact_sigma_rad], rtol=1e-15)
-    d_g = np.zeros((5, 2))
-    d_g[outs.index("beta"), 0] = 1.0
+    d_g = np.zeros((6, 2))
+    d_g[outs.index("beta"), 0] = 1.0               # the vanes read β + β_g and α + α_g
+    d_g[outs.index("alpha"), 1] = 1.0
     np.testing.assert_array_equal(seen["kwargs"]["gust_feedthrough"], d_g)
 
 
@@ -611,3 +647,24 @@ def test_runs_within_the_cache_resolution_share_one_design():
     assert len(det._cache) == 3                 # the affine family, its filter, the lpv one
     det.estimates(dataclasses.replace(sig, ts=TS + 2e-9))
     assert len(det._cache) == 6
+
+
+def test_the_design_model_the_thresholds_were_learned_with_is_kept():
+    """A fitted detector records its design model (``design_model_``) and detects with it;
+    one fitted before the parameter existed (learned thresholds, no ``design_model_``, as a
+    campaign directory of that version stores it) was fitted on the unison model and keeps
+    it, so its thresholds and filters stay together on a resume."""
+    sig = _signals()
+    aircraft = _fitted_max().fit(sig)
+    unison = _fitted_max(design_model="unison").fit(sig)
+    assert aircraft.design_model_ == "aircraft" and unison.design_model_ == "unison"
+    # the two designs differ on these signals (the elevator's roll, the gust α)
+    a, u = aircraft.estimates(sig), unison.estimates(sig)
+    assert np.abs(a["lpv"] - u["lpv"]).max() > 1e-3 * np.abs(u["lpv"]).max()
+    legacy = _fitted_max()                          # the default parameters of this version
+    vars(legacy).update({k: v for k, v in vars(unison).items()
+                         if k.endswith("_") and k != "design_model_"})
+    assert legacy._layout() == "unison"
+    for variant, r in legacy.estimates(sig).items():
+        np.testing.assert_array_equal(r, u[variant])
+    assert _fitted_max()._layout() == "aircraft"     # not fitted: the parameter

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import tomllib
+import warnings
 from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
@@ -19,7 +20,7 @@ from scenarios.catalog import suggest
 
 from .convert import ConfigError, build_table, is_ok
 from .keys import leaf_fields, thaw
-from .rules import requirement_name_problems
+from .rules import MagnitudeReadingNote, requirement_name_problems
 from .schema import CampaignConfig, validate
 from .sections import RequirementsSection
 from .text import toml_value
@@ -170,7 +171,17 @@ def load_config(spec: str | Path) -> CampaignConfig:
     if isinstance(data, dict) and "suite" in data:
         raise ConfigError([f"{path}: a suite file ([suite] table), not a campaign file; run it "
                            "with 'fdd-campaign run' or 'plan' (docs/suites.md)"], source)
+    if source.startswith("preset "):          # shipped, in the current reading
+        return _validate_quietly(data, source)
     return validate(data, source, requirement_names=True)
+
+
+def _validate_quietly(data, source: str) -> CampaignConfig:
+    """:func:`validate` without the :class:`~campaign.config.rules.MagnitudeReadingNote`,
+    for values already in the current reading (a shipped preset, a campaign re-validated)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MagnitudeReadingNote)
+        return validate(data, source, requirement_names=True)
 
 
 def with_overrides(config: CampaignConfig, seed: int | None = None, *,
@@ -201,7 +212,7 @@ def with_overrides(config: CampaignConfig, seed: int | None = None, *,
         node[parts[-1]] = value
     if errors:
         raise ConfigError(errors, f"overrides of {config.source}")
-    return validate(data, f"{config.source} (with overrides)", requirement_names=True)
+    return _validate_quietly(data, f"{config.source} (with overrides)")
 
 
 # ----------------------------------------------------------------------------------------

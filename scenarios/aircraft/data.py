@@ -320,10 +320,12 @@ class AircraftSensorParams:
     attitude_noise_deg: float = param("deg", "est. (ADIRU)", "σ of φ, θ")
     load_noise_g: float = param("g", "est. (ADIRU accelerometer)", "σ of nz, ny")
     sideslip_noise_deg: float = param("deg", "est. (air data)", "σ of β")
+    aoa_noise_deg: float = param("deg", "est. (air data vane, as the sideslip's)", "σ of α")
 
 
 AIRCRAFT_SENSORS = AircraftSensorParams(
     rate_noise_deg_s=0.02, attitude_noise_deg=0.02, load_noise_g=0.003, sideslip_noise_deg=0.1,
+    aoa_noise_deg=0.1,
 )
 
 #: Monitored aircraft surface when a campaign names only the actuator-level surface.

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..kernels import (HAVE_NUMBA, P_HM0, P_HMD, P_IMAX, P_K, P_KA, P_KCI, P_R, P_SDP,
                        P_SDPREF, P_XMAX, P_XMIN, clip, invalidate_stale_cache, njit, sign)
-from .lpv import IB, IP, IPHI, IQ, IR, ITH
+from .lpv import IA, IB, IP, IPHI, IQ, IR, ITH
 
 __all__ = ["available", "integrate_block"]
 
@@ -349,6 +349,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             meas_rec[5, i, k] = 1.0 + mdnz
             meas_rec[6, i, k] = mny
             meas_rec[7, i, k] = mbeta
+            meas_rec[8, i, k] = theta0[i] + row[IA] + gust_alpha[i, k] + nse[8, i, k]
             sp_rec[i, k] = da_prev[i]
             da_prev[i] = clip(da, -roll_lim, roll_lim)   # the spoilers' order of the next period
         # servo-loops: currents

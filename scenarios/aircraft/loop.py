@@ -12,11 +12,13 @@ aircraft state advances exactly over the period (linear model), with the surface
 t_k, their motion to t_k+1 as a ramp (first-order hold) and the gust angles of the Dryden
 turbulence (:mod:`scenarios.turbulence`).
 
-Sensors: p, q, r, φ, θ, the load factors and the sideslip, each plus its white noise
-(:class:`scenarios.aircraft.data.AircraftSensorParams`). The sideslip is the *air-relative*
-angle β_a = β + β_g, what a vane aligned with the local flow (or a sideslip computed from
-the side force, which depends on β_a) gives, not the inertial β of the state; the rates,
-attitudes and load factors are inertial. The yaw law closes on that measured β_a.
+Sensors: p, q, r, φ, θ, the load factors, the sideslip and the angle of attack, each plus
+its white noise (:class:`scenarios.aircraft.data.AircraftSensorParams`). The sideslip is the
+*air-relative* angle β_a = β + β_g, what a vane aligned with the local flow (or a sideslip
+computed from the side force, which depends on β_a) gives, not the inertial β of the state;
+the angle of attack likewise is the air-relative α0 + α + α_g of an α vane (absolute, like
+θ: the trimmed α0 plus the perturbation); the rates, attitudes and load factors are
+inertial. The yaw law closes on that measured β_a; no law reads α.
 
 The fault of a run (docs/physics.md §5) acts on the *monitored* surface (column ``surface`` of the
 run rows, one of :data:`scenarios.aircraft.data.AIRCRAFT_SURFACES`) through the
@@ -100,7 +102,7 @@ class AircraftPrepared:
     surf_bias: np.ndarray
     surf_noise: np.ndarray
     pres_noise: np.ndarray
-    ac_noise: np.ndarray          # (8, n, T) in SI (rad, rad/s, g)
+    ac_noise: np.ndarray          # (9, n, T) in SI (rad, rad/s, g)
     faults: object                # FaultArrays of the monitored surface
     ramp_deg: np.ndarray          # (n, T) runaway ramp of the monitored order
     flight_true: dict
@@ -117,7 +119,7 @@ def _aircraft_noise_sigmas(s: AircraftSensorParams) -> np.ndarray:
     SI units (rad, rad/s, g)."""
     rate, att = np.radians(s.rate_noise_deg_s), np.radians(s.attitude_noise_deg)
     return np.array([rate, rate, rate, att, att, s.load_noise_g, s.load_noise_g,
-                     np.radians(s.sideslip_noise_deg)])
+                     np.radians(s.sideslip_noise_deg), np.radians(s.aoa_noise_deg)])
 
 
 def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
@@ -216,7 +218,7 @@ class AircraftTrajectory:
     rods: np.ndarray          # (7, n, T) COM acquisitions of every surface [mm]
     surfaces: np.ndarray      # (7, n, T) true deflections [rad]
     states: np.ndarray        # (7, n, T) aircraft perturbation state (lpv.STATES)
-    sensors: np.ndarray       # (8, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    sensors: np.ndarray       # (9, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
     spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
 
 
@@ -333,7 +335,8 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
                 "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
                 "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
-                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k]}   # air-relative
+                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
+                "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}   # air-relative
         # servo-loops: COM acquisitions at t_k
         y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
         y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
@@ -360,7 +363,7 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = xa.T
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
-                             1.0 + meas["dnz"], meas["ny"], meas["beta"])
+                             1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
         xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
         sp_rec[:, k] = da_prev
         # advance the surfaces over [t_k, t_k+1)
@@ -508,7 +511,7 @@ def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbule
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
                                                   plant=p.plant_m)
-    aircraft = {name: _TO_UNITS[unit](series)           # the eight sensors, then the spoilers
+    aircraft = {name: _TO_UNITS[unit](series)           # the nine sensors, then the spoilers
                 for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
     aircraft["spoiler"] = np.degrees(traj.spoiler)
     signals = Signals(
