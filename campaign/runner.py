@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from detectors import make_detector
+from detectors import make_detector, read_only, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
@@ -176,6 +176,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                   log=print, submit=None, workers: int = 1) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it.
 
+    Every detector fits on the same learning signals, read-only
+    (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``.
     A detector whose ``fit`` raises (anything) is a :class:`CampaignSetupError` naming its
     label; so is a plant that fails on the learning runs. A fitted detector is stored as data
     (:meth:`CampaignDir.write_fitted`); one whose parameters or learned attributes are not
@@ -201,12 +203,15 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                 learning_signals = _learning_signals(learning, settings, chunk_size,
                                                      submit, workers)
             try:
-                det.fit(learning_signals)
+                det.fit(read_only(learning_signals))
             except Exception as exc:  # noqa: BLE001 - any failure of fit, named for the user
+                hint = ("; the learning signals are read-only: work on a copy (np.array("
+                        "signals.rod_com)), docs/write-a-detector.md" if writes_input(exc) else "")
                 raise CampaignSetupError(
                     f"detector {label!r} ({type(det).__name__}) failed while fitting on the "
                     f"learning set ({learning_signals.n_runs} fault-free runs of "
-                    f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}") from exc
+                    f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}{hint}"
+                ) from exc
         try:
             cdir.write_fitted(label, names[label], det)
         except StateTypeError as exc:

@@ -25,7 +25,9 @@ checks, on any detector (docs/design.md §4, Contracts):
   each, and the defaults satisfy them;
 * ``fit`` returns ``self`` and stores learned state only in attributes ending in ``_``;
   it leaves ``get_params`` unchanged; neither ``fit`` nor ``detect`` modifies the signals
-  it is given;
+  it is given: both receive them read-only, as in a campaign
+  (:func:`detectors.base.read_only`), so a write raises and fails
+  ``fit_leaves_signals`` or ``detect_leaves_signals`` naming it;
 * shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite
   but for NaN warm-up samples at the start of a run — the rule the engine applies to every
   ``detect`` of a campaign (:func:`detectors.detection_problems`);
@@ -61,7 +63,15 @@ import pandas as pd
 from scenarios.plants import get_plant
 from scenarios.signals import SIGNAL_UNITS
 
-from .base import Detection, Detector, NotFittedError, as_variants, detection_problems
+from .base import (
+    Detection,
+    Detector,
+    NotFittedError,
+    as_variants,
+    detection_problems,
+    read_only,
+    writes_input,
+)
 from .compat import incompatibilities
 from .params import declared_parameters, parameter_problems, signature_defaults
 from .state import StateTypeError, decode, encode
@@ -139,7 +149,8 @@ def _simulated_batch(surface: str, duration_s: float, pressure: bool) -> tuple:
 
 
 def _variants(det, signals) -> dict[str, Detection]:
-    return as_variants("detector", det.detect(signals))
+    """The variants of fitted *det* on *signals*, handed read-only as a campaign does."""
+    return as_variants("detector", det.detect(read_only(signals)))
 
 
 def _run_text(signals, j: int) -> str:
@@ -219,6 +230,8 @@ class _Context:
         self.surface = surface
         self.duration_s = float(duration_s)
         self._stages: dict[str, object] = {}
+        #: the stages (``fit()``, ``detect()``) that failed by writing into their input
+        self.wrote: set[str] = set()
 
     def _stage(self, key: str, make: Callable[[], object]):
         if key not in self._stages:
@@ -227,7 +240,12 @@ class _Context:
             except (DetectorCheckError, _NotRun, _SetupError):
                 raise
             except Exception as exc:        # the detector's own failure, reported per check
-                self._stages[key] = ("error", f"{type(exc).__name__}: {exc}")
+                text = f"{type(exc).__name__}: {exc}"
+                if writes_input(exc):
+                    self.wrote.add(key)
+                    text += (" (it wrote into the signals it was given, which are read-only: "
+                             "a detector works on its own copy, np.array(signals.rod_com))")
+                self._stages[key] = ("error", text)
         status, value = self._stages[key]
         if status == "error":
             raise _NotRun(f"{key} raised {value}")
@@ -270,7 +288,7 @@ class _Context:
             learn, _ = self.signals()
             det = copy.deepcopy(self.detector)
             before = _snapshot(learn)
-            returned = det.fit(learn)
+            returned = det.fit(read_only(learn))
             return {"det": det, "returned": returned, "before": before, "learn": learn}
 
         return self._stage("fit()", make)
@@ -338,7 +356,7 @@ def _check_not_fitted_error(ctx: _Context) -> None:
     det = copy.deepcopy(ctx.detector)
     _, ev = ctx.signals()
     try:
-        det.detect(ev)
+        det.detect(read_only(ev))
     except NotFittedError as exc:
         if "fit" not in str(exc):
             raise DetectorCheckError("the NotFittedError of detect() before fit() must say "
@@ -350,8 +368,19 @@ def _check_not_fitted_error(ctx: _Context) -> None:
         raise DetectorCheckError("detect() before fit() must raise NotFittedError")
 
 
+def _wrote(ctx: _Context, stage: str, what: str):
+    """The result of *stage* of *ctx* (``fit()`` or ``detect()``); a stage that failed by
+    writing into its read-only input is this check's failure, not a check not run."""
+    try:
+        return ctx.fitted() if stage == "fit()" else ctx.output()
+    except _NotRun as exc:
+        if stage in ctx.wrote:
+            raise DetectorCheckError(f"{what}: {exc}") from None
+        raise
+
+
 def _check_fit_leaves_signals(ctx: _Context) -> None:
-    f = ctx.fitted()
+    f = _wrote(ctx, "fit()", "fit() wrote into the learning signals")
     _unchanged(f["before"], f["learn"], "fit() modified the learning signals")
 
 
@@ -375,7 +404,7 @@ def _check_fit_stores_state(ctx: _Context) -> None:
 
 
 def _check_detect_leaves_signals(ctx: _Context) -> None:
-    o = ctx.output()
+    o = _wrote(ctx, "detect()", "detect() wrote into the signals it was given")
     _unchanged(o["before"], o["ev"], "detect() modified the signals it was given")
 
 
@@ -397,7 +426,7 @@ def _check_determinism(ctx: _Context) -> None:
 def _check_determinism_refit(ctx: _Context) -> None:
     o = ctx.output()
     learn, ev = ctx.signals()
-    refit = copy.deepcopy(ctx.detector).fit(learn)
+    refit = copy.deepcopy(ctx.detector).fit(read_only(learn))
     _same(o["out"], _variants(refit, ev),
           "determinism (fitted again on the same learning set)", ev, range(ev.n_runs))
 
