@@ -35,6 +35,12 @@ from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, build_learning_plan, build_plan
+from .batch_check import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module's interface)
+    BATCH_CHECK_RUNS,
+    batch_check_runs,
+    batch_dependence,
+    third_party,
+)
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .plant import detector_problems, plant_of
 from .storage import CampaignDir, DirLock
@@ -137,17 +143,6 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
     signals = Signals.concat(parts(), n_runs=len(plan))
     release_freed_memory()
     return signals
-
-
-#: Learning runs the sampled batch-invariance check of third-party detectors uses
-#: (:func:`check_batch_invariance`): each alone, together and in reverse order.
-BATCH_CHECK_RUNS = 4
-
-
-def third_party(det) -> bool:
-    """Whether *det* is a third-party (plugin) detector: its class lives outside the
-    :mod:`detectors` package, whose built-in detectors the test suite checks."""
-    return type(det).__module__.split(".")[0] != "detectors"
 
 
 def plant_name(plant) -> str:
@@ -287,38 +282,23 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
                            learning_signals: Signals | None = None) -> None:
     """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
     depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
-    chunk, which ``[runner]`` must never change.
-
-    A sampled check, cheap enough for every campaign start: :data:`BATCH_CHECK_RUNS`
-    learning runs spread over the learning plan, each alone, all together and in reverse
-    order (:func:`detectors.testing.batch_invariance_failure`, the ``batch_invariance``
-    check of ``check_detector``). It catches what depends on the batch as a whole (a
-    normalisation by the chunk's mean or maximum, a state shared between runs); it is not
-    a proof. The runner applies it to third-party detectors only (:func:`third_party`):
-    the test suite runs the full check on the built-in ones. A detector that raises on
-    these runs is left to the campaign, which records its failures per run.
-    """
-    from detectors.testing import batch_invariance_failure
-
-    n = len(learning)
-    picks = np.unique(np.linspace(0, n - 1, min(BATCH_CHECK_RUNS, n)).round().astype(int))
+    chunk, which ``[runner]`` must never change (:func:`campaign.batch_check.batch_dependence`
+    on a few learning runs). The runner applies it to third-party detectors only
+    (:func:`third_party`): the test suite runs the full check on the built-in ones."""
+    picks = batch_check_runs(len(learning))
     if learning_signals is not None:
         signals = learning_signals.take(list(picks))
     else:
         signals = _learning_signals(learning.iloc[picks], settings, len(picks), None, 1)
-    with kernels.use_engine(settings.engine):
-        for label, det in detectors.items():
-            try:
-                failure = batch_invariance_failure(det, signals)
-            except Exception:  # noqa: BLE001 - a failing detect is recorded per run later
-                continue
-            if failure is not None:
-                raise CampaignSetupError(
-                    f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-                    f"{failure}. Its results would depend on --chunk-size and on which runs "
-                    "share a chunk, which [runner] must never change; fix: compute every "
-                    "run on its own (docs/write-a-detector.md, Signals and output) and check "
-                    "it with detectors.testing.check_detector")
+    found = batch_dependence(detectors, signals, settings.engine)
+    if found is not None:
+        label, det, failure = found
+        raise CampaignSetupError(
+            f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
+            f"{failure}. Its results would depend on --chunk-size and on which runs "
+            "share a chunk, which [runner] must never change; fix: compute every "
+            "run on its own (docs/write-a-detector.md, Signals and output) and check "
+            "it with detectors.testing.check_detector")
 
 
 @dataclass
