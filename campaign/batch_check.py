@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenarios import kernels
 from scenarios.signals import Signals
 
 #: Learning runs the sampled batch-invariance check of third-party detectors uses
@@ -32,7 +31,8 @@ def batch_check_runs(n: int) -> np.ndarray:
     return np.unique(np.linspace(0, n - 1, min(BATCH_CHECK_RUNS, n)).round().astype(int))
 
 
-def batch_dependence(detectors: dict, signals: Signals, engine: str):
+def batch_dependence(detectors: dict, signals: Signals, engine: str, *,
+                     run_timeout_s: float | None = None, log=print):
     """The first fitted detector of *detectors* (label → Detector) whose result for a run
     of *signals* depends on the other runs of its batch, as ``(label, detector, what
     differs)``; None when none does.
@@ -44,15 +44,28 @@ def batch_dependence(detectors: dict, signals: Signals, engine: str):
     the batch as a whole (a normalisation by the chunk's mean or maximum, a state shared
     between runs); it is not a proof. A detector that raises on these runs is left to the
     campaign, which records its failures per run.
+
+    With *run_timeout_s* (``[runner] run_timeout_s``) each detector's check runs in a worker
+    process stopped after that limit for each detection of a run (three per run: together,
+    alone, in reverse order): a detector that hangs is left to the campaign, whose runs are
+    stopped at the limit, and a note on *log* says so (docs/execution.md).
     """
     from detectors.testing import batch_invariance_failure
 
-    with kernels.use_engine(engine):
-        for label, det in detectors.items():
-            try:
-                failure = batch_invariance_failure(det, signals)
-            except Exception:  # noqa: BLE001 - a failing detect is recorded per run later
-                continue
-            if failure is not None:
-                return label, det, failure
+    from .execute import TimeLimitExceeded, call_bounded
+
+    limit = None if run_timeout_s is None else run_timeout_s * 3 * signals.n_runs
+    for label, det in detectors.items():
+        try:
+            failure = call_bounded(batch_invariance_failure, det, signals, engine,
+                                   limit_s=limit)
+        except TimeLimitExceeded:
+            log(f"note: detector {label!r} did not finish its batch-invariance check within "
+                f"{limit:g} s (3 × {signals.n_runs} runs × run_timeout_s = {run_timeout_s:g} "
+                "s); left to the campaign, whose runs are stopped at the limit")
+            continue
+        except Exception:  # noqa: BLE001 - a failing detect is recorded per run later
+            continue
+        if failure is not None:
+            return label, det, failure
     return None

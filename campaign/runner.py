@@ -168,7 +168,8 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
 
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
-                  log=print, submit=None, workers: int = 1) -> dict:
+                  log=print, submit=None, workers: int = 1,
+                  run_timeout_s: float | None = None) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it.
 
     Every detector fits on the same learning signals, read-only
@@ -178,7 +179,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
     (:meth:`CampaignDir.write_fitted`); one whose parameters or learned attributes are not
     plain data (:mod:`detectors.state`) stops the campaign here, before any run, with a
     :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
-    detector is then checked for batch invariance (:func:`check_batch_invariance`)."""
+    detector is then checked for batch invariance (:func:`check_batch_invariance`, under
+    *run_timeout_s* when set)."""
     from detectors.state import PLAIN_TYPES_DOC, StateTypeError
 
     detectors = build_detectors(config)
@@ -219,7 +221,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
         fitted[label] = det
     plugins = {label: det for label, det in fitted.items() if third_party(det)}
     if plugins:
-        check_batch_invariance(plugins, learning, settings, learning_signals)
+        check_batch_invariance(plugins, learning, settings, learning_signals,
+                               run_timeout_s=run_timeout_s, log=log)
     return fitted
 
 
@@ -279,18 +282,21 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
 
 
 def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
-                           learning_signals: Signals | None = None) -> None:
+                           learning_signals: Signals | None = None, *,
+                           run_timeout_s: float | None = None, log=print) -> None:
     """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
     depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
     chunk, which ``[runner]`` must never change (:func:`campaign.batch_check.batch_dependence`
-    on a few learning runs). The runner applies it to third-party detectors only
-    (:func:`third_party`): the test suite runs the full check on the built-in ones."""
+    on a few learning runs; under *run_timeout_s* when set). The runner applies it to
+    third-party detectors only (:func:`third_party`): the test suite runs the full check on
+    the built-in ones."""
     picks = batch_check_runs(len(learning))
     if learning_signals is not None:
         signals = learning_signals.take(list(picks))
     else:
         signals = _learning_signals(learning.iloc[picks], settings, len(picks), None, 1)
-    found = batch_dependence(detectors, signals, settings.engine)
+    found = batch_dependence(detectors, signals, settings.engine,
+                             run_timeout_s=run_timeout_s, log=log)
     if found is not None:
         label, det, failure = found
         raise CampaignSetupError(
@@ -353,7 +359,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
         ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
         campaign sets ``run_timeout_s`` (a thread cannot be stopped) or runs an FMU plant
-        (one FMU instance per worker process).
+        (one FMU instance per worker process). With ``run_timeout_s`` every run is bounded:
+        the chunks run on loky processes (one with ``jobs=1``), and threads or a dask
+        cluster are refused before any work (:func:`campaign.execute.time_limit_refusal`).
     scheduler : address ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` of a dask.distributed
         scheduler; the chunks then run on its workers (*jobs* and *backend* are not used)
     tls : :class:`campaign.execute.TlsFiles` (CA, certificate and key files) for a
@@ -442,7 +450,7 @@ def evaluate_rows(setup, rows: pd.DataFrame, detectors: dict, log=None) -> pd.Da
         call = partial(_evaluate_copy if setup.backend == "threading" else evaluate,
                        detectors=detectors, settings=settings)
         run_local(chunks, call, fail, frames.append, jobs=setup.jobs, backend=setup.backend,
-                  run_timeout_s=None, pool=pool, log=log)
+                  run_timeout_s=setup.run_timeout_s, pool=pool, log=log)
     results = pd.concat(frames, ignore_index=True)
     order = {rid: i for i, rid in enumerate(dict.fromkeys(rows["run_id"]))}
     return (results.assign(_o=results["run_id"].map(order))
@@ -481,6 +489,7 @@ class _Setup:
     client: object = None   # a distributed.Client, or None
     pool: object = None     # a started campaign.execute.LocalPool, or None
     lock: object = None     # the directory's held campaign.storage.DirLock
+    run_timeout_s: float | None = None   # [runner] run_timeout_s, enforced on the pool
 
     def close(self) -> None:
         try:
@@ -521,9 +530,13 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
            tls=None) -> _Setup:
     """Check the plant and the options, open the directory, warm the kernels and start the
     local workers (they start while the learning set is simulated here)."""
-    from .execute import LocalPool, connect
+    from .execute import LocalPool, connect, time_limit_refusal
 
     size = check_run_options(config, jobs=jobs, chunk_size=chunk_size)
+    limit = config.runner.run_timeout_s
+    refusal = time_limit_refusal(limit, backend=backend, scheduler=scheduler)
+    if refusal:       # a limit is enforced or refused, never ignored
+        raise CampaignSetupError(refusal)
     settings = settings_of(config)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -540,7 +553,7 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     cdir = CampaignDir(out)
     setup = _Setup(cdir=cdir, resumed=False, settings=settings,
                    chunk_size=size, jobs=jobs,
-                   backend=backend, client=client)
+                   backend=backend, client=client, run_timeout_s=limit)
     try:
         # one run at a time writes into a directory: a second one is refused (exit 2)
         setup.lock = DirLock(cdir.lock_path).acquire(log)
@@ -549,7 +562,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
             for spec in config.detectors:   # import their modules: they register their kernels
                 load_detector_class(spec.name)
             kernels.warm_up(log)
-        if client is None and jobs > 1:
+        if client is None and (jobs > 1 or limit is not None):
+            # a time limit needs a worker process to stop, even for --jobs 1
             setup.pool = LocalPool(backend, jobs)
             setup.pool.start()
     except BaseException:
@@ -576,7 +590,8 @@ def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
         threads = (pool is not None and setup.backend == "threading"
                    and settings.plant.kind == "actuator")
         return fit_detectors(config, setup.cdir, settings, setup.chunk_size, log=log,
-                             submit=pool.submit if threads else None, workers=setup.jobs)
+                             submit=pool.submit if threads else None, workers=setup.jobs,
+                             run_timeout_s=setup.run_timeout_s)
 
 
 def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, progress: bool,
@@ -606,11 +621,7 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
         if chunks and setup.client is not None:
             run_on_cluster(setup.client, chunks, evaluate, detectors, settings, fail, store,
                            log=log)
-        elif chunks and pool is None:
-            if config.runner.run_timeout_s is not None:
-                log("note: run_timeout_s is enforced on worker processes only (--jobs ≥ 2 "
-                    "with the loky backend, or a dask cluster); running in-process "
-                    "without a limit")
+        elif chunks and pool is None:       # --jobs 1 without a time limit: in-process
             for c in chunks:
                 store(evaluate(c, detectors, settings))
         elif chunks:
@@ -618,7 +629,7 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
             call = partial(_evaluate_copy if setup.backend == "threading" else evaluate,
                            detectors=detectors, settings=settings)
             run_local(chunks, call, fail, store, jobs=setup.jobs, backend=setup.backend,
-                      run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
+                      run_timeout_s=setup.run_timeout_s, pool=pool, log=log)
         return True
     except KeyboardInterrupt:
         bar.close()

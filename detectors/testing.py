@@ -26,8 +26,9 @@ checks, on any detector (docs/design.md §4, Contracts):
 * ``fit`` returns ``self`` and stores learned state only in attributes ending in ``_``;
   it leaves ``get_params`` unchanged; neither ``fit`` nor ``detect`` modifies the signals
   it is given: both receive them read-only, as in a campaign
-  (:func:`detectors.base.read_only`), so a write raises and fails
-  ``fit_leaves_signals`` or ``detect_leaves_signals`` naming it;
+  (:func:`detectors.base.read_only`); one that writes into them (and so raises) is run
+  again on a copy of its own, so that ``fit_leaves_signals`` or ``detect_leaves_signals``
+  names the signal, run and step it wrote and the other checks still judge its output;
 * shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite
   but for NaN warm-up samples at the start of a run — the rule the engine applies to every
   ``detect`` of a campaign (:func:`detectors.detection_problems`);
@@ -148,9 +149,22 @@ def _simulated_batch(surface: str, duration_s: float, pressure: bool) -> tuple:
     return _signals_of(surface, duration_s, ACTUATOR_CASES, "actuator", pressure)
 
 
+def _on(method, signals):
+    """``method(signals)`` (a detector's ``fit`` or ``detect``) with the signals read-only,
+    as a campaign hands them; a detector that writes into them (and so raises there) is
+    called again on *signals* themselves, a copy the check owns, so that the write is
+    reported where it happens (:func:`_unchanged`) and the other checks see its output."""
+    try:
+        return method(read_only(signals))
+    except Exception as exc:
+        if not writes_input(exc):
+            raise
+        return method(signals)
+
+
 def _variants(det, signals) -> dict[str, Detection]:
-    """The variants of fitted *det* on *signals*, handed read-only as a campaign does."""
-    return as_variants("detector", det.detect(read_only(signals)))
+    """The variants of fitted *det* on *signals* (:func:`_on`)."""
+    return as_variants("detector", _on(det.detect, signals))
 
 
 def _run_text(signals, j: int) -> str:
@@ -209,7 +223,10 @@ def _unchanged(before: dict, signals, what: str) -> None:
         if hit is not None:
             i, k = hit
             where = f", first at {_run_text(signals, i)}, step {k}" if arr.ndim == 2 else ""
-            raise DetectorCheckError(f"{what} ({name}{where})")
+            raise DetectorCheckError(f"{what} ({name}{where}); a campaign hands them "
+                                     "read-only: there the write raises and the detector's "
+                                     "runs are errors (work on a copy: "
+                                     "np.array(signals.rod_com))")
 
 
 class _NotRun(Exception):
@@ -230,8 +247,6 @@ class _Context:
         self.surface = surface
         self.duration_s = float(duration_s)
         self._stages: dict[str, object] = {}
-        #: the stages (``fit()``, ``detect()``) that failed by writing into their input
-        self.wrote: set[str] = set()
 
     def _stage(self, key: str, make: Callable[[], object]):
         if key not in self._stages:
@@ -240,12 +255,7 @@ class _Context:
             except (DetectorCheckError, _NotRun, _SetupError):
                 raise
             except Exception as exc:        # the detector's own failure, reported per check
-                text = f"{type(exc).__name__}: {exc}"
-                if writes_input(exc):
-                    self.wrote.add(key)
-                    text += (" (it wrote into the signals it was given, which are read-only: "
-                             "a detector works on its own copy, np.array(signals.rod_com))")
-                self._stages[key] = ("error", text)
+                self._stages[key] = ("error", f"{type(exc).__name__}: {exc}")
         status, value = self._stages[key]
         if status == "error":
             raise _NotRun(f"{key} raised {value}")
@@ -288,7 +298,7 @@ class _Context:
             learn, _ = self.signals()
             det = copy.deepcopy(self.detector)
             before = _snapshot(learn)
-            returned = det.fit(read_only(learn))
+            returned = _on(det.fit, learn)
             return {"det": det, "returned": returned, "before": before, "learn": learn}
 
         return self._stage("fit()", make)
@@ -368,19 +378,8 @@ def _check_not_fitted_error(ctx: _Context) -> None:
         raise DetectorCheckError("detect() before fit() must raise NotFittedError")
 
 
-def _wrote(ctx: _Context, stage: str, what: str):
-    """The result of *stage* of *ctx* (``fit()`` or ``detect()``); a stage that failed by
-    writing into its read-only input is this check's failure, not a check not run."""
-    try:
-        return ctx.fitted() if stage == "fit()" else ctx.output()
-    except _NotRun as exc:
-        if stage in ctx.wrote:
-            raise DetectorCheckError(f"{what}: {exc}") from None
-        raise
-
-
 def _check_fit_leaves_signals(ctx: _Context) -> None:
-    f = _wrote(ctx, "fit()", "fit() wrote into the learning signals")
+    f = ctx.fitted()
     _unchanged(f["before"], f["learn"], "fit() modified the learning signals")
 
 
@@ -404,7 +403,7 @@ def _check_fit_stores_state(ctx: _Context) -> None:
 
 
 def _check_detect_leaves_signals(ctx: _Context) -> None:
-    o = _wrote(ctx, "detect()", "detect() wrote into the signals it was given")
+    o = ctx.output()
     _unchanged(o["before"], o["ev"], "detect() modified the signals it was given")
 
 
@@ -426,7 +425,7 @@ def _check_determinism(ctx: _Context) -> None:
 def _check_determinism_refit(ctx: _Context) -> None:
     o = ctx.output()
     learn, ev = ctx.signals()
-    refit = copy.deepcopy(ctx.detector).fit(read_only(learn))
+    refit = _on(copy.deepcopy(ctx.detector).fit, learn)
     _same(o["out"], _variants(refit, ev),
           "determinism (fitted again on the same learning set)", ev, range(ev.n_runs))
 
@@ -449,16 +448,22 @@ def _batch_invariant(det, signals, out: dict) -> None:
     _same(out, reordered, "batch invariance (runs in reverse order)", signals, list(order))
 
 
-def batch_invariance_failure(detector: Detector, signals) -> str | None:
+def batch_invariance_failure(detector: Detector, signals, engine: str | None = None
+                             ) -> str | None:
     """The ``batch_invariance`` check of :data:`CHECKS` on the given *signals*: what differs
     when the fitted *detector* sees each run alone, or the runs in reverse order, instead
     of all of them together (None: nothing; a run's result must not depend on the other
     runs of its batch, since a campaign cuts its runs into chunks of any size). The
     detector is not modified (it runs on copies). Used by the runner on a few learning
-    runs of every third-party detector before a campaign starts."""
+    runs of every third-party detector before a campaign starts, with the kernels of
+    *engine* (``[runner] engine``; None: the current ones)."""
+    from scenarios import kernels
+
     det = copy.deepcopy(detector)
+    signals = read_only(signals)    # shared by the detectors checked: a write raises here
     try:
-        _batch_invariant(det, signals, _variants(det, signals))
+        with kernels.use_engine(engine or kernels.current_engine()):
+            _batch_invariant(det, signals, _variants(det, signals))
     except DetectorCheckError as exc:
         return str(exc)
     return None
