@@ -308,7 +308,7 @@ def cmd_show(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .report import cmd_compare as compare
+    from .compare import cmd_compare as compare
 
     return compare(args)
 

@@ -1,4 +1,4 @@
-"""The HTML report, the re-simulation of single runs and the comparison of two campaigns.
+"""The HTML report and the re-simulation of single runs.
 
 Everything here starts from what a campaign directory holds — ``campaign.json``,
 ``plan.parquet``, ``runs/part-*.parquet``, ``summary.parquet`` and the fitted detectors of
@@ -10,8 +10,8 @@ stream fix every random draw, docs/design.md §9, Determinism) and fed to the st
 detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's own pipeline); the
 margins of the re-simulated runs are checked against the stored ones.
 
-Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``), ``show DIR RUN_ID``
-and ``compare DIR_A DIR_B``.
+Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``) and ``show DIR
+RUN_ID``; ``compare DIR_A DIR_B`` is :mod:`campaign.compare`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from reports.compare import compare_results, differing_keys, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
@@ -35,13 +34,11 @@ from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
-from .fitted import compare_fitted
 from .evidence_report import evidence_figure_specs
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
-__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs",
-           "load_campaign", "show_run"]
+__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "load_campaign", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
 POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude")
@@ -643,36 +640,9 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
     return frame
 
 
-# ---- compare -------------------------------------------------------------------------------
-def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
-    """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
-    and print the table; returns it."""
-    a, b = load_campaign(dir_a), load_campaign(dir_b)
-    ca, cb = a.config.to_dict(), b.config.to_dict()
-    differ = differing_keys(ca, cb)
-    log(f"A: {a.root} ({a.config.campaign.name}, {a.results['run_id'].nunique()} runs)")
-    log(f"B: {b.root} ({b.config.campaign.name}, {b.results['run_id'].nunique()} runs)")
-    log("the campaign files differ in: " + ("; ".join(differ) if differ else "nothing"))
-    for side, camp in (("A", a), ("B", b)):
-        for line in error_lines(camp.results):
-            log(f"{side}: {line}")
-    notes = compare_fitted(a, b, log)
-    table = compare_results(a.results, b.results, alpha=alpha)
-    labels = {str(d): str(d).split("[", 1)[0] for d in table["detector"]}
-    table["fitted"] = [("re-learned" if labels[str(d)] in notes else "shared")
-                       for d in table["detector"]]
-    log(format_compare(table, alpha=alpha, notes=notes))
-    return table
-
-
 # ---- command-line entry points (wired in campaign/cli.py) ----------------------------------
 def cmd_show(args) -> int:
     show_run(args.dir, args.run_id, plot=args.plot, out=args.out)
-    return 0
-
-
-def cmd_compare(args) -> int:
-    compare_dirs(args.dir_a, args.dir_b, alpha=args.alpha)
     return 0
 
 
