@@ -42,7 +42,7 @@ from .batch_check import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module
     third_party,
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
-from .plant import detector_problems, plant_of
+from .plant import detector_problems, fmu_sha256, plant_of
 from .storage import CampaignDir, DirLock
 from .suite import reference_text
 
@@ -401,7 +401,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         raise
     try:
         complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
-        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
+        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start,
+                        fmu_sha256=setup.fmu_sha256)
     finally:
         setup.close()
 
@@ -490,6 +491,7 @@ class _Setup:
     pool: object = None     # a started campaign.execute.LocalPool, or None
     lock: object = None     # the directory's held campaign.storage.DirLock
     run_timeout_s: float | None = None   # [runner] run_timeout_s, enforced on the pool
+    fmu_sha256: str | None = None        # SHA-256 of an FMU plant's file (plant.fmu_sha256)
 
     def close(self) -> None:
         try:
@@ -553,7 +555,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     cdir = CampaignDir(out)
     setup = _Setup(cdir=cdir, resumed=False, settings=settings,
                    chunk_size=size, jobs=jobs,
-                   backend=backend, client=client, run_timeout_s=limit)
+                   backend=backend, client=client, run_timeout_s=limit,
+                   fmu_sha256=fmu_sha256(settings.plant))
     try:
         # one run at a time writes into a directory: a second one is refused (exit 2)
         setup.lock = DirLock(cdir.lock_path).acquire(log)
@@ -641,10 +644,11 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
 
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
-             wall_s: float) -> CampaignResult:
+             wall_s: float, fmu_sha256: str | None = None) -> CampaignResult:
     """Gather the shards in plan order and write ``summary.parquet`` (its metadata also
     holds ``fitted_sha256``, :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and
-    ``fitted_from``, the directory they were taken from or None) and, for a campaign of
+    ``fitted_from``, the directory they were taken from or None, and ``fmu_sha256``, the
+    SHA-256 of an FMU plant's file, :func:`campaign.plant.replay_plant`) and, for a campaign of
     fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
     ``detection-times.parquet``."""
     results = cdir.read_results()
@@ -661,7 +665,7 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
                        runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
                        runs_planned=len(plan),
                        fitted_sha256=cdir.fitted_sha256([d.label for d in config.detectors]),
-                       fitted_from=origin.get("fitted_from"))
+                       fitted_from=origin.get("fitted_from"), fmu_sha256=fmu_sha256)
     times = None
     if not results.empty and fixed_onset_campaign(plan):
         times = detection_time_table(plan, results)
