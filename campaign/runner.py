@@ -35,7 +35,7 @@ from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, build_learning_plan, build_plan
-from .batch_check import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module's interface)
+from .plugins import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module's interface)
     BATCH_CHECK_RUNS,
     batch_check_runs,
     batch_dependence,
@@ -286,7 +286,7 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
                            run_timeout_s: float | None = None, log=print) -> None:
     """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
     depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
-    chunk, which ``[runner]`` must never change (:func:`campaign.batch_check.batch_dependence`
+    chunk, which ``[runner]`` must never change (:func:`campaign.plugins.batch_dependence`
     on a few learning runs; under *run_timeout_s* when set). The runner applies it to
     third-party detectors only (:func:`third_party`): the test suite runs the full check on
     the built-in ones."""
