@@ -1,17 +1,22 @@
-"""The start-up check of third-party detectors: batch invariance on a few learning runs.
+"""Third-party detectors at the start of a campaign: their fit, and a batch-invariance
+check on a few learning runs, both bounded by ``[runner] run_timeout_s`` when it is set.
 
 A campaign cuts its runs into chunks of any size, so a detector's result for a run must not
 depend on the other runs of its chunk. The built-in detectors are checked by the test suite
 (:func:`detectors.testing.check_detector`); a third-party detector (:func:`third_party`) is
 checked on :data:`BATCH_CHECK_RUNS` learning runs before the campaign starts
 (:func:`batch_dependence`; :func:`campaign.runner.check_batch_invariance` refuses what it
-finds).
+finds). With a time limit, what runs a third-party detector's code before the first chunk
+(:func:`fit_detector`, the check) runs in a worker process that is stopped at the limit, so
+that a detector that hangs cannot hang the start (docs/execution.md).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from detectors.base import read_only
+from scenarios import kernels
 from scenarios.signals import Signals
 
 #: Learning runs the sampled batch-invariance check of third-party detectors uses
@@ -69,3 +74,31 @@ def batch_dependence(detectors: dict, signals: Signals, engine: str, *,
         if failure is not None:
             return label, det, failure
     return None
+
+
+def fit_detector(det, signals: Signals, engine: str, run_timeout_s: float | None = None):
+    """*det* fitted on the learning *signals*, handed read-only
+    (:func:`detectors.base.read_only`), with the kernels of *engine*; returns the fitted
+    detector. With *run_timeout_s*, a third-party detector is fitted in a worker process
+    stopped after that limit for each learning run, and the fitted detector comes back from
+    it (a detector pickles: the workers receive it so); over the limit,
+    :class:`campaign.execute.TimeLimitExceeded`. Raises what ``fit`` raises."""
+    from .execute import TimeLimitExceeded, call_bounded
+
+    if run_timeout_s is None or not third_party(det):
+        return _fitted(det, signals, engine)
+    limit = run_timeout_s * signals.n_runs
+    try:
+        return call_bounded(_fitted, det, signals, engine, limit_s=limit)
+    except TimeLimitExceeded:
+        raise TimeLimitExceeded(f"fit did not finish within {limit:g} s (run_timeout_s = "
+                                f"{run_timeout_s:g} s for each of the {signals.n_runs} "
+                                "learning runs); its worker process was stopped") from None
+
+
+def _fitted(det, signals: Signals, engine: str):
+    """*det* fitted on read-only *signals* with the kernels of *engine* (returned, so that
+    it can come back from a worker process)."""
+    with kernels.use_engine(engine):
+        det.fit(read_only(signals))
+    return det

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from detectors import make_detector, read_only, writes_input
+from detectors import make_detector, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
@@ -39,6 +39,7 @@ from .plugins import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module's i
     BATCH_CHECK_RUNS,
     batch_check_runs,
     batch_dependence,
+    fit_detector,
     third_party,
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
@@ -173,7 +174,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
     """Fit each detector on the learning set, or reload it when this directory has it.
 
     Every detector fits on the same learning signals, read-only
-    (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``.
+    (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``;
+    a third-party one is fitted under *run_timeout_s* (:func:`campaign.plugins.fit_detector`).
     A detector whose ``fit`` raises (anything) is a :class:`CampaignSetupError` naming its
     label; so is a plant that fails on the learning runs. A fitted detector is stored as data
     (:meth:`CampaignDir.write_fitted`); one whose parameters or learned attributes are not
@@ -200,7 +202,7 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                 learning_signals = _learning_signals(learning, settings, chunk_size,
                                                      submit, workers)
             try:
-                det.fit(read_only(learning_signals))
+                det = fit_detector(det, learning_signals, settings.engine, run_timeout_s)
             except Exception as exc:  # noqa: BLE001 - any failure of fit, named for the user
                 hint = ("; the learning signals are read-only: work on a copy (np.array("
                         "signals.rod_com)), docs/write-a-detector.md" if writes_input(exc) else "")

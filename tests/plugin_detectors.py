@@ -139,3 +139,18 @@ class FitWriter(_Quiet):
         rod = signals.rod_com
         rod -= rod.mean(axis=1, keepdims=True)
         self.level_ = 0.5
+
+
+class FitSleeps(_Quiet):
+    """Needs fit, and its fit sleeps *sleep_s* seconds (a fit that hangs)."""
+
+    capabilities = Capabilities(needs_fit=True)
+
+    def __init__(self, sleep_s=3600.0):
+        self.sleep_s = sleep_s
+
+    def _fit(self, signals):
+        import time
+
+        time.sleep(float(self.sleep_s))
+        self.level_ = 0.5

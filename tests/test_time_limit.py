@@ -1,8 +1,8 @@
 """``[runner] run_timeout_s`` is enforced or refused, never ignored: with a limit every run
-is bounded on the local workers (loky processes, one for ``--jobs 1``; the start-up check of
-a third-party detector too), and thread workers or a dask cluster, which cannot stop a
-running chunk, are refused before any work with exit 2 and the fix, ``--quiet`` or not
-(docs/execution.md)."""
+is bounded on the local workers (loky processes, one for ``--jobs 1``; the fit and the
+start-up check of a third-party detector too), and thread workers or a dask cluster, which
+cannot stop a running chunk, are refused before any work with exit 2 and the fix,
+``--quiet`` or not (docs/execution.md)."""
 
 from __future__ import annotations
 
@@ -33,6 +33,7 @@ DRIVER = """
 import sys
 from detectors import registry
 registry.BUILTIN["misbehaving"] = "machinery_detectors:Misbehaving"
+registry.BUILTIN["fit-sleeps"] = "plugin_detectors:FitSleeps"
 from campaign.cli import main
 sys.exit(main(sys.argv[1:]))
 """
@@ -93,6 +94,24 @@ def test_a_hanging_detector_is_stopped_at_the_limit(tmp_path, misbehaving, jobs)
     late = results.loc[victim]
     assert (late["status"] == "timeout").all() and "run_timeout_s" in late["error"].iloc[0]
     assert (results.drop(index=victim, level="run_id")["status"] == "ok").all()
+
+
+def test_a_hanging_fit_is_stopped_at_the_limit(tmp_path):
+    """A third-party detector whose fit sleeps an hour, with a limit of 2 s and one learning
+    run: the fit is stopped after 2 s and the start refused (exit 2) naming it."""
+    cfg = _config(tmp_path / "none.json")
+    cfg["detector"] = [{"name": "fit-sleeps", "label": "slow"},
+                       {"name": "position-monitor", "label": "pm"}]
+    path, out = _write(tmp_path, cfg), tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(TESTS)])}
+    done = subprocess.run(
+        [sys.executable, "-c", DRIVER, "run", str(path), "--jobs", "1", "--quiet",
+         "--out", str(out)], env=env, capture_output=True, text=True, timeout=HANG_GUARD_S)
+    assert done.returncode == 2, done.stderr
+    assert "detector 'slow' (FitSleeps) failed while fitting on the learning set" in done.stderr
+    assert "fit did not finish within 2 s (run_timeout_s = 2 s for each of the 1 learning " \
+           "runs)" in done.stderr
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("options, named, fix", [
