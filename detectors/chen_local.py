@@ -181,8 +181,9 @@ def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ke_
 def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2, z1 = np.zeros((1, 2)), np.ones(1)
-    for z in (z2, kernels.read_only_view(z2)):    # signals as detect reads them: read-only
-        _estimate_block(z, z, z1, z1, z1, 0.0, 1.0, 1, -1.0, 1.0, 1.0, 2.0, 0.5, 2.0, 1.0, 0.0,
+    ro = kernels.read_only_view   # signals (and the schedule) as detect reads them: read-only
+    for z, c in ((z2, z1), (ro(z2), z1), (ro(z2), ro(z1))):
+        _estimate_block(z, z, c, c, c, 0.0, 1.0, 1, -1.0, 1.0, 1.0, 2.0, 0.5, 2.0, 1.0, 0.0,
                         0.01, np.zeros((1, 2)))
 
 

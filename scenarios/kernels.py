@@ -610,8 +610,9 @@ def _warm_simulation() -> None:
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
+    servo_model_block(read_only_view(z2), z1, plant, 0.01, outs[0])   # a detector's command
     servo_band_block(z2, z1, np.stack([fields, fields]), 0.01, outs[0], outs[1])
-    # the command as a detector reads it (read-only; the position monitor's model band)
+    # the command as a detector reads it (read-only: the position monitor's model band)
     servo_band_block(read_only_view(z2), z1, np.stack([fields, fields]), 0.01, outs[0],
                      outs[1])
 
