@@ -267,7 +267,7 @@ def cmd_report(args) -> int:
 
 
 def _report_one(args) -> None:
-    from reports.table import format_table
+    from reports.table import error_lines, format_table
 
     from .runner import load_results, reference_text
 
@@ -279,8 +279,6 @@ def _report_one(args) -> None:
     print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
           f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
     print(format_table(summary) + reference_text(args.dir, summary))
-    from reports.table import error_lines
-
     for line in error_lines(results):
         print(f"runs not scored: {line}")
     if not args.no_html:
@@ -299,7 +297,7 @@ def cmd_show(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .report import cmd_compare as compare
+    from .compare import cmd_compare as compare
 
     return compare(args)
 
@@ -503,6 +501,7 @@ def _add_result_parsers(subs) -> None:
                    help="re-simulate at most this many fault-free runs per manoeuvre for the "
                         "envelopes (default all; the worst-margin runs are always kept)")
     creq.add_requirements_option(p)
+    p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
     p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
              "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n  (RUN_ID: "
@@ -513,6 +512,7 @@ def _add_result_parsers(subs) -> None:
                    "'gate' for its failing runs)")
     p.add_argument("--plot", help="PNG file: signals, |r|/τ and alarms of every detector")
     p.add_argument("--out", help="Parquet file for the traces")
+    p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
     p = _sub(subs, "compare", "what changed between two campaigns: rates with a significance "
              "test, DTP shifts, per cell", "fdd-campaign compare results-v1/ results-v2/",

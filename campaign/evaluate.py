@@ -8,7 +8,9 @@ called in one place (:func:`_simulate`); the scoring rules are those of
 :func:`reports.metrics.score_runs` and nowhere else.
 
 :func:`evaluate` never raises for a bad run or a failing detector: those runs get result
-rows with ``status="error"`` and the message (docs/design.md §9, Non-negotiables). This
+rows with ``status="error"`` and the message (docs/design.md §9, Non-negotiables). Every
+detector reads the signals read-only (:func:`detectors.base.read_only`, zero-copy views):
+one that writes into them fails alone, and the others see what the plant produced. This
 module does not know where chunks run (:mod:`campaign.execute`) nor where results are
 stored (:mod:`campaign.storage`).
 """
@@ -23,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from detectors import Detection, as_variants, detection_problems
+from detectors.base import read_only, writes_input
 from reports.metrics import RESULT_COLUMNS, estimation_errors, score_runs
 from scenarios import kernels
 from scenarios.faults import estimation_range_mm
@@ -107,6 +110,9 @@ def detect(signals: Signals, detectors: dict, failures: dict | None = None) -> d
     :class:`detectors.base.Detection`}, the names of the result rows
     (:func:`detectors.as_variants`).
 
+    Each detector receives *signals* read-only (:func:`detectors.base.read_only`: views
+    whose write flag is off, no copy), so one that writes into its input raises there and
+    fails alone, its message saying so; the next detector reads the signals unchanged.
     Each output is checked against the contract (:func:`detectors.detection_problems`:
     dtypes, the signals' exact (n_runs, n_steps) shape, a finite residual but for NaN
     warm-up samples); a breach raises :class:`DetectorContractError`. With a dict
@@ -158,8 +164,9 @@ def detect_runs(signals: Signals, detectors: dict) -> tuple[dict, dict]:
 
 
 def _checked(label: str, det, signals: Signals) -> dict:
-    """The variants of *det* on *signals*, each checked against the output contract."""
-    variants = as_variants(label, det.detect(signals))
+    """The variants of *det* on read-only *signals*, each checked against the output
+    contract."""
+    variants = as_variants(label, det.detect(read_only(signals)))
     shape = (signals.n_runs, signals.n_steps)
     for name, detection in variants.items():
         problems = detection_problems(detection, *shape)
@@ -327,6 +334,10 @@ def failure_message(exc: BaseException) -> str:
     message (:class:`DetectorContractError`), anything else as ``detector failed: …``."""
     if isinstance(exc, DetectorContractError):
         return str(exc)
+    if writes_input(exc):
+        return (f"detector failed: it wrote into the signals it was given, which are "
+                f"read-only ({_describe(exc)}); a detector works on its own copy "
+                "(np.array(signals.rod_com)) (docs/write-a-detector.md, Signals and output)")
     return f"detector failed: {_describe(exc)}"
 
 

@@ -22,12 +22,16 @@ Faults in the machinery (TimeEval-style per-run status)
   chunk is recorded as ``error``.
 * **A detector raises** on some runs: :func:`campaign.evaluate.evaluate` records those runs
   with ``status="error"`` (never fatal).
-* **A run exceeds** ``[runner] run_timeout_s`` (worker processes only): a chunk gets that
-  limit times its number of runs, counted from the moment it is handed to an idle worker
-  (one chunk per worker at a time, in pools whose workers have already started). A chunk
-  over its limit has its pool stopped; it is split into single runs, each tried alone with
-  the per-run limit; a run over it is recorded with ``status="timeout"``. Chunks that were
-  merely in flight next to it are resubmitted unchanged.
+* **A run exceeds** ``[runner] run_timeout_s``: a chunk gets that limit times its number
+  of runs, counted from the moment it is handed to an idle worker (one chunk per worker at
+  a time, in pools whose workers have already started). A chunk over its limit has its
+  pool stopped; it is split into single runs, each tried alone with the per-run limit; a
+  run over it is recorded with ``status="timeout"``. Chunks that were merely in flight next
+  to it are resubmitted unchanged. Only a worker process can be stopped: with a limit the
+  runner runs the chunks on loky processes (one with ``--jobs 1``) and refuses thread
+  workers and a dask cluster before any work (:func:`time_limit_refusal`);
+  :func:`run_local` refuses a limit on threads. :func:`call_bounded` runs one call (the
+  start-up check of a third-party detector) in a worker process under a limit.
 
 A rerun into the same directory retries exactly the runs whose rows are not all ``ok``.
 Splitting never changes a result: a run simulated alone equals the same run in any chunk.
@@ -161,10 +165,10 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
     isolated: deque[Task] = deque()
     if pool is None:
         pool = LocalPool(backend, jobs)
-    limit = run_timeout_s if pool.can_stop_a_task else None
-    if run_timeout_s is not None and limit is None:
-        log(f"note: run_timeout_s = {run_timeout_s:g} s is enforced on worker processes only "
-            f"(backend {backend!r} cannot stop a running chunk); running without a limit")
+    if run_timeout_s is not None and not pool.can_stop_a_task:
+        raise ValueError(f"run_timeout_s = {run_timeout_s:g} s needs worker processes: backend "
+                         f"{pool.backend!r} cannot stop a running chunk (use 'loky')")
+    limit = run_timeout_s
     inflight: dict = {}  # future -> (task, deadline)
 
     def submit(task: Task) -> None:
@@ -242,6 +246,53 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
     finally:
         pool.stop(kill=bool(inflight))
     return stats
+
+
+def time_limit_refusal(limit_s: float | None, *, backend: str | None,
+                       scheduler: str | None) -> str | None:
+    """Why ``[runner] run_timeout_s`` = *limit_s* cannot be enforced on *backend* or the dask
+    *scheduler* (None: it can, or no limit is set). A running chunk can be stopped only in a
+    worker process of the local pool (loky), never in a thread nor in a task on a dask
+    worker; the runner refuses such a combination before any work (exit 2) rather than run
+    without the limit."""
+    if limit_s is None or (scheduler is None and backend != "threading"):
+        return None
+    if scheduler is None:
+        where, fix = ("--backend threading: a thread cannot be stopped",
+                      "--backend loky (worker processes, the default when run_timeout_s is "
+                      "set)")
+    else:
+        where, fix = (f"--scheduler {scheduler}: a task running on a dask worker cannot be "
+                      "stopped", "leave out --scheduler (local worker processes enforce it)")
+    return (f"[runner] run_timeout_s = {limit_s:g} s cannot be enforced with {where}; nothing "
+            f"was run. Fix: {fix}, or remove run_timeout_s from the campaign file "
+            "(docs/execution.md)")
+
+
+class TimeLimitExceeded(RuntimeError):
+    """A call of :func:`call_bounded` did not finish within its limit (its worker process
+    was stopped)."""
+
+
+def call_bounded(fn, *args, limit_s: float | None):
+    """``fn(*args)`` in a worker process of its own, stopped once it has run *limit_s*
+    seconds (counted from when the worker has started): returns what *fn* returns, raises
+    what it raises, or :class:`TimeLimitExceeded`. *fn* and *args* must pickle. Without a
+    limit (None) it is called here, in this process."""
+    if limit_s is None:
+        return fn(*args)
+    pool = LocalPool("loky", 1)
+    finished = False
+    try:
+        pool.ready()
+        future = pool.submit(fn, *args)
+        done, _ = wait([future], timeout=limit_s)
+        if not done:
+            raise TimeLimitExceeded(f"did not finish within {limit_s:g} s")
+        finished = True
+        return future.result()
+    finally:
+        pool.stop(kill=not finished)
 
 
 def _short(exc: BaseException, limit: int = 300) -> str:

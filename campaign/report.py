@@ -1,4 +1,4 @@
-"""The HTML report, the re-simulation of single runs and the comparison of two campaigns.
+"""The HTML report and the re-simulation of single runs.
 
 Everything here starts from what a campaign directory holds — ``campaign.json``,
 ``plan.parquet``, ``runs/part-*.parquet``, ``summary.parquet`` and the fitted detectors of
@@ -8,17 +8,20 @@ checks the directory's files against its manifest (exit 2 on any difference). Tr
 signals of example runs) are re-simulated on demand from the plan rows (run id, seed and
 stream fix every random draw, docs/design.md §9, Determinism) and fed to the stored fitted
 detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's own pipeline); the
-margins of the re-simulated runs are checked against the stored ones.
+margins of the re-simulated runs are checked against the stored ones. A campaign on an FMU
+plant is re-simulated only on an FMU named on the command line (``--fmu``) whose digest is
+the one recorded at run time, never on the file the directory names
+(:func:`campaign.plant.replay_plant`); without it, what needs no simulation is shown.
 
-Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``), ``show DIR RUN_ID``
-and ``compare DIR_A DIR_B``.
+Commands (``fdd-campaign``): ``report DIR`` (writes ``DIR/report.html``) and ``show DIR
+RUN_ID``; ``compare DIR_A DIR_B`` is :mod:`campaign.compare`.
 """
 
 from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -26,7 +29,6 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-from reports.compare import compare_results, differing_keys, format_compare
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import evaluate_gate
 from reports.html import ReportFigure, render_report, show_command
@@ -38,11 +40,11 @@ from .evaluate import ChunkSettings, score, simulate_and_detect
 from .fitted import compare_fitted
 from .isolation import isolation_of
 from .evidence_report import evidence_figure_specs
+from .plant import replay_plant
 from .runner import CampaignSetupError, load_results, settings_of
 from .storage import CampaignDir
 
-__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "compare_dirs",
-           "load_campaign", "show_run"]
+__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "load_campaign", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
 POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude")
@@ -88,10 +90,19 @@ class LoadedCampaign:
     results: pd.DataFrame
     summary: pd.DataFrame
     meta: dict
+    fmu: str | None = None    # the FMU named on the command line (--fmu), if any
 
     @property
     def settings(self) -> ChunkSettings:
         return settings_of(self.config)
+
+    def replay(self) -> tuple[ChunkSettings | None, str]:
+        """(settings to re-simulate runs with, or None when they cannot be: an FMU plant
+        and no --fmu; a note for the user) (:func:`campaign.plant.replay_plant`)."""
+        settings = self.settings
+        plant, note = replay_plant(settings.plant, self.meta.get("fmu_sha256"), self.fmu,
+                                   self.root)
+        return (None if plant is None else replace(settings, plant=plant)), note
 
     def detectors(self) -> dict:
         """The fitted detectors stored in the directory: label → Detector
@@ -100,7 +111,7 @@ class LoadedCampaign:
         return {d.label: cdir.read_fitted(d.label, d.name) for d in self.config.detectors}
 
 
-def load_campaign(directory) -> LoadedCampaign:
+def load_campaign(directory, fmu=None) -> LoadedCampaign:
     """Read a campaign directory; :class:`CampaignSetupError` (exit 2) when it is not one."""
     root = Path(directory)
     if not root.is_dir():
@@ -123,7 +134,7 @@ def load_campaign(directory) -> LoadedCampaign:
     config = CampaignConfig.from_dict(cdir.read_config(), source=str(cdir.config_path))
     results, summary, meta = load_results(root)
     return LoadedCampaign(root=root, config=config, plan=cdir.read_plan(), results=results,
-                          summary=summary, meta=meta)
+                          summary=summary, meta=meta, fmu=fmu)
 
 
 # ---- re-simulation -------------------------------------------------------------------------
@@ -362,7 +373,7 @@ class _ReportData:
 
 
 def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings | None = None,
-                 log=None, requirements: dict | None = None) -> Path:
+                 log=None, requirements: dict | None = None, fmu=None) -> Path:
     """Write the HTML report of a campaign directory; returns its path.
 
     Two parallel phases over *jobs* processes: (1) re-simulate the fault-free runs (for the
@@ -376,6 +387,8 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     settings : :class:`ReportSettings`
     requirements : the ``[requirements]`` to report against, in their JSON form, in place of
         the campaign's (``report --requirements FILE``; :func:`campaign.config.load_requirements`)
+    fmu : for a campaign on an FMU plant, the FMU to re-simulate on (``--fmu``; checked
+        against the digest recorded at run time); without it nothing is re-simulated
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
@@ -385,7 +398,7 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
         raise ValueError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
-    data = _gather_report_data(directory, cfg, jobs, t0, requirements)
+    data = _gather_report_data(directory, cfg, jobs, t0, requirements, fmu, log)
     specs = _figure_specs(data) + evidence_figure_specs(data.camp)
     t1 = time.perf_counter()
     pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
@@ -405,10 +418,12 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
 
 
 def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
-                        requirements: dict | None = None) -> _ReportData:
+                        requirements: dict | None = None, fmu=None,
+                        log=print) -> _ReportData:
     """Read the directory and re-simulate, on *jobs* processes, the fault-free runs (for
-    the envelopes) with the example runs riding along (phase 1)."""
-    camp = load_campaign(directory)
+    the envelopes) with the example runs riding along (phase 1); none on an FMU plant
+    without *fmu* (:meth:`LoadedCampaign.replay`)."""
+    camp = load_campaign(directory, fmu)
     if camp.results.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
     detectors = camp.detectors()
@@ -418,17 +433,21 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "
                         f"{camp.meta.get('runs_planned')} runs; rerun 'fdd-campaign run' into "
                         "this directory to finish it.")
+    settings, note = camp.replay()
+    if note:
+        log(note)
+        warnings.append(f"{note} (the residual envelopes and example runs need it; the "
+                        "tables and maps need no simulation).")
     free, n_free = _envelope_runs(camp, cfg)
     order = list(dict.fromkeys(camp.summary["detector"].astype(str)))
-    examples = _example_ids(camp.results, cfg.examples_per_fault, order)
+    examples = _example_ids(camp.results, cfg.examples_per_fault, order) if settings else []
     example_ids = frozenset(rid for _, rid, _ in examples)
     plan = camp.plan.set_index("run_id", drop=False)
     extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
-    settings = camp.settings
-    parts = _run_tasks([delayed(_trace_chunk)(e, x, detectors=detectors, settings=settings,
-                                              n_bins=cfg.envelope_bins,
-                                              example_ids=example_ids)
-                        for e, x in _chunks(free, extra, jobs)], jobs)
+    parts = [] if settings is None else _run_tasks(
+        [delayed(_trace_chunk)(e, x, detectors=detectors, settings=settings,
+                               n_bins=cfg.envelope_bins, example_ids=example_ids)
+         for e, x in _chunks(free, extra, jobs)], jobs)
     t_sim = time.perf_counter() - t0
     warnings += error_lines(camp.results)
     warnings += _resimulation_warnings([p[4] for p in parts])
@@ -600,14 +619,17 @@ def _score_text(r) -> str:
             f"detected {bool(r['detected'])}, DTP {num(r['dtp'], '.4g')}")
 
 
-def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.DataFrame:
+def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
+             log=print) -> pd.DataFrame:
     """Re-simulate one run of a campaign from its run id and seed.
 
     Prints the stored result rows next to the re-simulated margin and first alarm, writes
     the traces (signals, truth, |r|/τ and alarm of every detector) to *out* (Parquet) and a
-    figure to *plot* (PNG). Returns the traces.
+    figure to *plot* (PNG). Returns the traces. On an FMU plant the run is re-simulated
+    only on *fmu* (``--fmu``, :meth:`LoadedCampaign.replay`); without it the stored rows are
+    printed and returned, and *plot* or *out* is refused (exit 2).
     """
-    camp = load_campaign(directory)
+    camp = load_campaign(directory, fmu)
     match = camp.plan[camp.plan["run_id"].astype(str) == str(run_id)]
     if match.empty:
         from scenarios.catalog import suggest
@@ -616,18 +638,29 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
         raise CampaignSetupError(f"run id {run_id!r} is not in {camp.root / 'plan.parquet'}"
                                  f"{suggest(str(run_id), ids)}; the run ids are listed in "
                                  "report.html (e.g. " + ", ".join(ids[:3]) + ")")
-    detectors = camp.detectors()
-    settings = camp.settings
-    failed: dict = {}
-    signals, truth, detections = simulate_and_detect(match, detectors, settings, failed)
+    settings, note = camp.replay()
     row = match.iloc[0]
+    stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
+        "detector")
+    if settings is None:             # an FMU plant and no --fmu: what needs no simulation
+        if plot or out:
+            raise CampaignSetupError(f"--plot and --out need the run's traces; {note}")
+        log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)} (seed "
+            f"{row['seed']}, stream {row['stream']})")
+        for name, r in stored.iterrows():
+            log(f"  {name}: stored " + (_score_text(r) if r["status"] == "ok" else
+                                        f"status {r['status']}: {r['error']}"))
+        log(note)
+        return stored.reset_index()
+    if note:
+        log(note)
+    failed: dict = {}
+    signals, truth, detections = simulate_and_detect(match, camp.detectors(), settings, failed)
     frame = _run_frame(signals, truth, 0)
     onset = float(truth.onset_s[0])
     log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)}"
         + (f", onset {onset:.2f} s" if np.isfinite(onset) else "")
         + f" (seed {row['seed']}, stream {row['stream']})")
-    stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
-        "detector")
     # scored again with the campaign's own rules (campaign.evaluate.score)
     again = score(match, truth, detections, settings, signals.actuator).set_index("detector")
     residuals = {}
@@ -670,42 +703,15 @@ def show_run(directory, run_id: str, *, plot=None, out=None, log=print) -> pd.Da
     return frame
 
 
-# ---- compare -------------------------------------------------------------------------------
-def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
-    """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
-    and print the table; returns it."""
-    a, b = load_campaign(dir_a), load_campaign(dir_b)
-    ca, cb = a.config.to_dict(), b.config.to_dict()
-    differ = differing_keys(ca, cb)
-    log(f"A: {a.root} ({a.config.campaign.name}, {a.results['run_id'].nunique()} runs)")
-    log(f"B: {b.root} ({b.config.campaign.name}, {b.results['run_id'].nunique()} runs)")
-    log("the campaign files differ in: " + ("; ".join(differ) if differ else "nothing"))
-    for side, camp in (("A", a), ("B", b)):
-        for line in error_lines(camp.results):
-            log(f"{side}: {line}")
-    notes = compare_fitted(a, b, log)
-    table = compare_results(a.results, b.results, alpha=alpha)
-    labels = {str(d): str(d).split("[", 1)[0] for d in table["detector"]}
-    table["fitted"] = [("re-learned" if labels[str(d)] in notes else "shared")
-                       for d in table["detector"]]
-    log(format_compare(table, alpha=alpha, notes=notes))
-    return table
-
-
 # ---- command-line entry points (wired in campaign/cli.py) ----------------------------------
 def cmd_show(args) -> int:
-    show_run(args.dir, args.run_id, plot=args.plot, out=args.out)
-    return 0
-
-
-def cmd_compare(args) -> int:
-    compare_dirs(args.dir_a, args.dir_b, alpha=args.alpha)
+    show_run(args.dir, args.run_id, plot=args.plot, out=args.out, fmu=args.fmu)
     return 0
 
 
 def write_html_report(args) -> None:
     """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
-    path = build_report(args.dir, out=args.html, jobs=args.jobs,
+    path = build_report(args.dir, out=args.html, jobs=args.jobs, fmu=args.fmu,
                         settings=ReportSettings(envelope_runs=args.envelope_runs),
                         requirements=getattr(args, "requirements_values", None))
     print(f"HTML report written to {path}")

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from detectors import make_detector
+from detectors import make_detector, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
@@ -35,8 +35,15 @@ from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, build_learning_plan, build_plan
+from .plugins import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module's interface)
+    BATCH_CHECK_RUNS,
+    batch_check_runs,
+    batch_dependence,
+    fit_detector,
+    third_party,
+)
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
-from .plant import detector_problems, plant_of
+from .plant import detector_problems, fmu_sha256, plant_of
 from .storage import CampaignDir, DirLock
 from .suite import reference_text
 
@@ -139,17 +146,6 @@ def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int
     return signals
 
 
-#: Learning runs the sampled batch-invariance check of third-party detectors uses
-#: (:func:`check_batch_invariance`): each alone, together and in reverse order.
-BATCH_CHECK_RUNS = 4
-
-
-def third_party(det) -> bool:
-    """Whether *det* is a third-party (plugin) detector: its class lives outside the
-    :mod:`detectors` package, whose built-in detectors the test suite checks."""
-    return type(det).__module__.split(".")[0] != "detectors"
-
-
 def plant_name(plant) -> str:
     """The plant as a user names it: ``the aircraft plant``, ``the FMU plant servo.fmu``."""
     path = getattr(plant, "path", None)
@@ -173,15 +169,20 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
 
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
-                  log=print, submit=None, workers: int = 1) -> dict:
+                  log=print, submit=None, workers: int = 1,
+                  run_timeout_s: float | None = None) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it.
 
+    Every detector fits on the same learning signals, read-only
+    (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``;
+    a third-party one is fitted under *run_timeout_s* (:func:`campaign.plugins.fit_detector`).
     A detector whose ``fit`` raises (anything) is a :class:`CampaignSetupError` naming its
     label; so is a plant that fails on the learning runs. A fitted detector is stored as data
     (:meth:`CampaignDir.write_fitted`); one whose parameters or learned attributes are not
     plain data (:mod:`detectors.state`) stops the campaign here, before any run, with a
     :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
-    detector is then checked for batch invariance (:func:`check_batch_invariance`)."""
+    detector is then checked for batch invariance (:func:`check_batch_invariance`, under
+    *run_timeout_s* when set)."""
     from detectors.state import PLAIN_TYPES_DOC, StateTypeError
 
     detectors = build_detectors(config)
@@ -201,12 +202,15 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
                 learning_signals = _learning_signals(learning, settings, chunk_size,
                                                      submit, workers)
             try:
-                det.fit(learning_signals)
+                det = fit_detector(det, learning_signals, settings.engine, run_timeout_s)
             except Exception as exc:  # noqa: BLE001 - any failure of fit, named for the user
+                hint = ("; the learning signals are read-only: work on a copy (np.array("
+                        "signals.rod_com)), docs/write-a-detector.md" if writes_input(exc) else "")
                 raise CampaignSetupError(
                     f"detector {label!r} ({type(det).__name__}) failed while fitting on the "
                     f"learning set ({learning_signals.n_runs} fault-free runs of "
-                    f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}") from exc
+                    f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}{hint}"
+                ) from exc
         try:
             cdir.write_fitted(label, names[label], det)
         except StateTypeError as exc:
@@ -219,7 +223,8 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
         fitted[label] = det
     plugins = {label: det for label, det in fitted.items() if third_party(det)}
     if plugins:
-        check_batch_invariance(plugins, learning, settings, learning_signals)
+        check_batch_invariance(plugins, learning, settings, learning_signals,
+                               run_timeout_s=run_timeout_s, log=log)
     return fitted
 
 
@@ -279,41 +284,29 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
 
 
 def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
-                           learning_signals: Signals | None = None) -> None:
+                           learning_signals: Signals | None = None, *,
+                           run_timeout_s: float | None = None, log=print) -> None:
     """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
     depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
-    chunk, which ``[runner]`` must never change.
-
-    A sampled check, cheap enough for every campaign start: :data:`BATCH_CHECK_RUNS`
-    learning runs spread over the learning plan, each alone, all together and in reverse
-    order (:func:`detectors.testing.batch_invariance_failure`, the ``batch_invariance``
-    check of ``check_detector``). It catches what depends on the batch as a whole (a
-    normalisation by the chunk's mean or maximum, a state shared between runs); it is not
-    a proof. The runner applies it to third-party detectors only (:func:`third_party`):
-    the test suite runs the full check on the built-in ones. A detector that raises on
-    these runs is left to the campaign, which records its failures per run.
-    """
-    from detectors.testing import batch_invariance_failure
-
-    n = len(learning)
-    picks = np.unique(np.linspace(0, n - 1, min(BATCH_CHECK_RUNS, n)).round().astype(int))
+    chunk, which ``[runner]`` must never change (:func:`campaign.plugins.batch_dependence`
+    on a few learning runs; under *run_timeout_s* when set). The runner applies it to
+    third-party detectors only (:func:`third_party`): the test suite runs the full check on
+    the built-in ones."""
+    picks = batch_check_runs(len(learning))
     if learning_signals is not None:
         signals = learning_signals.take(list(picks))
     else:
         signals = _learning_signals(learning.iloc[picks], settings, len(picks), None, 1)
-    with kernels.use_engine(settings.engine):
-        for label, det in detectors.items():
-            try:
-                failure = batch_invariance_failure(det, signals)
-            except Exception:  # noqa: BLE001 - a failing detect is recorded per run later
-                continue
-            if failure is not None:
-                raise CampaignSetupError(
-                    f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-                    f"{failure}. Its results would depend on --chunk-size and on which runs "
-                    "share a chunk, which [runner] must never change; fix: compute every "
-                    "run on its own (docs/write-a-detector.md, Signals and output) and check "
-                    "it with detectors.testing.check_detector")
+    found = batch_dependence(detectors, signals, settings.engine,
+                             run_timeout_s=run_timeout_s, log=log)
+    if found is not None:
+        label, det, failure = found
+        raise CampaignSetupError(
+            f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
+            f"{failure}. Its results would depend on --chunk-size and on which runs "
+            "share a chunk, which [runner] must never change; fix: compute every "
+            "run on its own (docs/write-a-detector.md, Signals and output) and check "
+            "it with detectors.testing.check_detector")
 
 
 @dataclass
@@ -368,7 +361,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
         ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
         campaign sets ``run_timeout_s`` (a thread cannot be stopped) or runs an FMU plant
-        (one FMU instance per worker process).
+        (one FMU instance per worker process). With ``run_timeout_s`` every run is bounded:
+        the chunks run on loky processes (one with ``jobs=1``), and threads or a dask
+        cluster are refused before any work (:func:`campaign.execute.time_limit_refusal`).
     scheduler : address ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` of a dask.distributed
         scheduler; the chunks then run on its workers (*jobs* and *backend* are not used)
     tls : :class:`campaign.execute.TlsFiles` (CA, certificate and key files) for a
@@ -408,7 +403,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         raise
     try:
         complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
-        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start)
+        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start,
+                        fmu_sha256=setup.fmu_sha256)
     finally:
         setup.close()
 
@@ -457,7 +453,7 @@ def evaluate_rows(setup, rows: pd.DataFrame, detectors: dict, log=None) -> pd.Da
         call = partial(_evaluate_copy if setup.backend == "threading" else evaluate,
                        detectors=detectors, settings=settings)
         run_local(chunks, call, fail, frames.append, jobs=setup.jobs, backend=setup.backend,
-                  run_timeout_s=None, pool=pool, log=log)
+                  run_timeout_s=setup.run_timeout_s, pool=pool, log=log)
     results = pd.concat(frames, ignore_index=True)
     order = {rid: i for i, rid in enumerate(dict.fromkeys(rows["run_id"]))}
     return (results.assign(_o=results["run_id"].map(order))
@@ -496,6 +492,8 @@ class _Setup:
     client: object = None   # a distributed.Client, or None
     pool: object = None     # a started campaign.execute.LocalPool, or None
     lock: object = None     # the directory's held campaign.storage.DirLock
+    run_timeout_s: float | None = None   # [runner] run_timeout_s, enforced on the pool
+    fmu_sha256: str | None = None        # SHA-256 of an FMU plant's file (plant.fmu_sha256)
 
     def close(self) -> None:
         try:
@@ -536,9 +534,13 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
            tls=None) -> _Setup:
     """Check the plant and the options, open the directory, warm the kernels and start the
     local workers (they start while the learning set is simulated here)."""
-    from .execute import LocalPool, connect
+    from .execute import LocalPool, connect, time_limit_refusal
 
     size = check_run_options(config, jobs=jobs, chunk_size=chunk_size)
+    limit = config.runner.run_timeout_s
+    refusal = time_limit_refusal(limit, backend=backend, scheduler=scheduler)
+    if refusal:       # a limit is enforced or refused, never ignored
+        raise CampaignSetupError(refusal)
     settings = settings_of(config)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -555,7 +557,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     cdir = CampaignDir(out)
     setup = _Setup(cdir=cdir, resumed=False, settings=settings,
                    chunk_size=size, jobs=jobs,
-                   backend=backend, client=client)
+                   backend=backend, client=client, run_timeout_s=limit,
+                   fmu_sha256=fmu_sha256(settings.plant))
     try:
         # one run at a time writes into a directory: a second one is refused (exit 2)
         setup.lock = DirLock(cdir.lock_path).acquire(log)
@@ -564,7 +567,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
             for spec in config.detectors:   # import their modules: they register their kernels
                 load_detector_class(spec.name)
             kernels.warm_up(log)
-        if client is None and jobs > 1:
+        if client is None and (jobs > 1 or limit is not None):
+            # a time limit needs a worker process to stop, even for --jobs 1
             setup.pool = LocalPool(backend, jobs)
             setup.pool.start()
     except BaseException:
@@ -591,7 +595,8 @@ def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
         threads = (pool is not None and setup.backend == "threading"
                    and settings.plant.kind == "actuator")
         return fit_detectors(config, setup.cdir, settings, setup.chunk_size, log=log,
-                             submit=pool.submit if threads else None, workers=setup.jobs)
+                             submit=pool.submit if threads else None, workers=setup.jobs,
+                             run_timeout_s=setup.run_timeout_s)
 
 
 def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, progress: bool,
@@ -621,11 +626,7 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
         if chunks and setup.client is not None:
             run_on_cluster(setup.client, chunks, evaluate, detectors, settings, fail, store,
                            log=log)
-        elif chunks and pool is None:
-            if config.runner.run_timeout_s is not None:
-                log("note: run_timeout_s is enforced on worker processes only (--jobs ≥ 2 "
-                    "with the loky backend, or a dask cluster); running in-process "
-                    "without a limit")
+        elif chunks and pool is None:       # --jobs 1 without a time limit: in-process
             for c in chunks:
                 store(evaluate(c, detectors, settings))
         elif chunks:
@@ -633,7 +634,7 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
             call = partial(_evaluate_copy if setup.backend == "threading" else evaluate,
                            detectors=detectors, settings=settings)
             run_local(chunks, call, fail, store, jobs=setup.jobs, backend=setup.backend,
-                      run_timeout_s=config.runner.run_timeout_s, pool=pool, log=log)
+                      run_timeout_s=setup.run_timeout_s, pool=pool, log=log)
         return True
     except KeyboardInterrupt:
         bar.close()
@@ -645,10 +646,11 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
 
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
-             wall_s: float) -> CampaignResult:
+             wall_s: float, fmu_sha256: str | None = None) -> CampaignResult:
     """Gather the shards in plan order and write ``summary.parquet`` (its metadata also
     holds ``fitted_sha256``, :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and
-    ``fitted_from``, the directory they were taken from or None) and, for a campaign of
+    ``fitted_from``, the directory they were taken from or None, and ``fmu_sha256``, the
+    SHA-256 of an FMU plant's file, :func:`campaign.plant.replay_plant`) and, for a campaign of
     fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
     ``detection-times.parquet``."""
     results = cdir.read_results()
@@ -665,7 +667,7 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
                        runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
                        runs_planned=len(plan),
                        fitted_sha256=cdir.fitted_sha256([d.label for d in config.detectors]),
-                       fitted_from=origin.get("fitted_from"))
+                       fitted_from=origin.get("fitted_from"), fmu_sha256=fmu_sha256)
     times = None
     if not results.empty and fixed_onset_campaign(plan):
         times = detection_time_table(plan, results)

@@ -8,6 +8,8 @@ from .base import (
     as_variants,
     confirm,
     detection_problems,
+    read_only,
+    writes_input,
 )
 from .params import Param, parameter_problems, parameter_table
 from .registry import (
@@ -20,7 +22,7 @@ from .registry import (
 
 __all__ = [
     "Capabilities", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
-    "detection_problems",
+    "detection_problems", "read_only", "writes_input",
     "DetectorSpecError", "available_detectors", "load_detector_class", "make_detector",
     "parameter_errors", "Param", "parameter_problems", "parameter_table",
 ]

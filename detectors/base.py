@@ -8,13 +8,16 @@
 * capabilities are declared as data in :class:`Capabilities`, parameters as data in
   :attr:`Detector.parameters` (:class:`detectors.params.Param`).
 
-A detector never receives the truth of a run: it is only ever handed :class:`Signals`.
+A detector never receives the truth of a run: it is only ever handed :class:`Signals`, and
+the engine hands them read-only (:func:`read_only`): every detector of a campaign reads the
+signals the plant produced, whatever another detector does with its own.
 """
 
 from __future__ import annotations
 
 import inspect
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, fields, replace
 from typing import Mapping
 
 import numpy as np
@@ -22,6 +25,78 @@ import numpy as np
 from scenarios.signals import Signals
 
 from .params import Param, parameter_problems
+
+
+class FrozenMapping(Mapping):
+    """A read-only mapping of read-only arrays (``Signals.schedule``, ``aircraft`` and
+    ``rods`` as a detector receives them): item assignment and deletion raise
+    ``TypeError``. Unlike :class:`types.MappingProxyType` it pickles and deep-copies (a
+    copy is an ordinary writeable dict of writeable arrays: the copy is the reader's
+    own)."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data: Mapping):
+        self._data = dict(data)
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self) -> Iterator:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return f"FrozenMapping({self._data!r})"
+
+    def __reduce__(self):
+        return dict, (self._data,)
+
+    def __deepcopy__(self, memo):
+        import copy
+
+        return {k: copy.deepcopy(v, memo) for k, v in self._data.items()}
+
+
+def _read_only_array(value):
+    """A view of *value* whose write flag is off (no copy); other values unchanged."""
+    if not isinstance(value, np.ndarray):
+        return value
+    view = value.view()
+    view.flags.writeable = False
+    return view
+
+
+def read_only(signals: Signals) -> Signals:
+    """*signals* as a detector receives them: the same arrays, as views whose write flag is
+    off, and the per-run mappings (``schedule``, ``aircraft``, ``rods``) as
+    :class:`FrozenMapping` of such views. No data are copied (a view costs the same for a
+    run of any length). A detector that writes into its input (``signals.rod_mon[:] = 0``,
+    ``signals.schedule["vcas_kt"] *= 2``) raises ``ValueError: assignment destination is
+    read-only`` or ``TypeError`` at that line, inside its own ``fit`` or ``detect``: the
+    engine records that as its failure (:func:`campaign.evaluate.detect`) and the other
+    detectors read the signals the plant produced (docs/write-a-detector.md, Signals and
+    output). A detector that wants to change an array works on its own copy
+    (``np.array(signals.rod_com)``)."""
+    changes = {}
+    for f in fields(signals):
+        value = getattr(signals, f.name)
+        if isinstance(value, Mapping):
+            changes[f.name] = FrozenMapping({k: _read_only_array(v) for k, v in value.items()})
+        elif isinstance(value, np.ndarray):
+            changes[f.name] = _read_only_array(value)
+    return replace(signals, **changes)
+
+
+def writes_input(exc: BaseException) -> bool:
+    """Whether *exc* is what a write into a :func:`read_only` input raises: NumPy's
+    ``ValueError: assignment destination is read-only`` (or ``output array is read-only``),
+    or the ``TypeError`` of an item assignment into a :class:`FrozenMapping`."""
+    text = str(exc)
+    return ((isinstance(exc, ValueError) and "read-only" in text)
+            or (isinstance(exc, TypeError) and "FrozenMapping" in text))
 
 
 class NotFittedError(RuntimeError):

@@ -383,7 +383,9 @@ def _warm_kernels() -> None:
     plant = np.ones((kernels.FIELD_ROWS, 1))
     plant[kernels.P_XMIN] = -1.0
     empty = np.zeros((0, 0))
-    _predict_block(z2, z2, plant, 0.01, 1e-6, np.ones(3), 0.0, 0.5, empty, empty, np.zeros((1, 2)))
+    for z in (z2, kernels.read_only_view(z2)):    # signals as detect reads them: read-only
+        _predict_block(z, z, plant, 0.01, 1e-6, np.ones(3), 0.0, 0.5, empty, empty,
+                       np.zeros((1, 2)))
     _decide_block(z2, 0.5, np.ones(2), np.zeros((1, 2)), np.zeros((1, 2), dtype=np.bool_))
     _window_maxima(np.zeros((1, 3)), np.zeros((1, 2)))
 

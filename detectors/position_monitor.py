@@ -121,9 +121,10 @@ def _warm_kernels() -> None:
     """Compile (or load from the cache) the kernel of this module on tiny inputs."""
     z2 = np.zeros((1, 2))
     plants = np.ones((2, kernels.FIELD_ROWS, 1))
-    _decide_block(z2, z2, plants, 0.01, z2, np.zeros((0, 0)), np.ones(3),
-                  np.array([True, True, False]), 1, np.zeros((1, 2)),
-                  np.zeros((1, 2), dtype=np.bool_))
+    for rod in (z2, kernels.read_only_view(z2)):  # signals as detect reads them: read-only
+        _decide_block(rod, rod, plants, 0.01, rod, np.zeros((0, 0)), np.ones(3),
+                      np.array([True, True, False]), 1, np.zeros((1, 2)),
+                      np.zeros((1, 2), dtype=np.bool_))
 
 
 kernels.register_warmup(_warm_kernels, kernels=(_decide_block,))

@@ -25,7 +25,10 @@ checks, on any detector (docs/design.md §4, Contracts):
   each, and the defaults satisfy them;
 * ``fit`` returns ``self`` and stores learned state only in attributes ending in ``_``;
   it leaves ``get_params`` unchanged; neither ``fit`` nor ``detect`` modifies the signals
-  it is given;
+  it is given: both receive them read-only, as in a campaign
+  (:func:`detectors.base.read_only`); one that writes into them (and so raises) is run
+  again on a copy of its own, so that ``fit_leaves_signals`` or ``detect_leaves_signals``
+  names the signal, run and step it wrote and the other checks still judge its output;
 * shapes and dtypes: alarm bool, residual float, both (n_runs, n_steps), residual finite
   but for NaN warm-up samples at the start of a run — the rule the engine applies to every
   ``detect`` of a campaign (:func:`detectors.detection_problems`);
@@ -61,7 +64,15 @@ import pandas as pd
 from scenarios.plants import get_plant
 from scenarios.signals import SIGNAL_UNITS
 
-from .base import Detection, Detector, NotFittedError, as_variants, detection_problems
+from .base import (
+    Detection,
+    Detector,
+    NotFittedError,
+    as_variants,
+    detection_problems,
+    read_only,
+    writes_input,
+)
 from .compat import incompatibilities
 from .params import declared_parameters, parameter_problems, signature_defaults
 from .state import StateTypeError, decode, encode
@@ -138,8 +149,22 @@ def _simulated_batch(surface: str, duration_s: float, pressure: bool) -> tuple:
     return _signals_of(surface, duration_s, ACTUATOR_CASES, "actuator", pressure)
 
 
+def _on(method, signals):
+    """``method(signals)`` (a detector's ``fit`` or ``detect``) with the signals read-only,
+    as a campaign hands them; a detector that writes into them (and so raises there) is
+    called again on *signals* themselves, a copy the check owns, so that the write is
+    reported where it happens (:func:`_unchanged`) and the other checks see its output."""
+    try:
+        return method(read_only(signals))
+    except Exception as exc:
+        if not writes_input(exc):
+            raise
+        return method(signals)
+
+
 def _variants(det, signals) -> dict[str, Detection]:
-    return as_variants("detector", det.detect(signals))
+    """The variants of fitted *det* on *signals* (:func:`_on`)."""
+    return as_variants("detector", _on(det.detect, signals))
 
 
 def _run_text(signals, j: int) -> str:
@@ -198,7 +223,10 @@ def _unchanged(before: dict, signals, what: str) -> None:
         if hit is not None:
             i, k = hit
             where = f", first at {_run_text(signals, i)}, step {k}" if arr.ndim == 2 else ""
-            raise DetectorCheckError(f"{what} ({name}{where})")
+            raise DetectorCheckError(f"{what} ({name}{where}); a campaign hands them "
+                                     "read-only: there the write raises and the detector's "
+                                     "runs are errors (work on a copy: "
+                                     "np.array(signals.rod_com))")
 
 
 class _NotRun(Exception):
@@ -270,7 +298,7 @@ class _Context:
             learn, _ = self.signals()
             det = copy.deepcopy(self.detector)
             before = _snapshot(learn)
-            returned = det.fit(learn)
+            returned = _on(det.fit, learn)
             return {"det": det, "returned": returned, "before": before, "learn": learn}
 
         return self._stage("fit()", make)
@@ -338,7 +366,7 @@ def _check_not_fitted_error(ctx: _Context) -> None:
     det = copy.deepcopy(ctx.detector)
     _, ev = ctx.signals()
     try:
-        det.detect(ev)
+        det.detect(read_only(ev))
     except NotFittedError as exc:
         if "fit" not in str(exc):
             raise DetectorCheckError("the NotFittedError of detect() before fit() must say "
@@ -397,7 +425,7 @@ def _check_determinism(ctx: _Context) -> None:
 def _check_determinism_refit(ctx: _Context) -> None:
     o = ctx.output()
     learn, ev = ctx.signals()
-    refit = copy.deepcopy(ctx.detector).fit(learn)
+    refit = _on(copy.deepcopy(ctx.detector).fit, learn)
     _same(o["out"], _variants(refit, ev),
           "determinism (fitted again on the same learning set)", ev, range(ev.n_runs))
 
@@ -420,16 +448,22 @@ def _batch_invariant(det, signals, out: dict) -> None:
     _same(out, reordered, "batch invariance (runs in reverse order)", signals, list(order))
 
 
-def batch_invariance_failure(detector: Detector, signals) -> str | None:
+def batch_invariance_failure(detector: Detector, signals, engine: str | None = None
+                             ) -> str | None:
     """The ``batch_invariance`` check of :data:`CHECKS` on the given *signals*: what differs
     when the fitted *detector* sees each run alone, or the runs in reverse order, instead
     of all of them together (None: nothing; a run's result must not depend on the other
     runs of its batch, since a campaign cuts its runs into chunks of any size). The
     detector is not modified (it runs on copies). Used by the runner on a few learning
-    runs of every third-party detector before a campaign starts."""
+    runs of every third-party detector before a campaign starts, with the kernels of
+    *engine* (``[runner] engine``; None: the current ones)."""
+    from scenarios import kernels
+
     det = copy.deepcopy(detector)
+    signals = read_only(signals)    # shared by the detectors checked: a write raises here
     try:
-        _batch_invariant(det, signals, _variants(det, signals))
+        with kernels.use_engine(engine or kernels.current_engine()):
+            _batch_invariant(det, signals, _variants(det, signals))
     except DetectorCheckError as exc:
         return str(exc)
     return None

@@ -575,6 +575,16 @@ def servo_band(u, x0, plants, ts: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---- compile / load from the cache before a campaign -----------------------------------------
+def read_only_view(array: np.ndarray) -> np.ndarray:
+    """A view of *array* whose write flag is off. A detector's inputs reach it so
+    (:func:`detectors.base.read_only`), and numba compiles a kernel once per argument type,
+    read-only arrays being a type of their own: the warm-ups call the kernels that read
+    signals with such views too, so that a campaign never compiles in its first chunk."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
 _WARMUPS: list = []
 _CACHED: list = []   # compiled functions of other modules whose cache state warm_up reports
 
@@ -600,7 +610,11 @@ def _warm_simulation() -> None:
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
     servo_model_block(z2, z1, plant, 0.01, outs[0])
+    servo_model_block(read_only_view(z2), z1, plant, 0.01, outs[0])   # a detector's command
     servo_band_block(z2, z1, np.stack([fields, fields]), 0.01, outs[0], outs[1])
+    # the command as a detector reads it (read-only: the position monitor's model band)
+    servo_band_block(read_only_view(z2), z1, np.stack([fields, fields]), 0.01, outs[0],
+                     outs[1])
 
 
 register_warmup(_warm_simulation)

@@ -100,3 +100,57 @@ class ScheduleMargin(_Quiet):
         ratio = np.asarray(signals.schedule["vcas_kt"], float) / float(self.limit_kt)
         residual = np.broadcast_to(ratio[:, None], shape).copy()
         return residual >= 1.0, residual
+
+
+class SignalWriter(_Quiet):
+    """Writes into the signals it is given in ``detect`` (zeroes the rod positions and the
+    command, as a detector "cleaning" its input in place would) and raises no alarm: with
+    writeable inputs, every detector run after it in the same chunk would read zeros."""
+
+    def _output(self, signals):
+        for name in ("rod_mon", "rod_com", "command"):
+            getattr(signals, name)[:] = 0.0
+        return super()._output(signals)
+
+
+class ScheduleWriter(_Quiet):
+    """Changes the measured schedule in ``detect``: ``how="scale"`` multiplies its arrays in
+    place, ``how="assign"`` replaces an entry of the mapping."""
+
+    def __init__(self, how="scale"):
+        self.how = how
+
+    def _output(self, signals):
+        if self.how == "assign":
+            signals.schedule["qbar_pa"] = np.asarray(signals.schedule["qbar_pa"]) * 50.0
+        else:
+            for values in signals.schedule.values():
+                values *= 50.0
+        return super()._output(signals)
+
+
+class FitWriter(_Quiet):
+    """Needs fit, and its fit writes into the learning signals (removes their mean in
+    place)."""
+
+    capabilities = Capabilities(needs_fit=True)
+
+    def _fit(self, signals):
+        rod = signals.rod_com
+        rod -= rod.mean(axis=1, keepdims=True)
+        self.level_ = 0.5
+
+
+class FitSleeps(_Quiet):
+    """Needs fit, and its fit sleeps *sleep_s* seconds (a fit that hangs)."""
+
+    capabilities = Capabilities(needs_fit=True)
+
+    def __init__(self, sleep_s=3600.0):
+        self.sleep_s = sleep_s
+
+    def _fit(self, signals):
+        import time
+
+        time.sleep(float(self.sleep_s))
+        self.level_ = 0.5
