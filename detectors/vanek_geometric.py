@@ -7,17 +7,21 @@ elevator's lift acting 4.1 m off the plane of symmetry, docs/physics.md §7.3; p
 ``design_model``, :data:`DESIGN_MODELS`, keeps [VANEK] §4.2's elevators in unison as an
 ablation), outputs y = (α, q, θ, β, p, r, φ), every state, as [VANEK] §4.1's aircraft
 measures the aerodynamic angles (α, β) with the rates and attitudes — the load factors are
-left out as in [VANEK] §5 (their direct feed-through complicates the synthesis); parameter
-``aoa_sensor`` false leaves α out (the sensor set before model servo-4, an ablation). Fault
-directions ([VANEK] §5: "successive input directions from the B matrix"):
+left out as in [VANEK] §5 (their direct feed-through complicates the synthesis). That is the
+design with ``aoa_sensor`` true; the default, ``aoa_sensor`` false, leaves α out (outputs q,
+θ, β, p, r, φ: the aircraft layout without the angle-of-attack vane), because the α design
+raised false alarms where this one raised none (docs/vanek-geometric.md: zero false alarms
+come first; the α design detects more jams). Fault directions ([VANEK] §5: "successive input
+directions from the B matrix"):
 
 * L1 — the left inboard aileron's column of B (the fault to detect);
 * L2 — the left elevator's and the rudder's columns (the faults to isolate from), and, with
-  ``decouple_gusts``, the gust sideslip's direction e_β and the gust angle of attack's e_α
-  (the β and α outputs are the air-relative angles of the vanes:
-  :func:`gust_sideslip_direction`, :func:`gust_aoa_direction`). With C = I, S* is the span
-  of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/test_geometric.py). Without
-  α, e_α is decoupled only by the unison model, whose S* holds the short-period directions;
+  ``decouple_gusts``, the gust sideslip's direction e_β and, with ``aoa_sensor``, the gust
+  angle of attack's e_α (the β and α outputs are the air-relative angles of the vanes:
+  :func:`gust_sideslip_direction`, :func:`gust_aoa_direction`). With α (C = I), S* is the
+  span of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/test_geometric.py).
+  Without α (the default), e_α is decoupled only by the unison model, whose S* holds the
+  short-period directions;
   on the aircraft's layout S* (dimension 3) does not hold it, and it cannot be added: S*
   holding the elevator, the rudder, e_β and e_α then has dimension 5 and contains L1
   (docs/vanek-geometric.md).
@@ -106,8 +110,8 @@ HINF_VARIANTS = ("lti-hinf", "one-step")
 OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")
 
 
-def design_outputs(aoa_sensor: bool = True) -> tuple[str, ...]:
-    """:data:`OUTPUTS`, or without α (*aoa_sensor* False: the sensors of model servo-3)."""
+def design_outputs(aoa_sensor: bool = False) -> tuple[str, ...]:
+    """:data:`OUTPUTS`, or without α (*aoa_sensor* False, the default: q, θ, β, p, r, φ)."""
     return OUTPUTS if aoa_sensor else tuple(o for o in OUTPUTS if o != "alpha")
 FAULT_SURFACE = "left_inboard_aileron"
 #: Outputs whose trim value is zero in the runs' trimmed, wings-level, straight flight
@@ -218,7 +222,7 @@ def gust_aoa_direction(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
-                  radius: float = 20.0, design_model: str = "aircraft", aoa_sensor: bool = True
+                  radius: float = 20.0, design_model: str = "aircraft", aoa_sensor: bool = False
                   ) -> tuple[geo.ResidualGenerator, _Filter]:
     """The geometric filter at *point* (``mass_t``, ``cg_pct``, ``mach``, ``qbar_pa``,
     ``tas_ms`` arrays of one element) on the design model *design_model*
@@ -281,14 +285,14 @@ def affine_model(mass_t: float = NOMINAL.mass_t, cg_pct: float = NOMINAL.cg_pct,
     return at, err
 
 
-def _output_matrix(aoa_sensor: bool = True) -> np.ndarray:
+def _output_matrix(aoa_sensor: bool = False) -> np.ndarray:
     """C of the design model: the states measured as :func:`design_outputs`."""
     from scenarios.aircraft import lpv
 
     return np.eye(lpv.N_STATES)[[lpv.STATES.index(s) for s in design_outputs(aoa_sensor)]]
 
 
-def _fault_columns(A, B, decouple_gusts: bool, aoa_sensor: bool = True):
+def _fault_columns(A, B, decouple_gusts: bool, aoa_sensor: bool = False):
     """(L1, L2) of the design model (A, B) (module docstring): with *decouple_gusts* the
     gust directions e_β and, when α is measured (*aoa_sensor*), e_α."""
     i1, i2, _ = _columns()
@@ -301,7 +305,7 @@ def _fault_columns(A, B, decouple_gusts: bool, aoa_sensor: bool = True):
 
 
 def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
-                  radius: float = 20.0, design_model: str = "aircraft", aoa_sensor: bool = True):
+                  radius: float = 20.0, design_model: str = "aircraft", aoa_sensor: bool = False):
     """The ``lpv-affine`` filter family ([VANEK] §5) on the aircraft model affine in VCAS and
     altitude (:func:`affine_model`, at [VANEK]'s 200 t and 30 % CG, surface layout
     *design_model* of :data:`DESIGN_MODELS`). Returns a function θ → (the continuous residual
@@ -356,7 +360,7 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
 
 
 def one_step_design(point: dict, ts: float, design_model: str = "unison",
-                    aoa_sensor: bool = True):
+                    aoa_sensor: bool = False):
     """The one-step H∞ FDI filter of [VANEK] §3 (:func:`detectors.vanek_hinf.one_step_filter`)
     at *point*, and its discretisation as a :class:`_Filter` on the inputs of
     :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
@@ -429,7 +433,14 @@ class VanekGeometric(Detector):
     radius : float
         Largest filter pole modulus [rad/s] (> decay; well below π/Ts for the bilinear map).
     decouple_gusts : bool
-        Also decouple the lateral gust direction (module docstring).
+        Also decouple the gusts: the lateral direction e_β and, with ``aoa_sensor``, the
+        vertical one e_α (module docstring).
+    aoa_sensor : bool
+        Read the angle-of-attack vane (``Signals.aircraft["alpha"]``) as an output of the
+        design model (default False: outputs q, θ, β, p, r, φ; the vertical gust then reaches
+        r̂). True decouples both gusts and detects more aileron jams, at the price of false
+        alarms measured where the default has none (docs/vanek-geometric.md). A fitted
+        detector keeps the outputs it was fitted with (``aoa_sensor_``).
     design_model : str
         Surface layout of the design model (:data:`DESIGN_MODELS`): ``"aircraft"`` (default,
         the simulated aircraft's, elevator arm included) or ``"unison"`` (the elevators in
@@ -477,15 +488,18 @@ class VanekGeometric(Detector):
               "(ablation: the left elevator's roll leaks into the residual)",
               source="[VANEK] §4.2 (unison); docs/physics.md §7.3 (aircraft)"),
         Param("aoa_sensor", "bool", doc="read the angle-of-attack vane (Signals.aircraft "
-              "alpha) as an output of the design model; false: the outputs q, θ, β, p, r, φ "
-              "(ablation: the vertical gust is then not decoupled on the aircraft's layout)",
-              source="[VANEK] §4.1 (aerodynamic angles α, β measured)"),
+              "alpha) as an output of the design model, decoupling both gusts (more aileron "
+              "jams detected, but false alarms where the default has none: "
+              "docs/vanek-geometric.md); false (default): the outputs q, θ, β, p, r, φ, the "
+              "vertical gust not decoupled on the aircraft's layout",
+              source="[VANEK] §4.1 (aerodynamic angles α, β measured); default: measured "
+              "false alarms, docs/vanek-geometric.md"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light", design_model="aircraft", aoa_sensor=True):
+                 threshold_tail="light", design_model="aircraft", aoa_sensor=False):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
@@ -602,7 +616,7 @@ class VanekGeometric(Detector):
 
     # ---- signals -----------------------------------------------------------------------
     @staticmethod
-    def filter_inputs(signals: Signals, aoa_sensor: bool = True) -> np.ndarray:
+    def filter_inputs(signals: Signals, aoa_sensor: bool = False) -> np.ndarray:
         """v = [u; y] of every run and step, shape (n_runs, n_steps, n_inputs), in rad and
         rad/s, relative to the first sample (module docstring); y the outputs
         :func:`design_outputs` (*aoa_sensor*)."""

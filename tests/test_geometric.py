@@ -230,10 +230,12 @@ def test_an_inaccurate_lmi_answer_is_a_checked_status_not_a_warning():
         geo._injection((status, X, -0.1 * K), [np.zeros((1, 1))], np.eye(1), 0.5, 20.0, "h")
 
 
-def test_aircraft_designs_over_the_envelope_raise_no_solver_warning_and_are_valid():
+@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+def test_aircraft_designs_over_the_envelope_raise_no_solver_warning_and_are_valid(aoa):
     """At the realistic flight points where Clarabel answers optimal_inaccurate (about one
     in four, a boundary optimum: the slowest pole on Re λ = −decay), no warning reaches the
-    user and every design is valid: poles in the region, the decoupled directions blind."""
+    user and every design is valid: poles in the region, the decoupled directions blind;
+    for the default outputs (no α) and with the α vane."""
     import warnings
 
     from scenarios import envelope
@@ -243,19 +245,19 @@ def test_aircraft_designs_over_the_envelope_raise_no_solver_warning_and_are_vali
 
     pts = envelope.realistic_points()
     pts = pts[pts["realistic"]].iloc[::4]
-    C = _output_matrix()
+    C = _output_matrix(aoa)
     i1, _, _ = _columns()
     w = np.logspace(-3, 2, 21)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         for r in pts.itertuples():
             point = _point(r.vcas_kt, r.alt_ft, r.mass_t, r.cg_pct)
-            gen, _ = design_filter(point, 0.01)
+            gen, _ = design_filter(point, 0.01, aoa_sensor=aoa)
             eig = np.linalg.eigvals(gen.N)
             # the region Re λ ≤ −0.5, |λ| ≤ 20 within the 1e-3 of _injection's check
             assert eig.real.max() <= -0.5 * (1 - 1e-3) and np.abs(eig).max() <= 20.0 * 1.001
             A, B = _model(point)
-            _, L2 = _fault_columns(A, B, True)
+            _, L2 = _fault_columns(A, B, True, aoa)
             seen = np.abs(gen.fault_to_residual(A, B, C, B[:, [i1]], w)).max()
             leak = np.abs(gen.fault_to_residual(A, B, C, L2, w)).max()
             assert leak < 1e-9 * seen            # round-off only

@@ -32,7 +32,7 @@ def _tf(A, B, C, D, s):
 @functools.lru_cache(maxsize=None)
 def _generator():
     point = vg._point(*dataclasses.astuple(vg.NOMINAL))
-    return vg.design_filter(point, TS)[0]
+    return vg.design_filter(point, TS)[0]        # the default design (outputs without α)
 
 
 def _capture_hinfsyn(monkeypatch):
@@ -108,7 +108,7 @@ def test_post_filter_interconnection_is_the_documented_model_matching(monkeypatc
 
     monkeypatch.setattr(vh, "residualise", residualise)
     gen = _generator()
-    sigma = vh.sensor_sigmas(vg.OUTPUTS) * np.sqrt(TS)         # as the lti-hinf variant uses it
+    sigma = vh.sensor_sigmas(vg.design_outputs()) * np.sqrt(TS)   # as lti-hinf uses it
     q = vh.post_filter(gen, sigma)          # defaults: f_s 0.1, ω_id 1, ε 0.1, 100 rad/s
     plant = seen["plant"]
     for got, want in zip((plant.A, plant.B, plant.C, plant.D),
@@ -149,14 +149,14 @@ def test_post_filter_of_a_hand_built_filter_with_fewer_residuals_than_states(mon
 
 def test_post_filter_weights_are_keyword_only():
     with pytest.raises(TypeError):
-        vh.post_filter(_generator(), vh.sensor_sigmas(vg.OUTPUTS), 0.2)
+        vh.post_filter(_generator(), vh.sensor_sigmas(vg.design_outputs()), 0.2)
 
 
 @pytest.mark.parametrize("kwargs", [{"omega_id": 0.0}, {"eps": 0.0}, {"omega_id": -1.0},
                                     {"eps": -0.1}])
 def test_post_filter_refuses_non_positive_bandwidth_or_penalty(kwargs):
     with pytest.raises(ValueError, match="omega_id and eps must be > 0"):
-        vh.post_filter(_generator(), vh.sensor_sigmas(vg.OUTPUTS), **kwargs)
+        vh.post_filter(_generator(), vh.sensor_sigmas(vg.design_outputs()), **kwargs)
 
 
 def _no_control(monkeypatch, missing):
@@ -174,7 +174,7 @@ def _no_control(monkeypatch, missing):
 def test_missing_optional_libraries_name_the_extra(monkeypatch, missing):
     _no_control(monkeypatch, missing)
     with pytest.raises(vh.HinfUnavailableError, match=r"fdd-campaign\[hinf\]"):
-        vh.post_filter(_generator(), vh.sensor_sigmas(vg.OUTPUTS))
+        vh.post_filter(_generator(), vh.sensor_sigmas(vg.design_outputs()))
     with pytest.raises(vh.HinfUnavailableError, match=r"fdd-campaign\[hinf\]"):
         vh.one_step_filter(-np.eye(1), np.ones((1, 3)), np.ones((1, 1)), ("q",), 0, [1], [2],
                            [], [1e-3], [1e-3], TS)

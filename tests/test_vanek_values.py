@@ -30,7 +30,9 @@ from scenarios.signals import Signals
 
 TS = 0.01                                   # s: the aircraft plant's sampling period
 N_STEPS = 60
-OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")
+OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")      # with the α vane
+#: the outputs of the default design (aoa_sensor = false): no α
+DEFAULT_OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
 #: (VCAS kt, altitude ft, mass t, CG % MAC) of the hand-built runs: off the LTI design point
 POINTS = ((200.0, 26000.0, 180.0, 25.0), (280.0, 33000.0, 220.0, 35.0))
 #: known inputs in the documented order: every surface but the left elevator and the rudder
@@ -72,7 +74,11 @@ def _signals(points=POINTS, monitored="left_elevator", seed=0, n_steps=N_STEPS):
 
 
 # ---- plain references --------------------------------------------------------------------
-def _plain_inputs(sig, monitored):
+def _outputs(aoa):
+    return OUTPUTS if aoa else DEFAULT_OUTPUTS
+
+
+def _plain_inputs(sig, monitored, aoa=False):
     """v = [u; y] [rad, rad/s] (docs/vanek-geometric.md): the known rods as deflections
     asin(x/r) (clipped to the lever arm) relative to their first sample, the left inboard
     aileron's expected rod from the nominal servo model when it is monitored, the spoiler
@@ -87,20 +93,21 @@ def _plain_inputs(sig, monitored):
         cols.append(d - d[:, :1])
     cols.append(np.radians(sig.aircraft["spoiler"]))
     theta0 = np.radians(sig.aircraft["theta"])[:, :1]
-    for o in OUTPUTS:
+    for o in _outputs(aoa):
         y = np.radians(sig.aircraft[o])
         cols.append(y - theta0 if o in ("theta", "alpha") else y)
     return np.stack(cols, axis=2)
 
 
-def _design_model(point, design_model="aircraft"):
+def _design_model(point, design_model="aircraft", aoa=False):
     """(A, B, C) of the design model: the simulated aircraft's layout, or the elevators in
-    unison (no elevator roll arm), outputs α, q, θ, β, p, r, φ (every state)."""
+    unison (no elevator roll arm), outputs q, θ, β, p, r, φ, or with the α vane (*aoa*)
+    α, q, θ, β, p, r, φ (every state)."""
     layout = LAYOUT if design_model == "aircraft" else dataclasses.replace(LAYOUT,
                                                                           elevator_arm_m=0.0)
     m = lpv.run_models(point, np.zeros(1), layout=layout)
-    C = np.zeros((len(OUTPUTS), lpv.N_STATES))
-    for i, o in enumerate(OUTPUTS):
+    C = np.zeros((len(_outputs(aoa)), lpv.N_STATES))
+    for i, o in enumerate(_outputs(aoa)):
         C[i, lpv.STATES.index(o)] = 1.0
     return m.A[0], m.B[0], C
 
@@ -112,13 +119,14 @@ def _point(v, h, mass, cg):
             "mach": fc["mach"], "qbar_pa": fc["qbar_pa"], "tas_ms": fc["tas_ms"]}
 
 
-def _directions(A, B, gusts=True):
-    """L1: the left inboard aileron's column; L2: the left elevator's, the rudder's, e_β and
-    e_α (the gusts, with the air-relative β and α measured)."""
+def _directions(A, B, gusts=True, aoa=False):
+    """L1: the left inboard aileron's column; L2: the left elevator's, the rudder's, e_β and,
+    with the α vane (*aoa*), e_α (the gusts, with the air-relative β and α measured)."""
     col = LAYOUT.names.index
     L2 = [B[:, col("left_elevator")], B[:, col("rudder")]]
     if gusts:
         L2.append(np.eye(lpv.N_STATES)[:, lpv.STATES.index("beta")])
+    if gusts and aoa:
         L2.append(np.eye(lpv.N_STATES)[:, lpv.STATES.index("alpha")])
     return B[:, [col(vg.FAULT_SURFACE)]], np.column_stack(L2)
 
@@ -128,9 +136,9 @@ def _known_columns():
 
 
 @functools.lru_cache(maxsize=None)
-def _reference_generator(v, h, mass, cg, gusts=True):
-    A, B, C = _design_model(_point(v, h, mass, cg))
-    L1, L2 = _directions(A, B, gusts)
+def _reference_generator(v, h, mass, cg, gusts=True, aoa=False):
+    A, B, C = _design_model(_point(v, h, mass, cg), aoa=aoa)
+    L1, L2 = _directions(A, B, gusts, aoa)
     return geo.design(A, B[:, _known_columns()], C, L1, L2, decay=0.5, radius=20.0)
 
 
@@ -187,7 +195,8 @@ def test_documented_constants_and_defaults():
         "safety": 1.5, "confirm_s": 0.05, "decay": 0.5, "radius": 20.0,
         "decouple_gusts": True, "smoothing_s": 2.0, "variants": ("lti", "lpv"),
         "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
-        "threshold_tail": "light", "design_model": "aircraft", "aoa_sensor": True}
+        "threshold_tail": "light", "design_model": "aircraft", "aoa_sensor": False}
+    assert vg.design_outputs() == DEFAULT_OUTPUTS and vg.design_outputs(True) == OUTPUTS
     assert vg.DESIGN_MODELS == ("aircraft", "unison")
     with pytest.raises(dataclasses.FrozenInstanceError):
         vg.NOMINAL.vcas_kt = 250.0
@@ -206,7 +215,8 @@ def test_columns_output_matrix_and_flight_point():
     assert i2 == [LAYOUT.names.index("left_elevator"), LAYOUT.names.index("rudder")]
     assert known == _known_columns()
     x = np.arange(1.0, lpv.N_STATES + 1.0)
-    assert list(vg._output_matrix() @ x) == [x[lpv.STATES.index(o)] for o in OUTPUTS]
+    assert list(vg._output_matrix() @ x) == [x[lpv.STATES.index(o)] for o in DEFAULT_OUTPUTS]
+    assert list(vg._output_matrix(True) @ x) == [x[lpv.STATES.index(o)] for o in OUTPUTS]
     p = vg._point(250.0, 20000.0, 190.0, 28.0)
     fc = envelope.flight_condition(20000.0, 250.0, 190.0, 28.0)
     assert p["mass_t"].tolist() == [190.0] and p["cg_pct"].tolist() == [28.0]
@@ -243,10 +253,13 @@ def test_fault_directions_and_the_gust_sideslip_check():
     e_beta = vg.gust_sideslip_direction(A, B)
     np.testing.assert_array_equal(e_beta, np.eye(lpv.N_STATES)[:, lpv.STATES.index("beta")])
     for gusts in (True, False):
-        L1, L2 = vg._fault_columns(A, B, gusts)
-        L1_ref, L2_ref = _directions(A, B, gusts)
-        np.testing.assert_array_equal(L1, L1_ref)
-        np.testing.assert_array_equal(L2, L2_ref)
+        for aoa in (False, True):
+            L1, L2 = vg._fault_columns(A, B, gusts, aoa)
+            L1_ref, L2_ref = _directions(A, B, gusts, aoa)
+            np.testing.assert_array_equal(L1, L1_ref)
+            np.testing.assert_array_equal(L2, L2_ref)
+        # default (no α): e_β only among the gusts
+        assert vg._fault_columns(A, B, gusts)[1].shape[1] == (3 if gusts else 2)
     # a gust column that departs from A e_β by 1e-6 of it is refused
     bad = B.copy()
     bad[:, lpv.I_GUST_BETA] *= 1.0 + 1e-6
@@ -271,12 +284,13 @@ def test_fault_directions_and_the_gust_sideslip_check():
         vg.gust_aoa_direction(A, bad)
 
 
+@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
 @pytest.mark.parametrize("gusts", [True, False])
-def test_design_filter_is_the_documented_construction(gusts):
+def test_design_filter_is_the_documented_construction(gusts, aoa):
     point = _point(*POINTS[0])
-    kwargs = {} if gusts else {"decouple_gusts": False}
+    kwargs = ({} if gusts else {"decouple_gusts": False}) | ({"aoa_sensor": True} if aoa else {})
     gen, f = vg.design_filter(point, TS, **kwargs)      # defaults: decay 0.5, radius 20
-    ref = _reference_generator(*POINTS[0], gusts=gusts)
+    ref = _reference_generator(*POINTS[0], gusts=gusts, aoa=aoa)
     for name in ("N", "G", "F", "H", "M", "P", "L1", "L2"):
         np.testing.assert_allclose(getattr(gen, name), getattr(ref, name), rtol=0.0,
                                    atol=1e-12 * np.abs(getattr(ref, name)).max(), err_msg=name)
@@ -298,12 +312,14 @@ def test_design_filter_passes_decay_and_radius():
 
 
 # ---- inputs and residual -------------------------------------------------------------------
+@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
 @pytest.mark.parametrize("monitored", ["left_elevator", "left_inboard_aileron"])
-def test_filter_inputs(monitored):
+def test_filter_inputs(monitored, aoa):
     sig = _signals(monitored=monitored)
-    v = vg.VanekGeometric.filter_inputs(sig)
-    assert v.shape == (2, N_STEPS, len(KNOWN) + 1 + len(OUTPUTS))
-    np.testing.assert_allclose(v, _plain_inputs(sig, monitored), rtol=1e-13, atol=1e-15)
+    v = (vg.VanekGeometric.filter_inputs(sig, True) if aoa
+         else vg.VanekGeometric.filter_inputs(sig))
+    assert v.shape == (2, N_STEPS, len(KNOWN) + 1 + len(_outputs(aoa)))
+    np.testing.assert_allclose(v, _plain_inputs(sig, monitored, aoa), rtol=1e-13, atol=1e-15)
     # the rods past their lever arm read as full deflection, the expected rod is not the rod
     j = KNOWN.index("right_outboard_aileron")
     assert v[0, 20, j] + np.arcsin(sig.rods["right_outboard_aileron"][0, 0]
@@ -323,15 +339,17 @@ def _fitted_max(variants=("lti", "lpv"), **kwargs):
     return vg.VanekGeometric(variants=variants, threshold_method="max", **kwargs)
 
 
-def test_lti_and_lpv_residuals_against_the_plain_recursion():
+@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+def test_lti_and_lpv_residuals_against_the_plain_recursion(aoa):
     sig = _signals()
-    est = _fitted_max().estimates(sig)
+    est = _fitted_max(**({"aoa_sensor": True} if aoa else {})).estimates(sig)
     assert set(est) == {"lti", "lpv"}
-    v = _plain_inputs(sig, "left_elevator")
+    v = _plain_inputs(sig, "left_elevator", aoa)
     nominal = dataclasses.astuple(vg.NOMINAL)
-    _close(est["lti"], _geometric_estimate(_reference_generator(*nominal), v))
+    _close(est["lti"], _geometric_estimate(_reference_generator(*nominal, aoa=aoa), v))
     for i, p in enumerate(POINTS):
-        _close(est["lpv"][i], _geometric_estimate(_reference_generator(*p), v[i:i + 1])[0])
+        _close(est["lpv"][i], _geometric_estimate(_reference_generator(*p, aoa=aoa),
+                                                  v[i:i + 1])[0])
 
 
 def test_lpv_variant_uses_the_measured_mach_and_qbar():
@@ -556,7 +574,7 @@ def test_lti_hinf_residual_is_the_cascade_with_the_sampled_noise_and_no_low_pass
     sig = _signals()
     est = _fitted_max(variants=("lti-hinf",)).estimates(sig)
     gen = _reference_generator(*dataclasses.astuple(vg.NOMINAL))
-    q = vh.post_filter(gen, vh.sensor_sigmas(OUTPUTS) * np.sqrt(TS))
+    q = vh.post_filter(gen, vh.sensor_sigmas(DEFAULT_OUTPUTS) * np.sqrt(TS))
     # the geometric filter (input [u; y], output r) in series with Q (input r, output f̂)
     m = gen.F.shape[1]
     Bf = np.hstack([gen.F, -gen.G])
@@ -575,12 +593,13 @@ def test_one_step_residual_ignores_the_pitch_attitude_and_is_not_low_passed():
     est = _fitted_max(variants=("one-step",)).estimates(sig)
     f, _ = vg.one_step_design(_point(*dataclasses.astuple(vg.NOMINAL)), TS)
     v = _plain_inputs(sig, "left_elevator")
-    theta = len(KNOWN) + 1 + OUTPUTS.index("theta")
+    theta = len(KNOWN) + 1 + DEFAULT_OUTPUTS.index("theta")
     v = np.delete(v, theta, axis=2)
     _close(est["one-step"], np.degrees(_run_filter(f.A, f.B, f.C, f.D, v, np.ones(1))))
 
 
-def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch):
+@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch, aoa):
     from detectors import vanek_hinf as vh
     from scenarios.params import SENSORS
 
@@ -593,27 +612,31 @@ def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch):
 
     monkeypatch.setattr(vh, "one_step_filter", capture)
     point = _point(*POINTS[0])
-    vg.one_step_design(point, TS)
+    if aoa:
+        vg.one_step_design(point, TS, aoa_sensor=True)
+    else:
+        vg.one_step_design(point, TS)
     A, B, C, outs, i1, i2, known, gusts, sig_y, sig_u, ts = seen["args"]
     A_full, B_full, _ = _design_model(point, "unison")     # the one-step filter's model
     keep = [j for j, s in enumerate(lpv.STATES) if s != "theta"]
     np.testing.assert_array_equal(A, A_full[np.ix_(keep, keep)])
     np.testing.assert_array_equal(B, B_full[keep])
-    assert list(outs) == ["alpha", "q", "beta", "p", "r", "phi"]
+    assert list(outs) == ["alpha"] * aoa + ["q", "beta", "p", "r", "phi"]
     states = [lpv.STATES[j] for j in keep]
-    C_ref = np.zeros((6, len(keep)))
+    C_ref = np.zeros((len(outs), len(keep)))
     for i, o in enumerate(outs):
         C_ref[i, states.index(o)] = 1.0
     np.testing.assert_array_equal(C, C_ref)
     assert (i1, list(i2), list(known)) == (2, [0, 6], _known_columns())
     assert list(gusts) == [lpv.I_GUST_BETA, lpv.I_GUST_ALPHA] and ts == TS
-    np.testing.assert_array_equal(sig_y, np.delete(vh.sensor_sigmas(OUTPUTS),
-                                                   OUTPUTS.index("theta")))
+    np.testing.assert_array_equal(sig_y, np.delete(vh.sensor_sigmas(_outputs(aoa)),
+                                                   _outputs(aoa).index("theta")))
     rods = [SENSORS.rod_noise_mm / _lever(s) for s in KNOWN]
     np.testing.assert_allclose(sig_u, rods + [vh.ONE_STEP.exact_sigma_rad], rtol=1e-15)
-    d_g = np.zeros((6, 2))
+    d_g = np.zeros((len(outs), 2))
     d_g[outs.index("beta"), 0] = 1.0               # the vanes read β + β_g and α + α_g
-    d_g[outs.index("alpha"), 1] = 1.0
+    if aoa:
+        d_g[outs.index("alpha"), 1] = 1.0
     np.testing.assert_array_equal(seen["kwargs"]["gust_feedthrough"], d_g)
 
 
@@ -658,7 +681,7 @@ def test_the_design_model_the_thresholds_were_learned_with_is_kept():
     aircraft = _fitted_max().fit(sig)
     unison = _fitted_max(design_model="unison").fit(sig)
     assert aircraft.design_model_ == "aircraft" and unison.design_model_ == "unison"
-    # the two designs differ on these signals (the elevator's roll, the gust α)
+    # the two designs differ on these signals (the elevator's roll)
     a, u = aircraft.estimates(sig), unison.estimates(sig)
     assert np.abs(a["lpv"] - u["lpv"]).max() > 1e-3 * np.abs(u["lpv"]).max()
     legacy = _fitted_max()                          # the default parameters of this version
@@ -668,3 +691,39 @@ def test_the_design_model_the_thresholds_were_learned_with_is_kept():
     for variant, r in legacy.estimates(sig).items():
         np.testing.assert_array_equal(r, u[variant])
     assert _fitted_max()._layout() == "aircraft"     # not fitted: the parameter
+
+
+def test_the_outputs_the_thresholds_were_learned_with_are_kept(tmp_path):
+    """A fitted detector records whether it read the α vane (``aoa_sensor_``) and detects
+    with those outputs whatever its parameter says later: a campaign directory fitted when
+    α was the default (its ``fitted/`` file holds the learned state) resumes with α, its
+    thresholds and filters together; one fitted before the parameter existed did not read
+    α."""
+    from campaign.storage import CampaignDir
+
+    sig = _signals()
+    alpha = _fitted_max(aoa_sensor=True).fit(sig)
+    default = _fitted_max().fit(sig)
+    assert alpha.aoa_sensor_ is True and default.aoa_sensor_ is False
+    a, d = alpha.estimates(sig), default.estimates(sig)
+    # the two designs differ on these signals (α read, the vertical gust decoupled)
+    assert np.abs(a["lpv"] - d["lpv"]).max() > 1e-3 * np.abs(d["lpv"]).max()
+    moved = _fitted_max()                           # the default parameters of this version
+    vars(moved).update({k: v for k, v in vars(alpha).items() if k.endswith("_")})
+    assert moved._reads_alpha()
+    for variant, r in moved.estimates(sig).items():
+        np.testing.assert_array_equal(r, a[variant])
+    # as a resume reads it: the fitted file written and rebuilt as data
+    cdir = CampaignDir(tmp_path / "campaign")
+    cdir.open('{"campaign": {"name": "x"}}')
+    cdir.write_fitted("vanek-geometric", "vanek-geometric", alpha)
+    back = cdir.read_fitted("vanek-geometric", "vanek-geometric")
+    assert back._reads_alpha() and back.thresholds_deg_ == alpha.thresholds_deg_
+    for variant, r in back.estimates(sig).items():
+        np.testing.assert_array_equal(r, a[variant])
+    legacy = _fitted_max(aoa_sensor=True)
+    vars(legacy).update({k: v for k, v in vars(default).items()
+                         if k.endswith("_") and k != "aoa_sensor_"})
+    assert not legacy._reads_alpha()                # fitted before the parameter existed
+    assert _fitted_max(aoa_sensor=True)._reads_alpha()   # not fitted: the parameter
+    assert not _fitted_max()._reads_alpha()
