@@ -121,7 +121,7 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
         est, up, method = e.estimate, e.upper, e.method
         model_up = up if method != "counted" else math.nan
         tails = [(w * u, c) for c, how, _, u, w in e.parts if how == "tail"]
-        tail_class = max(tails)[1] if tails and method != "counted" else ""
+        tail_class = max(tails)[1] if tails else ""
         notes = []
         if method == "mixture":
             fitted = [c for _, c in sorted(tails, reverse=True)]
