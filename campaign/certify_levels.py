@@ -125,9 +125,11 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
         notes = []
         if method == "mixture":
             fitted = [c for _, c in sorted(tails, reverse=True)]
+            rest = len(e.parts) - len(fitted)
             notes.append(f"mixture of {len(e.parts)} manoeuvres by their shares of the runs; "
-                         + (f"tail fits for {', '.join(fitted)} (largest term first), "
-                            "counted for the others" if fitted else "every manoeuvre counted"))
+                         + (f"tail fits for {', '.join(fitted)} (largest term first)"
+                            + (f", {rest} counted" if rest else "")
+                            if fitted else "every manoeuvre counted"))
         elif method == "counted":
             notes.append(f"{e.count} of {n} runs at or above {e.level:g} (exact "
                          "Clopper–Pearson bound)")
