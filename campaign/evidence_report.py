@@ -18,6 +18,24 @@ from .storage import CampaignDir
 __all__ = ["evidence_figure_specs"]
 
 
+def _curve_specs(name: str, g, curve) -> list[tuple]:
+    """The exceedance-curve figure spec of one detector from ``certificate-levels.parquet``
+    (*curve*, None when certify wrote none) and its fault-free rows *g*."""
+    if curve is None:
+        return []
+    mine = curve[curve["detector"] == name].sort_values("level")
+    if mine.empty:
+        return []
+    return [("certificate", name, f"Exceedance curve — {name}",
+             "P(margin ≥ x) per fault-free run: the certificate's 95 % upper bound at each "
+             "level (certificate-levels.parquet: per manoeuvre counted or fitted, never more "
+             "than two decades under the counting bound) and its estimate where given, "
+             "against the share of the campaign's runs at or above x.", "exceedance",
+             (mine["level"].to_numpy(float), mine["p_estimate"].to_numpy(float),
+              mine["p_upper95"].to_numpy(float), g["margin"].to_numpy(float)),
+             {"title": f"{name}: exceedance curve"})]
+
+
 def _tail_specs(name: str, g) -> list[tuple]:
     """Mean-excess and QQ figure specs of one detector's fault-free rows *g*: the tail fit
     of the manoeuvre with the largest margins, as the certificate's curve fits it
@@ -58,7 +76,9 @@ def evidence_figure_specs(camp) -> list[tuple]:
     specs = []
     if CampaignDir(camp.root).read_certificate() is not None:
         free = ok[ok["fault"].astype(str) == FAULT_FREE]
+        curve = CampaignDir(camp.root).read_certificate_levels()
         for name, g in free.groupby("detector", sort=False):
+            specs += _curve_specs(name, g, curve)
             specs += _tail_specs(name, g)
     faulty = ok[ok["fault"].astype(str) != FAULT_FREE]
     for name, g in faulty.groupby("detector", sort=False):
