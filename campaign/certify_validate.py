@@ -28,7 +28,7 @@ import pandas as pd
 from reports.metrics import FAULT_FREE
 
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
-           "coverage_table", "summarise", "validate", "validate_levels", "validation_config"]
+           "check_validation", "coverage_table", "summarise", "validate", "validate_levels", "validation_config"]
 
 #: Sub-directory of a campaign directory holding its validations.
 VALIDATION_DIR = "validation"
@@ -134,19 +134,16 @@ def summarise(table: pd.DataFrame) -> str:
     return text
 
 
-def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
-             scheduler: str | None = None, tls=None, log=None) -> pd.DataFrame:
-    """Validate the exceedance curve written by ``certify`` in campaign *directory* with
-    *n* brute-force runs (:func:`validate_levels`) at campaign seed *seed* (default the
-    campaign's seed + 1). :class:`campaign.certify.CertifyError` (exit 2) for a grid
-    campaign (no distribution to draw from), the campaign's own seed, or a directory without
-    ``certificate-levels.parquet``."""
+def check_validation(config, n: int, seed: int | None) -> int:
+    """The validation seed for campaign *config* (default its seed + 1), or
+    :class:`campaign.certify.CertifyError` (exit 2) for fewer than 100 runs, a grid campaign
+    (no distribution to draw from) or the campaign's own seed — checked before any work."""
     from .certify import CertifyError
-    from .report import load_campaign
-    from .storage import CampaignDir
 
-    loaded = load_campaign(directory)
-    config = loaded.config
+    if int(n) < 100:
+        raise CertifyError(f"--validate {n!r}: the brute-force runs must be ≥ 100 (a level is "
+                           f"tested only where they show ≥ {MIN_VALIDATION_EXCEEDANCES} "
+                           "exceedances), e.g. --validate 60000")
     if config.campaign.design != "mc":
         raise CertifyError(f"--validate: the campaign's design is {config.campaign.design!r}; "
                            "validation draws new runs of an 'mc' design's distribution (a "
@@ -157,9 +154,24 @@ def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
         raise CertifyError(f"--validate-seed {seed}: the campaign's own seed, whose runs are "
                            "the ones certified; choose another, e.g. "
                            f"--validate-seed {own + 1}")
+    return seed
+
+
+def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
+             scheduler: str | None = None, tls=None, log=None) -> pd.DataFrame:
+    """Validate the exceedance curve written by ``certify`` in campaign *directory* with
+    *n* brute-force runs (:func:`validate_levels`) at campaign seed *seed*
+    (:func:`check_validation`). :class:`campaign.certify.CertifyError` (exit 2) also for a
+    directory without ``certificate-levels.parquet``."""
+    from .certify import CertifyError
+    from .report import load_campaign
+    from .storage import CampaignDir
+
+    loaded = load_campaign(directory)
+    seed = check_validation(loaded.config, n, seed)
     levels = CampaignDir(loaded.root).read_certificate_levels()
     if levels is None:
         raise CertifyError(f"--validate: {directory} has no certificate-levels.parquet; run "
                            f"fdd-campaign certify {directory} first")
-    return validate_levels(loaded.root, config, levels, n, seed=seed, jobs=jobs,
+    return validate_levels(loaded.root, loaded.config, levels, n, seed=seed, jobs=jobs,
                            scheduler=scheduler, tls=tls, log=log)

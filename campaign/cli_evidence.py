@@ -15,10 +15,16 @@ def cmd_certify(args) -> int:
     from .cli_common import EXIT_INTERRUPTED
     from .storage import CampaignDir
 
-    if args.validate is not None and int(args.validate) < 100:
-        raise CertifyError(f"--validate {args.validate!r}: the brute-force runs must be ≥ 100 "
-                           "(a level is tested only where they show ≥ 5 exceedances), e.g. "
-                           "--validate 60000")
+    if args.validate is not None:               # bad validation options: before any work
+        from .certify_validate import check_validation
+        from .config import CampaignConfig
+
+        cdir = CampaignDir(args.dir)
+        if not cdir.is_campaign():
+            raise CertifyError(f"{args.dir}: not a campaign directory (no campaign.json); give "
+                               "the --out directory of a finished 'fdd-campaign run'")
+        check_validation(CampaignConfig.from_dict(cdir.read_config()), args.validate,
+                         args.validate_seed)
     try:
         cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
                        seed=args.seed, detectors=args.detector, scheduler=args.scheduler,

@@ -14,8 +14,11 @@ not estimated). Both uses of the fit go through one object, :class:`TailFit`:
 * :meth:`TailFit.quantile` — the (1 − p)-quantile and the upper end of its one-sided
   profile-likelihood confidence interval (threshold calibration, :mod:`detectors.calibrate`);
 * :meth:`TailFit.sf` — the exceedance probability P(X ≥ x) and the upper end of its
-  one-sided profile-likelihood confidence interval (false-alarm certificates,
-  ``fdd-campaign certify``).
+  one-sided profile-likelihood confidence interval;
+* :func:`exceedance_curve` — P(X ≥ x) at several levels of a sample or of a mixture of
+  classes (each class counted where its values reach x, else its own tail with ξ in
+  :data:`CURVE_SHAPES`; the mixture of the class tails), for the false-alarm certificates
+  of ``fdd-campaign certify`` (docs/evidence.md).
 
 Profile likelihood (Coles 2001 §2.6.6 and §4.3.4): the quantity of interest replaces one
 parameter (σ = t/h(a, ξ), h(a, ξ) = (a^ξ − 1)/ξ, with t the excess of the quantile over u
