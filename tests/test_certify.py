@@ -183,6 +183,11 @@ def test_certify_refuses_an_unfinished_campaign_and_bad_options(constructed, cap
     out, _, _ = constructed
     assert main(["certify", str(out), "--level", "1.5"]) == 2
     assert "--level 1.5: must be a confidence in (0.5, 1)" in capsys.readouterr().err
+    assert main(["certify", str(out), "--levels", "0.6,high"]) == 2
+    assert "--levels: 'high' is not a number" in capsys.readouterr().err
+    assert main(["certify", str(out), "--validate", "50"]) == 2
+    assert "--validate 50: the brute-force runs must be ≥ 100" in capsys.readouterr().err
+    assert not (out / "certificate.parquet").exists()     # refused before any work
     assert main(["gate", str(out), "--max-fa-prob", "1e-3"]) == 2
     assert f"fdd-campaign certify {out}" in capsys.readouterr().err
     import pyarrow.parquet as pq

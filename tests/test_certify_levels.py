@@ -104,3 +104,41 @@ def test_coverage_counts_the_brute_force_exceedances():
         # the exact one-sided lower Clopper–Pearson bound
         assert r["validation_lower95"] == pytest.approx(stats.beta.ppf(0.05, c, 5001 - c),
                                                         rel=1e-9)
+
+
+def test_a_class_too_small_to_fit_is_counted_in_the_mixture():
+    # 30 runs of class "s" (fewer than the 50 a tail fit needs) beside 400 of class "l"
+    rng = np.random.default_rng(8)
+    x = np.r_[rng.exponential(1.0, 400), rng.exponential(1.0, 30)]
+    cls = np.r_[["l"] * 400, ["s"] * 30]
+    e = exceedance_curve(x, (6.0,), classes=cls)[0]
+    parts = {p[0]: p for p in e.parts}
+    assert parts["s"][1] == "counted"
+    c = int((x[cls == "s"] >= 6.0).sum())
+    assert parts["s"][3] == pytest.approx(counted_bound(c, 30), rel=1e-12)
+    assert parts["s"][4] == pytest.approx(30 / 430) and parts["l"][1] == "tail"
+
+
+def test_printed_certificate_never_shows_an_estimate_below_the_limit():
+    from campaign.cli_evidence import format_certificate, format_levels
+    from campaign.certify_levels import level_table
+
+    rng = np.random.default_rng(5)
+    results = pd.DataFrame({"detector": "d", "fault": "none", "status": "ok",
+                            "manoeuvre": np.repeat(["m1", "m2"], 600),
+                            "margin": rng.uniform(0.0, 0.3, 1200)})
+    curve = level_table(results, (0.6, 1.0))
+    assert curve["method"].tolist() == ["limit of the runs"] * 2
+    cert = pd.DataFrame([{"detector": "d", "level": 0.95, "n_runs": 1200, "fa_count": 0,
+                          "fa_upper95_cp": curve["p_counted_upper95"].iloc[1],
+                          "fa_prob_evt": curve["p_estimate"].iloc[1],
+                          "fa_prob_evt_upper95": curve["p_upper95"].iloc[1],
+                          "evt_note": curve["note"].iloc[1], "sampling_runs": 0,
+                          "sampling_prob": math.nan, "sampling_lower95": math.nan,
+                          "sampling_upper95": math.nan, "fa_per_hour_upper95": 0.15}])
+    text = format_certificate(cert)
+    line = text.splitlines()[1]
+    # the estimate is "<limit", the bound the limit 2.49e-5, the sampled columns "—"
+    assert "<2.5e-05" in line and "2.49e-05" in line and line.count("—") == 2
+    assert "e-1" not in line.replace("e-05", "")      # no tiny number such as 7.95e-124
+    assert "2.49e-05*" in format_levels(curve)
