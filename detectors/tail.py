@@ -477,13 +477,13 @@ def exceedance_curve(values, levels, *, classes=None, confidence: float = 0.95,
     mixture, and the tail of a mixture is the mixture of its classes' tails,
     P(X ≥ x) = Σ_c w_c P(X ≥ x | c), w_c the share of class c among the values (the run
     distribution's weights when the runs are drawn with them). Each class is treated as one
-    sample (above), the estimate is Σ w_c p̂_c and the bound Σ w_c p_c,up. A sum of
-    one-sided bounds each at *confidence* holds at least when every class's bound holds,
-    and in practice when the bound of the class that dominates the sum holds: it is not
-    below *confidence* by more than the union bound allows, and is usually above it (the
-    other classes' bounds are conservative by construction). The pooled counted bound is
-    valid for the mixture too, so the returned bound is the smaller of the two
-    (``method = "counted"`` when the pooled count is the smaller).
+    sample (above), the estimate is Σ w_c p̂_c and the bound Σ w_c p_c,up. The sum holds
+    whenever every class's bound holds, so its confidence is at least 1 − m(1 − c) for m
+    classes (union bound), and in practice that of the class whose term dominates the sum
+    (the others' bounds are themselves conservative). The pooled counted bound is valid
+    for the mixture too, so the returned bound is the smaller of the two (``method =
+    "counted"`` when the pooled count is the smaller), which costs at most another 1 − c.
+    Measured on brute force: about 99.5 % coverage at c = 0.95 (docs/evidence.md).
 
     *shapes*: the ξ grid of the tail fits (default :data:`CURVE_SHAPES`).
     """
