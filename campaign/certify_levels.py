@@ -30,8 +30,8 @@ import pandas as pd
 from detectors.tail import counted_bound, exceedance_curve
 from reports.metrics import FAULT_FREE
 
-__all__ = ["DEFAULT_LEVELS", "EXTRAPOLATION_DECADES", "LEVEL_COLUMNS", "level_table",
-           "parse_levels", "runs_to_carry", "sampling_levels_to_reach"]
+__all__ = ["DEFAULT_LEVELS", "EXTRAPOLATION_DECADES", "LEVEL_COLUMNS", "detector_rows",
+           "level_table", "parse_levels", "runs_to_carry", "sampling_levels_to_reach"]
 
 #: Margins of the curve by default; 1.0 is the false alarm (the certificate's own level).
 DEFAULT_LEVELS: tuple[float, ...] = (0.6, 0.7, 0.8, 0.9, 1.0)

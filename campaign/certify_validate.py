@@ -28,7 +28,8 @@ import pandas as pd
 from reports.metrics import FAULT_FREE
 
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
-           "check_validation", "coverage_table", "summarise", "validate", "validate_levels", "validation_config"]
+           "check_validation", "coverage_table", "summarise", "validate", "validate_levels",
+           "validation_config"]
 
 #: Sub-directory of a campaign directory holding its validations.
 VALIDATION_DIR = "validation"

@@ -48,7 +48,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CURVE_SHAPES", "Exceedance", "LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
+__all__ = ["CURVE_SHAPES", "Exceedance", "LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES",
+           "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_KINDS",
            "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError", "counted_bound",
            "exceedance_curve", "fit_tail", "tail_size"]
