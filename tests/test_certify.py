@@ -295,6 +295,15 @@ def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsy
     assert true <= at_one["p_upper95"]
     assert CampaignDir(out).verify() == []          # the manifest records the new file
     assert "P(margin ≥ level)" in capsys.readouterr().out
+    # the report draws the curve from the file, against the runs' own margins
+    from campaign.evidence_report import evidence_figure_specs
+    from campaign.report import load_campaign
+    from reports.figures import render_png
+
+    spec = next(s for s in evidence_figure_specs(load_campaign(out)) if s[4] == "exceedance")
+    assert spec[1] == "sm" and list(spec[5][0]) == [0.9, 0.95, 1.0]
+    assert list(spec[5][2]) == levels["p_upper95"].tolist() and len(spec[5][3]) == 400
+    assert render_png(*spec[4:]).startswith(b"\x89PNG")
     # the campaign's own seed is refused, before anything runs
     assert main(["certify", str(out), "--validate", "400", "--validate-seed", "11",
                  "--jobs", "1"]) == 2
