@@ -9,12 +9,14 @@ detector (result-row name, variants apart):
   bound of the per-run false-alarm probability (``scipy.stats.binomtest(k, n,
   alternative="less").proportion_ci(level, method="exact")``; the summary's
   ``fa_upper95`` at 95 %); assumes independent runs of one probability;
-* ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) of the generalised Pareto tail
-  fitted to the fault-free margins (max |r|/τ before onset; ≥ 1 is a false alarm) by
-  :func:`detectors.tail.fit_tail` — the fit threshold calibration uses —, with its
-  one-sided profile-likelihood bound; threshold rule: the top k = max(20, ⌈0.2 n⌉) margins,
-  u the (k + 1)-th largest; NaN (with ``evt_note``) when fewer than 50 runs, a degenerate
-  tail, or u ≥ 1 (more than a fifth of the runs alarm: count them instead);
+* ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) and its one-sided bound, the
+  level-1 row of the exceedance curve (:mod:`campaign.certify_levels`): each manoeuvre's
+  margins counted where they reach 1, else its own generalised Pareto tail
+  (:func:`detectors.tail.exceedance_curve`), combined by the manoeuvres' shares of the runs,
+  the pooled count's bound when smaller, and never more than two decades below the counting
+  bound (a point estimate below that limit is NaN, ``evt_note`` says why and what would
+  carry it); ``evt_k`` … ``evt_gof_pvalue``: the tail fit of the manoeuvre whose term
+  dominates the bound;
 * ``exposure_h`` = Σ fault-free run durations [h] and ``fa_per_hour_upper95`` (and
   ``fa_per_hour_evt_upper95``): exposure model — false alarms arrive as a homogeneous
   Poisson process of rate λ [1/h] over flight time, independently between runs, so a run
@@ -25,10 +27,11 @@ detector (result-row name, variants apart):
   (:mod:`campaign.rare`) over the campaign's run variables, simulated through the runner's
   pipeline on the local workers or a dask cluster, resumable (:func:`sample_fa_probability`).
 
-Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`), beside
-``DIR/certificate-hazard.parquet``, the hazard per flight hour of both sides (false alarms,
-undetected faults; :mod:`campaign.hazard`), and, with ``sampling``, the levels of every
-subset simulation in ``DIR/sampling/levels.parquet``.
+Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`), the curve at every
+level to ``DIR/certificate-levels.parquet``, beside ``DIR/certificate-hazard.parquet``, the
+hazard per flight hour of both sides (false alarms, undetected faults; :mod:`campaign.hazard`),
+and, with ``sampling``, the levels of every subset simulation in
+``DIR/sampling/levels.parquet``.
 """
 
 from __future__ import annotations
@@ -38,10 +41,11 @@ import math
 import numpy as np
 import pandas as pd
 
-from detectors.tail import TailFitError, fit_tail
+from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 from reports.metrics import FAULT_FREE
 from scenarios import envelope
 
+from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .design import run_id
 
 __all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
@@ -86,38 +90,50 @@ def _per_hour(p_up: float, duration_h: float) -> float:
     return math.inf if p_up >= 1.0 else -math.log1p(-p_up) / duration_h
 
 
-def evt_estimate(margins, level: float = 0.95) -> dict:
-    """P(margin ≥ 1) of the tail fitted to *margins* with its bound and the fit's
-    diagnostics (``evt_*`` keys), NaN with ``evt_note`` when the fit does not apply."""
+def evt_estimate(margins, manoeuvres=None, level: float = 0.95, at_one: dict | None = None,
+                 ) -> dict:
+    """P(margin ≥ 1) with its bound (``fa_prob_evt``, ``fa_prob_evt_upper95``) and the
+    ``evt_*`` diagnostics of one detector's fault-free *margins* (one *manoeuvres* label
+    each; None: one class): the level-1 row of the exceedance curve
+    (:func:`campaign.certify_levels.detector_rows`, or *at_one* when already computed),
+    and the tail fit of the manoeuvre whose term dominates its bound (k, u, ξ, σ, KS
+    p-value; NaN when that term is counted)."""
     m = np.asarray(margins, float)
-    m = m[np.isfinite(m)]
-    out = {"fa_prob_evt": math.nan, "fa_prob_evt_upper95": math.nan, "evt_k": 0,
-           "evt_u": math.nan, "evt_shape": math.nan, "evt_scale": math.nan,
-           "evt_gof_pvalue": math.nan, "evt_note": ""}
-    try:
-        fit = fit_tail(m)
-    except TailFitError as exc:
-        out["evt_note"] = f"no tail fit: {exc}"
-        return out
-    out.update(evt_k=fit.k, evt_u=fit.u, evt_shape=fit.shape, evt_scale=fit.scale,
-               evt_gof_pvalue=fit.gof_pvalue)
-    if fit.u >= 1.0:
-        out["evt_note"] = (f"u = {fit.u:.4g} ≥ 1: more than {fit.k} of {fit.n} runs alarm, "
-                           "the count is the estimate")
-        return out
-    est = fit.sf(1.0, level)
-    out.update(fa_prob_evt=est.estimate, fa_prob_evt_upper95=est.upper,
-               evt_note=(f"top {fit.k} of {fit.n} margins above u = {fit.u:.4g}: ξ = "
-                         f"{fit.shape:.3g}, σ = {fit.scale:.3g}, KS p = {fit.gof_pvalue:.2g}"))
+    cls = (np.full(m.size, "all") if manoeuvres is None
+           else np.asarray(manoeuvres).astype(str))
+    keep = np.isfinite(m)
+    m, cls = m[keep], cls[keep]
+    row = at_one or detector_rows("", m, cls, (1.0,), level)[0]
+    out = {"fa_prob_evt": row["p_estimate"], "fa_prob_evt_upper95": row["p_upper95"],
+           "evt_k": 0, "evt_u": math.nan, "evt_shape": math.nan, "evt_scale": math.nan,
+           "evt_gof_pvalue": math.nan,
+           "evt_note": f"{row['method']}: {row['note']}" if row["note"] else row["method"]}
+    dominant = row.get("tail_class", "")
+    if dominant:
+        try:
+            fit = fit_tail(m[cls == dominant], shapes=CURVE_SHAPES)
+        except TailFitError:
+            return out
+        out.update(evt_k=fit.k, evt_u=fit.u, evt_shape=fit.shape, evt_scale=fit.scale,
+                   evt_gof_pvalue=fit.gof_pvalue)
+        out["evt_note"] += (f"; dominant manoeuvre {dominant}: top {fit.k} of {fit.n} margins "
+                            f"above u = {fit.u:.4g}, ξ = {fit.shape:.3g}, σ = {fit.scale:.3g}, "
+                            f"KS p = {fit.gof_pvalue:.2g}")
     return out
 
 
-def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
+def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
+                levels: pd.DataFrame | None = None) -> pd.DataFrame:
     """The counting and tail-fit columns of :data:`CERTIFICATE_COLUMNS` (sampling columns
-    NaN) from the result rows and the run table of a campaign."""
+    NaN) from the result rows and the run table of a campaign; *levels*: its exceedance
+    curve (:func:`campaign.certify_levels.level_table`) when already computed (its
+    level-1 rows are used), else the level 1 is computed here."""
     ff = results[(results["fault"].astype(str) == FAULT_FREE)
                  & (results["status"].astype(str) == "ok")]
     duration = plan.set_index("run_id")["duration_s"]
+    if levels is None or not (levels["level"] == 1.0).any():
+        levels = level_table(results, (1.0,), level)
+    at_one = levels[levels["level"] == 1.0].set_index("detector")
     rows = []
     for detector, g in ff.groupby("detector", sort=False):
         n = len(g)
@@ -125,7 +141,9 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95) 
         d_s = duration.reindex(g["run_id"]).to_numpy(float)
         mean_h = float(np.nanmean(d_s)) / 3600.0
         cp = _cp_upper(k, n, level)
-        evt = evt_estimate(g["margin"].to_numpy(float), level)
+        evt = evt_estimate(g["margin"].to_numpy(float), g["manoeuvre"].to_numpy(str), level,
+                           at_one.loc[detector].to_dict() if detector in at_one.index
+                           else None)
         if k and evt["fa_prob_evt_upper95"] < k / n:
             evt["evt_note"] += (f"; the bound is below the observed rate {k}/{n}: the tail "
                                 "model does not describe these runs (see the QQ plot)")
@@ -423,9 +441,12 @@ def write_sampling_levels(directory, found: dict, config_json: str) -> None:
 # ---- the command -----------------------------------------------------------------------------
 def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
             seed: int = 0, detectors=None, scheduler: str | None = None, tls=None,
-            log=print, progress=None, max_levels: int = 12) -> pd.DataFrame:
+            log=print, progress=None, max_levels: int = 12,
+            levels=DEFAULT_LEVELS) -> pd.DataFrame:
     """Certificate of a finished campaign directory (module docstring); writes
-    ``DIR/certificate.parquet`` and returns it.
+    ``DIR/certificate.parquet`` and returns it, and its exceedance curve at *levels* (1.0
+    always among them) to ``DIR/certificate-levels.parquet``
+    (:func:`campaign.certify_levels.level_table`).
 
     *detectors*: the result-row names sampled (default all; the others keep NaN sampling
     columns). With *sampling*, the runs are simulated on *jobs* local workers or on the dask
@@ -449,6 +470,10 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     if not 1 <= int(max_levels) <= 30:
         problems.append(f"--max-levels {max_levels!r}: levels of the subset simulation after "
                         "the first, in [1, 30] (p0 = 0.1: 12 reach 1e-12), e.g. --max-levels 12")
+    try:
+        levels = tuple(sorted(set(parse_levels(levels)) | {1.0}))
+    except ValueError as exc:
+        problems.append(str(exc))
     if problems:
         raise CertifyError("; ".join(problems))
     loaded = load_campaign(directory)
@@ -459,7 +484,8 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
             f"{directory}: the campaign is unfinished ({done} of {planned} runs done); a "
             "certificate is made from every fault-free run of the plan: finish it by running "
             "the same 'fdd-campaign run' command again")
-    cert = certificate(loaded.results, loaded.plan, float(level))
+    curve = level_table(loaded.results, levels, float(level))
+    cert = certificate(loaded.results, loaded.plan, float(level), curve)
     if cert.empty:
         raise CertifyError(f"{directory}: no fault-free run finished with status ok; a "
                            "false-alarm certificate needs fault-free runs (fault = \"none\")")
@@ -482,4 +508,5 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     with cdir.locked():
         cdir.write_certificate(cert, loaded.config.to_json(), sampling_seed=int(seed))
         cdir.write_hazard(hazard, loaded.config.to_json())
+        cdir.write_certificate_levels(curve, loaded.config.to_json())
     return cert

@@ -5,52 +5,109 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks", "format_hazard",
-           "format_sampling"]
+__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks", "format_certificate",
+           "format_hazard", "format_levels", "format_sampling"]
 
 
 def cmd_certify(args) -> int:
-    """``fdd-campaign certify DIR``: write DIR/certificate.parquet and print it."""
-    from .certify import certify
-
+    """``fdd-campaign certify DIR``: write DIR/certificate.parquet and
+    DIR/certificate-levels.parquet and print them; with ``--validate N``, run and report
+    the brute-force validation of the curve."""
+    from .certify import CertifyError, certify
     from .cli_common import EXIT_INTERRUPTED
+    from .storage import CampaignDir
 
+    if args.validate is not None:               # bad validation options: before any work
+        from .certify_validate import check_validation
+        from .config import CampaignConfig
+
+        cdir = CampaignDir(args.dir)
+        if not cdir.is_campaign():
+            raise CertifyError(f"{args.dir}: not a campaign directory (no campaign.json); give "
+                               "the --out directory of a finished 'fdd-campaign run'")
+        check_validation(CampaignConfig.from_dict(cdir.read_config()), args.validate,
+                         args.validate_seed)
     try:
         cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
                        seed=args.seed, detectors=args.detector, scheduler=args.scheduler,
-                       log=lambda msg: print(msg, flush=True), max_levels=args.max_levels)
+                       log=lambda msg: print(msg, flush=True), max_levels=args.max_levels,
+                       levels=args.levels)
     except KeyboardInterrupt:
         print(f"fdd-campaign: interrupted; the sampled batches done so far are kept under "
               f"{Path(args.dir) / 'sampling'}/: the same command goes on from them")
         return EXIT_INTERRUPTED
+    curve = CampaignDir(args.dir).read_certificate_levels()
     print(format_certificate(cert))
+    print(format_levels(curve))
     print(format_sampling(cert))
     print(format_hazard_of(args.dir))
-    print(f"certificate written to {Path(args.dir) / 'certificate.parquet'}; the report "
-          "shows it: "
+    print(f"certificate written to {Path(args.dir) / 'certificate.parquet'} and "
+          f"{Path(args.dir) / 'certificate-levels.parquet'}; the report shows it: "
           f"fdd-campaign report {args.dir}")
+    if args.validate is not None:
+        from .certify_validate import summarise, validate
+
+        try:
+            table = validate(args.dir, int(args.validate), seed=args.validate_seed,
+                             jobs=args.jobs, scheduler=args.scheduler,
+                             log=lambda msg: print(msg, flush=True))
+        except KeyboardInterrupt:
+            print(f"fdd-campaign: interrupted; the validation runs done so far are kept under "
+                  f"{args.dir}/validation/: the same command goes on from them")
+            return EXIT_INTERRUPTED
+        print(summarise(table))
     return 0
 
 
-def format_certificate(cert) -> str:
-    """The certificate as a terminal table (probabilities per run, rates per hour)."""
-    def g(x):
-        return "n/a" if x != x else f"{x:.3g}"
+def _g(x) -> str:
+    return "n/a" if x != x else f"{x:.3g}"
 
-    lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'CP bound':>9s} {'EVT':>9s} "
+
+def format_certificate(cert) -> str:
+    """The certificate as a terminal table (probabilities per run, rates per hour). A tail
+    estimate below the limit of the runs is printed as "< limit", never as a number; a
+    detector that was not sampled shows "—" in the sampled columns."""
+    lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'CP bound':>9s} {'EVT':>10s} "
              f"{'EVT bound':>9s} {'sampled':>9s} {'bounds':>19s} {'per hour':>9s}"]
     for r in cert.to_dict(orient="records"):
-        sampled = (f"[{g(r['sampling_lower95'])}, {g(r['sampling_upper95'])}]"
-                   if r["sampling_runs"] else "")
+        sampled = (f"[{_g(r['sampling_lower95'])}, {_g(r['sampling_upper95'])}]"
+                   if r["sampling_runs"] else "—")
+        est = r["fa_prob_evt"]
+        if est != est and "limit" in str(r["evt_note"]):
+            est_text = f"<{r['fa_upper95_cp'] / 100:.2g}"
+        else:
+            est_text = _g(est)
         lines.append(f"{r['detector']:24s} {r['n_runs']:6d} {r['fa_count']:4d} "
-                     f"{g(r['fa_upper95_cp']):>9s} {g(r['fa_prob_evt']):>9s} "
-                     f"{g(r['fa_prob_evt_upper95']):>9s} "
-                     f"{g(r['sampling_prob']) if r['sampling_runs'] else '':>9s} {sampled:>19s} "
-                     f"{g(r['fa_per_hour_upper95']):>9s}")
+                     f"{_g(r['fa_upper95_cp']):>9s} {est_text:>10s} "
+                     f"{_g(r['fa_prob_evt_upper95']):>9s} "
+                     f"{_g(r['sampling_prob']) if r['sampling_runs'] else '—':>9s} "
+                     f"{sampled:>19s} {_g(r['fa_per_hour_upper95']):>9s}")
     level = float(cert["level"].iloc[0]) if len(cert) else 0.95
     lines.append(f"bounds one-sided at {100 * level:g} %; per-run probabilities of a run of "
                  f"the campaign's duration; per hour from the counting bound (Poisson "
-                 f"exposure model, docs/evidence.md)")
+                 f"exposure model, docs/evidence.md); \"<x\": the tail's estimate lies below "
+                 f"the limit of the runs (two decades under the counting bound), not given; "
+                 f"\"—\": not sampled (--sampling N)")
+    return "\n".join(lines)
+
+
+def format_levels(curve) -> str:
+    """The exceedance curve as a terminal table: per detector, the bound P(margin ≥ level)
+    ≤ p_upper95 at each level (and how it was obtained)."""
+    if curve is None or curve.empty:
+        return ""
+    levels = sorted(curve["level"].unique())
+    head = f"{'P(margin ≥ level) ≤':24s} " + " ".join(f"{v:>9g}" for v in levels)
+    lines = [head]
+    tag = {"counted": "c", "mixture": "", "limit of the runs": "*", "tail": ""}
+    for name, g in curve.groupby("detector", sort=False):
+        by = g.set_index("level")
+        cells = [f"{_g(by.loc[v, 'p_upper95'])}{tag.get(by.loc[v, 'method'], '?')}"
+                 if v in by.index else "" for v in levels]
+        lines.append(f"{name:24s} " + " ".join(f"{c:>9s}" for c in cells))
+    lines.append("c: counted (exact Clopper–Pearson bound of the runs at or above the level); "
+                 "*: the limit of the runs (the tail model claims less: see the note in "
+                 "certificate-levels.parquet); unmarked: mixture of the manoeuvres' tails")
     return "\n".join(lines)
 
 
@@ -72,6 +129,8 @@ def fa_probability_checks(directory, limit: float) -> list:
 
 
 def add_evidence_parsers(subs, sub) -> None:
+    from .certify_levels import DEFAULT_LEVELS
+
     """Sub-command ``certify`` (*sub* makes a sub-parser as :func:`campaign.cli._sub`)."""
     p = sub(subs, "certify", "per-run false-alarm probability of each detector beyond "
             "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
@@ -98,6 +157,20 @@ def add_evidence_parsers(subs, sub) -> None:
                    help="levels of the subset simulation after the first before it reports "
                         "the highest level reached instead of margin 1 (default 12: down to "
                         "about 1e-12 per run; raising it goes on from the stored batches)")
+    p.add_argument("--levels", default=",".join(f"{v:g}" for v in DEFAULT_LEVELS),
+                   metavar="X,Y,…",
+                   help="margins of the exceedance curve written to "
+                        "DIR/certificate-levels.parquet (1.0, the false alarm, always "
+                        "included; default %(default)s)")
+    p.add_argument("--validate", type=int, metavar="N",
+                   help="validate the curve by brute force: N fault-free runs of the "
+                        "campaign's distribution with its fitted detectors, into "
+                        "DIR/validation/ (resumable), and the coverage at every level with "
+                        "≥ 5 exceedances (e.g. 60000; about 500 runs/s on 2 idle cores)")
+    p.add_argument("--validate-seed", type=int, metavar="S",
+                   help="campaign seed of the validation runs (default: the campaign's seed "
+                        "+ 1; never the campaign's own seed, whose runs are those certified)")
+
 
 
 # ---- the subset simulations' outcome and the hazard table (docs/evidence.md) ----------------

@@ -1,5 +1,6 @@
 """The report's figures of the evidence beyond counting (docs/evidence.md): per detector the
-mean-excess and tail QQ plots of the fault-free margins' tail fit (when the directory holds
+mean-excess and tail QQ plots of the tail fit of the manoeuvre holding the largest fault-free
+margin, as the certificate's exceedance curve fits it (when the directory holds
 a certificate, ``fdd-campaign certify``), and the Kaplan–Meier detection-delay curves per
 fault type. Figure specs in the form of :func:`campaign.report.build_report`:
 (section, group, title, caption, kind, args, kwargs)."""
@@ -8,13 +9,62 @@ from __future__ import annotations
 
 import numpy as np
 
-from detectors.tail import TailFitError, fit_tail
+from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 from reports.metrics import FAULT_FREE
 from reports.survival import kaplan_meier
 
 from .storage import CampaignDir
 
 __all__ = ["evidence_figure_specs"]
+
+
+def _curve_specs(name: str, g, curve) -> list[tuple]:
+    """The exceedance-curve figure spec of one detector from ``certificate-levels.parquet``
+    (*curve*, None when certify wrote none) and its fault-free rows *g*."""
+    if curve is None:
+        return []
+    mine = curve[curve["detector"] == name].sort_values("level")
+    if mine.empty:
+        return []
+    return [("certificate", name, f"Exceedance curve — {name}",
+             "P(margin ≥ x) per fault-free run: the certificate's 95 % upper bound at each "
+             "level (certificate-levels.parquet: per manoeuvre counted or fitted, never more "
+             "than two decades under the counting bound) and its estimate where given, "
+             "against the share of the campaign's runs at or above x.", "exceedance",
+             (mine["level"].to_numpy(float), mine["p_estimate"].to_numpy(float),
+              mine["p_upper95"].to_numpy(float), g["margin"].to_numpy(float)),
+             {"title": f"{name}: exceedance curve"})]
+
+
+def _tail_specs(name: str, g) -> list[tuple]:
+    """Mean-excess and QQ figure specs of one detector's fault-free rows *g*: the tail fit
+    of the manoeuvre with the largest margins, as the certificate's curve fits it
+    (:data:`detectors.tail.CURVE_SHAPES`); none when it cannot be fitted."""
+    margins = g["margin"].to_numpy(float)
+    classes = g["manoeuvre"].to_numpy(str)
+    keep = np.isfinite(margins)
+    margins, classes = margins[keep], classes[keep]
+    if margins.size == 0:
+        return []
+    worst = classes[int(np.argmax(margins))]
+    mine = margins[classes == worst]
+    try:
+        fit = fit_tail(mine, shapes=CURVE_SHAPES)
+    except TailFitError:
+        return []
+    return [
+        ("certificate", name, f"Mean excess — {name}",
+         f"Mean excess of the fault-free margins of {worst} (the manoeuvre of the largest "
+         "margin) over a threshold v; above the fit's threshold u (dashed) a generalised "
+         "Pareto tail makes it straight.",
+         "mean_excess", (mine, fit.u), {"title": f"{name} ({worst}): mean excess"}),
+        ("certificate", name, f"Tail QQ plot — {name}",
+         f"The {fit.k} largest margins of {worst} as excesses over u = {fit.u:.3g} against "
+         "the fitted generalised Pareto quantiles (ξ ≥ 0, as the certificate's curve): on "
+         "the diagonal when the tail model fits.", "tail_qq",
+         (fit.tail_values(), fit.shape, fit.scale),
+         {"title": f"{name} ({worst}): tail QQ (ξ = {fit.shape:.2f})"}),
+    ]
 
 
 def evidence_figure_specs(camp) -> list[tuple]:
@@ -26,24 +76,10 @@ def evidence_figure_specs(camp) -> list[tuple]:
     specs = []
     if CampaignDir(camp.root).read_certificate() is not None:
         free = ok[ok["fault"].astype(str) == FAULT_FREE]
+        curve = CampaignDir(camp.root).read_certificate_levels()
         for name, g in free.groupby("detector", sort=False):
-            margins = g["margin"].to_numpy(float)
-            margins = margins[np.isfinite(margins)]
-            try:
-                fit = fit_tail(margins)
-            except TailFitError:
-                continue
-            specs.append((
-                "certificate", name, f"Mean excess — {name}",
-                "Mean excess of the fault-free margins over a threshold v; above the fit's "
-                "threshold u (dashed) a generalised Pareto tail makes it straight.",
-                "mean_excess", (margins, fit.u), {"title": f"{name}: mean excess"}))
-            specs.append((
-                "certificate", name, f"Tail QQ plot — {name}",
-                f"The {fit.k} largest margins' excesses over u = {fit.u:.3g} against the "
-                "fitted generalised Pareto quantiles: on the diagonal when the tail model "
-                "fits.", "tail_qq", (fit.tail_values(), fit.shape, fit.scale),
-                {"title": f"{name}: tail QQ (ξ = {fit.shape:.2f})"}))
+            specs += _curve_specs(name, g, curve)
+            specs += _tail_specs(name, g)
     faulty = ok[ok["fault"].astype(str) != FAULT_FREE]
     for name, g in faulty.groupby("detector", sort=False):
         curves = {}

@@ -121,7 +121,8 @@ def campaign_identity(config: dict) -> dict:
 MANIFEST_TOP_FILES: tuple[str, ...] = ("campaign.json", "plan.parquet", "learning.parquet",
                                        "summary.parquet", "detection-times.parquet",
                                        "fitted-origin.json", "certificate.parquet",
-                                       "certificate-hazard.parquet")
+                                       "certificate-hazard.parquet",
+                                       "certificate-levels.parquet")
 
 
 def identity_sha256(config_json: str) -> str:
@@ -154,6 +155,7 @@ class CampaignDir:
         self.detection_times_path = self.root / "detection-times.parquet"
         self.certificate_path = self.root / "certificate.parquet"
         self.hazard_path = self.root / "certificate-hazard.parquet"
+        self.certificate_levels_path = self.root / "certificate-levels.parquet"
         self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
@@ -613,6 +615,20 @@ class CampaignDir:
         if not self.hazard_path.exists():
             return None
         return pd.read_parquet(self.hazard_path)
+
+    def write_certificate_levels(self, levels: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``certificate-levels.parquet`` (:func:`campaign.certify_levels.level_table`);
+        *extra* goes into its metadata."""
+        self._write_recorded(self.certificate_levels_path, lambda: write_parquet(
+            levels, self.certificate_levels_path, config_json, kind="certificate-levels",
+            **extra))
+
+    def read_certificate_levels(self) -> pd.DataFrame | None:
+        """The stored exceedance curve of the certificate, or None when ``certify`` has not
+        written one."""
+        if not self.certificate_levels_path.exists():
+            return None
+        return pd.read_parquet(self.certificate_levels_path)
 
     def write_report(self, page: str, path=None) -> Path:
         """Write the HTML report *page* to *path* (default ``report.html`` here)."""

@@ -476,10 +476,39 @@ def survival_figure(curves: dict, *, title: str):
     return fig
 
 
+def exceedance_figure(levels: np.ndarray, estimate: np.ndarray, upper: np.ndarray,
+                      margins: np.ndarray, *, title: str):
+    """The certificate's exceedance curve of one detector (``certificate-levels.parquet``):
+    the bound P(margin ≥ x) ≤ p_upper95 and the estimate (where given) at each level x,
+    against the runs' own exceedance frequencies (the share of the campaign's fault-free
+    runs with margin ≥ x, down to one run), log scale."""
+    plt = pyplot()
+    m = np.sort(np.asarray(margins, float)[np.isfinite(margins)])[::-1]
+    n = len(m)
+    fig, ax = plt.subplots(figsize=(4.6, 3.0))
+    fig.subplots_adjust(left=0.16, right=0.97, top=0.86, bottom=0.17)
+    if n:
+        ax.step(m, np.arange(1, n + 1) / n, where="post", color="0.35", lw=1.0,
+                label=f"runs' own share ({n} runs)")
+    ax.plot(levels, upper, "v-", color=WORST_COLOUR, ms=5, lw=1.0, label="95 % upper bound")
+    given = np.isfinite(estimate) & (np.asarray(estimate) > 0)
+    if given.any():
+        ax.plot(np.asarray(levels)[given], np.asarray(estimate)[given], "o", color="tab:blue",
+                ms=4, label="estimate")
+    ax.set_yscale("log")
+    ax.set_xlabel("margin level x [-]")
+    ax.set_ylabel("P(margin ≥ x) per run [-]")
+    ax.legend(fontsize=7, loc="lower left")
+    ax.grid(alpha=0.3, which="both")
+    ax.set_title(title, fontsize=9)
+    return fig
+
+
 #: Figure kinds drawn by :func:`render_png`.
 FIGURES = {"envelope": envelope_figure, "fault": fault_figure, "run": run_figure,
            "map": envelope_map_figure, "mean_excess": mean_excess_figure,
-           "tail_qq": tail_qq_figure, "survival": survival_figure}
+           "tail_qq": tail_qq_figure, "survival": survival_figure,
+           "exceedance": exceedance_figure}
 
 
 def render_png(kind: str, args: tuple, kwargs: dict, dpi: int = REPORT_DPI) -> bytes:

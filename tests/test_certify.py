@@ -116,7 +116,8 @@ def test_constructed_case_both_estimators_cover_the_true_probability(constructed
     assert row["fa_upper95_cp"] == pytest.approx(stats.beta.ppf(0.95, k + 1, 400 - k), rel=1e-12)
     assert row["fa_per_hour_upper95"] == pytest.approx(
         -math.log1p(-row["fa_upper95_cp"]) / (20.0 / 3600.0), rel=1e-12)
-    # the tail fit: its one-sided bound covers the true probability
+    # the curve at margin 1: its one-sided bound covers the true probability; the tail fit
+    # of the one manoeuvre is reported (its top fifth), whichever bound was the smaller
     assert row["evt_k"] == 80 and np.isfinite(row["fa_prob_evt"])
     assert row["fa_prob_evt"] <= row["fa_prob_evt_upper95"]
     assert true <= row["fa_prob_evt_upper95"]
@@ -182,6 +183,11 @@ def test_certify_refuses_an_unfinished_campaign_and_bad_options(constructed, cap
     out, _, _ = constructed
     assert main(["certify", str(out), "--level", "1.5"]) == 2
     assert "--level 1.5: must be a confidence in (0.5, 1)" in capsys.readouterr().err
+    assert main(["certify", str(out), "--levels", "0.6,high"]) == 2
+    assert "--levels: 'high' is not a number" in capsys.readouterr().err
+    assert main(["certify", str(out), "--validate", "50"]) == 2
+    assert "--validate 50: the brute-force runs must be ≥ 100" in capsys.readouterr().err
+    assert not (out / "certificate.parquet").exists()     # refused before any work
     assert main(["gate", str(out), "--max-fa-prob", "1e-3"]) == 2
     assert f"fdd-campaign certify {out}" in capsys.readouterr().err
     import pyarrow.parquet as pq
@@ -267,3 +273,48 @@ def test_summary_appends_the_survival_columns_only():
         "dtp": np.where(np.arange(n) < 16, np.arange(n) * 0.05, np.nan), "margin": 0.1})
     row = summarize(results).iloc[0]
     assert row["md_count"] == 4 and row["delay_km_median_s"] == pytest.approx(0.9)
+
+
+def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsys):
+    from campaign.certify_levels import LEVEL_COLUMNS
+    from campaign.runner import load_results
+    from campaign.storage import CampaignDir
+
+    out, true, config = constructed
+    assert main(["certify", str(out), "--levels", "0.95,0.9", "--jobs", "1"]) == 0
+    levels = pd.read_parquet(out / "certificate-levels.parquet")
+    assert list(levels.columns) == list(LEVEL_COLUMNS)
+    # one row per detector × level, 1.0 (the false alarm) always among the levels
+    assert levels["level"].tolist() == [0.9, 0.95, 1.0] and set(levels["detector"]) == {"sm"}
+    assert (levels["n_runs"] == 400).all()
+    cert = pd.read_parquet(out / "certificate.parquet")
+    at_one = levels[levels["level"] == 1.0].iloc[0]
+    assert cert["fa_prob_evt_upper95"].iloc[0] == at_one["p_upper95"]
+    # never more than two decades under the counting bound of the runs
+    assert (levels["p_upper95"] >= levels["p_counted_upper95"] / 100 * (1 - 1e-12)).all()
+    assert true <= at_one["p_upper95"]
+    assert CampaignDir(out).verify() == []          # the manifest records the new file
+    assert "P(margin ≥ level)" in capsys.readouterr().out
+    # the report draws the curve from the file, against the runs' own margins
+    from campaign.evidence_report import evidence_figure_specs
+    from campaign.report import load_campaign
+    from reports.figures import render_png
+
+    spec = next(s for s in evidence_figure_specs(load_campaign(out)) if s[4] == "exceedance")
+    assert spec[1] == "sm" and list(spec[5][0]) == [0.9, 0.95, 1.0]
+    assert list(spec[5][2]) == levels["p_upper95"].tolist() and len(spec[5][3]) == 400
+    assert render_png(*spec[4:]).startswith(b"\x89PNG")
+    # the campaign's own seed is refused, before anything runs
+    assert main(["certify", str(out), "--validate", "400", "--validate-seed", "11",
+                 "--jobs", "1"]) == 2
+    assert "the campaign's own seed" in capsys.readouterr().err
+    assert main(["certify", str(out), "--levels", "0.95,0.9", "--validate", "400",
+                 "--validate-seed", "12", "--jobs", "1"]) == 0
+    assert "p_upper95 covers the brute-force frequency" in capsys.readouterr().out
+    table = pd.read_parquet(out / "validation" / "seed-12-n400.parquet")
+    results, _, _ = load_results(out / "validation" / "seed-12-n400")
+    margins = results.loc[results["fault"] == "none", "margin"].to_numpy(float)
+    assert margins.size == 400
+    for r in table.to_dict(orient="records"):
+        assert r["validation_count"] == int((margins >= r["level"]).sum())
+        assert r["tested"] == (r["validation_count"] >= 5)
