@@ -67,6 +67,11 @@ MANIFEST_FORMAT = "fdd-campaign manifest 1"
 FITTED_FORMAT = "fdd-campaign fitted detector 1"
 
 
+def _read_optional(path: Path) -> pd.DataFrame | None:
+    """The table at *path*, or None when the command that writes it has not run."""
+    return pd.read_parquet(path) if path.exists() else None
+
+
 class CampaignDirError(ValueError):
     """The output directory cannot be used for this campaign (message says why and how)."""
 
@@ -588,9 +593,7 @@ class CampaignDir:
 
     def read_detection_times(self) -> pd.DataFrame | None:
         """The stored detection times, or None when the campaign has none."""
-        if not self.detection_times_path.exists():
-            return None
-        return pd.read_parquet(self.detection_times_path)
+        return _read_optional(self.detection_times_path)
 
     def write_certificate(self, cert: pd.DataFrame, config_json: str, **extra) -> None:
         """Write ``certificate.parquet`` (:func:`campaign.certify.certify`); *extra* goes
@@ -600,9 +603,7 @@ class CampaignDir:
 
     def read_certificate(self) -> pd.DataFrame | None:
         """The stored false-alarm certificate, or None when ``certify`` has not run."""
-        if not self.certificate_path.exists():
-            return None
-        return pd.read_parquet(self.certificate_path)
+        return _read_optional(self.certificate_path)
 
     def write_hazard(self, hazard: pd.DataFrame, config_json: str) -> None:
         """Write ``certificate-hazard.parquet``, the hazard per flight hour
@@ -612,9 +613,7 @@ class CampaignDir:
 
     def read_hazard(self) -> pd.DataFrame | None:
         """The stored hazard table, or None when ``certify`` has not made one."""
-        if not self.hazard_path.exists():
-            return None
-        return pd.read_parquet(self.hazard_path)
+        return _read_optional(self.hazard_path)
 
     def write_certificate_levels(self, levels: pd.DataFrame, config_json: str, **extra) -> None:
         """Write ``certificate-levels.parquet`` (:func:`campaign.certify_levels.level_table`);
@@ -626,9 +625,7 @@ class CampaignDir:
     def read_certificate_levels(self) -> pd.DataFrame | None:
         """The stored exceedance curve of the certificate, or None when ``certify`` has not
         written one."""
-        if not self.certificate_levels_path.exists():
-            return None
-        return pd.read_parquet(self.certificate_levels_path)
+        return _read_optional(self.certificate_levels_path)
 
     def write_report(self, page: str, path=None) -> Path:
         """Write the HTML report *page* to *path* (default ``report.html`` here)."""
