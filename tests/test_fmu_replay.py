@@ -114,8 +114,10 @@ def test_the_recorded_fmu_named_on_the_command_line_re_simulates(fmu_campaign, c
                                                                   tmp_path):
     """The FMU the campaign ran on, named with --fmu: loaded (the recording sees its shared
     library, which shows the recording would see the planted one), and the re-simulated
-    run and envelopes reproduce the stored margins."""
-    out, servo = fmu_campaign["out"], str(fmu_campaign["servo"])
+    run and envelopes reproduce the stored margins. A fresh copy (same bytes, same digest)
+    is named, so that no FMU an earlier test left loaded in this process stands in for it."""
+    out = fmu_campaign["out"]
+    servo = str(shutil.copy(fmu_campaign["servo"], tmp_path / "servo-copy.fmu"))
     run_id = str(fmu_campaign["result"].plan["run_id"].iloc[0])
     with _Recording() as rec:
         assert main(["show", str(out), run_id, "--fmu", servo]) == 0
