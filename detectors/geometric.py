@@ -271,11 +271,27 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
         # the first solve compiles the parametric problem and its data differ from the
         # cached path's in the last bits: solve every design through the cached path, so a
         # design does not depend on what the process solved before
-        solution = _solve(prob, X, K, solver, "the LMI of [VANEK] eq. 3–4",
-                          times=2 if fresh else 1)
+        try:
+            solution = _solve(prob, X, K, solver, "the LMI of [VANEK] eq. 3–4",
+                              times=2 if fresh else 1)
+        except GeometricDesignError:
+            solution = _solve_afresh(A_hat, M, float(decay), float(radius), solver)
     return _injection(solution, [A_hat], M, decay, radius,
                       "no output injection places the filter poles in the region; lower the "
                       "decay rate or widen the radius, or check that (M, Â) is detectable")
+
+
+def _solve_afresh(A_hat, M, decay: float, radius: float, solver: str):
+    """The LMI of :func:`injection_lmi` compiled anew for this Â and M and solved once: the
+    fallback when the solver fails on the cached parametric problem. At the boundary optimum
+    of the minimum-‖K‖ injection (module docstring) the cached path's data, which differ
+    from a fresh compilation's in the last bits, can make Clarabel stop without an answer
+    (seen on ``vanek-isolation --seed 8080``: Â with two eigenvalues at 0, where a fresh
+    compilation solves to ``optimal_inaccurate`` with every pole in the region). The answer
+    is checked like any other (:func:`_injection`); a second failure is the design's error."""
+    prob, pA, pM, X, K = _lmi_problem(A_hat.shape[0], M.shape[0], decay, radius)
+    pA.value, pM.value = A_hat, M
+    return _solve(prob, X, K, solver, "the LMI of [VANEK] eq. 3–4")
 
 
 #: cvxpy's warning on an "optimal_inaccurate" status; :func:`_solve` takes it as that status

@@ -230,6 +230,40 @@ def test_an_inaccurate_lmi_answer_is_a_checked_status_not_a_warning():
         geo._injection((status, X, -0.1 * K), [np.zeros((1, 1))], np.eye(1), 0.5, 20.0, "h")
 
 
+#: Â and M of the injection LMI at which Clarabel stopped without an answer on the cached
+#: parametric problem (vanek-geometric, `fdd-campaign run vanek-isolation --seed 8080`): a
+#: 4-state filter with two eigenvalues of Â at 0, decay 0.5 1/s, radius 20 rad/s.
+STALLED_A_HAT = np.array([
+    [-0.000200700000196656, -0.1939566608399679, -0.07748858738897829, 1.5418979806012572e-17],
+    [0.0006535726572825147, -0.4477951725105224, 0.014529477637227096, 1.7674347106139984e-18],
+    [-0.003002285138028007, -0.19100273806189208, -0.562014542507303, -4.671077449479853e-18],
+    [0.000842148442700302, 0.8923969036364673, 0.34245082044154374, 0.0]])
+STALLED_M = np.array([[0.1799498948239988, 0.9187523319982269, 0.3514430078983666, 0.0],
+                      [-0.983658401660919, 0.16594652287246983, 0.06984196724336235, 0.0],
+                      [0.0, 0.0, 0.0, 1.0]])
+
+
+def test_a_solver_failure_on_the_cached_lmi_is_solved_afresh(monkeypatch):
+    """When the solver fails on the cached parametric LMI (detectors.geometric.injection_lmi),
+    the LMI is compiled anew and solved once; its answer passes the same pole check. Forced
+    here by a first _solve that raises, on the Â, M where it happened in a campaign."""
+    calls = []
+    real = geo._solve
+
+    def failing_once(prob, X, K, solver, what, times=1):
+        calls.append(what)
+        if len(calls) == 1:
+            raise geo.GeometricDesignError(f"{what} failed in {solver}: forced")
+        return real(prob, X, K, solver, what, times)
+
+    monkeypatch.setattr(geo, "_solve", failing_once)
+    G = geo.injection_lmi(STALLED_A_HAT, STALLED_M, 0.5, 20.0)
+    assert len(calls) == 2
+    eig = np.linalg.eigvals(STALLED_A_HAT + G @ STALLED_M)
+    # the region of eq. 3–4 with _injection's 1e-3 relative tolerance
+    assert eig.real.max() <= -0.5 * (1 - 1e-3) and np.abs(eig).max() <= 20.0
+
+
 @pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
 def test_aircraft_designs_over_the_envelope_raise_no_solver_warning_and_are_valid(aoa):
     """At the realistic flight points where Clarabel answers optimal_inaccurate (about one
