@@ -107,25 +107,27 @@ MD_DTP_CHECKS = ("missed_detection", "dtp")
 
 
 def other_requirements(config, result, shown: int = 4) -> str:
-    """One line: what the campaign file's MD and DTP limits say (``gate
-    --all-requirements``), the first *shown* unmet ones named."""
+    """One line: what the campaign file's MD and DTP limits say (what ``gate
+    --all-requirements`` adds to the gate), the first *shown* unmet ones named. Said as the
+    MD and DTP limits, not "all requirements": the line above it carries the gate's own
+    checks (false alarms, errors, isolation), which may fail while these limits are met."""
     full = gate_of(config, result, all_requirements=True)
     checks = [c for c in full.checks if c.name in MD_DTP_CHECKS]
     how = f"(fdd-campaign gate {result.out} --all-requirements)"
     req = config.requirements
     limits = f"MD ≤ {100 * req.max_md_rate:g} %, DTP ≤ {req.max_dtp:g}"
     if not checks:
-        return f"all requirements: no faulty run to check {limits} on {how}"
+        return f"MD and DTP limits: no faulty run to check {limits} on {how}"
     unmet = [c for c in checks if not c.passed]
     if not unmet:
-        return f"all requirements met ({limits}, {len(checks)} checks) {how}"
+        return f"MD and DTP limits met ({limits}, {len(checks)} checks) {how}"
     # a fault never detected fails its DTP check too: said once, by its missed detections
     missed = {(c.detector, c.fault) for c in unmet if c.name == "missed_detection"}
     unmet = [c for c in unmet if not (c.name == "dtp" and c.value != c.value
                                       and (c.detector, c.fault) in missed)]
     said = ", ".join(unmet_text(c) for c in unmet[:shown])
     more = f", and {len(unmet) - shown} more" if len(unmet) > shown else ""
-    return (f"all requirements ({limits}): not met: {said}{more} {how}")
+    return (f"MD and DTP limits ({limits}) not met: {said}{more} {how}")
 
 
 def unmet_text(check) -> str:

@@ -114,5 +114,5 @@ def test_run_ends_with_the_gate_verdict_and_the_next_command(tmp_path, capsys):
                        f"next: fdd-campaign gate {out} --junit gate.xml, or fdd-campaign report "
                        f"{out}")
     # the file's MD and DTP limits, one check of each per fault type (4 faults)
-    assert others == (f"all requirements met (MD ≤ 0 %, DTP ≤ 1, 8 checks) (fdd-campaign "
+    assert others == (f"MD and DTP limits met (MD ≤ 0 %, DTP ≤ 1, 8 checks) (fdd-campaign "
                       f"gate {out} --all-requirements)")

@@ -74,7 +74,7 @@ def test_run_ends_with_the_gate_then_what_else_the_requirements_say(tmp_path, ca
     assert main(["run", str(path), "--out", str(out), "--quiet", "--jobs", "1"]) == 0
     verdict, others = capsys.readouterr().out.strip().splitlines()[-2:]
     assert verdict.startswith("verdict: the gate passes (0 false alarms in 20 runs; ")
-    head = "all requirements (MD ≤ 0 %, DTP ≤ 0.1): not met: "
+    head = "MD and DTP limits (MD ≤ 0 %, DTP ≤ 0.1) not met: "
     assert others.startswith(head)
     assert others.endswith(f" (fdd-campaign gate {out} --all-requirements)")
     # the line names the same failures as the command it points to
