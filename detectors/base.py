@@ -22,7 +22,7 @@ from typing import Mapping
 
 import numpy as np
 
-from scenarios.signals import Signals
+from scenarios.signals import Signals, read_only_view
 
 from .params import Param, parameter_problems
 
@@ -61,12 +61,9 @@ class FrozenMapping(Mapping):
 
 
 def _read_only_array(value):
-    """A view of *value* whose write flag is off (no copy); other values unchanged."""
-    if not isinstance(value, np.ndarray):
-        return value
-    view = value.view()
-    view.flags.writeable = False
-    return view
+    """:func:`scenarios.signals.read_only_view` of an array (no copy); other values
+    unchanged."""
+    return read_only_view(value) if isinstance(value, np.ndarray) else value
 
 
 def read_only(signals: Signals) -> Signals:

@@ -462,7 +462,7 @@ def batch_invariance_failure(detector: Detector, signals, engine: str | None = N
     det = copy.deepcopy(detector)
     signals = read_only(signals)    # shared by the detectors checked: a write raises here
     try:
-        with kernels.use_engine(engine or kernels.current_engine()):
+        with kernels.use_engine(kernels.resolve_engine(engine)):
             _batch_invariant(det, signals, _variants(det, signals))
     except DetectorCheckError as exc:
         return str(exc)

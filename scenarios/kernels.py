@@ -50,6 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .signals import read_only_view
+
 try:  # numba is a core dependency; the guard only keeps the NumPy reference usable without it
     from numba import njit
 
@@ -575,16 +577,6 @@ def servo_band(u, x0, plants, ts: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---- compile / load from the cache before a campaign -----------------------------------------
-def read_only_view(array: np.ndarray) -> np.ndarray:
-    """A view of *array* whose write flag is off. A detector's inputs reach it so
-    (:func:`detectors.base.read_only`), and numba compiles a kernel once per argument type,
-    read-only arrays being a type of their own: the warm-ups call the kernels that read
-    signals with such views too, so that a campaign never compiles in its first chunk."""
-    view = array.view()
-    view.flags.writeable = False
-    return view
-
-
 _WARMUPS: list = []
 _CACHED: list = []   # compiled functions of other modules whose cache state warm_up reports
 
