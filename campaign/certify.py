@@ -41,12 +41,13 @@ import math
 import numpy as np
 import pandas as pd
 
-from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
+from detectors.tail import CURVE_SHAPES, TailFitError, counted_bound, fit_tail
 from reports.metrics import FAULT_FREE
 from scenarios import envelope
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .design import run_id
+from .hazard import per_hour
 
 __all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
@@ -76,20 +77,6 @@ class CertifyError(ValueError):
 
 
 # ---- counting and the tail fit -------------------------------------------------------------
-def _cp_upper(k: int, n: int, level: float) -> float:
-    from scipy.stats import binomtest
-
-    return float(binomtest(int(k), int(n), alternative="less")
-                 .proportion_ci(confidence_level=level, method="exact").high)
-
-
-def _per_hour(p_up: float, duration_h: float) -> float:
-    """λ ≤ −ln(1 − p_up)/d [1/h] (Poisson exposure model, module docstring)."""
-    if not (math.isfinite(p_up) and duration_h > 0):
-        return math.nan
-    return math.inf if p_up >= 1.0 else -math.log1p(-p_up) / duration_h
-
-
 def evt_estimate(margins, manoeuvres=None, level: float = 0.95, at_one: dict | None = None,
                  ) -> dict:
     """P(margin ≥ 1) with its bound (``fa_prob_evt``, ``fa_prob_evt_upper95``) and the
@@ -140,7 +127,7 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
         k = int(g["false_alarm"].astype(bool).sum())
         d_s = duration.reindex(g["run_id"]).to_numpy(float)
         mean_h = float(np.nanmean(d_s)) / 3600.0
-        cp = _cp_upper(k, n, level)
+        cp = counted_bound(k, n, level)
         evt = evt_estimate(g["margin"].to_numpy(float), g["manoeuvre"].to_numpy(str), level,
                            at_one.loc[detector].to_dict() if detector in at_one.index
                            else None)
@@ -151,8 +138,8 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
             "detector": detector, "level": float(level), "n_runs": n,
             "exposure_h": float(np.nansum(d_s)) / 3600.0, "run_duration_s": mean_h * 3600.0,
             "fa_count": k, "fa_rate": k / n, "fa_upper95_cp": cp,
-            "fa_per_hour_upper95": _per_hour(cp, mean_h),
-            "fa_per_hour_evt_upper95": _per_hour(evt["fa_prob_evt_upper95"], mean_h),
+            "fa_per_hour_upper95": per_hour(cp, mean_h),
+            "fa_per_hour_evt_upper95": per_hour(evt["fa_prob_evt_upper95"], mean_h),
             "worst_margin": float(np.nanmax(g["margin"].to_numpy(float)))
             if g["margin"].notna().any() else math.nan, **evt,
             "sampling_runs": 0, "sampling_prob": math.nan, "sampling_lower95": math.nan,

@@ -112,8 +112,9 @@ def meets(rate_per_fh: float) -> str:
     return out
 
 
-def _per_hour(p: float, duration_h: float) -> float:
-    """λ = −ln(1 − p)/d [1/h] (the exposure model of ``certify``)."""
+def per_hour(p: float, duration_h: float) -> float:
+    """λ = −ln(1 − p)/d [1/h] from a per-run probability *p* over runs of *duration_h* hours:
+    the Poisson exposure model of ``certify`` and of this table (module docstring)."""
     if not (math.isfinite(p) and duration_h > 0):
         return math.nan
     return math.inf if p >= 1.0 else -math.log1p(-p) / duration_h
@@ -164,9 +165,9 @@ def hazard_table(results: pd.DataFrame, plan: pd.DataFrame, rates: dict[str, flo
             rows.append({
                 "detector": detector, "fault": FAULT_FREE, "n_runs": n, "events": k,
                 "p_run": k / n, "p_run_upper95": p_up, "rate_per_fh": math.nan,
-                "per_fh": _per_hour(k / n, d_h), "per_fh_upper95": _per_hour(p_up, d_h),
-                "meets": meets(_per_hour(p_up, d_h)), "late_or_missed": k,
-                "in_time_per_fh_upper95": _per_hour(p_up, d_h), "level": float(level)})
+                "per_fh": per_hour(k / n, d_h), "per_fh_upper95": per_hour(p_up, d_h),
+                "meets": meets(per_hour(p_up, d_h)), "late_or_missed": k,
+                "in_time_per_fh_upper95": per_hour(p_up, d_h), "level": float(level)})
     out = pd.DataFrame(rows, columns=list(HAZARD_COLUMNS))
     for c in ("n_runs", "events", "late_or_missed"):
         out[c] = out[c].astype("int64")
