@@ -493,7 +493,6 @@ def exceedance_curve(values, levels, *, classes=None, confidence: float = 0.95,
     shapes = CURVE_SHAPES if shapes is None else np.asarray(shapes, float)
     n = x.size
     counts = [int((x >= v).sum()) for v in lv]
-    pooled = [counted_bound(c, n, confidence) for c in counts]
     if classes is None:
         return [Exceedance(float(v), p, up, float(confidence), m, c, n)
                 for v, c, (m, p, up) in zip(lv, counts, _one_curve(x, lv, confidence, shapes))]
@@ -504,6 +503,7 @@ def exceedance_curve(values, levels, *, classes=None, confidence: float = 0.95,
     names, sizes = np.unique(labels, return_counts=True)
     weights = sizes / n
     per_class = [_one_curve(x[labels == c], lv, confidence, shapes) for c in names]
+    pooled = [counted_bound(c, n, confidence) for c in counts]
     out = []
     for i, v in enumerate(lv):
         parts = tuple((str(c), pc[i][0], pc[i][1], pc[i][2], float(w))
