@@ -20,7 +20,7 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
     check_writable,
     print_error,
 )
-from .isolation import isolation_of, isolation_of_stored
+from .isolation import isolation_of_stored
 
 
 # ---- commands ------------------------------------------------------------------------------

@@ -37,7 +37,6 @@ from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
-from .fitted import compare_fitted
 from .isolation import isolation_of
 from .evidence_report import evidence_figure_specs
 from .plant import replay_plant

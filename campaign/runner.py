@@ -35,8 +35,7 @@ from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, build_learning_plan, build_plan
-from .plugins import (  # noqa: F401  (BATCH_CHECK_RUNS: part of this module's interface)
-    BATCH_CHECK_RUNS,
+from .plugins import (
     batch_check_runs,
     batch_dependence,
     fit_detector,

@@ -166,21 +166,6 @@ class _quiet:
         return self._w.__exit__(*exc)
 
 
-def _hist(ax, x: np.ndarray, color: str) -> None:
-    """Histogram of *x*; a single bar when every value is the same (to rounding), so the
-    axis shows the value instead of an offset notation around it."""
-    lo, hi = float(np.min(x)), float(np.max(x))
-    if hi - lo <= 1e-9 * max(1.0, abs(hi)):
-        width = max(abs(hi) * 0.2, 1e-3)
-        ax.bar([hi], [len(x)], width=width, color=color, alpha=0.8)
-        ax.set_xlim(hi - 3 * width, hi + 3 * width)
-        ax.set_xticks([hi], [f"{hi:.4g}"])     # one value: one tick (no crowded labels)
-        return
-    else:
-        ax.hist(x, bins=min(30, max(5, len(x) // 5)), color=color, alpha=0.8)
-    ax.ticklabel_format(axis="x", useOffset=False)
-
-
 def _horizontal() -> dict:
     """Keyword of a horizontal box plot: ``orientation`` from matplotlib 3.10, ``vert``
     before (deprecated since)."""
