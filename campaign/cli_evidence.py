@@ -129,9 +129,9 @@ def fa_probability_checks(directory, limit: float) -> list:
 
 
 def add_evidence_parsers(subs, sub) -> None:
+    """Sub-command ``certify`` (*sub* makes a sub-parser as :func:`campaign.cli._sub`)."""
     from .certify_levels import DEFAULT_LEVELS
 
-    """Sub-command ``certify`` (*sub* makes a sub-parser as :func:`campaign.cli._sub`)."""
     p = sub(subs, "certify", "per-run false-alarm probability of each detector beyond "
             "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
             "optionally subset simulation (resumable: its batches are kept under DIR/sampling/); "
@@ -195,9 +195,6 @@ def format_hazard(hazard) -> str:
     bound set against the AMC 25.1309 budgets; then the assumptions."""
     from .hazard import AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS
 
-    def g(x):
-        return "n/a" if x != x else f"{x:.3g}"
-
     budgets = ", ".join(f"{k} ≤ {v:g}" for k, v in AMC_25_1309_BUDGETS_PER_FH.items())
     level = float(hazard["level"].iloc[0]) if len(hazard) else 0.95
     lines = [f"Hazard per flight hour (both sides; AMC 25.1309 budgets /FH: {budgets})",
@@ -207,9 +204,9 @@ def format_hazard(hazard) -> str:
     for r in hazard.to_dict(orient="records"):
         fault = "false alarm" if r["fault"] == "none" else r["fault"]
         lines.append(f"{r['detector']:24s} {fault:14s} {r['n_runs']:5d} {r['events']:6d} "
-                     f"{g(r['p_run_upper95']):>9s} {g(r['rate_per_fh']):>9s} "
-                     f"{g(r['per_fh']):>9s} {g(r['per_fh_upper95']):>9s} {r['meets']:>12s} "
-                     f"{g(r['in_time_per_fh_upper95']):>9s}")
+                     f"{_g(r['p_run_upper95']):>9s} {_g(r['rate_per_fh']):>9s} "
+                     f"{_g(r['per_fh']):>9s} {_g(r['per_fh_upper95']):>9s} {r['meets']:>12s} "
+                     f"{_g(r['in_time_per_fh_upper95']):>9s}")
     lines.append(f"bounds one-sided at {100 * level:g} % (fault rates as given); 'all': "
                  "undetected faults of every type; 'meets': the most severe category whose "
                  "budget the bound does not exceed; 'in time': the bound when a detection "

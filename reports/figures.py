@@ -483,9 +483,9 @@ def exceedance_figure(levels: np.ndarray, estimate: np.ndarray, upper: np.ndarra
     ax.set_yscale("log")
     ax.set_xlabel("margin level x [-]")
     ax.set_ylabel("P(margin ≥ x) per run [-]")
-    ax.legend(fontsize=7, loc="lower left")
+    ax.legend(fontsize=SMALL_PT, loc="lower left")
     ax.grid(alpha=0.3, which="both")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_PT)
     return fig
 
 

@@ -392,22 +392,17 @@ def _isolation_checks(detector, rows, surface: str, results) -> list[Check]:
     """One check per fault type: no run of a fault on *surface* may make *detector* alarm
     after onset (scored as "detected"); the failing run ids are named from *results*."""
     out = []
+    scored = _faulty_runs(results, detector)
     faulty = rows[(rows["fault"] != FAULT_FREE) & (rows["n_runs"] > 0)]
     for fault, g in faulty.groupby("fault", sort=True):
         n = int(g["n_runs"].sum())
         k = n - int(g["md_count"].sum())
-        ids: tuple[str, ...] = ()
-        if k and results is not None and not results.empty:
-            r = results[(results["detector"] == detector) & (results["fault"] == fault)
-                        & (results["status"] == "ok") & results["detected"].astype(bool)]
-            ids = tuple(r["run_id"].astype(str))
+        alarmed = scored[(scored["fault"] == fault) & scored["detected"]]
+        ids = tuple(alarmed["run_id"]) if k else ()
         passed = k == 0
         msg = (f"{'PASS' if passed else 'FAIL'} isolation: {detector}, {fault} of "
                f"{surface}: {k}/{n} runs alarmed after onset (it must stay silent on another "
-               "surface's faults)")
-        if ids:
-            msg += f"; runs: {', '.join(ids[:3])}" + (f" and {len(ids) - 3} more"
-                                                       if len(ids) > 3 else "")
+               "surface's faults)") + _runs_text(ids)
         out.append(Check("isolation", detector, fault, ALL_MANOEUVRES, k / n, 0.0,
                          passed, msg, ids[:3]))
     return out

@@ -165,8 +165,9 @@ def _gate_section(gate: GateResult | None, requirements: dict) -> str:
         "its words. It checks that the campaign has finished its plan, that no detector "
         f"exceeds the false-alarm limit max_fa_rate = {_e(requirements.get('max_fa_rate'))}"
         + (f" (per-detector allowances {_e(allow)})" if allow else "")
-        + " in any fault-free manoeuvre or before any fault onset, and that every run "
-        "finished. The campaign file's missed-detection and detection-time limits are not part "
+        + " in any fault-free manoeuvre or before any fault onset, that every run "
+        "finished, and that a detector declared to isolate one surface's faults stays silent "
+        "on another surface's (isolation). The campaign file's missed-detection and detection-time limits are not part "
         'of it: they are in the overview below, under <a href="#requirements">all '
         "requirements</a> "
         "(<code>fdd-campaign gate --all-requirements</code>).</p>")
@@ -261,7 +262,7 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
             "holds per fault type); MD in T: not detected within the required time, missed "
             "or late (no limit of its own: a late run fails the DTP requirement); max DTP: "
             "the largest detection delay / required time. “gate” is the verdict of "
-            "<code>fdd-campaign gate</code> above (false alarms and run errors); “all "
+            "<code>fdd-campaign gate</code> above (false alarms, run errors, isolation); “all "
             "requirements” adds the MD and DTP limits.</p></section>")
 
 
