@@ -106,7 +106,7 @@ def test_paper_design_solves_eq_23_and_gives_the_fault_a_path(polytope):
     at every vertex, the error dynamics stable; on the unperturbed model (H = 0) the fault
     reaches f̂ at 0.94 or more of its size 0.25 s after a step at every vertex, where
     E = e_φ (ε alike, no gust channel) leaves at most 0.2 of it (docs/chen-estimator.md §5:
-    0.01–0.16). Static gain within 10 % of one (0.90–1.00 documented). Tolerances: the
+    0.01–0.16). Static gain at least 0.88 and at most one (0.897–0.996 documented). Tolerances: the
     documented values rounded outward by 0.01–0.04, the solver's accuracy being ~1e-7."""
     verts, d = design(ChenGlobalPaper(), polytope)
     for v in d.vertices:

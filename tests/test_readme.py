@@ -141,16 +141,6 @@ class QuickStart:
     has_fmpy: bool = True
 
 
-@contextlib.contextmanager
-def _working_directory(path: Path):
-    before = Path.cwd()
-    os.chdir(path)
-    try:
-        yield
-    finally:
-        os.chdir(before)
-
-
 def _call(argv: list[str], line: str) -> Ran:
     """Run ``fdd-campaign ARGV`` through the entry point, its output captured."""
     out, err = io.StringIO(), io.StringIO()
@@ -191,7 +181,7 @@ def quick_start(tmp_path_factory) -> QuickStart:
         import fmpy  # noqa: F401
     except ImportError:
         state.has_fmpy = False
-    with _working_directory(root):
+    with contextlib.chdir(root):
         for line in _block("## Quick start")[1:]:
             words = shlex.split(line, comments=True)
             if not words:                  # a comment continuing the line above
@@ -214,7 +204,7 @@ def test_readme_quick_start_runs(quick_start, tmp_path):
     assert exe is not None and Path(exe).parent == bindir
     assert subprocess.run(["fdd-campaign", "--version"], env=env, capture_output=True,
                           text=True, cwd=tmp_path).returncode == 0
-    with _working_directory(quick_start.root):
+    with contextlib.chdir(quick_start.root):
         for ran in quick_start.ran:
             _check(ran)
             # paths are printed normalised (the README's directories end in "/")
@@ -261,7 +251,7 @@ def test_every_hint_of_the_quick_start_runs_as_printed(quick_start):
     if quick_start.has_fmpy:
         expected.add("run smoke --plant servo.fmu --out servo/")
     assert expected <= set(shapes), sorted(shapes)
-    with _working_directory(quick_start.root):
+    with contextlib.chdir(quick_start.root):
         for hint, line in shapes.values():
             argv = shlex.split(hint)[1:]
             assert "results/" not in argv[2:] or argv[0] != "run", \
@@ -304,7 +294,7 @@ def test_every_help_example_runs_as_printed(quick_start):
     assert len(examples) >= 16
     readme = {" ".join(shlex.split(x, comments=True)) for x in _block("## Quick start")}
     ran = set()
-    with _working_directory(quick_start.root):
+    with contextlib.chdir(quick_start.root):
         for example in examples:
             if example in readme:          # run by the quick start already
                 continue
