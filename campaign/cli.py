@@ -186,24 +186,24 @@ def cmd_gate(args) -> int:
 
 
 def _gate_one(directory, args):
-    from reports.gate import evaluate_gate
+    from reports.gate import requirements_gate
 
     from .runner import load_results
 
     results, summary, meta = load_results(directory)
-    req = creq.requirements_of(meta, args)
-    max_fa = args.max_fa if args.max_fa is not None else req.get("max_fa_rate", 0.0)
-    allowances = dict(req.get("detector_max_fa_rate") or {}) if args.max_fa is None else {}
-    max_md, max_dtp = args.max_md, args.max_dtp
-    if args.all_requirements:        # the campaign file's MD and DTP limits too (as the report)
-        max_md = max_md if max_md is not None else req.get("max_md_rate")
-        max_dtp = max_dtp if max_dtp is not None else req.get("max_dtp")
+    limits = dict(creq.requirements_of(meta, args))
+    if args.max_fa is not None:       # one limit for every detector: no allowance
+        limits.update(max_fa_rate=args.max_fa, detector_max_fa_rate={})
+    for key, given in (("max_md_rate", args.max_md), ("max_dtp", args.max_dtp)):
+        # the campaign file's MD and DTP limits with --all-requirements (as the report)
+        limits[key] = given if given is not None else (
+            limits.get(key) if args.all_requirements else None)
     coverage = (None if meta.get("runs_planned") is None
                 else (int(meta.get("runs_done") or 0), int(meta["runs_planned"])))
-    result = evaluate_gate(summary, max_fa=max_fa, max_md=max_md, max_dtp=max_dtp,
-                           detector_max_fa=allowances, allow_errors=args.allow_errors,
-                           coverage=coverage, isolation=isolation_of_stored(meta.get("config")),
-                           allow_incomplete=args.allow_incomplete, results=results)
+    result = requirements_gate(summary, results, limits, all_requirements=True,
+                               isolation=isolation_of_stored(meta.get("config")),
+                               coverage=coverage, allow_errors=args.allow_errors,
+                               allow_incomplete=args.allow_incomplete)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .cli_evidence import fa_probability_checks
 

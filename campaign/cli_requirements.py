@@ -60,17 +60,14 @@ def print_verdict(config, result) -> bool:
 def gate_of(config, result, *, all_requirements: bool = False):
     """The gate of *config*'s requirements on a run's *result*: its false-alarm limits and
     coverage (``fdd-campaign gate``), and with *all_requirements* its MD and DTP limits."""
-    from reports.gate import evaluate_gate
+    from reports.gate import requirements_gate
 
     from .isolation import isolation_of
 
-    req, done = config.requirements, result.results["run_id"].nunique()
-    return evaluate_gate(result.summary, max_fa=req.max_fa_rate, results=result.results,
-                         max_md=req.max_md_rate if all_requirements else None,
-                         max_dtp=req.max_dtp if all_requirements else None,
-                         detector_max_fa=dict(req.detector_max_fa_rate),
-                         isolation=isolation_of(config),
-                         coverage=(done if not result.results.empty else 0, len(result.plan)))
+    done = result.results["run_id"].nunique() if not result.results.empty else 0
+    return requirements_gate(result.summary, result.results, config.to_dict()["requirements"],
+                             isolation=isolation_of(config), coverage=(done, len(result.plan)),
+                             all_requirements=all_requirements)
 
 
 def verdict(config, result) -> str:

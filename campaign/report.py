@@ -30,7 +30,7 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from reports.figures import bin_max, figure_png, render_png, run_figure
-from reports.gate import evaluate_gate
+from reports.gate import requirements_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE
 from reports.table import error_lines
@@ -338,16 +338,14 @@ def runs_table(camp: LoadedCampaign) -> pd.DataFrame:
 
 
 def campaign_gate(camp: LoadedCampaign, req: dict, *, all_requirements: bool = False):
-    """:func:`reports.gate.evaluate_gate` with the arguments of ``fdd-campaign gate DIR``
+    """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
     (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
     m = camp.meta
-    return evaluate_gate(
-        camp.summary, max_fa=req["max_fa_rate"], results=camp.results,
-        max_md=req["max_md_rate"] if all_requirements else None,
-        max_dtp=req["max_dtp"] if all_requirements else None,
-        detector_max_fa=req["detector_max_fa_rate"], isolation=isolation_of(camp.config),
-        coverage=None if m.get(
-            "runs_planned") is None else (int(m.get("runs_done") or 0), int(m["runs_planned"])))
+    coverage = (None if m.get("runs_planned") is None
+                else (int(m.get("runs_done") or 0), int(m["runs_planned"])))
+    return requirements_gate(camp.summary, camp.results, req,
+                             isolation=isolation_of(camp.config), coverage=coverage,
+                             all_requirements=all_requirements)
 
 
 @dataclass

@@ -42,6 +42,7 @@ from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
 __all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_probability_checks",
+           "requirements_gate",
            "junit_tree", "write_junit",
            "write_junit_suite", "write_junit_tree"]
 
@@ -217,6 +218,27 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
                             "FAIL scored runs: the summary holds no runs"))
     return GateResult(checks)
+
+
+
+def requirements_gate(summary: pd.DataFrame, results: pd.DataFrame | None, requirements,
+                      *, isolation: dict | None = None,
+                      coverage: tuple[int, int] | None = None,
+                      all_requirements: bool = False, allow_errors: bool = False,
+                      allow_incomplete: bool = False) -> GateResult:
+    """The gate of a campaign file's ``[requirements]`` (*requirements*: their JSON form, a
+    mapping): what ``fdd-campaign gate DIR`` checks — the false-alarm limit
+    ``max_fa_rate`` with the ``detector_max_fa_rate`` allowances, run errors, *coverage*
+    and *isolation* — and with *all_requirements* (``gate --all-requirements``) also
+    ``max_md_rate`` and ``max_dtp`` (a limit that is None is not checked). One place for the
+    verdict that ``gate`` prints, ``run`` repeats and the report shows."""
+    return evaluate_gate(
+        summary, results=results, max_fa=float(requirements.get("max_fa_rate", 0.0)),
+        detector_max_fa=dict(requirements.get("detector_max_fa_rate") or {}),
+        max_md=requirements.get("max_md_rate") if all_requirements else None,
+        max_dtp=requirements.get("max_dtp") if all_requirements else None,
+        isolation=isolation, coverage=coverage, allow_errors=allow_errors,
+        allow_incomplete=allow_incomplete)
 
 
 def _allowances(summary: pd.DataFrame, limits: dict):
