@@ -48,8 +48,8 @@ Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free lea
   time about 0.2 s) is nearly the same in the reference and the window and cancels, as in
   the liquid statistic, so the turns' loaded roll-ins no longer set the threshold at the
   size of the jam; a liquid jam's step decays within the window. τ_sol is learned on
-  max s per fault-free run. ``solid_reference_s = 0`` gives the earlier level statistic,
-  the least |f̂| over the window, for a rod seized where it stands (the ``"seized"`` jam:
+  max s per fault-free run. ``solid_reference_s = 0`` gives the level statistic, the
+  least |f̂| over the window, for a rod seized where it stands (the ``"seized"`` jam:
   f̂ grows only as the order moves away, with no step): its threshold must then sit at the
   noise level, which 50 learning runs per manoeuvre do not calibrate
   (docs/chen-estimator.md §3);

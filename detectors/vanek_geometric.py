@@ -39,8 +39,8 @@ the rates, the sideslip, the bank angle (:data:`ZERO_TRIM`) and the spoiler angl
 trim) as measured, the pitch attitude and the surfaces relative to their first sample, the
 angle of attack relative to the pitch attitude's first sample (α0 = θ0 in level flight; its
 own first sample would carry the vane's noise and the gust's α of that instant).
-(Two earlier input errors, referencing to first samples and rebuilding the spoiler angle
-from the orders, are measured in docs/vanek-geometric.md.)
+(docs/vanek-geometric.md measures why the inputs are not referenced to their own first
+samples and why the spoiler angle is not rebuilt from the orders.)
 
 Filter: :func:`detectors.geometric.design` (W*, S*, P, H, M, Ĝ, LMI of eq. 3–4) then the
 bilinear transform at Ts ([VANEK] §5). Its residual r (one component per row of H) is
