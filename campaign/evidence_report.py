@@ -13,6 +13,7 @@ from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 from reports.metrics import FAULT_FREE
 from reports.survival import kaplan_meier
 
+from .certify_levels import EXTRAPOLATION_DECADES
 from .storage import CampaignDir
 
 __all__ = ["evidence_figure_specs"]
@@ -27,26 +28,35 @@ def _curve_specs(name: str, g, curve) -> list[tuple]:
     if mine.empty:
         return []
     return [("certificate", name, f"Exceedance curve — {name}",
-             "P(margin ≥ x) per fault-free run: the certificate's 95 % upper bound at each "
-             "level (certificate-levels.parquet: per manoeuvre counted or fitted, never more "
-             "than two decades under the counting bound) and its estimate where given, "
-             "against the share of the campaign's runs at or above x.", "exceedance",
+             f"P(margin ≥ x) per fault-free run: the certificate's "
+             f"{100 * float(mine['confidence'].iloc[0]):g} % upper bound at each level "
+             "(certificate-levels.parquet: per manoeuvre counted or fitted, never more than "
+             f"{EXTRAPOLATION_DECADES} decades under the counting bound) and its estimate "
+             "where given, against the share of the campaign's runs at or above x.",
+             "exceedance",
              (mine["level"].to_numpy(float), mine["p_estimate"].to_numpy(float),
               mine["p_upper95"].to_numpy(float), g["margin"].to_numpy(float)),
              {"title": f"{name}: exceedance curve"})]
 
 
-def _tail_specs(name: str, g) -> list[tuple]:
-    """Mean-excess and QQ figure specs of one detector's fault-free rows *g*: the tail fit
-    of the manoeuvre with the largest margins, as the certificate's curve fits it
-    (:data:`detectors.tail.CURVE_SHAPES`); none when it cannot be fitted."""
+def _tail_specs(name: str, g, curve) -> list[tuple]:
+    """Mean-excess and QQ figure specs of one detector's fault-free rows *g*: the tail fit,
+    as the certificate's curve fits it (:data:`detectors.tail.CURVE_SHAPES`), of the
+    manoeuvre whose term dominates its bound at margin 1 (the ``tail_class`` of *curve*),
+    or of the manoeuvre of the largest margin when no fitted tail dominates; none when it
+    cannot be fitted."""
     margins = g["margin"].to_numpy(float)
     classes = g["manoeuvre"].to_numpy(str)
     keep = np.isfinite(margins)
     margins, classes = margins[keep], classes[keep]
     if margins.size == 0:
         return []
-    worst = classes[int(np.argmax(margins))]
+    dominant = ("" if curve is None else
+                str(next(iter(curve.loc[(curve["detector"] == name) & (curve["level"] == 1.0),
+                                        "tail_class"]), "")))
+    worst = dominant if dominant in set(classes) else classes[int(np.argmax(margins))]
+    why = ("the manoeuvre whose tail dominates the bound at margin 1" if worst == dominant
+           else "the manoeuvre of the largest margin")
     mine = margins[classes == worst]
     try:
         fit = fit_tail(mine, shapes=CURVE_SHAPES)
@@ -54,9 +64,8 @@ def _tail_specs(name: str, g) -> list[tuple]:
         return []
     return [
         ("certificate", name, f"Mean excess — {name}",
-         f"Mean excess of the fault-free margins of {worst} (the manoeuvre of the largest "
-         "margin) over a threshold v; above the fit's threshold u (dashed) a generalised "
-         "Pareto tail makes it straight.",
+         f"Mean excess of the fault-free margins of {worst} ({why}) over a threshold v; "
+         "above the fit's threshold u (dashed) a generalised Pareto tail makes it straight.",
          "mean_excess", (mine, fit.u), {"title": f"{name} ({worst}): mean excess"}),
         ("certificate", name, f"Tail QQ plot — {name}",
          f"The {fit.k} largest margins of {worst} as excesses over u = {fit.u:.3g} against "
@@ -79,7 +88,7 @@ def evidence_figure_specs(camp) -> list[tuple]:
         curve = CampaignDir(camp.root).read_certificate_levels()
         for name, g in free.groupby("detector", sort=False):
             specs += _curve_specs(name, g, curve)
-            specs += _tail_specs(name, g)
+            specs += _tail_specs(name, g, curve)
     faulty = ok[ok["fault"].astype(str) != FAULT_FREE]
     for name, g in faulty.groupby("detector", sort=False):
         curves = {}

@@ -142,3 +142,19 @@ def test_printed_certificate_never_shows_an_estimate_below_the_limit():
     assert "<2.5e-05" in line and "2.49e-05" in line and line.count("—") == 2
     assert "e-1" not in line.replace("e-05", "")      # no tiny number such as 7.95e-124
     assert "2.49e-05*" in format_levels(curve)
+
+
+def test_report_tail_plots_show_the_manoeuvre_that_dominates_the_bound():
+    """The mean-excess and QQ figures fit the tail of the curve's dominant manoeuvre at margin
+    1 (``tail_class``), not merely the manoeuvre of the largest margin: here "a" holds the
+    largest margin but "b" dominates the bound; without a curve the largest margin decides."""
+    from campaign.evidence_report import _tail_specs
+
+    rng = np.random.default_rng(7)
+    margins = np.r_[0.1 * rng.exponential(size=200), 5.0, 0.2 * rng.exponential(size=200)]
+    g = pd.DataFrame({"margin": margins, "manoeuvre": ["a"] * 201 + ["b"] * 200})
+    curve = pd.DataFrame({"detector": ["d", "d"], "level": [0.9, 1.0],
+                          "tail_class": ["a", "b"]})
+    specs = _tail_specs("d", g, curve)
+    assert [s[5][0].size for s in specs[:1]] == [200] and "b (the manoeuvre whose" in specs[0][3]
+    assert "a (the manoeuvre of the largest margin)" in _tail_specs("d", g, None)[0][3]
