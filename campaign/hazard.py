@@ -196,12 +196,8 @@ def _total(per_fault: list[dict], detector: str, level: float) -> dict:
             "in_time_per_fh_upper95": in_time, "level": level}
 
 
-def report_section(hazard: pd.DataFrame | None) -> str:
-    """The report's HTML section of a hazard table (:func:`reports.hazard_section.
-    hazard_section` with the AMC 25.1309 budgets and :data:`ASSUMPTIONS`); empty for None
+def report_section(hazard: pd.DataFrame | None) -> tuple | None:
+    """What the report shows of a hazard table (:func:`reports.html.hazard_section`'s
+    arguments: the table, the AMC 25.1309 budgets, :data:`ASSUMPTIONS`); None for None
     (``certify`` has not run)."""
-    if hazard is None:
-        return ""
-    from reports.hazard_section import hazard_section
-
-    return hazard_section(hazard, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)
+    return None if hazard is None else (hazard, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)

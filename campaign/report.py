@@ -37,6 +37,7 @@ from reports.table import error_lines
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
+from .hazard import report_section
 from .isolation import isolation_of
 from .evidence_report import evidence_figure_specs
 from .plant import replay_plant
@@ -593,16 +594,13 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
         "engine version": camp.meta.get("engine_version"),
         "report written (UTC)": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
     }
-    page = render_report(meta=meta, summary=camp.summary, gate=data.gate,
+    cdir = CampaignDir(camp.root)
+    return render_report(meta=meta, summary=camp.summary, gate=data.gate,
                          requirements=data.requirements, runs=data.runs, figures=figures,
                          notes=data.notes, warnings=data.warnings,
-                         certificate=CampaignDir(camp.root).read_certificate(),
-                         all_requirements=data.all_requirements, detectors=data.detectors)
-    from reports.hazard_section import insert_section
-
-    from .hazard import report_section    # "Hazard per flight hour", when certified
-
-    return insert_section(page, report_section(CampaignDir(camp.root).read_hazard()))
+                         certificate=cdir.read_certificate(),
+                         all_requirements=data.all_requirements, detectors=data.detectors,
+                         hazard=report_section(cdir.read_hazard()))
 
 
 # ---- show ----------------------------------------------------------------------------------

@@ -21,6 +21,7 @@ import html
 import math
 import re
 from dataclasses import dataclass
+from typing import Mapping, Sequence
 
 import pandas as pd
 
@@ -167,7 +168,8 @@ def _gate_section(gate: GateResult | None, requirements: dict) -> str:
         + (f" (per-detector allowances {_e(allow)})" if allow else "")
         + " in any fault-free manoeuvre or before any fault onset, that every run "
         "finished, and that a detector declared to isolate one surface's faults stays silent "
-        "on another surface's (isolation). The campaign file's missed-detection and detection-time limits are not part "
+        "on another surface's (isolation). The campaign file's missed-detection and "
+        "detection-time limits are not part "
         'of it: they are in the overview below, under <a href="#requirements">all '
         "requirements</a> "
         "(<code>fdd-campaign gate --all-requirements</code>).</p>")
@@ -464,7 +466,8 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                   notes: list[str] = (), warnings: list[str] = (),
                   certificate: pd.DataFrame | None = None,
                   all_requirements: GateResult | None = None,
-                  detectors: list[str] | None = None) -> str:
+                  detectors: list[str] | None = None,
+                  hazard: tuple | None = None) -> str:
     """The report page.
 
     Parameters
@@ -482,6 +485,9 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     figures : embedded figures, shown in :data:`SECTIONS` order, grouped by ``group``
     notes : sentences on how the figures were made (sampling rules, re-simulation checks)
     warnings : shown in a highlighted box at the top
+    hazard : (table, budgets, assumptions) of ``certify``'s hazard per flight hour
+        (``certificate-hazard.parquet``, ``campaign.hazard``), shown before the runs; None:
+        ``certify`` has not made one
     certificate : ``certificate.parquet`` of ``fdd-campaign certify`` (None: no such
         section unless it has figures)
     """
@@ -502,7 +508,9 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
              '<a href="#campaign">Campaign</a>', '<a href="#verdict">Per detector</a>'] + [
         f'<a href="#{key}">{_e(title)}</a>' for key, title in SECTIONS.items()
         if any(f.section == key for f in figures)
-        or (key == "certificate" and certificate is not None)] + ['<a href="#runs">Runs</a>']
+        or (key == "certificate" and certificate is not None)] + (
+        ['<a href="#hazard">Hazard per flight hour</a>'] if hazard is not None else []) + [
+        '<a href="#runs">Runs</a>']
     parts.append("<nav>" + "".join(links) + "</nav>")
     for w in warnings:
         parts.append(f'<p class="warn">{_e(w)}</p>')
@@ -530,10 +538,41 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     if notes:
         parts.append('<section id="notes"><h2>How the figures were made</h2><ul>'
                      + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></section>")
+    if hazard is not None:
+        parts.append(hazard_section(*hazard))
     parts.append(_drilldown(runs, detectors))
     parts.append("</body></html>")
     return "\n".join(parts)
 
+
+
+def hazard_section(hazard: pd.DataFrame, budgets: Mapping[str, float],
+                   assumptions: Sequence[str]) -> str:
+    """``<section id="hazard">``: the hazard table *hazard* (the columns of
+    ``campaign.hazard.HAZARD_COLUMNS``, one row per detector × fault type, the undetected
+    faults of every type, the false alarms), the *budgets* (AMC 25.1309 category → rate per
+    flight hour) and the *assumptions* (sentences) it rests on (docs/evidence.md)."""
+    level = f"{100 * float(hazard['level'].iloc[0]):g} %" if len(hazard) else "95 %"
+    head = ["detector", "fault", "runs", "missed / FA", f"P per run ≤ ({level})",
+            "rate [1/FH]", "per FH", f"per FH ≤ ({level})", "meets",
+            "per FH ≤, late = undetected"]
+    names = {"none": "false alarm", "all": "all faults (undetected)"}
+    rows = [[_e(r["detector"]), _e(names.get(r["fault"], r["fault"])), str(int(r["n_runs"])),
+             str(int(r["events"])), _num(r["p_run_upper95"]), _num(r["rate_per_fh"]),
+             _num(r["per_fh"]), _num(r["per_fh_upper95"]), _e(r["meets"]),
+             _num(r["in_time_per_fh_upper95"])] for r in hazard.to_dict(orient="records")]
+    budget_text = ", ".join(f"{_e(k)} ≤ {v:g}" for k, v in budgets.items())
+    return ('<section id="hazard"><h2>Hazard per flight hour</h2>'
+            "<p>Both sides of each detector (Hu and Seiler's combination, docs/evidence.md): "
+            "the rate of undetected actuator faults per flight hour, each fault mode's "
+            "occurrence rate times its missed-detection probability (exact one-sided "
+            f"Clopper–Pearson bound at {level}; the total's bound Bonferroni-adjusted over "
+            "the fault types), and the false-alarm rate per flight hour of the fault-free "
+            f"runs. AMC 25.1309 budgets per flight hour: {budget_text}; <i>meets</i> names the "
+            "most severe category whose budget the bound does not exceed.</p>"
+            + _table([_e(h) for h in head], rows, tid="hazard-table")
+            + "<p>Assumptions:</p><ul>" + "".join(f"<li>{_e(a)}</li>" for a in assumptions)
+            + "</ul></section>")
 
 def _certificate_table(cert: pd.DataFrame) -> str:
     """The certificate as a table: counts, the three estimates side by side, the fit."""

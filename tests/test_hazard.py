@@ -153,17 +153,27 @@ def test_certify_writes_and_prints_the_hazard_table(tmp_path, capsys):
 
 
 def test_the_report_section_lists_every_row_and_assumption():
+    """The page shows the hazard table (one row per detector × fault type, the total and the
+    false alarms), the budgets and every assumption, before the runs, with a link to it;
+    without a hazard table there is no such section."""
     from campaign.hazard import ASSUMPTIONS, report_section
-    from reports.hazard_section import hazard_section, insert_section
+    from reports.html import hazard_section, render_report
+    from reports.summary import summarize
 
     results, plan = _results()
     table = hazard_table(results, plan, {"runaway": 1e-6, "solid_jam": 2e-6})
-    section = hazard_section(table, AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS)
-    assert section == report_section(table)
+    section = hazard_section(*report_section(table))
     assert section.count("<tr") == 1 + len(table)
     assert "false alarm" in section and "all faults (undetected)" in section
     assert all(html.escape(a) in section for a in ASSUMPTIONS)
-    page = '<html><body><section id="runs">runs</section></body></html>'
-    placed = insert_section(page, section)
-    assert placed.index('id="hazard"') < placed.index('id="runs"')
-    assert insert_section(page, report_section(None)) == page
+    assert report_section(None) is None
+    runs = results.assign(manoeuvre="cruise", delay_s=np.nan, margin=0.5, alt_ft=0.0,
+                          vcas_kt=0.0, mass_t=0.0, cg_pct=0.0, onset_s=np.nan)
+    page = render_report(meta={"name": "t"}, summary=summarize(runs), gate=None,
+                         requirements={}, runs=runs, figures=[],
+                         hazard=report_section(table))
+    assert section in page and page.index('id="hazard"') < page.index('id="runs"')
+    assert '<a href="#hazard">' in page
+    page = render_report(meta={"name": "t"}, summary=summarize(runs), gate=None,
+                         requirements={}, runs=runs, figures=[])
+    assert 'id="hazard"' not in page and '<a href="#hazard">' not in page
