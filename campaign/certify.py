@@ -48,6 +48,7 @@ from scenarios import envelope
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .design import run_id
 from .hazard import per_hour
+from .rare import P0
 
 __all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
@@ -224,7 +225,7 @@ SAMPLING_DIR: str = "sampling"
 
 
 def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: int = 500,
-                          p0: float = 0.1, max_levels: int = 12, level: float = 0.95,
+                          p0: float = P0, max_levels: int = 12, level: float = 0.95,
                           seed: int = 0, jobs: int = 2, scheduler: str | None = None,
                           tls=None, log=None, progress=None) -> dict:
     """P(margin ≥ 1) of each result-row detector name in *names* by subset simulation
@@ -388,7 +389,7 @@ def sampling_note(r, *, seed: int, n: int) -> str:
     acc = ", ".join(f"{d.acceptance:.2f}" for d in r.diagnostics if d.acceptance == d.acceptance)
     ess = min((d.ess for d in r.diagnostics), default=math.nan)
     streams = [d.distinct_nuisance for d in r.diagnostics if d.distinct_nuisance]
-    head = (f"subset simulation, seed {seed}, {n} runs per level, p0 = 0.1, "
+    head = (f"subset simulation, seed {seed}, {n} runs per level, p0 = {P0:g}, "
             f"{len(r.levels)} levels, {r.evaluations} runs; acceptance per level {acc}; "
             f"smallest effective sample size {ess:.0f}; δ = {r.cov:.2f}"
             + (f"; distinct (manoeuvre, noise stream) pairs at the last level "
@@ -439,9 +440,9 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     columns). With *sampling*, the runs are simulated on *jobs* local workers or on the dask
     scheduler *scheduler* (*tls*: its :class:`campaign.execute.TlsFiles`), their batches
     kept under ``DIR/sampling/`` (resumable), *progress* (default stderr) told each batch
-    (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished campaign, a level
-    outside (0.5, 1), ``sampling`` below 20 or not a multiple of 10, ``jobs`` below 1 or an
-    unknown detector name."""
+    (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished
+    campaign, a level outside (0.5, 1), ``sampling`` below 20 or not a multiple of 1/P0 (10),
+    ``jobs`` below 1 or an unknown detector name."""
     from .hazard import hazard_table
     from .report import load_campaign
     from .storage import CampaignDir
@@ -449,14 +450,16 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     problems = []
     if not (isinstance(level, float | int) and 0.5 < float(level) < 1.0):
         problems.append(f"--level {level!r}: must be a confidence in (0.5, 1), e.g. 0.95")
-    if sampling is not None and (int(sampling) < 20 or int(sampling) % 10):
+    if sampling is not None and (int(sampling) < 20 or int(sampling) % round(1 / P0)):
         problems.append(f"--sampling {sampling!r}: runs per level of the subset simulation "
-                        "must be a multiple of 10 and ≥ 20 (p0 = 0.1), e.g. --sampling 500")
+                        f"must be a multiple of {round(1 / P0)} and ≥ 20 (p0 = {P0:g}), e.g. "
+                        "--sampling 500")
     if int(jobs) < 1:
         problems.append(f"--jobs {jobs!r}: must be ≥ 1, e.g. --jobs 2")
     if not 1 <= int(max_levels) <= 30:
         problems.append(f"--max-levels {max_levels!r}: levels of the subset simulation after "
-                        "the first, in [1, 30] (p0 = 0.1: 12 reach 1e-12), e.g. --max-levels 12")
+                        f"the first, in [1, 30] (p0 = {P0:g}: 12 reach {P0 ** 12:g}), e.g. "
+                        "--max-levels 12")
     try:
         levels = tuple(sorted(set(parse_levels(levels)) | {1.0}))
     except ValueError as exc:

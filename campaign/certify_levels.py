@@ -30,6 +30,8 @@ import pandas as pd
 from detectors.tail import counted_bound, exceedance_curve
 from reports.metrics import FAULT_FREE
 
+from .rare import P0
+
 __all__ = ["DEFAULT_LEVELS", "EXTRAPOLATION_DECADES", "LEVEL_COLUMNS", "detector_rows",
            "level_table", "parse_levels", "runs_to_carry", "sampling_levels_to_reach"]
 
@@ -46,8 +48,6 @@ LEVEL_COLUMNS: tuple[str, ...] = (
     "p_counted_upper95", "p_model_upper95", "tail_class", "confidence", "note",
 )
 
-#: Subset simulation's conditional probability per level (campaign.rare, p0).
-_P0 = 0.1
 
 
 def parse_levels(text) -> tuple[float, ...]:
@@ -81,9 +81,10 @@ def runs_to_carry(p: float, confidence: float = 0.95) -> int:
 
 
 def sampling_levels_to_reach(p: float) -> int:
-    """The levels subset simulation needs to reach a probability *p* (p0 = 0.1 each):
+    """The levels subset simulation needs to reach a probability *p* (:data:`campaign.rare.P0`
+    each):
     ⌈log(p)/log(p0)⌉."""
-    return max(1, math.ceil(math.log(p) / math.log(_P0) - 1e-9))
+    return max(1, math.ceil(math.log(p) / math.log(P0) - 1e-9))
 
 
 def _limit_note(model_up: float, limit: float, counted_up: float, n: int,
@@ -94,7 +95,7 @@ def _limit_note(model_up: float, limit: float, counted_up: float, n: int,
             f"decades below the counting bound {counted_up:.2g} of the {n} runs: they cannot "
             f"carry it, the bound given is their limit {limit:.2g}; to carry {model_up:.2g}, "
             f"run about {runs} fault-free runs, or sample with --sampling (subset simulation: "
-            f"about {levels} levels of p0 = {_P0:g} to reach it)")
+            f"about {levels} levels of p0 = {P0:g} to reach it)")
 
 
 def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.95,

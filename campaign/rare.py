@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SAMPLER_VERSION", "SubsetLevel", "SubsetResult", "subset_simulation"]
+__all__ = ["P0", "SAMPLER_VERSION", "SubsetLevel", "SubsetResult", "subset_simulation"]
 
 #: Version of the chains' moves: the points a seed leads to change with it, so stored
 #: evaluations of another version are not reused (``campaign.certify``'s batch store).
@@ -216,7 +216,12 @@ def _chain_starts(rng, candidates: np.ndarray, n_c: int) -> tuple[np.ndarray, in
     return candidates[np.arange(n_c) % candidates.size], int(candidates.size)
 
 
-def subset_simulation(g, sample_prior, n_dims: int, *, n: int = 500, p0: float = 0.1,
+#: Conditional probability of one level of the subset simulation the certificate runs
+#: (Au & Beck 2001's usual choice: a level's seeds are the best tenth of its runs).
+P0 = 0.1
+
+
+def subset_simulation(g, sample_prior, n_dims: int, *, n: int = 500, p0: float = P0,
                       max_levels: int = 8, confidence: float = 0.95, seed: int = 0,
                       redraw=None, nuisance_share: float = 0.2, log=None) -> SubsetResult:
     """P(g ≥ 1) by subset simulation (module docstring).
