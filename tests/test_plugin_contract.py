@@ -19,6 +19,7 @@ from campaign.runner import CampaignSetupError
 from detectors import Detection, detection_problems, registry
 from detectors.testing import check_detector
 from plugin_detectors import BadResidual, BatchMean
+from small_campaigns import campaign_toml, small_campaign
 
 PLUGINS = ("Subsampled", "BadResidual", "BatchMean", "Offline", "FitFails")
 
@@ -32,17 +33,7 @@ def plugins(monkeypatch):
 
 
 def _config(*detectors, chunk_size=4) -> dict:
-    return {
-        "campaign": {"name": "plugins", "seed": 5, "duration_s": 20.0},
-        "faults": {"onset_min_s": 5.0, "onset_before_end_s": 5.0},
-        "group": [
-            {"name": "ff", "fault": "none", "manoeuvres": ["cruise", "nose_up"], "count": 3},
-            {"name": "ra", "fault": "runaway", "manoeuvres": ["cruise"], "count": 2},
-        ],
-        "detector": [{"name": "position-monitor", "label": "pm"}, *detectors],
-        "learning": {"runs_per_manoeuvre": 2, "manoeuvres": ["cruise", "nose_up"]},
-        "runner": {"chunk_size": chunk_size},
-    }
+    return small_campaign("plugins", 5, detectors, runner={"chunk_size": chunk_size})
 
 
 # ---- the rule itself -----------------------------------------------------------------------
@@ -129,7 +120,7 @@ def test_batch_dependent_detector_refused_at_start(tmp_path, plugins, capsys):
 
     cfg = _config({"name": "batch-mean", "label": "bm"})
     path = tmp_path / "c.toml"
-    path.write_text(_toml(cfg))
+    path.write_text(campaign_toml(cfg))
     out = tmp_path / "out"
     assert main(["run", str(path), "--jobs", "1", "--quiet", "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -153,7 +144,7 @@ def test_offline_detector_refused(plugins):
 
 def test_fit_failure_exit_2_and_nothing_left(tmp_path, plugins, capsys):
     path = tmp_path / "c.toml"
-    path.write_text(_toml(_config({"name": "fit-fails", "label": "ff-det"})))
+    path.write_text(campaign_toml(_config({"name": "fit-fails", "label": "ff-det"})))
     out = tmp_path / "out"
     assert main(["run", str(path), "--jobs", "1", "--quiet", "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -194,27 +185,3 @@ def test_setup_error_in_a_resumable_campaign_keeps_it(tmp_path, monkeypatch):
     with pytest.raises(CampaignSetupError):
         run(cfg, out, jobs=1, progress=False, log=lambda m: None)
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
-
-
-def _toml(cfg: dict) -> str:
-    """A campaign dict as TOML text (the few value types used here)."""
-    def value(v):
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return f'"{v}"'
-        if isinstance(v, float) and not np.isfinite(v):
-            return "nan" if np.isnan(v) else ("inf" if v > 0 else "-inf")
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
-        return repr(v)
-
-    lines = []
-    for section, body in cfg.items():
-        tables = body if isinstance(body, list) else [body]
-        for table in tables:
-            lines.append(f"[[{section}]]" if isinstance(body, list) else f"[{section}]")
-            lines += [f"{k} = {value(v)}" for k, v in table.items()]
-    return "\n".join(lines) + "\n"

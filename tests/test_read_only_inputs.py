@@ -20,6 +20,7 @@ from detectors import registry
 from detectors.base import FrozenMapping, read_only
 from detectors.testing import DetectorCheckError, _batch, check_detector
 from plugin_detectors import FitWriter, SignalWriter
+from small_campaigns import campaign_toml, small_campaign
 from scenarios.signals import SIGNAL_UNITS
 
 WRITERS = {"signal-writer": "SignalWriter", "schedule-writer": "ScheduleWriter",
@@ -37,17 +38,7 @@ def writers(monkeypatch):
 def _config(*first) -> dict:
     """A small campaign: the position monitor (which reads command, both rod positions and
     the schedule) runs after the detectors *first* in every chunk."""
-    return {
-        "campaign": {"name": "writers", "seed": 77123, "duration_s": 20.0},
-        "faults": {"onset_min_s": 5.0, "onset_before_end_s": 5.0},
-        "group": [
-            {"name": "ff", "fault": "none", "manoeuvres": ["cruise", "nose_up"], "count": 3},
-            {"name": "ra", "fault": "runaway", "manoeuvres": ["cruise"], "count": 2},
-        ],
-        "detector": [*first, {"name": "position-monitor", "label": "pm"}],
-        "learning": {"runs_per_manoeuvre": 2, "manoeuvres": ["cruise", "nose_up"]},
-        "runner": {"chunk_size": 4},
-    }
+    return small_campaign("writers", 77123, first, pm_first=False)
 
 
 def _results(cfg: dict, out) -> pd.DataFrame:
@@ -91,17 +82,23 @@ def test_read_only_views_share_memory_and_refuse_every_write():
 
 
 # ---- a writer among the detectors of a campaign ------------------------------------------
+@pytest.fixture(scope="module")
+def alone(tmp_path_factory) -> pd.DataFrame:
+    """The position monitor's rows of the campaign without any writer (run once)."""
+    return _rows(_results(_config(), tmp_path_factory.mktemp("alone")), "pm")
+
+
 @pytest.mark.parametrize("writer", [
     {"name": "signal-writer", "label": "wr"},
     {"name": "schedule-writer", "label": "wr"},
     {"name": "schedule-writer", "label": "wr", "params": {"how": "assign"}},
 ], ids=["signals", "schedule-in-place", "schedule-entry"])
-def test_a_writer_fails_alone_and_the_others_rows_are_unchanged(tmp_path, writers, writer):
-    alone = _results(_config(), tmp_path / "alone")
+def test_a_writer_fails_alone_and_the_others_rows_are_unchanged(tmp_path, writers, writer,
+                                                                 alone):
     both = _results(_config(writer), tmp_path / "both")
     # the position monitor, run after the writer on the same signals in every chunk: its
     # rows are those of the campaign without the writer, bit for bit
-    pd.testing.assert_frame_equal(_rows(alone, "pm"), _rows(both, "pm"))
+    pd.testing.assert_frame_equal(alone, _rows(both, "pm"))
     assert (_rows(both, "pm")["status"] == "ok").all()
     wrote = _rows(both, "wr")
     assert len(wrote) == both["run_id"].nunique()
@@ -113,13 +110,12 @@ def test_a_writer_fails_alone_and_the_others_rows_are_unchanged(tmp_path, writer
 
 
 def test_without_read_only_inputs_the_writer_corrupts_its_neighbour(tmp_path, writers,
-                                                                   monkeypatch):
+                                                                   monkeypatch, alone):
     """The test above can fail: handed writeable signals (the engine before read-only
     inputs), the same writer turns the position monitor's rows into false alarms."""
     import campaign.evaluate as evaluate
 
     monkeypatch.setattr(evaluate, "read_only", lambda signals: signals)
-    alone = _rows(_results(_config(), tmp_path / "alone"), "pm")
     both = _rows(_results(_config({"name": "signal-writer", "label": "wr"}),
                           tmp_path / "both"), "pm")
     free = both["fault"] == "none"
@@ -129,10 +125,8 @@ def test_without_read_only_inputs_the_writer_corrupts_its_neighbour(tmp_path, wr
 
 def test_a_fit_that_writes_into_the_learning_set_is_refused_naming_it(tmp_path, writers,
                                                                      capsys):
-    from test_plugin_contract import _toml
-
     path = tmp_path / "c.toml"
-    path.write_text(_toml(_config({"name": "fit-writer", "label": "fw"})))
+    path.write_text(campaign_toml(_config({"name": "fit-writer", "label": "fw"})))
     out = tmp_path / "out"
     assert main(["run", str(path), "--jobs", "1", "--quiet", "--out", str(out)]) == 2
     err = capsys.readouterr().err

@@ -18,6 +18,7 @@ from campaign.cli import main
 from campaign.config import CampaignConfig
 from campaign.design import build_learning_plan, build_plan
 from campaign.storage import CampaignDir
+from small_campaigns import campaign_toml, small_campaign
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -40,26 +41,16 @@ sys.exit(main(sys.argv[1:]))
 
 
 def _config(marker, *, timeout_s=2.0) -> dict:
-    return {
-        "campaign": {"name": "limit", "seed": 5150, "duration_s": 20.0},
-        "faults": {"onset_min_s": 5.0, "onset_before_end_s": 5.0},
-        "group": [
-            {"name": "ff", "fault": "none", "manoeuvres": ["cruise", "nose_up"], "count": 2},
-            {"name": "ra", "fault": "runaway", "manoeuvres": ["cruise"], "count": 2},
-        ],
-        "detector": [{"name": "misbehaving", "params": {"marker": str(marker),
-                                                        "mode": "sleep", "sleep_s": 3600.0}},
-                     {"name": "position-monitor", "label": "pm"}],
-        "learning": {"runs_per_manoeuvre": 1, "manoeuvres": ["cruise"]},
-        "runner": {"chunk_size": 2, "run_timeout_s": timeout_s},
-    }
+    return small_campaign(
+        "limit", 5150, [{"name": "misbehaving", "params": {"marker": str(marker),
+                                                          "mode": "sleep", "sleep_s": 3600.0}}],
+        free=2, pm_first=False, learning_runs=1, learning_manoeuvres=("cruise",),
+        runner={"chunk_size": 2, "run_timeout_s": timeout_s})
 
 
 def _write(tmp_path, cfg: dict) -> Path:
-    from test_plugin_contract import _toml
-
     path = tmp_path / "limit.toml"
-    path.write_text(_toml(cfg))
+    path.write_text(campaign_toml(cfg))
     return path
 
 
