@@ -101,16 +101,18 @@ class GateResult:
         """The checks that failed, in evaluation order."""
         return [c for c in self.checks if not c.passed]
 
+    @property
+    def verdict(self) -> str:
+        """The verdict line: ``gate PASSED: all N checks passed`` or ``gate FAILED: k of N
+        checks failed``."""
+        k = len(self.failures)
+        return (f"gate FAILED: {k} of {len(self.checks)} checks failed" if k
+                else f"gate PASSED: all {len(self.checks)} checks passed")
+
     def format(self) -> str:
-        """Human report: one line per check, failures repeated at the end, and a verdict."""
-        lines = [c.message for c in self.checks]
-        failures = self.failures
-        if failures:
-            lines += ["", f"gate FAILED: {len(failures)} of {len(self.checks)} checks failed"]
-            lines += [f"  {c.message}" for c in failures]
-        else:
-            lines += ["", f"gate PASSED: all {len(self.checks)} checks passed"]
-        return "\n".join(lines)
+        """Human report: one line per check, the verdict, and the failures repeated."""
+        lines = [c.message for c in self.checks] + ["", self.verdict]
+        return "\n".join(lines + [f"  {c.message}" for c in self.failures])
 
 
 def _pct(x: float) -> str:

@@ -30,7 +30,7 @@ from .gate import GateResult
 from .metrics import FAULT_FREE, clopper_pearson
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["ReportFigure", "anchor", "count_figures", "gate_lines", "render_report",
+__all__ = ["ReportFigure", "anchor", "count_figures", "hazard_section", "render_report",
            "show_command"]
 
 #: Sections of the page that hold figures, in page order: key → heading.
@@ -115,11 +115,6 @@ def _img(fig: ReportFigure) -> str:
 
 
 # ---- verdict -------------------------------------------------------------------------------
-def gate_lines(gate: GateResult) -> list[str]:
-    """The lines ``fdd-campaign gate`` prints for *gate* (:meth:`GateResult.format`)."""
-    return gate.format().splitlines()
-
-
 def _passed(checks) -> bool | None:
     """All of *checks* passed (None: there is none)."""
     checks = list(checks)
@@ -156,10 +151,8 @@ def _gate_section(gate: GateResult | None, requirements: dict) -> str:
     if gate is None:
         out.append("<p>No gate was evaluated.</p></section>")
         return "\n".join(out)
-    lines = gate_lines(gate)
-    # the verdict line of the command ("gate PASSED: …" / "gate FAILED: …")
-    verdict = next((x for x in lines if x.startswith("gate ")), "")
-    out.append(f'<p class="gateline {"pass" if gate.passed else "fail"}">{_e(verdict)}</p>')
+    out.append(f'<p class="gateline {"pass" if gate.passed else "fail"}">'
+               f'{_e(gate.verdict)}</p>')
     allow = requirements.get("detector_max_fa_rate") or {}
     out.append(
         '<p class="note">What <code>fdd-campaign gate DIR</code> prints for this directory, in '
@@ -183,7 +176,7 @@ def _gate_section(gate: GateResult | None, requirements: dict) -> str:
         out.append(f'<ul class="fails">{"".join(items)}</ul>')
     out.append(f"<details><summary>every line of <code>fdd-campaign gate</code> "
                f"({len(gate.checks)} checks)</summary><pre class=\"gatelines\">"
-               + _e("\n".join(lines)) + "</pre></details>")
+               + _e(gate.format()) + "</pre></details>")
     out.append("</section>")
     return "\n".join(out)
 
