@@ -231,11 +231,17 @@ def design_filter(point: dict, ts: float, *, decouple_gusts: bool = True, decay:
     :func:`design_outputs` (*aoa_sensor*)
     [rad, rad/s]."""
     A, B = _model(point, design_model)
+    return _design_at(A, B, ts, decouple_gusts, decay, radius, aoa_sensor)
+
+
+def _design_at(A, B, ts: float, decouple_gusts: bool, decay: float, radius: float,
+               aoa_sensor: bool) -> tuple[geo.ResidualGenerator, _Filter]:
+    """The geometric filter of the design model (A, B) (:func:`detectors.geometric.design`
+    on :func:`_fault_columns`), continuous and discretised at *ts* [s]."""
     _, _, known = _columns()
-    C = _output_matrix(aoa_sensor)
     L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
-    gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
-                     names1=[FAULT_SURFACE])
+    gen = geo.design(A, B[:, known], _output_matrix(aoa_sensor), L1, L2, decay=decay,
+                     radius=radius, names1=[FAULT_SURFACE])
     return gen, _discrete(gen, ts)
 
 
@@ -335,11 +341,7 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
 
     if design_model == "aircraft":
         def at(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
-            A, B = clipped(theta)
-            L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
-            gen = geo.design(A, B[:, known], C, L1, L2, decay=decay, radius=radius,
-                             names1=[FAULT_SURFACE])
-            return gen, _discrete(gen, ts)
+            return _design_at(*clipped(theta), ts, decouple_gusts, decay, radius, aoa_sensor)
 
         return at
     corners = np.array(np.meshgrid(*ranges, indexing="ij")).reshape(len(ranges), -1).T
