@@ -210,8 +210,9 @@ class Campaign:
 
     @cached_property
     def results(self) -> pd.DataFrame:
-        """Every result row, one per run × detector, in plan order (runs not done are
-        absent; an interrupted campaign has fewer)."""
+        """Every result row, one per run × detector, in plan order, a run's detectors in the
+        order they were evaluated (runs not done are absent; an interrupted campaign has
+        fewer)."""
         return plan_order(self._cdir.read_results(), self.plan)
 
     @cached_property
@@ -323,14 +324,17 @@ def _same_fitted(a: CampaignDir, b: CampaignDir, config) -> bool:
     return a.fitted_sha256(labels) == b.fitted_sha256(labels)
 
 
-def plan_order(results: pd.DataFrame, plan: pd.DataFrame) -> pd.DataFrame:
-    """*results* sorted by their runs' order in *plan*, detectors in stored order within a
-    run (stable), index reset."""
+def plan_order(results: pd.DataFrame, plan: pd.DataFrame, *, by_name: bool = False
+               ) -> pd.DataFrame:
+    """*results* sorted by their runs' order in *plan*, index reset. Within a run the rows
+    keep their stored order (the detectors in the order they were evaluated), or, with
+    *by_name*, are sorted by detector name (the order the summary is computed in)."""
     if results.empty:
         return results
     order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
+    keys = ["_o", "detector"] if by_name else ["_o"]
     return (results.assign(_o=results["run_id"].map(order))
-            .sort_values(["_o", "detector"], kind="stable")
+            .sort_values(keys, kind="stable")
             .drop(columns="_o").reset_index(drop=True))
 
 

@@ -641,7 +641,8 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
     SHA-256 of an FMU plant's file, :func:`campaign.plant.replay_plant`) and, for a campaign of
     fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
     ``detection-times.parquet``."""
-    results = plan_order(cdir.read_results(), plan)
+    stored = cdir.read_results()
+    results = plan_order(stored, plan, by_name=True)
     summary = summarize(results) if not results.empty else pd.DataFrame()
     origin = cdir.read_fitted_origin() or {}
     cdir.write_summary(summary, config.to_json(), complete=complete,
@@ -653,5 +654,5 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
     if not results.empty and fixed_onset_campaign(plan):
         times = detection_time_table(plan, results)
         cdir.write_detection_times(times, config.to_json())
-    return Campaign.of_dir(cdir, wall_s=wall_s, plan=plan, results=results,
-                           detection_times=times)
+    return Campaign.of_dir(cdir, wall_s=wall_s, plan=plan,
+                           results=plan_order(stored, plan), detection_times=times)

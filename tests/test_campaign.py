@@ -212,6 +212,22 @@ def test_load_reads_back_the_campaign_that_run_returned(tmp_path):
     assert dataclasses.replace(cert, level=0.9) != cert
 
 
+def test_campaign_run_spells_out_the_runners_keywords():
+    """``campaign.run`` shows its real keywords (not ``**kwargs``): the same names, kinds and
+    defaults as :func:`campaign.runner.run`, so neither can drift from the other."""
+    import inspect
+
+    import campaign
+    from campaign import runner
+
+    def params(f):
+        return {name: (p.kind, p.default) for name, p in inspect.signature(f).parameters.items()}
+
+    assert params(campaign.run) == params(runner.run)
+    assert not any(p.kind is inspect.Parameter.VAR_KEYWORD
+                   for p in inspect.signature(campaign.run).parameters.values())
+
+
 def test_a_campaign_of_random_onsets_stores_no_detection_times(tmp_path):
     res = run(tiny(), tmp_path / "out", jobs=1, progress=False)
     assert res.detection_times is None
