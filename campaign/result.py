@@ -332,10 +332,14 @@ def plan_order(results: pd.DataFrame, plan: pd.DataFrame, *, by_name: bool = Fal
     if results.empty:
         return results
     order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
-    keys = ["_o", "detector"] if by_name else ["_o"]
-    return (results.assign(_o=results["run_id"].map(order))
-            .sort_values(keys, kind="stable")
-            .drop(columns="_o").reset_index(drop=True))
+    if by_name:
+        return (results.assign(_o=results["run_id"].map(order))
+                .sort_values(["_o", "detector"], kind="stable")
+                .drop(columns="_o").reset_index(drop=True))
+    position = results["run_id"].map(order).to_numpy(dtype=float)
+    if np.all(position[1:] >= position[:-1]):      # in order already (one copy saved)
+        return results.reset_index(drop=True)
+    return results.take(np.argsort(position, kind="stable")).reset_index(drop=True)
 
 
 def load(directory) -> Campaign:
