@@ -430,11 +430,13 @@ def write_sampling_levels(directory, found: dict, config_json: str) -> None:
 def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
             seed: int = 0, detectors=None, scheduler: str | None = None, tls=None,
             log=print, progress=None, max_levels: int = 12,
-            levels=DEFAULT_LEVELS) -> pd.DataFrame:
+            levels=DEFAULT_LEVELS):
     """Certificate of a finished campaign directory (module docstring); writes
-    ``DIR/certificate.parquet`` and returns it, and its exceedance curve at *levels* (1.0
-    always among them) to ``DIR/certificate-levels.parquet``
-    (:func:`campaign.certify_levels.level_table`).
+    ``DIR/certificate.parquet``, its exceedance curve at *levels* (1.0 always among them)
+    to ``DIR/certificate-levels.parquet`` (:func:`campaign.certify_levels.level_table`) and
+    the hazard table to ``DIR/certificate-hazard.parquet``, and returns them as a
+    :class:`campaign.result.Certificate` (with the assumptions the bounds rest on), the
+    ``certificate`` of ``campaign.load(DIR)`` from then on.
 
     *detectors*: the result-row names sampled (default all; the others keep NaN sampling
     columns). With *sampling*, the runs are simulated on *jobs* local workers or on the dask
@@ -444,7 +446,7 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     campaign, a level outside (0.5, 1), ``sampling`` below 20 or not a multiple of 1/P0 (10),
     ``jobs`` below 1 or an unknown detector name."""
     from .hazard import hazard_table
-    from .report import load_campaign
+    from .result import Certificate, load
     from .storage import CampaignDir
 
     problems = []
@@ -466,10 +468,9 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
         problems.append(str(exc))
     if problems:
         raise CertifyError("; ".join(problems))
-    loaded = load_campaign(directory)
-    meta = loaded.meta
-    done, planned = meta.get("runs_done"), meta.get("runs_planned")
-    if not meta.get("complete", True) or (planned is not None and int(done or 0) < int(planned)):
+    loaded = load(directory)
+    done, planned = loaded.runs_done, loaded.runs_planned
+    if not loaded.complete or (planned is not None and done < planned):
         raise CertifyError(
             f"{directory}: the campaign is unfinished ({done} of {planned} runs done); a "
             "certificate is made from every fault-free run of the plan: finish it by running "
@@ -499,4 +500,5 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
         cdir.write_certificate(cert, loaded.config.to_json(), sampling_seed=int(seed))
         cdir.write_hazard(hazard, loaded.config.to_json())
         cdir.write_certificate_levels(curve, loaded.config.to_json())
-    return cert
+    return Certificate(table=cert, levels=curve, hazard=hazard, level=float(level),
+                       sampling_seed=int(seed))

@@ -100,15 +100,14 @@ def validate_levels(directory, config, levels: pd.DataFrame, n: int, *, seed: in
     *levels*) with *n* runs at campaign seed *seed* (module docstring) and return its
     :func:`coverage_table`, also written to ``DIR/validation/seed-S-nN.parquet``."""
     from .files import write_parquet
-    from .runner import load_results, run
+    from .runner import run
 
     root = Path(directory) / VALIDATION_DIR
     out = root / f"seed-{int(seed)}-n{int(n)}"
     vconfig = validation_config(config, n, seed)
-    run(vconfig, out, jobs=int(jobs), scheduler=scheduler, tls=tls, fitted_from=directory,
-        log=log)
-    results, _, _ = load_results(out)
-    table = coverage_table(levels, results, seed)
+    done = run(vconfig, out, jobs=int(jobs), scheduler=scheduler, tls=tls,
+               fitted_from=directory, log=log)
+    table = coverage_table(levels, done.results, seed)
     write_parquet(table, root / f"seed-{int(seed)}-n{int(n)}.parquet", vconfig.to_json(),
                   kind="certify-validation", validation_seed=int(seed))
     return table
@@ -165,12 +164,12 @@ def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
     (:func:`check_validation`). :class:`campaign.certify.CertifyError` (exit 2) also for a
     directory without ``certificate-levels.parquet``."""
     from .certify import CertifyError
-    from .report import load_campaign
-    from .storage import CampaignDir
+    from .result import load
 
-    loaded = load_campaign(directory)
+    loaded = load(directory)
     seed = check_validation(loaded.config, n, seed)
-    levels = CampaignDir(loaded.root).read_certificate_levels()
+    cert = loaded.certificate
+    levels = None if cert is None else cert.levels
     if levels is None:
         raise CertifyError(f"--validate: {directory} has no certificate-levels.parquet; run "
                            f"fdd-campaign certify {directory} first")

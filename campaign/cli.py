@@ -188,9 +188,10 @@ def cmd_gate(args) -> int:
 def _gate_one(directory, args):
     from reports.gate import requirements_gate
 
-    from .runner import load_results
+    from .result import load
 
-    results, summary, meta = load_results(directory)
+    camp = load(directory)
+    meta = camp.meta
     limits = dict(creq.requirements_of(meta, args))
     if args.max_fa is not None:       # one limit for every detector: no allowance
         limits.update(max_fa_rate=args.max_fa, detector_max_fa_rate={})
@@ -198,16 +199,15 @@ def _gate_one(directory, args):
         # the campaign file's MD and DTP limits with --all-requirements (as the report)
         limits[key] = given if given is not None else (
             limits.get(key) if args.all_requirements else None)
-    coverage = (None if meta.get("runs_planned") is None
-                else (int(meta.get("runs_done") or 0), int(meta["runs_planned"])))
-    result = requirements_gate(summary, results, limits, all_requirements=True,
+    coverage = (None if camp.runs_planned is None else (camp.runs_done, camp.runs_planned))
+    result = requirements_gate(camp.summary, camp.results, limits, all_requirements=True,
                                isolation=isolation_of_stored(meta.get("config")),
                                coverage=coverage, allow_errors=args.allow_errors,
                                allow_incomplete=args.allow_incomplete)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .cli_evidence import fa_probability_checks
 
-        result.checks += fa_probability_checks(directory, args.max_fa_prob)
+        result.checks += fa_probability_checks(camp, args.max_fa_prob)
     print(result.format())
     failing = [run for c in result.failures for run in c.run_ids]
     if failing:
@@ -267,19 +267,18 @@ def cmd_report(args) -> int:
 
 
 def _report_one(args) -> None:
-    from reports.table import error_lines, format_table
+    from reports.table import error_lines
 
-    from .runner import load_results, reference_text
+    from .result import load
 
-    results, summary, meta = load_results(args.dir)
-    args.requirements_values = creq.report_limits(meta, args)
+    camp = load(args.dir)
+    args.requirements_values = creq.report_limits(camp.meta, args)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
-    cfg = meta.get("config") or {}
-    print(f"campaign {cfg.get('campaign', {}).get('name', '?')!r}: "
-          f"{meta.get('runs_done')} of {meta.get('runs_planned')} runs")
-    print(format_table(summary) + reference_text(args.dir, summary))
-    for line in error_lines(results):
+    print(f"campaign {camp.name or '?'!r}: "
+          f"{camp.meta.get('runs_done')} of {camp.meta.get('runs_planned')} runs")
+    print(camp.table())
+    for line in error_lines(camp.results):
         print(f"runs not scored: {line}")
     if not args.no_html:
         from .report import write_html_report

@@ -36,11 +36,10 @@ def cmd_certify(args) -> int:
         print(f"fdd-campaign: interrupted; the sampled batches done so far are kept under "
               f"{Path(args.dir) / 'sampling'}/: the same command goes on from them")
         return EXIT_INTERRUPTED
-    curve = CampaignDir(args.dir).read_certificate_levels()
-    print(format_certificate(cert))
-    print(format_levels(curve))
-    print(format_sampling(cert))
-    print(format_hazard_of(args.dir))
+    print(format_certificate(cert.table))
+    print(format_levels(cert.levels))
+    print(format_sampling(cert.table))
+    print(format_hazard(cert.hazard))
     print(f"certificate written to {Path(args.dir) / 'certificate.parquet'} and "
           f"{Path(args.dir) / 'certificate-levels.parquet'}; the report shows it: "
           f"fdd-campaign report {args.dir}")
@@ -111,21 +110,19 @@ def format_levels(curve) -> str:
     return "\n".join(lines)
 
 
-def fa_probability_checks(directory, limit: float) -> list:
-    """The ``gate --max-fa-prob`` checks of campaign *directory* from its certificate
-    (:func:`reports.gate.fa_probability_checks`); a CertifyError (exit 2) naming the
-    command that makes it when the directory has none."""
+def fa_probability_checks(camp, limit: float) -> list:
+    """The ``gate --max-fa-prob`` checks of campaign *camp* (:class:`campaign.result.Campaign`)
+    from its certificate (:func:`reports.gate.fa_probability_checks`); a CertifyError (exit
+    2) naming the command that makes it when the directory has none."""
     from reports.gate import fa_probability_checks as checks
 
     from .certify import CertifyError
-    from .storage import CampaignDir
 
-    cert = CampaignDir(directory).read_certificate()
-    if cert is None:
-        raise CertifyError(f"--max-fa-prob: {directory} has no certificate.parquet; make it "
-                           f"first with: fdd-campaign certify {directory} (add --sampling 500 "
-                           "for the sampled cross-check)")
-    return checks(cert, limit)
+    if camp.certificate is None:
+        raise CertifyError(f"--max-fa-prob: {camp.root} has no certificate.parquet; make it "
+                           f"first with: fdd-campaign certify {camp.root} (add --sampling "
+                           "500 for the sampled cross-check)")
+    return checks(camp.certificate.table, limit)
 
 
 def add_evidence_parsers(subs, sub) -> None:
@@ -181,19 +178,15 @@ def format_sampling(cert) -> str:
     return "\n".join(f"{r['detector']}: {r['sampling_note']}" for r in rows)
 
 
-def format_hazard_of(directory) -> str:
-    """:func:`format_hazard` of the hazard table ``certify`` wrote into *directory*."""
-    from .storage import CampaignDir
-
-    hazard = CampaignDir(directory).read_hazard()
-    return "" if hazard is None else format_hazard(hazard)
-
-
 def format_hazard(hazard) -> str:
     """The hazard per flight hour as a terminal table: per detector, each fault type's
     missed detections and undetected-fault rate, their total, and the false alarms, each
-    bound set against the AMC 25.1309 budgets; then the assumptions."""
+    bound set against the AMC 25.1309 budgets; then the assumptions. '' for None (no
+    hazard table)."""
     from .hazard import AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS
+
+    if hazard is None:
+        return ""
 
     budgets = ", ".join(f"{k} ≤ {v:g}" for k, v in AMC_25_1309_BUDGETS_PER_FH.items())
     level = float(hazard["level"].iloc[0]) if len(hazard) else 0.95

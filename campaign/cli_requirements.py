@@ -31,12 +31,12 @@ def runs_line(config, result, before: int) -> str:
     head = f"campaign {config.campaign.name!r}:"
     if before and done <= before:
         return (f"{head} nothing to compute, all {done} runs of the plan were already done "
-                f"-> {result.out}" if done == len(result.plan) else
+                f"-> {result.root}" if done == len(result.plan) else
                 f"{head} {done} of {len(result.plan)} runs done, none computed now -> "
-                f"{result.out}")
+                f"{result.root}")
     now = f" ({done - before} computed now)" if before else ""
     return (f"{head} {done} of {len(result.plan)} runs{now} in {result.wall_s:.1f} s -> "
-            f"{result.out}")
+            f"{result.root}")
 
 
 def print_verdict(config, result) -> bool:
@@ -52,7 +52,7 @@ def print_verdict(config, result) -> bool:
     except GateInputError as exc:
         print_error(f"the gate cannot be evaluated: {exc}")
         print(f"the results are kept: correct the file's [requirements], then: fdd-campaign "
-              f"gate {result.out} --requirements FILE (nothing is run again)")
+              f"gate {result.root} --requirements FILE (nothing is run again)")
         return False
     return True
 
@@ -76,12 +76,12 @@ def verdict(config, result) -> str:
     gate = gate_of(config, result)
     if gate.passed:
         return (f"verdict: the gate passes ({false_alarm_count(result)}; all "
-                f"{len(gate.checks)} checks); next: fdd-campaign gate {result.out} --junit "
-                f"gate.xml, or fdd-campaign report {result.out}")
+                f"{len(gate.checks)} checks); next: fdd-campaign gate {result.root} --junit "
+                f"gate.xml, or fdd-campaign report {result.root}")
     first = gate.failures[0]
     runs = [run for c in gate.failures for run in c.run_ids]
-    nxt = (f"fdd-campaign show {result.out} {runs[0]} --plot run.png" if runs
-           else f"fdd-campaign report {result.out}")
+    nxt = (f"fdd-campaign show {result.root} {runs[0]} --plot run.png" if runs
+           else f"fdd-campaign report {result.root}")
     return (f"verdict: the gate fails ({len(gate.failures)} of {len(gate.checks)} checks; "
             f"first: {first.message.removeprefix('FAIL ')}); next: {nxt}")
 
@@ -110,7 +110,7 @@ def other_requirements(config, result, shown: int = 4) -> str:
     checks (false alarms, errors, isolation), which may fail while these limits are met."""
     full = gate_of(config, result, all_requirements=True)
     checks = [c for c in full.checks if c.name in MD_DTP_CHECKS]
-    how = f"(fdd-campaign gate {result.out} --all-requirements)"
+    how = f"(fdd-campaign gate {result.root} --all-requirements)"
     req = config.requirements
     limits = f"MD ≤ {100 * req.max_md_rate:g} %, DTP ≤ {req.max_dtp:g}"
     if not checks:

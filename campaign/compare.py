@@ -1,7 +1,7 @@
 """``fdd-campaign compare DIR_A DIR_B``: what changed between two campaign directories.
 
-Both directories are read as the report reads them (:func:`campaign.report.load_campaign`:
-files checked against their manifest, fitted detectors as data); nothing is simulated.
+Both directories are read back as campaigns (:func:`campaign.result.load`: files checked
+against their manifest, fitted detectors as data); nothing is simulated.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ __all__ = ["cmd_compare", "compare_dirs"]
 def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
     """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
     and print the table; returns it."""
-    from .report import load_campaign
+    from .result import load
 
-    a, b = load_campaign(dir_a), load_campaign(dir_b)
+    a, b = load(dir_a), load(dir_b)
     ca, cb = a.config.to_dict(), b.config.to_dict()
     differ = differing_keys(ca, cb)
     log(f"A: {a.root} ({a.config.campaign.name}, {a.results['run_id'].nunique()} runs)")

@@ -14,7 +14,6 @@ from reports.metrics import FAULT_FREE
 from reports.survival import kaplan_meier
 
 from .certify_levels import EXTRAPOLATION_DECADES
-from .storage import CampaignDir
 
 __all__ = ["evidence_figure_specs"]
 
@@ -77,15 +76,15 @@ def _tail_specs(name: str, g, curve) -> list[tuple]:
 
 
 def evidence_figure_specs(camp) -> list[tuple]:
-    """Figure specs of a loaded campaign (:class:`campaign.report.LoadedCampaign`)."""
+    """Figure specs of a campaign (:class:`campaign.result.Campaign`)."""
     res = camp.results
     if res.empty:
         return []
     ok = res[res["status"].astype(str) == "ok"]
     specs = []
-    if CampaignDir(camp.root).read_certificate() is not None:
+    if camp.certificate is not None:
         free = ok[ok["fault"].astype(str) == FAULT_FREE]
-        curve = CampaignDir(camp.root).read_certificate_levels()
+        curve = camp.certificate.levels
         for name, g in free.groupby("detector", sort=False):
             specs += _curve_specs(name, g, curve)
             specs += _tail_specs(name, g, curve)

@@ -356,7 +356,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     ``out/monte-carlo.parquet``), or with the worst fault-free margin of the campaign
     directory *against*.
     """
-    from .runner import evaluate_rows, load_results, prepare
+    from .runner import evaluate_rows, prepare
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     check_label(config, label)
@@ -371,7 +371,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                            f"{MIN_BUDGET} runs (screening, then the worst cell); fix: "
                            f"--budget {MIN_BUDGET} or more, e.g. --budget 600")
     space = search_space(config)
-    baseline, warm_rows = (_against(against, config, label, load_results, keep)
+    baseline, warm_rows = (_against(against, config, label, keep)
                            if against else (None, None))
     strategy = _strategy(space, config, budget, seed, warm_rows)
     out = Path(out)
@@ -425,13 +425,14 @@ def _check_variant(results: pd.DataFrame, label: str, config) -> None:
                            f"{', '.join(names)}")
 
 
-def _against(directory, config, label, load_results, keep) -> tuple:
+def _against(directory, config, label, keep) -> tuple:
     """Worst fault-free margin of *label* in the campaign directory *directory* (the
     baseline), and the run-table rows of its *keep* worst fault-free runs (the warm start,
     :func:`_strategy`)."""
-    from .storage import CampaignDir
+    from .result import load
 
-    results, _, meta = load_results(directory)
+    camp = load(directory)
+    results = camp.results
     names = sorted(set(results["detector"]))
     if label not in names:
         raise FalsifyError(f"--against {directory}: its results hold no detector {label!r}; "
@@ -441,9 +442,9 @@ def _against(directory, config, label, load_results, keep) -> tuple:
     if free.empty:
         raise FalsifyError(f"--against {directory}: no fault-free run of {label!r} to "
                            "compare with")
-    name = ((meta.get("config") or {}).get("campaign") or {}).get("name")
+    name = camp.name
     worst = free.sort_values("margin", ascending=False, kind="stable").head(keep)
-    plan = CampaignDir(directory).read_plan().set_index("run_id")
+    plan = camp.plan.set_index("run_id")
     rows = plan.reindex(worst["run_id"]).dropna(subset=["manoeuvre"]).reset_index()
     return ((float(free["margin"].max()), len(free),
              f"the {len(free)} fault-free runs of {directory} (campaign {name!r})"), rows)

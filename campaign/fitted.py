@@ -15,9 +15,9 @@ __all__ = ["compare_fitted", "fitted_digest"]
 
 def fitted_digest(camp) -> str | None:
     """:meth:`CampaignDir.fitted_sha256` of the fitted detectors of a loaded campaign
-    (:class:`campaign.report.LoadedCampaign`): from its summary's metadata, or computed from
-    its files for a directory written before the digest was recorded there."""
-    digest = camp.meta.get("fitted_sha256")
+    (:class:`campaign.result.Campaign`): from its summary's metadata, or computed from its
+    files for a directory written before the digest was recorded there."""
+    digest = camp.provenance.fitted_sha256
     if digest:
         return digest
     return CampaignDir(camp.root).fitted_sha256([d.label for d in camp.config.detectors])
@@ -32,14 +32,14 @@ def compare_fitted(a, b, log) -> dict[str, str]:
     if da is not None and da == db:
         log(f"fitted detectors: shared (SHA-256 {da[:12]}…): A and B evaluated the same "
             "thresholds")
-        for label, det in a.detectors().items():
+        for label, det in a.fitted.items():
             same = {k: v for k, v in det.fitted_state().items() if "threshold" in k}
             log(f"  {label}: " + "; ".join(f"{k} = {threshold_text(v)}"
                                            for k, v in same.items()))
         return {}
     log(f"fitted detectors: not shared (SHA-256 {(da or '-')[:12]}… vs {(db or '-')[:12]}…): "
         "the thresholds were re-learned")
-    fitted_a, fitted_b = a.detectors(), b.detectors()
+    fitted_a, fitted_b = a.fitted, b.fitted
     notes = {}
     for label in list(dict.fromkeys([*fitted_a, *fitted_b])):
         if label not in fitted_a or label not in fitted_b:

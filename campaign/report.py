@@ -41,10 +41,11 @@ from .hazard import report_section
 from .isolation import isolation_of
 from .evidence_report import evidence_figure_specs
 from .plant import replay_plant
-from .runner import CampaignSetupError, load_results, settings_of
+from .result import Campaign, load
+from .runner import CampaignSetupError, settings_of
 from .storage import CampaignDir
 
-__all__ = ["LoadedCampaign", "ReportSettings", "build_report", "load_campaign", "show_run"]
+__all__ = ["ReportSettings", "build_report", "replay_settings", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
 POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude")
@@ -80,61 +81,13 @@ class ReportSettings:
     examples_per_fault: int = 3
 
 
-@dataclass
-class LoadedCampaign:
-    """A campaign directory read back: everything the report needs."""
-
-    root: Path
-    config: CampaignConfig
-    plan: pd.DataFrame
-    results: pd.DataFrame
-    summary: pd.DataFrame
-    meta: dict
-    fmu: str | None = None    # the FMU named on the command line (--fmu), if any
-
-    @property
-    def settings(self) -> ChunkSettings:
-        return settings_of(self.config)
-
-    def replay(self) -> tuple[ChunkSettings | None, str]:
-        """(settings to re-simulate runs with, or None when they cannot be: an FMU plant
-        and no --fmu; a note for the user) (:func:`campaign.plant.replay_plant`)."""
-        settings = self.settings
-        plant, note = replay_plant(settings.plant, self.meta.get("fmu_sha256"), self.fmu,
-                                   self.root)
-        return (None if plant is None else replace(settings, plant=plant)), note
-
-    def detectors(self) -> dict:
-        """The fitted detectors stored in the directory: label → Detector
-        (:meth:`campaign.storage.CampaignDir.read_fitted`)."""
-        cdir = CampaignDir(self.root)
-        return {d.label: cdir.read_fitted(d.label, d.name) for d in self.config.detectors}
-
-
-def load_campaign(directory, fmu=None) -> LoadedCampaign:
-    """Read a campaign directory; :class:`CampaignSetupError` (exit 2) when it is not one."""
-    root = Path(directory)
-    if not root.is_dir():
-        raise CampaignSetupError(f"{root} is not a directory; give the --out directory of "
-                                 "'fdd-campaign run'")
-    from .suite import is_suite_dir
-
-    cdir = CampaignDir(root)
-    if is_suite_dir(root) and not cdir.is_campaign():
-        members = sorted(p.name for p in root.iterdir() if CampaignDir(p).is_campaign())
-        raise CampaignSetupError(f"{root} is the directory of a suite of campaigns; give one "
-                                 f"of its campaign directories: "
-                                 f"{', '.join(str(root / m) for m in members) or '(none run yet)'}")
-    missing = cdir.missing_outputs()
-    if missing:
-        raise CampaignSetupError(
-            f"{root} is not a campaign directory: it holds no {missing[0]}; give the --out "
-            "directory of a finished 'fdd-campaign run' (rerun it to finish an "
-            "interrupted one)")
-    config = CampaignConfig.from_dict(cdir.read_config(), source=str(cdir.config_path))
-    results, summary, meta = load_results(root)
-    return LoadedCampaign(root=root, config=config, plan=cdir.read_plan(), results=results,
-                          summary=summary, meta=meta, fmu=fmu)
+def replay_settings(camp: Campaign, fmu=None) -> tuple[ChunkSettings | None, str]:
+    """(settings to re-simulate the runs of *camp* with, or None when they cannot be: an FMU
+    plant and no *fmu*, the FMU named on the command line; a note for the user)
+    (:func:`campaign.plant.replay_plant`)."""
+    settings = settings_of(camp.config)
+    plant, note = replay_plant(settings.plant, camp.provenance.fmu_sha256, fmu, camp.root)
+    return (None if plant is None else replace(settings, plant=plant)), note
 
 
 # ---- re-simulation -------------------------------------------------------------------------
@@ -210,7 +163,7 @@ def _envelope_subset(free: pd.DataFrame, results: pd.DataFrame, cfg: ReportSetti
     return pd.concat(keep) if keep else free.iloc[:0]
 
 
-def _envelope_runs(camp: LoadedCampaign, cfg: ReportSettings):
+def _envelope_runs(camp: Campaign, cfg: ReportSettings):
     """(fault-free plan rows to re-simulate, number of fault-free runs scored ok)."""
     ok_ids = set(camp.results.loc[camp.results["status"] == "ok", "run_id"])
     free = camp.plan[(camp.plan["fault"] == FAULT_FREE) & camp.plan["run_id"].isin(ok_ids)]
@@ -332,13 +285,13 @@ def _requirements(config: CampaignConfig) -> dict:
             "detector_max_fa_rate": dict(r.detector_max_fa_rate)}
 
 
-def runs_table(camp: LoadedCampaign) -> pd.DataFrame:
+def runs_table(camp: Campaign) -> pd.DataFrame:
     """Result rows with the flight point of each run (one row per run × detector)."""
     point = camp.plan[["run_id", *POINT_COLUMNS]]
     return camp.results.merge(point, on="run_id", how="left", validate="many_to_one")
 
 
-def campaign_gate(camp: LoadedCampaign, req: dict, *, all_requirements: bool = False):
+def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
     """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
     (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
     m = camp.meta
@@ -353,7 +306,7 @@ def campaign_gate(camp: LoadedCampaign, req: dict, *, all_requirements: bool = F
 class _ReportData:
     """What the report shows, gathered from the directory and the re-simulation."""
 
-    camp: LoadedCampaign
+    camp: Campaign
     cfg: ReportSettings
     requirements: dict
     gate: object                   # reports.gate.GateResult of `fdd-campaign gate DIR`, and
@@ -420,18 +373,18 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
                         log=print) -> _ReportData:
     """Read the directory and re-simulate, on *jobs* processes, the fault-free runs (for
     the envelopes) with the example runs riding along (phase 1); none on an FMU plant
-    without *fmu* (:meth:`LoadedCampaign.replay`)."""
-    camp = load_campaign(directory, fmu)
+    without *fmu* (:func:`replay_settings`)."""
+    camp = load(directory)
     if camp.results.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
-    detectors = camp.detectors()
+    detectors = camp.fitted
     req = _requirements(camp.config) if requirements is None else requirements
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {camp.meta.get('runs_done')} of "
                         f"{camp.meta.get('runs_planned')} runs; rerun 'fdd-campaign run' into "
                         "this directory to finish it.")
-    settings, note = camp.replay()
+    settings, note = replay_settings(camp, fmu)
     if note:
         log(note)
         warnings.append(f"{note} (the residual envelopes and example runs need it; the "
@@ -594,13 +547,13 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
         "engine version": camp.meta.get("engine_version"),
         "report written (UTC)": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
     }
-    cdir = CampaignDir(camp.root)
+    cert = camp.certificate
     return render_report(meta=meta, summary=camp.summary, gate=data.gate,
                          requirements=data.requirements, runs=data.runs, figures=figures,
                          notes=data.notes, warnings=data.warnings,
-                         certificate=cdir.read_certificate(),
+                         certificate=None if cert is None else cert.table,
                          all_requirements=data.all_requirements, detectors=data.detectors,
-                         hazard=report_section(cdir.read_hazard()))
+                         hazard=report_section(None if cert is None else cert.hazard))
 
 
 # ---- show ----------------------------------------------------------------------------------
@@ -621,10 +574,10 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
     Prints the stored result rows next to the re-simulated margin and first alarm, writes
     the traces (signals, truth, |r|/τ and alarm of every detector) to *out* (Parquet) and a
     figure to *plot* (PNG). Returns the traces. On an FMU plant the run is re-simulated
-    only on *fmu* (``--fmu``, :meth:`LoadedCampaign.replay`); without it the stored rows are
+    only on *fmu* (``--fmu``, :func:`replay_settings`); without it the stored rows are
     printed and returned, and *plot* or *out* is refused (exit 2).
     """
-    camp = load_campaign(directory, fmu)
+    camp = load(directory)
     match = camp.plan[camp.plan["run_id"].astype(str) == str(run_id)]
     if match.empty:
         from scenarios.catalog import suggest
@@ -633,7 +586,7 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
         raise CampaignSetupError(f"run id {run_id!r} is not in {camp.root / 'plan.parquet'}"
                                  f"{suggest(str(run_id), ids)}; the run ids are listed in "
                                  "report.html (e.g. " + ", ".join(ids[:3]) + ")")
-    settings, note = camp.replay()
+    settings, note = replay_settings(camp, fmu)
     row = match.iloc[0]
     stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
         "detector")
@@ -650,7 +603,7 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
     if note:
         log(note)
     failed: dict = {}
-    signals, truth, detections = simulate_and_detect(match, camp.detectors(), settings, failed)
+    signals, truth, detections = simulate_and_detect(match, camp.fitted, settings, failed)
     frame = _run_frame(signals, truth, 0)
     onset = float(truth.onset_s[0])
     log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)}"

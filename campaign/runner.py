@@ -29,7 +29,6 @@ from detectors import make_detector, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
-from reports.table import format_table
 from scenarios import kernels
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
@@ -43,8 +42,8 @@ from .plugins import (
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .plant import detector_problems, fmu_sha256, plant_of
+from .result import Campaign, plan_order
 from .storage import CampaignDir, DirLock
-from .suite import reference_text
 
 #: The former name of :func:`campaign.evaluate.evaluate`, for existing callers.
 run_chunk = evaluate
@@ -308,24 +307,8 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
             "it with detectors.testing.check_detector")
 
 
-@dataclass
-class CampaignResult:
-    """What a finished (or interrupted) campaign left in its directory."""
-
-    out: Path
-    plan: pd.DataFrame
-    results: pd.DataFrame
-    summary: pd.DataFrame
-    complete: bool
-    wall_s: float
-    #: first alarm per group × detector variant of a fixed-onset campaign
-    #: (``detection-times.parquet``, :mod:`reports.detection_times`); None for other campaigns
-    detection_times: pd.DataFrame | None = None
-
-    def table(self) -> str:
-        """The summary table, then the published table a suite member names beside it
-        (:func:`campaign.suite.reference_text`)."""
-        return format_table(self.summary) + reference_text(self.out, self.summary)
+#: The former name of the object :func:`run` returns (:class:`campaign.result.Campaign`).
+CampaignResult = Campaign
 
 
 def settings_of(config) -> ChunkSettings:
@@ -347,7 +330,7 @@ def check_plant(config, plant) -> None:
 
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
         backend: str | None = None, log=None, scheduler: str | None = None,
-        engine: str | None = None, tls=None, fitted_from=None) -> CampaignResult:
+        engine: str | None = None, tls=None, fitted_from=None) -> Campaign:
     """Run *config* into directory *out* (resuming what it already holds).
 
     Parameters
@@ -356,6 +339,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     out : output directory (created; must be empty or hold this same campaign)
     jobs : local workers (1 runs in-process)
     chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``)
+    progress : print a progress line with rate and ETA on stderr
     backend : local workers: ``"threading"`` (threads in this process; the compiled kernels
         release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
         ``[runner] run_timeout_s`` is survived). Default: threading, or loky when the
@@ -371,6 +355,11 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     fitted_from : a campaign directory whose fitted detectors are evaluated on this
         campaign's runs instead of learning them again (:func:`adopt_fitted`); a directory
         started so keeps using them when resumed
+    log : where notes go, one line each (default: stderr)
+
+    Returns the :class:`campaign.result.Campaign` of *out*, equal to what
+    ``campaign.load(out)`` reads back (with ``wall_s``, the seconds this call took);
+    ``complete`` is False when it was interrupted (Ctrl-C): running it again resumes.
 
     Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
     as per-run status rows; see :mod:`campaign.execute`. The directory left is the same
@@ -645,22 +634,16 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
 
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
-             wall_s: float, fmu_sha256: str | None = None) -> CampaignResult:
+             wall_s: float, fmu_sha256: str | None = None) -> Campaign:
     """Gather the shards in plan order and write ``summary.parquet`` (its metadata also
     holds ``fitted_sha256``, :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and
     ``fitted_from``, the directory they were taken from or None, and ``fmu_sha256``, the
     SHA-256 of an FMU plant's file, :func:`campaign.plant.replay_plant`) and, for a campaign of
     fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
     ``detection-times.parquet``."""
-    results = cdir.read_results()
-    if not results.empty:
-        order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
-        results = (results.assign(_o=results["run_id"].map(order))
-                   .sort_values(["_o", "detector"], kind="stable")
-                   .drop(columns="_o").reset_index(drop=True))
-        summary = summarize(results)
-    else:
-        summary = pd.DataFrame()
+    stored = cdir.read_results()
+    results = plan_order(stored, plan, by_name=True)
+    summary = summarize(results) if not results.empty else pd.DataFrame()
     origin = cdir.read_fitted_origin() or {}
     cdir.write_summary(summary, config.to_json(), complete=complete,
                        runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
@@ -671,26 +654,5 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
     if not results.empty and fixed_onset_campaign(plan):
         times = detection_time_table(plan, results)
         cdir.write_detection_times(times, config.to_json())
-    return CampaignResult(out=cdir.root, plan=plan, results=results, summary=summary,
-                          complete=complete, wall_s=wall_s, detection_times=times)
-
-
-def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
-    """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``,
-    after checking its files against its manifest
-    (:meth:`campaign.storage.CampaignDir.check_manifest`)."""
-    cdir = CampaignDir(out)
-    if not cdir.root.is_dir():
-        raise CampaignSetupError(f"{cdir.root} does not exist; run a campaign into it first: "
-                                 f"fdd-campaign run CAMPAIGN --out {cdir.root}")
-    if not cdir.has_summary():
-        started = cdir.has_plan()
-        raise CampaignSetupError(
-            f"{cdir.root} holds no results summary: "
-            + ("the campaign was stopped before it wrote one; finish it by running the same "
-               "'fdd-campaign run' command again" if started else
-               "it is not a campaign directory written by 'fdd-campaign run'"))
-    cdir.refuse_pickles()      # a directory of an older version: say how to go on
-    cdir.check_manifest()      # every file as the run wrote it (ManifestError, exit 2)
-    summary, meta = cdir.read_summary()
-    return cdir.read_results(), summary, meta
+    return Campaign.of_dir(cdir, wall_s=wall_s, plan=plan,
+                           results=plan_order(stored, plan), detection_times=times)

@@ -101,7 +101,7 @@ def test_faults_are_detected_and_fault_free_runs_are_quiet(tmp_path):
     assert len(quick) == 4 and (quick["dtp"] <= 1.0).all()
     assert (res.summary.columns[:3] == ["detector", "fault", "manoeuvre"]).all()
     for name in ("plan.parquet", "summary.parquet", "learning.parquet", "campaign.json"):
-        assert (res.out / name).exists()
+        assert (res.root / name).exists()
 
 
 #: A small campaign whose faulty groups have fixed onsets: ``run`` stores its detection
@@ -158,10 +158,80 @@ def test_python_api_and_command_line_leave_the_same_directory(tmp_path, capsys):
     assert (faulty["n_alarmed"] == faulty["n_runs"]).all() and (faulty["delay_s"] > 0).all()
 
 
+def test_load_reads_back_the_campaign_that_run_returned(tmp_path):
+    """``campaign.load(DIR)`` gives the object ``campaign.run`` returned: the same result
+    rows (in plan order, whatever order the chunks finished in), run table, summary,
+    detection times, fitted detectors, provenance; the heavy parts are read on first
+    access; the certificate, once made, is the one ``certify`` returned."""
+    import dataclasses
+
+    import campaign
+    from campaign.certify import certify
+    from campaign.design import MODEL_VERSION
+    from campaign.storage import CampaignDir
+
+    cfg_file = tmp_path / "fixed.toml"
+    cfg_file.write_text(FIXED_ONSETS)
+    out = tmp_path / "out"
+    # two workers and chunks of one run: the shards land in the order the chunks finish
+    ran = campaign.run(load_config(cfg_file), out, jobs=2, chunk_size=1, progress=False)
+    loaded = campaign.load(out)
+    assert not {"results", "plan", "fitted", "certificate", "config"} & set(vars(loaded))
+    assert loaded == ran and isinstance(loaded, campaign.Campaign)
+    assert ran.wall_s > 0 and loaded.wall_s is None        # the seconds of a run, not stored
+    for part in ("results", "plan", "summary", "detection_times"):
+        pd.testing.assert_frame_equal(getattr(loaded, part), getattr(ran, part),
+                                      check_exact=True)
+    assert list(loaded.results["run_id"]) == list(ran.plan["run_id"])   # one detector
+    prov = loaded.provenance
+    assert (prov.model_version, prov.seed, prov.fitted_from) == (MODEL_VERSION, 5, None)
+    assert prov.fitted_sha256 == CampaignDir(out).fitted_sha256(["position-monitor"])
+    assert list(loaded.fitted) == ["position-monitor"]
+    assert loaded.fitted["position-monitor"].fitted_state().keys() == \
+        ran.fitted["position-monitor"].fitted_state().keys()
+    # a few lines: directory, runs, each detector's counts (those of the result rows)
+    r = loaded.results
+    fa = int(r.loc[r["fault"] == "none", "false_alarm"].sum())
+    md = int((~r.loc[r["fault"] != "none", "detected"].astype(bool)).sum())
+    text = repr(loaded)
+    assert text.splitlines()[0].startswith(f"<Campaign 'fixed-onsets' in {out}: 5 of 5 runs")
+    assert (f"position-monitor: {fa} false alarm{'' if fa == 1 else 's'} in 2 fault-free "
+            f"runs, {md} missed of 3 faulty") in text and len(text.splitlines()) == 3
+    # another campaign (another seed) is not equal
+    from campaign.config import with_overrides
+
+    other = campaign.run(with_overrides(load_config(cfg_file), seed=6), tmp_path / "seed6",
+                         jobs=1, progress=False)
+    assert other != ran
+    assert loaded.certificate is None
+    cert = certify(out, jobs=1, log=lambda _: None)
+    again = campaign.load(out).certificate
+    assert isinstance(cert, campaign.Certificate) and again == cert
+    assert again.assumptions and list(again.table["detector"]) == ["position-monitor"]
+    assert again.levels is not None and again.hazard is not None
+    assert dataclasses.replace(cert, level=0.9) != cert
+
+
+def test_campaign_run_spells_out_the_runners_keywords():
+    """``campaign.run`` shows its real keywords (not ``**kwargs``): the same names, kinds and
+    defaults as :func:`campaign.runner.run`, so neither can drift from the other."""
+    import inspect
+
+    import campaign
+    from campaign import runner
+
+    def params(f):
+        return {name: (p.kind, p.default) for name, p in inspect.signature(f).parameters.items()}
+
+    assert params(campaign.run) == params(runner.run)
+    assert not any(p.kind is inspect.Parameter.VAR_KEYWORD
+                   for p in inspect.signature(campaign.run).parameters.values())
+
+
 def test_a_campaign_of_random_onsets_stores_no_detection_times(tmp_path):
     res = run(tiny(), tmp_path / "out", jobs=1, progress=False)
     assert res.detection_times is None
-    assert not (res.out / "detection-times.parquet").exists()
+    assert not (res.root / "detection-times.parquet").exists()
 
 
 def test_a_bad_run_is_recorded_and_does_not_stop_the_chunk():
@@ -310,8 +380,8 @@ def test_every_parquet_file_says_how_it_was_made(tmp_path):
     from campaign.storage import read_metadata
 
     res = run(tiny(), tmp_path / "out", jobs=1, progress=False)
-    for path in [res.out / "plan.parquet", res.out / "summary.parquet",
-                 *sorted((res.out / "runs").glob("*.parquet"))]:
+    for path in [res.root / "plan.parquet", res.root / "summary.parquet",
+                 *sorted((res.root / "runs").glob("*.parquet"))]:
         meta = read_metadata(path)
         assert meta["config"]["campaign"]["name"] == "tiny"
         assert meta["rows"] == pq.read_metadata(path).num_rows

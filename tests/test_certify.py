@@ -277,7 +277,7 @@ def test_summary_appends_the_survival_columns_only():
 
 def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsys):
     from campaign.certify_levels import LEVEL_COLUMNS
-    from campaign.runner import load_results
+    import campaign
     from campaign.storage import CampaignDir
 
     out, true, config = constructed
@@ -297,10 +297,9 @@ def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsy
     assert "P(margin ≥ level)" in capsys.readouterr().out
     # the report draws the curve from the file, against the runs' own margins
     from campaign.evidence_report import evidence_figure_specs
-    from campaign.report import load_campaign
     from reports.figures import render_png
 
-    spec = next(s for s in evidence_figure_specs(load_campaign(out)) if s[4] == "exceedance")
+    spec = next(s for s in evidence_figure_specs(campaign.load(out)) if s[4] == "exceedance")
     assert spec[1] == "sm" and list(spec[5][0]) == [0.9, 0.95, 1.0]
     assert list(spec[5][2]) == levels["p_upper95"].tolist() and len(spec[5][3]) == 400
     assert render_png(*spec[4:]).startswith(b"\x89PNG")
@@ -312,7 +311,7 @@ def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsy
                  "--validate-seed", "12", "--jobs", "1"]) == 0
     assert "p_upper95 covers the brute-force frequency" in capsys.readouterr().out
     table = pd.read_parquet(out / "validation" / "seed-12-n400.parquet")
-    results, _, _ = load_results(out / "validation" / "seed-12-n400")
+    results = campaign.load(out / "validation" / "seed-12-n400").results
     margins = results.loc[results["fault"] == "none", "margin"].to_numpy(float)
     assert margins.size == 400
     for r in table.to_dict(orient="records"):

@@ -89,10 +89,10 @@ def test_smoke_on_the_cluster_is_bit_identical_to_two_local_jobs(cluster, tmp_pa
     on_dask = pd.read_parquet(tmp_path / "dask" / "summary.parquet")
     local = pd.read_parquet(tmp_path / "loky" / "summary.parquet")
     pd.testing.assert_frame_equal(on_dask, local, check_exact=True)
-    from campaign.runner import load_results
+    import campaign
 
-    rows_dask, _, _ = load_results(tmp_path / "dask")
-    rows_local, _, _ = load_results(tmp_path / "loky")
+    rows_dask = campaign.load(tmp_path / "dask").results
+    rows_local = campaign.load(tmp_path / "loky").results
     assert len(rows_dask) == len(build_plan(load_config("smoke")))
     pd.testing.assert_frame_equal(rows_dask.sort_values(["run_id", "detector"]).reset_index(drop=True),
                                   rows_local.sort_values(["run_id", "detector"]).reset_index(drop=True),

@@ -16,7 +16,7 @@ import distributed  # noqa: F401  (the [dask] extra, part of the [test] extra)
 
 from campaign.cli import main
 from campaign.execute import ClusterError, TlsFiles, connect
-from campaign.runner import load_results
+from campaign import load
 
 from test_dask_cluster import _free_port, _stop
 
@@ -78,12 +78,12 @@ def tls_cluster(tmp_path_factory):
 def local_rows(tmp_path_factory):
     out = tmp_path_factory.mktemp("local") / "smoke"
     assert main(["run", "smoke", "--out", str(out), "--jobs", "2", "--quiet"]) == 0
-    rows, _, _ = load_results(out)
+    rows = load(out).results
     return rows.sort_values(["run_id", "detector"]).reset_index(drop=True)
 
 
 def _rows(out) -> pd.DataFrame:
-    rows, _, _ = load_results(out)
+    rows = load(out).results
     return rows.sort_values(["run_id", "detector"]).reset_index(drop=True)
 
 

@@ -140,9 +140,9 @@ def test_certify_writes_and_prints_the_hazard_table(tmp_path, capsys):
     cdir = CampaignDir(out)
     hazard = cdir.read_hazard()
     assert cdir.verify() == []
-    from campaign.report import load_campaign
+    import campaign
 
-    results = load_campaign(out).results
+    results = campaign.load(out).results
     runaway = results[(results["fault"] == "runaway") & (results["status"] == "ok")]
     row = hazard[(hazard["detector"] == "position-monitor") & (hazard["fault"] == "runaway")]
     missed = int((~runaway[runaway["detector"] == "position-monitor"]["detected"]).sum())

@@ -306,3 +306,26 @@ def test_every_help_example_runs_as_printed(quick_start):
             ran.add(argv[0])
     # the examples the quick start does not show as they are
     assert {"plan", "show", "verify", "gate", "init", "bench", "falsify", "certify"} <= ran
+
+
+def _python_block(after: str) -> str:
+    """The first ```python block of the README after the text *after*."""
+    text = README.read_text()
+    return re.search(r"```python\n(.*?)```", text[text.index(after):], re.S).group(1)
+
+
+@pytest.mark.slow
+def test_the_readme_python_example_runs_as_written(tmp_path, capsys):
+    """The README's Python lines run as written (smoke is small already): ``campaign.run``
+    returns the campaign, ``campaign.load`` reads the same one back, and what they print is
+    the object's repr and the summary table."""
+    namespace: dict = {}
+    with contextlib.chdir(tmp_path):
+        exec(compile(_python_block("From Python:"), str(README), "exec"), namespace)
+    result, again, rows = namespace["result"], namespace["again"], namespace["rows"]
+    assert again == result and again.root == Path("smoke-out")
+    assert (tmp_path / "smoke-out" / "summary.parquet").exists()
+    printed = capsys.readouterr().out
+    assert printed.startswith(repr(result) + "\n" + result.table())
+    # smoke: 20 runs, each scored by its one detector
+    assert rows["run_id"].nunique() == len(result.plan) == 20 and len(rows) == 20

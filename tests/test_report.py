@@ -17,10 +17,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from campaign import run
+from campaign import load, run
 from campaign.cli import main
 from campaign.config import CampaignConfig
-from campaign.report import ReportSettings, build_report, load_campaign
+from campaign.report import ReportSettings, build_report
 from detectors import registry
 from reports.compare import compare_results
 from reports.figures import SMALL_PT, bin_max, envelope_figure, fault_figure, pyplot
@@ -100,7 +100,7 @@ def test_report_has_the_verdict_first_and_every_figure(campaign_dir, report):
     # verdict before any figure
     assert page.index('id="verdict"') < page.index('<img class="fig"')
     assert 'class="verdict faults"' in page and 'class="verdict faultfree"' in page
-    camp = load_campaign(campaign_dir)
+    camp = load(campaign_dir)
     s = camp.summary
     row = s[(s.fault == "none") & (s.manoeuvre == "all")
             & (s.detector == "position-monitor")].iloc[0]
@@ -199,23 +199,24 @@ def test_report_of_an_interrupted_campaign_says_so(campaign_dir, tmp_path):
     copy = tmp_path / "partial"
     shutil.copytree(campaign_dir, copy)
     cdir = CampaignDir(copy)
-    camp = load_campaign(copy)
+    camp = load(copy)
+    results = camp.results          # read now: the shards are removed below
     # as if the campaign had been stopped after its first runs
     for path in cdir.shard_paths():
         cdir.remove(path)
     first = camp.plan["run_id"].iloc[:20]
-    cdir.write_shard(camp.results[camp.results["run_id"].isin(first)], camp.config.to_json())
+    cdir.write_shard(results[results["run_id"].isin(first)], camp.config.to_json())
     finalize(cdir, camp.config, camp.plan, False, 0.0)
     page = build_report(copy, jobs=1, log=lambda _: None,
                         settings=ReportSettings(examples_per_fault=0)).read_text()
     assert f"The campaign is incomplete: 20 of {len(camp.plan)} runs" in page
     # the runs that were not done are in no list
-    missing = set(camp.plan["run_id"]) - set(load_campaign(copy).results["run_id"])
+    missing = set(camp.plan["run_id"]) - set(load(copy).results["run_id"])
     assert missing and not any(f"<code>{rid}</code>" in page for rid in missing)
 
 
 def test_show_resimulates_one_run_from_its_id(campaign_dir, tmp_path, capsys):
-    camp = load_campaign(campaign_dir)
+    camp = load(campaign_dir)
     res = camp.results
     row = res[(res.fault == "solid_jam") & (res.detector == "position-monitor")].iloc[0]
     png, pq = tmp_path / "run.png", tmp_path / "run.parquet"
@@ -254,7 +255,7 @@ def test_compare_flags_a_degraded_detector_and_not_an_identical_campaign(tmp_pat
     run(small(), same, jobs=1, progress=False)
     assert main(["compare", str(campaign_dir), str(same)]) == 0
     out = capsys.readouterr().out
-    a, b = load_campaign(campaign_dir).results, load_campaign(same).results
+    a, b = load(campaign_dir).results, load(same).results
     table = compare_results(a, b)
     assert (table["flag"] == "unchanged").all(), out
     assert "0 worse" not in out and "unchanged" in out
@@ -263,7 +264,7 @@ def test_compare_flags_a_degraded_detector_and_not_an_identical_campaign(tmp_pat
     run(small(**DEGRADED), bad, jobs=1, progress=False)
     assert main(["compare", str(campaign_dir), str(bad)]) == 0
     out = capsys.readouterr().out
-    table = compare_results(a, load_campaign(bad).results)
+    table = compare_results(a, load(bad).results)
     lj = table[(table.fault == "liquid_jam")].iloc[0]
     # the same 8 liquid jams: 0/8 vs 8/8 misses, exact McNemar p = 2·2⁻⁸ = 0.0078 < 0.01
     assert lj.flag == "worse" and lj.md_p < 0.01 and lj.md_rate_b > lj.md_rate_a, out
@@ -365,7 +366,7 @@ def test_the_page_opens_with_the_gate_verdict_of_the_gate_command(campaign_dir, 
     assert re.fullmatch(r"gate FAILED: \d+ of \d+ checks failed", verdict)
     assert gate.index(f'<p class="gateline fail">{verdict}</p>') < gate.index("<ul")
     # the same run ids: every run the command names, each with its show command
-    plan_ids = set(load_campaign(campaign_dir).plan["run_id"])
+    plan_ids = set(load(campaign_dir).plan["run_id"])
     named = {r for r in plan_ids if r in "\n".join(printed)}
     assert named and named == {r for r in plan_ids if show_command(r) in gate}
 
@@ -378,7 +379,7 @@ def _overview_detectors(page: str) -> list[str]:
 
 def test_one_overview_row_per_detector_and_one_order_everywhere(campaign_dir, report):
     _, page = report
-    camp = load_campaign(campaign_dir)
+    camp = load(campaign_dir)
     summary_order = list(dict.fromkeys(camp.summary["detector"]))
     # the summary's order (that of `run`, `report` and `gate`), not the campaign file's
     assert summary_order == ORDER != list(dict.fromkeys(camp.results["detector"]))
