@@ -512,16 +512,15 @@ def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
     from dataclasses import fields
 
     from .config.sections import RunnerSection
-    from .config.text import range_text
 
     spec = next(f.metadata["key"] for f in fields(RunnerSection) if f.name == "chunk_size")
     size = config.runner.chunk_size if chunk_size is None else chunk_size
     if (isinstance(size, bool) or not isinstance(size, (int, np.integer))
-            or not spec.lo <= size <= spec.hi):
+            or spec.out_of_range(size)):
         raise CampaignSetupError(
             f"--chunk-size {size!r}: out of range; allowed: an integer, "
-            f"{range_text(spec, 'chunk size')} runs ([runner] chunk_size, "
-            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lo) * 100}, or leave it "
+            f"{spec.range_text('chunk size')} runs ([runner] chunk_size, "
+            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lower) * 100}, or leave it "
             "out to use the campaign file's value")
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
         raise CampaignSetupError(f"--jobs {jobs!r}: must be an integer ≥ 1 (local workers); "

@@ -16,7 +16,7 @@ CG in % of the mean aerodynamic chord (MAC), angles in deg, pressures in Pa.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -142,7 +142,7 @@ A330 = AircraftParams(
 # ---------------------------------------------------------------------------------------
 def _optional(unit: str, source: str, doc: str):
     """A parameter field whose default ``None`` means "take the shorthand"."""
-    return field(default=None, metadata={"unit": unit, "source": source, "doc": doc})
+    return param(unit, source, doc, default=None)
 
 
 #: The six aerodynamic coefficients of [CHEN] Table 2 (δCx, δCy, δCz, δCl, δCm, δCn): the

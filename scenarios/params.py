@@ -13,12 +13,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field
+
+from .declare import Declared
 
 
-def param(unit: str, source: str, doc: str = ""):
-    """Declare a parameter field with its unit and provenance in the field metadata."""
-    return field(metadata={"unit": unit, "source": source, "doc": doc})
+def param(unit: str, source: str, doc: str = "", *, default=MISSING, **bounds):
+    """Declare a parameter field (with *default*, if given): its
+    :class:`scenarios.declare.Declared` (unit, provenance, description and, given as
+    *bounds*, gt/ge/lt/le) in the field metadata."""
+    return field(default=default,
+                 metadata={"declared": Declared(unit=unit, source=source, doc=doc, **bounds)})
 
 
 @dataclass(frozen=True)
@@ -260,11 +265,12 @@ def parameter_table(params) -> list[dict]:
     """Rows (name, value, unit, source, doc) describing a parameter dataclass instance."""
     rows = []
     for f in dataclasses.fields(params):
+        declared = f.metadata.get("declared", Declared())
         rows.append({
             "name": f.name,
             "value": getattr(params, f.name),
-            "unit": f.metadata.get("unit", ""),
-            "source": f.metadata.get("source", ""),
-            "doc": f.metadata.get("doc", ""),
+            "unit": declared.unit,
+            "source": declared.source,
+            "doc": declared.doc,
         })
     return rows
