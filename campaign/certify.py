@@ -6,9 +6,9 @@ From a finished campaign's fault-free runs (``fault = "none"``, ``status = "ok"`
 detector (result-row name, variants apart):
 
 * ``fa_count``/``n_runs`` and ``fa_upper95_cp``, the exact one-sided Clopper–Pearson upper
-  bound of the per-run false-alarm probability (``scipy.stats.binomtest(k, n,
-  alternative="less").proportion_ci(level, method="exact")``; the summary's
-  ``fa_upper95`` at 95 %); assumes independent runs of one probability;
+  bound of the per-run false-alarm probability (:func:`reports.metrics.upper_bound`,
+  Beta⁻¹(level; k + 1, n − k), the summary's ``fa_upper95`` at 95 %); assumes independent
+  runs of one probability;
 * ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) and its one-sided bound, the
   level-1 row of the exceedance curve (:mod:`campaign.certify_levels`): each manoeuvre's
   margins counted where they reach 1, else its own generalised Pareto tail
@@ -41,8 +41,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from detectors.tail import CURVE_SHAPES, TailFitError, counted_bound, fit_tail
-from reports.metrics import FAULT_FREE
+from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
+from reports.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
@@ -128,7 +128,7 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
         k = int(g["false_alarm"].astype(bool).sum())
         d_s = duration.reindex(g["run_id"]).to_numpy(float)
         mean_h = float(np.nanmean(d_s)) / 3600.0
-        cp = counted_bound(k, n, level)
+        cp = float(upper_bound(k, n, level))
         evt = evt_estimate(g["margin"].to_numpy(float), g["manoeuvre"].to_numpy(str), level,
                            at_one.loc[detector].to_dict() if detector in at_one.index
                            else None)

@@ -16,7 +16,7 @@ PACKAGES = ("campaign", "scenarios", "detectors", "reports")
 #: Which package may import which (docs/design.md §2).
 MAY_IMPORT = {
     "campaign": {"campaign", "scenarios", "detectors", "reports"},
-    "detectors": {"detectors", "scenarios"},
+    "detectors": {"detectors", "scenarios", "reports"},
     "scenarios": {"scenarios"},
     "reports": {"reports"},
 }
