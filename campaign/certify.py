@@ -44,13 +44,14 @@ import pandas as pd
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 from reports.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
+from scenarios.envelope import FLIGHT_COLUMNS
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
-from .design import run_id
+from .design import run_id, variable_ranges
 from .hazard import per_hour
 from .rare import P0
 
-__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
+__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
            "sample_fa_probability"]
 
@@ -63,10 +64,6 @@ CERTIFICATE_COLUMNS: tuple[str, ...] = (
     "sampling_upper95", "sampling_cov", "sampling_levels", "sampling_note",
     "sampling_reached_level", "sampling_reached_prob",
 )
-
-#: Flight-point columns of the run table that an ``mc`` design samples in the envelope box
-#: (``[envelope]`` of the campaign file).
-FLIGHT_COLUMNS: tuple[str, ...] = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
 
 #: First simulation stream of the sampled runs (disjoint from evaluation streams, < 2³²,
 #: and learning streams, 2³² + j).
@@ -156,21 +153,13 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
 
 # ---- the sampled estimate --------------------------------------------------------------------
 def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
-    """The continuous run variables of the campaign's fault-free population and their
-    ranges (uniform priors, as the ``mc`` design draws them): each flight-point column
-    (:data:`FLIGHT_COLUMNS`) that varies among the fault-free runs → its ``[envelope]`` box,
-    and each draw column of :func:`scenarios.envelope.half_widths` with a non-zero width
-    → (−w, w). Generic in the draw columns: whatever ``half_widths`` returns."""
+    """The run variables of the campaign's fault-free population and their ranges
+    (uniform priors, as the ``mc`` design draws them; :func:`campaign.design.variable_ranges`):
+    each flight-point column that varies among the fault-free runs, and each draw column
+    with a non-zero half-width."""
     ff = plan[plan["fault"] == FAULT_FREE]
-    out = {}
-    for col in FLIGHT_COLUMNS:
-        values = getattr(config.envelope, col)
-        if col in ff and ff[col].nunique() > 1:
-            out[col] = (float(min(values)), float(max(values)))
-    for col, w in envelope.half_widths(config.uncertainty, config.mismatch).items():
-        if w > 0.0 and col in ff:
-            out[col] = (-float(w), float(w))
-    return out
+    return {col: (lo, hi) for col, (lo, hi) in variable_ranges(config).items()
+            if col in ff and (ff[col].nunique() > 1 if col in FLIGHT_COLUMNS else hi > 0.0)}
 
 
 class _BatchStore:

@@ -51,11 +51,12 @@ import numpy as np
 import pandas as pd
 
 from scenarios import envelope
+from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from .config import CampaignConfig
 from .config.text import toml_value
-from .design import PLAN_COLUMNS, build_plan, explicit_plan
+from .design import PLAN_COLUMNS, build_plan, explicit_plan, variable_ranges
 from .storage import write_parquet
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
@@ -70,8 +71,6 @@ REPAIR_STEPS: int = 40
 SEARCH_GROUP: str = "falsify"
 #: Smallest budget: a screening run per cell of a small campaign and a stream sweep.
 MIN_BUDGET: int = 10
-
-FLIGHT_COLUMNS: tuple[str, ...] = envelope.GridTable.columns
 
 
 class FalsifyError(ValueError):
@@ -190,13 +189,7 @@ def search_space(config: CampaignConfig) -> SearchSpace:
         raise FalsifyError(f"campaign {config.campaign.name!r} has no fault-free [[group]] "
                            "(fault = \"none\"): falsify searches its fault-free runs; fix: add "
                            "one, e.g. [[group]] fault = \"none\" count = 10")
-    ranges: dict[str, tuple[float, float]] = {}
-    for col in FLIGHT_COLUMNS:
-        values = getattr(config.envelope, col)
-        ranges[col] = (float(min(values)), float(max(values)))
-    widths = envelope.half_widths(config.uncertainty, config.mismatch)
-    for col in envelope.DRAW_COLUMNS:
-        ranges[col] = (-float(widths[col]), float(widths[col]))
+    ranges = variable_ranges(config)
     if config.plant.kind != "aircraft":
         p, duration = MANOEUVRE_PARAMS, config.campaign.duration_s
         ranges["manoeuvre_start_s"] = (p.lead_s, min(p.lead_s + p.start_spread_s,
@@ -208,7 +201,7 @@ def search_space(config: CampaignConfig) -> SearchSpace:
         fixed = tuple((k, float(getattr(g, k))) for k in (*FLIGHT_COLUMNS, "manoeuvre_start_s")
                       if getattr(g, k, None) is not None)
         cells += [Cell(g.name, m, fixed) for m in g.manoeuvres]
-    space = SearchSpace(config, bounds, held, tuple(cells), np.empty((0, 4)),
+    space = SearchSpace(config, bounds, held, tuple(cells), np.empty((0, len(FLIGHT_COLUMNS))),
                         config.campaign.realistic_only)
     space.anchors = np.array([_anchor(space, c, ranges) for c in cells])
     return space

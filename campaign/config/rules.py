@@ -447,11 +447,11 @@ def _check_realistic(r: Mapping, p: str, camp: Mapping, unc: Mapping,
 
     from scenarios import envelope
 
-    point = [r[k] for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")]
+    point = [r[k] for k in envelope.FLIGHT_COLUMNS]
     widths = {k: v for k, v in unc.items() if k != "__present__"}
     if not (camp["realistic_only"] is True and is_ok(*point, *widths.values())):
         return
-    frame = pd.DataFrame([point], columns=["alt_ft", "vcas_kt", "mass_t", "cg_pct"])
+    frame = pd.DataFrame([point], columns=list(envelope.FLIGHT_COLUMNS))
     flags = envelope.realistic_rule(frame, SimpleNamespace(**widths))
     if not bool(flags["realistic"].iloc[0]):
         errors.append(f"{p}: flight point {num(point[0])} ft, {num(point[1])} kt, "
