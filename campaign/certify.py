@@ -238,13 +238,12 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
     most the simulation can take and the time left if it needs them all. Returns
     {name: :class:`campaign.rare.SubsetResult`}."""
     import sys
-    import time
     from pathlib import Path
 
     from scipy.stats import norm
 
     from .rare import subset_simulation
-    from .runner import evaluate_rows, prepare
+    from .runner import Progress, evaluate_rows, prepare
 
     if config.campaign.design != "mc":
         raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "
@@ -307,9 +306,10 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
             store = _BatchStore(work / _work_name(name, n, seed, level),
                                 config.to_json())
             most = n * (max_levels + 1)
-            state = {"batch": 0, "done": 0, "simulated": 0, "t0": time.perf_counter()}
+            state = {"batch": 0}
+            bar = Progress(most, log=progress, label=f"sampling {name}: ")
 
-            def g(z, nu, name=name, owned=owned, store=store, state=state, most=most):
+            def g(z, nu, name=name, owned=owned, store=store, state=state, bar=bar):
                 v = values(z)
                 ok = admissible(v)
                 margin = np.full(len(z), -np.inf)
@@ -330,20 +330,15 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
                 rows = pd.DataFrame(records, columns=plan.columns)
                 ids = rows["run_id"].tolist()
                 got = store.get(b, ids)
-                if got is None:
+                computed = got is None
+                if computed:
                     res = evaluate_rows(setup, rows, owned, log=progress)
                     res = res[res["detector"] == name].drop_duplicates("run_id")
                     got = (res.set_index("run_id")["margin"].reindex(ids).to_numpy(float))
                     store.put(b, ids, got)
-                    state["simulated"] += len(ids)
-                state["done"] += len(ids)
-                elapsed = time.perf_counter() - state["t0"]
-                left = max(most - state["done"], 0)
-                eta = (f"ETA ≤ {elapsed / state['simulated'] * left:.1f} s"
-                       if state["simulated"] else "ETA once a batch is simulated")
-                progress(f"sampling {name}: batch {b + 1}, {state['done']} runs "
-                         f"({store.reused} read back) of at most {most}, {elapsed:.1f} s, "
-                         f"{eta}")
+                bar.update(len(ids), computed=computed,
+                           note=f" (batch {b + 1}, {store.reused} read back; at most this many "
+                                "runs: the ETA is an upper bound)")
                 margin[np.flatnonzero(ok)] = np.where(np.isfinite(got), got, -np.inf)
                 return margin
 

@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -349,7 +348,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     ``out/monte-carlo.parquet``), or with the worst fault-free margin of the campaign
     directory *against*.
     """
-    from .runner import evaluate_rows, load_results, prepare
+    from .runner import Progress, evaluate_rows, load_results, prepare
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     check_label(config, label)
@@ -373,7 +372,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                                tls=tls, fitted_from=fitted_from, log=log)
     try:
         records: list[pd.DataFrame] = []
-        state = {"done": 0, "t0": time.perf_counter(), "errors": 0}
+        state = {"done": 0, "errors": 0}
+        bar = Progress(budget, enabled=progress, log=log)
         while batch := strategy.ask():
             phase = strategy.phase
             rows = explicit_plan(config, space.decode(space.vectors(batch)))
@@ -386,8 +386,10 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                                        generation=strategy.generation, phase=phase))
             state["done"] += len(rows)
             strategy.tell(batch, margin)
-            if progress:
-                _progress(log, state, phase, budget, records)
+            worst = max((float(np.nanmax(r["margin"])) for r in records
+                         if np.isfinite(r["margin"]).any()), default=float("nan"))
+            bar.label = f"{phase} (batch {len(records)}): "
+            bar.update(len(rows), note=f", worst margin so far {worst:.4g}")
         search = pd.concat(records, ignore_index=True)
         if baseline is None:
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
@@ -481,16 +483,6 @@ def _strategy(space: SearchSpace, config, budget: int, seed: int, warm_rows):
     return Strategy(n_dims=len(names), n_cells=len(space.cells), budget=int(budget),
                     seed=int(seed), stream_span=STREAM_SPAN, warm=warm[:budget],
                     start_dim=start_dim, warm_start=starts)
-
-
-def _progress(log, state, phase, budget, records) -> None:
-    elapsed = time.perf_counter() - state["t0"]
-    done = state["done"]
-    eta = elapsed / done * (budget - done) if done else float("nan")
-    best = max((float(np.nanmax(r["margin"])) for r in records
-                if np.isfinite(r["margin"]).any()), default=float("nan"))
-    log(f"{phase} (batch {len(records)}): {done}/{budget} runs, worst margin so far "
-        f"{best:.4g}, {elapsed:.1f} s, ETA {eta:.1f} s")
 
 
 def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) -> pd.Series:
