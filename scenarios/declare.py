@@ -26,6 +26,7 @@ with the parameter's name and unit, e.g. ``0 < duration_s ≤ 600 s``, ``safety 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import numbers
@@ -33,7 +34,7 @@ import re
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-__all__ = ["BOUND_SIGNS", "Declared", "num", "toml_value"]
+__all__ = ["BOUND_SIGNS", "Declared", "field_problems", "num", "toml_value"]
 
 #: The bound keywords and the relation each one requires of a value.
 BOUND_SIGNS: dict[str, str] = {"gt": ">", "ge": "≥", "lt": "<", "le": "≤"}
@@ -138,6 +139,23 @@ class Declared:
     def out_of_range(self, x: float) -> bool:
         """Whether the number *x* is not finite or breaks a numeric bound."""
         return not math.isfinite(x) or self.broken_bound(x) is not None
+
+
+def field_problems(obj) -> list[str]:
+    """Every field of the dataclass instance *obj* declared with bounds (a
+    :class:`Declared` under the field metadata's ``"declared"``) whose number breaks them,
+    one message each: ``name = value: out of range; allowed: range text``."""
+    out = []
+    for f in dataclasses.fields(obj):
+        spec = f.metadata.get("declared")
+        value = getattr(obj, f.name)
+        if spec is None or not spec.bounded or not isinstance(value, numbers.Real) \
+                or isinstance(value, bool):
+            continue
+        if spec.out_of_range(float(value)):
+            out.append(f"{f.name} = {value!r}: out of range; allowed: "
+                       f"{spec.range_text(f.name)}")
+    return out
 
 
 def _holds(kw: str, x: float, bound: float) -> bool:

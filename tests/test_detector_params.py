@@ -5,7 +5,6 @@ file, and the generated reference docs/detectors.md."""
 from __future__ import annotations
 
 import inspect
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -247,43 +246,3 @@ def test_reference_lists_every_builtin_parameter(capsys):
     assert main(["--markdown"]) == 0
     assert capsys.readouterr().out == md
 
-
-# ---------------------------------------------------------------------------------------
-# one declaration mechanism
-# ---------------------------------------------------------------------------------------
-def test_keys_detector_and_plant_parameters_share_one_bound_vocabulary_and_range_text():
-    from dataclasses import fields
-
-    from campaign.config.keys import Key
-    from scenarios.declare import Declared
-    from scenarios.params import param
-
-    @dataclass(frozen=True)
-    class _Plant:
-        gain: float = param("s", "est.", "a gain", default=0.5, gt=0.0, le=600.0)
-
-    (plant,) = [f.metadata["declared"] for f in fields(_Plant)]
-    key = Key(kind="float", doc="a gain", unit="s", gt=0.0, le=600.0)
-    det = Param("gain", "float", unit="s", gt=0.0, le=600.0)
-    for spec in (plant, key, det):
-        assert isinstance(spec, Declared)
-        assert spec.range_text("gain") == "0 < gain ≤ 600 s"
-        # the bounds as written: 0 is excluded (gt), 600 included (le)
-        assert spec.out_of_range(0.0) and not spec.out_of_range(600.0)
-        assert spec.out_of_range(600.000001) and spec.out_of_range(float("nan"))
-    # a bound naming another parameter is checked against that parameter's value
-    named = Param("radius", "float", gt="decay")
-    assert named.range_text("radius") == "radius > decay"
-    assert named.broken_bound(1.0, {"decay": 2.0}) == ("gt", 2.0)
-    assert named.broken_bound(3.0, {"decay": 2.0}) is None
-
-
-@pytest.mark.parametrize("bounds", [{"gt": 0.0, "ge": 0.0}, {"lt": 1.0, "le": 1.0}])
-def test_two_bounds_on_one_side_are_refused_for_every_declaration(bounds):
-    from campaign.config.keys import Key
-    from scenarios.declare import Declared
-
-    for make in (lambda: Declared(**bounds), lambda: Key(kind="float", **bounds),
-                 lambda: Param("x", "float", **bounds)):
-        with pytest.raises(ValueError, match="at most one lower bound"):
-            make()
