@@ -52,7 +52,7 @@ KIND_NAMES: dict[str, str] = {
 @dataclass(frozen=True)
 class Key(Declared):
     """Description of one key of the campaign file (stored in a dataclass field's metadata):
-    a :class:`scenarios.declare.Declared` (doc, unit, source, bounds gt/ge/lt/le) with
+    a :class:`scenarios.declare.Declared` (doc, unit, source, bounds gt/ge/lt/le) and
 
     kind : one of :data:`KIND_NAMES`.
     choices : allowed names (``choice`` and ``names`` kinds).
