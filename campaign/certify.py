@@ -6,9 +6,9 @@ From a finished campaign's fault-free runs (``fault = "none"``, ``status = "ok"`
 detector (result-row name, variants apart):
 
 * ``fa_count``/``n_runs`` and ``fa_upper95_cp``, the exact one-sided Clopper–Pearson upper
-  bound of the per-run false-alarm probability (``scipy.stats.binomtest(k, n,
-  alternative="less").proportion_ci(level, method="exact")``; the summary's
-  ``fa_upper95`` at 95 %); assumes independent runs of one probability;
+  bound of the per-run false-alarm probability (:func:`reports.metrics.upper_bound`,
+  Beta⁻¹(level; k + 1, n − k), the summary's ``fa_upper95`` at 95 %); assumes independent
+  runs of one probability;
 * ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) and its one-sided bound, the
   level-1 row of the exceedance curve (:mod:`campaign.certify_levels`): each manoeuvre's
   margins counted where they reach 1, else its own generalised Pareto tail
@@ -41,16 +41,17 @@ import math
 import numpy as np
 import pandas as pd
 
-from detectors.tail import CURVE_SHAPES, TailFitError, counted_bound, fit_tail
-from reports.metrics import FAULT_FREE
+from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
+from reports.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
+from scenarios.envelope import FLIGHT_COLUMNS
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
-from .design import run_id
+from .design import run_id, variable_ranges
 from .hazard import per_hour
 from .rare import P0
 
-__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "FLIGHT_COLUMNS", "SAMPLING_DIR",
+__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
            "sample_fa_probability"]
 
@@ -63,10 +64,6 @@ CERTIFICATE_COLUMNS: tuple[str, ...] = (
     "sampling_upper95", "sampling_cov", "sampling_levels", "sampling_note",
     "sampling_reached_level", "sampling_reached_prob",
 )
-
-#: Flight-point columns of the run table that an ``mc`` design samples in the envelope box
-#: (``[envelope]`` of the campaign file).
-FLIGHT_COLUMNS: tuple[str, ...] = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
 
 #: First simulation stream of the sampled runs (disjoint from evaluation streams, < 2³²,
 #: and learning streams, 2³² + j).
@@ -128,7 +125,7 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
         k = int(g["false_alarm"].astype(bool).sum())
         d_s = duration.reindex(g["run_id"]).to_numpy(float)
         mean_h = float(np.nanmean(d_s)) / 3600.0
-        cp = counted_bound(k, n, level)
+        cp = float(upper_bound(k, n, level))
         evt = evt_estimate(g["margin"].to_numpy(float), g["manoeuvre"].to_numpy(str), level,
                            at_one.loc[detector].to_dict() if detector in at_one.index
                            else None)
@@ -156,21 +153,13 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
 
 # ---- the sampled estimate --------------------------------------------------------------------
 def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
-    """The continuous run variables of the campaign's fault-free population and their
-    ranges (uniform priors, as the ``mc`` design draws them): each flight-point column
-    (:data:`FLIGHT_COLUMNS`) that varies among the fault-free runs → its ``[envelope]`` box,
-    and each draw column of :func:`scenarios.envelope.half_widths` with a non-zero width
-    → (−w, w). Generic in the draw columns: whatever ``half_widths`` returns."""
+    """The run variables of the campaign's fault-free population and their ranges
+    (uniform priors, as the ``mc`` design draws them; :func:`campaign.design.variable_ranges`):
+    each flight-point column that varies among the fault-free runs, and each draw column
+    with a non-zero half-width."""
     ff = plan[plan["fault"] == FAULT_FREE]
-    out = {}
-    for col in FLIGHT_COLUMNS:
-        values = getattr(config.envelope, col)
-        if col in ff and ff[col].nunique() > 1:
-            out[col] = (float(min(values)), float(max(values)))
-    for col, w in envelope.half_widths(config.uncertainty, config.mismatch).items():
-        if w > 0.0 and col in ff:
-            out[col] = (-float(w), float(w))
-    return out
+    return {col: (lo, hi) for col, (lo, hi) in variable_ranges(config).items()
+            if col in ff and (ff[col].nunique() > 1 if col in FLIGHT_COLUMNS else hi > 0.0)}
 
 
 class _BatchStore:
@@ -249,13 +238,12 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
     most the simulation can take and the time left if it needs them all. Returns
     {name: :class:`campaign.rare.SubsetResult`}."""
     import sys
-    import time
     from pathlib import Path
 
     from scipy.stats import norm
 
     from .rare import subset_simulation
-    from .runner import evaluate_rows, prepare
+    from .runner import Progress, evaluate_rows, prepare
 
     if config.campaign.design != "mc":
         raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "
@@ -318,9 +306,10 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
             store = _BatchStore(work / _work_name(name, n, seed, level),
                                 config.to_json())
             most = n * (max_levels + 1)
-            state = {"batch": 0, "done": 0, "simulated": 0, "t0": time.perf_counter()}
+            state = {"batch": 0}
+            bar = Progress(most, log=progress, label=f"sampling {name}: ")
 
-            def g(z, nu, name=name, owned=owned, store=store, state=state, most=most):
+            def g(z, nu, name=name, owned=owned, store=store, state=state, bar=bar):
                 v = values(z)
                 ok = admissible(v)
                 margin = np.full(len(z), -np.inf)
@@ -341,20 +330,15 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
                 rows = pd.DataFrame(records, columns=plan.columns)
                 ids = rows["run_id"].tolist()
                 got = store.get(b, ids)
-                if got is None:
+                computed = got is None
+                if computed:
                     res = evaluate_rows(setup, rows, owned, log=progress)
                     res = res[res["detector"] == name].drop_duplicates("run_id")
                     got = (res.set_index("run_id")["margin"].reindex(ids).to_numpy(float))
                     store.put(b, ids, got)
-                    state["simulated"] += len(ids)
-                state["done"] += len(ids)
-                elapsed = time.perf_counter() - state["t0"]
-                left = max(most - state["done"], 0)
-                eta = (f"ETA ≤ {elapsed / state['simulated'] * left:.1f} s"
-                       if state["simulated"] else "ETA once a batch is simulated")
-                progress(f"sampling {name}: batch {b + 1}, {state['done']} runs "
-                         f"({store.reused} read back) of at most {most}, {elapsed:.1f} s, "
-                         f"{eta}")
+                bar.update(len(ids), computed=computed,
+                           note=f" (batch {b + 1}, {store.reused} read back; at most this many "
+                                "runs: the ETA is an upper bound)")
                 margin[np.flatnonzero(ok)] = np.where(np.isfinite(got), got, -np.inf)
                 return margin
 

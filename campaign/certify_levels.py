@@ -27,8 +27,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from detectors.tail import counted_bound, exceedance_curve
-from reports.metrics import FAULT_FREE
+from detectors.tail import exceedance_curve
+from reports.metrics import FAULT_FREE, upper_bound
 
 from .rare import P0
 
@@ -117,7 +117,7 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
         return rows
     curve = exceedance_curve(m, levels, classes=cls, confidence=confidence)
     for e in curve:
-        counted_up = counted_bound(e.count, n, confidence)
+        counted_up = float(upper_bound(e.count, n, confidence))
         limit = counted_up / 10.0 ** EXTRAPOLATION_DECADES
         est, up, method = e.estimate, e.upper, e.method
         model_up = up if method != "counted" else math.nan

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.metrics import FAULT_FREE
+from reports.metrics import FAULT_FREE, lower_bound
 
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
            "check_validation", "coverage_table", "summarise", "validate", "validate_levels",
@@ -57,13 +57,6 @@ def validation_config(config, n: int, seed: int):
     return CampaignConfig.from_dict(data, source=f"{config.source} (validation, seed {seed})")
 
 
-def _lower(count: int, n: int, level: float) -> float:
-    from scipy.stats import binomtest
-
-    return float(binomtest(int(count), int(n), alternative="greater")
-                 .proportion_ci(confidence_level=level, method="exact").low)
-
-
 def coverage_table(levels: pd.DataFrame, results: pd.DataFrame, seed: int) -> pd.DataFrame:
     """:data:`VALIDATION_COLUMNS` of an exceedance curve *levels* (rows of
     ``certificate-levels.parquet``) against the result rows of a brute-force campaign."""
@@ -77,7 +70,7 @@ def coverage_table(levels: pd.DataFrame, results: pd.DataFrame, seed: int) -> pd
         n = int(m.size)
         c = int((m >= r["level"]).sum())
         f = c / n if n else math.nan
-        lo = _lower(c, n, float(r["confidence"])) if n else math.nan
+        lo = float(lower_bound(c, n, float(r["confidence"]))) if n else math.nan
         tested = c >= MIN_VALIDATION_EXCEEDANCES
         rows.append({
             "detector": r["detector"], "level": float(r["level"]),

@@ -654,12 +654,10 @@ def build_parser() -> argparse.ArgumentParser:
               fdd-campaign simulate --surface elevator --manoeuvre turn_coordination \\
                   --fault solid_jam --plot run.png --out run.parquet"""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    from importlib.metadata import PackageNotFoundError, version
+    from .files import UNKNOWN_VERSION, engine_version
 
-    try:
-        v = version("fdd-campaign")
-    except PackageNotFoundError:      # run from a source tree that is not installed
-        v = "unknown (not installed)"
+    v = engine_version()
+    v += " (not installed)" if v == UNKNOWN_VERSION else ""
     parser.add_argument("--version", action="version", version=f"fdd-campaign {v}")
     subs = parser.add_subparsers(dest="command", metavar="COMMAND")
     from .cli_evidence import add_evidence_parsers

@@ -58,13 +58,19 @@ LEARNING_STREAM_BASE = 2 ** 32
 #: spawn_key namespaces of the design's own sampling streams.
 _DESIGN_KEY, _LEARNING_KEY = 2 ** 33, 2 ** 33 + 1
 
-#: Unit-cube dimensions of one run's sampled values (mc design).
-_DIMS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct") + envelope.DRAW_COLUMNS + (
-    "onset", "magnitude", "sign", "freq")
+#: The continuous variables of a run (run-table columns): its flight point in the
+#: ``[envelope]`` box and its relative deviations within ± their half-widths. The ``mc``
+#: design draws them uniformly (:func:`variable_ranges`), ``fdd-campaign falsify`` searches
+#: them and ``fdd-campaign certify --sampling`` re-samples them.
+RUN_VARIABLES: tuple[str, ...] = envelope.FLIGHT_COLUMNS + envelope.DRAW_COLUMNS
+
+#: Unit-cube dimensions of one run's sampled values (mc design): the run variables, then
+#: the fault's onset, magnitude, sign and frequency.
+_DIMS = RUN_VARIABLES + ("onset", "magnitude", "sign", "freq")
 
 PLAN_COLUMNS = (
     "run_id", "group", "surface", "manoeuvre", "fault", "onset_s", "magnitude", "freq_hz",
-    "alt_ft", "vcas_kt", "mass_t", "cg_pct", "level", "realistic", "point",
+    *envelope.FLIGHT_COLUMNS, "level", "realistic", "point",
     *envelope.DRAW_COLUMNS, "seed", "stream", "duration_s", "manoeuvre_start_s",
     "manoeuvre_set",
 )
@@ -145,9 +151,19 @@ def _fixed_magnitude(fault: str, size: float, drawn: np.ndarray, act) -> np.ndar
     return np.where(drawn < 0, -size, size)
 
 
-def _scale(u, values) -> np.ndarray:
-    lo, hi = float(min(values)), float(max(values))
-    return lo + (hi - lo) * u
+def variable_ranges(config) -> dict[str, tuple[float, float]]:
+    """Each of the :data:`RUN_VARIABLES` → its range (low, high) in run-table units: a
+    flight-point column → the smallest and largest value of its ``[envelope]`` list, a
+    draw column → (−w, w), w its half-width of ``[uncertainty]``/``[mismatch]``
+    (:func:`scenarios.envelope.half_widths`; 0 holds it at 0)."""
+    out = {}
+    for col in envelope.FLIGHT_COLUMNS:
+        values = getattr(config.envelope, col)
+        out[col] = (float(min(values)), float(max(values)))
+    widths = envelope.half_widths(config.uncertainty, config.mismatch)
+    for col in envelope.DRAW_COLUMNS:
+        out[col] = (-float(widths[col]), float(widths[col]))
+    return out
 
 
 def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray,
@@ -187,7 +203,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     out["duration_s"] = duration
     out["manoeuvre_start_s"] = np.nan if start is None else float(start)
     out["manoeuvre_set"] = manoeuvre_set
-    for key in ("alt_ft", "vcas_kt", "mass_t", "cg_pct"):
+    for key in envelope.FLIGHT_COLUMNS:
         fixed = getattr(group, key, None)
         if fixed is not None:
             out[key] = float(fixed)
@@ -196,17 +212,16 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
 
 def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
              manoeuvre_set: str) -> pd.DataFrame:
-    env, widths = config.envelope, envelope.half_widths(config.uncertainty, config.mismatch)
+    ranges = variable_ranges(config)
+    n_flight = len(envelope.FLIGHT_COLUMNS)
     need, extra = n, 0
     while True:
         u = _unit_samples(max(4 * need, 16) << extra, config, cell_key)
-        pts = pd.DataFrame({
-            "alt_ft": _scale(u[:, 0], env.alt_ft), "vcas_kt": _scale(u[:, 1], env.vcas_kt),
-            "mass_t": _scale(u[:, 2], env.mass_t), "cg_pct": _scale(u[:, 3], env.cg_pct),
-        })
+        pts = pd.DataFrame({col: ranges[col][0] + (ranges[col][1] - ranges[col][0]) * u[:, j]
+                            for j, col in enumerate(envelope.FLIGHT_COLUMNS)})
         for j, col in enumerate(envelope.DRAW_COLUMNS):
-            pts[col] = (2.0 * u[:, 4 + j] - 1.0) * widths[col]
-        pts["realistic"] = envelope.realistic_rule(pts[["alt_ft", "vcas_kt", "mass_t", "cg_pct"]],
+            pts[col] = (2.0 * u[:, n_flight + j] - 1.0) * ranges[col][1]
+        pts["realistic"] = envelope.realistic_rule(pts[list(envelope.FLIGHT_COLUMNS)],
                                                    config.uncertainty)["realistic"].to_numpy()
         keep = pts["realistic"].to_numpy() if config.campaign.realistic_only else np.ones(len(pts), bool)
         if keep.sum() >= n:
@@ -226,15 +241,14 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
 def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float,
                manoeuvre_set: str) -> pd.DataFrame:
     env = config.envelope
-    table = envelope.GridTable(alt_ft=tuple(env.alt_ft), vcas_kt=tuple(env.vcas_kt),
-                               mass_t=tuple(env.mass_t), cg_pct=tuple(env.cg_pct))
+    table = envelope.GridTable(**{c: tuple(getattr(env, c)) for c in envelope.FLIGHT_COLUMNS})
     pts = envelope.realistic_rule(envelope.grid_points(table), config.uncertainty)
     if config.campaign.realistic_only:
         pts = pts[pts["realistic"]]
     rows = []
     for level in ("min", "nominal", "max"):
         draws = envelope.level_draws(level, config.uncertainty, config.mismatch)
-        block = pts[["point", "alt_ft", "vcas_kt", "mass_t", "cg_pct", "realistic"]].copy()
+        block = pts[["point", *envelope.FLIGHT_COLUMNS, "realistic"]].copy()
         for col in envelope.DRAW_COLUMNS:
             block[col] = draws[col]
         block["level"] = level
@@ -268,7 +282,7 @@ def explicit_rows(config, runs) -> pd.DataFrame:
                "onset_s": number(get(run, "onset_s")),
                "magnitude": number(get(run, "magnitude")),
                "freq_hz": number(get(run, "freq_hz"))}
-        row.update({k: float(get(run, k)) for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")})
+        row.update({k: float(get(run, k)) for k in envelope.FLIGHT_COLUMNS})
         row.update({"level": "run", "point": -1})
         row.update({col: float(draws.get(col, 0.0)) for col in envelope.DRAW_COLUMNS})
         row.update({"duration_s": float(config.campaign.duration_s),
@@ -278,7 +292,7 @@ def explicit_rows(config, runs) -> pd.DataFrame:
         rows.append(row)
     frame = pd.DataFrame(rows)
     frame["realistic"] = envelope.realistic_rule(
-        frame[["alt_ft", "vcas_kt", "mass_t", "cg_pct"]], config.uncertainty)["realistic"]
+        frame[list(envelope.FLIGHT_COLUMNS)], config.uncertainty)["realistic"]
     return frame
 
 

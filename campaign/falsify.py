@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,11 +50,12 @@ import numpy as np
 import pandas as pd
 
 from scenarios import envelope
+from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from .config import CampaignConfig
 from .config.text import toml_value
-from .design import PLAN_COLUMNS, build_plan, explicit_plan
+from .design import PLAN_COLUMNS, build_plan, explicit_plan, variable_ranges
 from .storage import write_parquet
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
@@ -70,8 +70,6 @@ REPAIR_STEPS: int = 40
 SEARCH_GROUP: str = "falsify"
 #: Smallest budget: a screening run per cell of a small campaign and a stream sweep.
 MIN_BUDGET: int = 10
-
-FLIGHT_COLUMNS: tuple[str, ...] = envelope.GridTable.columns
 
 
 class FalsifyError(ValueError):
@@ -190,13 +188,7 @@ def search_space(config: CampaignConfig) -> SearchSpace:
         raise FalsifyError(f"campaign {config.campaign.name!r} has no fault-free [[group]] "
                            "(fault = \"none\"): falsify searches its fault-free runs; fix: add "
                            "one, e.g. [[group]] fault = \"none\" count = 10")
-    ranges: dict[str, tuple[float, float]] = {}
-    for col in FLIGHT_COLUMNS:
-        values = getattr(config.envelope, col)
-        ranges[col] = (float(min(values)), float(max(values)))
-    widths = envelope.half_widths(config.uncertainty, config.mismatch)
-    for col in envelope.DRAW_COLUMNS:
-        ranges[col] = (-float(widths[col]), float(widths[col]))
+    ranges = variable_ranges(config)
     if config.plant.kind != "aircraft":
         p, duration = MANOEUVRE_PARAMS, config.campaign.duration_s
         ranges["manoeuvre_start_s"] = (p.lead_s, min(p.lead_s + p.start_spread_s,
@@ -208,7 +200,7 @@ def search_space(config: CampaignConfig) -> SearchSpace:
         fixed = tuple((k, float(getattr(g, k))) for k in (*FLIGHT_COLUMNS, "manoeuvre_start_s")
                       if getattr(g, k, None) is not None)
         cells += [Cell(g.name, m, fixed) for m in g.manoeuvres]
-    space = SearchSpace(config, bounds, held, tuple(cells), np.empty((0, 4)),
+    space = SearchSpace(config, bounds, held, tuple(cells), np.empty((0, len(FLIGHT_COLUMNS))),
                         config.campaign.realistic_only)
     space.anchors = np.array([_anchor(space, c, ranges) for c in cells])
     return space
@@ -356,7 +348,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     ``out/monte-carlo.parquet``), or with the worst fault-free margin of the campaign
     directory *against*.
     """
-    from .runner import evaluate_rows, prepare
+    from .runner import Progress, evaluate_rows, prepare
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     check_label(config, label)
@@ -380,7 +372,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                                tls=tls, fitted_from=fitted_from, log=log)
     try:
         records: list[pd.DataFrame] = []
-        state = {"done": 0, "t0": time.perf_counter(), "errors": 0}
+        state = {"done": 0, "errors": 0}
+        bar = Progress(budget, enabled=progress, log=log)
         while batch := strategy.ask():
             phase = strategy.phase
             rows = explicit_plan(config, space.decode(space.vectors(batch)))
@@ -393,8 +386,10 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                                        generation=strategy.generation, phase=phase))
             state["done"] += len(rows)
             strategy.tell(batch, margin)
-            if progress:
-                _progress(log, state, phase, budget, records)
+            worst = max((float(np.nanmax(r["margin"])) for r in records
+                         if np.isfinite(r["margin"]).any()), default=float("nan"))
+            bar.label = f"{phase} (batch {len(records)}): "
+            bar.update(len(rows), note=f", worst margin so far {worst:.4g}")
         search = pd.concat(records, ignore_index=True)
         if baseline is None:
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
@@ -489,16 +484,6 @@ def _strategy(space: SearchSpace, config, budget: int, seed: int, warm_rows):
     return Strategy(n_dims=len(names), n_cells=len(space.cells), budget=int(budget),
                     seed=int(seed), stream_span=STREAM_SPAN, warm=warm[:budget],
                     start_dim=start_dim, warm_start=starts)
-
-
-def _progress(log, state, phase, budget, records) -> None:
-    elapsed = time.perf_counter() - state["t0"]
-    done = state["done"]
-    eta = elapsed / done * (budget - done) if done else float("nan")
-    best = max((float(np.nanmax(r["margin"])) for r in records
-                if np.isfinite(r["margin"]).any()), default=float("nan"))
-    log(f"{phase} (batch {len(records)}): {done}/{budget} runs, worst margin so far "
-        f"{best:.4g}, {elapsed:.1f} s, ETA {eta:.1f} s")
 
 
 def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) -> pd.Series:

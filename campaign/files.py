@@ -20,18 +20,24 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-__all__ = ["METADATA_KEY", "engine_version", "read_metadata", "sha256_of", "write_parquet",
-           "write_text"]
+__all__ = ["METADATA_KEY", "UNKNOWN_VERSION", "engine_version", "read_metadata", "sha256_of",
+           "write_parquet", "write_text"]
 
 #: Schema-metadata key of the campaign metadata in every Parquet file.
 METADATA_KEY = b"fdd_campaign"
 
 
+#: The engine version of a source tree that is not installed (no package metadata).
+UNKNOWN_VERSION = "0+unknown"
+
+
 def engine_version() -> str:
+    """The installed fdd-campaign version (:data:`UNKNOWN_VERSION` when running from a
+    source tree that is not installed)."""
     try:
         return version("fdd-campaign")
-    except PackageNotFoundError:  # running from a source tree that is not installed
-        return "0+unknown"
+    except PackageNotFoundError:
+        return UNKNOWN_VERSION
 
 
 def temporary_name(path: Path) -> Path:

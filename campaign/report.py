@@ -34,6 +34,7 @@ from reports.gate import requirements_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE
 from reports.table import error_lines
+from scenarios.envelope import FLIGHT_COLUMNS
 
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
@@ -48,7 +49,7 @@ from .storage import CampaignDir
 __all__ = ["ReportSettings", "build_report", "replay_settings", "show_run"]
 
 #: Flight-point columns of the plan shown with every run and used by the envelope maps.
-POINT_COLUMNS = ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "onset_s", "magnitude")
+POINT_COLUMNS = (*FLIGHT_COLUMNS, "onset_s", "magnitude")
 
 
 #: Largest number of runs re-simulated together by one worker (about 30 arrays of

@@ -60,18 +60,31 @@ def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings)
 
 
 class Progress:
-    """A progress line on stderr with rate and ETA, driven by finished chunks."""
+    """The one progress reporter of the commands that simulate runs (``run``, ``falsify``,
+    ``certify --sampling``), driven by the runs as they finish: runs done of *total*, share,
+    rate and ETA. The rate counts only the runs computed since the reporter started (not
+    those done before, *done*, nor those read back, ``update(n, computed=False)``).
 
-    def __init__(self, total: int, done: int = 0, enabled: bool = True, stream=None):
+    With *log* (a callable taking one line), every update is one line, after *label* and
+    before the update's *note*. Otherwise the line goes to *stream* (default stderr): on a
+    terminal one line with a bar, rewritten in place; elsewhere a line every 5 s and at
+    the end."""
+
+    def __init__(self, total: int, done: int = 0, enabled: bool = True, stream=None, *,
+                 log=None, label: str = ""):
         self.total, self.done, self.enabled = total, done, enabled
         self.stream = stream or sys.stderr
+        self.log, self.label = log, label
         self.start = time.perf_counter()
         self.start_done = done
         self.last_print = -1.0
-        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.tty = log is None and hasattr(self.stream, "isatty") and self.stream.isatty()
 
-    def update(self, n: int) -> None:
+    def update(self, n: int, *, computed: bool = True, note: str = "") -> None:
+        """*n* more runs done (*computed*: simulated now, else read back)."""
         self.done += n
+        if not computed:
+            self.start_done += n
         if not self.enabled:
             return
         elapsed = time.perf_counter() - self.start
@@ -79,9 +92,13 @@ class Progress:
         rate = new / elapsed if elapsed > 0 else 0.0
         eta = (self.total - self.done) / rate if rate > 0 else float("nan")
         frac = self.done / self.total if self.total else 1.0
-        bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
-        line = (f"[{bar}] {self.done}/{self.total} runs {100 * frac:5.1f} %  "
+        line = (f"{self.done}/{self.total} runs {100 * frac:5.1f} %  "
                 f"{rate:7.1f} runs/s  ETA {eta:5.1f} s")
+        if self.log is not None:
+            self.log(f"{self.label}{line}{note}")
+            return
+        bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
+        line = f"[{bar}] {line}"
         if self.tty:
             print("\r" + line, end="", file=self.stream, flush=True)
         elif elapsed - self.last_print >= 5.0 or self.done >= self.total:
@@ -501,16 +518,15 @@ def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
     from dataclasses import fields
 
     from .config.sections import RunnerSection
-    from .config.text import range_text
 
     spec = next(f.metadata["key"] for f in fields(RunnerSection) if f.name == "chunk_size")
     size = config.runner.chunk_size if chunk_size is None else chunk_size
     if (isinstance(size, bool) or not isinstance(size, (int, np.integer))
-            or not spec.lo <= size <= spec.hi):
+            or spec.out_of_range(size)):
         raise CampaignSetupError(
             f"--chunk-size {size!r}: out of range; allowed: an integer, "
-            f"{range_text(spec, 'chunk size')} runs ([runner] chunk_size, "
-            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lo) * 100}, or leave it "
+            f"{spec.range_text('chunk size')} runs ([runner] chunk_size, "
+            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lower) * 100}, or leave it "
             "out to use the campaign file's value")
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
         raise CampaignSetupError(f"--jobs {jobs!r}: must be an integer ≥ 1 (local workers); "

@@ -184,7 +184,7 @@ def envelope_schedules(schedule_margin: float) -> dict:
 
     pts = envelope.realistic_points()
     pts = pts[pts["realistic"]]
-    true = {c: pts[c].to_numpy(float) for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")}
+    true = {c: pts[c].to_numpy(float) for c in envelope.FLIGHT_COLUMNS}
     w = envelope.UNCERTAINTY
     s = 1.0 + float(schedule_margin)
     parts = [envelope.measured_schedule(true["alt_ft"], true["vcas_kt"], true["mass_t"],

@@ -328,7 +328,7 @@ class ChenLocalEstimator(Detector):
 
         pts = envelope.realistic_points()
         pts = pts[pts["realistic"]]
-        true = {c: pts[c].to_numpy(float) for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")}
+        true = {c: pts[c].to_numpy(float) for c in envelope.FLIGHT_COLUMNS}
         fc = envelope.flight_condition(*true.values())
         plant = plant_arrays(act, qbar_pa=fc["qbar_pa"], alpha_deg=fc["alpha_deg"],
                              mach=fc["mach"])

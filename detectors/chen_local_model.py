@@ -322,8 +322,7 @@ def identification_runs(act: ActuatorParams, ts: float,
         act = act.replace(surface=kind)
     rows = pd.concat([single_run(act.surface, "cruise", "none", seed=0,
                                  duration_s=orders.shape[1] * ts,
-                                 **{c: float(p[c]) for c in ("alt_ft", "vcas_kt", "mass_t",
-                                                             "cg_pct")})
+                                 **{c: float(p[c]) for c in envelope.FLIGHT_COLUMNS})
                       .assign(stream=j, run_id=f"ident-{j}")
                       for j, p in pts.iterrows()], ignore_index=True)
     signals, truth = simulate(rows, ts=ts, actuators={act.surface: act}, orders_deg=orders)

@@ -33,10 +33,11 @@ import math
 import numbers
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from scenarios.catalog import suggest
+from scenarios.declare import BOUND_SIGNS, Declared, toml_value
 
 #: What a parameter value may be (``Param.kind``):
 #:
@@ -56,8 +57,9 @@ _TYPE_TEXT = {"int": "int", "float": "float", "bool": "bool", "str": "str", "cho
 
 
 @dataclass(frozen=True)
-class Param:
-    """Declaration of one keyword parameter of a detector.
+class Param(Declared):
+    """Declaration of one keyword parameter of a detector: a
+    :class:`scenarios.declare.Declared` (unit, doc, source, bounds) with a name and a kind.
 
     Parameters
     ----------
@@ -83,21 +85,18 @@ class Param:
         One line saying what the parameter does.
     source : str
         Where its default comes from: a citation (``"[COMB] §4"``) or ``"est."``.
+
+    Everything after *kind* is given by keyword.
     """
 
     name: str
     kind: str
-    gt: float | str | None = None
-    ge: float | str | None = None
-    lt: float | str | None = None
-    le: float | str | None = None
-    choices: tuple[str, ...] = ()
-    length: int | None = None
-    unique: bool = False
-    scalar: bool = False
-    unit: str = "-"
-    doc: str = ""
-    source: str = "est."
+    choices: tuple[str, ...] = field(default=(), kw_only=True)
+    length: int | None = field(default=None, kw_only=True)
+    unique: bool = field(default=False, kw_only=True)
+    scalar: bool = field(default=False, kw_only=True)
+    unit: str = field(default="-", kw_only=True)
+    source: str = field(default="est.", kw_only=True)
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -107,15 +106,11 @@ class Param:
             raise ValueError(f"Param {self.name!r}: choices go with kind 'choice' or "
                              f"'choices' (and those kinds need them); got kind {self.kind!r}, "
                              f"choices {self.choices!r}")
-        bounded = self.gt is not None or self.ge is not None or self.lt is not None \
-            or self.le is not None
-        if bounded and self.kind not in ("int", "float", "floats"):
+        if self.bounded and self.kind not in ("int", "float", "floats"):
             raise ValueError(f"Param {self.name!r}: bounds apply to numbers, not to kind "
                              f"{self.kind!r}")
-        if (self.gt is not None and self.ge is not None) or \
-                (self.lt is not None and self.le is not None):
-            raise ValueError(f"Param {self.name!r}: give at most one lower bound (gt or ge) "
-                             "and one upper bound (lt or le)")
+        if self.bounds_problem():
+            raise ValueError(f"Param {self.name!r}: {self.bounds_problem()}")
         if (self.length is not None or self.unique or self.scalar) and self.kind != "floats":
             raise ValueError(f"Param {self.name!r}: length, unique and scalar apply to kind "
                              f"'floats' only, not {self.kind!r}")
@@ -129,28 +124,26 @@ class Param:
             return f"float or {many}" if self.scalar else many
         return _TYPE_TEXT[self.kind]
 
-    def range_text(self) -> str:
-        """The allowed range or choices, e.g. ``"> 1"``, ``"(0, 1)"``, ``"rod_com, rod_mon"``,
-        ``"true, false"`` (empty when any value of the kind is allowed)."""
+    @property
+    def value_name(self) -> str:
+        """The name of one value in the range text: the parameter's, or ``value`` for
+        each number of a ``"floats"`` list."""
+        return "value" if self.kind == "floats" else self.name
+
+    def allowed_range(self) -> str:
+        """The allowed range or choices as the reference table shows them, e.g.
+        ``"safety > 1"``, ``"0 ≤ pole < 1"``, ``"each value > 0"``, ``"rod_com, rod_mon"``,
+        ``"true, false"`` (empty when any value of the kind is allowed; the unit has its
+        own column)."""
         if self.choices:
             return ", ".join(self.choices)
         if self.kind == "bool":
             return "true, false"
-        lo = self.gt if self.gt is not None else self.ge
-        hi = self.lt if self.lt is not None else self.le
-        if lo is None and hi is None:
-            return ""
-        if hi is None:
-            return f"{'>' if self.gt is not None else '≥'} {_num(lo)}"
-        if lo is None:
-            return f"{'<' if self.lt is not None else '≤'} {_num(hi)}"
-        return (f"{'(' if self.gt is not None else '['}{_num(lo)}, {_num(hi)}"
-                f"{')' if self.lt is not None else ']'}")
+        rng = self.range_text(self.value_name, unit=False)
+        return f"each {rng}" if rng and self.kind == "floats" else rng
 
     def allowed_text(self) -> str:
         """What a valid value is, in words (used after ``allowed:`` in messages)."""
-        rng = self.range_text()
-        unit = f" [{self.unit}]" if self.unit not in ("", "-") else ""
         if self.kind == "bool":
             return "true or false"
         if self.kind == "str":
@@ -160,15 +153,16 @@ class Param:
         if self.kind == "choices":
             return ("one of " + ", ".join(repr(c) for c in self.choices)
                     + ", or a non-empty list of them")
-        within = f" {_within(rng)}" if rng else ""
+        rng = self.range_text(self.value_name, unit=False)
+        unit = f" [{self.unit}]" if self.unit not in ("", "-") else ""
         if self.kind == "int":
-            return f"an integer{within}{unit}"
+            return f"an integer{' with ' + rng if rng else ''}{unit}"
         if self.kind == "float":
-            return f"a finite number{within}{unit}"
+            return f"a finite number{' with ' + rng if rng else ''}{unit}"
         count = f"{self.length} " if self.length is not None else ""
         text = (f"a list of {count}finite numbers" if count else
                 "a non-empty list of finite numbers")
-        text += f", each{within}" if rng else ""
+        text += f", each {rng}" if rng else ""
         text += ", all different" if self.unique else ""
         text += unit
         return f"a single number or {text}" if self.scalar else text
@@ -245,18 +239,15 @@ class Param:
         return None
 
     def _bound_problem(self, v, values: Mapping[str, Any], valid: set[str]) -> str | None:
-        for bound, ok, sign in ((self.gt, lambda b: v > b, ">"), (self.ge, lambda b: v >= b, "≥"),
-                                (self.lt, lambda b: v < b, "<"), (self.le, lambda b: v <= b, "≤")):
-            if bound is None:
-                continue
-            if isinstance(bound, str):
-                if bound not in valid or not _is_real(values.get(bound)):
-                    continue
-                if not ok(values[bound]):
-                    return f"not {sign} {bound} = {values[bound]!r}"
-            elif not ok(bound):
-                return "out of range"
-        return None
+        known = {k: values[k] for k in valid if k in values}
+        broken = self.broken_bound(v, known)
+        if broken is None:
+            return None
+        kw, bound = broken
+        named = getattr(self, kw)
+        if isinstance(named, str):
+            return f"not {BOUND_SIGNS[kw]} {named} = {values[named]!r}"
+        return "out of range"
 
 
 # ---------------------------------------------------------------------------------------
@@ -311,7 +302,7 @@ def parameter_problems(cls: type, params: Mapping[str, Any]) -> list[str]:
 
 
 def _names_bound(p: Param) -> bool:
-    return any(isinstance(b, str) for b in (p.gt, p.ge, p.lt, p.le))
+    return any(isinstance(b, str) for b in p.bounds().values())
 
 
 def _fix(p: Param, default, values: Mapping[str, Any], valid: set[str], given: bool) -> str:
@@ -344,24 +335,11 @@ def parameter_table(cls: type) -> list[dict]:
             "name": name,
             "type": p.type_text if p else "",
             "default": None if default is inspect.Parameter.empty else default,
-            "allowed": p.range_text() if p else "",
+            "allowed": p.allowed_range() if p else "",
             "unit": p.unit if p else "",
             "doc": p.description if p else "",
         })
     return rows
-
-
-def toml_value(value: Any) -> str:
-    """*value* as it is written in a campaign file (TOML)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    if value is None:
-        return ""
-    return repr(value)
 
 
 def parameter_markdown(detectors: Mapping[str, type]) -> str:
@@ -417,11 +395,3 @@ def _what(v) -> str:
 
 def _seq(items: Sequence) -> str:
     return ", ".join(repr(v) for v in items)
-
-
-def _num(v) -> str:
-    return v if isinstance(v, str) else f"{v:g}"
-
-
-def _within(rng: str) -> str:
-    return f"in {rng}" if rng[:1] in "([" else rng

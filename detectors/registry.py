@@ -115,8 +115,9 @@ Generated from the parameter declarations of each detector class (`parameters`, 
 `python -m detectors --markdown > docs/detectors.md`.
 
 Give parameters in a campaign file as `params = { … }` of a `[[detector]]` table; every
-parameter has a default. Values are shown as they are written in TOML. *allowed*: `(a, b)`
-excludes the ends, `[a, b]` includes them; a bound may name another parameter. The
+parameter has a default. Values are shown as they are written in TOML. *allowed*: the
+inequality a value must satisfy, written as in [campaign-file.md](campaign-file.md)
+(`0 < pole < 1`; `each` for every number of a list); a bound may name another parameter. The
 description ends with the source of the default value (`est.`: estimated for this
 simulator). Parameters are checked before any run starts: every problem is reported at
 once with the allowed values.

@@ -48,10 +48,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from reports.metrics import upper_bound
+
 __all__ = ["CURVE_SHAPES", "Exceedance", "LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES",
            "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_KINDS",
-           "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError", "counted_bound",
+           "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError",
            "exceedance_curve", "fit_tail", "tail_size"]
 
 #: Fewest values for the generalised Pareto tail fit.
@@ -435,15 +437,6 @@ class Exceedance:
     parts: tuple = ()
 
 
-def counted_bound(count: int, n: int, confidence: float = 0.95) -> float:
-    """The exact one-sided Clopper–Pearson upper bound of a probability from *count* of
-    *n* (``scipy.stats.binomtest(…, alternative="less").proportion_ci(method="exact")``)."""
-    from scipy.stats import binomtest
-
-    return float(binomtest(int(count), int(n), alternative="less")
-                 .proportion_ci(confidence_level=float(confidence), method="exact").high)
-
-
 def _one_curve(x: np.ndarray, levels: np.ndarray, confidence: float, shapes: np.ndarray,
                ) -> list[tuple[str, float, float]]:
     """(method, estimate, upper) of P(X ≥ level) of one sample at each level: counted at
@@ -458,7 +451,7 @@ def _one_curve(x: np.ndarray, levels: np.ndarray, confidence: float, shapes: np.
     for level in levels:
         if fit is None or level <= fit.u:
             c = int((x >= level).sum())
-            out.append(("counted", c / n, counted_bound(c, n, confidence)))
+            out.append(("counted", c / n, float(upper_bound(c, n, confidence))))
         else:
             est = fit.sf(level, confidence)
             out.append(("tail", est.estimate, est.upper))
@@ -503,7 +496,7 @@ def exceedance_curve(values, levels, *, classes=None, confidence: float = 0.95,
     names, sizes = np.unique(labels, return_counts=True)
     weights = sizes / n
     per_class = [_one_curve(x[labels == c], lv, confidence, shapes) for c in names]
-    pooled = [counted_bound(c, n, confidence) for c in counts]
+    pooled = [float(upper_bound(c, n, confidence)) for c in counts]
     out = []
     for i, v in enumerate(lv):
         parts = tuple((str(c), pc[i][0], pc[i][1], pc[i][2], float(w))

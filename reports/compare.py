@@ -41,6 +41,7 @@ from scipy import stats
 
 from .metrics import FAULT_FREE
 from .summary import ALL_MANOEUVRES
+from .table import number_text
 
 __all__ = ["COMPARE_COLUMNS", "compare_results", "differing_keys", "format_compare",
            "threshold_changes", "threshold_text"]
@@ -223,14 +224,6 @@ def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
     return out
 
 
-def _f(x, fmt):
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return "-"
-    return "-" if not math.isfinite(x) else format(x, fmt)
-
-
 def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA,
                    notes: dict[str, str] | None = None) -> str:
     """Fixed-width text of :func:`compare_results` output, with a count of flags.
@@ -246,14 +239,14 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA,
     for r in table.itertuples(index=False):
         n = f"{'-' if pd.isna(r.n_a) else r.n_a}/{'-' if pd.isna(r.n_b) else r.n_b}"
         body.append([r.detector, r.fault, r.manoeuvre, n,
-                     f"{_f(100 * r.fa_rate_a, '.2f')}→{_f(100 * r.fa_rate_b, '.2f')}",
-                     _f(r.fa_p, '.2g'),
-                     f"{_f(100 * r.md_rate_a, '.2f')}→{_f(100 * r.md_rate_b, '.2f')}"
+                     f"{number_text(100 * r.fa_rate_a, '.2f')}→{number_text(100 * r.fa_rate_b, '.2f')}",
+                     number_text(r.fa_p, '.2g'),
+                     f"{number_text(100 * r.md_rate_a, '.2f')}→{number_text(100 * r.md_rate_b, '.2f')}"
                      if r.fault != FAULT_FREE else "",
-                     _f(r.md_p, '.2g'),
-                     f"{_f(r.dtp_median_a, '.4g')}→{_f(r.dtp_median_b, '.4g')}"
+                     number_text(r.md_p, '.2g'),
+                     f"{number_text(r.dtp_median_a, '.4g')}→{number_text(r.dtp_median_b, '.4g')}"
                      if r.fault != FAULT_FREE else "",
-                     _f(r.dtp_p, '.2g'), r.flag])
+                     number_text(r.dtp_p, '.2g'), r.flag])
     widths = [max(len(str(c)) for c in col) for col in zip(header, *body)]
     lines = ["  ".join(str(c).ljust(w) for c, w in zip(line, widths)).rstrip()
              for line in [header, ["-" * w for w in widths], *body]]

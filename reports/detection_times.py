@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from .metrics import FAULT_FREE
+from .summary import natural_key
 
 __all__ = ["DETECTION_TIME_COLUMNS", "detection_time_table", "format_detection_times",
            "fixed_onset_campaign"]
@@ -62,14 +63,6 @@ def detection_time_table(plan: pd.DataFrame, results: pd.DataFrame) -> pd.DataFr
     return table.sort_values("_o", kind="stable").drop(columns="_o").reset_index(drop=True)
 
 
-def _natural_key(name: str) -> list:
-    """Sort key that orders numbers by value ("a=0.9" before "a=0.95" before "a=0.99")."""
-    import re
-
-    return [(0, float(t), "") if re.fullmatch(r"\d+(?:\.\d+)?", t) else (1, 0.0, t)
-            for t in re.split(r"(\d+(?:\.\d+)?)", name) if t]
-
-
 def _short_names(detectors: list[str]) -> dict[str, str]:
     """Column headers: the variant part ("a=0.9") when all columns share one detector."""
     bases = {d.split("[", 1)[0] for d in detectors}
@@ -85,7 +78,7 @@ def format_detection_times(table: pd.DataFrame) -> str:
     lines = []
     for base in pd.unique(table["detector"].str.split("[", n=1).str[0]):
         part = table[table["detector"].str.split("[", n=1).str[0] == base]
-        detectors = sorted(pd.unique(part["detector"]), key=_natural_key)
+        detectors = sorted(pd.unique(part["detector"]), key=natural_key)
         heads = _short_names(detectors)
         wide = part.pivot_table(index="group", columns="detector", values="first_alarm_s",
                                 aggfunc="first", dropna=False, sort=False)

@@ -78,11 +78,11 @@ def _e(x) -> str:
 
 
 def _num(x, fmt: str = ".3g") -> str:
-    return table._num(x, fmt, missing="–")
+    return table.number_text(x, fmt, missing="–")
 
 
 def _pct(x) -> str:
-    return table._pct(x, missing="–")
+    return table.percent_text(x, missing="–")
 
 
 def _ci(k, n) -> str:

@@ -24,6 +24,7 @@ __all__ = [
     "ESTIMATE_COLUMNS",
     "clopper_pearson",
     "estimation_errors",
+    "lower_bound",
     "score_runs",
     "upper_bound",
 ]
@@ -251,6 +252,15 @@ def clopper_pearson(k, n, confidence: float = 0.95):
     lower = np.where(empty, np.nan, lower)
     upper = np.where(empty, np.nan, upper)
     return _as_output(lower), _as_output(upper)
+
+
+def lower_bound(k, n, confidence: float = 0.95):
+    """Exact one-sided lower confidence bound of a binomial rate k/n,
+    ``Beta⁻¹(1 − confidence; k, n−k+1)`` (0 when k = 0). Vectorised; ``n = 0`` gives NaN."""
+    k, n, empty = _check_counts(k, n, confidence)
+    with np.errstate(invalid="ignore"):
+        lower = np.where(k > 0, stats.beta.ppf(1.0 - float(confidence), k, n - k + 1), 0.0)
+    return _as_output(np.where(empty, np.nan, lower))
 
 
 def upper_bound(k, n, confidence: float = 0.95):

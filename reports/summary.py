@@ -167,9 +167,10 @@ def _aggregate(rows: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
 _NUMBER = re.compile(r"\d+(?:\.\d+)?")
 
 
-def _natural(name: str) -> str:
-    """*name* with each number zero-padded, so variants sort by value (a=0.9 before a=0.95,
-    a=0.95 before a=0.99)."""
+def natural_key(name: str) -> str:
+    """The natural-sort key of *name*: *name* with each number zero-padded, so variants sort
+    by value (a=0.9 before a=0.95, a=0.95 before a=0.99, a=2 before a=10); a string, so it
+    serves ``sorted`` and a pandas sort alike."""
     return _NUMBER.sub(lambda m: f"{float(m.group()):024.9f}", name)
 
 
@@ -177,7 +178,7 @@ def _sort_key(column: pd.Series) -> pd.Series:
     """Order: detectors by name with numbers by value; fault-free first, fault types
     alphabetically, aggregates last."""
     if column.name == "detector":
-        return column.map(_natural)
+        return column.map(natural_key)
     if column.name == "fault":
         rank = np.select([column == FAULT_FREE, column == ALL_FAULTS], [0, 2], 1)
     elif column.name == "manoeuvre":

@@ -15,11 +15,13 @@ from .metrics import FAULT_FREE
 from .paper import CHEN_ESTIMATOR, PAPER_TABLES
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["error_lines", "format_paper_table", "format_table", "late_text"]
+__all__ = ["error_lines", "format_paper_table", "format_table", "late_text", "number_text",
+           "percent_text"]
 
 
-def _num(x, fmt: str, missing: str = "-") -> str:
-    """*x* formatted with *fmt*, or *missing* for None, NaN, inf or a non-number."""
+def number_text(x, fmt: str, missing: str = "-") -> str:
+    """*x* formatted with *fmt*, or *missing* for None, NaN, inf or a non-number (every
+    table, the HTML report and the comparison write their numbers with it)."""
     try:
         x = float(x)
     except (TypeError, ValueError):
@@ -27,20 +29,20 @@ def _num(x, fmt: str, missing: str = "-") -> str:
     return missing if not math.isfinite(x) else format(x, fmt)
 
 
-def _pct(x, missing: str = "-") -> str:
+def percent_text(x, missing: str = "-") -> str:
     """A rate in [0, 1] as a percentage with two decimals."""
-    return _num(100 * x if x is not None else None, ".2f", missing)
+    return number_text(100 * x if x is not None else None, ".2f", missing)
 
 
 def _dtp(row) -> str:
-    parts = [_num(row.dtp_min, ".4g"), _num(row.dtp_mean, ".4g"), _num(row.dtp_max, ".4g")]
+    parts = [number_text(row.dtp_min, ".4g"), number_text(row.dtp_mean, ".4g"), number_text(row.dtp_max, ".4g")]
     return "-" if parts == ["-", "-", "-"] else "/".join(parts)
 
 
 def _delays(row) -> str:
     """Min/mean/max delay [s] of a summary row; '-' when missing (summaries written before
     ``delay_min_s``/``delay_max_s`` existed, or nothing detected)."""
-    parts = [_num(getattr(row, c, None), ".3g")
+    parts = [number_text(getattr(row, c, None), ".3g")
              for c in ("delay_min_s", "delay_mean_s", "delay_max_s")]
     return "-" if "-" in parts else "/".join(parts)
 
@@ -89,9 +91,9 @@ def format_table(summary: pd.DataFrame) -> str:
             header = ["Fault scenario", "n", "err", "FA (%)", "FA ≤95 (%)", "MD (%)",
                       "MD ≤95 (%)", "late", "MD in T (%)", "Min/Mean/Max DTP", "DTP≤1 (%)"]
             body = [[_fault_label(r.fault), str(int(r.n_runs)), str(int(r.n_errors)),
-                     _pct(r.fa_rate), _pct(r.fa_upper95), _pct(r.md_rate), _pct(r.md_upper95),
-                     late_text(r), _pct(getattr(r, "md_req_rate", math.nan)), _dtp(r),
-                     _num(100 * r.dtp_within, ".1f")]
+                     percent_text(r.fa_rate), percent_text(r.fa_upper95), percent_text(r.md_rate), percent_text(r.md_upper95),
+                     late_text(r), percent_text(getattr(r, "md_req_rate", math.nan)), _dtp(r),
+                     number_text(100 * r.dtp_within, ".1f")]
                     for r in faults.itertuples(index=False)]
             lines += _render(header, body, "lrrrrrrrrlr")
             lines.append("(FA of faulty runs: alarms before onset. MD: never detected in the "
@@ -106,11 +108,11 @@ def format_table(summary: pd.DataFrame) -> str:
             body = []
             for r in free.itertuples(index=False):
                 n = int(r.n_runs)
-                bound = (f"{int(r.fa_count)}/{n}, FA ≤ {_pct(r.fa_upper95)} %" if n
+                bound = (f"{int(r.fa_count)}/{n}, FA ≤ {percent_text(r.fa_upper95)} %" if n
                          else "no scored runs")
                 label = "all manoeuvres" if r.manoeuvre == ALL_MANOEUVRES else r.manoeuvre
-                body.append([label, str(n), str(int(r.n_errors)), _pct(r.fa_rate), bound,
-                             _num(r.worst_margin, ".3f")])
+                body.append([label, str(n), str(int(r.n_errors)), percent_text(r.fa_rate), bound,
+                             number_text(r.worst_margin, ".3f")])
             lines += _render(header, body, "lrrrlr")
     return "\n".join(lines)
 
@@ -133,7 +135,7 @@ def error_lines(results: pd.DataFrame, per_detector: int = 3) -> list[str]:
 
 
 def _sci(x) -> str:
-    return _num(x, ".4g")
+    return number_text(x, ".4g")
 
 
 def format_paper_table(summary: pd.DataFrame, reference: str,
@@ -165,10 +167,10 @@ def format_paper_table(summary: pd.DataFrame, reference: str,
         free = det[det["fault"] == FAULT_FREE]
         if len(row):
             r = row.iloc[0]
-            fa_free = (f"{_pct(free.iloc[0].fa_rate)} (n={int(free.iloc[0].n_runs)})"
+            fa_free = (f"{percent_text(free.iloc[0].fa_rate)} (n={int(free.iloc[0].n_runs)})"
                        if len(free) else "-")
-            body.append([fault, f"ours: {name}", f"{fa_free} / {_pct(r.fa_rate)}",
-                         _pct(r.md_rate), _pct(r.get("md_req_rate", math.nan)), _delays(r),
+            body.append([fault, f"ours: {name}", f"{fa_free} / {percent_text(r.fa_rate)}",
+                         percent_text(r.md_rate), percent_text(r.get("md_req_rate", math.nan)), _delays(r),
                          _dtp(r), _sci(r.get("est_err_mean", math.nan)),
                          _sci(r.get("est_err_var", math.nan))])
         else:

@@ -16,7 +16,7 @@ CG in % of the mean aerodynamic chord (MAC), angles in deg, pressures in Pa.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -32,6 +32,10 @@ PERCENT: float = 100.0
 #: exactly on a limit (300 kt + 10 % = VMO = 330 kt) counts as within it, as the rule's "≤"
 #: says; without it, rounding of 300·1.1 (= 330.00000000000006) would reject it.
 LIMIT_RTOL: float = 1e-9
+#: The flight point of a run: its run-table columns, in the order of the grid's nested
+#: loops (:func:`grid_points`). The realistic rule (:func:`realistic_rule`) reads them; a
+#: Monte Carlo design samples them in the campaign's ``[envelope]`` box.
+FLIGHT_COLUMNS: tuple[str, ...] = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
 
 
 # ---------------------------------------------------------------------------------------
@@ -47,7 +51,7 @@ class GridTable:
     cg_pct: tuple[float, ...] = param("% MAC", "[CHEN] Table 1", "centre-of-gravity positions")
 
     #: Grid columns, in the order of the nested loops of :func:`grid_points`.
-    columns = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
+    columns = FLIGHT_COLUMNS
 
     def __getitem__(self, name: str) -> tuple[float, ...]:
         if name not in self.columns:
@@ -142,7 +146,7 @@ A330 = AircraftParams(
 # ---------------------------------------------------------------------------------------
 def _optional(unit: str, source: str, doc: str):
     """A parameter field whose default ``None`` means "take the shorthand"."""
-    return field(default=None, metadata={"unit": unit, "source": source, "doc": doc})
+    return param(unit, source, doc, default=None)
 
 
 #: The six aerodynamic coefficients of [CHEN] Table 2 (δCx, δCy, δCz, δCl, δCm, δCn): the
@@ -361,7 +365,7 @@ def realistic_rule(points: pd.DataFrame, uncertainty: Uncertainty = UNCERTAINTY,
     realistic, otherwise every failing ``criterion@condition`` joined by "; ", in the order
     conditions nominal, slow_heavy, fast_light and criteria mach>MMO, vcas>VMO, buffet).
     """
-    required = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
+    required = FLIGHT_COLUMNS
     missing = [c for c in required if c not in points.columns]
     if missing:
         raise ValueError(f"points lack the column(s) {missing}; required: {list(required)}")

@@ -13,12 +13,25 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field
+
+from .declare import Declared, field_problems
 
 
-def param(unit: str, source: str, doc: str = ""):
-    """Declare a parameter field with its unit and provenance in the field metadata."""
-    return field(metadata={"unit": unit, "source": source, "doc": doc})
+def param(unit: str, source: str, doc: str = "", *, default=MISSING, **bounds):
+    """Declare a parameter field (with *default*, if given): its
+    :class:`scenarios.declare.Declared` (unit, provenance, description and, given as
+    *bounds*, gt/ge/lt/le) in the field metadata."""
+    return field(default=default,
+                 metadata={"declared": Declared(unit=unit, source=source, doc=doc, **bounds)})
+
+
+def _check_declared(params, what: str) -> None:
+    """:class:`ValueError` naming every field of the dataclass instance *params* whose value
+    is outside the bounds its declaration gives, and the allowed range."""
+    problems = field_problems(params)
+    if problems:
+        raise ValueError(f"{what}: " + "; ".join(problems))
 
 
 @dataclass(frozen=True)
@@ -26,36 +39,44 @@ class ActuatorParams:
     """One active hydraulic servo-actuator and its control surface (docs/physics.md §3).
 
     The adjacent actuator of the same surface is in damping mode: it resists the motion with
-    a force Ka·ẋ|ẋ| ([COMB] eq. 2, [CHEN] eq. 11).
+    a force Ka·ẋ|ẋ| ([COMB] eq. 2, [CHEN] eq. 11). A value outside the bounds its field
+    declares is refused when the parameters are made (:func:`_check_declared`).
     """
+
+    def __post_init__(self):
+        _check_declared(self, f"{self.surface} actuator")
 
     surface: str = param("-", "docs/physics.md §3", "surface name")
     delta_min_deg: float = param("deg", "A330-class (docs/physics.md §3)", "electrical deflection limit, lower")
     delta_max_deg: float = param("deg", "A330-class (docs/physics.md §3)", "electrical deflection limit, upper")
     stop_margin_deg: float = param("deg", "est. (docs/physics.md §3: 1–2° beyond the electrical limits)",
-                                "mechanical stops lie this far beyond the electrical limits")
-    r_mm: float = param("mm", "est.", "lever arm r between rod and hinge line")
-    dP_Pa: float = param("Pa", "3000 psi hydraulic system", "supply differential pressure ΔP")
-    dP_ref_Pa: float = param("Pa", "docs/physics.md §3 (ΔP_ref = ΔP)", "pressure drop of the maximum rod speed")
-    S_m2: float = param("m²", "est. (A320 aileron jack 22.7 cm²)", "piston area S")
-    K_mA_per_mm: float = param("mA/mm", "est.", "servo-loop gain K")
-    Kci_mm_s_per_mA: float = param("(mm/s)/mA", "est.", "servo-valve gain Kci")
-    i_max_mA: float = param("mA", "est.", "current saturation ±i_max")
-    Ka_N_per_mm_s2: float = param("N/(mm/s)²", "est.", "damping-mode neighbour coefficient Ka")
-    Sc_m2: float = param("m²", "est.", "control surface area S_c")
-    cc_m: float = param("m", "est.", "control surface chord c_c")
+                                "mechanical stops lie this far beyond the electrical limits", ge=0.0)
+    r_mm: float = param("mm", "est.", "lever arm r between rod and hinge line", gt=0.0)
+    dP_Pa: float = param("Pa", "3000 psi hydraulic system", "supply differential pressure ΔP", gt=0.0)
+    dP_ref_Pa: float = param("Pa", "docs/physics.md §3 (ΔP_ref = ΔP)", "pressure drop of the maximum rod speed",
+                            gt=0.0)
+    S_m2: float = param("m²", "est. (A320 aileron jack 22.7 cm²)", "piston area S", gt=0.0)
+    K_mA_per_mm: float = param("mA/mm", "est.", "servo-loop gain K", gt=0.0)
+    Kci_mm_s_per_mA: float = param("(mm/s)/mA", "est.", "servo-valve gain Kci", gt=0.0)
+    i_max_mA: float = param("mA", "est.", "current saturation ±i_max", gt=0.0)
+    Ka_N_per_mm_s2: float = param("N/(mm/s)²", "est.", "damping-mode neighbour coefficient Ka",
+                                   ge=0.0)
+    Sc_m2: float = param("m²", "est.", "control surface area S_c", ge=0.0)
+    cc_m: float = param("m", "est.", "control surface chord c_c", gt=0.0)
     Ch_delta: float = param("1/rad", "est. (see the instance)", "hinge-moment derivative Chδ")
     Ch_alpha: float = param("1/rad", "est. (see the instance)", "hinge-moment derivative Chα")
     Ch0: float = param("-", "est. (see the instance)",
                        "hinge-moment coefficient at zero α and δ (negative: trailing edge up)")
     downwash: float = param("-", "est. (elevator: dε/dα; 0 for the aileron)",
-                         "local AoA of the surface α_s = α·(1 − dε/dα)")
-    mach_compress_cap: float = param("-", "docs/physics.md §3", "Prandtl–Glauert scaling held above this Mach")
+                         "local AoA of the surface α_s = α·(1 − dε/dα)", ge=0.0, lt=1.0)
+    mach_compress_cap: float = param("-", "docs/physics.md §3", "Prandtl–Glauert scaling held above this Mach",
+                                      gt=0.0, lt=1.0)
     has_surface_sensor: bool = param("-", "docs/physics.md §4 ([CHEN]: none on the inboard aileron)",
                                   "whether a surface position sensor is fitted")
     order_load_limit: float = param("-", "est. (docs/physics.md §3: no stall in normal flight)",
                                     "the flight control laws keep manoeuvre orders where the "
-                                    "hinge load stays below this share of the stall force S·ΔP")
+                                    "hinge load stays below this share of the stall force S·ΔP",
+                                    gt=0.0, le=1.0)
 
     # ---- derived quantities (never stored twice) -------------------------------------
     @property
@@ -230,15 +251,18 @@ RUDDER = ActuatorParams(
 class SensorParams:
     """Sensors acquired by the FCC (docs/physics.md §4). All values (est.)."""
 
-    rod_noise_mm: float = param("mm", "est. (docs/physics.md §4)", "white-noise σ of each LVDT acquisition")
-    rod_quant_mm: float = param("mm", "est. (docs/physics.md §4)", "quantisation step of the rod acquisitions")
-    rod_bias_mm: float = param("mm", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)")
-    rod_scale: float = param("-", "est. (docs/physics.md §4)", "per-run scale error ~ U(−s, s), relative")
-    surface_noise_deg: float = param("deg", "est. (docs/physics.md §4)", "white-noise σ of the surface sensor")
-    surface_quant_deg: float = param("deg", "est. (docs/physics.md §4)", "quantisation of the surface sensor")
-    surface_bias_deg: float = param("deg", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)")
+    def __post_init__(self):
+        _check_declared(self, "sensor parameters")
+
+    rod_noise_mm: float = param("mm", "est. (docs/physics.md §4)", "white-noise σ of each LVDT acquisition", ge=0.0)
+    rod_quant_mm: float = param("mm", "est. (docs/physics.md §4)", "quantisation step of the rod acquisitions", ge=0.0)
+    rod_bias_mm: float = param("mm", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)", ge=0.0)
+    rod_scale: float = param("-", "est. (docs/physics.md §4)", "per-run scale error ~ U(−s, s), relative", ge=0.0)
+    surface_noise_deg: float = param("deg", "est. (docs/physics.md §4)", "white-noise σ of the surface sensor", ge=0.0)
+    surface_quant_deg: float = param("deg", "est. (docs/physics.md §4)", "quantisation of the surface sensor", ge=0.0)
+    surface_bias_deg: float = param("deg", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)", ge=0.0)
     pressure_noise_frac: float = param("-", "est. (docs/physics.md §4)",
-                                    "σ of the chamber ΔP sensor as a fraction of supply")
+                                    "σ of the chamber ΔP sensor as a fraction of supply", ge=0.0)
 
 
 SENSORS = SensorParams(
@@ -260,11 +284,12 @@ def parameter_table(params) -> list[dict]:
     """Rows (name, value, unit, source, doc) describing a parameter dataclass instance."""
     rows = []
     for f in dataclasses.fields(params):
+        declared = f.metadata.get("declared", Declared())
         rows.append({
             "name": f.name,
             "value": getattr(params, f.name),
-            "unit": f.metadata.get("unit", ""),
-            "source": f.metadata.get("source", ""),
-            "doc": f.metadata.get("doc", ""),
+            "unit": declared.unit,
+            "source": declared.source,
+            "doc": declared.doc,
         })
     return rows

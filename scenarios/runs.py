@@ -14,63 +14,75 @@ import pandas as pd
 
 from . import envelope
 from .catalog import FAULTS, MANOEUVRE_SETS, MANOEUVRES, SURFACES, suggest
+from .declare import Declared
 from .faults import required_magnitude
 
-#: Columns of a run row: name → (unit, meaning). The campaign's run table carries them.
-RUN_COLUMNS: dict[str, tuple[str, str]] = {
-    "run_id": ("-", "identity of the run"),
-    "surface": ("-", "controlled surface: " + ", ".join(SURFACES)),
-    "manoeuvre": ("-", "fault-free manoeuvre: " + ", ".join(MANOEUVRES)),
-    "fault": ("-", "fault type: " + ", ".join(FAULTS)),
-    "onset_s": ("s", "fault onset (NaN for a fault-free run)"),
-    "magnitude": ("(per fault)", "fault magnitude, see scenarios.faults"),
-    "freq_hz": ("Hz", "oscillation frequency of an OFC (NaN otherwise)"),
-    "alt_ft": ("ft", "true pressure altitude"),
-    "vcas_kt": ("kt", "true calibrated airspeed"),
-    "mass_t": ("t", "true mass"),
-    "cg_pct": ("% MAC", "true centre of gravity"),
-    "d_cx": ("-", "relative error of the drag coefficient Cx ([CHEN] Table 2)"),
-    "d_cy": ("-", "relative error of the side-force coefficient Cy ([CHEN] Table 2)"),
-    "d_cz": ("-", "relative error of the lift coefficient Cz ([CHEN] Table 2)"),
-    "d_cl": ("-", "relative error of the rolling-moment coefficient Cl ([CHEN] Table 2)"),
-    "d_cm": ("-", "relative error of the pitching-moment coefficient Cm ([CHEN] Table 2)"),
-    "d_cn": ("-", "relative error of the yawing-moment coefficient Cn ([CHEN] Table 2)"),
-    "d_vcas": ("-", "relative VCAS measurement error ([CHEN] Table 2)"),
-    "d_alt": ("-", "relative altitude measurement error ([CHEN] Table 2)"),
-    "d_mass": ("-", "relative mass estimation error ([CHEN] Table 2)"),
-    "d_cg": ("-", "relative CG estimation error ([CHEN] Table 2)"),
-    "d_supply": ("-", "relative supply-pressure mismatch (docs/physics.md §6, est.)"),
-    "d_kci": ("-", "relative servo-valve gain mismatch (docs/physics.md §6, est.)"),
-    "d_ch0": ("-", "relative mismatch of the hinge-moment coefficient Ch0 (docs/physics.md §6, est.)"),
-    "d_cha": ("-", "relative mismatch of the hinge-moment derivative Chα (docs/physics.md §6, est.)"),
-    "d_chd": ("-", "relative mismatch of the hinge-moment derivative Chδ (docs/physics.md §6, est.)"),
-    "seed": ("-", "campaign seed"),
-    "stream": ("-", "run stream index: SeedSequence(seed, spawn_key=(stream,))"),
-    "duration_s": ("s", "run duration"),
+def _column(unit: str, doc: str, **bounds) -> Declared:
+    return Declared(unit=unit, doc=doc, **bounds)
+
+
+#: Relative deviations of a run row are accepted within ± this (−): wider than any campaign
+#: file's half-width (docs/campaign-file.md), so a replayed run row is never refused for its
+#: draws; the hinge-moment mismatches within ±:data:`HINGE_DRAW_LIMIT`.
+DRAW_LIMIT, HINGE_DRAW_LIMIT = 0.5, 0.9
+
+
+def _draw(doc: str, limit: float = DRAW_LIMIT) -> Declared:
+    return _column("-", doc, ge=-limit, le=limit)
+
+
+#: Columns of a run row: name → its declaration (unit, meaning and, for the numbers that
+#: are checked, the physical range accepted, inclusive). The campaign's run table carries
+#: them.
+RUN_COLUMNS: dict[str, Declared] = {
+    "run_id": _column("-", "identity of the run"),
+    "surface": _column("-", "controlled surface: " + ", ".join(SURFACES)),
+    "manoeuvre": _column("-", "fault-free manoeuvre: " + ", ".join(MANOEUVRES)),
+    "fault": _column("-", "fault type: " + ", ".join(FAULTS)),
+    "onset_s": _column("s", "fault onset (NaN for a fault-free run)"),
+    "magnitude": _column("(per fault)", "fault magnitude, see scenarios.faults"),
+    "freq_hz": _column("Hz", "oscillation frequency of an OFC (NaN otherwise)"),
+    "alt_ft": _column("ft", "true pressure altitude", ge=0.0, le=45000.0),
+    "vcas_kt": _column("kt", "true calibrated airspeed", ge=80.0, le=400.0),
+    "mass_t": _column("t", "true mass", ge=50.0, le=300.0),
+    "cg_pct": _column("% MAC", "true centre of gravity", ge=0.0, le=60.0),
+    "d_cx": _draw("relative error of the drag coefficient Cx ([CHEN] Table 2)"),
+    "d_cy": _draw("relative error of the side-force coefficient Cy ([CHEN] Table 2)"),
+    "d_cz": _draw("relative error of the lift coefficient Cz ([CHEN] Table 2)"),
+    "d_cl": _draw("relative error of the rolling-moment coefficient Cl ([CHEN] Table 2)"),
+    "d_cm": _draw("relative error of the pitching-moment coefficient Cm ([CHEN] Table 2)"),
+    "d_cn": _draw("relative error of the yawing-moment coefficient Cn ([CHEN] Table 2)"),
+    "d_vcas": _draw("relative VCAS measurement error ([CHEN] Table 2)"),
+    "d_alt": _draw("relative altitude measurement error ([CHEN] Table 2)"),
+    "d_mass": _draw("relative mass estimation error ([CHEN] Table 2)"),
+    "d_cg": _draw("relative CG estimation error ([CHEN] Table 2)"),
+    "d_supply": _draw("relative supply-pressure mismatch (docs/physics.md §6, est.)"),
+    "d_kci": _draw("relative servo-valve gain mismatch (docs/physics.md §6, est.)"),
+    "d_ch0": _draw("relative mismatch of the hinge-moment coefficient Ch0 (docs/physics.md "
+                   "§6, est.)", HINGE_DRAW_LIMIT),
+    "d_cha": _draw("relative mismatch of the hinge-moment derivative Chα (docs/physics.md "
+                   "§6, est.)", HINGE_DRAW_LIMIT),
+    "d_chd": _draw("relative mismatch of the hinge-moment derivative Chδ (docs/physics.md "
+                   "§6, est.)", HINGE_DRAW_LIMIT),
+    "seed": _column("-", "campaign seed"),
+    "stream": _column("-", "run stream index: SeedSequence(seed, spawn_key=(stream,))"),
+    "duration_s": _column("s", "run duration", ge=1.0, le=3600.0),
 }
 
 #: Optional columns of a run row (absent or NaN: the default behaviour).
-OPTIONAL_RUN_COLUMNS: dict[str, tuple[str, str]] = {
-    "manoeuvre_start_s": ("s", "fixed start of the manoeuvre (NaN: sampled per run)"),
-    "manoeuvre_set": ("-", "manoeuvre set the run flies: " + ", ".join(MANOEUVRE_SETS)
-                      + " (absent: normal; docs/physics.md §7)"),
+OPTIONAL_RUN_COLUMNS: dict[str, Declared] = {
+    "manoeuvre_start_s": _column("s", "fixed start of the manoeuvre (NaN: sampled per run)"),
+    "manoeuvre_set": _column("-", "manoeuvre set the run flies: " + ", ".join(MANOEUVRE_SETS)
+                             + " (absent: normal; docs/physics.md §7)"),
 }
 
 #: Manoeuvre set of a run row without a ``manoeuvre_set`` column.
 DEFAULT_MANOEUVRE_SET = MANOEUVRE_SETS[0]
 
-#: Physical ranges accepted for run rows (inclusive): column → (low, high).
+#: Physical ranges accepted for run rows (inclusive), read from :data:`RUN_COLUMNS`:
+#: column → (low, high).
 RUN_RANGES: dict[str, tuple[float, float]] = {
-    "alt_ft": (0.0, 45000.0),
-    "vcas_kt": (80.0, 400.0),
-    "mass_t": (50.0, 300.0),
-    "cg_pct": (0.0, 60.0),
-    "duration_s": (1.0, 3600.0),
-    **{f"d_{c}": (-0.5, 0.5) for c in envelope.AERO_COEFFICIENTS},
-    "d_vcas": (-0.5, 0.5), "d_alt": (-0.5, 0.5), "d_mass": (-0.5, 0.5),
-    "d_cg": (-0.5, 0.5), "d_supply": (-0.5, 0.5), "d_kci": (-0.5, 0.5),
-    **{f"d_{c}": (-0.9, 0.9) for c in envelope.HINGE_COEFFICIENTS},
-}
+    c: (d.ge, d.le) for c, d in RUN_COLUMNS.items() if d.bounded}
 
 
 class RunSpecError(ValueError):
@@ -102,8 +114,8 @@ def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> N
         v = pd.to_numeric(runs[col], errors="coerce").to_numpy(float)
         bad = ~np.isfinite(v) | (v < lo) | (v > hi)
         if bad.any():
-            errors.append(f"{col}: {int(bad.sum())} value(s) outside [{lo:g}, {hi:g}] "
-                          f"{RUN_COLUMNS[col][0]} (first: {float(v[bad][0])!r})")
+            errors.append(f"{col}: {int(bad.sum())} value(s) out of range; allowed: "
+                          f"{RUN_COLUMNS[col].range_text(col)} (first: {float(v[bad][0])!r})")
     if runs["surface"].nunique() > 1 or runs["duration_s"].nunique() > 1:
         errors.append("a batch must share one surface and one duration_s; split it first")
     fault = runs["fault"].astype(str).to_numpy()

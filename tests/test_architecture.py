@@ -16,7 +16,7 @@ PACKAGES = ("campaign", "scenarios", "detectors", "reports")
 #: Which package may import which (docs/design.md §2).
 MAY_IMPORT = {
     "campaign": {"campaign", "scenarios", "detectors", "reports"},
-    "detectors": {"detectors", "scenarios"},
+    "detectors": {"detectors", "scenarios", "reports"},
     "scenarios": {"scenarios"},
     "reports": {"reports"},
 }
@@ -147,3 +147,46 @@ def test_no_citation_points_outside_the_repository():
                if ".venv" not in p.parts and p != Path(__file__).resolve()
                and re.search(r"\b(PHYSICS|DESIGN)(\.md)?,? ?§|shared/", p.read_text(encoding="utf-8"))]
     assert outside == []
+
+
+#: Names that have one definition in the project (issue 34: one declaration mechanism, one
+#: run-variable space, one Clopper–Pearson, one natural sort, one progress reporter, one
+#: engine-version fallback), with the module that holds it.
+ONE_DEFINITION = {
+    "range_text": "scenarios.declare", "num": "scenarios.declare",
+    "toml_value": "scenarios.declare", "FLIGHT_COLUMNS": "scenarios.envelope",
+    "upper_bound": "reports.metrics", "natural_key": "reports.summary",
+    "Progress": "campaign.runner", "engine_version": "campaign.files",
+}
+
+
+def _top_level(tree: ast.Module):
+    """The statements of a module and of its classes (not those inside functions)."""
+    for node in tree.body:
+        yield node
+        if isinstance(node, ast.ClassDef):
+            yield from node.body
+
+
+def test_each_shared_helper_is_defined_once():
+    defined = {}
+    for name, path in MODULES.items():
+        for node in _top_level(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                targets = [node.name]
+            elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+                nodes = node.targets if isinstance(node, ast.Assign) else [node.target]
+                targets = [t.id for t in nodes if isinstance(t, ast.Name)]
+            else:
+                continue
+            for t in targets:
+                if t in ONE_DEFINITION:
+                    defined.setdefault(t, set()).add(name)
+    assert defined == {t: {m} for t, m in ONE_DEFINITION.items()}
+    # nor written out again: the four flight-point columns as a literal
+    flight = ["alt_ft", "vcas_kt", "mass_t", "cg_pct"]
+    literal = [name for name, path in MODULES.items()
+               for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+               if isinstance(node, (ast.Tuple, ast.List))
+               and [getattr(e, "value", None) for e in node.elts] == flight]
+    assert literal == ["scenarios.envelope"]

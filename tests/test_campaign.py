@@ -432,3 +432,23 @@ def test_evaluate_stores_the_estimation_error_of_detectors_that_estimate_the_fau
         assert z.loc[rid, "est_range_mm"] == estimation_range_mm(ELEVATOR)
     assert np.isnan(z.loc["ff", "est_err_mean_mm"]) and np.isnan(z.loc["ff", "est_range_mm"])
     assert (out.loc[out["detector"] == "n", "est_err_n"] == 0).all()
+
+
+def test_the_progress_reporter_rates_only_the_runs_computed_now():
+    """One reporter for run, falsify and certify (campaign.runner.Progress): runs done
+    before it started or read back count as done, never in the rate, so the ETA is not
+    made short by a resume."""
+    from campaign.runner import Progress
+
+    lines: list[str] = []
+    bar = Progress(100, done=40, log=lines.append, label="sampling x: ")
+    bar.update(20, computed=False, note=" (read back)")
+    # nothing computed yet: no rate, no ETA (not an infinite speed)
+    assert lines[-1] == ("sampling x: 60/100 runs  60.0 %      0.0 runs/s  ETA   nan s"
+                         " (read back)")
+    bar.update(10)
+    assert lines[-1].startswith("sampling x: 70/100 runs  70.0 %")
+    assert float(lines[-1].split()[6]) > 0.0           # the 10 computed runs give a rate
+    quiet = Progress(5, enabled=False, log=lines.append)
+    quiet.update(5)
+    assert len(lines) == 2 and quiet.done == 5

@@ -14,7 +14,8 @@ from scipy import stats
 from campaign.certify_levels import (EXTRAPOLATION_DECADES, LEVEL_COLUMNS, detector_rows,
                                      parse_levels, runs_to_carry, sampling_levels_to_reach)
 from campaign.certify_validate import coverage_table
-from detectors.tail import counted_bound, exceedance_curve
+from detectors.tail import exceedance_curve
+from reports.metrics import upper_bound
 
 
 def _two_class_sample(seed, n_per=400):
@@ -45,7 +46,7 @@ def test_mixture_of_class_tails_covers_a_known_mixture():
             assert e.estimate == pytest.approx(sum(p[2] * p[4] for p in e.parts), rel=1e-12)
             assert e.upper == pytest.approx(sum(p[3] * p[4] for p in e.parts), rel=1e-12)
         # never above the pooled counting bound, which is valid for the mixture too
-        assert e.upper <= counted_bound(e.count, x.size) * (1 + 1e-12)
+        assert e.upper <= upper_bound(e.count, x.size) * (1 + 1e-12)
         covered += all(c.upper >= _true(c.level) for c in curve)
     # 95 % one-sided bounds; the mixture's is the sum of the class bounds (conservative):
     # at least 17 of 20 samples cover at every level (18 measured; P(≤ 16 of 20 | 0.95) =
@@ -77,7 +78,7 @@ def test_runs_and_sampling_needed_to_carry_a_bound():
     assert runs_to_carry(1e-7) == math.ceil(math.log(0.05) / math.log1p(-1e-5))
     assert 0.95 * 3e5 < runs_to_carry(1e-7) < 1.05 * 3e5
     n = runs_to_carry(1e-7)
-    assert counted_bound(0, n) / 100 <= 1e-7 < counted_bound(0, n - 1) / 100
+    assert upper_bound(0, n) / 100 <= 1e-7 < upper_bound(0, n - 1) / 100
     assert sampling_levels_to_reach(1e-7) == 7 and sampling_levels_to_reach(2e-5) == 5
 
 
@@ -115,7 +116,7 @@ def test_a_class_too_small_to_fit_is_counted_in_the_mixture():
     parts = {p[0]: p for p in e.parts}
     assert parts["s"][1] == "counted"
     c = int((x[cls == "s"] >= 6.0).sum())
-    assert parts["s"][3] == pytest.approx(counted_bound(c, 30), rel=1e-12)
+    assert parts["s"][3] == pytest.approx(upper_bound(c, 30), rel=1e-12)
     assert parts["s"][4] == pytest.approx(30 / 430) and parts["l"][1] == "tail"
 
 

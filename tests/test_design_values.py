@@ -147,6 +147,35 @@ def test_flight_points_span_the_envelope_box():
     assert not plan["realistic"].all() and plan["realistic"].any()
 
 
+def test_design_falsify_and_certify_share_one_run_variable_space():
+    """The mc design draws the run variables in the ranges of variable_ranges, falsify
+    searches them there (held where a range is one value) and certify re-samples those that
+    vary among the fault-free runs there: one space, so a run any of them makes is one the
+    design could have drawn."""
+    from campaign.certify import run_variables
+    from campaign.design import RUN_VARIABLES, variable_ranges
+    from campaign.falsify import search_space
+
+    cfg = config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"], "count": 64}],
+                 campaign={"realistic_only": False},
+                 uncertainty={"aero": 0.05, "vcas": 0.1, "alt": 0.1, "mass": 0.1, "cg": 0.0})
+    ranges = variable_ranges(cfg)
+    assert tuple(ranges) == RUN_VARIABLES
+    assert ranges["alt_ft"] == (min(cfg.envelope.alt_ft), max(cfg.envelope.alt_ft))
+    assert ranges["d_vcas"] == (-0.1, 0.1) and ranges["d_cg"] == (-0.0, 0.0)
+    plan = build_plan(cfg)
+    for col, (lo, hi) in ranges.items():            # every drawn value inside its range
+        assert plan[col].between(lo, hi).all(), col
+    space = search_space(cfg)
+    searched = {**space.bounds, **{k: (v, v) for k, v in space.held.items()}}
+    assert {k: searched[k] for k in ranges if k in space.bounds} == \
+        {k: ranges[k] for k in space.bounds if k in ranges}
+    assert space.held["d_cg"] == 0.0                # a zero half-width is held, not searched
+    sampled = run_variables(cfg, plan)
+    assert "d_cg" not in sampled and sampled == {k: ranges[k] for k in sampled}
+    assert set(sampled) == set(RUN_VARIABLES) - {"d_cg"}
+
+
 def test_onsets_fill_their_interval_on_the_time_grid(plan):
     """docs/physics.md §5: onset uniform in [onset_min_s, duration_s − onset_before_end_s] =
     [6, 28] s, rounded to the sampling grid."""

@@ -79,27 +79,29 @@ def test_every_problem_is_reported_at_once_naming_value_allowed_and_fix():
         "rename or remove "
         "safty",
         "poles = [0.9, 0.9]: 0.9 repeated; allowed: a single number or a non-empty list of "
-        "finite numbers, each in (0, 1), all different; fix: e.g. poles = "
+        "finite numbers, each 0 < value < 1, all different; fix: e.g. poles = "
         "(0.6, 0.8, 0.9, 0.95, 0.99) (the default), or remove it",
-        "kappa = [0.1, 0.1]: 2 values, not 3; allowed: a list of 3 finite numbers, each > 0 "
+        "kappa = [0.1, 0.1]: 2 values, not 3; allowed: a list of 3 finite numbers, each value > 0 "
         "[-, 1/mm, -]; fix: e.g. kappa = (0.02, 0.02, 0.06) (the default), or remove it",
-        "q_max = 2.5: a number, not an integer; allowed: an integer ≥ 2 [steps]; fix: e.g. "
-        "q_max = 300 (the default), or remove it",
+        "q_max = 2.5: a number, not an integer; allowed: an integer with q_max ≥ 2 [steps]; "
+        "fix: e.g. q_max = 300 (the default), or remove it",
         "sensor = 'rod': not one of the choices (did you mean 'rod_mon'?); allowed: one of "
         "'rod_com', 'rod_mon', 'surface'; fix: e.g. sensor = 'rod_com' (the default), or "
         "remove it",
         "use_power_law = 1: an integer, not true or false; allowed: true or false; fix: e.g. "
         "use_power_law = False (the default), or remove it",
-        "floor_mm = 0.0: out of range; allowed: a finite number > 0 [mm]; fix: e.g. "
-        "floor_mm = 0.0001 (the default), or remove it",
+        "floor_mm = 0.0: out of range; allowed: a finite number with floor_mm > 0 [mm]; "
+        "fix: e.g. floor_mm = 0.0001 (the default), or remove it",
     ]
 
 
 @pytest.mark.parametrize("params, expected", [
-    ({"safety": float("inf")}, "safety = inf: not finite; allowed: a finite number > 1"),
-    ({"safety": True}, "safety = True: a bool, not a number; allowed: a finite number > 1"),
+    ({"safety": float("inf")}, "safety = inf: not finite; allowed: a finite number with "
+                               "safety > 1"),
+    ({"safety": True}, "safety = True: a bool, not a number; allowed: a finite number with "
+                       "safety > 1"),
     ({"confirm_s": "long"}, "confirm_s = 'long': a string, not a number; allowed: a finite "
-                            "number ≥ 0 [s]"),
+                            "number with confirm_s ≥ 0 [s]"),
     ({"checks": []}, "checks = []: an empty list; allowed: one of 'loop', 'com_mon', "
                      "'surface', or a non-empty list of them"),
     ({"checks": ["loop", "surfce"]}, "checks = ['loop', 'surfce']: 'surfce' not among the "
@@ -114,12 +116,12 @@ def test_each_kind_of_problem_reads_naturally(params, expected):
 
 def test_a_bound_can_name_another_parameter():
     assert parameter_errors("vanek-geometric", {"decay": 2.0, "radius": 1.0}) == [
-        "radius = 1.0: not > decay = 2.0; allowed: a finite number > decay [rad/s]; fix: "
-        "e.g. radius = 20.0 (the default), or remove it"]
+        "radius = 1.0: not > decay = 2.0; allowed: a finite number with radius > decay "
+        "[rad/s]; fix: e.g. radius = 20.0 (the default), or remove it"]
     # the default radius no longer fits: say what to move instead
     assert parameter_errors("vanek-geometric", {"decay": 30.0}) == [
-        "radius = 20.0: not > decay = 30.0; allowed: a finite number > decay [rad/s]; fix: "
-        "raise radius above decay = 30.0, or lower decay"]
+        "radius = 20.0: not > decay = 30.0; allowed: a finite number with radius > decay "
+        "[rad/s]; fix: raise radius above decay = 30.0, or lower decay"]
     # an invalid decay is reported alone: radius cannot be compared with it
     (msg,) = parameter_errors("vanek-geometric", {"decay": -1.0, "radius": -2.0})
     assert msg.startswith("decay = -1.0: out of range")
@@ -155,8 +157,8 @@ def test_the_campaign_file_reports_every_parameter_problem(tmp_path):
         load_config(path)
     errors = info.value.errors
     assert errors == [
-        "detector[0].params: safety = 0.5: out of range; allowed: a finite number > 1; fix: "
-        "e.g. safety = 1.5 (the default), or remove it",
+        "detector[0].params: safety = 0.5: out of range; allowed: a finite number with "
+        "safety > 1; fix: e.g. safety = 1.5 (the default), or remove it",
         "detector[0].params: checks = ['loop', 'surfce']: 'surfce' not among the choices "
         "(did you mean 'surface'?); allowed: one of 'loop', 'com_mon', 'surface', or a "
         "non-empty list of them; fix: e.g. checks = ('loop', 'com_mon', 'surface') (the "
@@ -201,14 +203,14 @@ def test_a_detector_without_declarations_refuses_unknown_names_only():
 
 def test_parameter_table_lists_declared_and_undeclared_parameters():
     assert parameter_table(_Declared) == [
-        {"name": "pole", "type": "float", "default": 0.9, "allowed": "[0, 1)", "unit": "-",
+        {"name": "pole", "type": "float", "default": 0.9, "allowed": "0 ≤ pole < 1", "unit": "-",
          "doc": "pole a of the residual filter (est.)"},
         {"name": "mode", "type": "str", "default": "abs", "allowed": "abs, rel", "unit": "-",
          "doc": "residual form ([X] §2)"},
         {"name": "label", "type": "", "default": None, "allowed": "", "unit": "", "doc": ""},
     ]
     with pytest.raises(ValueError, match=r"pole = 1\.0: out of range; allowed: a finite "
-                                         r"number in \[0, 1\)"):
+                                         r"number with 0 ≤ pole < 1"):
         _Declared(pole=1.0).validate_params()
 
 
@@ -243,3 +245,4 @@ def test_reference_lists_every_builtin_parameter(capsys):
             assert f"| `{row['name']}` | {row['type']} |" in md
     assert main(["--markdown"]) == 0
     assert capsys.readouterr().out == md
+

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from reports.metrics import (RESULT_COLUMNS, SCORE_COLUMNS, clopper_pearson, score_runs,
-                             upper_bound)
+from reports.metrics import (RESULT_COLUMNS, SCORE_COLUMNS, clopper_pearson, lower_bound,
+                             score_runs, upper_bound)
 
 TS = 0.1          # [s] sampling period of the constructed runs
 N_STEPS = 60      # 6 s runs
@@ -309,6 +309,15 @@ def test_upper_bound_of_all_failures_is_one():
     # k = n: Beta(k+1, 0) is undefined, the bound is 1 by definition (docs/design.md §5)
     assert upper_bound(10, 10) == 1.0
     assert list(upper_bound(np.array([0, 5]), np.array([5, 5]))[1:]) == [1.0]
+
+
+def test_lower_bound_closed_forms():
+    # k = 0: nothing bounds the rate away from 0; k = n: Beta(n, 1) has CDF p^n, so the
+    # one-sided lower bound is (1 − c)^(1/n): 0.05^(1/20) = 0.8609 (rel 1e-12: beta.ppf
+    # is evaluated to round-off, not by root finding)
+    assert lower_bound(0, 20) == 0.0
+    assert lower_bound(20, 20) == pytest.approx(0.05 ** (1 / 20), rel=1e-12)
+    assert math.isnan(lower_bound(0, 0))
 
 
 # ---- fault-estimation error ([CHEN] §6.2) ----------------------------------------------------

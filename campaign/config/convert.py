@@ -18,14 +18,13 @@ from typing import Any, Callable
 from scenarios.catalog import REQUIRED_DETECTION_TIME_S, suggest
 
 from .keys import Key, freeze, leaf_fields, table_fields
-from .text import example_value, num, range_text, short, toml_value, type_word
+from .text import example_value, num, short, toml_value, type_word
 
 __all__ = [
     "ConfigError",
     "BAD",
     "is_ok",
     "is_number",
-    "out_of_range",
     "convert_value",
     "check_plain",
     "build_table",
@@ -74,15 +73,6 @@ def is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def out_of_range(spec: Key, x: float) -> bool:
-    """Whether *x* is not finite or outside the range of *spec*."""
-    if not math.isfinite(x):
-        return True
-    if spec.lo is not None and (x < spec.lo or (spec.lo_open and x <= spec.lo)):
-        return True
-    return spec.hi is not None and x > spec.hi
-
-
 # ----------------------------------------------------------------------------------------
 # One value
 # ----------------------------------------------------------------------------------------
@@ -123,16 +113,16 @@ def _to_bool(c: _Check, value: Any) -> Any:
 def _to_int(c: _Check, value: Any) -> Any:
     if not isinstance(value, int) or isinstance(value, bool):
         return c.bad(f"expected an integer, {c.got}; {c.fix}")
-    if out_of_range(c.spec, value):
-        return c.bad(f"{value} is out of range; allowed: {range_text(c.spec, c.name)}")
+    if c.spec.out_of_range(value):
+        return c.bad(f"{value} is out of range; allowed: {c.spec.range_text(c.name)}")
     return value
 
 
 def _to_float(c: _Check, value: Any) -> Any:
     if not is_number(value):
         return c.bad(f"expected a number, {c.got}; {c.fix}")
-    if out_of_range(c.spec, float(value)):
-        return c.bad(f"{num(value)} is out of range; allowed: {range_text(c.spec, c.name)}")
+    if c.spec.out_of_range(float(value)):
+        return c.bad(f"{num(value)} is out of range; allowed: {c.spec.range_text(c.name)}")
     return float(value)
 
 
@@ -145,9 +135,9 @@ def _to_floats(c: _Check, value: Any) -> Any:
             c.errors.append(f"{c.path}[{i}]: expected a number, got {type_word(x)} "
                             f"{short(x)}; {c.fix}")
             ok = False
-        elif out_of_range(c.spec, float(x)):
+        elif c.spec.out_of_range(float(x)):
             c.errors.append(f"{c.path}[{i}]: {num(x)} is out of range; allowed: "
-                            f"{range_text(c.spec)}")
+                            f"{c.spec.range_text()}")
             ok = False
     if not ok:
         return BAD
@@ -164,9 +154,9 @@ def _to_pair(c: _Check, value: Any) -> Any:
     low, high = float(value[0]), float(value[1])
     ok = True
     for label, x in (("low", low), ("high", high)):
-        if out_of_range(c.spec, x):
+        if c.spec.out_of_range(x):
             c.errors.append(f"{c.path}: {label} {num(x)} is out of range; allowed: "
-                            f"{range_text(c.spec)}")
+                            f"{c.spec.range_text()}")
             ok = False
     if ok and low > high:
         return c.bad(f"low {num(low)} > high {num(high)}; fix: write [low, high] with "
@@ -219,9 +209,9 @@ def _to_fault_seconds(c: _Check, value: Any) -> Any:
             c.errors.append(f"{c.path}.{k}: expected a number of seconds, got "
                             f"{type_word(x)} {short(x)}; fix: e.g. {k} = 1.0")
             ok = False
-        elif out_of_range(spec, float(x)):
+        elif spec.out_of_range(float(x)):
             c.errors.append(f"{c.path}.{k}: {num(x)} is out of range; allowed: "
-                            f"{range_text(spec, k)}")
+                            f"{spec.range_text(k)}")
             ok = False
         else:
             merged[k] = float(x)
@@ -242,9 +232,9 @@ def _to_number_table(c: _Check, value: Any) -> Any:
             c.errors.append(f"{c.path}.{k}: expected a number, got {type_word(x)} "
                             f"{short(x)}; fix: e.g. {k} = 1.0")
             ok = False
-        elif out_of_range(c.spec, float(x)):
+        elif c.spec.out_of_range(float(x)):
             c.errors.append(f"{c.path}.{k}: {num(x)} is out of range; allowed: "
-                            f"{range_text(c.spec, k) or 'a finite number'}")
+                            f"{c.spec.range_text(k) or 'a finite number'}")
             ok = False
     if not ok:
         return BAD

@@ -23,7 +23,7 @@ from .rules import MOVED_KEYS
 from .schema import iter_tables
 from .sections import (ARRAY_EXAMPLES, FAULT_MAGNITUDE_KEY, FAULT_VARIANTS, MAGNITUDE_VARIANT,
                        FaultsSection)
-from .text import example_value, range_text, shown_default, toml_value
+from .text import example_value, shown_default, toml_value
 
 __all__ = ["init_text", "schema_markdown", "main"]
 
@@ -50,15 +50,15 @@ def _allowed_text(spec: Key, name: str = "value") -> str:
     if spec.kind == "names":
         return "any of " + ", ".join(spec.choices) + "; or [\"all\"]"
     if spec.kind == "fault_seconds":
-        return "keys " + ", ".join(spec.choices) + "; each " + range_text(spec, "value")
+        return "keys " + ", ".join(spec.choices) + "; each " + spec.range_text("value")
     if spec.kind == "table":
         return "the detector's keyword parameters"
     if spec.kind == "number_table":
-        return "each value " + (range_text(spec, "value") or "a finite number")
+        return "each value " + (spec.range_text("value") or "a finite number")
     if spec.kind in ("int", "float"):
-        return range_text(spec, name)
+        return spec.range_text(name)
     if spec.kind in ("floats", "pair"):
-        return "each " + range_text(spec, "value")
+        return "each " + spec.range_text("value")
     return ""
 
 

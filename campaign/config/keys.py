@@ -16,6 +16,8 @@ import dataclasses
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Mapping
 
+from scenarios.declare import Declared
+
 __all__ = [
     "KIND_NAMES",
     "Key",
@@ -48,34 +50,25 @@ KIND_NAMES: dict[str, str] = {
 
 
 @dataclass(frozen=True)
-class Key:
-    """Description of one key of the campaign file (stored in a dataclass field's metadata).
+class Key(Declared):
+    """Description of one key of the campaign file (stored in a dataclass field's metadata):
+    a :class:`scenarios.declare.Declared` (doc, unit, source, bounds gt/ge/lt/le) and
 
     kind : one of :data:`KIND_NAMES`.
-    doc : one-line description.
-    unit : physical unit (``"s"``, ``"ft"``, …) or ``""``.
-    lo, hi : inclusive bounds of a number (``lo_open``: lower bound excluded).
     choices : allowed names (``choice`` and ``names`` kinds).
     required : the key has no default and must be given.
     optional : the key may be left out; its value is then ``None`` (meaning in ``default_doc``).
     example : value shown in the starting file and in messages.
-    source : where the default comes from.
     only : ``"mc"`` when the key applies to ``design = "mc"`` only (an error with ``grid``).
     nonempty : a string that must not be empty.
     """
 
     kind: str
-    doc: str
-    unit: str = ""
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
     choices: tuple[str, ...] = ()
     required: bool = False
     optional: bool = False
     example: Any = None
     default_doc: str = ""
-    source: str = ""
     only: str = ""
     nonempty: bool = False
 

@@ -27,7 +27,7 @@ from typing import Any, Mapping
 from detectors.compat import incompatibilities, offline_problems
 from scenarios.catalog import DETECTION_BUDGET_S, MANOEUVRES, latest_onset_s, suggest
 
-from .convert import is_ok, out_of_range
+from .convert import is_ok
 from .keys import key_spec, leaf_fields, thaw
 from .sections import (
     FAULT_MAGNITUDE_KEY,
@@ -41,7 +41,7 @@ from .sections import (
     PlantSection,
     PlantVariables,
 )
-from .text import num, range_text
+from .text import num
 
 __all__ = ["normalise", "check_rules", "check_detectors", "requirement_name_problems",
            "derive_group_names"]
@@ -306,10 +306,10 @@ def _check_magnitude(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
         return
     sub, k = FAULT_MAGNITUDE_KEY[fault]
     spec = key_spec(FaultsSection, sub, k)
-    if out_of_range(spec, g["magnitude"]):
+    if spec.out_of_range(g["magnitude"]):
         errors.append(f"{p}.magnitude: {num(g['magnitude'])} is out of range "
                       f"for {fault}; allowed: "
-                      f"{range_text(spec, 'magnitude')}")
+                      f"{spec.range_text('magnitude')}")
         return
     _announce_fixed_magnitude(g, p, fault)
 
@@ -447,11 +447,11 @@ def _check_realistic(r: Mapping, p: str, camp: Mapping, unc: Mapping,
 
     from scenarios import envelope
 
-    point = [r[k] for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")]
+    point = [r[k] for k in envelope.FLIGHT_COLUMNS]
     widths = {k: v for k, v in unc.items() if k != "__present__"}
     if not (camp["realistic_only"] is True and is_ok(*point, *widths.values())):
         return
-    frame = pd.DataFrame([point], columns=["alt_ft", "vcas_kt", "mass_t", "cg_pct"])
+    frame = pd.DataFrame([point], columns=list(envelope.FLIGHT_COLUMNS))
     flags = envelope.realistic_rule(frame, SimpleNamespace(**widths))
     if not bool(flags["realistic"].iloc[0]):
         errors.append(f"{p}: flight point {num(point[0])} ft, {num(point[1])} kt, "

@@ -77,19 +77,19 @@ _CHEN_T2 = "[CHEN] Table 2"
 def _envelope_key(name: str, values: tuple[float, ...], what: str):
     lo, hi, unit = FLIGHT_POINT_RANGES[name]
     return key("floats", f"{what}: grid values; Monte Carlo samples uniformly between "
-               "their min and max", values, unit=unit, lo=lo, hi=hi, source=_CHEN_T1)
+               "their min and max", values, unit=unit, ge=lo, le=hi, source=_CHEN_T1)
 
 
 def _fixed_point_key(name: str, what: str, example: float):
     lo, hi, unit = FLIGHT_POINT_RANGES[name]
     return key("float", f"fixed {what} for every run of the group (replaces that envelope "
-               "axis)", unit=unit, lo=lo, hi=hi, optional=True,
+               "axis)", unit=unit, ge=lo, le=hi, optional=True,
                default_doc="from [envelope]", example=example)
 
 
 def _half_width(doc: str, default: float, source: str):
     return key("float", doc + " (relative half-width of a uniform draw)", default,
-               unit="-", lo=0.0, hi=0.5, source=source)
+               unit="-", ge=0.0, le=0.5, source=source)
 
 
 # ----------------------------------------------------------------------------------------
@@ -101,13 +101,13 @@ class CampaignSection:
                     nonempty=True)
     description: str = key("str", "free text describing the campaign", "")
     seed: int = key("int", "master seed: run i draws from SeedSequence(seed, spawn_key=(i,))",
-                    0, lo=0)
+                    0, ge=0)
     surface: str = key("choice", "control surface whose servo-loop is simulated", "elevator",
                        choices=SURFACES)
     duration_s: float = key("float", "duration of every evaluation run", 60.0, unit="s",
-                            lo=20.0, hi=600.0)
+                            ge=20.0, le=600.0)
     ts_s: float = key("float", "sampling period of the simulation and of the signals", 0.01,
-                      unit="s", lo=0.001, hi=0.05)
+                      unit="s", ge=0.001, le=0.05)
     design: str = key("choice", "mc: Monte Carlo sampling of the envelope; grid: every "
                       "envelope point × uncertainty levels {min, 0, max}", "mc",
                       choices=("mc", "grid"))
@@ -133,7 +133,7 @@ class EnvelopeSection:
 
 def _coefficient_width(doc: str, shorthand: str, source: str, example: float):
     return key("float", doc + " (relative half-width of its own uniform draw; wins over "
-               f"{shorthand})", unit="-", lo=0.0, hi=0.5, source=source, optional=True,
+               f"{shorthand})", unit="-", ge=0.0, le=0.5, source=source, optional=True,
                default_doc=f"the value of {shorthand}", example=example)
 
 
@@ -169,8 +169,8 @@ class MismatchSection:
 
 
 def _pair(doc: str, default: tuple[float, float], unit: str, hi: float, source: str):
-    return key("pair", doc + ", drawn uniformly in [low, high]", default, unit=unit, lo=0.0,
-               lo_open=True, hi=hi, source=source)
+    return key("pair", doc + ", drawn uniformly in [low, high]", default, unit=unit, gt=0.0,
+               le=hi, source=source)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -211,9 +211,9 @@ class OfcSolidRanges:
 
 @dataclass(frozen=True, kw_only=True)
 class FaultsSection:
-    onset_min_s: float = key("float", "earliest fault onset", 5.0, unit="s", lo=0.0, hi=600.0)
+    onset_min_s: float = key("float", "earliest fault onset", 5.0, unit="s", ge=0.0, le=600.0)
     onset_before_end_s: float = key("float", "latest onset is duration_s minus this", 10.0,
-                                    unit="s", lo=0.0, hi=600.0)
+                                    unit="s", ge=0.0, le=600.0)
     runaway: RunawayRanges = sub_table(RunawayRanges, "runaway magnitude (sign random)")
     liquid_jam: LiquidJamRanges = sub_table(LiquidJamRanges,
                                             "liquid-jam magnitude (sign random)")
@@ -257,11 +257,11 @@ class GroupSpec:
     fault: str = key("choice", "fault type of every run of the group (\"none\": fault-free)",
                      choices=FAULTS, example="none")
     count: int | None = key("int", "runs per manoeuvre (design = \"mc\": required; grid: "
-                            "leave out, one run per case)", lo=1, optional=True, only="mc",
+                            "leave out, one run per case)", ge=1, optional=True, only="mc",
                             default_doc="required with design = \"mc\"", example=10)
     onset_s: float | None = key("float", "fixed fault onset instead of the sampled one (before "
                                 "the end of the run)",
-                                unit="s", lo=0.0, hi=600.0, optional=True,
+                                unit="s", ge=0.0, le=600.0, optional=True,
                                 default_doc="sampled from [faults]", example=30.0)
     variant: str | None = key("choice", "variant of the fault (solid_jam only): \"seized\" — "
                               "rod and surface seized where they stand at onset; \"offset\" — "
@@ -273,11 +273,11 @@ class GroupSpec:
     magnitude: float | None = key("float", "fixed magnitude in the unit of its [faults.*] "
                                   "range (runaway deg/s, liquid_jam %, solid_jam with variant "
                                   "= \"offset\" %, ofc_liquid mA, ofc_solid mm); sign random "
-                                  "unless sign is given", lo=0.0, lo_open=True,
+                                  "unless sign is given", gt=0.0,
                                   optional=True, default_doc="sampled from [faults]",
                                   example=5.0)
     freq_hz: float | None = key("float", "fixed OFC frequency (ofc_liquid, ofc_solid only)",
-                                unit="Hz", lo=0.0, lo_open=True, hi=20.0, optional=True,
+                                unit="Hz", gt=0.0, le=20.0, optional=True,
                                 default_doc="sampled from [faults]", example=1.0)
     sign: str | None = key("choice", "fixed direction of the fault (runaway, hardover, "
                            "liquid_jam, solid_jam with variant = \"offset\" only): positive "
@@ -286,8 +286,8 @@ class GroupSpec:
                            default_doc="random", example="negative")
     manoeuvre_start_s: float | None = key(
         "float", "fixed start time of the manoeuvre instead of the sampled one (places its "
-        "transients, e.g. [COMB] §4 D_V2; before the end of the run)", unit="s", lo=0.0,
-        hi=600.0, optional=True, default_doc="sampled per run", example=14.3)
+        "transients, e.g. [COMB] §4 D_V2; before the end of the run)", unit="s", ge=0.0,
+        le=600.0, optional=True, default_doc="sampled per run", example=14.3)
     alt_ft: float | None = _fixed_point_key("alt_ft", "altitude", 28000.0)
     vcas_kt: float | None = _fixed_point_key("vcas_kt", "calibrated airspeed", 220.0)
     mass_t: float | None = _fixed_point_key("mass_t", "mass", 180.0)
@@ -302,7 +302,7 @@ RUN_STREAM_LIMIT: int = 2 ** 32 - 1
 
 def _run_point_key(name: str, what: str, example: float):
     lo, hi, unit = FLIGHT_POINT_RANGES[name]
-    return key("float", f"true {what} of the run", unit=unit, lo=lo, hi=hi, example=example)
+    return key("float", f"true {what} of the run", unit=unit, ge=lo, le=hi, example=example)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -315,7 +315,7 @@ class RunSpec:
                          example="pitch_protection")
     fault: str = key("choice", "fault type (\"none\": fault-free)", "none", choices=FAULTS)
     onset_s: float | None = key("float", "fault onset (faulty runs: required; before the end "
-                                "of the run)", unit="s", lo=0.0, hi=600.0, optional=True,
+                                "of the run)", unit="s", ge=0.0, le=600.0, optional=True,
                                 default_doc="none (fault-free)", example=30.0)
     magnitude: float | None = key("float", "signed fault magnitude in the run-table unit "
                                   "(scenarios/faults.py: runaway deg/s, liquid_jam mm, "
@@ -323,7 +323,7 @@ class RunSpec:
                                   "have one", optional=True, default_doc="none",
                                   example=-4.0)
     freq_hz: float | None = key("float", "OFC frequency (ofc_liquid, ofc_solid only; "
-                                "required there)", unit="Hz", lo=0.0, lo_open=True, hi=20.0,
+                                "required there)", unit="Hz", gt=0.0, le=20.0,
                                 optional=True, default_doc="none", example=1.0)
     alt_ft: float = _run_point_key("alt_ft", "pressure altitude", 28000.0)
     vcas_kt: float = _run_point_key("vcas_kt", "calibrated airspeed", 220.0)
@@ -332,14 +332,14 @@ class RunSpec:
     draws: tuple[tuple[str, float], ...] = key(
         "number_table", "relative deviations of the run, one per draw column of the run "
         "table (d_… = value, docs/physics.md §6); each within ± its half-width of "
-        "[uncertainty]/[mismatch]; a column left out is 0", (), lo=-0.9, hi=0.9,
+        "[uncertainty]/[mismatch]; a column left out is 0", (), ge=-0.9, le=0.9,
         source="scenarios/envelope.py DRAW_COLUMNS", example={"d_vcas": 0.05})
     stream: int = key("int", "random stream of the run: its noise, turbulence and manoeuvre "
-                      "shape come from SeedSequence(seed, spawn_key=(stream,))", lo=0,
-                      hi=RUN_STREAM_LIMIT, example=7)
+                      "shape come from SeedSequence(seed, spawn_key=(stream,))", ge=0,
+                      le=RUN_STREAM_LIMIT, example=7)
     manoeuvre_start_s: float | None = key(
         "float", "fixed start time of the manoeuvre (before the end of the run)", unit="s",
-        lo=0.0, hi=600.0, optional=True, default_doc="sampled from the stream",
+        ge=0.0, le=600.0, optional=True, default_doc="sampled from the stream",
         example=8.5)
 
 
@@ -365,30 +365,30 @@ class RequirementsSection:
     detection_time_s: tuple[tuple[str, float], ...] = key(
         "fault_seconds", "required detection time per fault type, the DTP denominator "
         "(entries given replace the defaults; ofc: 3 periods, value for 1 Hz)",
-        tuple(REQUIRED_DETECTION_TIME_S.items()), unit="s", lo=0.0, lo_open=True,
+        tuple(REQUIRED_DETECTION_TIME_S.items()), unit="s", gt=0.0,
         choices=FAULT_TYPES, source="est. (docs/physics.md §5)")
     max_fa_rate: float = key("float", "gate: highest accepted false-alarm rate", 0.0,
-                             lo=0.0, hi=1.0)
+                             ge=0.0, le=1.0)
     detector_max_fa_rate: tuple[tuple[str, float], ...] = key(
         "number_table", "gate: a detector's own highest accepted false-alarm rate in place of "
         "max_fa_rate (result name, e.g. \"chen-local[solid]\", or base label = rate; each "
         "must name a [[detector]] label of the file, checked before anything runs): the "
         "documented allowance of a detector known not to reach zero; the command-line "
-        "--max-fa overrides it", (), lo=0.0, hi=1.0, example={"chen-local[solid]": 0.3})
+        "--max-fa overrides it", (), ge=0.0, le=1.0, example={"chen-local[solid]": 0.3})
     max_md_rate: float = key("float", "gate: highest accepted missed-detection rate", 0.0,
-                             lo=0.0, hi=1.0)
+                             ge=0.0, le=1.0)
     max_dtp: float = key("float", "gate: highest accepted detection time performance "
-                         "(delay / required time)", 1.0, lo=0.0, lo_open=True)
+                         "(delay / required time)", 1.0, gt=0.0)
     fault_rate_per_fh: tuple[tuple[str, float], ...] = key(
         "number_table", "occurrence rate of each actuator fault mode per flight hour, for "
         "the hazard table of `fdd-campaign certify` (rate of undetected faults per flight "
         "hour, docs/evidence.md); entries given replace the defaults, 0 for a mode that "
         "cannot occur", tuple(sorted(DEFAULT_FAULT_RATES_PER_FH.items())), unit="1/FH",
-        lo=0.0, hi=1.0, choices=FAULT_TYPES, example={"runaway": 1e-6},
+        ge=0.0, le=1.0, choices=FAULT_TYPES, example={"runaway": 1e-6},
         source="est. (campaign.hazard.DEFAULT_FAULT_RATES_PER_FH)")
     detection_window_s: float | None = key("float", "a fault counts as detected only within "
-                                           "this time after onset", unit="s", lo=0.0,
-                                           lo_open=True, hi=600.0, optional=True,
+                                           "this time after onset", unit="s", gt=0.0,
+                                           le=600.0, optional=True,
                                            default_doc="rest of the run", example=5.0)
 
     def required_time(self, fault: str) -> float:
@@ -399,11 +399,11 @@ class RequirementsSection:
 @dataclass(frozen=True, kw_only=True)
 class LearningSection:
     runs_per_manoeuvre: int = key("int", "fault-free learning runs per manoeuvre (own seeds, "
-                                  "never evaluation runs)", 10, lo=1)
+                                  "never evaluation runs)", 10, ge=1)
     manoeuvres: tuple[str, ...] = key("names", "manoeuvres of the learning set, or [\"all\"]",
                                       MANOEUVRES, choices=MANOEUVRES)
-    duration_s: float | None = key("float", "duration of a learning run", unit="s", lo=20.0,
-                                   hi=600.0, optional=True,
+    duration_s: float | None = key("float", "duration of a learning run", unit="s", ge=20.0,
+                                   le=600.0, optional=True,
                                    default_doc="[campaign] duration_s", example=60.0)
 
 
@@ -423,15 +423,15 @@ class ManoeuvresSection:
 
 @dataclass(frozen=True, kw_only=True)
 class RunnerSection:
-    chunk_size: int = key("int", "runs simulated together by one worker task", 100, lo=1,
-                          hi=10000)
+    chunk_size: int = key("int", "runs simulated together by one worker task", 100, ge=1,
+                          le=10000)
     engine: str = key("choice", "implementation of the time loops: compiled (numba kernels) "
                       "or numpy (the reference they are tested against; last-bit differences "
                       "from transcendental functions)", "compiled", choices=("compiled", "numpy"))
     run_timeout_s: float | None = key("float", "time limit of one run on a worker process "
                                       "(a chunk gets this times its runs); a run exceeding it "
                                       "is recorded with status \"timeout\" and retried by a "
-                                      "rerun", unit="s", lo=0.0, lo_open=True, hi=86400.0,
+                                      "rerun", unit="s", gt=0.0, le=86400.0,
                                       optional=True, default_doc="no limit", example=60.0)
 
 

@@ -8,16 +8,15 @@ way.
 
 from __future__ import annotations
 
-import json
-import re
 from dataclasses import MISSING
-from typing import Any, Mapping
+from typing import Any
+
+from scenarios.declare import num, toml_value
 
 from .keys import Key, thaw
 
 __all__ = [
     "num",
-    "range_text",
     "toml_value",
     "type_word",
     "short",
@@ -25,51 +24,8 @@ __all__ = [
     "example_value",
 ]
 
-
-def num(x: float) -> str:
-    """A number as written in messages (``%g``, full precision beyond 10⁶)."""
-    return f"{x:g}" if abs(x) < 1e6 else repr(x)
-
-
-def range_text(spec: Key, name: str = "value") -> str:
-    """The allowed range of *spec* as ``lo ≤ name ≤ hi unit`` (``""`` when unbounded)."""
-    lo, hi = spec.lo, spec.hi
-    unit = f" {spec.unit}" if spec.unit and spec.unit != "-" else ""
-    lo_op = "<" if spec.lo_open else "≤"
-    if lo is not None and hi is not None:
-        return f"{num(lo)} {lo_op} {name} ≤ {num(hi)}{unit}"
-    if lo is not None:
-        return f"{name} {'>' if spec.lo_open else '≥'} {num(lo)}{unit}"
-    if hi is not None:
-        return f"{name} ≤ {num(hi)}{unit}"
-    return ""
-
-
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
-
-
-def _toml_key(k: str) -> str:
-    return k if _BARE_KEY.match(k) else json.dumps(k, ensure_ascii=False)
-
-
-def toml_value(v: Any) -> str:
-    """A TOML literal for a plain value (str, bool, int, float, list, dict)."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    if isinstance(v, Mapping):
-        if not v:
-            return "{}"
-        return "{ " + ", ".join(f"{_toml_key(k)} = {toml_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {type(v).__name__} as TOML")
-
+# The number format (num), the range text (Key.range_text) and the TOML literal
+# (toml_value) are those of every declared parameter (scenarios.declare).
 
 _TOML_TYPE = {str: "string", bool: "boolean", int: "integer", float: "float", list: "array",
               dict: "table"}
@@ -103,4 +59,4 @@ def example_value(spec: Key, default: Any) -> Any:
         return spec.example
     if default is not MISSING and default is not None:
         return shown_default(spec, default)
-    return spec.lo if spec.lo is not None else 1
+    return spec.lower if spec.lower is not None else 1
