@@ -174,7 +174,9 @@ def test_each_shared_helper_is_defined_once():
         for node in _top_level(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
                 targets = [node.name]
-            elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            elif isinstance(node, ast.Assign) or (isinstance(node, ast.AnnAssign)
+                                                  and node.value is not None):
+                # an annotation without a value (a dataclass field) defines nothing
                 nodes = node.targets if isinstance(node, ast.Assign) else [node.target]
                 targets = [t.id for t in nodes if isinstance(t, ast.Name)]
             else:
