@@ -37,6 +37,7 @@ from scenarios.envelope import DRAW_COLUMNS
 from scenarios.reference import integrate_reference
 from scenarios.simulate import RUN_COLUMNS, prepare
 
+from .cli_common import UsageError
 from .evaluate import detect, simulate_signals
 from .plant_bench import bench_settings
 
@@ -94,7 +95,7 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``;
     *progress*: called with a line naming each measurement as it starts (None: silent)."""
     if isinstance(stage_runs, bool) or int(stage_runs) != stage_runs or stage_runs < 1:
-        raise ValueError(f"--stage-runs {stage_runs}: must be an integer ≥ 1 (runs timed stage "
+        raise UsageError(f"--stage-runs {stage_runs}: must be an integer ≥ 1 (runs timed stage "
                          "by stage); fix: e.g. --stage-runs 200")
     names = [c.strip() for c in (campaign or "").split(",") if c.strip()]
     from .config import load_config

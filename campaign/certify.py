@@ -44,6 +44,7 @@ import pandas as pd
 from detectors.tail import CURVE_SHAPES, TailFitError, counted_bound, fit_tail
 from reports.metrics import FAULT_FREE
 from scenarios import envelope
+from scenarios.errors import InputError
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .design import run_id
@@ -73,7 +74,7 @@ FLIGHT_COLUMNS: tuple[str, ...] = ("alt_ft", "vcas_kt", "mass_t", "cg_pct")
 SAMPLING_STREAM_BASE = 2 ** 40
 
 
-class CertifyError(ValueError):
+class CertifyError(InputError, ValueError):
     """A campaign directory or an option certify cannot work from (exit 2)."""
 
 

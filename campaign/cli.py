@@ -1,5 +1,5 @@
 """``fdd-campaign``: the command line (docs/design.md §7, Command line). Exit codes: 0 ok, 1 gate
-failed, 2 bad input, 130 interrupted."""
+failed, 2 bad input, 3 internal error, 130 interrupted."""
 
 from __future__ import annotations
 
@@ -10,15 +10,19 @@ import warnings
 from functools import partial
 from pathlib import Path
 
+from scenarios.errors import InputError
+
 from . import cli_requirements as creq
 from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_GATE,
     EXIT_INPUT,
+    EXIT_INTERNAL,
     EXIT_INTERRUPTED,
     EXIT_OK,
     UsageError,
     check_writable,
     print_error,
+    report_internal_error,
 )
 from .isolation import isolation_of_stored
 
@@ -299,6 +303,9 @@ def cmd_show(args) -> int:
 def cmd_compare(args) -> int:
     from .compare import cmd_compare as compare
 
+    if not 0.0 < args.alpha < 1.0:
+        raise UsageError(f"--alpha {args.alpha}: a significance level in (0, 1); fix: e.g. "
+                         "--alpha 0.01")
     return compare(args)
 
 
@@ -406,14 +413,11 @@ def cmd_study_vanek(args) -> int:
 
 
 def cmd_fmu(args) -> int:
-    from scenarios.fmu_build import FmuBuildError, build_servo_fmu
+    from scenarios.fmu_build import build_servo_fmu
 
     check_writable(args.out, "--out")
-    try:
-        out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,
-                              log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
-    except FmuBuildError as exc:
-        raise UsageError(str(exc)) from None
+    out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,     # FmuBuildError: exit 2
+                          log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
     print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); run a "
           f"campaign on it with: fdd-campaign run smoke --plant {out} --out "
           f"{_out_dir(Path(out))}")
@@ -688,10 +692,10 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _note
             return args.func(args)
-    # bad input: every error of the engine that names a wrong value is a ValueError
-    # (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
-    # FmuError, UsageError), and a missing file; the message names the field and the fix
-    except (ValueError, FileNotFoundError) as exc:
+    # bad input: the user's mistake (scenarios.errors.InputError: a campaign file, an option,
+    # a directory, an FMU, a detector's name or parameters, a plugin that fails at the
+    # start), or a file that is missing; the message names the field and the fix
+    except (InputError, FileNotFoundError) as exc:
         print_error(str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
@@ -702,6 +706,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print_error("interrupted")
         return EXIT_INTERRUPTED
+    except Exception as exc:  # noqa: BLE001 - anything else is a fault of the engine or a library
+        report_internal_error(exc)
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

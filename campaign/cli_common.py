@@ -9,6 +9,8 @@ import os
 import sys
 from pathlib import Path
 
+from scenarios.errors import InputError
+
 #: BLAS libraries run one thread per process under the command line. The campaign's
 #: parallelism is its workers (``--jobs``: processes, or threads for the aircraft plant); a
 #: multi-threaded BLAS inside each of them oversubscribes the cores (on two cores a batch of
@@ -20,16 +22,41 @@ BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 for _variable in BLAS_THREAD_VARIABLES:
     os.environ.setdefault(_variable, "1")
 
-EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
-class UsageError(ValueError):
+class UsageError(InputError, ValueError):
     """Bad command-line input (exit code 2)."""
 
 
 def print_error(msg: str) -> None:
     """*msg* on stderr as the command line's error line (``fdd-campaign: error: …``)."""
     print(f"fdd-campaign: error: {msg}", file=sys.stderr)
+
+
+def report_internal_error(exc: BaseException) -> Path | None:
+    """Tell the user that *exc* is a fault of the engine or of a library it uses, not of
+    their input (exit code 3): one line on stderr naming the error, the file its traceback
+    was written to (a new file in the system's temporary folder) and the request to report
+    it. Returns that file (None when it could not be written: the traceback then goes to
+    stderr)."""
+    import tempfile
+    import traceback
+
+    text = "".join(traceback.format_exception(exc))
+    try:
+        handle, name = tempfile.mkstemp(prefix="fdd-campaign-error-", suffix=".txt", text=True)
+        with os.fdopen(handle, "w", encoding="utf-8") as file:
+            file.write(f"fdd-campaign {' '.join(sys.argv[1:])}\n\n{text}")
+        where = Path(name)
+    except OSError:
+        print(text, file=sys.stderr, end="")
+        where = None
+    print(f"fdd-campaign: internal error: {type(exc).__name__}: {exc}", file=sys.stderr)
+    print("  a fault of fdd-campaign or of a library it uses, not of your input; its traceback "
+          f"is {f'in {where}' if where else 'above'}: please report it with that traceback and "
+          "the command you ran", file=sys.stderr)
+    return where
 
 
 def check_writable(path, option: str, *, directory: bool = False) -> None:

@@ -33,6 +33,7 @@ from scenarios.catalog import MANOEUVRES, latest_onset_s
 from scenarios.faults import liquid_jam_bias_mm, solid_jam_offset_mm
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
+from .config import ConfigError
 from .plant import run_actuator, run_surface
 
 #: Version of the simulated models: part of every run id, so a model change never reuses
@@ -214,7 +215,7 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
             break
         extra += 1
         if extra > 6:
-            raise ValueError(
+            raise ConfigError(
                 f"group {group.name!r}: fewer than {n} realistic flight points in the envelope "
                 "box; widen [envelope] or set realistic_only = false")
     pts = pts.iloc[idx].reset_index(drop=True)
@@ -305,7 +306,7 @@ def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
     plan["run_id"] = [run_id(r) for r in records]
     if unique and plan["run_id"].duplicated().any():
         dup = plan.loc[plan["run_id"].duplicated(), "group"].iloc[0]
-        raise ValueError(f"duplicate runs in group {dup!r}: two rows describe the same run")
+        raise ConfigError(f"duplicate runs in group {dup!r}: two rows describe the same run")
     return plan
 
 

@@ -48,6 +48,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from scenarios.errors import InputError
+
 BACKENDS = ("loky", "threading")
 
 #: Seconds a fresh pool may take to start its workers (imports, kernels from the cache).
@@ -305,7 +307,7 @@ def _short(exc: BaseException, limit: int = 300) -> str:
 CONNECT_TIMEOUT_S = 5.0
 
 
-class ClusterError(ValueError):
+class ClusterError(InputError, ValueError):
     """The dask cluster cannot be used (not installed, unreachable, bad address)."""
 
 

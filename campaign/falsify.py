@@ -51,6 +51,7 @@ import numpy as np
 import pandas as pd
 
 from scenarios import envelope
+from scenarios.errors import InputError
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from .config import CampaignConfig
@@ -74,7 +75,7 @@ MIN_BUDGET: int = 10
 FLIGHT_COLUMNS: tuple[str, ...] = envelope.GridTable.columns
 
 
-class FalsifyError(ValueError):
+class FalsifyError(InputError, ValueError):
     """The search cannot start (no fault-free group, unknown detector, bad budget …)."""
 
 

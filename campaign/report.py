@@ -35,6 +35,7 @@ from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE
 from reports.table import error_lines
 
+from .cli_common import UsageError
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .hazard import report_section
@@ -391,9 +392,9 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
     if jobs < 1:
-        raise ValueError(f"--jobs must be ≥ 1, got {jobs}")
+        raise UsageError(f"--jobs must be ≥ 1, got {jobs}")
     if cfg.envelope_runs is not None and cfg.envelope_runs < 1:
-        raise ValueError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
+        raise UsageError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
     data = _gather_report_data(directory, cfg, jobs, t0, requirements, fmu, log)

@@ -31,6 +31,7 @@ from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
 from reports.table import format_table
 from scenarios import kernels
+from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
@@ -50,7 +51,7 @@ from .suite import reference_text
 run_chunk = evaluate
 
 
-class CampaignSetupError(ValueError):
+class CampaignSetupError(InputError, ValueError):
     """The campaign cannot start (incompatible detector, bad directory, …)."""
 
 

@@ -52,6 +52,8 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
+from scenarios.errors import InputError
+
 from .dirlock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
 from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of,
                     write_parquet, write_text)
@@ -72,7 +74,7 @@ def _read_optional(path: Path) -> pd.DataFrame | None:
     return pd.read_parquet(path) if path.exists() else None
 
 
-class CampaignDirError(ValueError):
+class CampaignDirError(InputError, ValueError):
     """The output directory cannot be used for this campaign (message says why and how)."""
 
 

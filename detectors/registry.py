@@ -19,6 +19,7 @@ import sys
 from importlib.metadata import entry_points
 
 from scenarios.catalog import suggest
+from scenarios.errors import InputError
 
 from .base import Detector
 from .params import parameter_markdown, parameter_problems
@@ -36,7 +37,7 @@ BUILTIN: dict[str, str] = {
 }
 
 
-class DetectorSpecError(ValueError):
+class DetectorSpecError(InputError, ValueError):
     """A detector name or parameter that cannot be used (message says how to fix it)."""
 
 

@@ -213,3 +213,46 @@ def test_unwritable_folder_message(tmp_path, capsys, monkeypatch):
     assert f"chmod u+w {ro}" in err
     assert main(["run", "smoke", "--out", str(ro)]) == 2
     assert f"--out {ro}: not writable (permission denied)" in capsys.readouterr().err
+
+
+def test_a_failure_inside_a_library_is_an_internal_error(tmp_path, capsys, monkeypatch):
+    """A ValueError raised inside pyarrow's Parquet writer is no mistake of the user: exit 3
+    (not 2, bad input), the error named on one line and its traceback kept in the file the
+    message names."""
+    import tempfile
+
+    import campaign.files as files
+
+    def broken(*args, **kwargs):
+        raise ValueError("planted failure in write_table")
+
+    monkeypatch.setattr(files.pq, "write_table", broken)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))     # the traceback file lands here
+    code = main(["run", "smoke", "--jobs", "1", "--quiet", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert "internal error: ValueError: planted failure in write_table" in err
+    assert "not of your input" in err and "please report it" in err
+    kept = list(tmp_path.glob("fdd-campaign-error-*.txt"))
+    assert len(kept) == 1 and str(kept[0]) in err
+    text = kept[0].read_text()
+    # the whole traceback: from the command down to the planted call
+    assert "Traceback (most recent call last)" in text and "in broken" in text
+    assert "ValueError: planted failure in write_table" in text
+
+
+def test_an_input_error_from_deep_inside_stays_bad_input(tmp_path, capsys):
+    """The user's mistakes that are found below the command line (a significance level
+    checked by the comparison, a suite directory whose members are missing) keep exit 2
+    with their message, and no traceback file."""
+    out = tmp_path / "a"
+    assert main(["plan", "smoke", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(out), str(out), "--alpha", "2"]) == 2
+    assert "--alpha 2.0: a significance level in (0, 1)" in capsys.readouterr().err
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "suite.json").write_text("{not json")
+    assert main(["report", str(suite), "--no-html"]) == 2
+    err = capsys.readouterr().err
+    assert "suite.json is damaged" in err and "internal error" not in err
