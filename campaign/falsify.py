@@ -56,7 +56,7 @@ from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from .config import CampaignConfig
 from .config.text import toml_value
-from .design import PLAN_COLUMNS, build_plan, explicit_plan
+from .design import build_plan, explicit_plan
 from .storage import write_parquet
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
@@ -531,7 +531,3 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
             f"Replay (same margins): {replay}.")
     (out / "worst.toml").write_text(worst_toml(config, runs, label=label, note=note))
     return ranked.iloc[0]
-
-
-#: Columns of search.parquet beside the run table's.
-SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "false_alarm", "generation", "phase")

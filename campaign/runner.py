@@ -47,9 +47,6 @@ from .plant import detector_problems, fmu_sha256, plant_of
 from .storage import CampaignDir, DirLock
 from .suite import reference_text
 
-#: The former name of :func:`campaign.evaluate.evaluate`, for existing callers.
-run_chunk = evaluate
-
 
 class CampaignSetupError(InputError, ValueError):
     """The campaign cannot start (incompatible detector, bad directory, …)."""

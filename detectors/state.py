@@ -82,11 +82,6 @@ def register_state_type(cls: type) -> type:
     return cls
 
 
-def registered_state_types() -> dict[str, type]:
-    """The registered dataclasses: ``"module:qualname"`` → class."""
-    return dict(_STATE_TYPES)
-
-
 # ---- encoding --------------------------------------------------------------------------------
 def _float(x: float):
     """A float as JSON: a number when finite, else a tagged string (JSON has no NaN/inf)."""
