@@ -157,3 +157,18 @@ def test_no_citation_points_outside_the_repository():
                if ".venv" not in p.parts and p != Path(__file__).resolve()
                and re.search(r"\b(PHYSICS|DESIGN)(\.md)?,? ?§|shared/", p.read_text(encoding="utf-8"))]
     assert outside == []
+
+
+def test_the_changelog_tells_every_model_version_and_the_current_engine():
+    # history lives in CHANGELOG.md, not in comments: it must list every model version the
+    # run ids have hashed, newest (the current MODEL_VERSION) first, and the package's version
+    import tomllib
+
+    from campaign.design import MODEL_VERSION
+
+    text = (REPO / "CHANGELOG.md").read_text(encoding="utf-8")
+    models = re.findall(r"^- \*\*(servo-\d+)\*\*", text, flags=re.M)
+    newest = int(MODEL_VERSION.removeprefix("servo-"))
+    assert models == [f"servo-{n}" for n in range(newest, 0, -1)]
+    version = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    assert re.search(rf"^- \*\*{re.escape(version)}\*\* \(current", text, flags=re.M)
