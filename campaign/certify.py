@@ -48,6 +48,7 @@ from scenarios.errors import InputError
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .design import run_id
+from .execute import one_blas_thread
 from .hazard import per_hour
 from .rare import P0
 
@@ -428,6 +429,7 @@ def write_sampling_levels(directory, found: dict, config_json: str) -> None:
 
 
 # ---- the command -----------------------------------------------------------------------------
+@one_blas_thread()
 def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
             seed: int = 0, detectors=None, scheduler: str | None = None, tls=None,
             log=print, progress=None, max_levels: int = 12,

@@ -688,8 +688,10 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
+    from .execute import one_blas_thread
+
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), one_blas_thread():
             warnings.showwarning = _note
             return args.func(args)
     # bad input: the user's mistake (scenarios.errors.InputError: a campaign file, an option,

@@ -11,17 +11,6 @@ from pathlib import Path
 
 from scenarios.errors import InputError
 
-#: BLAS libraries run one thread per process under the command line. The campaign's
-#: parallelism is its workers (``--jobs``: processes, or threads for the aircraft plant); a
-#: multi-threaded BLAS inside each of them oversubscribes the cores (on two cores a batch of
-#: 100 matrix exponentials took 40–130 ms with OpenBLAS's default threads, 3–10 ms with one,
-#: and chen-mc 82 → 55 CPU-s), and a result computed with one thread does not depend on the
-#: machine's core count. Set before NumPy is first imported, which is when OpenBLAS reads it;
-#: a value exported by the user wins.
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-for _variable in BLAS_THREAD_VARIABLES:
-    os.environ.setdefault(_variable, "1")
-
 EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 

@@ -57,6 +57,7 @@ from scenarios.manoeuvres import MANOEUVRE_PARAMS
 from .config import CampaignConfig
 from .config.text import toml_value
 from .design import build_plan, explicit_plan
+from .execute import one_blas_thread
 from .storage import write_parquet
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
@@ -343,6 +344,7 @@ def worst_toml(config: CampaignConfig, runs: list[dict], *, label: str, note: st
     return text
 
 
+@one_blas_thread()
 def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int = 2,
             seed: int = 0, scheduler: str | None = None, tls=None, fitted_from=None,
             against=None, keep: int = 10, log=None, progress=True) -> FalsifyResult:

@@ -43,6 +43,7 @@ from .plugins import (
     third_party,
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
+from .execute import one_blas_thread
 from .plant import detector_problems, fmu_sha256, plant_of
 from .storage import CampaignDir, DirLock
 from .suite import reference_text
@@ -343,6 +344,7 @@ def check_plant(config, plant) -> None:
     plant.check(faults={g.fault for g in config.groups} | {r.fault for r in config.runs})
 
 
+@one_blas_thread()
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
         backend: str | None = None, log=None, scheduler: str | None = None,
         engine: str | None = None, tls=None, fitted_from=None) -> CampaignResult:
@@ -375,7 +377,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     whether the campaign runs from Python or from ``fdd-campaign run``. The run holds the
     directory's lock (:class:`campaign.storage.DirLock`) from opening it to the summary: a
     second run into the same directory meanwhile is refused
-    (:class:`campaign.storage.CampaignLockedError`).
+    (:class:`campaign.storage.CampaignLockedError`). BLAS runs one thread per process
+    meanwhile (:func:`campaign.execute.one_blas_thread`).
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
