@@ -638,3 +638,16 @@ def test_a_directory_written_before_the_plant_keys_moved_still_resumes(tmp_path,
     err = capsys.readouterr().err
     assert "20 of 20 runs already done" in err
     assert sorted(p.name for p in (out / "runs").glob("part-*.parquet")) == shards
+
+
+@pytest.mark.parametrize("size", [0, 1, (1 << 20) - 1, 1 << 20, (1 << 20) + 1, 3 << 20])
+def test_file_digests_are_the_sha256_of_the_bytes(tmp_path, size):
+    # the manifest's digests (hashlib.file_digest) equal the digest of the whole content
+    # read at once, at and around the 1 MiB blocks files used to be read in: a directory
+    # written before stays verifiable
+    from campaign.files import sha256_of
+
+    data = np.random.default_rng(size).bytes(size)
+    path = tmp_path / "file.bin"
+    path.write_bytes(data)
+    assert sha256_of(path) == hashlib.sha256(data).hexdigest()
