@@ -286,27 +286,37 @@ def _report_one(args) -> None:
     for line in error_lines(results):
         print(f"runs not scored: {line}")
     if not args.no_html:
-        from .report import write_html_report
-
         write_html_report(args)
 
 
+def write_html_report(args) -> None:
+    """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
+    from .report import ReportSettings, build_report
+
+    path = build_report(args.dir, out=args.html, jobs=args.jobs, fmu=args.fmu,
+                        settings=ReportSettings(envelope_runs=args.envelope_runs),
+                        requirements=getattr(args, "requirements_values", None))
+    print(f"HTML report written to {path}")
+
+
 def cmd_show(args) -> int:
-    from .report import cmd_show as show
+    from .report import show_run
 
     for option in ("plot", "out"):
         if getattr(args, option):
             check_writable(getattr(args, option), f"--{option}")
-    return show(args)
+    show_run(args.dir, args.run_id, plot=args.plot, out=args.out, fmu=args.fmu)
+    return 0
 
 
 def cmd_compare(args) -> int:
-    from .compare import cmd_compare as compare
+    from .compare import compare_dirs
 
     if not 0.0 < args.alpha < 1.0:
         raise UsageError(f"--alpha {args.alpha}: a significance level in (0, 1); fix: e.g. "
                          "--alpha 0.01")
-    return compare(args)
+    compare_dirs(args.dir_a, args.dir_b, alpha=args.alpha)
+    return 0
 
 
 def cmd_presets(args) -> int:

@@ -697,17 +697,3 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
         Path(plot).write_bytes(figure_png(fig, dpi=110))
         log(f"plot written to {plot}")
     return frame
-
-
-# ---- command-line entry points (wired in campaign/cli.py) ----------------------------------
-def cmd_show(args) -> int:
-    show_run(args.dir, args.run_id, plot=args.plot, out=args.out, fmu=args.fmu)
-    return 0
-
-
-def write_html_report(args) -> None:
-    """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
-    path = build_report(args.dir, out=args.html, jobs=args.jobs, fmu=args.fmu,
-                        settings=ReportSettings(envelope_runs=args.envelope_runs),
-                        requirements=getattr(args, "requirements_values", None))
-    print(f"HTML report written to {path}")
