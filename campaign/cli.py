@@ -20,6 +20,7 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_INTERRUPTED,
     EXIT_OK,
     UsageError,
+    add_command,
     check_writable,
     print_error,
     report_internal_error,
@@ -435,14 +436,6 @@ def cmd_fmu(args) -> int:
 
 
 # ---- parser --------------------------------------------------------------------------------
-def _sub(subs, name, help_, example, func):
-    p = subs.add_parser(name, help=help_, description=help_,
-                        epilog="example:\n  " + example,
-                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.set_defaults(func=func)
-    return p
-
-
 def _manoeuvres_option(p) -> None:
     from scenarios.catalog import MANOEUVRE_SETS
     from scenarios.turbulence import LEVELS
@@ -459,7 +452,7 @@ def _manoeuvres_option(p) -> None:
 
 def _add_run_parsers(subs) -> None:
     """Sub-commands: run and plan a campaign."""
-    p = _sub(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
+    p = add_command(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
              "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--out", required=True, help="output directory (rerun into it to resume)")
@@ -493,7 +486,7 @@ def _add_run_parsers(subs) -> None:
                    help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
                         "entries) without learning again (copied into --out; docs/thresholds.md)")
 
-    p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
+    p = add_command(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--out", required=True, help="directory to write plan.parquet into "
@@ -504,7 +497,7 @@ def _add_run_parsers(subs) -> None:
 
 def _add_result_parsers(subs) -> None:
     """Sub-commands: read a campaign directory: report, show, compare, verify, gate."""
-    p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
+    p = add_command(subs, "report", "print the summary of a campaign directory and write its HTML "
              "report (DIR/report.html)", "fdd-campaign report results/", cmd_report)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
     p.add_argument("--no-html", action="store_true", help="only print the table")
@@ -517,7 +510,7 @@ def _add_result_parsers(subs) -> None:
     creq.add_requirements_option(p)
     p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
-    p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
+    p = add_command(subs, "show", "re-simulate one run of a campaign from its run id and seed",
              "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n  (RUN_ID: "
              "a run id of results/plan.parquet, e.g. one 'fdd-campaign gate results/' names)",
              cmd_show)
@@ -528,7 +521,7 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--out", help="Parquet file for the traces")
     p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
-    p = _sub(subs, "compare", "what changed between two campaigns: rates with a significance "
+    p = add_command(subs, "compare", "what changed between two campaigns: rates with a significance "
              "test, DTP shifts, per cell", "fdd-campaign compare results-v1/ results-v2/",
              cmd_compare)
     p.add_argument("dir_a", help="campaign directory A (the reference)")
@@ -536,12 +529,12 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the worse/better flags (default 0.01)")
 
-    p = _sub(subs, "verify", "check every file of a campaign directory against its manifest "
+    p = add_command(subs, "verify", "check every file of a campaign directory against its manifest "
              "(SHA-256); exit 2 naming each file that differs, is missing or is extra",
              "fdd-campaign verify results/", cmd_verify)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
 
-    p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
+    p = add_command(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
     p.add_argument("--max-fa", type=float, help="largest false-alarm rate of every detector "
@@ -572,7 +565,7 @@ def _add_simulate_parser(subs) -> None:
     from scenarios.catalog import PLANT_KINDS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
 
-    p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
+    p = add_command(subs, "simulate", "simulate one run and write/plot its signals and truth",
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
              "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
     p.add_argument("--surface", default="elevator", choices=SURFACES + AIRCRAFT_SURFACES,
@@ -598,16 +591,16 @@ def _add_tool_parsers(subs) -> None:
     """Sub-commands: presets, init, bench and the FMU tools."""
     from scenarios.catalog import SURFACES
 
-    _sub(subs, "presets", "list the campaign presets shipped with the package",
+    add_command(subs, "presets", "list the campaign presets shipped with the package",
          "fdd-campaign presets", cmd_presets)
 
-    p = _sub(subs, "init", "write an annotated starting campaign file",
+    p = add_command(subs, "init", "write an annotated starting campaign file",
              "fdd-campaign init campaign.toml", cmd_init)
     p.add_argument("file", nargs="?", default="campaign.toml",
                    help="campaign file to write (default campaign.toml)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
 
-    p = _sub(subs, "bench", "measure simulation speed, memory and the ratio to the per-run "
+    p = add_command(subs, "bench", "measure simulation speed, memory and the ratio to the per-run "
              "reference", "fdd-campaign bench --runs 2200 --jobs 2", cmd_bench)
     p.add_argument("--runs", type=int, default=2200, help="runs simulated (default 2200)")
     p.add_argument("--duration", type=float, default=60.0,
@@ -634,7 +627,7 @@ def _add_tool_parsers(subs) -> None:
     fmu = subs.add_parser("fmu", help="build the built-in servo-loop as an FMU",
                           description="FMU tools")
     fsubs = fmu.add_subparsers(dest="fmu_command", metavar="FMU_COMMAND", required=True)
-    p = _sub(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
+    p = add_command(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
              "FMU and validate it with fmpy", "fdd-campaign fmu build --out servo.fmu", cmd_fmu)
     p.add_argument("--out", default="servo.fmu", help="FMU file to write (default servo.fmu)")
     p.add_argument("--surface", default="elevator", choices=SURFACES,
@@ -649,7 +642,7 @@ def _add_study_parsers(subs) -> None:
                             description="studies: fixed comparisons reproduced from a paper, "
                                         "one table each (campaign.studies)")
     ssubs = study.add_subparsers(dest="study", metavar="STUDY", required=True)
-    p = _sub(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
+    p = add_command(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
              "residual peaks, thresholds, detection delays and DTP (docs/vanek-geometric.md)",
              "fdd-campaign study vanek --noise-scale 0.1", cmd_study_vanek)
     p.add_argument("--noise-scale", type=float, default=1.0,
@@ -681,7 +674,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .falsify_cli import add_falsify_parser
 
     for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
-                _add_study_parsers, add_falsify_parser, partial(add_evidence_parsers, sub=_sub)):
+                _add_study_parsers, add_falsify_parser, add_evidence_parsers):
         add(subs)
     return parser
 

@@ -1,5 +1,6 @@
 """What every ``fdd-campaign`` command shares (docs/design.md §7, Command line): the exit
-codes, :class:`UsageError` and the check that an output path can be written. Kept apart
+codes, :class:`UsageError`, the registration of a sub-command (:func:`add_command`) and the
+check that an output path can be written. Kept apart
 from :mod:`campaign.cli` so that commands defined in their own modules
 (:mod:`campaign.falsify_cli`) use them without importing the command line itself."""
 
@@ -16,6 +17,19 @@ EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 13
 
 class UsageError(InputError, ValueError):
     """Bad command-line input (exit code 2)."""
+
+
+def add_command(subs, name: str, help_: str, example: str, func):
+    """Register the sub-command *name* of *subs* (an ``add_subparsers`` action): *help_* is
+    its line in the command list and its description, *example* the command its ``--help``
+    ends with, *func* (``args -> exit code``) what it runs. The one way every module of the
+    command line adds its commands; returns the sub-parser, for the command's arguments."""
+    import argparse
+
+    p = subs.add_parser(name, help=help_, description=help_, epilog="example:\n  " + example,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.set_defaults(func=func)
+    return p
 
 
 def print_error(msg: str) -> None:
