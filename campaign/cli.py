@@ -7,6 +7,7 @@ import argparse
 import sys
 import textwrap
 import warnings
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
@@ -28,7 +29,7 @@ from .cli_common import (  # noqa: F401  (part of this module's interface)
 from .isolation import isolation_of_stored
 
 
-# ---- commands ------------------------------------------------------------------------------
+# ---- the command line's overrides ---------------------------------------------------------
 def _overridden(config, args):
     """*config* with the command line's --seed, --plant, --manoeuvres and --turbulence."""
     from . import config as cfg
@@ -88,58 +89,116 @@ def _run_campaign(config, out, args):
     return result, creq.print_verdict(config, result)
 
 
-def cmd_run(args) -> int:
+# ---- one campaign or a suite: what a command works on -----------------------------------
+@dataclass(frozen=True)
+class _Campaigns:
+    """The campaigns a command that runs a campaign file or a suite works on: iterating gives
+    ``(title, configuration, output directory)`` of each — the campaign itself into ``--out``
+    (title None), or each member of a suite into ``--out/<member>``."""
+    members: tuple
+
+    @property
+    def suite(self) -> bool:
+        return self.members[0][0] is not None
+
+    def __iter__(self):
+        return iter(self.members)
+
+
+def _campaigns(spec, args) -> _Campaigns:
+    """:class:`_Campaigns` of *spec* (a campaign configuration or a
+    :class:`campaign.suite.Suite`). Every configuration (with the command line's
+    overrides) is built, hence checked, before the first campaign starts."""
+    from .suite import Suite
+
+    if not isinstance(spec, Suite):
+        return _Campaigns(((None, _overridden(spec, args), Path(args.out)),))
+    return _Campaigns(tuple((m.title, _overridden(m.config, args), Path(args.out) / m.name)
+                            for m in spec.members))
+
+
+@dataclass(frozen=True)
+class _CampaignDirs:
+    """The campaign directories a command that reads *directory* works on: iterating gives
+    ``(title, campaign directory)`` of the directory itself, as given (title None), or of
+    each member of a suite's directory in the suite's order, read only then
+    (:func:`campaign.suite.suite_members`), so that what a suite refuses is said first."""
+    directory: object
+    suite: bool
+
+    def __iter__(self):
+        from .suite import suite_members
+
+        return iter(suite_members(self.directory) if self.suite else [(None, self.directory)])
+
+
+def _campaign_dirs(directory) -> _CampaignDirs:
+    """:class:`_CampaignDirs` of *directory*: a suite's when it holds ``suite.json`` and is not
+    itself one campaign's directory."""
     from .storage import CampaignDir
-    from .suite import Suite, load_spec, write_suite_json
+    from .suite import is_suite_dir
+
+    return _CampaignDirs(directory, is_suite_dir(directory)
+                         and not CampaignDir(directory).is_campaign())
+
+
+# ---- commands ------------------------------------------------------------------------------
+def cmd_run(args) -> int:
+    from .suite import load_spec, write_suite_json
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be ≥ 1 (local workers); fix: e.g. --jobs 2")
     spec = load_spec(args.campaign)
     check_writable(args.out, "--out", directory=True)
-    if not isinstance(spec, Suite):
-        config = _overridden(spec, args)
-        creq.refuse_limits_only_change(config, args)
-        result, evaluated = _run_campaign(config, args.out, args)
+    campaigns = _campaigns(spec, args)
+    suite = campaigns.suite
+    complete: dict[str, bool] = {}
+    if suite:
+        _check_suite_run(spec, campaigns, args)
+        write_suite_json(spec, args.out, complete)
+    else:
+        creq.refuse_limits_only_change(campaigns.members[0][1], args)
+    evaluated = True
+    for title, config, out in campaigns:
+        if suite:
+            print(f"\n== {title} ==")
+        result, ok = _run_campaign(config, out, args)
+        evaluated = evaluated and ok
+        if suite:
+            complete[out.name] = bool(result.complete)
+            write_suite_json(spec, args.out, complete)
         if not result.complete:
             return EXIT_INTERRUPTED
-        return EXIT_OK if evaluated else EXIT_INPUT
-    if getattr(args, "fitted_from", None):
-        raise UsageError(f"--fitted-from: one campaign only, not the suite {spec.name!r}")
-    # a suite: every member validated (with the overrides) before the first one runs
-    configs = [_overridden(m.config, args) for m in spec.members]
-    from .runner import check_run_options
+    if suite:
+        print(f"\nsuite {spec.name!r}: {len(campaigns.members)} campaigns -> {Path(args.out)}")
+    return EXIT_OK if evaluated else EXIT_INPUT
 
-    for config in configs:
+
+def _check_suite_run(suite, campaigns: _Campaigns, args) -> None:
+    """Refuse, before the first member runs, what a suite cannot be run with: --fitted-from,
+    a member's options out of range, an --out that is one campaign's directory."""
+    from .runner import check_run_options
+    from .storage import CampaignDir
+
+    if getattr(args, "fitted_from", None):
+        raise UsageError(f"--fitted-from: one campaign only, not the suite {suite.name!r}")
+    for _, config, _ in campaigns:
         check_run_options(config, jobs=args.jobs, chunk_size=args.chunk_size)
     if CampaignDir(args.out).is_campaign():
         raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
                          "campaigns into subdirectories of a directory of its own: choose "
                          "another --out")
-    complete, evaluated = {}, True
-    write_suite_json(spec, args.out, complete)
-    for member, config in zip(spec.members, configs):
-        print(f"\n== {member.title} ==")
-        result, ok = _run_campaign(config, Path(args.out) / member.name, args)
-        complete[member.name] = bool(result.complete)
-        evaluated = evaluated and ok
-        write_suite_json(spec, args.out, complete)
-        if not result.complete:
-            return EXIT_INTERRUPTED
-    print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {Path(args.out)}")
-    return EXIT_OK if evaluated else EXIT_INPUT
 
 
 def cmd_plan(args) -> int:
-    from .suite import Suite, load_spec
+    from .suite import load_spec
 
     spec = load_spec(args.campaign)
     check_writable(args.out, "--out", directory=True)
-    if isinstance(spec, Suite):
-        for member in spec.members:
-            print(f"== {member.title} ==")
-            _plan_one(_overridden(member.config, args), Path(args.out) / member.name)
-        return EXIT_OK
-    _plan_one(_overridden(spec, args), Path(args.out))
+    for title, config, out in _campaigns(spec, args):
+        if title is not None:
+            print(f"== {title} ==")
+        _plan_one(config, out)
     return EXIT_OK
 
 
@@ -165,27 +224,26 @@ def _plan_one(config, out: Path) -> None:
 def cmd_gate(args) -> int:
     from reports.gate import write_junit, write_junit_suite
 
-    from .suite import is_suite_dir, suite_members
-
     if args.junit:
         check_writable(args.junit, "--junit")
-    if not is_suite_dir(args.dir):
-        result = _gate_one(args.dir, args)
-        if args.junit:
-            write_junit(result, args.junit)
-            print(f"JUnit report written to {args.junit}")
-        return EXIT_OK if result.passed else EXIT_GATE
-    creq.refuse_on_a_suite(args)
-    results, ok = [], True
-    for title, member in suite_members(args.dir):
-        print(f"== {title} ==")
-        result = _gate_one(member, args)
-        results.append((member.name, result))
-        ok = ok and result.passed
-    print(f"suite gate {'PASSED' if ok else 'FAILED'}: "
-          f"{sum(r.passed for _, r in results)} of {len(results)} campaigns passed")
+    targets = _campaign_dirs(args.dir)
+    suite = targets.suite
+    if suite:
+        creq.refuse_on_a_suite(args)
+    results = []
+    for title, directory in targets:
+        if suite:
+            print(f"== {title} ==")
+        results.append((Path(directory).name, _gate_one(directory, args)))
+    ok = all(result.passed for _, result in results)
+    if suite:
+        print(f"suite gate {'PASSED' if ok else 'FAILED'}: "
+              f"{sum(r.passed for _, r in results)} of {len(results)} campaigns passed")
     if args.junit:
-        write_junit_suite(results, args.junit)
+        if suite:
+            write_junit_suite(results, args.junit)
+        else:
+            write_junit(results[0][1], args.junit)
         print(f"JUnit report written to {args.junit}")
     return EXIT_OK if ok else EXIT_GATE
 
@@ -223,17 +281,12 @@ def _gate_one(directory, args):
 
 def cmd_verify(args) -> int:
     from .storage import CampaignDir, CampaignDirError, ManifestError
-    from .suite import is_suite_dir, suite_members
 
     root = Path(args.dir)
     if not root.is_dir():
         raise UsageError(f"{root} does not exist or is not a directory")
-    if is_suite_dir(root) and not CampaignDir(root).is_campaign():
-        dirs = [member for _, member in suite_members(root)]
-    else:
-        dirs = [root]
     ok = True
-    for directory in dirs:
+    for _, directory in _campaign_dirs(root):
         cdir = CampaignDir(directory)
         try:
             problems = cdir.verify()
@@ -256,18 +309,16 @@ def cmd_verify(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .suite import is_suite_dir, suite_members
-
-    if not is_suite_dir(args.dir):
-        _report_one(args)
-        return EXIT_OK
-    if args.html:
-        raise UsageError("--html names one file; a suite directory gets one report.html per "
-                         "campaign (DIR/<campaign>/report.html): leave --html out")
-    creq.refuse_on_a_suite(args)
-    for title, member in suite_members(args.dir):
-        print(f"== {title} ==")
-        _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}))
+    targets = _campaign_dirs(args.dir)
+    if targets.suite:
+        if args.html:
+            raise UsageError("--html names one file; a suite directory gets one report.html "
+                             "per campaign (DIR/<campaign>/report.html): leave --html out")
+        creq.refuse_on_a_suite(args)
+    for title, directory in targets:
+        if title is not None:
+            print(f"== {title} ==")
+        _report_one(argparse.Namespace(**{**vars(args), "dir": str(directory)}))
     return EXIT_OK
 
 

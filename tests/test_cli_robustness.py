@@ -256,3 +256,55 @@ def test_an_input_error_from_deep_inside_stays_bad_input(tmp_path, capsys):
     assert main(["report", str(suite), "--no-html"]) == 2
     err = capsys.readouterr().err
     assert "suite.json is damaged" in err and "internal error" not in err
+
+
+INPUT_ERRORS = [   # (module, class, the builtin its callers catch)
+    ("campaign.cli_common", "UsageError", ValueError),
+    ("campaign.config", "ConfigError", ValueError),
+    ("campaign.storage", "CampaignDirError", ValueError),
+    ("campaign.storage", "ManifestError", ValueError),
+    ("campaign.dirlock", "CampaignLockedError", ValueError),
+    ("campaign.runner", "CampaignSetupError", ValueError),
+    ("campaign.execute", "ClusterError", ValueError),
+    ("campaign.certify", "CertifyError", ValueError),
+    ("campaign.falsify", "FalsifyError", ValueError),
+    ("detectors.registry", "DetectorSpecError", ValueError),
+    ("detectors.state", "StateTypeError", TypeError),
+    ("detectors.state", "StateFormatError", ValueError),
+    ("detectors.geometric", "GeometricDesignError", ValueError),
+    ("detectors.lpv_synthesis", "LMIInfeasibleError", ValueError),
+    ("detectors.vanek_hinf", "HinfUnavailableError", ImportError),
+    ("scenarios.runs", "RunSpecError", ValueError),
+    ("scenarios.fmu_files", "FmuError", ValueError),
+    ("scenarios.fmu", "FmuRunError", RuntimeError),
+    ("scenarios.fmu_build", "FmuBuildError", RuntimeError),
+    ("scenarios.fmu_build", "FmuOptionError", ValueError),
+    ("reports.gate", "GateInputError", ValueError),
+]
+
+
+@pytest.mark.parametrize("module,name,builtin", INPUT_ERRORS,
+                         ids=[name for _, name, _ in INPUT_ERRORS])
+def test_the_input_errors_are_one_family_and_keep_their_builtin(module, name, builtin):
+    # exit 2 is decided on the family (cli.main catches InputError), and a caller's
+    # `except ValueError` (or the class's own builtin) must still catch the error
+    import importlib
+
+    from scenarios.errors import InputError
+
+    cls = getattr(importlib.import_module(module), name)
+    assert issubclass(cls, InputError) and issubclass(cls, builtin)
+
+
+@pytest.mark.parametrize("module,name", [
+    ("detectors.base", "NotFittedError"),            # the engine's misuse of a detector: a bug
+    ("campaign.evaluate", "DetectorContractError"),  # a plugin's breach: recorded per run
+    ("campaign.execute", "TimeLimitExceeded"),        # a plugin over its limit: recorded per run
+    ("detectors.testing", "DetectorCheckError"),     # a failed conformance test (pytest's)
+])
+def test_what_is_not_the_users_input_stays_out_of_the_family(module, name):
+    import importlib
+
+    from scenarios.errors import InputError
+
+    assert not issubclass(getattr(importlib.import_module(module), name), InputError)
