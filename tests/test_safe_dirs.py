@@ -309,6 +309,19 @@ def test_resume_refuses_a_directory_whose_results_were_changed(smoke_dir, tmp_pa
             in capsys.readouterr().err)
 
 
+def test_resume_refuses_a_truncated_shard_as_a_damaged_directory(smoke_dir, tmp_path, capsys):
+    # the run counts the runs already done before it opens the directory: an unreadable
+    # shard is the directory's damage (exit 2, naming the shard and the check), not a fault
+    # of the engine (exit 3)
+    copy = _copy(smoke_dir, tmp_path / "truncated")
+    shard = copy / "runs" / "part-000000.parquet"
+    shard.write_bytes(shard.read_bytes()[:100])
+    assert main(["run", "smoke", "--out", str(copy), "--quiet", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{shard}: not a readable result shard" in err
+    assert f"'fdd-campaign verify {copy}'" in err and "internal error" not in err
+
+
 def test_a_directory_without_manifest_is_refused_by_readers(smoke_dir, tmp_path, capsys):
     copy = _copy(smoke_dir, tmp_path / "old")
     (copy / MANIFEST_NAME).unlink()
