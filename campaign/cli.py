@@ -763,7 +763,7 @@ def main(argv=None) -> int:
         print_error("interrupted")
         return EXIT_INTERRUPTED
     except Exception as exc:  # noqa: BLE001 - anything else is a fault of the engine or a library
-        report_internal_error(exc)
+        report_internal_error(exc, sys.argv[1:] if argv is None else list(argv))
         return EXIT_INTERNAL
 
 

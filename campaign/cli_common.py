@@ -1,8 +1,8 @@
 """What every ``fdd-campaign`` command shares (docs/design.md §7, Command line): the exit
 codes, :class:`UsageError`, the registration of a sub-command (:func:`add_command`) and the
-check that an output path can be written. Kept apart
-from :mod:`campaign.cli` so that commands defined in their own modules
-(:mod:`campaign.falsify_cli`) use them without importing the command line itself."""
+check that an output path can be written. Kept apart from :mod:`campaign.cli` so that
+commands defined in their own modules (:mod:`campaign.falsify_cli`) use them without
+importing the command line itself."""
 
 from __future__ import annotations
 
@@ -37,12 +37,12 @@ def print_error(msg: str) -> None:
     print(f"fdd-campaign: error: {msg}", file=sys.stderr)
 
 
-def report_internal_error(exc: BaseException) -> Path | None:
-    """Tell the user that *exc* is a fault of the engine or of a library it uses, not of
-    their input (exit code 3): one line on stderr naming the error, the file its traceback
-    was written to (a new file in the system's temporary folder) and the request to report
-    it. Returns that file (None when it could not be written: the traceback then goes to
-    stderr)."""
+def report_internal_error(exc: BaseException, argv: list[str]) -> Path | None:
+    """Tell the user that *exc*, raised by the command *argv*, is a fault of the engine or
+    of a library it uses, not of their input (exit code 3): a line on stderr naming the
+    error, and one naming the file its traceback was written to (a new file in the system's
+    temporary folder, headed by the command) with the request to report it. Returns that
+    file (None when it could not be written: the traceback then goes to stderr)."""
     import tempfile
     import traceback
 
@@ -50,7 +50,7 @@ def report_internal_error(exc: BaseException) -> Path | None:
     try:
         handle, name = tempfile.mkstemp(prefix="fdd-campaign-error-", suffix=".txt", text=True)
         with os.fdopen(handle, "w", encoding="utf-8") as file:
-            file.write(f"fdd-campaign {' '.join(sys.argv[1:])}\n\n{text}")
+            file.write(f"fdd-campaign {' '.join(argv)}\n\n{text}")
         where = Path(name)
     except OSError:
         print(text, file=sys.stderr, end="")

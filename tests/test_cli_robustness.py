@@ -236,6 +236,7 @@ def test_a_failure_inside_a_library_is_an_internal_error(tmp_path, capsys, monke
     kept = list(tmp_path.glob("fdd-campaign-error-*.txt"))
     assert len(kept) == 1 and str(kept[0]) in err
     text = kept[0].read_text()
+    assert text.startswith(f"fdd-campaign run smoke --jobs 1 --quiet --out {tmp_path / 'out'}\n")
     # the whole traceback: from the command down to the planted call
     assert "Traceback (most recent call last)" in text and "in broken" in text
     assert "ValueError: planted failure in write_table" in text
