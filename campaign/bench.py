@@ -34,9 +34,12 @@ from joblib import Parallel, delayed
 
 from scenarios.catalog import MANOEUVRES
 from scenarios.envelope import DRAW_COLUMNS
+from scenarios.manoeuvres import MANOEUVRE_PARAMS
 from scenarios.reference import integrate_reference
+from scenarios.runs import RUN_RANGES
 from scenarios.simulate import RUN_COLUMNS, prepare
 
+from .cli_common import UsageError
 from .evaluate import detect, simulate_signals
 from .plant_bench import bench_settings
 
@@ -93,9 +96,21 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     per-run cost reported beside the built-in plant's; *stages*: the share of each stage of
     each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``;
     *progress*: called with a line naming each measurement as it starts (None: silent)."""
-    if isinstance(stage_runs, bool) or int(stage_runs) != stage_runs or stage_runs < 1:
-        raise ValueError(f"--stage-runs {stage_runs}: must be an integer ≥ 1 (runs timed stage "
-                         "by stage); fix: e.g. --stage-runs 200")
+    counts = {"--runs": (n_runs, "runs simulated", 2200), "--jobs": (jobs, "local workers", 2),
+              "--chunk-size": (chunk_size, "runs per chunk", 275),
+              "--reference-runs": (reference_runs, "runs timed with the solve_ivp reference", 2),
+              "--plant-runs": (plant_runs, "runs timed on the FMU plant", 40),
+              "--stage-runs": (stage_runs, "runs timed stage by stage", 200)}
+    problems = [f"{option} {value}: must be an integer ≥ 1 ({what}); fix: e.g. {option} {eg}"
+                for option, (value, what, eg) in counts.items()
+                if isinstance(value, bool) or int(value) != value or value < 1]
+    shortest, longest = MANOEUVRE_PARAMS.min_duration_s, RUN_RANGES["duration_s"][1]
+    if not shortest <= duration_s <= longest:
+        problems.append(f"--duration {duration_s:g}: a run lasts {shortest:g} to {longest:g} s "
+                        "(the manoeuvres' shortest record, the run table's longest); fix: e.g. "
+                        "--duration 60")
+    if problems:
+        raise UsageError("; ".join(problems))
     names = [c.strip() for c in (campaign or "").split(",") if c.strip()]
     from .config import load_config
 

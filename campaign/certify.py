@@ -45,9 +45,11 @@ from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 from reports.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
 from scenarios.envelope import FLIGHT_COLUMNS
+from scenarios.errors import InputError
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .design import run_id, variable_ranges
+from .execute import one_blas_thread
 from .hazard import per_hour
 from .rare import P0
 
@@ -70,7 +72,7 @@ CERTIFICATE_COLUMNS: tuple[str, ...] = (
 SAMPLING_STREAM_BASE = 2 ** 40
 
 
-class CertifyError(ValueError):
+class CertifyError(InputError, ValueError):
     """A campaign directory or an option certify cannot work from (exit 2)."""
 
 
@@ -411,6 +413,7 @@ def write_sampling_levels(directory, found: dict, config_json: str) -> None:
 
 
 # ---- the command -----------------------------------------------------------------------------
+@one_blas_thread()
 def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs: int = 2,
             seed: int = 0, detectors=None, scheduler: str | None = None, tls=None,
             log=print, progress=None, max_levels: int = 12,

@@ -1,5 +1,5 @@
 """``fdd-campaign``: the command line (docs/design.md §7, Command line). Exit codes: 0 ok, 1 gate
-failed, 2 bad input, 130 interrupted."""
+failed, 2 bad input, 3 internal error, 130 interrupted."""
 
 from __future__ import annotations
 
@@ -7,23 +7,29 @@ import argparse
 import sys
 import textwrap
 import warnings
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+
+from scenarios.errors import InputError
 
 from . import cli_requirements as creq
 from .cli_common import (  # noqa: F401  (part of this module's interface)
     EXIT_GATE,
     EXIT_INPUT,
+    EXIT_INTERNAL,
     EXIT_INTERRUPTED,
     EXIT_OK,
     UsageError,
+    add_command,
     check_writable,
     print_error,
+    report_internal_error,
 )
 from .isolation import isolation_of_stored
 
 
-# ---- commands ------------------------------------------------------------------------------
+# ---- the command line's overrides ---------------------------------------------------------
 def _overridden(config, args):
     """*config* with the command line's --seed, --plant, --manoeuvres and --turbulence."""
     from . import config as cfg
@@ -83,58 +89,116 @@ def _run_campaign(config, out, args):
     return result, creq.print_verdict(config, result)
 
 
-def cmd_run(args) -> int:
+# ---- one campaign or a suite: what a command works on -----------------------------------
+@dataclass(frozen=True)
+class _Campaigns:
+    """The campaigns a command that runs a campaign file or a suite works on: iterating gives
+    ``(title, configuration, output directory)`` of each — the campaign itself into ``--out``
+    (title None), or each member of a suite into ``--out/<member>``."""
+    members: tuple
+
+    @property
+    def suite(self) -> bool:
+        return self.members[0][0] is not None
+
+    def __iter__(self):
+        return iter(self.members)
+
+
+def _campaigns(spec, args) -> _Campaigns:
+    """:class:`_Campaigns` of *spec* (a campaign configuration or a
+    :class:`campaign.suite.Suite`). Every configuration (with the command line's
+    overrides) is built, hence checked, before the first campaign starts."""
+    from .suite import Suite
+
+    if not isinstance(spec, Suite):
+        return _Campaigns(((None, _overridden(spec, args), Path(args.out)),))
+    return _Campaigns(tuple((m.title, _overridden(m.config, args), Path(args.out) / m.name)
+                            for m in spec.members))
+
+
+@dataclass(frozen=True)
+class _CampaignDirs:
+    """The campaign directories a command that reads *directory* works on: iterating gives
+    ``(title, campaign directory)`` of the directory itself, as given (title None), or of
+    each member of a suite's directory in the suite's order, read only then
+    (:func:`campaign.suite.suite_members`), so that what a suite refuses is said first."""
+    directory: object
+    suite: bool
+
+    def __iter__(self):
+        from .suite import suite_members
+
+        return iter(suite_members(self.directory) if self.suite else [(None, self.directory)])
+
+
+def _campaign_dirs(directory) -> _CampaignDirs:
+    """:class:`_CampaignDirs` of *directory*: a suite's when it holds ``suite.json`` and is not
+    itself one campaign's directory."""
     from .storage import CampaignDir
-    from .suite import Suite, load_spec, write_suite_json
+    from .suite import is_suite_dir
+
+    return _CampaignDirs(directory, is_suite_dir(directory)
+                         and not CampaignDir(directory).is_campaign())
+
+
+# ---- commands ------------------------------------------------------------------------------
+def cmd_run(args) -> int:
+    from .suite import load_spec, write_suite_json
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be ≥ 1 (local workers); fix: e.g. --jobs 2")
     spec = load_spec(args.campaign)
     check_writable(args.out, "--out", directory=True)
-    if not isinstance(spec, Suite):
-        config = _overridden(spec, args)
-        creq.refuse_limits_only_change(config, args)
-        result, evaluated = _run_campaign(config, args.out, args)
+    campaigns = _campaigns(spec, args)
+    suite = campaigns.suite
+    complete: dict[str, bool] = {}
+    if suite:
+        _check_suite_run(spec, campaigns, args)
+        write_suite_json(spec, args.out, complete)
+    else:
+        creq.refuse_limits_only_change(campaigns.members[0][1], args)
+    evaluated = True
+    for title, config, out in campaigns:
+        if suite:
+            print(f"\n== {title} ==")
+        result, ok = _run_campaign(config, out, args)
+        evaluated = evaluated and ok
+        if suite:
+            complete[out.name] = bool(result.complete)
+            write_suite_json(spec, args.out, complete)
         if not result.complete:
             return EXIT_INTERRUPTED
-        return EXIT_OK if evaluated else EXIT_INPUT
-    if getattr(args, "fitted_from", None):
-        raise UsageError(f"--fitted-from: one campaign only, not the suite {spec.name!r}")
-    # a suite: every member validated (with the overrides) before the first one runs
-    configs = [_overridden(m.config, args) for m in spec.members]
-    from .runner import check_run_options
+    if suite:
+        print(f"\nsuite {spec.name!r}: {len(campaigns.members)} campaigns -> {Path(args.out)}")
+    return EXIT_OK if evaluated else EXIT_INPUT
 
-    for config in configs:
+
+def _check_suite_run(suite, campaigns: _Campaigns, args) -> None:
+    """Refuse, before the first member runs, what a suite cannot be run with: --fitted-from,
+    a member's options out of range, an --out that is one campaign's directory."""
+    from .runner import check_run_options
+    from .storage import CampaignDir
+
+    if getattr(args, "fitted_from", None):
+        raise UsageError(f"--fitted-from: one campaign only, not the suite {suite.name!r}")
+    for _, config, _ in campaigns:
         check_run_options(config, jobs=args.jobs, chunk_size=args.chunk_size)
     if CampaignDir(args.out).is_campaign():
         raise UsageError(f"{args.out} is the directory of one campaign; a suite writes its "
                          "campaigns into subdirectories of a directory of its own: choose "
                          "another --out")
-    complete, evaluated = {}, True
-    write_suite_json(spec, args.out, complete)
-    for member, config in zip(spec.members, configs):
-        print(f"\n== {member.title} ==")
-        result, ok = _run_campaign(config, Path(args.out) / member.name, args)
-        complete[member.name] = bool(result.complete)
-        evaluated = evaluated and ok
-        write_suite_json(spec, args.out, complete)
-        if not result.complete:
-            return EXIT_INTERRUPTED
-    print(f"\nsuite {spec.name!r}: {len(spec.members)} campaigns -> {Path(args.out)}")
-    return EXIT_OK if evaluated else EXIT_INPUT
 
 
 def cmd_plan(args) -> int:
-    from .suite import Suite, load_spec
+    from .suite import load_spec
 
     spec = load_spec(args.campaign)
     check_writable(args.out, "--out", directory=True)
-    if isinstance(spec, Suite):
-        for member in spec.members:
-            print(f"== {member.title} ==")
-            _plan_one(_overridden(member.config, args), Path(args.out) / member.name)
-        return EXIT_OK
-    _plan_one(_overridden(spec, args), Path(args.out))
+    for title, config, out in _campaigns(spec, args):
+        if title is not None:
+            print(f"== {title} ==")
+        _plan_one(config, out)
     return EXIT_OK
 
 
@@ -160,27 +224,26 @@ def _plan_one(config, out: Path) -> None:
 def cmd_gate(args) -> int:
     from reports.gate import write_junit, write_junit_suite
 
-    from .suite import is_suite_dir, suite_members
-
     if args.junit:
         check_writable(args.junit, "--junit")
-    if not is_suite_dir(args.dir):
-        result = _gate_one(args.dir, args)
-        if args.junit:
-            write_junit(result, args.junit)
-            print(f"JUnit report written to {args.junit}")
-        return EXIT_OK if result.passed else EXIT_GATE
-    creq.refuse_on_a_suite(args)
-    results, ok = [], True
-    for title, member in suite_members(args.dir):
-        print(f"== {title} ==")
-        result = _gate_one(member, args)
-        results.append((member.name, result))
-        ok = ok and result.passed
-    print(f"suite gate {'PASSED' if ok else 'FAILED'}: "
-          f"{sum(r.passed for _, r in results)} of {len(results)} campaigns passed")
+    targets = _campaign_dirs(args.dir)
+    suite = targets.suite
+    if suite:
+        creq.refuse_on_a_suite(args)
+    results = []
+    for title, directory in targets:
+        if suite:
+            print(f"== {title} ==")
+        results.append((Path(directory).name, _gate_one(directory, args)))
+    ok = all(result.passed for _, result in results)
+    if suite:
+        print(f"suite gate {'PASSED' if ok else 'FAILED'}: "
+              f"{sum(r.passed for _, r in results)} of {len(results)} campaigns passed")
     if args.junit:
-        write_junit_suite(results, args.junit)
+        if suite:
+            write_junit_suite(results, args.junit)
+        else:
+            write_junit(results[0][1], args.junit)
         print(f"JUnit report written to {args.junit}")
     return EXIT_OK if ok else EXIT_GATE
 
@@ -218,17 +281,12 @@ def _gate_one(directory, args):
 
 def cmd_verify(args) -> int:
     from .storage import CampaignDir, CampaignDirError, ManifestError
-    from .suite import is_suite_dir, suite_members
 
     root = Path(args.dir)
     if not root.is_dir():
         raise UsageError(f"{root} does not exist or is not a directory")
-    if is_suite_dir(root) and not CampaignDir(root).is_campaign():
-        dirs = [member for _, member in suite_members(root)]
-    else:
-        dirs = [root]
     ok = True
-    for directory in dirs:
+    for _, directory in _campaign_dirs(root):
         cdir = CampaignDir(directory)
         try:
             problems = cdir.verify()
@@ -251,18 +309,16 @@ def cmd_verify(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .suite import is_suite_dir, suite_members
-
-    if not is_suite_dir(args.dir):
-        _report_one(args)
-        return EXIT_OK
-    if args.html:
-        raise UsageError("--html names one file; a suite directory gets one report.html per "
-                         "campaign (DIR/<campaign>/report.html): leave --html out")
-    creq.refuse_on_a_suite(args)
-    for title, member in suite_members(args.dir):
-        print(f"== {title} ==")
-        _report_one(argparse.Namespace(**{**vars(args), "dir": str(member)}))
+    targets = _campaign_dirs(args.dir)
+    if targets.suite:
+        if args.html:
+            raise UsageError("--html names one file; a suite directory gets one report.html "
+                             "per campaign (DIR/<campaign>/report.html): leave --html out")
+        creq.refuse_on_a_suite(args)
+    for title, directory in targets:
+        if title is not None:
+            print(f"== {title} ==")
+        _report_one(argparse.Namespace(**{**vars(args), "dir": str(directory)}))
     return EXIT_OK
 
 
@@ -281,24 +337,37 @@ def _report_one(args) -> None:
     for line in error_lines(camp.results):
         print(f"runs not scored: {line}")
     if not args.no_html:
-        from .report import write_html_report
-
         write_html_report(args)
 
 
+def write_html_report(args) -> None:
+    """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
+    from .report import ReportSettings, build_report
+
+    path = build_report(args.dir, out=args.html, jobs=args.jobs, fmu=args.fmu,
+                        settings=ReportSettings(envelope_runs=args.envelope_runs),
+                        requirements=getattr(args, "requirements_values", None))
+    print(f"HTML report written to {path}")
+
+
 def cmd_show(args) -> int:
-    from .report import cmd_show as show
+    from .report import show_run
 
     for option in ("plot", "out"):
         if getattr(args, option):
             check_writable(getattr(args, option), f"--{option}")
-    return show(args)
+    show_run(args.dir, args.run_id, plot=args.plot, out=args.out, fmu=args.fmu)
+    return 0
 
 
 def cmd_compare(args) -> int:
-    from .compare import cmd_compare as compare
+    from .compare import compare_dirs
 
-    return compare(args)
+    if not 0.0 < args.alpha < 1.0:
+        raise UsageError(f"--alpha {args.alpha}: a significance level in (0, 1); fix: e.g. "
+                         "--alpha 0.01")
+    compare_dirs(args.dir_a, args.dir_b, alpha=args.alpha)
+    return 0
 
 
 def cmd_presets(args) -> int:
@@ -405,14 +474,11 @@ def cmd_study_vanek(args) -> int:
 
 
 def cmd_fmu(args) -> int:
-    from scenarios.fmu_build import FmuBuildError, build_servo_fmu
+    from scenarios.fmu_build import build_servo_fmu
 
     check_writable(args.out, "--out")
-    try:
-        out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,
-                              log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
-    except FmuBuildError as exc:
-        raise UsageError(str(exc)) from None
+    out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,     # FmuBuildError: exit 2
+                          log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
     print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); run a "
           f"campaign on it with: fdd-campaign run smoke --plant {out} --out "
           f"{_out_dir(Path(out))}")
@@ -420,14 +486,6 @@ def cmd_fmu(args) -> int:
 
 
 # ---- parser --------------------------------------------------------------------------------
-def _sub(subs, name, help_, example, func):
-    p = subs.add_parser(name, help=help_, description=help_,
-                        epilog="example:\n  " + example,
-                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.set_defaults(func=func)
-    return p
-
-
 def _manoeuvres_option(p) -> None:
     from scenarios.catalog import MANOEUVRE_SETS
     from scenarios.turbulence import LEVELS
@@ -444,7 +502,7 @@ def _manoeuvres_option(p) -> None:
 
 def _add_run_parsers(subs) -> None:
     """Sub-commands: run and plan a campaign."""
-    p = _sub(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
+    p = add_command(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
              "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--out", required=True, help="output directory (rerun into it to resume)")
@@ -478,7 +536,7 @@ def _add_run_parsers(subs) -> None:
                    help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
                         "entries) without learning again (copied into --out; docs/thresholds.md)")
 
-    p = _sub(subs, "plan", "write the run table of a campaign and print its counts",
+    p = add_command(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--out", required=True, help="directory to write plan.parquet into "
@@ -489,7 +547,7 @@ def _add_run_parsers(subs) -> None:
 
 def _add_result_parsers(subs) -> None:
     """Sub-commands: read a campaign directory: report, show, compare, verify, gate."""
-    p = _sub(subs, "report", "print the summary of a campaign directory and write its HTML "
+    p = add_command(subs, "report", "print the summary of a campaign directory and write its HTML "
              "report (DIR/report.html)", "fdd-campaign report results/", cmd_report)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
     p.add_argument("--no-html", action="store_true", help="only print the table")
@@ -502,7 +560,7 @@ def _add_result_parsers(subs) -> None:
     creq.add_requirements_option(p)
     p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
-    p = _sub(subs, "show", "re-simulate one run of a campaign from its run id and seed",
+    p = add_command(subs, "show", "re-simulate one run of a campaign from its run id and seed",
              "fdd-campaign show results/ RUN_ID --plot run.png --out run.parquet\n  (RUN_ID: "
              "a run id of results/plan.parquet, e.g. one 'fdd-campaign gate results/' names)",
              cmd_show)
@@ -513,7 +571,7 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--out", help="Parquet file for the traces")
     p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
-    p = _sub(subs, "compare", "what changed between two campaigns: rates with a significance "
+    p = add_command(subs, "compare", "what changed between two campaigns: rates with a significance "
              "test, DTP shifts, per cell", "fdd-campaign compare results-v1/ results-v2/",
              cmd_compare)
     p.add_argument("dir_a", help="campaign directory A (the reference)")
@@ -521,12 +579,12 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the worse/better flags (default 0.01)")
 
-    p = _sub(subs, "verify", "check every file of a campaign directory against its manifest "
+    p = add_command(subs, "verify", "check every file of a campaign directory against its manifest "
              "(SHA-256); exit 2 naming each file that differs, is missing or is extra",
              "fdd-campaign verify results/", cmd_verify)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
 
-    p = _sub(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
+    p = add_command(subs, "gate", "check a campaign against its requirements (exit 1 on failure)",
              "fdd-campaign gate results/ --max-fa 0 --junit gate.xml", cmd_gate)
     p.add_argument("dir", help="campaign (or suite) directory written by 'fdd-campaign run'")
     p.add_argument("--max-fa", type=float, help="largest false-alarm rate of every detector "
@@ -557,7 +615,7 @@ def _add_simulate_parser(subs) -> None:
     from scenarios.catalog import PLANT_KINDS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
 
-    p = _sub(subs, "simulate", "simulate one run and write/plot its signals and truth",
+    p = add_command(subs, "simulate", "simulate one run and write/plot its signals and truth",
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
              "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
     p.add_argument("--surface", default="elevator", choices=SURFACES + AIRCRAFT_SURFACES,
@@ -583,16 +641,16 @@ def _add_tool_parsers(subs) -> None:
     """Sub-commands: presets, init, bench and the FMU tools."""
     from scenarios.catalog import SURFACES
 
-    _sub(subs, "presets", "list the campaign presets shipped with the package",
+    add_command(subs, "presets", "list the campaign presets shipped with the package",
          "fdd-campaign presets", cmd_presets)
 
-    p = _sub(subs, "init", "write an annotated starting campaign file",
+    p = add_command(subs, "init", "write an annotated starting campaign file",
              "fdd-campaign init campaign.toml", cmd_init)
     p.add_argument("file", nargs="?", default="campaign.toml",
                    help="campaign file to write (default campaign.toml)")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
 
-    p = _sub(subs, "bench", "measure simulation speed, memory and the ratio to the per-run "
+    p = add_command(subs, "bench", "measure simulation speed, memory and the ratio to the per-run "
              "reference", "fdd-campaign bench --runs 2200 --jobs 2", cmd_bench)
     p.add_argument("--runs", type=int, default=2200, help="runs simulated (default 2200)")
     p.add_argument("--duration", type=float, default=60.0,
@@ -619,7 +677,7 @@ def _add_tool_parsers(subs) -> None:
     fmu = subs.add_parser("fmu", help="build the built-in servo-loop as an FMU",
                           description="FMU tools")
     fsubs = fmu.add_subparsers(dest="fmu_command", metavar="FMU_COMMAND", required=True)
-    p = _sub(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
+    p = add_command(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
              "FMU and validate it with fmpy", "fdd-campaign fmu build --out servo.fmu", cmd_fmu)
     p.add_argument("--out", default="servo.fmu", help="FMU file to write (default servo.fmu)")
     p.add_argument("--surface", default="elevator", choices=SURFACES,
@@ -634,7 +692,7 @@ def _add_study_parsers(subs) -> None:
                             description="studies: fixed comparisons reproduced from a paper, "
                                         "one table each (campaign.studies)")
     ssubs = study.add_subparsers(dest="study", metavar="STUDY", required=True)
-    p = _sub(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
+    p = add_command(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
              "residual peaks, thresholds, detection delays and DTP (docs/vanek-geometric.md)",
              "fdd-campaign study vanek --noise-scale 0.1", cmd_study_vanek)
     p.add_argument("--noise-scale", type=float, default=1.0,
@@ -664,7 +722,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .falsify_cli import add_falsify_parser
 
     for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
-                _add_study_parsers, add_falsify_parser, partial(add_evidence_parsers, sub=_sub)):
+                _add_study_parsers, add_falsify_parser, add_evidence_parsers):
         add(subs)
     return parser
 
@@ -681,14 +739,16 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
+    from .execute import one_blas_thread
+
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), one_blas_thread():
             warnings.showwarning = _note
             return args.func(args)
-    # bad input: every error of the engine that names a wrong value is a ValueError
-    # (ConfigError, DetectorSpecError, RunSpecError, CampaignSetupError, CampaignDirError,
-    # FmuError, UsageError), and a missing file; the message names the field and the fix
-    except (ValueError, FileNotFoundError) as exc:
+    # bad input: the user's mistake (scenarios.errors.InputError: a campaign file, an option,
+    # a directory, an FMU, a detector's name or parameters, a plugin that fails at the
+    # start), or a file that is missing; the message names the field and the fix
+    except (InputError, FileNotFoundError) as exc:
         print_error(str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
@@ -699,6 +759,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print_error("interrupted")
         return EXIT_INTERRUPTED
+    except Exception as exc:  # noqa: BLE001 - anything else is a fault of the engine or a library
+        report_internal_error(exc, sys.argv[1:] if argv is None else list(argv))
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """What every ``fdd-campaign`` command shares (docs/design.md §7, Command line): the exit
-codes, :class:`UsageError` and the check that an output path can be written. Kept apart
-from :mod:`campaign.cli` so that commands defined in their own modules
-(:mod:`campaign.falsify_cli`) use them without importing the command line itself."""
+codes, :class:`UsageError`, the registration of a sub-command (:func:`add_command`) and the
+check that an output path can be written. Kept apart from :mod:`campaign.cli` so that
+commands defined in their own modules (:mod:`campaign.falsify_cli`) use them without
+importing the command line itself."""
 
 from __future__ import annotations
 
@@ -9,27 +10,56 @@ import os
 import sys
 from pathlib import Path
 
-#: BLAS libraries run one thread per process under the command line. The campaign's
-#: parallelism is its workers (``--jobs``: processes, or threads for the aircraft plant); a
-#: multi-threaded BLAS inside each of them oversubscribes the cores (on two cores a batch of
-#: 100 matrix exponentials took 40–130 ms with OpenBLAS's default threads, 3–10 ms with one,
-#: and chen-mc 82 → 55 CPU-s), and a result computed with one thread does not depend on the
-#: machine's core count. Set before NumPy is first imported, which is when OpenBLAS reads it;
-#: a value exported by the user wins.
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-for _variable in BLAS_THREAD_VARIABLES:
-    os.environ.setdefault(_variable, "1")
+from scenarios.errors import InputError
 
-EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
-class UsageError(ValueError):
+class UsageError(InputError, ValueError):
     """Bad command-line input (exit code 2)."""
+
+
+def add_command(subs, name: str, help_: str, example: str, func):
+    """Register the sub-command *name* of *subs* (an ``add_subparsers`` action): *help_* is
+    its line in the command list and its description, *example* the command its ``--help``
+    ends with, *func* (``args -> exit code``) what it runs. The one way every module of the
+    command line adds its commands; returns the sub-parser, for the command's arguments."""
+    import argparse
+
+    p = subs.add_parser(name, help=help_, description=help_, epilog="example:\n  " + example,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.set_defaults(func=func)
+    return p
 
 
 def print_error(msg: str) -> None:
     """*msg* on stderr as the command line's error line (``fdd-campaign: error: …``)."""
     print(f"fdd-campaign: error: {msg}", file=sys.stderr)
+
+
+def report_internal_error(exc: BaseException, argv: list[str]) -> Path | None:
+    """Tell the user that *exc*, raised by the command *argv*, is a fault of the engine or
+    of a library it uses, not of their input (exit code 3): a line on stderr naming the
+    error, and one naming the file its traceback was written to (a new file in the system's
+    temporary folder, headed by the command) with the request to report it. Returns that
+    file (None when it could not be written: the traceback then goes to stderr)."""
+    import tempfile
+    import traceback
+
+    text = "".join(traceback.format_exception(exc))
+    try:
+        handle, name = tempfile.mkstemp(prefix="fdd-campaign-error-", suffix=".txt", text=True)
+        with os.fdopen(handle, "w", encoding="utf-8") as file:
+            file.write(f"fdd-campaign {' '.join(argv)}\n\n{text}")
+        where = Path(name)
+    except OSError:
+        print(text, file=sys.stderr, end="")
+        where = None
+    print(f"fdd-campaign: internal error: {type(exc).__name__}: {exc}", file=sys.stderr)
+    print("  a fault of fdd-campaign or of a library it uses, not of your input; its traceback "
+          f"is {f'in {where}' if where else 'above'}: please report it with that traceback and "
+          "the command you ran", file=sys.stderr)
+    return where
 
 
 def check_writable(path, option: str, *, directory: bool = False) -> None:

@@ -125,11 +125,12 @@ def fa_probability_checks(camp, limit: float) -> list:
     return checks(camp.certificate.table, limit)
 
 
-def add_evidence_parsers(subs, sub) -> None:
-    """Sub-command ``certify`` (*sub* makes a sub-parser as :func:`campaign.cli._sub`)."""
+def add_evidence_parsers(subs) -> None:
+    """Sub-command ``certify``."""
     from .certify_levels import DEFAULT_LEVELS
+    from .cli_common import add_command
 
-    p = sub(subs, "certify", "per-run false-alarm probability of each detector beyond "
+    p = add_command(subs, "certify", "per-run false-alarm probability of each detector beyond "
             "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
             "optionally subset simulation (resumable: its batches are kept under DIR/sampling/); "
             "writes DIR/certificate.parquet (docs/evidence.md)",

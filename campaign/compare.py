@@ -13,7 +13,7 @@ from reports.table import error_lines
 
 from .fitted import compare_fitted
 
-__all__ = ["cmd_compare", "compare_dirs"]
+__all__ = ["compare_dirs"]
 
 
 def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
@@ -37,8 +37,3 @@ def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFram
                        for d in table["detector"]]
     log(format_compare(table, alpha=alpha, notes=notes))
     return table
-
-
-def cmd_compare(args) -> int:
-    compare_dirs(args.dir_a, args.dir_b, alpha=args.alpha)
-    return 0

@@ -33,23 +33,12 @@ from scenarios.catalog import MANOEUVRES, latest_onset_s
 from scenarios.faults import liquid_jam_bias_mm, solid_jam_offset_mm
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
+from .config import ConfigError
 from .plant import run_actuator, run_surface
 
 #: Version of the simulated models: part of every run id, so a model change never reuses
-#: results computed with the previous model. servo-2: one draw per aerodynamic coefficient
-#: and per hinge-moment coefficient, longitudinal–lateral coupling of the surfaces,
-#: aft-loaded aileron hinge moment (docs/physics.md §3, §6, §7). servo-3: the aircraft
-#: laws' control distributions summed per run in a fixed order (a matrix product over the
-#: block made a run's gains, hence its samples, depend at round-off on the runs simulated
-#: beside it; docs/design.md §9); actuator-level runs are unchanged, aircraft-level runs
-#: move at round-off, amplified by the sensors' quantisation. servo-4: drawn onsets leave the
-#: fault's detection budget before the end of the run
-#: (:data:`scenarios.catalog.DETECTION_BUDGET_S`; the
-#: disconnection's onsets of every preset change), the aircraft plant may fly in calm
-#: air (``[plant] turbulence``), and it measures the angle of attack
-#: (``Signals.aircraft["alpha"]``, the air-relative α of a vane, docs/physics.md §4), its
-#: noise drawn after every other sensor's, so the other signals of a run are unchanged bit
-#: for bit; actuator-level runs are unchanged but for the onsets.
+#: results computed with the previous model (a directory planned with another version is
+#: refused). What each version changed: CHANGELOG.md, "Model versions".
 MODEL_VERSION = "servo-4"
 
 #: First stream index of the learning set (disjoint from any evaluation index).
@@ -229,7 +218,7 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
             break
         extra += 1
         if extra > 6:
-            raise ValueError(
+            raise ConfigError(
                 f"group {group.name!r}: fewer than {n} realistic flight points in the envelope "
                 "box; widen [envelope] or set realistic_only = false")
     pts = pts.iloc[idx].reset_index(drop=True)
@@ -319,7 +308,7 @@ def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
     plan["run_id"] = [run_id(r) for r in records]
     if unique and plan["run_id"].duplicated().any():
         dup = plan.loc[plan["run_id"].duplicated(), "group"].iloc[0]
-        raise ValueError(f"duplicate runs in group {dup!r}: two rows describe the same run")
+        raise ConfigError(f"duplicate runs in group {dup!r}: two rows describe the same run")
     return plan
 
 

@@ -13,11 +13,13 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
+from scenarios.errors import InputError
+
 #: The lock file, in the campaign directory.
 LOCK_NAME = ".fdd-campaign.lock"
 
 
-class CampaignLockedError(ValueError):
+class CampaignLockedError(InputError, ValueError):
     """Another run is writing into the campaign directory (exit code 2)."""
 
 

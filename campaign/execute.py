@@ -35,18 +35,24 @@ Faults in the machinery (TimeEval-style per-run status)
 
 A rerun into the same directory retries exactly the runs whose rows are not all ``ok``.
 Splitting never changes a result: a run simulated alone equals the same run in any chunk.
+
+BLAS runs one thread per process while a campaign runs (:func:`one_blas_thread`).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+
+from scenarios.errors import InputError
 
 BACKENDS = ("loky", "threading")
 
@@ -68,6 +74,41 @@ class Task:
 
     def split(self) -> list["Task"]:
         return [Task(self.rows.iloc[[j]], alone=True, single=True) for j in range(self.n)]
+
+
+#: Environment variables that set the thread count of the BLAS libraries NumPy and SciPy load
+#: (OpenBLAS, MKL); one exported by the user wins over :func:`one_blas_thread`.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextmanager
+def one_blas_thread():
+    """Run BLAS with one thread per process inside the ``with`` block (or the decorated
+    function), unless the user exported a thread count (:data:`BLAS_THREAD_VARIABLES`).
+
+    The campaign's parallelism is its workers (``jobs``: processes, or threads for the
+    aircraft plant); a multi-threaded BLAS inside each of them oversubscribes the cores (on
+    two cores a batch of 100 matrix exponentials took 40–130 ms with OpenBLAS's default
+    threads, 3–10 ms with one, and chen-mc 82 → 55 CPU-s), and a result computed with one
+    thread does not depend on the machine's core count. This process's BLAS is limited with
+    threadpoolctl (restored on leaving), and the variables are set to 1 meanwhile, so that
+    the worker processes started inside (loky) load their BLAS with one thread. Nested use
+    changes nothing. Used by :func:`campaign.runner.run` (hence ``campaign.run``), the
+    falsification search, the certificate and every ``fdd-campaign`` command; the workers
+    of a dask cluster are the cluster's own processes, configured by whoever starts them.
+    """
+    if any(variable in os.environ for variable in BLAS_THREAD_VARIABLES):
+        yield                       # the user's choice, or an enclosing one_blas_thread
+        return
+    from threadpoolctl import threadpool_limits
+
+    os.environ.update({variable: "1" for variable in BLAS_THREAD_VARIABLES})
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield
+    finally:
+        for variable in BLAS_THREAD_VARIABLES:
+            os.environ.pop(variable, None)
 
 
 def _worker_init() -> None:
@@ -305,7 +346,7 @@ def _short(exc: BaseException, limit: int = 300) -> str:
 CONNECT_TIMEOUT_S = 5.0
 
 
-class ClusterError(ValueError):
+class ClusterError(InputError, ValueError):
     """The dask cluster cannot be used (not installed, unreachable, bad address)."""
 
 

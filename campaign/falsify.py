@@ -51,11 +51,13 @@ import pandas as pd
 
 from scenarios import envelope
 from scenarios.envelope import FLIGHT_COLUMNS
+from scenarios.errors import InputError
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from .config import CampaignConfig
 from .config.text import toml_value
 from .design import PLAN_COLUMNS, build_plan, explicit_plan, variable_ranges
+from .execute import one_blas_thread
 from .storage import write_parquet
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
@@ -72,7 +74,7 @@ SEARCH_GROUP: str = "falsify"
 MIN_BUDGET: int = 10
 
 
-class FalsifyError(ValueError):
+class FalsifyError(InputError, ValueError):
     """The search cannot start (no fault-free group, unknown detector, bad budget …)."""
 
 
@@ -334,6 +336,7 @@ def worst_toml(config: CampaignConfig, runs: list[dict], *, label: str, note: st
     return text
 
 
+@one_blas_thread()
 def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int = 2,
             seed: int = 0, scheduler: str | None = None, tls=None, fitted_from=None,
             against=None, keep: int = 10, log=None, progress=True) -> FalsifyResult:
@@ -516,7 +519,3 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
             f"Replay (same margins): {replay}.")
     (out / "worst.toml").write_text(worst_toml(config, runs, label=label, note=note))
     return ranked.iloc[0]
-
-
-#: Columns of search.parquet beside the run table's.
-SEARCH_COLUMNS = (*PLAN_COLUMNS, "margin", "false_alarm", "generation", "phase")

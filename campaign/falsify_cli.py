@@ -4,11 +4,11 @@ otherwise, 2 on bad input (before any run)."""
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
-from .cli_common import EXIT_GATE, EXIT_INTERRUPTED, EXIT_OK, UsageError, check_writable
+from .cli_common import (EXIT_GATE, EXIT_INTERRUPTED, EXIT_OK, UsageError, add_command,
+                         check_writable)
 
 EXAMPLE = ("fdd-campaign falsify addsafe-mc --detector position-monitor --budget 600 "
            "--jobs 2 --against results/ --out falsify-mc/")
@@ -19,10 +19,7 @@ def add_falsify_parser(subs) -> None:
     help_ = ("search the campaign's fault-free envelope for the run of largest margin of one "
              "detector (Sobol screening, CMA-ES on the worst cells, stream sweep; exit 1 if it "
              "finds a false alarm)")
-    p = subs.add_parser("falsify", help=help_, description=help_,
-                        epilog="example:\n  " + EXAMPLE,
-                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.set_defaults(func=cmd_falsify)
+    p = add_command(subs, "falsify", help_, EXAMPLE, cmd_falsify)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--detector", required=True, metavar="LABEL",
                    help="detector label as in the results (e.g. position-monitor, "

@@ -36,6 +36,7 @@ from reports.metrics import FAULT_FREE
 from reports.table import error_lines
 from scenarios.envelope import FLIGHT_COLUMNS
 
+from .cli_common import UsageError
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .hazard import report_section
@@ -345,9 +346,9 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
     if jobs < 1:
-        raise ValueError(f"--jobs must be ≥ 1, got {jobs}")
+        raise UsageError(f"--jobs must be ≥ 1, got {jobs}")
     if cfg.envelope_runs is not None and cfg.envelope_runs < 1:
-        raise ValueError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
+        raise UsageError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
     data = _gather_report_data(directory, cfg, jobs, t0, requirements, fmu, log)
@@ -650,17 +651,3 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
         Path(plot).write_bytes(figure_png(fig, dpi=110))
         log(f"plot written to {plot}")
     return frame
-
-
-# ---- command-line entry points (wired in campaign/cli.py) ----------------------------------
-def cmd_show(args) -> int:
-    show_run(args.dir, args.run_id, plot=args.plot, out=args.out, fmu=args.fmu)
-    return 0
-
-
-def write_html_report(args) -> None:
-    """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
-    path = build_report(args.dir, out=args.html, jobs=args.jobs, fmu=args.fmu,
-                        settings=ReportSettings(envelope_runs=args.envelope_runs),
-                        requirements=getattr(args, "requirements_values", None))
-    print(f"HTML report written to {path}")

@@ -30,6 +30,7 @@ from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import summarize
 from scenarios import kernels
+from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
@@ -41,15 +42,13 @@ from .plugins import (
     third_party,
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
+from .execute import one_blas_thread
 from .plant import detector_problems, fmu_sha256, plant_of
 from .result import Campaign, plan_order
 from .storage import CampaignDir, DirLock
 
-#: The former name of :func:`campaign.evaluate.evaluate`, for existing callers.
-run_chunk = evaluate
 
-
-class CampaignSetupError(ValueError):
+class CampaignSetupError(InputError, ValueError):
     """The campaign cannot start (incompatible detector, bad directory, …)."""
 
 
@@ -345,6 +344,7 @@ def check_plant(config, plant) -> None:
     plant.check(faults={g.fault for g in config.groups} | {r.fault for r in config.runs})
 
 
+@one_blas_thread()
 def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
         backend: str | None = None, log=None, scheduler: str | None = None,
         engine: str | None = None, tls=None, fitted_from=None) -> Campaign:
@@ -383,7 +383,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     whether the campaign runs from Python or from ``fdd-campaign run``. The run holds the
     directory's lock (:class:`campaign.storage.DirLock`) from opening it to the summary: a
     second run into the same directory meanwhile is refused
-    (:class:`campaign.storage.CampaignLockedError`).
+    (:class:`campaign.storage.CampaignLockedError`). BLAS runs one thread per process
+    meanwhile (:func:`campaign.execute.one_blas_thread`).
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()

@@ -50,7 +50,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
+
+from scenarios.errors import InputError
 
 from .dirlock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
 from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of,
@@ -72,7 +75,7 @@ def _read_optional(path: Path) -> pd.DataFrame | None:
     return pd.read_parquet(path) if path.exists() else None
 
 
-class CampaignDirError(ValueError):
+class CampaignDirError(InputError, ValueError):
     """The output directory cannot be used for this campaign (message says why and how)."""
 
 
@@ -660,7 +663,13 @@ class CampaignDir:
             return pd.DataFrame()
         frames = []
         for seq, path in enumerate(paths):
-            df = pq.read_table(path).to_pandas()
+            try:
+                df = pq.read_table(path).to_pandas()
+            except (pa.ArrowInvalid, OSError) as exc:     # truncated, overwritten, unreadable
+                raise CampaignDirError(
+                    f"{path}: not a readable result shard ({exc}); the directory is damaged: "
+                    f"'fdd-campaign verify {self.root}' names what differs from its manifest; "
+                    "rerun the campaign into a new directory") from None
             df["_seq"] = seq
             frames.append(df)
         df = pd.concat(frames, ignore_index=True)

@@ -39,6 +39,7 @@ from scenarios.catalog import suggest
 
 from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
 from .config.load import SUITE_DIR, shipped_dir, shipped_names
+from .storage import CampaignDirError
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
            "load_suite", "reference_text", "suite_members", "suite_references",
@@ -236,18 +237,18 @@ def write_suite_json(suite: Suite, out, complete: dict[str, bool]) -> Path:
 def suite_members(directory) -> list[tuple[str, Path]]:
     """(title, member directory) of a suite's output directory, in the suite's order.
 
-    Raises :class:`ValueError` naming the problem when ``suite.json`` is damaged or a
+    Raises :class:`campaign.storage.CampaignDirError` naming the problem when ``suite.json`` is damaged or a
     member directory is missing."""
     root = Path(directory)
     try:
         doc = json.loads((root / SUITE_FILE).read_text())
         members = [(str(m["title"]), root / str(m["directory"])) for m in doc["members"]]
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f"{root / SUITE_FILE} is damaged ({exc}); rerun 'fdd-campaign run' "
+        raise CampaignDirError(f"{root / SUITE_FILE} is damaged ({exc}); rerun 'fdd-campaign run' "
                          "on the suite into this directory") from None
     missing = [str(d) for _, d in members if not d.is_dir()]
     if missing:
-        raise ValueError(f"{root} is a suite directory whose member(s) {', '.join(missing)} "
+        raise CampaignDirError(f"{root} is a suite directory whose member(s) {', '.join(missing)} "
                          "have not run yet; rerun 'fdd-campaign run' on the suite into it")
     return members
 

@@ -75,7 +75,7 @@ Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free lea
   the end of the simulation"), and the liquid alarm is raised once it reaches
   ``liquid_confirm_s``. τ_liq is learned
   on max |d| per fault-free run. ``liquid_reference_s = 0`` and ``liquid_window_s = 0``
-  give the level |T f̂| itself (the earlier statistic, whose calibrated threshold lay at
+  give the level |T f̂| itself (a statistic whose calibrated threshold was measured at
   the size of a 1.3 % jam on the aircraft plant: docs/chen-estimator.md §3). Integrating
   T f̂ itself would accumulate the per-run sensor bias and noise of the fault-free runs
   without bound, which no constant threshold can separate from a transient of ~f·τ.

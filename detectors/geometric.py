@@ -55,11 +55,13 @@ import warnings
 
 import numpy as np
 
+from scenarios.errors import InputError
+
 #: Default relative rank tolerance of every subspace routine (module docstring).
 RTOL = 1e-9
 
 
-class GeometricDesignError(ValueError):
+class GeometricDesignError(InputError, ValueError):
     """The geometric residual-generation problem has no solution (the message says why)."""
 
 

@@ -43,10 +43,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
+from scenarios.errors import InputError
+
 from scenarios.params import param
 
 
-class LMIInfeasibleError(ValueError):
+class LMIInfeasibleError(InputError, ValueError):
     """The vertex LMIs of [CHEN] eq. 23 have no solution (the message says what to check)."""
 
 

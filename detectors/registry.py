@@ -19,6 +19,7 @@ import sys
 from importlib.metadata import entry_points
 
 from scenarios.catalog import suggest
+from scenarios.errors import InputError
 
 from .base import Detector
 from .params import parameter_markdown, parameter_problems
@@ -36,7 +37,7 @@ BUILTIN: dict[str, str] = {
 }
 
 
-class DetectorSpecError(ValueError):
+class DetectorSpecError(InputError, ValueError):
     """A detector name or parameter that cannot be used (message says how to fix it)."""
 
 
@@ -69,6 +70,14 @@ def load_detector_class(name: str) -> type[Detector]:
         raise DetectorSpecError(
             f"detector {name!r} is registered as {specs[name]!r}, which cannot be imported: "
             f"{exc}. Is the package that provides it installed?"
+        ) from exc
+    except Exception as exc:  # noqa: BLE001 - a plugin's module that fails: named (exit 2)
+        if name in BUILTIN:
+            raise                   # a built-in detector that cannot load is a bug
+        raise DetectorSpecError(
+            f"detector {name!r} ({specs[name]}, a third-party detector) fails when its module "
+            f"is imported: {type(exc).__name__}: {exc}; fix it in that package (e.g. its "
+            "parameter declarations, docs/write-a-detector.md)"
         ) from exc
     if not (inspect.isclass(cls) and issubclass(cls, Detector)):
         raise DetectorSpecError(

@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.errors import InputError
+
 #: The supported types in one sentence, quoted by error messages.
 PLAIN_TYPES_DOC = ("None, bool, int, float, complex, str, NumPy arrays and scalars of "
                    "bool/int/float/complex/str, and lists, tuples, dicts and registered "
@@ -49,7 +51,7 @@ _TAGS = ("$ndarray", "$scalar", "$tuple", "$dict", "$dataclass", "$complex", "$f
 _STATE_TYPES: dict[str, type] = {}
 
 
-class StateTypeError(TypeError):
+class StateTypeError(InputError, TypeError):
     """A value that is not plain data (:data:`PLAIN_TYPES_DOC`); ``path`` says where it is."""
 
     def __init__(self, path: str, message: str):
@@ -78,11 +80,6 @@ def register_state_type(cls: type) -> type:
         raise TypeError(f"register_state_type: another class is already registered as {name}")
     _STATE_TYPES[name] = cls
     return cls
-
-
-def registered_state_types() -> dict[str, type]:
-    """The registered dataclasses: ``"module:qualname"`` → class."""
-    return dict(_STATE_TYPES)
 
 
 # ---- encoding --------------------------------------------------------------------------------
@@ -173,7 +170,7 @@ def check_plain(values: dict[str, Any], root: str = "") -> None:
 
 
 # ---- decoding --------------------------------------------------------------------------------
-class StateFormatError(ValueError):
+class StateFormatError(InputError, ValueError):
     """A stored document that is not a valid encoding (damaged or edited by hand)."""
 
 

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios.errors import InputError
+
 from scenarios.params import param
 
 from .geometric import ResidualGenerator
@@ -51,7 +53,7 @@ def sensor_sigmas(outputs) -> np.ndarray:
     return np.array([sigma[o] for o in outputs])
 
 
-class HinfUnavailableError(ImportError):
+class HinfUnavailableError(InputError, ImportError):
     """python-control or slycot is missing (the message says how to install them)."""
 
 

@@ -38,6 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from scenarios.errors import InputError
+
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
@@ -50,7 +52,7 @@ _REQUIRED = ("detector", "fault", "manoeuvre", "n_runs", "n_errors", "fa_count",
              "md_count", "dtp_max")
 
 
-class GateInputError(ValueError):
+class GateInputError(InputError, ValueError):
     """A summary or a limit the gate cannot evaluate; lists every problem at once.
 
     Survives pickling (it may cross a process boundary).

@@ -61,6 +61,7 @@ import numpy as np
 from .acquisition import Trajectory
 from .catalog import suggest
 from .faults import NEVER
+from .errors import InputError
 from .fmu_files import FmuError, container, load_failure
 from .params import SENSORS, TS_S, SensorParams
 from .simulate import ServoLoopPlant, simulate
@@ -117,8 +118,9 @@ def plant_parameters(pl, act, j: int) -> dict[str, float]:
     return out
 
 
-class FmuRunError(RuntimeError):
-    """A run of an FMU that failed (NaN, infinite or diverged output, failing FMI call)."""
+class FmuRunError(InputError, RuntimeError):
+    """A run of an FMU that failed (NaN, infinite or diverged output, failing FMI call): the
+    user's plant, recorded per run in a campaign, exit 2 naming the FMU elsewhere."""
 
 
 @dataclass(frozen=True)

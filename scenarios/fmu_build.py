@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import InputError
+
 from .params import TS_S
 
 MODEL_IDENTIFIER = "fdd_servo"
@@ -66,8 +68,12 @@ H_MAX_S = TS_S
 CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-ffp-contract=off", "-fno-fast-math")
 
 
-class FmuBuildError(RuntimeError):
+class FmuBuildError(InputError, RuntimeError):
     """The FMU could not be built (no compiler, compiler error, validation failure)."""
+
+
+class FmuOptionError(InputError, ValueError):
+    """An option of the build that cannot be used (surface, file name, FMI version)."""
 
 
 def source_dir() -> Path:
@@ -106,7 +112,7 @@ def start_values(surface: str = "elevator") -> dict[str, float]:
     from .simulate import DEFAULT_POINT
 
     if surface not in ACTUATORS:
-        raise ValueError(f"unknown surface {surface!r}; allowed: {', '.join(ACTUATORS)}")
+        raise FmuOptionError(f"unknown surface {surface!r}; allowed: {', '.join(ACTUATORS)}")
     act = ACTUATORS[surface]
     pt = {k: np.array([v]) for k, v in DEFAULT_POINT.items()}
     fc = envelope.flight_condition(pt["alt_ft"], pt["vcas_kt"], pt["mass_t"], pt["cg_pct"])
@@ -159,9 +165,9 @@ def build_servo_fmu(out: str | os.PathLike = "servo.fmu", *, surface: str = "ele
     """
     out = Path(out)
     if out.suffix != ".fmu":
-        raise ValueError(f"--out {out}: an FMU file name must end in .fmu, e.g. servo.fmu")
+        raise FmuOptionError(f"--out {out}: an FMU file name must end in .fmu, e.g. servo.fmu")
     if str(fmi) not in VERSIONS:
-        raise ValueError(f"FMI version {fmi!r} is not supported; allowed: 2, 3")
+        raise FmuOptionError(f"FMI version {fmi!r} is not supported; allowed: 2, 3")
     SOURCE_FILES, TEMPLATE = VERSIONS[str(fmi)]
     src = source_dir()
     values = start_values(surface)

@@ -7,6 +7,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from .errors import InputError
+
 
 def not_a_zip(path: Path) -> str:
     """What *path* is, when it is not a zip archive (an FMU is one)."""
@@ -62,7 +64,7 @@ def load_failure(info, stage: str, exc: Exception) -> str:
             "from the same build")
 
 
-class FmuError(ValueError):
+class FmuError(InputError, ValueError):
     """An FMU that cannot be used for a campaign (checked before any run)."""
 
 

@@ -207,11 +207,6 @@ def float_step_1(delta, p, h, d_min, d_max):
     return clip(d_f + e_new, d_min, d_max)
 
 
-@njit(nogil=True, cache=True, error_model="numpy")
-def _quantize(v, q):
-    return q * np.rint(v / q)
-
-
 # ---- the closed-loop time loop (scenarios.simulate.integrate) --------------------------------
 #: Rows of the per-block scratch array of :func:`integrate_block`.
 _PLANT_WORK_ROWS = 16

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from . import envelope
+from .errors import InputError
 from .catalog import FAULTS, MANOEUVRE_SETS, MANOEUVRES, SURFACES, suggest
 from .declare import Declared
 from .faults import required_magnitude
@@ -85,7 +86,7 @@ RUN_RANGES: dict[str, tuple[float, float]] = {
     c: (d.ge, d.le) for c, d in RUN_COLUMNS.items() if d.bounded}
 
 
-class RunSpecError(ValueError):
+class RunSpecError(InputError, ValueError):
     """A run table that cannot be simulated; ``errors`` lists every problem found."""
 
     def __init__(self, errors):
@@ -116,6 +117,11 @@ def validate_runs(runs: pd.DataFrame, surfaces: tuple[str, ...] = SURFACES) -> N
         if bad.any():
             errors.append(f"{col}: {int(bad.sum())} value(s) out of range; allowed: "
                           f"{RUN_COLUMNS[col].range_text(col)} (first: {float(v[bad][0])!r})")
+    seed = pd.to_numeric(runs["seed"], errors="coerce").to_numpy(float)
+    bad_seed = ~(np.isfinite(seed) & (seed >= 0) & (seed == np.floor(seed)))
+    if bad_seed.any():
+        errors.append(f"seed: {int(bad_seed.sum())} run(s) whose seed is not an integer ≥ 0 "
+                      f"(first: {float(seed[bad_seed][0])!r}); fix: e.g. seed 0")
     if runs["surface"].nunique() > 1 or runs["duration_s"].nunique() > 1:
         errors.append("a batch must share one surface and one duration_s; split it first")
     fault = runs["fault"].astype(str).to_numpy()

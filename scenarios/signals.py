@@ -9,7 +9,7 @@ is time ``k·ts``. Per-run scheduling data are the *measured/estimated* values, 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -278,13 +278,3 @@ class Truth:
 def _map(series: dict | None, fn) -> dict | None:
     """Apply *fn* to every array of an optional dict of series (None stays None)."""
     return None if series is None else {k: fn(v) for k, v in series.items()}
-
-
-def assert_same_shape(signals: Signals) -> None:
-    """Raise ``ValueError`` when the signal arrays disagree in shape (a malformed batch)."""
-    shape = signals.command.shape
-    for f in fields(signals):
-        if f.name in SIGNAL_UNITS:
-            arr = getattr(signals, f.name)
-            if arr.shape != shape:
-                raise ValueError(f"signal {f.name!r} has shape {arr.shape}, expected {shape}")

@@ -74,12 +74,19 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     t = np.arange(T) * ts
     gens = [run_streams(s, k) for s, k in zip(col["seed"], col["stream"])]
     if orders_deg is None:
+        params = [manoeuvres.set_params(m) for m in manoeuvre_sets(runs)]
+        shortest = max(p.min_duration_s for p in params)
+        if T * ts < shortest - 1e-9:       # the manoeuvres' own check, said of the run row
+            raise RunSpecError([f"duration_s: {T * ts:g} s is shorter than the {shortest:g} s "
+                                "the manoeuvres of the servo-loop plant need "
+                                "(ManoeuvreParams.min_duration_s); fix: a duration of at "
+                                f"least {shortest:g} s"])
         order_deg = manoeuvres.orders_for_runs(
             list(col["manoeuvre"].astype(str)), act.surface, t,
             {k: flight_true[k] for k in ("qbar_pa", "tas_ms", "alt_ft", "alpha_deg", "cg_pct",
                                          "mach")},
             [g[0] for g in gens], act,
-            params=[manoeuvres.set_params(m) for m in manoeuvre_sets(runs)],
+            params=params,
             start_s=(runs["manoeuvre_start_s"].to_numpy(float)
                      if "manoeuvre_start_s" in runs.columns else None))
         lo, hi = authority_limits(plant, act)

@@ -20,6 +20,9 @@ MAY_IMPORT = {
     "scenarios": {"scenarios"},
     "reports": {"reports"},
 }
+#: The one module every package may import besides those: the base of the input errors
+#: (:class:`scenarios.errors.InputError`), which imports nothing of the project.
+SHARED = {"scenarios.errors"}
 
 
 def _modules() -> dict[str, Path]:
@@ -116,8 +119,15 @@ def test_no_private_name_is_imported_across_modules():
 def test_imports_flow_one_way_between_packages():
     upward = [f"{name}:{line} imports {target}"
               for name, edges in GRAPH.items() for target, _, line in edges
-              if target.split(".")[0] not in MAY_IMPORT[name.split(".")[0]]]
+              if target.split(".")[0] not in MAY_IMPORT[name.split(".")[0]]
+              and target not in SHARED]
     assert upward == []
+
+
+def test_the_shared_modules_import_nothing_of_the_project():
+    # every package may import them, so they must sit below all of them
+    assert {name: GRAPH[name] for name in SHARED} == {name: [] for name in SHARED}
+    assert any(t in SHARED for t, _, _ in GRAPH["reports.gate"])   # the rule is exercised
 
 
 def _sections(doc: str) -> set[str]:
@@ -192,3 +202,18 @@ def test_each_shared_helper_is_defined_once():
                if isinstance(node, (ast.Tuple, ast.List))
                and [getattr(e, "value", None) for e in node.elts] == flight]
     assert literal == ["scenarios.envelope"]
+
+
+def test_the_changelog_tells_every_model_version_and_the_current_engine():
+    # history lives in CHANGELOG.md, not in comments: it must list every model version the
+    # run ids have hashed, newest (the current MODEL_VERSION) first, and the package's version
+    import tomllib
+
+    from campaign.design import MODEL_VERSION
+
+    text = (REPO / "CHANGELOG.md").read_text(encoding="utf-8")
+    models = re.findall(r"^- \*\*(servo-\d+)\*\*", text, flags=re.M)
+    newest = int(MODEL_VERSION.removeprefix("servo-"))
+    assert models == [f"servo-{n}" for n in range(newest, 0, -1)]
+    version = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    assert re.search(rf"^- \*\*{re.escape(version)}\*\* \(current", text, flags=re.M)

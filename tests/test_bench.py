@@ -94,6 +94,11 @@ def test_simulate_timings_leave_the_result_unchanged():
 
 @pytest.mark.parametrize("argv, message", [
     (["bench", "--stage-runs", "0"], "--stage-runs 0"),
+    # once an internal error (max() of no chunk) and a division by zero: the user's values
+    (["bench", "--runs", "0", "--reference-runs", "0"],
+     "--runs 0: must be an integer ≥ 1 (runs simulated); fix: e.g. --runs 2200; "
+     "--reference-runs 0: must be an integer ≥ 1"),
+    (["bench", "--duration", "5"], "--duration 5: a run lasts 20 to 3600 s"),
     (["bench", "--campaign", "no-such-preset", "--no-detectors"], "no-such-preset"),
 ])
 def test_bench_bad_input_exits_2_before_any_work(argv, message, capsys):

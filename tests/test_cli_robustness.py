@@ -213,3 +213,99 @@ def test_unwritable_folder_message(tmp_path, capsys, monkeypatch):
     assert f"chmod u+w {ro}" in err
     assert main(["run", "smoke", "--out", str(ro)]) == 2
     assert f"--out {ro}: not writable (permission denied)" in capsys.readouterr().err
+
+
+def test_a_failure_inside_a_library_is_an_internal_error(tmp_path, capsys, monkeypatch):
+    """A ValueError raised inside pyarrow's Parquet writer is no mistake of the user: exit 3
+    (not 2, bad input), the error named on one line and its traceback kept in the file the
+    message names."""
+    import tempfile
+
+    import campaign.files as files
+
+    def broken(*args, **kwargs):
+        raise ValueError("planted failure in write_table")
+
+    monkeypatch.setattr(files.pq, "write_table", broken)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))     # the traceback file lands here
+    code = main(["run", "smoke", "--jobs", "1", "--quiet", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert "internal error: ValueError: planted failure in write_table" in err
+    assert "not of your input" in err and "please report it" in err
+    kept = list(tmp_path.glob("fdd-campaign-error-*.txt"))
+    assert len(kept) == 1 and str(kept[0]) in err
+    text = kept[0].read_text()
+    assert text.startswith(f"fdd-campaign run smoke --jobs 1 --quiet --out {tmp_path / 'out'}\n")
+    # the whole traceback: from the command down to the planted call
+    assert "Traceback (most recent call last)" in text and "in broken" in text
+    assert "ValueError: planted failure in write_table" in text
+
+
+def test_an_input_error_from_deep_inside_stays_bad_input(tmp_path, capsys):
+    """The user's mistakes that are found below the command line (a significance level
+    checked by the comparison, a suite directory whose members are missing) keep exit 2
+    with their message, and no traceback file."""
+    out = tmp_path / "a"
+    assert main(["plan", "smoke", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(out), str(out), "--alpha", "2"]) == 2
+    assert "--alpha 2.0: a significance level in (0, 1)" in capsys.readouterr().err
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "suite.json").write_text("{not json")
+    assert main(["report", str(suite), "--no-html"]) == 2
+    err = capsys.readouterr().err
+    assert "suite.json is damaged" in err and "internal error" not in err
+
+
+INPUT_ERRORS = [   # (module, class, the builtin its callers catch)
+    ("campaign.cli_common", "UsageError", ValueError),
+    ("campaign.config", "ConfigError", ValueError),
+    ("campaign.storage", "CampaignDirError", ValueError),
+    ("campaign.storage", "ManifestError", ValueError),
+    ("campaign.dirlock", "CampaignLockedError", ValueError),
+    ("campaign.runner", "CampaignSetupError", ValueError),
+    ("campaign.execute", "ClusterError", ValueError),
+    ("campaign.certify", "CertifyError", ValueError),
+    ("campaign.falsify", "FalsifyError", ValueError),
+    ("detectors.registry", "DetectorSpecError", ValueError),
+    ("detectors.state", "StateTypeError", TypeError),
+    ("detectors.state", "StateFormatError", ValueError),
+    ("detectors.geometric", "GeometricDesignError", ValueError),
+    ("detectors.lpv_synthesis", "LMIInfeasibleError", ValueError),
+    ("detectors.vanek_hinf", "HinfUnavailableError", ImportError),
+    ("scenarios.runs", "RunSpecError", ValueError),
+    ("scenarios.fmu_files", "FmuError", ValueError),
+    ("scenarios.fmu", "FmuRunError", RuntimeError),
+    ("scenarios.fmu_build", "FmuBuildError", RuntimeError),
+    ("scenarios.fmu_build", "FmuOptionError", ValueError),
+    ("reports.gate", "GateInputError", ValueError),
+]
+
+
+@pytest.mark.parametrize("module,name,builtin", INPUT_ERRORS,
+                         ids=[name for _, name, _ in INPUT_ERRORS])
+def test_the_input_errors_are_one_family_and_keep_their_builtin(module, name, builtin):
+    # exit 2 is decided on the family (cli.main catches InputError), and a caller's
+    # `except ValueError` (or the class's own builtin) must still catch the error
+    import importlib
+
+    from scenarios.errors import InputError
+
+    cls = getattr(importlib.import_module(module), name)
+    assert issubclass(cls, InputError) and issubclass(cls, builtin)
+
+
+@pytest.mark.parametrize("module,name", [
+    ("detectors.base", "NotFittedError"),            # the engine's misuse of a detector: a bug
+    ("campaign.evaluate", "DetectorContractError"),  # a plugin's breach: recorded per run
+    ("campaign.execute", "TimeLimitExceeded"),        # a plugin over its limit: recorded per run
+    ("detectors.testing", "DetectorCheckError"),     # a failed conformance test (pytest's)
+])
+def test_what_is_not_the_users_input_stays_out_of_the_family(module, name):
+    import importlib
+
+    from scenarios.errors import InputError
+
+    assert not issubclass(getattr(importlib.import_module(module), name), InputError)

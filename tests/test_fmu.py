@@ -13,7 +13,8 @@ import pytest
 
 from campaign.cli import main
 from campaign.config import load_config, with_overrides
-from campaign.runner import ChunkSettings, run, run_chunk, settings_of
+from campaign.evaluate import evaluate
+from campaign.runner import ChunkSettings, run, settings_of
 from scenarios.catalog import FAULTS
 from scenarios.fmu import (_CACHE, FmuError, FmuRunError, FmuPlant, inspect_fmu, instance,
                            probe)
@@ -324,7 +325,7 @@ def test_nan_mid_run_is_a_per_run_error(servo_fmu):
         d.fit(sig)
     settings = ChunkSettings(ts=0.01, pressure_sensor=False, required_time_s={"hardover": 0.2},
                              window_s=None, plant=spec)
-    res = run_chunk(rows, det, settings).set_index("run_id")
+    res = evaluate(rows, det, settings).set_index("run_id")
     assert res.loc[ok["run_id"][0], "status"] == "ok"
     err = res.loc[bad["run_id"][0]]
     assert err["status"] == "error" and "'x_mm' (rod) is nan" in err["error"]

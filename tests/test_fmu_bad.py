@@ -15,7 +15,8 @@ import pytest
 from campaign.cli import main
 from campaign.config import load_config
 from campaign.design import build_plan
-from campaign.runner import build_detectors, run_chunk, settings_of
+from campaign.evaluate import evaluate
+from campaign.runner import build_detectors, settings_of
 from scenarios.fmu import FmuError, FmuPlant, FmuRunError
 from scenarios.plants import simulate
 from scenarios.simulate import single_run
@@ -191,7 +192,7 @@ def test_diverging_fmu_of_a_campaign_file_gives_error_rows(servo_fmu, tmp_path):
     for d in detectors.values():
         d.fit(sig)
     plan = build_plan(config)
-    res = run_chunk(plan, detectors, settings)
+    res = evaluate(plan, detectors, settings)
     assert len(res) == len(plan) > 0 and (res["status"] == "error").all()
     assert res["error"].str.contains(r"servo\.fmu: output 'x_mm' \(rod\) is \S+ at "
                                      r"t = 0\.0\d s \(beyond ±240 mm").all()

@@ -185,3 +185,23 @@ def test_setup_error_in_a_resumable_campaign_keeps_it(tmp_path, monkeypatch):
     with pytest.raises(CampaignSetupError):
         run(cfg, out, jobs=1, progress=False, log=lambda m: None)
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
+
+
+def test_a_plugin_whose_module_fails_on_import_is_named_exit_2(tmp_path, monkeypatch, capsys):
+    """A third-party detector whose module raises on import (here a parameter declaration
+    the contract refuses) is the plugin's failure, named with exit 2 before any run, not an
+    internal error of the engine."""
+    (tmp_path / "broken_plugin.py").write_text(
+        "from detectors import Detector, Param\n"
+        "class Broken(Detector):\n"
+        "    parameters = (Param('gain', 'float', gt=0.0, choices=('a',)),)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "_entry_point_specs", lambda: {"broken": "broken_plugin:Broken"})
+    path = tmp_path / "c.toml"
+    path.write_text(campaign_toml(_config({"name": "broken"})))
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--jobs", "1", "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "detector 'broken' (broken_plugin:Broken, a third-party detector) fails when its " \
+           "module is imported: ValueError: Param 'gain'" in err
+    assert "internal error" not in err and not out.exists()

@@ -309,6 +309,19 @@ def test_resume_refuses_a_directory_whose_results_were_changed(smoke_dir, tmp_pa
             in capsys.readouterr().err)
 
 
+def test_resume_refuses_a_truncated_shard_as_a_damaged_directory(smoke_dir, tmp_path, capsys):
+    # the run counts the runs already done before it opens the directory: an unreadable
+    # shard is the directory's damage (exit 2, naming the shard and the check), not a fault
+    # of the engine (exit 3)
+    copy = _copy(smoke_dir, tmp_path / "truncated")
+    shard = copy / "runs" / "part-000000.parquet"
+    shard.write_bytes(shard.read_bytes()[:100])
+    assert main(["run", "smoke", "--out", str(copy), "--quiet", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{shard}: not a readable result shard" in err
+    assert f"'fdd-campaign verify {copy}'" in err and "internal error" not in err
+
+
 def test_a_directory_without_manifest_is_refused_by_readers(smoke_dir, tmp_path, capsys):
     copy = _copy(smoke_dir, tmp_path / "old")
     (copy / MANIFEST_NAME).unlink()
@@ -638,3 +651,16 @@ def test_a_directory_written_before_the_plant_keys_moved_still_resumes(tmp_path,
     err = capsys.readouterr().err
     assert "20 of 20 runs already done" in err
     assert sorted(p.name for p in (out / "runs").glob("part-*.parquet")) == shards
+
+
+@pytest.mark.parametrize("size", [0, 1, (1 << 20) - 1, 1 << 20, (1 << 20) + 1, 3 << 20])
+def test_file_digests_are_the_sha256_of_the_bytes(tmp_path, size):
+    # the manifest's digests (hashlib.file_digest) equal the digest of the whole content
+    # read at once, at and around the 1 MiB blocks files used to be read in: a directory
+    # written before stays verifiable
+    from campaign.files import sha256_of
+
+    data = np.random.default_rng(size).bytes(size)
+    path = tmp_path / "file.bin"
+    path.write_bytes(data)
+    assert sha256_of(path) == hashlib.sha256(data).hexdigest()

@@ -175,6 +175,21 @@ def test_bad_run_values_are_named_with_the_allowed_ones(column, value, expected)
         assert f"out of range; allowed: {RUN_RANGES[column][0]:g} ≤ {column} ≤ " in msg
 
 
+@pytest.mark.parametrize("column,value,expected", [
+    ("seed", -1, "seed: 1 run(s) whose seed is not an integer ≥ 0"),   # SeedSequence refuses it
+    ("seed", 2.5, "seed: 1 run(s) whose seed is not an integer ≥ 0"),
+    ("duration_s", 19.0, "duration_s: 19 s is shorter than the 20 s"),  # the manoeuvres' minimum
+])
+def test_a_run_row_the_plant_cannot_simulate_is_refused_as_input(column, value, expected):
+    # below the run-table check these fail inside numpy or the manoeuvre generator; said of
+    # the run row they are the user's mistake (exit 2), not an internal error
+    runs = single_run("elevator", "cruise", "none", duration_s=20.0)
+    runs[column] = value
+    with pytest.raises(RunSpecError) as info:
+        simulate(runs)
+    assert expected in str(info.value)
+
+
 def test_every_problem_is_reported_at_once():
     runs = single_run("elevator", "cruise", "runaway", duration_s=20.0)
     runs["fault"] = "runaways"

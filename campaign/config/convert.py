@@ -16,6 +16,7 @@ from dataclasses import MISSING
 from typing import Any, Callable
 
 from scenarios.catalog import REQUIRED_DETECTION_TIME_S, suggest
+from scenarios.errors import InputError
 
 from .keys import Key, freeze, leaf_fields, table_fields
 from .text import example_value, num, short, toml_value, type_word
@@ -31,7 +32,7 @@ __all__ = [
 ]
 
 
-class ConfigError(ValueError):
+class ConfigError(InputError, ValueError):
     """A campaign file (or dict) that cannot be used.
 
     ``errors`` lists every problem found, each ``"path: problem; allowed …"`` or

@@ -390,9 +390,6 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
 
 #: Conversion of the recorded aircraft sensors (SI) to the units of AIRCRAFT_SIGNAL_UNITS.
 _TO_UNITS = {"deg/s": np.degrees, "deg": np.degrees, "g": lambda v: v}
-#: Units of the truth aircraft states.
-STATE_UNITS = {"alpha": "deg", "q": "deg/s", "theta": "deg", "beta": "deg", "p": "deg/s",
-               "r": "deg/s", "phi": "deg"}
 
 
 def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
