@@ -33,7 +33,7 @@ import math
 import numbers
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from scenarios.catalog import suggest
@@ -56,7 +56,7 @@ _TYPE_TEXT = {"int": "int", "float": "float", "bool": "bool", "str": "str", "cho
               "choices": "str or list of str", "floats": "list of float"}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Param(Declared):
     """Declaration of one keyword parameter of a detector: a
     :class:`scenarios.declare.Declared` (unit, doc, source, bounds) with a name and a kind.
@@ -86,17 +86,30 @@ class Param(Declared):
     source : str
         Where its default comes from: a citation (``"[COMB] §4"``) or ``"est."``.
 
-    Everything after *kind* is given by keyword.
+    The arguments keep the order of the plugin API (a third-party detector may give the
+    bounds by position).
     """
 
     name: str
     kind: str
-    choices: tuple[str, ...] = field(default=(), kw_only=True)
-    length: int | None = field(default=None, kw_only=True)
-    unique: bool = field(default=False, kw_only=True)
-    scalar: bool = field(default=False, kw_only=True)
-    unit: str = field(default="-", kw_only=True)
-    source: str = field(default="est.", kw_only=True)
+    choices: tuple[str, ...] = ()
+    length: int | None = None
+    unique: bool = False
+    scalar: bool = False
+    unit: str = "-"
+    source: str = "est."
+
+    def __init__(self, name: str, kind: str, gt: float | str | None = None,
+                 ge: float | str | None = None, lt: float | str | None = None,
+                 le: float | str | None = None, choices: tuple[str, ...] = (),
+                 length: int | None = None, unique: bool = False, scalar: bool = False,
+                 unit: str = "-", doc: str = "", source: str = "est."):
+        values = dict(name=name, kind=kind, gt=gt, ge=ge, lt=lt, le=le, choices=choices,
+                      length=length, unique=unique, scalar=scalar, unit=unit, doc=doc,
+                      source=source)
+        for key, value in values.items():
+            object.__setattr__(self, key, value)
+        self.__post_init__()
 
     def __post_init__(self):
         if self.kind not in KINDS:

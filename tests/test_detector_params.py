@@ -246,3 +246,12 @@ def test_reference_lists_every_builtin_parameter(capsys):
     assert main(["--markdown"]) == 0
     assert capsys.readouterr().out == md
 
+
+
+def test_param_takes_its_bounds_by_position_as_the_plugin_api_always_did():
+    # third-party detectors written against the plugin API may give gt, ge, lt, le by
+    # position after name and kind: the same declaration, the same check
+    assert Param("pole", "float", None, 0.0, 1.0) == Param("pole", "float", ge=0.0, lt=1.0)
+    assert Param("pole", "float", None, 0.0, 1.0).range_text("pole") == "0 ≤ pole < 1"
+    with pytest.raises(ValueError, match="at most one lower bound"):
+        Param("pole", "float", 0.0, 0.0)
