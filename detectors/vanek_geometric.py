@@ -192,12 +192,14 @@ def _model(point: dict, design_model: str = "aircraft", aero=None):
     return m.A[0], m.B[0]
 
 
-def _aircraft_model(point: dict, aero: dict):
-    """(A, B) of the simulated aircraft's layout at the flight point of keywords ``vcas_kt``,
-    ``alt_ft``, ``mass_t``, ``cg_pct`` with the aerodynamic draws *aero*: the *model*
-    of :func:`detectors.vanek_model_error.error_matrices`."""
+def _aircraft_model(point: dict, aero: dict, design_model: str = "aircraft"):
+    """(A, B) of the surface layout *design_model* at the flight point of keywords
+    ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct`` with the aerodynamic draws *aero*: the
+    *model* of :func:`detectors.vanek_model_error.error_matrices`. The layout is the
+    filter's own, so that the allowance covers the flight point's and [CHEN] Table 2's
+    errors, not the choice of the unison ablation (whose leak stays measurable)."""
     return _model(_point(point["vcas_kt"], point["alt_ft"], point["mass_t"], point["cg_pct"]),
-                  "aircraft", aero)
+                  design_model, aero)
 
 
 def _columns():
@@ -769,7 +771,8 @@ class VanekGeometric(Detector):
         key = ("errors", variant, layout) + tuple(round(float(point[k]), 6) for k in sorted(point))
         if key not in cache:
             design = _model(_point(**design_at), layout)
-            cache[key] = me.error_matrices(_aircraft_model, point, design)
+            cache[key] = me.error_matrices(
+                lambda pt, aero: _aircraft_model(pt, aero, layout), point, design)
         return cache[key]
 
     def allowances(self, signals: Signals) -> dict[str, np.ndarray]:

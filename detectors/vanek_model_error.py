@@ -38,8 +38,8 @@ directions, the COM rods' scale errors, the spoilers' coupling, and the products
 With ``aoa_sensor`` false the angle of attack is not measured and d cannot be formed: the
 threshold is then the constant τ0 (:mod:`detectors.vanek_geometric`).
 
-Cost: 21 extra filters of the filter's order (4 states) per run and variant, driven by 15
-signals (the 7 states and the 8 surface inputs), vectorised over runs.
+Cost: 21 extra filters of the filter's order (3 states with α) per run and variant, driven
+by 15 signals (the 7 states and the 8 surface inputs), vectorised over runs.
 """
 
 from __future__ import annotations

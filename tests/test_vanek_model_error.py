@@ -91,3 +91,25 @@ def test_a_detector_fitted_before_the_allowance_keeps_constant_thresholds():
     assert vg.VanekGeometric()._bounded()
     assert not vg.VanekGeometric(aoa_sensor=False)._bounded()
     assert not vg.VanekGeometric(adaptive=False)._bounded()
+
+
+@pytest.mark.parametrize("variant", ["lpv", "lti"])
+def test_the_allowance_is_computed_on_the_filters_own_layout(variant):
+    """The allowance covers the flight point's and Table 2's errors, not the design-model
+    choice: for the unison ablation its matrices are the unison model's, in which the left
+    and right elevators' columns are the same (no roll from the elevator's arm), so the
+    ablation's measured leak is not absorbed by b; on the aircraft's layout the two
+    columns differ (the roll of each elevator's lift, docs/physics.md §7.3)."""
+    from scenarios.aircraft import lpv
+    from scenarios.aircraft.data import LAYOUT
+
+    left, right = (LAYOUT.names.index(s) for s in ("left_elevator", "right_elevator"))
+    cols = lpv.N_STATES + np.array([left, right])
+    unison = vg.VanekGeometric(design_model="unison")._error_matrices(variant, POINT)
+    aircraft = vg.VanekGeometric()._error_matrices(variant, POINT)
+    if variant == "lpv":
+        assert np.abs(unison[0]).max() == 0.0 and np.abs(aircraft[0]).max() == 0.0
+    np.testing.assert_allclose(unison[..., cols[0]], unison[..., cols[1]], rtol=1e-12,
+                               atol=1e-15)
+    gap = np.abs(aircraft[..., cols[0]] - aircraft[..., cols[1]]).max()
+    assert gap > 1e-3 * np.abs(aircraft[..., cols[0]]).max(), gap
