@@ -83,9 +83,10 @@ the lti and lpv variants' threshold is τ = τ0 + b(t): b the bound the [CHEN] T
 the residual, computed online from the measured state and surfaces through the filter's
 own error dynamics (:mod:`detectors.vanek_model_error`), and τ0 learned, as above, on each
 learning run's largest |r̂| − b (what the bound does not cover: sensor noise, turbulence,
-the rods' errors). The other variants keep a constant τ. Isolation: :attr:`VanekGeometric.capabilities`
-declares the left inboard aileron, so that the gate scores an alarm on another surface's
-faults as an isolation failure (:mod:`campaign.isolation`).
+the rods' errors). The other variants keep a constant τ. Isolation:
+:attr:`VanekGeometric.capabilities` declares the left inboard aileron, so that the gate
+scores an alarm on another surface's faults as an isolation failure
+(:mod:`campaign.isolation`).
 """
 
 from __future__ import annotations
@@ -192,7 +193,7 @@ def _model(point: dict, design_model: str = "aircraft", aero=None):
     return m.A[0], m.B[0]
 
 
-def _aircraft_model(point: dict, aero: dict, design_model: str = "aircraft"):
+def _model_at(point: dict, aero: dict, design_model: str = "aircraft"):
     """(A, B) of the surface layout *design_model* at the flight point of keywords
     ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct`` with the aerodynamic draws *aero*: the
     *model* of :func:`detectors.vanek_model_error.error_matrices`. The layout is the
@@ -756,23 +757,23 @@ class VanekGeometric(Detector):
         cols.append(np.radians(signals.aircraft["spoiler"]))
         return np.concatenate([x, np.stack(cols, axis=2)], axis=2)
 
-    def _error_matrices(self, variant: str, point: dict) -> np.ndarray:
+    def _error_matrices(self, variant: str, point: dict, mach=None, qbar_pa=None) -> np.ndarray:
         """:func:`detectors.vanek_model_error.error_matrices` of *variant*'s filter for a run
-        measured at *point* (cached): about the model the filter was designed on, the
-        measured point's (``lpv``) or :data:`NOMINAL`'s (``lti``)."""
+        measured at *point* (keywords ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct``; the
+        measured Mach and q̄ the ``lpv`` filter is designed at, when given) (cached): about
+        the model the filter was designed on, the measured point's (``lpv``) or
+        :data:`NOMINAL`'s (``lti``)."""
         from . import vanek_model_error as me
 
         cache = self.__dict__.setdefault("_cache", {})
         layout = self._layout()
-        design_at = point if variant == "lpv" else {"vcas_kt": NOMINAL.vcas_kt,
-                                                    "alt_ft": NOMINAL.alt_ft,
-                                                    "mass_t": NOMINAL.mass_t,
-                                                    "cg_pct": NOMINAL.cg_pct}
-        key = ("errors", variant, layout) + tuple(round(float(point[k]), 6) for k in sorted(point))
+        key = (("errors", variant, layout) + tuple(round(float(point[k]), 6) for k in sorted(point))
+               + tuple(None if x is None else round(float(x), 6) for x in (mach, qbar_pa)))
         if key not in cache:
-            design = _model(_point(**design_at), layout)
+            at = (_point(**point, mach=mach, qbar_pa=qbar_pa) if variant == "lpv" else
+                  _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t, NOMINAL.cg_pct))
             cache[key] = me.error_matrices(
-                lambda pt, aero: _aircraft_model(pt, aero, layout), point, design)
+                lambda pt, aero: _model_at(pt, aero, layout), point, _model(at, layout))
         return cache[key]
 
     def allowances(self, signals: Signals) -> dict[str, np.ndarray]:
@@ -791,7 +792,8 @@ class VanekGeometric(Detector):
             fl = self._filters(variant, signals)
             K = np.stack([self._error_matrices(variant, {k: float(sched[k][i]) for k in
                                                          ("vcas_kt", "alt_ft", "mass_t",
-                                                          "cg_pct")})
+                                                          "cg_pct")},
+                                               sched["mach"][i], sched["qbar_pa"][i])
                           for i in range(signals.n_runs)])
             b = me.bound(K, np.stack([f.Ad for f in fl]), np.stack([f.Bdist for f in fl]),
                          np.stack([f.c @ f.Cd for f in fl]),

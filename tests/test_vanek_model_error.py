@@ -42,7 +42,7 @@ def test_the_allowance_bounds_the_residual_of_the_table2_errors(variant):
                                                 "mass_t": 200.0, "cg_pct": 30.0}
     A, B = vg._model(vg._point(**design_at))
     _, f = vg._design_at(A, B, TS, True, 0.5, 20.0, True)
-    K = me.error_matrices(vg._aircraft_model, POINT, (A, B))
+    K = me.error_matrices(vg._model_at, POINT, (A, B))
     if variant == "lpv":
         assert np.abs(K[0]).max() == 0.0            # designed at the measured point
     s = _signals(rng)
@@ -54,7 +54,7 @@ def test_the_allowance_bounds_the_residual_of_the_table2_errors(variant):
     worst = 0.0
     for d in draws:
         true_pt = {k: POINT[k] / (1.0 + d[e]) for e, k in me.SCHEDULE_ERRORS.items()}
-        At, Bt = vg._aircraft_model(true_pt, {c: d[c] for c in me.ERRORS[:6]})
+        At, Bt = vg._model_at(true_pt, {c: d[c] for c in me.ERRORS[:6]})
         Kt = np.hstack([At - A, (Bt - B)[:, :me.N_INPUTS]])[None, None]
         exact = np.abs(me.bound(Kt, *_path(f), s, None)[0])
         assert exact.max() > 0.05 * b.max()         # the drawn error does reach r̂
@@ -69,7 +69,7 @@ def test_error_matrices_rows_are_each_error_at_each_end():
     from scenarios.aircraft import lpv
 
     A, B = vg._model(vg._point(**POINT))
-    K = me.error_matrices(vg._aircraft_model, POINT, (A, B))
+    K = me.error_matrices(vg._model_at, POINT, (A, B))
     assert K.shape == (1 + 2 * len(me.ERRORS), lpv.N_STATES, lpv.N_STATES + me.N_INPUTS)
     j = me.ERRORS.index("cl")
     lo, hi = K[1 + 2 * j], K[2 + 2 * j]

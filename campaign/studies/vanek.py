@@ -117,8 +117,9 @@ def _sensors(noise_scale: float):
 def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
     """One row per scenario and variant: residual peak [deg], largest |r̂|/threshold,
     threshold [deg] (τ0 where the threshold is τ0 + b(t) with the model-error allowance b of
-    :mod:`detectors.vanek_model_error`), detection delay [s] (NaN: none) and DTP, and for the aileron jam [VANEK]'s DTP and
-    its delay [s] inferred from it (:data:`PAPER_DELAY_NOTE`; NaN elsewhere)."""
+    :mod:`detectors.vanek_model_error`), detection delay [s] (NaN: none) and DTP, and for
+    the aileron jam [VANEK]'s DTP and its delay [s] inferred from it
+    (:data:`PAPER_DELAY_NOTE`; NaN elsewhere)."""
     from detectors.vanek_geometric import VanekGeometric
 
     settings = replace(SETTINGS, plant=AircraftPlant(aircraft_sensors=_sensors(noise_scale)))
