@@ -8,11 +8,10 @@ elevator's lift acting 4.1 m off the plane of symmetry, docs/physics.md §7.3; p
 ablation), outputs y = (α, q, θ, β, p, r, φ), every state, as [VANEK] §4.1's aircraft
 measures the aerodynamic angles (α, β) with the rates and attitudes — the load factors are
 left out as in [VANEK] §5 (their direct feed-through complicates the synthesis). That is the
-design with ``aoa_sensor`` true; the default, ``aoa_sensor`` false, leaves α out (outputs q,
-θ, β, p, r, φ: the aircraft layout without the angle-of-attack vane), because the α design
-raised false alarms where this one raised none (docs/vanek-geometric.md: zero false alarms
-come first; the α design detects more jams). Fault directions ([VANEK] §5: "successive input
-directions from the B matrix"):
+design with ``aoa_sensor`` true, the default; ``aoa_sensor`` false leaves α out (outputs q,
+θ, β, p, r, φ: the aircraft layout without the angle-of-attack vane; the vertical gust then
+reaches r̂ and the thresholds are 2–5 times higher, docs/vanek-geometric.md). Fault
+directions ([VANEK] §5: "successive input directions from the B matrix"):
 
 * L1 — the left inboard aileron's column of B (the fault to detect);
 * L2 — the left elevator's and the rudder's columns (the faults to isolate from), and, with
@@ -20,7 +19,7 @@ directions from the B matrix"):
   angle of attack's e_α (the β and α outputs are the air-relative angles of the vanes:
   :func:`gust_sideslip_direction`, :func:`gust_aoa_direction`). With α (C = I), S* is the
   span of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/test_geometric.py).
-  Without α (the default), e_α is decoupled only by the unison model, whose S* holds the
+  Without α, e_α is decoupled only by the unison model, whose S* holds the
   short-period directions;
   on the aircraft's layout S* (dimension 3) does not hold it, and it cannot be added: S*
   holding the elevator, the rudder, e_β and e_α then has dimension 5 and contains L1
@@ -78,9 +77,16 @@ Variants (those chosen, all computed by one ``detect``; default ``lti`` and ``lp
 Thresholds: per variant, calibrated to a per-run false-alarm target (``"evt"``,
 docs/thresholds.md) or ``safety`` × the largest fault-free learning |r̂| (``"max"``; [VANEK]
 §5 applies its 1.5 to the elevator runaway's peak, 0.175 LTI, 0.105 LPV); alarm once |r̂|/τ
-has stayed ≥ 1 for ``confirm_s``, then latched. Isolation: :attr:`VanekGeometric.capabilities`
-declares the left inboard aileron, so that the gate scores an alarm on another surface's
-faults as an isolation failure (:mod:`campaign.isolation`).
+has stayed ≥ 1 for ``confirm_s``, then latched. With ``adaptive`` (the default) and α read,
+the lti and lpv variants' threshold is τ = τ0 + b(t): b the bound the [CHEN] Table-2 errors
+(the aircraft's aerodynamic coefficients and the measured VCAS, altitude, mass and CG) put on
+the residual, computed online from the measured state and surfaces through the filter's
+own error dynamics (:mod:`detectors.vanek_model_error`), and τ0 learned, as above, on each
+learning run's largest |r̂| − b (what the bound does not cover: sensor noise, turbulence,
+the rods' errors). The other variants keep a constant τ. Isolation:
+:attr:`VanekGeometric.capabilities` declares the left inboard aileron, so that the gate
+scores an alarm on another surface's faults as an isolation failure
+(:mod:`campaign.isolation`).
 """
 
 from __future__ import annotations
@@ -111,7 +117,7 @@ OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")
 
 
 def design_outputs(aoa_sensor: bool = False) -> tuple[str, ...]:
-    """:data:`OUTPUTS`, or without α (*aoa_sensor* False, the default: q, θ, β, p, r, φ)."""
+    """:data:`OUTPUTS`, or without α (*aoa_sensor* False: q, θ, β, p, r, φ)."""
     return OUTPUTS if aoa_sensor else tuple(o for o in OUTPUTS if o != "alpha")
 FAULT_SURFACE = "left_inboard_aileron"
 #: Outputs whose trim value is zero in the runs' trimmed, wings-level, straight flight
@@ -135,21 +141,29 @@ NOMINAL = NominalPoint(vcas_kt=240.0, alt_ft=30000.0, mass_t=200.0, cg_pct=30.0)
 
 @dataclass(frozen=True)
 class _Filter:
-    """One discretised filter: w' = Ad w + Bd v, r̂ = c (Cd w + Dd v), v = [u; y]."""
+    """One discretised filter: w' = Ad w + Bd v, r̂ = c (Cd w + Dd v), v = [u; y]; and, for
+    the geometric designs, the path of a model error d (an unknown input of the state
+    equation, :mod:`detectors.vanek_model_error`): e' = Ad e + Bdist d, r̂_d = c (Cd e +
+    Ddist d) (None for the H∞ variants)."""
 
     Ad: np.ndarray
     Bd: np.ndarray
     Cd: np.ndarray
     Dd: np.ndarray
     c: np.ndarray
+    Bdist: np.ndarray | None = None
+    Ddist: np.ndarray | None = None
 
 
 def _discrete(gen: geo.ResidualGenerator, ts: float) -> _Filter:
     """The generator discretised at *ts* [s] (bilinear, [VANEK] §5) with the least-squares
-    reconstruction r̂ = g⁺ r, g the steady-state gain from f1."""
+    reconstruction r̂ = g⁺ r, g the steady-state gain from f1, and its model-error path
+    ė = N e − P d, r = M e (same N and M, hence the same Ad and Cd)."""
     Ad, Bd, Cd, Dd = geo.bilinear(gen, ts)
+    _, Bdist, _, Ddist = geo.bilinear_ss(gen.N, -gen.P, gen.M,
+                                         np.zeros((gen.M.shape[0], gen.P.shape[1])), ts)
     g = geo.dc_gain(gen)[:, 0]
-    return _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=g / float(g @ g))
+    return _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=g / float(g @ g), Bdist=Bdist, Ddist=Ddist)
 
 
 #: Design models of :func:`_model` (parameter ``design_model``): ``"aircraft"`` the plant's own
@@ -160,9 +174,11 @@ def _discrete(gen: geo.ResidualGenerator, ts: float) -> _Filter:
 DESIGN_MODELS = ("aircraft", "unison")
 
 
-def _model(point: dict, design_model: str = "aircraft"):
+def _model(point: dict, design_model: str = "aircraft", aero=None):
     """(A, B) of the design model at a flight point (arrays of one run) on the surface
-    layout *design_model* (:data:`DESIGN_MODELS`)."""
+    layout *design_model* (:data:`DESIGN_MODELS`), with the aerodynamic draws *aero* (a
+    mapping coefficient → relative error, :func:`scenarios.aircraft.lpv.run_models`; None:
+    the nominal coefficients)."""
     import dataclasses
 
     from scenarios.aircraft import lpv
@@ -172,8 +188,19 @@ def _model(point: dict, design_model: str = "aircraft"):
         raise ValueError(f"design_model {design_model!r}: one of {list(DESIGN_MODELS)}")
     layout = LAYOUT if design_model == "aircraft" else dataclasses.replace(LAYOUT,
                                                                           elevator_arm_m=0.0)
-    m = lpv.run_models(point, np.zeros(1), layout=layout)
+    draws = np.zeros(1) if not aero else {c: np.atleast_1d(float(d)) for c, d in aero.items()}
+    m = lpv.run_models(point, draws, layout=layout)
     return m.A[0], m.B[0]
+
+
+def _model_at(point: dict, aero: dict, design_model: str = "aircraft"):
+    """(A, B) of the surface layout *design_model* at the flight point of keywords
+    ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct`` with the aerodynamic draws *aero*: the
+    *model* of :func:`detectors.vanek_model_error.error_matrices`. The layout is the
+    filter's own, so that the allowance covers the flight point's and [CHEN] Table 2's
+    errors, not the choice of the unison ablation (whose leak stays measurable)."""
+    return _model(_point(point["vcas_kt"], point["alt_ft"], point["mass_t"], point["cg_pct"]),
+                  design_model, aero)
 
 
 def _columns():
@@ -439,10 +466,14 @@ class VanekGeometric(Detector):
         vertical one e_α (module docstring).
     aoa_sensor : bool
         Read the angle-of-attack vane (``Signals.aircraft["alpha"]``) as an output of the
-        design model (default False: outputs q, θ, β, p, r, φ; the vertical gust then reaches
-        r̂). True decouples both gusts and detects more aileron jams, at the price of false
-        alarms measured where the default has none (docs/vanek-geometric.md). A fitted
-        detector keeps the outputs it was fitted with (``aoa_sensor_``).
+        design model (default True: every state measured, both gusts decoupled). False: the
+        outputs q, θ, β, p, r, φ; the vertical gust then reaches r̂, and the model-error
+        allowance cannot be formed (``adaptive`` has no effect). A fitted detector keeps the
+        outputs it was fitted with (``aoa_sensor_``).
+    adaptive : bool
+        With α read, the threshold of the lti and lpv variants is τ0 + b(t), b the model-error
+        allowance of :mod:`detectors.vanek_model_error` (default True); False: constant τ0. A
+        fitted detector keeps what it was fitted with (``adaptive_``; absent: constant).
     design_model : str
         Surface layout of the design model (:data:`DESIGN_MODELS`): ``"aircraft"`` (default,
         the simulated aircraft's, elevator arm included) or ``"unison"`` (the elevators in
@@ -490,18 +521,21 @@ class VanekGeometric(Detector):
               "(ablation: the left elevator's roll leaks into the residual)",
               source="[VANEK] §4.2 (unison); docs/physics.md §7.3 (aircraft)"),
         Param("aoa_sensor", "bool", doc="read the angle-of-attack vane (Signals.aircraft "
-              "alpha) as an output of the design model, decoupling both gusts (more aileron "
-              "jams detected, but false alarms where the default has none: "
-              "docs/vanek-geometric.md); false (default): the outputs q, θ, β, p, r, φ, the "
-              "vertical gust not decoupled on the aircraft's layout",
-              source="[VANEK] §4.1 (aerodynamic angles α, β measured); default: measured "
-              "false alarms, docs/vanek-geometric.md"),
+              "alpha) as an output of the design model, decoupling both gusts (default); "
+              "false: the outputs q, θ, β, p, r, φ, the vertical gust not decoupled on the "
+              "aircraft's layout and no model-error allowance",
+              source="[VANEK] §4.1 (aerodynamic angles α, β measured)"),
+        Param("adaptive", "bool", doc="threshold τ0 + b(t) of the lti and lpv variants, b the "
+              "bound the Table-2 errors put on the residual given the measured state and "
+              "surfaces (with aoa_sensor only: it needs every state; false: constant τ0)",
+              source="[CHEN] Table 2; detectors/vanek_model_error.py"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light", design_model="aircraft", aoa_sensor=False):
+                 threshold_tail="light", design_model="aircraft", aoa_sensor=True,
+                 adaptive=True):
         self.safety = safety
         self.confirm_s = confirm_s
         self.decay = decay
@@ -515,6 +549,7 @@ class VanekGeometric(Detector):
         self.threshold_tail = threshold_tail
         self.design_model = design_model
         self.aoa_sensor = aoa_sensor
+        self.adaptive = adaptive
 
     def validate_params(self) -> None:
         """The declared checks (:attr:`parameters`), then that the optional variants of
@@ -557,6 +592,17 @@ class VanekGeometric(Detector):
         if "aoa_sensor_" in learned:
             return learned["aoa_sensor_"]
         return False if "thresholds_deg_" in learned else bool(self.aoa_sensor)
+
+    def _bounded(self) -> bool:
+        """Whether the thresholds of the lti and lpv variants carry the model-error allowance
+        b(t): as fitted (``adaptive_``) once fitted, else the parameter with α read; a
+        detector fitted before the allowance existed has constant thresholds."""
+        learned = vars(self)
+        if "adaptive_" in learned:
+            return learned["adaptive_"]
+        if "thresholds_deg_" in learned:
+            return False
+        return bool(self.adaptive) and self._reads_alpha()
 
     def _design(self, point: dict, ts: float, kind: str = "geometric") -> _Filter:
         """The discretised filter of *kind* at *point* (cached): ``"geometric"`` (the
@@ -677,36 +723,115 @@ class VanekGeometric(Detector):
                 ws[:, k] = w
                 w = np.einsum("nij,nj->ni", Ad, w) + bv[:, k]
             r = np.einsum("ni,nti->nt", cC, ws) + np.einsum("ni,nti->nt", cD, v)
-            if self.smoothing_s > 0.0 and variant not in HINF_VARIANTS:
-                b, a = scipy.signal.bilinear([1.0], [float(self.smoothing_s), 1.0],
-                                             fs=1.0 / signals.ts)
-                r = scipy.signal.lfilter(b, a, r, axis=1)
+            lowpass = self._lowpass(signals.ts)
+            if lowpass is not None and variant not in HINF_VARIANTS:
+                r = scipy.signal.lfilter(*lowpass, r, axis=1)
             out[variant] = np.degrees(r)
+        return out
+
+    def _lowpass(self, ts: float) -> tuple | None:
+        """(b, a) of the first-order low-pass on r̂ (``smoothing_s``, bilinear at *ts*), or
+        None without one."""
+        if self.smoothing_s <= 0.0:
+            return None
+        return scipy.signal.bilinear([1.0], [float(self.smoothing_s), 1.0], fs=1.0 / ts)
+
+    # ---- model-error allowance (detectors/vanek_model_error.py) ------------------------
+    @staticmethod
+    def model_error_signals(signals: Signals) -> np.ndarray:
+        """s = [x̃; u] of every run and step, shape (n_runs, n_steps, 15) [rad, rad/s]: the
+        measured states in the order of :data:`scenarios.aircraft.lpv.STATES` (as
+        :meth:`filter_inputs` reads them, α included), then the seven surfaces' deflections
+        from their COM rods (every surface, the monitored one as it moves) relative to their
+        first sample, then the spoilers' equivalent angle."""
+        from scenarios.aircraft.data import LAYOUT
+        from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
+
+        v = VanekGeometric.filter_inputs(signals, aoa_sensor=True)
+        x = v[:, :, v.shape[2] - len(OUTPUTS):]
+        cols = []
+        for j, name in enumerate(LAYOUT.names):
+            r = AIRCRAFT_ACTUATORS[LAYOUT.actuator[j]].r_mm
+            d = np.arcsin(np.clip(signals.rods[name] / r, -1.0, 1.0))
+            cols.append(d - d[:, :1])
+        cols.append(np.radians(signals.aircraft["spoiler"]))
+        return np.concatenate([x, np.stack(cols, axis=2)], axis=2)
+
+    def _error_matrices(self, variant: str, point: dict, mach=None, qbar_pa=None) -> np.ndarray:
+        """:func:`detectors.vanek_model_error.error_matrices` of *variant*'s filter for a run
+        measured at *point* (keywords ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct``; the
+        measured Mach and q̄ the ``lpv`` filter is designed at, when given) (cached): about
+        the model the filter was designed on, the measured point's (``lpv``) or
+        :data:`NOMINAL`'s (``lti``)."""
+        from . import vanek_model_error as me
+
+        cache = self.__dict__.setdefault("_cache", {})
+        layout = self._layout()
+        key = (("errors", variant, layout) + tuple(round(float(point[k]), 6) for k in sorted(point))
+               + tuple(None if x is None else round(float(x), 6) for x in (mach, qbar_pa)))
+        if key not in cache:
+            at = (_point(**point, mach=mach, qbar_pa=qbar_pa) if variant == "lpv" else
+                  _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t, NOMINAL.cg_pct))
+            cache[key] = me.error_matrices(
+                lambda pt, aero: _model_at(pt, aero, layout), point, _model(at, layout))
+        return cache[key]
+
+    def allowances(self, signals: Signals) -> dict[str, np.ndarray]:
+        """b(t) [deg] of each bounded variant (``lti``, ``lpv``), shape (n_runs, n_steps):
+        the bound the Table-2 errors put on the part of r̂ the model error produces
+        (:mod:`detectors.vanek_model_error`); empty when the thresholds are constant
+        (:meth:`_bounded`)."""
+        from . import vanek_model_error as me
+
+        if not self._bounded():
+            return {}
+        s = self.model_error_signals(signals)
+        sched = signals.schedule
+        out = {}
+        for variant in [v for v in self._variant_list() if v in VARIANTS]:
+            fl = self._filters(variant, signals)
+            K = np.stack([self._error_matrices(variant, {k: float(sched[k][i]) for k in
+                                                         ("vcas_kt", "alt_ft", "mass_t",
+                                                          "cg_pct")},
+                                               sched["mach"][i], sched["qbar_pa"][i])
+                          for i in range(signals.n_runs)])
+            b = me.bound(K, np.stack([f.Ad for f in fl]), np.stack([f.Bdist for f in fl]),
+                         np.stack([f.c @ f.Cd for f in fl]),
+                         np.stack([f.c @ f.Ddist for f in fl]), s, self._lowpass(signals.ts))
+            out[variant] = np.degrees(b)
         return out
 
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
         self.design_model_ = str(self.design_model)     # the model the thresholds belong to
         self.aoa_sensor_ = bool(self.aoa_sensor)        # and the outputs
-        est = self.estimates(signals)
-        # each variant is scored on its own, so each is calibrated at the full target
+        self.adaptive_ = bool(self.adaptive) and self.aoa_sensor_   # and the allowance
+        est, bounds = self.estimates(signals), self.allowances(signals)
+        # each variant is scored on its own, so each is calibrated at the full target; with
+        # the allowance, on the per-run maximum of |r̂| − b(t) (τ0 of τ0 + b(t))
         self.thresholds_deg_, calibration = {}, {}
         for k, r in est.items():
+            excess = np.abs(r) - bounds[k] if k in bounds else np.abs(r)
             tau, calibration[k] = learned_threshold(
-                np.max(np.abs(r), axis=1), self.threshold_method, float(self.safety),
-                self.target_fa_per_run, self.threshold_confidence, tail=self.threshold_tail,
-                classes=signals.classes)
+                np.maximum(np.max(excess, axis=1), 0.0), self.threshold_method,
+                float(self.safety), self.target_fa_per_run, self.threshold_confidence,
+                tail=self.threshold_tail, classes=signals.classes)
+            if not tau > 0.0:
+                raise ValueError(f"{type(self).__name__}[{k}]: the learned threshold is "
+                                 f"{tau}: the learning runs' residual never exceeds its "
+                                 "model-error allowance; learn on runs with sensor noise")
             self.thresholds_deg_[k] = float(tau)
         if self.threshold_method != "max":
             self.calibration_ = calibration
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> dict[str, Detection]:
-        est = self.estimates(signals)
+        est, bounds = self.estimates(signals), self.allowances(signals)
         n_confirm = int(round(self.confirm_s / signals.ts)) + 1
         out = {}
         for k, r in est.items():
-            norm = np.abs(r) / self.thresholds_deg_[k]
+            tau = self.thresholds_deg_[k] + bounds[k] if k in bounds else self.thresholds_deg_[k]
+            norm = np.abs(r) / tau
             out[k] = Detection(alarm=confirm(norm >= 1.0, n_confirm), residual=norm)
         return out
 

@@ -2,8 +2,8 @@
 decoupling of the left elevator, the rudder and the lateral gust on its design model (the
 simulated aircraft's layout; the ablation with the elevators in unison, [VANEK] §4.2, and
 the elevator's roll it leaks), of the vertical gust too with the α vane (``aoa_sensor =
-true``; the default leaves it out), sensitivity to the left inboard aileron, isolation in
-closed-loop simulation."""
+true``, the default; without it the vertical gust reaches the residual), sensitivity to
+the left inboard aileron, isolation in closed-loop simulation."""
 
 from __future__ import annotations
 
@@ -63,7 +63,7 @@ POINTS = [(NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0), (170.0, 23000.0, 200.0
           (160.0, 38000.0, 233.0, 41.0)]
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 @pytest.mark.parametrize("vcas, alt, mass, cg", POINTS)
 def test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft(vcas, alt, mass, cg,
                                                                           aoa):
@@ -72,7 +72,7 @@ def test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft(vcas, 
     rudder and the lateral gust of the aircraft itself, and sees the aileron, at points
     spanning the envelope's speed, altitude, mass and CG; S* ∩ L1 = 0.
 
-    Default (``aoa_sensor = false``, outputs q, θ, β, p, r, φ): S* of dimension 3 holds the
+    Without α (``aoa_sensor = false``, outputs q, θ, β, p, r, φ): S* of dimension 3 holds the
     elevator, the rudder and e_β, not e_α, and the vertical gust reaches the residual with
     about the aileron's transfer. With the α vane (``aoa_sensor = true``, every state
     measured) S* is the span of L2, dimension 4, and the vertical gust is decoupled too."""
@@ -99,7 +99,7 @@ def test_elevator_rudder_and_gust_are_decoupled_on_the_simulated_aircraft(vcas, 
     assert np.all(eig.real < -0.5 + 1e-4) and np.all(np.abs(eig) < 20.0 + 1e-4)
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 @pytest.mark.parametrize("vcas, alt", [(NOMINAL.vcas_kt, NOMINAL.alt_ft), (170.0, 23000.0)])
 def test_unison_ablation_leaks_the_elevators_roll(vcas, alt, aoa):
     """The ablation ``design_model = "unison"`` ([VANEK] §4.2): decoupled exactly on its own
@@ -155,7 +155,7 @@ def test_affine_lpv_family_one_s_star_poles_and_decoupling_over_the_box():
                 assert leak < 1e-9 * seen, (design_model, v, h, leak, seen)
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 def test_on_the_aircraft_layout_no_parameter_independent_s_star_exists(aoa):
     """Why ``lpv-affine`` designs S* per point on the aircraft layout: the left elevator's
     column turns with the flight point, and the smallest unobservability subspace holding
@@ -176,7 +176,7 @@ def test_on_the_aircraft_layout_no_parameter_independent_s_star_exists(aoa):
         assert geo.intersection(S, L1).shape[1] == 1, (v, h)
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 def test_without_gust_decoupling_the_gust_reaches_the_residual(aoa):
     point = _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0)
     gen, _ = design_filter(point, 0.01, decouple_gusts=False, aoa_sensor=aoa)
@@ -255,17 +255,25 @@ def _twins(surface, fault, magnitude=None):
 def test_isolation_elevator_runaway_stays_out_of_the_residual():
     """Designed on the simulated aircraft's layout, the filter is blind to the left
     elevator's pitch and to its roll (docs/physics.md §7.3): a 5 °/s runaway at
-    200 kt / 26 000 ft moves the residual off its fault-free twin's by a small fraction of
-    the threshold (measured below), and no variant alarms. (With the ablation
+    200 kt / 26 000 ft moves the residual off its fault-free twin's by a fraction of the
+    threshold τ0 + b(t) (measured below), and no variant alarms. (With the ablation
     ``design_model = "unison"`` the runaway's roll reads as an aileron fault of 25.5 °:
     docs/vanek-geometric.md.)"""
     det = _fit("left_elevator")
     sig, truth = _twins("left_elevator", "runaway", magnitude=5.0)
     # the runaway does move the elevator by many degrees (the check is not vacuous)
     assert np.ptp(truth.surfaces_deg["left_elevator"][0]) > 5.0
+    allowance = det.allowances(sig)
+    ratios = {}
     for variant, r in det.estimates(sig).items():
-        tau = det.thresholds_deg_[variant]
-        assert np.abs(r[0] - r[1]).max() < 0.25 * tau, (variant, np.abs(r[0] - r[1]).max(), tau)
+        # the threshold of the faulty run: τ0 + b(t) (the model-error allowance)
+        tau = det.thresholds_deg_[variant] + allowance[variant][0]
+        ratios[variant] = float((np.abs(r[0] - r[1]) / tau).max())
+    # measured 0.20 (LPV, designed at the run's point: what is left is the plant's
+    # first-order hold of the surfaces against the filter's Tustin map) and 0.36 (LTI,
+    # designed at 240 kt / 30 000 ft: the off-design leak, inside its allowance); the bounds
+    # leave room for the seed-to-seed spread of the twins' turbulence and noise
+    assert ratios["lpv"] < 0.25 and ratios["lti"] < 0.5, ratios
     alarms = {k: bool(d.alarm[0].any()) for k, d in det.detect(sig).items()}
     assert not any(alarms.values()), alarms
 
@@ -275,11 +283,13 @@ def test_isolation_elevator_runaway_stays_out_of_the_residual():
 def test_isolation_rudder_faults_stay_below_threshold(fault, magnitude):
     """Rudder faults move the lateral states the filter does see. The LPV filter (designed at
     the run's point) keeps the rudder decoupled: the residual departs from the fault-free
-    twin's by at most 0.07 ° against a 0.34 ° threshold (measured: runaway 0.07 °, liquid jam
-    0.002 °, solid jam 0.013 °; the rest is the plant's first-order hold of the surfaces
+    twin's by at most 0.07 ° against a τ0 of 0.32 ° (measured: runaway 0.068 °, liquid jam
+    0.001 °, solid jam 0.013 °; the rest is the plant's first-order hold of the surfaces
     against the filter's Tustin map). The LTI filter, designed at 240 kt / 30 000 ft, is
-    exact only there: it keeps the jams below threshold, but a rudder runaway leaks through
-    the off-design mismatch (measured 4.0 ° against 0.69 °, docs/vanek-geometric.md)."""
+    exact only there: a rudder runaway leaks through the off-design mismatch (measured
+    3.1 °), which its model-error allowance b(t) covers (its row for the known mismatch
+    between the design point and the measured one, detectors/vanek_model_error.py): the
+    runaway peaks at 0.54 of τ0 + b (jams 0.47, 0.48), so neither variant alarms."""
     det = _fit("left_elevator")
     sig, truth = _twins("rudder", fault, magnitude)
     # the fault does move the rudder off its twin (measured: runaway 15 °, default liquid jam
@@ -289,9 +299,7 @@ def test_isolation_rudder_faults_stay_below_threshold(fault, magnitude):
     lpv_tau = det.thresholds_deg_["lpv"]
     assert np.abs(est["lpv"][0] - est["lpv"][1]).max() < 0.25 * lpv_tau
     alarms = {k: bool(d.alarm[0].any()) for k, d in det.detect(sig).items()}
-    assert not alarms["lpv"], alarms
-    if fault != "runaway":
-        assert not alarms["lti"], alarms
+    assert not any(alarms.values()), alarms
 
 
 def test_aileron_faults_cross_the_threshold_after_onset():
@@ -308,17 +316,14 @@ def test_aileron_faults_cross_the_threshold_after_onset():
     for variant, d in out.items():
         assert d.alarm[:, -1].all(), (variant, peaks[variant])
         first = np.argmax(d.alarm, axis=1) * sig.ts
-        # never before the onset in the runaway run (250 kt, inside the learning points). The
-        # jam run at 170 kt / 23 000 ft lies outside the three learning points (200–280 kt):
-        # designed on the aircraft's layout the vertical gust reaches the residual, whose
-        # fault-free floor there (LPV 1.2 °, LTI 2.0 °; 0.27 ° and 0.99 ° with the unison
-        # model) exceeds thresholds learned at 200–280 kt: measured first alarms 2.9 s (LPV)
-        # and 4.2 s (LTI) before the onset at 10 s. The campaigns learn over the envelope.
-        assert first[0] > 10.0, (variant, first)
-    # the LPV filter, designed at the measured point, sees the runaway more clearly; the
-    # default liquid jam about as clearly as the LTI filter (measured peaks/threshold: runaway
-    # LTI 30, LPV 62; jam LTI 2.3, LPV 2.1, with the aft-loaded aileron of docs/physics.md §3)
-    assert peaks["lpv"][0] > peaks["lti"][0], peaks
+        # never before the onset at 10 s (measured largest residual before it: runaway run
+        # LTI 0.77, LPV 0.91; jam run 0.60, 0.08 of τ0 + b, with τ0 learned on three runs
+        # at 200–280 kt)
+        assert (first > 10.0).all(), (variant, first)
+    # the LPV filter, designed at the measured point, sees both faults more clearly (measured
+    # peaks/threshold: runaway LTI 90, LPV 116; jam LTI 1.16, LPV 2.34; first alarms: jam
+    # LPV 3.9 s, LTI 11.6 s after onset)
+    assert (peaks["lpv"] > peaks["lti"]).all(), peaks
 
 
 def test_comparison_command_refuses_a_bad_noise_scale(capsys):
@@ -349,7 +354,7 @@ def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():
     from detectors import vanek_hinf as vh   # the [hinf] extra, part of the [test] extra
 
     point = _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, 200.0, 30.0)
-    gen, _ = design_filter(point, 0.01)                 # the default outputs (no α)
+    gen, _ = design_filter(point, 0.01)                 # design_filter's default: no α
     q = vh.post_filter(gen, vh.sensor_sigmas(design_outputs()) * np.sqrt(0.01))
     # every pole slow enough for the bilinear map at Ts = 0.01 s, and stable
     eig = np.linalg.eigvals(q.A)
@@ -385,11 +390,11 @@ def test_fault_free_residual_floor_at_the_default_sensor_noise():
     # (13–21 ° of aileron-equivalent), and the spoiler angle rebuilt from the aileron order
     # referenced to its first value a constant 0.3 ° of spoiler (1.4 ° at 170 kt); α is
     # referenced to θ's first sample (α0 = θ0 in level flight). Measured, nominal model
-    # (no Table-2 draws): default (no α, the vertical gust reaches r̂) LPV 0.35–1.20 °,
+    # (no Table-2 draws): without α (the vertical gust reaches r̂) LPV 0.35–1.20 °,
     # LPV-affine 0.36–1.28 °, LTI 0.35–2.04 °; with the α vane (``aoa_sensor = true``, both
     # gusts decoupled) LPV 0.13–0.21 °, LPV-affine 0.12–0.25 °, LTI 0.18–1.04 ° (off its
     # design point). Bounds, about 1.2–2.4 times the measured peaks (another noise
-    # realisation): default 1.5 ° for the LPV variants, 2.5 ° for LTI, and its LPV peak
+    # realisation): without α 1.5 ° for the LPV variants, 2.5 ° for LTI, and its LPV peak
     # above 1 ° (the vertical gust, which is why the default-size jam, 0.69 °, is seen late
     # or not at all at the low-q̄ corner); with α 0.5 ° for the LPV variants (below that
     # jam) and 1.5 ° for LTI.
@@ -399,7 +404,7 @@ def test_fault_free_residual_floor_at_the_default_sensor_noise():
     rows["stream"] = np.arange(len(rows))
     sig, _ = simulate_aircraft(rows)                       # default aircraft sensors
     variants = ("lti", "lpv", "lpv-affine")
-    for det, bound in ((VanekGeometric(variants=variants),
+    for det, bound in ((VanekGeometric(variants=variants, aoa_sensor=False),
                         {"lti": 2.5, "lpv": 1.5, "lpv-affine": 1.5}),
                        (VanekGeometric(variants=variants, aoa_sensor=True),
                         {"lti": 1.5, "lpv": 0.5, "lpv-affine": 0.5})):
@@ -451,7 +456,7 @@ def test_one_step_hinf_filter_gamma_tracking_and_approximate_isolation():
     # not decoupled: the rudder reaches f̂ with a gain of 62 per rad (measured), the elevator
     # only through the weak lateral-longitudinal terms (5e-6)
     assert max(leak) > 1e-3 * dc, leak
-    outputs = design_outputs()                           # the default: no α
+    outputs = design_outputs()                           # one_step_design's default: no α
     assert f.outputs == tuple(o for o in outputs if o != "theta")
     assert filt.Bd.shape[1] == len(known) + len(outputs)   # the detector's inputs, θ ignored
     assert np.all(filt.Bd[:, len(known) + outputs.index("theta")] == 0.0)
@@ -463,11 +468,11 @@ def test_vanek_comparison_lpv_detects_the_jam_first_and_the_elevator_is_isolated
     geometric filter's threshold ([VANEK]: 0.175 LTI, 0.105 LPV normalised peaks, below its
     thresholds 1.5 × those peaks), and the LPV filters detect the [VANEK]-size liquid jam
     at 170 kt / 23 000 ft, before the LTI filter ([VANEK] DTP 0.00508 < 0.00725). Measured
-    with the default outputs (no α: the vertical gust raises every threshold): elevator
-    runaway peaks 0.27 (LTI), 0.80 (LPV), 0.65 (LPV-affine) of the threshold; jam alarms
-    3.4 s (LPV) and 3.84 s (LPV-affine) after onset, LTI none (0.92 of its threshold; with
-    the α vane, ``aoa_sensor = true``: 1.55 s, 1.64 s and 3.23 s). The paper's delays in seconds are printed beside ours (0.87 s and 0.61 s,
-    inferred)."""
+    with the default design (α read, thresholds τ0 + b(t) for LTI and LPV, constant for
+    LPV-affine): elevator runaway peaks 0.55 (LTI), 0.30 (LPV), 0.70 (LPV-affine) of the
+    threshold; jam alarms 2.78 s (LPV), 1.64 s (LPV-affine) and 6.41 s (LTI) after onset
+    (constant thresholds with α: 1.55 s, 1.64 s, 3.23 s; without α: 3.4 s, 3.84 s, none).
+    The paper's delays in seconds are printed beside ours (0.87 s and 0.61 s, inferred)."""
     from campaign.studies.vanek import PAPER_JAM, compare, format_table
 
     df = compare(1.0)
@@ -481,7 +486,7 @@ def test_vanek_comparison_lpv_detects_the_jam_first_and_the_elevator_is_isolated
         assert ff.loc[v, "peak_over_threshold"] < 1.0
     for v in ("lpv", "lpv-affine"):
         assert 0.0 < jam.loc[v, "delay_s"] < 10.0
-        # LTI detects it later or not at all (NaN: measured, not detected by default)
+        # LTI detects it later or not at all (NaN; measured 6.41 s)
         assert not jam.loc[v, "delay_s"] >= jam.loc["lti", "delay_s"]
     # [VANEK]'s delays in seconds: 87 and 61 steps of 0.01 s (DTP × 120 s, inferred)
     assert PAPER_JAM == {"lti": pytest.approx(0.87), "lpv": pytest.approx(0.61),

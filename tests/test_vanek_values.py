@@ -31,8 +31,8 @@ from scenarios.signals import Signals
 TS = 0.01                                   # s: the aircraft plant's sampling period
 N_STEPS = 60
 OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")      # with the α vane
-#: the outputs of the default design (aoa_sensor = false): no α
-DEFAULT_OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
+#: the outputs of the design without the α vane (aoa_sensor = false)
+NO_AOA_OUTPUTS = ("q", "theta", "beta", "p", "r", "phi")
 #: (VCAS kt, altitude ft, mass t, CG % MAC) of the hand-built runs: off the LTI design point
 POINTS = ((200.0, 26000.0, 180.0, 25.0), (280.0, 33000.0, 220.0, 35.0))
 #: known inputs in the documented order: every surface but the left elevator and the rudder
@@ -75,7 +75,7 @@ def _signals(points=POINTS, monitored="left_elevator", seed=0, n_steps=N_STEPS):
 
 # ---- plain references --------------------------------------------------------------------
 def _outputs(aoa):
-    return OUTPUTS if aoa else DEFAULT_OUTPUTS
+    return OUTPUTS if aoa else NO_AOA_OUTPUTS
 
 
 def _plain_inputs(sig, monitored, aoa=False):
@@ -195,8 +195,9 @@ def test_documented_constants_and_defaults():
         "safety": 1.5, "confirm_s": 0.05, "decay": 0.5, "radius": 20.0,
         "decouple_gusts": True, "smoothing_s": 2.0, "variants": ("lti", "lpv"),
         "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
-        "threshold_tail": "light", "design_model": "aircraft", "aoa_sensor": False}
-    assert vg.design_outputs() == DEFAULT_OUTPUTS and vg.design_outputs(True) == OUTPUTS
+        "threshold_tail": "light", "design_model": "aircraft", "aoa_sensor": True,
+        "adaptive": True}
+    assert vg.design_outputs() == NO_AOA_OUTPUTS and vg.design_outputs(True) == OUTPUTS
     assert vg.DESIGN_MODELS == ("aircraft", "unison")
     with pytest.raises(dataclasses.FrozenInstanceError):
         vg.NOMINAL.vcas_kt = 250.0
@@ -215,7 +216,7 @@ def test_columns_output_matrix_and_flight_point():
     assert i2 == [LAYOUT.names.index("left_elevator"), LAYOUT.names.index("rudder")]
     assert known == _known_columns()
     x = np.arange(1.0, lpv.N_STATES + 1.0)
-    assert list(vg._output_matrix() @ x) == [x[lpv.STATES.index(o)] for o in DEFAULT_OUTPUTS]
+    assert list(vg._output_matrix() @ x) == [x[lpv.STATES.index(o)] for o in NO_AOA_OUTPUTS]
     assert list(vg._output_matrix(True) @ x) == [x[lpv.STATES.index(o)] for o in OUTPUTS]
     p = vg._point(250.0, 20000.0, 190.0, 28.0)
     fc = envelope.flight_condition(20000.0, 250.0, 190.0, 28.0)
@@ -284,7 +285,7 @@ def test_fault_directions_and_the_gust_sideslip_check():
         vg.gust_aoa_direction(A, bad)
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 @pytest.mark.parametrize("gusts", [True, False])
 def test_design_filter_is_the_documented_construction(gusts, aoa):
     point = _point(*POINTS[0])
@@ -312,7 +313,7 @@ def test_design_filter_passes_decay_and_radius():
 
 
 # ---- inputs and residual -------------------------------------------------------------------
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 @pytest.mark.parametrize("monitored", ["left_elevator", "left_inboard_aileron"])
 def test_filter_inputs(monitored, aoa):
     sig = _signals(monitored=monitored)
@@ -336,13 +337,16 @@ def test_filter_inputs(monitored, aoa):
 
 
 def _fitted_max(variants=("lti", "lpv"), **kwargs):
+    """The detector with ``"max"`` thresholds, without the α vane unless *kwargs* say so (the
+    hand-built filters below are those of that design; the α design has its own cases)."""
+    kwargs.setdefault("aoa_sensor", False)
     return vg.VanekGeometric(variants=variants, threshold_method="max", **kwargs)
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 def test_lti_and_lpv_residuals_against_the_plain_recursion(aoa):
     sig = _signals()
-    est = _fitted_max(**({"aoa_sensor": True} if aoa else {})).estimates(sig)
+    est = _fitted_max(aoa_sensor=aoa).estimates(sig)
     assert set(est) == {"lti", "lpv"}
     v = _plain_inputs(sig, "left_elevator", aoa)
     nominal = dataclasses.astuple(vg.NOMINAL)
@@ -487,8 +491,32 @@ def test_max_threshold_is_safety_times_the_largest_learning_residual():
          "lpv": np.array([[0.05, 0.1, 0.0], [-0.4, 0.2, 0.3]])}
     det = _stubbed(_fitted_max(safety=1.7), r).fit(sig)
     assert det.thresholds_deg_ == {"lti": 1.7 * 0.7, "lpv": 1.7 * 0.4}
-    assert det.learning_runs_ == 2
+    assert det.learning_runs_ == 2 and det.adaptive_ is False
     assert not hasattr(det, "calibration_")
+
+
+def test_adaptive_threshold_is_tau0_plus_the_allowance():
+    """With the α vane and ``adaptive``, τ0 is learned on each run's largest |r̂| − b(t)
+    (clipped at 0) and the decision residual is |r̂|/(τ0 + b(t)); the variants without an
+    allowance (here lpv-affine) keep |r̂|/τ."""
+    sig = _signals()
+    r = {"lti": np.array([[0.1, -0.7, 0.2], [0.3, 0.2, -0.1]]),
+         "lpv-affine": np.array([[0.05, 0.1, 0.0], [-0.4, 0.2, 0.3]])}
+    b = {"lti": np.array([[0.0, 0.6, 0.1], [0.0, 0.1, 0.0]])}
+    det = _stubbed(_fitted_max(variants=("lti", "lpv-affine"), safety=1.7, aoa_sensor=True),
+                   r)
+    det.allowances = lambda signals: b
+    det.fit(sig)
+    # lti: largest |r̂| − b per run 0.1 (run 0: 0.1, 0.1, 0.1) and 0.3 → τ0 = 1.7 × 0.3
+    assert det.adaptive_ is True
+    assert det.thresholds_deg_ == {"lti": pytest.approx(1.7 * 0.3, rel=1e-12),
+                                   "lpv-affine": 1.7 * 0.4}
+    out = det.detect(sig)
+    np.testing.assert_allclose(out["lti"].residual,
+                               np.abs(r["lti"]) / (det.thresholds_deg_["lti"] + b["lti"]),
+                               rtol=1e-15)
+    np.testing.assert_array_equal(out["lpv-affine"].residual,
+                                  np.abs(r["lpv-affine"]) / (1.7 * 0.4))
 
 
 def test_evt_threshold_is_the_calibrated_one_per_class():
@@ -501,7 +529,8 @@ def test_evt_threshold_is_the_calibrated_one_per_class():
     taus = set()
     for given in (classes, None):
         det = _stubbed(vg.VanekGeometric(variants=("lti",), safety=1.3, target_fa_per_run=0.05,
-                                         threshold_confidence=0.9, threshold_tail="free"),
+                                         threshold_confidence=0.9, threshold_tail="free",
+                                         adaptive=False),
                        r).fit(dataclasses.replace(sig, classes=given))
         tau, cal = calibrate.learned_threshold(maxima, "evt", 1.3, 0.05, 0.9, tail="free",
                                                classes=given)
@@ -574,7 +603,7 @@ def test_lti_hinf_residual_is_the_cascade_with_the_sampled_noise_and_no_low_pass
     sig = _signals()
     est = _fitted_max(variants=("lti-hinf",)).estimates(sig)
     gen = _reference_generator(*dataclasses.astuple(vg.NOMINAL))
-    q = vh.post_filter(gen, vh.sensor_sigmas(DEFAULT_OUTPUTS) * np.sqrt(TS))
+    q = vh.post_filter(gen, vh.sensor_sigmas(NO_AOA_OUTPUTS) * np.sqrt(TS))
     # the geometric filter (input [u; y], output r) in series with Q (input r, output f̂)
     m = gen.F.shape[1]
     Bf = np.hstack([gen.F, -gen.G])
@@ -593,12 +622,12 @@ def test_one_step_residual_ignores_the_pitch_attitude_and_is_not_low_passed():
     est = _fitted_max(variants=("one-step",)).estimates(sig)
     f, _ = vg.one_step_design(_point(*dataclasses.astuple(vg.NOMINAL)), TS)
     v = _plain_inputs(sig, "left_elevator")
-    theta = len(KNOWN) + 1 + DEFAULT_OUTPUTS.index("theta")
+    theta = len(KNOWN) + 1 + NO_AOA_OUTPUTS.index("theta")
     v = np.delete(v, theta, axis=2)
     _close(est["one-step"], np.degrees(_run_filter(f.A, f.B, f.C, f.D, v, np.ones(1))))
 
 
-@pytest.mark.parametrize("aoa", [False, True], ids=["default", "aoa_sensor"])
+@pytest.mark.parametrize("aoa", [False, True], ids=["no_aoa", "aoa_sensor"])
 def test_one_step_design_model_noise_and_gust_feedthrough(monkeypatch, aoa):
     from detectors import vanek_hinf as vh
     from scenarios.params import SENSORS

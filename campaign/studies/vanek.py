@@ -115,9 +115,11 @@ def _sensors(noise_scale: float):
 
 
 def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
-    """One row per scenario and variant: residual peak [deg], peak / threshold, threshold
-    [deg], detection delay [s] (NaN: none) and DTP, and for the aileron jam [VANEK]'s DTP and
-    its delay [s] inferred from it (:data:`PAPER_DELAY_NOTE`; NaN elsewhere)."""
+    """One row per scenario and variant: residual peak [deg], largest |r̂|/threshold,
+    threshold [deg] (τ0 where the threshold is τ0 + b(t) with the model-error allowance b of
+    :mod:`detectors.vanek_model_error`), detection delay [s] (NaN: none) and DTP, and for
+    the aileron jam [VANEK]'s DTP and its delay [s] inferred from it
+    (:data:`PAPER_DELAY_NOTE`; NaN elsewhere)."""
     from detectors.vanek_geometric import VanekGeometric
 
     settings = replace(SETTINGS, plant=AircraftPlant(aircraft_sensors=_sensors(noise_scale)))
@@ -139,13 +141,14 @@ def compare(noise_scale: float = 1.0, seed: int = 0) -> pd.DataFrame:
             fitted[surface] = VanekGeometric(variants=variants).fit(
                 simulate_signals(learn, settings))
         det = fitted[surface]
-        _, truth, detections = simulate_and_detect(rows, {LABEL: det}, settings)
+        signals, truth, detections = simulate_and_detect(rows, {LABEL: det}, settings)
         scored = score(rows, truth, detections, settings).set_index("detector")
+        estimates = det.estimates(signals)
         for key, d in detections.items():
             variant = key[len(LABEL) + 1:-1]          # "vanek-geometric[lti]" -> "lti"
             tau = det.thresholds_deg_[variant]
             out.append({"scenario": name, "variant": variant,
-                        "peak_deg": float(d.residual[0].max() * tau),
+                        "peak_deg": float(abs(estimates[variant][0]).max()),
                         "peak_over_threshold": float(d.residual[0].max()),
                         "threshold_deg": tau, "delay_s": float(scored.loc[key, "delay_s"]),
                         "dtp": float(scored.loc[key, "dtp"]),

@@ -101,6 +101,8 @@ TESTS: dict[str, tuple[str, ...]] = {
                                      "tests/test_vanek_geometric.py"),
     "detectors/vanek_hinf.py": ("tests/test_vanek_hinf_values.py", "tests/test_vanek_values.py",
                                 "tests/test_vanek_geometric.py"),
+    "detectors/vanek_model_error.py": ("tests/test_vanek_model_error.py",
+                                       "tests/test_vanek_values.py"),
     "detectors/chen_global.py": ("tests/test_chen_global_values.py",
                                  "tests/test_chen_global.py"),
     "detectors/chen_global_kernel.py": ("tests/test_chen_global_kernel_values.py",
