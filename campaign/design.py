@@ -49,8 +49,11 @@ from .plant import run_actuator, run_surface
 #: air (``[plant] turbulence``), and it measures the angle of attack
 #: (``Signals.aircraft["alpha"]``, the air-relative α of a vane, docs/physics.md §4), its
 #: noise drawn after every other sensor's, so the other signals of a run are unchanged bit
-#: for bit; actuator-level runs are unchanged but for the onsets.
-MODEL_VERSION = "servo-4"
+#: for bit; actuator-level runs are unchanged but for the onsets. servo-5: the position
+#: monitor's servo models take one explicit Euler step per FCC period (its ``model_step``,
+#: default ``"euler"``; RK4 before), so its residuals, thresholds and alarms change; every
+#: simulated signal is unchanged bit for bit.
+MODEL_VERSION = "servo-5"
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32
