@@ -278,6 +278,15 @@ class PositionMonitor(Detector):
         the other values of ``hinge_scale`` in increasing order (just (1.0,) for (1, 1))."""
         return (1.0, *sorted({float(v) for v in self.hinge_scale} - {1.0}))
 
+    def rate_evaluations_per_step(self) -> int:
+        """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
+        one per model of the band and Euler step, four per RK4 step; none without the loop
+        check (``fdd-campaign bench``'s arithmetic floor)."""
+        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
+        if "loop" not in checks:
+            return 0
+        return len(self.band_scales()) * (4 if self.model_step == "rk4" else 1)
+
     def model_band(self, signals: Signals,
                    engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) [mm]: the hull of the model outputs at the nominal hinge moment and at

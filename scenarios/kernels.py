@@ -450,6 +450,23 @@ def loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, out):
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
+def loaded_rates_all(xs, cur, pf, out):
+    """:func:`loaded_rates` of *S* samples of each of the n runs of *pf*
+    (:func:`plant_fields`): rod positions *xs* (S, n) [mm] and held currents *cur* (S, n)
+    [mA] into *out* (S, n) [mm/s], block by block of :data:`BLOCK` runs and sample by sample,
+    as the band and the predictor evaluate it in their time loops. The rate law alone
+    (``fdd-campaign bench`` times it for the arithmetic floor of a campaign)."""
+    S, n = xs.shape
+    s_buf = np.empty(BLOCK)
+    a_buf = np.empty(BLOCK)
+    for b0 in range(0, n, BLOCK):
+        b = min(b0 + BLOCK, n) - b0
+        for k in range(S):
+            loaded_rates(xs[k, b0:b0 + b], cur[k, b0:b0 + b], pf, b0, b, s_buf, a_buf,
+                         out[k, b0:b0 + b])
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
 def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, rk4):
     """Advance runs ``r0 … r1 − 1`` (at most :data:`BLOCK`) of every model of a band by
     step *k* of the nominal closed loop (docs/physics.md §2–3, as

@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
 
-from campaign.bench import RUN_IMPORTS, import_seconds, print_stages, stage_costs
+from campaign import bench as bench_module
+from campaign.bench import (RUN_IMPORTS, arithmetic_floor, import_seconds, print_floor,
+                            print_stages, rate_evaluations, stage_costs, yardstick_pairs)
+from campaign.design import build_learning_plan
+from detectors.position_monitor import PositionMonitor
 from campaign.cli import main
 from campaign.config import load_config
 from campaign.design import build_plan
@@ -95,6 +100,11 @@ def test_simulate_timings_leave_the_result_unchanged():
 @pytest.mark.parametrize("argv, message", [
     (["bench", "--stage-runs", "0"], "--stage-runs 0"),
     (["bench", "--campaign", "no-such-preset", "--no-detectors"], "no-such-preset"),
+    (["bench", "--pairs", "0"], "--pairs 0"),
+    (["bench", "--yardstick", "no-such-command-xyz run"], "no-such-command-xyz"),
+    (["bench", "--yardstick-dir", "."], "--yardstick-dir without --yardstick"),
+    (["bench", "--yardstick", "python -c pass", "--yardstick-dir", "/no/such/dir"],
+     "/no/such/dir"),
 ])
 def test_bench_bad_input_exits_2_before_any_work(argv, message, capsys):
     assert main(argv) == 2
@@ -120,3 +130,62 @@ def test_bench_announces_each_measurement_on_stderr_unless_quiet(capsys):
     assert "bench [" not in quiet_err
     labels = [line.split(":")[0] for line in out.splitlines()]
     assert [line.split(":")[0] for line in quiet_out.splitlines()] == labels
+
+
+# ---- the arithmetic floor ----------------------------------------------------------------------
+def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
+    """smoke: the actuator plant's RK4 (4 per step) on the plan and the learning set, the
+    healthy RK4 rod model on the jam runs of the plan, and the position monitor's band of
+    three Euler models (3 per step) on both sets (it is fitted)."""
+    config = load_config("smoke")
+    plan, learning = build_plan(config), build_learning_plan(config)
+    steps = round(config.campaign.duration_s / config.campaign.ts_s)
+    jams = int(plan["fault"].isin(["liquid_jam", "solid_jam"]).sum())
+    counts = rate_evaluations("smoke")
+    assert counts["steps"] == steps and counts["uncounted"] == []
+    assert counts["parts"] == {
+        "plant (actuator)": 4 * (len(plan) + len(learning)) * steps,
+        "healthy rod model of the jam runs": 4 * jams * steps,
+        "detect position-monitor": 3 * (len(plan) + len(learning)) * steps}
+
+
+@pytest.mark.parametrize("params, count", [
+    ({}, 3), ({"model_step": "rk4"}, 12), ({"hinge_scale": (1.0, 1.0)}, 1),
+    ({"checks": ("com_mon", "surface")}, 0), ({"checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
+])
+def test_position_monitor_declares_one_evaluation_per_model_and_euler_step(params, count):
+    assert PositionMonitor(**params).rate_evaluations_per_step() == count
+
+
+def test_floor_is_evaluations_times_cost_spread_over_the_workers_after_the_imports():
+    floor = arithmetic_floor("smoke", jobs=2, cost_s=10e-9, imports_s=1.5)
+    n = sum(floor["parts"].values())
+    assert floor["evaluations"] == n
+    assert floor["cpu_s"] == pytest.approx(n * 10e-9, rel=1e-12)
+    assert floor["wall_s"] == pytest.approx(1.5 + n * 10e-9 / 2, rel=1e-12)
+    lines = []
+    print_floor(floor, {"wall_s_campaign": 2 * floor["wall_s"], "cpu_s_campaign": 3.0},
+                echo=lines.append)
+    assert floor["ratio_wall"] == pytest.approx(2.0, rel=1e-12)
+    assert floor["ratio_cpu"] == pytest.approx(3.0 / (floor["cpu_s"] + 1.5), rel=1e-12)
+    assert len(lines) == 2 and "10.0 ns" in lines[0] and "2.00 x in wall time" in lines[1]
+
+
+def test_yardstick_pairs_time_both_back_to_back_and_take_the_medians(monkeypatch):
+    seen = []
+
+    def campaign_run(campaign, jobs):
+        seen.append((campaign, jobs))
+        return {"wall_s": 3.0 * len(seen), "cpu_s": 1.0, "peak_rss_mb": 100.0}
+
+    monkeypatch.setattr(bench_module, "run_campaign_process", campaign_run)
+    lines = []
+    out = yardstick_pairs("smoke", 2, [sys.executable, "-c", "pass"], pairs=3,
+                          echo=lines.append)
+    assert seen == [("smoke", 2)] * 3
+    for k, pair in enumerate(out["pairs"], 1):
+        assert pair["yard_wall_s"] > 0.0 and pair["wall_s"] == 3.0 * k
+        assert pair["ratio_wall"] == pytest.approx(3.0 * k / pair["yard_wall_s"], rel=1e-12)
+    assert out["median_ratio_wall"] == pytest.approx(
+        sorted(p["ratio_wall"] for p in out["pairs"])[1], rel=1e-12)
+    assert len(lines) == 5 and lines[-1].strip().startswith("median ratio")
