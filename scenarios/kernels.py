@@ -470,8 +470,8 @@ def loaded_rates_all(xs, cur, pf, out):
 def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, rk4):
     """Advance runs ``r0 … r1 − 1`` (at most :data:`BLOCK`) of every model of a band by
     step *k* of the nominal closed loop (docs/physics.md §2–3, as
-    :meth:`detectors.position_monitor.PositionMonitor.model_output`: x_{k+1} = RK4 of the
-    rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low, high) [mm] of the
+    :meth:`detectors.position_monitor.PositionMonitor.model_output`: x_{k+1} = one RK4 or
+    Euler step of the rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low, high) [mm] of the
     models' outputs x_k (the rod positions at the start of the step) to ``lo[r − r0]``,
     ``hi[r − r0]``.
 
