@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from campaign import bench as bench_module
-from campaign.bench import (RUN_IMPORTS, arithmetic_floor, import_seconds, print_floor,
-                            print_stages, rate_evaluations, stage_costs, yardstick_pairs)
-from campaign.design import build_learning_plan
-from detectors.position_monitor import PositionMonitor
+from campaign.bench import (RUN_IMPORTS, arithmetic_floor, bench_runs, import_seconds,
+                            print_floor, print_stages, rate_evaluations, stage_costs,
+                            yardstick_pairs)
 from campaign.cli import main
 from campaign.config import load_config
-from campaign.design import build_plan
+from campaign.design import build_learning_plan, build_plan
+from detectors.position_monitor import PositionMonitor
 from scenarios.simulate import simulate, single_run
 
 SMOKE_STAGES = ("learning set: simulation", "fit position-monitor", "preparation", "plant",
@@ -189,3 +189,27 @@ def test_yardstick_pairs_time_both_back_to_back_and_take_the_medians(monkeypatch
     assert out["median_ratio_wall"] == pytest.approx(
         sorted(p["ratio_wall"] for p in out["pairs"])[1], rel=1e-12)
     assert len(lines) == 5 and lines[-1].strip().startswith("median ratio")
+
+
+def test_the_timed_rate_law_is_the_rate_law():
+    """What the floor times (kernels.loaded_rates_all, step-major samples over blocks of runs)
+    is the rod's rate law, scenarios.servo.rod_rate of a loaded rod, on 70 runs (more than
+    one block of 64) at positions across the stroke and currents across ±i_max. Tolerance
+    1e-12 relative: the same formula; NumPy's arcsin may differ from the C library's in the
+    last bit (docs/execution.md)."""
+    from scenarios import kernels
+    from scenarios.servo import PlantArrays, rod_rate
+    from scenarios.simulate import prepare
+
+    plant = prepare(bench_runs(70, 30.0, seed=4), pressure_sensor=False).plant
+    rng = np.random.default_rng(7)
+    frac = rng.uniform(0.0, 1.0, (5, 70))
+    x = plant.x_min + frac * (plant.x_max - plant.x_min)              # (samples, runs) [mm]
+    i = rng.uniform(-1.0, 1.0, (5, 70)) * plant.i_max                  # [mA]
+    out = np.empty_like(x)
+    kernels.loaded_rates_all(x, i, kernels.plant_fields(plant), out)
+    rows = PlantArrays(**{k: np.broadcast_to(np.asarray(v), (5, 70))
+                          for k, v in vars(plant).items()})
+    want = rod_rate(x, i, rows, np.ones((5, 70), bool))
+    assert np.any(want != 0.0) and np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, want, rtol=1e-12, atol=0.0)
