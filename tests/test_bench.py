@@ -213,3 +213,27 @@ def test_the_timed_rate_law_is_the_rate_law():
     want = rod_rate(x, i, rows, np.ones((5, 70), bool))
     assert np.any(want != 0.0) and np.all(np.isfinite(out))
     np.testing.assert_allclose(out, want, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim")
+def test_returning_freed_memory_starts_no_child_process(monkeypatch):
+    """The bench's peak sums the resident memory of the campaign's process tree: a child
+    forked from the campaign (ctypes.util.find_library runs ldconfig) would show the
+    campaign's memory twice. The C library's malloc_trim is found without one."""
+    import subprocess
+
+    from scenarios import memory
+
+    spawned = []
+
+    def spawn(self, *args, **kwargs):
+        spawned.append(args or kwargs)
+        raise OSError("no child process in this test")   # as a failed start: callers go on
+
+    monkeypatch.setattr(subprocess.Popen, "__init__", spawn)
+    memory._malloc_trim.cache_clear()
+    try:
+        memory.release_freed_memory()
+        assert memory._malloc_trim() is not None and spawned == []
+    finally:
+        memory._malloc_trim.cache_clear()
