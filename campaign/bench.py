@@ -11,6 +11,12 @@ compile cache, then with the cache warm, and reports wall time, peak memory of t
 process tree and the ratio to the per-run reference; and the cost of each built-in
 detector per run-step.
 
+Each campaign's arithmetic floor (:func:`arithmetic_floor`): the rate-law evaluations its
+plant and detectors ask for, times the measured cost of one, plus the imports — the distance
+to the limit, as a ratio. With a yardstick command (``--yardstick``), rounds of the yardstick
+and the campaign back to back, wall and CPU time of each and their ratios
+(:func:`yardstick_pairs`).
+
 The in-process figures time the stages of the evaluation pipeline (:mod:`campaign.evaluate`)
 one by one: the simulation (:func:`campaign.evaluate.simulate_signals`) and each detector
 (:func:`campaign.evaluate.detect`), with the settings of
@@ -19,8 +25,12 @@ one by one: the simulation (:func:`campaign.evaluate.simulate_signals`) and each
 
 from __future__ import annotations
 
+import math
 import os
 import resource
+import shlex
+import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -86,7 +96,9 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
           reference_runs: int = 2, echo=print, campaign: str | None = "addsafe-mc",
           detectors: bool = True, cold: bool = True, backend: str = "threading",
           plant: str | None = None, plant_runs: int = 40, stages: bool = True,
-          stage_runs: int = 200, progress=None) -> dict:
+          stage_runs: int = 200, progress=None, floor: bool = True,
+          yardstick: str | None = None, yardstick_dir: str | None = None,
+          pairs: int = 3) -> dict:
     """Measure and print the figures; returns them as a dict. *campaign*: preset or file run
     whole, or several separated by commas (e.g. ``"addsafe-mc,chen-mc"``; None: skip);
     *detectors*: time each built-in detector; *cold*: also time a first
@@ -95,7 +107,10 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     first *plant_runs* runs of the same load are also simulated on the FMU back end, its
     per-run cost reported beside the built-in plant's; *stages*: the share of each stage of
     each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``;
-    *progress*: called with a line naming each measurement as it starts (None: silent)."""
+    *progress*: called with a line naming each measurement as it starts (None: silent);
+    *floor*: each campaign's arithmetic floor and its ratio to it (:func:`arithmetic_floor`);
+    *yardstick*: a command (split as a shell would, run without one, in *yardstick_dir*)
+    timed back to back with each campaign, *pairs* rounds (:func:`yardstick_pairs`)."""
     counts = {"--runs": (n_runs, "runs simulated", 2200), "--jobs": (jobs, "local workers", 2),
               "--chunk-size": (chunk_size, "runs per chunk", 275),
               "--reference-runs": (reference_runs, "runs timed with the solve_ivp reference", 2),
@@ -112,6 +127,7 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     if problems:
         raise UsageError("; ".join(problems))
     names = [c.strip() for c in (campaign or "").split(",") if c.strip()]
+    yard_cmd = _yardstick_command(yardstick, yardstick_dir, pairs, names)
     from .config import load_config
 
     for name in names:          # a campaign that cannot load: exit 2 before any measurement
@@ -174,6 +190,13 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     for i, name in enumerate(names):
         whole = bench_campaign(name, jobs, reference_s_per_run=ref_per_run, cold=cold,
                                echo=echo, step=step)
+        if floor:
+            step(f"counting the rate-law evaluations of {name} and timing one")
+            whole["floor"] = arithmetic_floor(name, jobs)
+            print_floor(whole["floor"], whole, echo)
+        if yard_cmd is not None:
+            whole["yardstick"] = yardstick_pairs(name, jobs, yard_cmd, yardstick_dir, pairs,
+                                                 echo=echo, step=step)
         if i == 0:       # the first campaign's figures at the top level, as before
             figures.update(whole)
         figures.setdefault("campaigns", {})[name] = whole
@@ -246,15 +269,17 @@ def _tree_rss_kb(pid: int) -> int:
 
 def run_campaign_process(campaign: str, jobs: int, cache_dir: Path | None = None,
                          poll_s: float = 0.02) -> dict:
-    """Run ``fdd-campaign run CAMPAIGN`` in a subprocess; wall time [s], peak memory [MiB] of
-    its process tree (sampled every *poll_s*), and its output. *cache_dir* points numba's
-    compile cache there (an empty directory: a first run without a cache)."""
+    """Run ``fdd-campaign run CAMPAIGN`` in a subprocess; wall time [s], CPU time [s] (user +
+    system, of the process and the workers it waited for), peak memory [MiB] of its process
+    tree (sampled every *poll_s*), and its output. *cache_dir* points numba's compile cache
+    there (an empty directory: a first run without a cache)."""
     env = dict(os.environ)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = str(cache_dir)
     with tempfile.TemporaryDirectory(prefix="fdd-bench-") as tmp:
         cmd = [sys.executable, "-m", "campaign.cli", "run", campaign, "--out",
                str(Path(tmp) / "out"), "--jobs", str(jobs), "--quiet"]
+        cpu0 = _children_cpu_s()
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True)
@@ -269,11 +294,18 @@ def run_campaign_process(campaign: str, jobs: int, cache_dir: Path | None = None
         sampler.start()
         stdout, stderr = proc.communicate()
         wall = time.perf_counter() - t0
+        cpu = _children_cpu_s() - cpu0
         sampler.join()
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed with exit code {proc.returncode}:\n{stderr}")
-    return {"wall_s": wall, "peak_rss_mb": peak[0] / 1024.0, "stdout": stdout,
+    return {"wall_s": wall, "cpu_s": cpu, "peak_rss_mb": peak[0] / 1024.0, "stdout": stdout,
             "stderr": stderr}
+
+
+def _children_cpu_s() -> float:
+    """User + system CPU time [s] of the child processes this process has waited for."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 # ---- detectors per run-step --------------------------------------------------------------------
@@ -347,8 +379,10 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
         step(f"running {campaign} ({len(plan)} runs)")
         warm = run_campaign_process(campaign, jobs)
     figures["wall_s_campaign"] = warm["wall_s"]
+    figures["cpu_s_campaign"] = warm["cpu_s"]
     figures["peak_rss_mb_campaign"] = warm["peak_rss_mb"]
-    echo(f"  {campaign} warm cache : {warm['wall_s']:8.2f} s wall, peak "
+    echo(f"  {campaign} warm cache : {warm['wall_s']:8.2f} s wall, {warm['cpu_s']:.2f} s CPU "
+         "(user + system), peak "
          f"{warm['peak_rss_mb']:.0f} MiB ({warm['peak_rss_mb'] * MIB / 1e6:.0f} MB) for the "
          f"process tree ({len(plan)} runs, every "
          f"detector, scoring and Parquet; {jobs} worker(s))")
@@ -471,3 +505,185 @@ def print_stages(costs: dict, echo=print) -> None:
     for s in costs["stages"]:
         echo(f"    {s['stage']:<34s} {s['seconds']:7.2f} s  {100 * s['share']:5.1f} %")
     echo(f"    {'total (one thread)':<34s} {costs['total_s']:7.2f} s")
+
+
+# ---- the arithmetic floor of a campaign -------------------------------------------------------
+def rate_evaluations(campaign: str) -> dict:
+    """Evaluations of the rate law (docs/physics.md §3) a run of *campaign* asks for, by part.
+
+    Each part declares its count per run and step: the plant
+    (``rate_evaluations_per_step``, 4 for the built-in servo-loop's RK4), each detector
+    (``rate_evaluations_per_step()``, over the plan and, when it is fitted, the learning set)
+    and, on the built-in servo-loop, the healthy noise-free model of the jam runs that
+    defines their rod fault (:func:`scenarios.simulate.rod_measurement_fault`, RK4). Returns
+    ``{"campaign", "steps", "runs", "learning_runs", "parts": {name: evaluations},
+    "uncounted": [names without a declared count]}``."""
+    from scenarios.faults import ROD_MEASUREMENT_FAULTS
+
+    from .config import load_config
+    from .design import build_learning_plan, build_plan
+    from .runner import build_detectors, settings_of
+
+    config = load_config(campaign)
+    plan, learning = build_plan(config), build_learning_plan(config)
+    settings = settings_of(config)
+    detectors = build_detectors(config)
+    steps = int(round(float(config.campaign.duration_s) / settings.ts))
+    parts, uncounted = {}, []
+    plant = settings.plant
+    per_step = getattr(plant, "rate_evaluations_per_step", None)
+    if per_step is None:
+        uncounted.append(f"plant ({plant.kind})")
+    else:
+        parts[f"plant ({plant.kind})"] = per_step * (len(plan) + len(learning)) * steps
+        jams = int(plan["fault"].isin(ROD_MEASUREMENT_FAULTS).sum())
+        parts["healthy rod model of the jam runs"] = per_step * jams * steps
+    for label, det in detectors.items():
+        count = getattr(det, "rate_evaluations_per_step", None)
+        if count is None:
+            uncounted.append(label)
+            continue
+        runs = len(plan) + (len(learning) if det.capabilities.needs_fit else 0)
+        parts[f"detect {label}"] = int(count()) * runs * steps
+    return {"campaign": campaign, "steps": steps, "runs": len(plan),
+            "learning_runs": len(learning), "parts": parts, "uncounted": uncounted}
+
+
+def rate_law_cost(n_runs: int = 128, samples: int = 1000, repeats: int = 20,
+                  duration_s: float = 30.0) -> float:
+    """CPU time [s] of one thread for one evaluation of the rate law as the kernels evaluate
+    it (:func:`scenarios.kernels.loaded_rates_all`, block by block and step by step), on
+    the rods and currents of *samples* steps of *n_runs* simulated runs of the benchmark
+    load (*duration_s* each, every fault type); the best of *repeats* passes."""
+    from scenarios import kernels
+    from scenarios.params import SENSORS
+
+    p = prepare(bench_runs(n_runs, duration_s, seed=4), pressure_sensor=False)
+    traj = kernels.integrate_compiled(p, SENSORS)
+    cols = np.linspace(0, traj.x.shape[1] - 1, samples).round().astype(int)
+    x = np.ascontiguousarray(traj.x[:, cols].T)              # (samples, runs): step-major
+    i = np.ascontiguousarray(traj.i_app[:, cols].T)
+    pf = kernels.plant_fields(p.plant)
+    out = np.empty_like(x)
+    kernels.loaded_rates_all(x[:1], i[:1], pf, out[:1])     # compiled/loaded outside the timing
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        kernels.loaded_rates_all(x, i, pf, out)
+        best = min(best, time.thread_time() - t0)
+    return best / x.size
+
+
+def arithmetic_floor(campaign: str, jobs: int, cost_s: float | None = None,
+                     imports_s: float | None = None) -> dict:
+    """The least time *campaign* can take on *jobs* workers if it did nothing but the
+    rate-law evaluations it asks for (:func:`rate_evaluations`) at the measured cost of one
+    (:func:`rate_law_cost`, or *cost_s*), spread evenly over the workers, after the imports
+    of ``fdd-campaign run`` (:func:`import_seconds`, or *imports_s*, paid once on one
+    thread). Everything else a run does (random draws, sensors, scoring, Parquet) costs
+    above it. ``cpu_s`` = evaluations × cost; ``wall_s`` = imports + cpu_s / jobs."""
+    from .config import load_config
+    from .runner import build_detectors
+
+    counts = rate_evaluations(campaign)
+    cost = rate_law_cost() if cost_s is None else float(cost_s)
+    if imports_s is None:
+        detectors = build_detectors(load_config(campaign))
+        imports_s = import_seconds(extra=tuple(sorted({type(d).__module__
+                                                       for d in detectors.values()})))
+    evaluations = sum(counts["parts"].values())
+    cpu = evaluations * cost
+    return {**counts, "evaluations": evaluations, "cost_s": cost, "imports_s": imports_s,
+            "jobs": jobs, "cpu_s": cpu, "wall_s": imports_s + cpu / max(jobs, 1)}
+
+
+def print_floor(floor: dict, whole: dict | None = None, echo=print) -> None:
+    """The lines of :func:`arithmetic_floor`, and the campaign's ratios to it when *whole*
+    (:func:`bench_campaign`'s figures) holds its warm run."""
+    name = floor["campaign"]
+    parts = ", ".join(f"{k} {v:.3g}" for k, v in floor["parts"].items())
+    echo(f"  {name} arithmetic floor: {floor['evaluations']:.3g} rate-law evaluations "
+         f"({parts}) x {1e9 * floor['cost_s']:.1f} ns = {floor['cpu_s']:.2f} CPU-s; "
+         f"+ imports {floor['imports_s']:.2f} s -> {floor['wall_s']:.2f} s wall on "
+         f"{floor['jobs']} worker(s)")
+    if floor["uncounted"]:
+        echo(f"    (not counted, no declared rate-law count: {', '.join(floor['uncounted'])})")
+    if whole and "wall_s_campaign" in whole:
+        wall, cpu = whole["wall_s_campaign"], whole["cpu_s_campaign"]
+        floor["ratio_wall"] = wall / floor["wall_s"]
+        floor["ratio_cpu"] = cpu / (floor["cpu_s"] + floor["imports_s"])
+        echo(f"  {name} / floor       : {floor['ratio_wall']:.2f} x in wall time "
+             f"({wall:.2f} s), {floor['ratio_cpu']:.2f} x in CPU time ({cpu:.2f} s against "
+             f"{floor['cpu_s'] + floor['imports_s']:.2f} s)")
+
+
+# ---- back to back with a yardstick -------------------------------------------------------------
+def _yardstick_command(yardstick: str | None, cwd: str | None, pairs: int,
+                       campaigns: list[str]) -> list[str] | None:
+    """The yardstick's argument list, checked before any work (ValueError naming the fix)."""
+    if isinstance(pairs, bool) or int(pairs) != pairs or pairs < 1:
+        raise ValueError(f"--pairs {pairs}: must be an integer ≥ 1 (rounds of the yardstick "
+                         "and the campaign); fix: e.g. --pairs 3")
+    if yardstick is None:
+        if cwd is not None:
+            raise ValueError("--yardstick-dir without --yardstick: name the command to time, "
+                             "e.g. --yardstick 'python campaign.py vec'")
+        return None
+    cmd = shlex.split(yardstick)
+    if not cmd:
+        raise ValueError("--yardstick is empty; fix: e.g. --yardstick 'python campaign.py vec'")
+    if cwd is not None and not Path(cwd).is_dir():
+        raise ValueError(f"--yardstick-dir {cwd}: not a directory; fix: the directory the "
+                         "yardstick command runs in")
+    if shutil.which(cmd[0], path=None if os.sep not in cmd[0] else "") is None and not (
+            os.sep in cmd[0] and os.access(Path(cwd or ".") / cmd[0], os.X_OK)):
+        raise ValueError(f"--yardstick: {cmd[0]!r} is not an executable on the PATH; fix: "
+                         "a command such as 'python campaign.py vec'")
+    if not campaigns:
+        raise ValueError("--yardstick with --campaign none: name the campaign to compare")
+    return cmd
+
+
+def _timed_process(cmd: list[str], cwd: str | None) -> dict:
+    """Wall and CPU time (user + system) [s] of *cmd* run to its end in *cwd*."""
+    cpu0 = _children_cpu_s()
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"yardstick {' '.join(cmd)} failed with exit code "
+                           f"{proc.returncode}:\n{proc.stderr}")
+    return {"wall_s": wall, "cpu_s": _children_cpu_s() - cpu0}
+
+
+def yardstick_pairs(campaign: str, jobs: int, command: list[str], cwd: str | None = None,
+                    pairs: int = 3, echo=print, step=None) -> dict:
+    """*pairs* rounds of the yardstick *command* (run in *cwd*) and then the whole *campaign*
+    (warm compile cache, :func:`run_campaign_process`), back to back, so that each pair sees
+    the same load of a shared machine: wall and CPU time of both, their ratios
+    (campaign / yardstick) and the medians of the ratios, with the load average at each
+    start. Returns ``{"pairs": [...], "median_ratio_wall", "median_ratio_cpu"}``."""
+    step = step or _Steps()
+    rows = []
+    for k in range(pairs):
+        step(f"pair {k + 1} of {pairs}: yardstick, then {campaign}")
+        load = os.getloadavg()[0]
+        yard = _timed_process(command, cwd)
+        ours = run_campaign_process(campaign, jobs)
+        rows.append({"load": load, "yard_wall_s": yard["wall_s"], "yard_cpu_s": yard["cpu_s"],
+                     "wall_s": ours["wall_s"], "cpu_s": ours["cpu_s"],
+                     "peak_rss_mb": ours["peak_rss_mb"],
+                     "ratio_wall": ours["wall_s"] / yard["wall_s"],
+                     "ratio_cpu": ours["cpu_s"] / yard["cpu_s"] if yard["cpu_s"] > 0 else math.nan})
+    out = {"command": command, "cwd": cwd, "pairs": rows,
+           "median_ratio_wall": statistics.median(r["ratio_wall"] for r in rows),
+           "median_ratio_cpu": statistics.median(r["ratio_cpu"] for r in rows)}
+    echo(f"  {campaign} against the yardstick ({' '.join(command)}), back to back:")
+    for k, r in enumerate(rows, 1):
+        echo(f"    pair {k} (load {r['load']:4.1f}): yardstick {r['yard_wall_s']:6.2f} s wall "
+             f"{r['yard_cpu_s']:6.2f} s CPU; {campaign} {r['wall_s']:6.2f} s wall "
+             f"{r['cpu_s']:6.2f} s CPU, peak {r['peak_rss_mb']:.0f} MiB; ratio "
+             f"{r['ratio_wall']:.2f} wall, {r['ratio_cpu']:.2f} CPU")
+    echo(f"    median ratio: {out['median_ratio_wall']:.2f} wall, "
+         f"{out['median_ratio_cpu']:.2f} CPU (user + system)")
+    return out

@@ -460,7 +460,9 @@ def cmd_bench(args) -> int:
           reference_runs=args.reference_runs, plant=args.plant, plant_runs=args.plant_runs,
           campaign=None if args.campaign == "none" else args.campaign, cold=not args.no_cold,
           detectors=not args.no_detectors, stages=not args.no_stages, stage_runs=args.stage_runs,
-          progress=None if args.quiet else partial(print, file=sys.stderr, flush=True))
+          progress=None if args.quiet else partial(print, file=sys.stderr, flush=True),
+          floor=not args.no_floor, yardstick=args.yardstick, yardstick_dir=args.yardstick_dir,
+          pairs=args.pairs)
     return EXIT_OK
 
 
@@ -663,6 +665,14 @@ def _add_tool_parsers(subs) -> None:
     p.add_argument("--campaign", default="addsafe-mc", help="campaign(s) run whole, and "
                    "stage by stage (default addsafe-mc; e.g. addsafe-mc,chen-mc; none: skip)")
     p.add_argument("--no-stages", action="store_true", help="skip the stage shares")
+    p.add_argument("--no-floor", action="store_true", help="skip the arithmetic floor "
+                   "(rate-law evaluations x their measured cost + imports) and the ratio to it")
+    p.add_argument("--yardstick", metavar="CMD", help="a command timed back to back with each "
+                   "campaign (e.g. 'python campaign.py vec'): wall and CPU ratios per pair and "
+                   "their medians")
+    p.add_argument("--yardstick-dir", metavar="DIR", help="directory the yardstick runs in")
+    p.add_argument("--pairs", type=int, default=3,
+                   help="rounds of yardstick and campaign, back to back (default 3)")
     p.add_argument("--stage-runs", type=int, default=200, help="runs timed stage by stage")
     p.add_argument("--no-cold", action="store_true",
                    help="skip the first campaign run with an empty compile cache")

@@ -555,6 +555,12 @@ class IntervalDetector(Detector):
             xc, xr = predictor_step(xc, xr, u[:, k], gc_all[:, k], gr, 1.0, hr)
         return y, xc_all, xr_all
 
+    def rate_evaluations_per_step(self) -> int:
+        """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
+        the predictor's one, at the measured rod ([COMB] eq. 14; ``fdd-campaign bench``'s
+        arithmetic floor)."""
+        return 1
+
     def interval_residual(self, signals: Signals) -> np.ndarray:
         """r_k = dz(y_k, x_k^c ± x_k^r) [mm] ([COMB] eq. 18), shape (n_runs, n_steps)."""
         if kernels.current_engine() == "compiled":    # fused: no (n, T) x^c, x^r kept

@@ -15,7 +15,13 @@ threshold for a confirmation time. Three consistency checks, each optional:
     run at the nominal hinge moment and at ``hinge_scale`` = (low, high) times it, and the loop
     residual is how far the rod lies *outside* the hull of the three outputs (0 inside it) — a
     set-membership check in the manner of [COMB]'s interval bounds. With ``hinge_scale =
-    (1, 1)`` it is the plain difference to the nominal model.
+    (1, 1)`` it is the plain difference to the nominal model. The models are discretised
+    as the flight-control computer runs a model, at its period Ts with one rate-law
+    evaluation per step (``model_step = "euler"``, :func:`euler_step`): the monitor's model
+    is not the plant's RK4 integrator (``model_step = "rk4"``, four evaluations per step):
+    on fault-free runs the two stay within 0.04 mm of each other (0.03 mm at most, in the
+    pitch protection; tests/test_position_monitor_band.py), a tenth of the loop threshold
+    the monitor learns (docs/execution.md).
 ``com_mon``
     COM against MON rod acquisition. A liquid jam biases the acquisition the loop closes on:
     the loop hides it on COM but MON keeps the offset (docs/physics.md §5).
@@ -46,7 +52,7 @@ import numpy as np
 from scenarios import kernels
 from scenarios.kernels import (BAND_WORK_ROWS, BLOCK, band_plants, resolve_engine, servo_band,
                                servo_band_step, servo_model)
-from scenarios.servo import plant_arrays, rk4_step
+from scenarios.servo import PlantArrays, plant_arrays, rk4_step, rod_rate
 from scenarios.signals import Signals
 
 from .base import Capabilities, Detection, Detector, confirm, per_run_maxima
@@ -54,10 +60,25 @@ from .calibrate import THRESHOLD_PARAMS, learned_threshold
 from .params import Param
 
 CHECKS = ("loop", "com_mon", "surface")
+#: Discretisations of the loop check's servo models (``model_step``): one explicit Euler
+#: step per FCC period, or the plant's RK4 step.
+MODEL_STEPS = ("euler", "rk4")
+
+
+def euler_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
+    """One explicit Euler step of the rod over *h* [s] with the current *i_mA* [mA] held,
+    inside the stops: x + h·ẋ(x, i) (docs/physics.md §3, :func:`scenarios.servo.rod_rate`),
+    one rate-law evaluation — the monitor's model as the FCC runs it at its period (the
+    NumPy reference of :func:`scenarios.kernels.servo_band_step` without ``rk4``)."""
+    return np.clip(x_mm + h * rod_rate(x_mm, i_mA, p, loaded), p.x_min, p.x_max)
+
+
+#: The NumPy step of each ``model_step``.
+_STEPS = {"euler": euler_step, "rk4": rk4_step}
 
 
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
-def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_confirm,
+def _decide_block(rod_com, u, plants, ts, rk4, rod_mon, surface_mm, tau, active, n_confirm,
                   norm_out, alarm_out):
     """Normalised residual and confirmed alarm of a block of runs, the loop check's model band
     integrated in the same pass, compiled (the NumPy reference is :meth:`PositionMonitor._detect`
@@ -65,7 +86,8 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
 
     The band: the models of *plants* (m, rows, n; :func:`scenarios.kernels.plant_fields`, the
     nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
-    by :func:`scenarios.kernels.servo_band_step` (docs/physics.md §2–3); *ts* [s].
+    by :func:`scenarios.kernels.servo_band_step` (docs/physics.md §2–3; RK4 with *rk4*,
+    else one Euler step per period); *ts* [s].
     norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
     loop, com_mon, surface; NaN propagates as in ``np.maximum``),
     r_loop = distance of y_COM outside [band low, band high] (|y_COM − model| when the band
@@ -92,7 +114,7 @@ def _decide_block(rod_com, u, plants, ts, rod_mon, surface_mm, tau, active, n_co
         b1 = min(b0 + BLOCK, n)
         for k in range(T):
             if m > 0:
-                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi, work)
+                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi, work, rk4)
             for r in range(b0, b1):
                 v = 0.0
                 if use_loop:
@@ -122,7 +144,7 @@ def _warm_kernels() -> None:
     z2 = np.zeros((1, 2))
     plants = np.ones((2, kernels.FIELD_ROWS, 1))
     for rod in (z2, kernels.read_only_view(z2)):  # signals as detect reads them: read-only
-        _decide_block(rod, rod, plants, 0.01, rod, np.zeros((0, 0)), np.ones(3),
+        _decide_block(rod, rod, plants, 0.01, False, rod, np.zeros((0, 0)), np.ones(3),
                       np.array([True, True, False]), 1, np.zeros((1, 2)),
                       np.zeros((1, 2), dtype=np.bool_))
 
@@ -156,6 +178,10 @@ class PositionMonitor(Detector):
         within ±10 % ([CHEN] Table 2; q̄ ∝ VCAS², so the true q̄ is 0.83–1.23 times the one the
         model uses): 0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards.
         (1, 1): the plain nominal model.
+    model_step : str
+        Discretisation of the loop check's models: ``"euler"`` (one rate-law evaluation per
+        model and FCC period, as the flight-control computer runs a model) or ``"rk4"``
+        (the plant's integrator, four evaluations).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -175,11 +201,15 @@ class PositionMonitor(Detector):
               "nominal hinge moment: the loop check accepts the rod anywhere between the model "
               "outputs at these loads (1, 1: the plain nominal model)",
               source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
+        Param("model_step", "choice", choices=MODEL_STEPS, doc="discretisation of the loop "
+              "check's servo models: euler (one rate-law evaluation per model and FCC period, "
+              "as the flight-control computer runs a model) or rk4 (the plant's integrator, "
+              "four evaluations)", source="docs/physics.md §2–3"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light", hinge_scale=(0.6, 1.6)):
+                 threshold_tail="light", hinge_scale=(0.6, 1.6), model_step="euler"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks
@@ -189,6 +219,7 @@ class PositionMonitor(Detector):
         self.threshold_confidence = threshold_confidence
         self.threshold_tail = threshold_tail
         self.hinge_scale = hinge_scale
+        self.model_step = model_step
 
     # ---- residuals ---------------------------------------------------------------------
     def _active_checks(self, signals: Signals) -> list[str]:
@@ -212,16 +243,24 @@ class PositionMonitor(Detector):
 
     @staticmethod
     def model_output(signals: Signals, engine: str | None = None,
-                     hinge_scale: float = 1.0) -> np.ndarray:
+                     hinge_scale: float = 1.0, model_step: str = "rk4") -> np.ndarray:
         """Nominal closed-loop servo model driven by the order (docs/physics.md §2–3) [mm].
 
         *engine*: ``"compiled"`` (:func:`scenarios.kernels.servo_model`) or ``"numpy"`` (the
         reference loop below); default :func:`scenarios.kernels.current_engine`.
         *hinge_scale*: the model's hinge moment (both HM(0) and ∂HM/∂δ) times this factor.
+        *model_step*: one of :data:`MODEL_STEPS` (:func:`euler_step`, or the plant's RK4 step:
+        the default of this function, which other detectors call for the expected rod; the
+        monitor passes its own ``model_step``).
         """
+        if model_step not in MODEL_STEPS:
+            raise ValueError(f"unknown model_step {model_step!r}; choose one of "
+                             f"{', '.join(MODEL_STEPS)}")
         plant = PositionMonitor.model_plant(signals, hinge_scale)
         if resolve_engine(engine) == "compiled":
-            return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts)
+            return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts,
+                               rk4=model_step == "rk4")
+        step = _STEPS[model_step]
         n, T = signals.command.shape
         out = np.empty((n, T))
         x = signals.rod_com[:, 0].astype(float).copy()
@@ -231,7 +270,7 @@ class PositionMonitor(Detector):
         for k in range(T):
             out[:, k] = x
             i_new = np.clip(plant.K * (u[:, k] - x), -plant.i_max, plant.i_max)
-            x = rk4_step(x, i_prev, plant, loaded, signals.ts)
+            x = step(x, i_prev, plant, loaded, signals.ts)
             i_prev = i_new
         return out
 
@@ -239,6 +278,15 @@ class PositionMonitor(Detector):
         """The hinge-moment factors of the band's models: 1 (the nominal model) first, then
         the other values of ``hinge_scale`` in increasing order (just (1.0,) for (1, 1))."""
         return (1.0, *sorted({float(v) for v in self.hinge_scale} - {1.0}))
+
+    def rate_evaluations_per_step(self) -> int:
+        """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
+        one per model of the band and Euler step, four per RK4 step; none without the loop
+        check (``fdd-campaign bench``'s arithmetic floor)."""
+        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
+        if "loop" not in checks:
+            return 0
+        return len(self.band_scales()) * (4 if self.model_step == "rk4" else 1)
 
     def model_band(self, signals: Signals,
                    engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -252,12 +300,14 @@ class PositionMonitor(Detector):
         """
         scales = self.band_scales()
         if len(scales) == 1:
-            nominal = self.model_output(signals, engine=engine)
+            nominal = self.model_output(signals, engine=engine, model_step=self.model_step)
             return nominal, nominal
         if resolve_engine(engine) == "compiled":
             return servo_band(signals.command, signals.rod_com[:, 0],
-                              [self.model_plant(signals, v) for v in scales], signals.ts)
-        outs = [self.model_output(signals, engine="numpy", hinge_scale=v) for v in scales]
+                              [self.model_plant(signals, v) for v in scales], signals.ts,
+                              rk4=self.model_step == "rk4")
+        outs = [self.model_output(signals, engine="numpy", hinge_scale=v,
+                                  model_step=self.model_step) for v in scales]
         return np.minimum.reduce(outs), np.maximum.reduce(outs)
 
     def residuals(self, signals: Signals) -> dict[str, np.ndarray]:
@@ -331,8 +381,8 @@ class PositionMonitor(Detector):
         alarm = np.empty(rod_com.shape, dtype=bool)
         n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
         active = np.array([name in checks for name in CHECKS])
-        _decide_block(rod_com, u, plants, float(signals.ts), rod_mon, surface, tau, active,
-                      n_confirm, norm, alarm)
+        _decide_block(rod_com, u, plants, float(signals.ts), self.model_step == "rk4", rod_mon,
+                      surface, tau, active, n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)
 
 

@@ -174,6 +174,9 @@ class Signals:
         number of runs: each batch's series are then copied into the result as it is read,
         and nothing keeps it, so the memory peaks at the result plus one batch instead of
         twice the result (the learning set of an aircraft campaign holds about 1 MB per run).
+        A signal that is one of the batch's rod series (at the aircraft level ``rod_com`` is
+        ``rods[monitored]``) stays that series in the result, stored once, as long as every
+        batch has it so.
         """
         if n_runs is None:
             parts = list(parts)
@@ -184,13 +187,23 @@ class Signals:
         def empty(a):
             return np.empty((n_runs,) + a.shape[1:], dtype=a.dtype)
 
-        series = {name: empty(getattr(first, name)) for name in SIGNAL_UNITS}
         aircraft, rods = _map(first.aircraft, empty), _map(first.rods, empty)
+        aliases = {name: k for name in SIGNAL_UNITS for k, r in (first.rods or {}).items()
+                   if _same_view(getattr(first, name), r)}
+        series = {name: rods[aliases[name]] if name in aliases else empty(getattr(first, name))
+                  for name in SIGNAL_UNITS}
         small = []                      # per-run scalars: concatenated at the end (small)
         start = 0
         for part in itertools.chain([first], parts):
             rows = slice(start, start + part.n_runs)
-            for name, out in series.items():
+            for name, out in list(series.items()):
+                if name in aliases:
+                    if _same_view(getattr(part, name), part.rods[aliases[name]]):
+                        continue        # written with the rods below
+                    own = empty(out)    # this batch holds it apart: its own array from now on
+                    own[:start] = out[:start]
+                    series[name], out = own, own
+                    del aliases[name]
                 out[rows] = getattr(part, name)
             for mine, theirs in ((aircraft, part.aircraft), (rods, part.rods)):
                 for k, out in (mine or {}).items():
@@ -273,6 +286,12 @@ class Truth:
             surfaces_deg=_map(self.surfaces_deg, lambda v: v[index]),
             rod_fault_mm=None if self.rod_fault_mm is None else self.rod_fault_mm[index],
         )
+
+
+def _same_view(a, b) -> bool:
+    """Whether arrays *a* and *b* are the same view of the same memory."""
+    return (a.shape == b.shape and a.strides == b.strides and a.dtype == b.dtype
+            and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
 
 
 def _map(series: dict | None, fn) -> dict | None:

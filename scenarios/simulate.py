@@ -286,6 +286,9 @@ class ActuatorPlant(ServoLoopPlant):
     kind = "actuator"
     #: runs on threads: the compiled kernels release the GIL and hold no state
     needs_processes = False
+    #: evaluations of the rate law (docs/physics.md §3) per run and step: the rod's RK4
+    #: (``fdd-campaign bench``'s arithmetic floor)
+    rate_evaluations_per_step = 4
 
     def check(self, faults=()) -> None:
         """Nothing to check before work: the built-in plant simulates every fault."""

@@ -281,6 +281,25 @@ def test_concat_streams_batches_into_the_same_signals_and_counts_them():
         Signals.concat(iter(parts), n_runs=4)
 
 
+def test_concat_stores_the_monitored_rod_once():
+    """At the aircraft level rod_com is the monitored surface's rod series (one array);
+    Signals.concat keeps it so (the learning set holds it once, not twice), and a batch that
+    holds it apart still gives the values of each batch."""
+    runs = pd.concat([_rows("left_elevator", "none", m, duration_s=5.0) for m in
+                      ("cruise", "turn_coordination", "nose_up")], ignore_index=True)
+    runs["stream"] = [0, 1, 2]
+    parts = [simulate(runs.iloc[[j]], plant="aircraft")[0] for j in range(3)]
+    assert all(np.shares_memory(p.rod_com, p.rods["left_elevator"]) for p in parts)
+    both = Signals.concat(iter(parts), n_runs=3)
+    assert both.rod_com is both.rods["left_elevator"]
+    np.testing.assert_array_equal(both.rod_com, np.concatenate([p.rod_com for p in parts]))
+    apart = [parts[0], replace(parts[1], rod_com=parts[1].rod_com + 1.0), parts[2]]
+    mixed = Signals.concat(apart)
+    assert not np.shares_memory(mixed.rod_com, mixed.rods["left_elevator"])
+    np.testing.assert_array_equal(mixed.rod_com, np.concatenate([p.rod_com for p in apart]))
+    np.testing.assert_array_equal(mixed.rods["left_elevator"], both.rods["left_elevator"])
+
+
 def test_run_alone_equals_run_in_batch():
     """Determinism: a run's draws never depend on the batch it is simulated in."""
     runs = pd.concat([_rows("right_outboard_aileron", f, m, duration_s=15.0, onset_s=5.0)

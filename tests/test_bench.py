@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
 
-from campaign.bench import RUN_IMPORTS, import_seconds, print_stages, stage_costs
+from campaign import bench as bench_module
+from campaign.bench import (RUN_IMPORTS, arithmetic_floor, bench_runs, import_seconds,
+                            print_floor, print_stages, rate_evaluations, stage_costs,
+                            yardstick_pairs)
 from campaign.cli import main
 from campaign.config import load_config
-from campaign.design import build_plan
+from campaign.design import build_learning_plan, build_plan
+from detectors.position_monitor import PositionMonitor
 from scenarios.simulate import simulate, single_run
 
 SMOKE_STAGES = ("learning set: simulation", "fit position-monitor", "preparation", "plant",
@@ -100,6 +105,11 @@ def test_simulate_timings_leave_the_result_unchanged():
      "--reference-runs 0: must be an integer ≥ 1"),
     (["bench", "--duration", "5"], "--duration 5: a run lasts 20 to 3600 s"),
     (["bench", "--campaign", "no-such-preset", "--no-detectors"], "no-such-preset"),
+    (["bench", "--pairs", "0"], "--pairs 0"),
+    (["bench", "--yardstick", "no-such-command-xyz run"], "no-such-command-xyz"),
+    (["bench", "--yardstick-dir", "."], "--yardstick-dir without --yardstick"),
+    (["bench", "--yardstick", "python -c pass", "--yardstick-dir", "/no/such/dir"],
+     "/no/such/dir"),
 ])
 def test_bench_bad_input_exits_2_before_any_work(argv, message, capsys):
     assert main(argv) == 2
@@ -125,3 +135,110 @@ def test_bench_announces_each_measurement_on_stderr_unless_quiet(capsys):
     assert "bench [" not in quiet_err
     labels = [line.split(":")[0] for line in out.splitlines()]
     assert [line.split(":")[0] for line in quiet_out.splitlines()] == labels
+
+
+# ---- the arithmetic floor ----------------------------------------------------------------------
+def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
+    """smoke: the actuator plant's RK4 (4 per step) on the plan and the learning set, the
+    healthy RK4 rod model on the jam runs of the plan, and the position monitor's band of
+    three Euler models (3 per step) on both sets (it is fitted)."""
+    config = load_config("smoke")
+    plan, learning = build_plan(config), build_learning_plan(config)
+    steps = round(config.campaign.duration_s / config.campaign.ts_s)
+    jams = int(plan["fault"].isin(["liquid_jam", "solid_jam"]).sum())
+    counts = rate_evaluations("smoke")
+    assert counts["steps"] == steps and counts["uncounted"] == []
+    assert counts["parts"] == {
+        "plant (actuator)": 4 * (len(plan) + len(learning)) * steps,
+        "healthy rod model of the jam runs": 4 * jams * steps,
+        "detect position-monitor": 3 * (len(plan) + len(learning)) * steps}
+
+
+@pytest.mark.parametrize("params, count", [
+    ({}, 3), ({"model_step": "rk4"}, 12), ({"hinge_scale": (1.0, 1.0)}, 1),
+    ({"checks": ("com_mon", "surface")}, 0), ({"checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
+])
+def test_position_monitor_declares_one_evaluation_per_model_and_euler_step(params, count):
+    assert PositionMonitor(**params).rate_evaluations_per_step() == count
+
+
+def test_floor_is_evaluations_times_cost_spread_over_the_workers_after_the_imports():
+    floor = arithmetic_floor("smoke", jobs=2, cost_s=10e-9, imports_s=1.5)
+    n = sum(floor["parts"].values())
+    assert floor["evaluations"] == n
+    assert floor["cpu_s"] == pytest.approx(n * 10e-9, rel=1e-12)
+    assert floor["wall_s"] == pytest.approx(1.5 + n * 10e-9 / 2, rel=1e-12)
+    lines = []
+    print_floor(floor, {"wall_s_campaign": 2 * floor["wall_s"], "cpu_s_campaign": 3.0},
+                echo=lines.append)
+    assert floor["ratio_wall"] == pytest.approx(2.0, rel=1e-12)
+    assert floor["ratio_cpu"] == pytest.approx(3.0 / (floor["cpu_s"] + 1.5), rel=1e-12)
+    assert len(lines) == 2 and "10.0 ns" in lines[0] and "2.00 x in wall time" in lines[1]
+
+
+def test_yardstick_pairs_time_both_back_to_back_and_take_the_medians(monkeypatch):
+    seen = []
+
+    def campaign_run(campaign, jobs):
+        seen.append((campaign, jobs))
+        return {"wall_s": 3.0 * len(seen), "cpu_s": 1.0, "peak_rss_mb": 100.0}
+
+    monkeypatch.setattr(bench_module, "run_campaign_process", campaign_run)
+    lines = []
+    out = yardstick_pairs("smoke", 2, [sys.executable, "-c", "pass"], pairs=3,
+                          echo=lines.append)
+    assert seen == [("smoke", 2)] * 3
+    for k, pair in enumerate(out["pairs"], 1):
+        assert pair["yard_wall_s"] > 0.0 and pair["wall_s"] == 3.0 * k
+        assert pair["ratio_wall"] == pytest.approx(3.0 * k / pair["yard_wall_s"], rel=1e-12)
+    assert out["median_ratio_wall"] == pytest.approx(
+        sorted(p["ratio_wall"] for p in out["pairs"])[1], rel=1e-12)
+    assert len(lines) == 5 and lines[-1].strip().startswith("median ratio")
+
+
+def test_the_timed_rate_law_is_the_rate_law():
+    """What the floor times (kernels.loaded_rates_all, step-major samples over blocks of runs)
+    is the rod's rate law, scenarios.servo.rod_rate of a loaded rod, on 70 runs (more than
+    one block of 64) at positions across the stroke and currents across ±i_max. Tolerance
+    1e-12 relative: the same formula; NumPy's arcsin may differ from the C library's in the
+    last bit (docs/execution.md)."""
+    from scenarios import kernels
+    from scenarios.servo import PlantArrays, rod_rate
+    from scenarios.simulate import prepare
+
+    plant = prepare(bench_runs(70, 30.0, seed=4), pressure_sensor=False).plant
+    rng = np.random.default_rng(7)
+    frac = rng.uniform(0.0, 1.0, (5, 70))
+    x = plant.x_min + frac * (plant.x_max - plant.x_min)              # (samples, runs) [mm]
+    i = rng.uniform(-1.0, 1.0, (5, 70)) * plant.i_max                  # [mA]
+    out = np.empty_like(x)
+    kernels.loaded_rates_all(x, i, kernels.plant_fields(plant), out)
+    rows = PlantArrays(**{k: np.broadcast_to(np.asarray(v), (5, 70))
+                          for k, v in vars(plant).items()})
+    want = rod_rate(x, i, rows, np.ones((5, 70), bool))
+    assert np.any(want != 0.0) and np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, want, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim")
+def test_returning_freed_memory_starts_no_child_process(monkeypatch):
+    """The bench's peak sums the resident memory of the campaign's process tree: a child
+    forked from the campaign (ctypes.util.find_library runs ldconfig) would show the
+    campaign's memory twice. The C library's malloc_trim is found without one."""
+    import subprocess
+
+    from scenarios import memory
+
+    spawned = []
+
+    def spawn(self, *args, **kwargs):
+        spawned.append(args or kwargs)
+        raise OSError("no child process in this test")   # as a failed start: callers go on
+
+    monkeypatch.setattr(subprocess.Popen, "__init__", spawn)
+    memory._malloc_trim.cache_clear()
+    try:
+        memory.release_freed_memory()
+        assert memory._malloc_trim() is not None and spawned == []
+    finally:
+        memory._malloc_trim.cache_clear()

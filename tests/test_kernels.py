@@ -47,16 +47,18 @@ def test_compiled_loop_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
         np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
 
 
-def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
+@pytest.mark.parametrize("step", ["euler", "rk4"])
+def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
-    ref = PositionMonitor.model_output(signals, engine="numpy")
-    fast = PositionMonitor.model_output(signals, engine="compiled")
+    ref = PositionMonitor.model_output(signals, engine="numpy", model_step=step)
+    fast = PositionMonitor.model_output(signals, engine="compiled", model_step=step)
     np.testing.assert_array_equal(fast, ref)
 
 
-def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
+@pytest.mark.parametrize("step", ["euler", "rk4"])
+def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
-    det = PositionMonitor(hinge_scale=(0.6, 1.6))
+    det = PositionMonitor(hinge_scale=(0.6, 1.6), model_step=step)
     ref = det.model_band(signals, engine="numpy")
     fast = det.model_band(signals, engine="compiled")
     for got, want in zip(fast, ref):
@@ -64,10 +66,12 @@ def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm
     assert np.any(fast[1] > fast[0])          # the hinge moment moves the models apart
 
 
-def test_compiled_band_equals_the_hull_of_three_compiled_models():
+@pytest.mark.parametrize("step", ["euler", "rk4"])
+def test_compiled_band_equals_the_hull_of_three_compiled_models(step):
     signals, _ = simulate(every_fault_batch(), engine="compiled")
-    det = PositionMonitor(hinge_scale=(1.6, 0.6))
-    outs = [PositionMonitor.model_output(signals, engine="compiled", hinge_scale=s)
+    det = PositionMonitor(hinge_scale=(1.6, 0.6), model_step=step)
+    outs = [PositionMonitor.model_output(signals, engine="compiled", hinge_scale=s,
+                                         model_step=step)
             for s in (1.0, 0.6, 1.6)]
     lo, hi = det.model_band(signals, engine="compiled")
     np.testing.assert_array_equal(lo, np.minimum.reduce(outs))
@@ -88,12 +92,14 @@ def test_compiled_band_propagates_a_nan_model_like_numpy():
     np.testing.assert_array_equal(hi, np.maximum.reduce(outs))
 
 
+@pytest.mark.parametrize("step", ["euler", "rk4"])
 @pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 1.0)])
 @pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("loop",), ("com_mon",)])
 def test_compiled_monitor_decision_is_bit_identical_to_numpy_with_the_same_libm(
-        libm_numpy, hinge_scale, checks):
+        libm_numpy, hinge_scale, checks, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
-    det = PositionMonitor(hinge_scale=hinge_scale, checks=checks, confirm_s=0.03)
+    det = PositionMonitor(hinge_scale=hinge_scale, checks=checks, confirm_s=0.03,
+                          model_step=step)
     # thresholds a fraction of the largest residuals, so that alarms are raised and cleared
     det.thresholds_mm_ = {name: 0.3 * float(np.max(np.abs(r)))
                           for name, r in det.residuals(signals).items()}

@@ -4,7 +4,9 @@ hinge-moment band against the reference integrator (docs/physics.md §2–3), ea
 residual and its sign, the learned thresholds (``"max"`` and ``"evt"`` with the target shared
 by the active checks) and the normalised residual and confirmation of several checks at once.
 
-Expected values come from :func:`scenarios.servo.rk4_step` (the reference RK4 of the rod),
+Expected values come from :func:`scenarios.servo.rod_rate` and
+:func:`scenarios.servo.rk4_step` (the rate law and the reference RK4 of the rod: the monitor's
+model takes one explicit Euler step per period by default, RK4 with ``model_step = "rk4"``),
 from the order statistic of docs/thresholds.md and from residuals written out by hand, never
 from the method under test.
 """
@@ -20,7 +22,7 @@ from scipy.stats import binom
 from detectors.position_monitor import PositionMonitor
 from scenarios.kernels import BLOCK, use_engine
 from scenarios.params import ELEVATOR
-from scenarios.servo import plant_arrays, rk4_step
+from scenarios.servo import plant_arrays, rk4_step, rod_rate
 from scenarios.signals import Signals
 
 ENGINES = ("compiled", "numpy")
@@ -48,10 +50,11 @@ def signals(rod_com, rod_mon=None, surface=None, command=None, classes=None):
         actuator=ELEVATOR, run_ids=np.array([f"r{i}" for i in range(n)]), classes=classes)
 
 
-def model_by_hand(u, x0, hinge_scale=1.0):
+def model_by_hand(u, x0, hinge_scale=1.0, step="euler"):
     """The nominal loop driven by *u* from *x0* (docs/physics.md §2–3): the output at step k
     is x_k; the current sat(K·(u_k − x_k)) computed at step k is held over the next period,
-    so the rod moves under the previous step's current (none before step 1)."""
+    so the rod moves under the previous step's current (none before step 1). *step*:
+    ``"euler"``, x_{k+1} = clip(x_k + Ts·ẋ(x_k, i_{k−1})), or ``"rk4"``."""
     n, T = u.shape
     p = plant_arrays(ELEVATOR, qbar_pa=np.full(n, QBAR), alpha_deg=np.full(n, ALPHA),
                      mach=np.full(n, MACH))
@@ -61,7 +64,10 @@ def model_by_hand(u, x0, hinge_scale=1.0):
     for k in range(T):
         out[:, k] = x
         i_new = np.clip(p.K * (u[:, k] - x), -p.i_max, p.i_max)
-        x = rk4_step(x, i_prev, p, np.ones(n, bool), TS)
+        if step == "rk4":
+            x = rk4_step(x, i_prev, p, np.ones(n, bool), TS)
+        else:
+            x = np.clip(x + TS * rod_rate(x, i_prev, p, np.ones(n, bool)), p.x_min, p.x_max)
         i_prev = i_new
     return out
 
@@ -83,10 +89,11 @@ def _rod():
 
 # ---- the model and its band --------------------------------------------------------------
 @pytest.mark.parametrize("engine", ENGINES)
-def test_model_output_is_the_reference_loop_with_a_one_period_current_delay(engine):
+@pytest.mark.parametrize("step", ["euler", "rk4"])
+def test_model_output_is_the_reference_loop_with_a_one_period_current_delay(engine, step):
     sig = signals(_rod(), command=U)
-    got = PositionMonitor.model_output(sig, engine=engine)
-    want = model_by_hand(U, X0)
+    got = PositionMonitor.model_output(sig, engine=engine, model_step=step)
+    want = model_by_hand(U, X0, step=step)
     # same formulas, the compiled loop in its own order of operations: 1e-12 relative
     assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
     np.testing.assert_array_equal(got[:, :2], np.stack([X0, X0], axis=1))  # no current yet
@@ -114,11 +121,13 @@ def test_band_scales_put_the_nominal_model_first(hinge_scale, scales):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("step", ["euler", "rk4"])
 @pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 2.0), (1.0, 1.0)])
-def test_model_band_is_the_hull_of_the_scaled_models(engine, hinge_scale):
+def test_model_band_is_the_hull_of_the_scaled_models(engine, step, hinge_scale):
     sig = signals(_rod(), command=U)
-    lo, hi = PositionMonitor(hinge_scale=hinge_scale).model_band(sig, engine=engine)
-    outs = [model_by_hand(U, X0, s) for s in {1.0, *hinge_scale}]
+    det = PositionMonitor(hinge_scale=hinge_scale, model_step=step)
+    lo, hi = det.model_band(sig, engine=engine)
+    outs = [model_by_hand(U, X0, s, step=step) for s in {1.0, *hinge_scale}]
     assert lo == pytest.approx(np.minimum.reduce(outs), rel=1e-12, abs=1e-12)
     assert hi == pytest.approx(np.maximum.reduce(outs), rel=1e-12, abs=1e-12)
     if hinge_scale != (1.0, 1.0):
@@ -382,4 +391,5 @@ def test_defaults_are_the_documented_ones():
     assert PositionMonitor().get_params() == {
         "safety": 1.5, "confirm_s": 0.05, "checks": ("loop", "com_mon", "surface"),
         "floor_mm": 0.05, "threshold_method": "evt", "target_fa_per_run": 1e-4,
-        "threshold_confidence": 0.95, "threshold_tail": "light", "hinge_scale": (0.6, 1.6)}
+        "threshold_confidence": 0.95, "threshold_tail": "light", "hinge_scale": (0.6, 1.6),
+        "model_step": "euler"}
