@@ -620,27 +620,27 @@ def print_floor(floor: dict, whole: dict | None = None, echo=print) -> None:
 # ---- back to back with a yardstick -------------------------------------------------------------
 def _yardstick_command(yardstick: str | None, cwd: str | None, pairs: int,
                        campaigns: list[str]) -> list[str] | None:
-    """The yardstick's argument list, checked before any work (ValueError naming the fix)."""
+    """The yardstick's argument list, checked before any work (UsageError naming the fix)."""
     if isinstance(pairs, bool) or int(pairs) != pairs or pairs < 1:
-        raise ValueError(f"--pairs {pairs}: must be an integer ≥ 1 (rounds of the yardstick "
+        raise UsageError(f"--pairs {pairs}: must be an integer ≥ 1 (rounds of the yardstick "
                          "and the campaign); fix: e.g. --pairs 3")
     if yardstick is None:
         if cwd is not None:
-            raise ValueError("--yardstick-dir without --yardstick: name the command to time, "
+            raise UsageError("--yardstick-dir without --yardstick: name the command to time, "
                              "e.g. --yardstick 'python campaign.py vec'")
         return None
     cmd = shlex.split(yardstick)
     if not cmd:
-        raise ValueError("--yardstick is empty; fix: e.g. --yardstick 'python campaign.py vec'")
+        raise UsageError("--yardstick is empty; fix: e.g. --yardstick 'python campaign.py vec'")
     if cwd is not None and not Path(cwd).is_dir():
-        raise ValueError(f"--yardstick-dir {cwd}: not a directory; fix: the directory the "
+        raise UsageError(f"--yardstick-dir {cwd}: not a directory; fix: the directory the "
                          "yardstick command runs in")
     if shutil.which(cmd[0], path=None if os.sep not in cmd[0] else "") is None and not (
             os.sep in cmd[0] and os.access(Path(cwd or ".") / cmd[0], os.X_OK)):
-        raise ValueError(f"--yardstick: {cmd[0]!r} is not an executable on the PATH; fix: "
+        raise UsageError(f"--yardstick: {cmd[0]!r} is not an executable on the PATH; fix: "
                          "a command such as 'python campaign.py vec'")
     if not campaigns:
-        raise ValueError("--yardstick with --campaign none: name the campaign to compare")
+        raise UsageError("--yardstick with --campaign none: name the campaign to compare")
     return cmd
 
 
