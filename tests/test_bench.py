@@ -141,7 +141,7 @@ def test_bench_announces_each_measurement_on_stderr_unless_quiet(capsys):
 def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     """smoke: the actuator plant's RK4 (4 per step) on the plan and the learning set, the
     healthy RK4 rod model on the jam runs of the plan, and the position monitor's band of
-    three Euler models (3 per step) on both sets (it is fitted)."""
+    three RK4 models (12 per step, its default) on both sets (it is fitted)."""
     config = load_config("smoke")
     plan, learning = build_plan(config), build_learning_plan(config)
     steps = round(config.campaign.duration_s / config.campaign.ts_s)
@@ -151,14 +151,17 @@ def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     assert counts["parts"] == {
         "plant (actuator)": 4 * (len(plan) + len(learning)) * steps,
         "healthy rod model of the jam runs": 4 * jams * steps,
-        "detect position-monitor": 3 * (len(plan) + len(learning)) * steps}
+        "detect position-monitor": 12 * (len(plan) + len(learning)) * steps}
 
 
 @pytest.mark.parametrize("params, count", [
-    ({}, 3), ({"model_step": "rk4"}, 12), ({"hinge_scale": (1.0, 1.0)}, 1),
-    ({"checks": ("com_mon", "surface")}, 0), ({"checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
+    ({}, 12), ({"model_step": "euler"}, 3), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 1),
+    ({"checks": ("com_mon", "surface")}, 0),
+    ({"model_step": "euler", "checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
+    ({"hinge_scale": (1.0, 2.0)}, 8),
 ])
-def test_position_monitor_declares_one_evaluation_per_model_and_euler_step(params, count):
+def test_position_monitor_declares_its_evaluations_per_model_and_step(params, count):
+    # one rate-law evaluation per model of the band and Euler step, four per RK4 step
     assert PositionMonitor(**params).rate_evaluations_per_step() == count
 
 
