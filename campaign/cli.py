@@ -190,7 +190,7 @@ def _gate_one(directory, args):
 
     from .runner import load_results
 
-    results, summary, meta = load_results(directory)
+    results, summary, meta = load_results(directory, gate_only=True)
     limits = dict(creq.requirements_of(meta, args))
     if args.max_fa is not None:       # one limit for every detector: no allowance
         limits.update(max_fa_rate=args.max_fa, detector_max_fa_rate={})
@@ -271,7 +271,7 @@ def _report_one(args) -> None:
 
     from .runner import load_results, reference_text
 
-    results, summary, meta = load_results(args.dir)
+    results, summary, meta = load_results(args.dir, gate_only=True)   # its failed runs
     args.requirements_values = creq.report_limits(meta, args)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")

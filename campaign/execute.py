@@ -416,10 +416,18 @@ def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S, *, tls: TlsFiles
         raise ClusterError(f"cannot connect to the dask scheduler at {address}: {exc}") from exc
 
 
+#: Chunks a dask client keeps submitted per worker thread of the cluster: enough that no
+#: worker waits for its next chunk, few enough that the client never holds the plan's
+#: chunks all at once (nor the scheduler their tasks).
+CLUSTER_CHUNKS_PER_THREAD = 2
+
+
 def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_result,
                    log=print) -> dict:
     """Run *chunks* as dask futures, ``chunk_fn(rows, detectors, settings)`` each, handing
-    results to *on_result* as they complete (``as_completed``)."""
+    results to *on_result* as they complete (``as_completed``). At most
+    :data:`CLUSTER_CHUNKS_PER_THREAD` chunks per worker thread (at least 4) are submitted
+    at a time; each finished chunk lets the next one in."""
     from distributed import as_completed
 
     try:
@@ -429,12 +437,24 @@ def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_resul
 
     stats = {"killed_chunks": 0}
     det_future = client.scatter([detectors], broadcast=True, hash=False)[0]
+    window = max(4, CLUSTER_CHUNKS_PER_THREAD * sum(client.nthreads().values()))
+    pending = iter(chunks)
     futures = {}
-    for rows in chunks:
+
+    def submit_next() -> object | None:
+        rows = next(pending, None)
+        if rows is None:
+            return None
         fut = client.submit(chunk_fn, rows, det_future, settings, pure=False)
         futures[fut] = rows
+        return fut
+
+    for _ in range(window):
+        if submit_next() is None:
+            break
     try:
-        for fut in as_completed(list(futures)):
+        running = as_completed(list(futures))
+        for fut in running:
             rows = futures.pop(fut)
             try:
                 frame = fut.result()
@@ -446,6 +466,9 @@ def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_resul
                 frame = fail(rows, "error", f"chunk failed on the cluster: {_short(exc)}")
             on_result(frame)
             fut.release()
+            nxt = submit_next()
+            if nxt is not None:
+                running.add(nxt)
     finally:
         for fut in futures:
             fut.cancel()

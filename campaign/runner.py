@@ -18,7 +18,7 @@ import copy
 import sys
 import time
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 
@@ -28,7 +28,7 @@ import pandas as pd
 from detectors import make_detector, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
-from reports.summary import summarize
+from reports.summary import SummaryAccumulator
 from reports.table import format_table
 from scenarios import kernels
 from scenarios.memory import release_freed_memory
@@ -310,22 +310,45 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
 
 @dataclass
 class CampaignResult:
-    """What a finished (or interrupted) campaign left in its directory."""
+    """What a finished (or interrupted) campaign left in its directory.
+
+    The result rows are not held: :attr:`results` reads them from the directory when first
+    asked for (a campaign of 10⁶ runs has millions of rows); :attr:`runs_done` and
+    :attr:`gate_results` are what the run's own lines and verdict need of them."""
 
     out: Path
     plan: pd.DataFrame
-    results: pd.DataFrame
     summary: pd.DataFrame
     complete: bool
     wall_s: float
     #: first alarm per group × detector variant of a fixed-onset campaign
     #: (``detection-times.parquet``, :mod:`reports.detection_times`); None for other campaigns
     detection_times: pd.DataFrame | None = None
+    #: runs of the plan with result rows (ok or not)
+    runs_done: int = 0
+    #: the result rows the gate reads (:func:`reports.gate.gate_rows`), in plan order
+    gate_results: pd.DataFrame | None = None
+    _results: pd.DataFrame | None = field(default=None, repr=False)
+
+    @property
+    def results(self) -> pd.DataFrame:
+        """Every result row, in plan order then by detector (read from the directory)."""
+        if self._results is None:
+            self._results = read_results_in_order(CampaignDir(self.out),
+                                                  self.plan["run_id"].to_numpy())
+        return self._results
 
     def table(self) -> str:
         """The summary table, then the published table a suite member names beside it
         (:func:`campaign.suite.reference_text`)."""
         return format_table(self.summary) + reference_text(self.out, self.summary)
+
+
+def read_results_in_order(cdir: CampaignDir, run_ids=None) -> pd.DataFrame:
+    """Every result row of *cdir* in the order of *run_ids* (default: its plan), then by
+    detector (:meth:`CampaignDir.result_batches`); an empty DataFrame without any."""
+    batches = list(cdir.result_batches(run_ids))
+    return pd.concat(batches, ignore_index=True) if batches else pd.DataFrame()
 
 
 def settings_of(config) -> ChunkSettings:
@@ -605,8 +628,7 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
     from .execute import run_local, run_on_cluster
 
     cdir, settings, pool = setup.cdir, setup.settings, setup.pool
-    done = cdir.done_run_ids() if setup.resumed else set()
-    todo = plan[~plan["run_id"].isin(done)]
+    todo = plan[~cdir.done_mask(plan["run_id"].to_numpy())] if setup.resumed else plan
     if setup.resumed:
         log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
     size = setup.chunk_size
@@ -646,39 +668,53 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
              wall_s: float, fmu_sha256: str | None = None) -> CampaignResult:
-    """Gather the shards in plan order and write ``summary.parquet`` (its metadata also
-    holds ``fitted_sha256``, :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and
-    ``fitted_from``, the directory they were taken from or None, and ``fmu_sha256``, the
-    SHA-256 of an FMU plant's file, :func:`campaign.plant.replay_plant`) and, for a campaign of
-    fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
-    ``detection-times.parquet``."""
-    results = cdir.read_results()
-    if not results.empty:
-        order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
-        results = (results.assign(_o=results["run_id"].map(order))
-                   .sort_values(["_o", "detector"], kind="stable")
-                   .drop(columns="_o").reset_index(drop=True))
-        summary = summarize(results)
-    else:
-        summary = pd.DataFrame()
+    """Read the shards in plan order, a batch of runs at a time, and write
+    ``summary.parquet`` (its metadata also holds ``fitted_sha256``,
+    :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and ``fitted_from``, the
+    directory they were taken from or None, and ``fmu_sha256``, the SHA-256 of an FMU plant's
+    file, :func:`campaign.plant.replay_plant`) and, for a campaign of fixed onsets
+    (:func:`reports.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
+
+    No batch is kept: the summary is aggregated as the batches come
+    (:class:`reports.summary.SummaryAccumulator`), and of the rows only those the gate reads
+    (:func:`reports.gate.gate_rows`: in a fault-free campaign, its false alarms and failed
+    runs) and, for a fixed-onset campaign, the first alarms of its runs are kept."""
+    from reports.gate import gate_rows
+
+    acc = SummaryAccumulator()
+    fixed = fixed_onset_campaign(plan)
+    runs_done, gate_parts, alarm_parts = 0, [], []
+    for batch in cdir.result_batches(plan["run_id"].to_numpy()):
+        acc.add(batch)
+        runs_done += batch["run_id"].nunique()      # a run's rows are in one batch
+        gate_parts.append(gate_rows(batch))
+        if fixed:
+            alarm_parts.append(batch[["run_id", "detector", "fault", "status",
+                                      "first_alarm_s"]])
+    summary = acc.summary() if runs_done else pd.DataFrame()
+    gate_results = (pd.concat(gate_parts, ignore_index=True) if gate_parts
+                    else pd.DataFrame())
     origin = cdir.read_fitted_origin() or {}
     cdir.write_summary(summary, config.to_json(), complete=complete,
-                       runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
-                       runs_planned=len(plan),
+                       runs_done=runs_done, runs_planned=len(plan),
                        fitted_sha256=cdir.fitted_sha256([d.label for d in config.detectors]),
                        fitted_from=origin.get("fitted_from"), fmu_sha256=fmu_sha256)
     times = None
-    if not results.empty and fixed_onset_campaign(plan):
-        times = detection_time_table(plan, results)
+    if runs_done and fixed:
+        times = detection_time_table(plan, pd.concat(alarm_parts, ignore_index=True))
         cdir.write_detection_times(times, config.to_json())
-    return CampaignResult(out=cdir.root, plan=plan, results=results, summary=summary,
-                          complete=complete, wall_s=wall_s, detection_times=times)
+    return CampaignResult(out=cdir.root, plan=plan, summary=summary, complete=complete,
+                          wall_s=wall_s, detection_times=times, runs_done=runs_done,
+                          gate_results=gate_results)
 
 
-def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+def load_results(out, *, gate_only: bool = False) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     """(results, summary, metadata) of a campaign directory, for ``report`` and ``gate``,
     after checking its files against its manifest
-    (:meth:`campaign.storage.CampaignDir.check_manifest`)."""
+    (:meth:`campaign.storage.CampaignDir.check_manifest`). With *gate_only*, the results are
+    only the rows the gate reads (:func:`reports.gate.gate_rows`), in plan order, read a
+    batch of runs at a time: what ``gate`` needs, in memory that does not grow with the
+    runs of a fault-free campaign."""
     cdir = CampaignDir(out)
     if not cdir.root.is_dir():
         raise CampaignSetupError(f"{cdir.root} does not exist; run a campaign into it first: "
@@ -693,4 +729,9 @@ def load_results(out) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     cdir.refuse_pickles()      # a directory of an older version: say how to go on
     cdir.check_manifest()      # every file as the run wrote it (ManifestError, exit 2)
     summary, meta = cdir.read_summary()
+    if gate_only:
+        from reports.gate import gate_rows
+
+        parts = [gate_rows(batch) for batch in cdir.result_batches()]
+        return (pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()), summary, meta
     return cdir.read_results(), summary, meta

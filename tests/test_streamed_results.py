@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 from campaign.storage import CampaignDir
+from reports.gate import evaluate_gate, gate_rows
 from reports.summary import SummaryAccumulator, summarize
 
 FAULTS = ("none", "runaway", "liquid_jam")
@@ -131,3 +132,20 @@ def test_summary_of_batches_when_pandas_adds_runs_of_values(fault_free):
         for part in np.split(np.arange(len(results)), cuts):
             acc.add(results.iloc[part])
         pd.testing.assert_frame_equal(acc.summary(), whole, check_exact=True)
+
+
+@pytest.mark.parametrize("seed", [6, 7])
+def test_gate_of_the_rows_it_reads_is_the_gate_of_all_rows(seed):
+    """The run keeps only :func:`gate_rows` of its batches; the gate (every check, message
+    and run id named) must be the one all the rows give."""
+    results = synthetic_results(seed, n_runs=300)
+    summary = summarize(results)
+    kept = gate_rows(results)
+    # a fault-free row that is ok and silent is what the run drops
+    assert len(kept) < len(results)
+    for limits in ({}, {"max_md": 0.1, "max_dtp": 1.0}):
+        whole = evaluate_gate(summary, results=results, **limits)
+        part = evaluate_gate(summary, results=kept, **limits)
+        assert [(c.name, c.message, c.run_ids) for c in part.checks] == [
+            (c.name, c.message, c.run_ids) for c in whole.checks]
+        assert any(c.run_ids for c in whole.checks)   # run ids are named, and compared
