@@ -155,14 +155,25 @@ def _is_pool_failure(exc: BaseException) -> bool:
 
 def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
               run_timeout_s: float | None, pool: LocalPool | None = None, log=print) -> dict:
-    """Run *chunks* (DataFrames of runs) with ``call(rows) -> result rows`` on *jobs*
-    workers; ``fail(rows, status, message)`` makes the rows of runs that could not be run.
+    """Run *chunks* (DataFrames of runs, or an iterable making them as they are taken) with
+    ``call(rows) -> result rows`` on *jobs* workers; ``fail(rows, status, message)`` makes
+    the rows of runs that could not be run.
 
     Returns counts of what happened: ``{"pool_failures", "timeouts", "retried_chunks"}``.
     """
     stats = {"pool_failures": 0, "timeouts": 0, "retried_chunks": 0}
-    queue = deque(Task(c) for c in chunks)
+    source = iter(chunks)       # taken one at a time: a chunk exists once it is next
+    queue: deque[Task] = deque()
     isolated: deque[Task] = deque()
+
+    def more() -> bool:
+        """Whether a normal chunk waits (the next one is taken from *chunks* if need be)."""
+        if not queue:
+            rows = next(source, None)
+            if rows is not None:
+                queue.append(Task(rows))
+        return bool(queue)
+
     if pool is None:
         pool = LocalPool(backend, jobs)
     if run_timeout_s is not None and not pool.can_stop_a_task:
@@ -195,8 +206,8 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
                                                  f"{limit:g} s ([runner] run_timeout_s)"))
 
     try:
-        while queue or isolated or inflight:
-            if not queue and not inflight and isolated and pool.jobs > 1:
+        while more() or isolated or inflight:
+            if not more() and not inflight and isolated and pool.jobs > 1:
                 pool.stop()          # retries run one at a time: one worker is enough
                 pool = LocalPool(backend, 1)
             if pool.executor is None:
@@ -205,9 +216,9 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
                 pool.ready()
             # fill the free workers: normal chunks first, then isolated retries one by one
             alone_inflight = any(t.alone for t, _ in inflight.values())
-            while queue and len(inflight) < jobs and not alone_inflight:
+            while len(inflight) < jobs and not alone_inflight and more():
                 submit(queue.popleft())
-            if not queue and not inflight and isolated:
+            if not more() and not inflight and isolated:
                 submit(isolated.popleft())
             deadlines = [d for _, d in inflight.values() if d is not None]
             wait_s = None if not deadlines else max(0.0, min(deadlines) - time.perf_counter())

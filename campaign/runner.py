@@ -632,7 +632,8 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
     if setup.resumed:
         log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
     size = setup.chunk_size
-    chunks = [todo.iloc[s:s + size] for s in range(0, len(todo), size)]
+    # each chunk made when it is taken: a plan of 10⁶ runs is 10⁴ chunks
+    chunks = (todo.iloc[s:s + size] for s in range(0, len(todo), size)) if len(todo) else None
     bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
     labels = list(detectors)
 

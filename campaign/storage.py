@@ -215,6 +215,7 @@ class CampaignDir:
         self.fitted = self.root / "fitted"
         self.fitted_origin_path = self.root / "fitted-origin.json"
         self._manifest: dict | None = None
+        self._next_shard: int | None = None    # number of the next shard (next_shard_path)
 
     def is_campaign(self) -> bool:
         """Whether the directory belongs to a campaign (holds ``campaign.json``)."""
@@ -687,9 +688,17 @@ class CampaignDir:
         return sorted(self.runs.glob(SHARD_GLOB))
 
     def next_shard_path(self) -> Path:
-        paths = self.shard_paths()
-        last = int(paths[-1].stem.split("-")[1]) if paths else -1
-        return self.runs / f"part-{last + 1:06d}.parquet"
+        """The name of the next shard: one more than the last one's number. The directory
+        is listed once; later calls count on (only the run holding the lock writes shards),
+        so writing n shards does not list the directory n times."""
+        if self._next_shard is None:
+            paths = self.shard_paths()
+            self._next_shard = int(paths[-1].stem.split("-")[1]) + 1 if paths else 0
+        path = self.runs / f"part-{self._next_shard:06d}.parquet"
+        while path.exists():        # written by another object of this directory meanwhile
+            self._next_shard += 1
+            path = self.runs / f"part-{self._next_shard:06d}.parquet"
+        return path
 
     def write_shard(self, results: pd.DataFrame, config_json: str) -> Path:
         """Store the result rows of one finished chunk as the next shard (then record it in
@@ -697,6 +706,7 @@ class CampaignDir:
         path = self.next_shard_path()
         self._write_recorded(path, lambda: write_parquet(results, path, config_json,
                                                          kind="results"))
+        self._next_shard += 1
         return path
 
     def read_results(self) -> pd.DataFrame:
