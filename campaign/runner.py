@@ -416,6 +416,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         plan = build_plan(config)
         if not setup.cdir.has_plan():
             setup.cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
+        release_freed_memory()     # what building the plan took beyond it (1.5 KB per run)
         detectors = _learn(config, setup, log, fitted_from)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock
@@ -425,6 +426,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         raise
     try:
         complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
+        release_freed_memory()     # what the chunks' signals took, before the summary
         return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start,
                         fmu_sha256=setup.fmu_sha256)
     finally:
