@@ -31,11 +31,11 @@ def runs_line(config, result, before: int) -> str:
     head = f"campaign {config.campaign.name!r}:"
     if before and done <= before:
         return (f"{head} nothing to compute, all {done} runs of the plan were already done "
-                f"-> {result.out}" if done == len(result.plan) else
-                f"{head} {done} of {len(result.plan)} runs done, none computed now -> "
+                f"-> {result.out}" if done == result.runs_planned else
+                f"{head} {done} of {result.runs_planned} runs done, none computed now -> "
                 f"{result.out}")
     now = f" ({done - before} computed now)" if before else ""
-    return (f"{head} {done} of {len(result.plan)} runs{now} in {result.wall_s:.1f} s -> "
+    return (f"{head} {done} of {result.runs_planned} runs{now} in {result.wall_s:.1f} s -> "
             f"{result.out}")
 
 
@@ -67,7 +67,7 @@ def gate_of(config, result, *, all_requirements: bool = False):
     return requirements_gate(result.summary, result.gate_results,
                              config.to_dict()["requirements"],
                              isolation=isolation_of(config),
-                             coverage=(result.runs_done, len(result.plan)),
+                             coverage=(result.runs_done, result.runs_planned),
                              all_requirements=all_requirements)
 
 

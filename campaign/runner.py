@@ -317,7 +317,6 @@ class CampaignResult:
     :attr:`gate_results` are what the run's own lines and verdict need of them."""
 
     out: Path
-    plan: pd.DataFrame
     summary: pd.DataFrame
     complete: bool
     wall_s: float
@@ -326,16 +325,25 @@ class CampaignResult:
     detection_times: pd.DataFrame | None = None
     #: runs of the plan with result rows (ok or not)
     runs_done: int = 0
+    #: runs of the plan
+    runs_planned: int = 0
     #: the result rows the gate reads (:func:`reports.gate.gate_rows`), in plan order
     gate_results: pd.DataFrame | None = None
+    _plan: pd.DataFrame | None = field(default=None, repr=False)
     _results: pd.DataFrame | None = field(default=None, repr=False)
+
+    @property
+    def plan(self) -> pd.DataFrame:
+        """The run table (read from the directory's ``plan.parquet`` when first asked for)."""
+        if self._plan is None:
+            self._plan = CampaignDir(self.out).read_plan()
+        return self._plan
 
     @property
     def results(self) -> pd.DataFrame:
         """Every result row, in plan order then by detector (read from the directory)."""
         if self._results is None:
-            self._results = read_results_in_order(CampaignDir(self.out),
-                                                  self.plan["run_id"].to_numpy())
+            self._results = read_results_in_order(CampaignDir(self.out))
         return self._results
 
     def table(self) -> str:
@@ -416,7 +424,10 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         plan = build_plan(config)
         if not setup.cdir.has_plan():
             setup.cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
-        release_freed_memory()     # what building the plan took beyond it (1.5 KB per run)
+        # the chunks are read from plan.parquet: the plan is not held during the runs
+        n_planned = len(plan)
+        del plan
+        release_freed_memory()     # what building the plan took (1.5 KB per run)
         detectors = _learn(config, setup, log, fitted_from)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock
@@ -425,9 +436,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
             setup.close()
         raise
     try:
-        complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
+        complete = _execute(config, setup, n_planned, detectors, progress=progress, log=log)
         release_freed_memory()     # what the chunks' signals took, before the summary
-        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start,
+        return finalize(setup.cdir, config, None, complete, time.perf_counter() - t_start,
                         fmu_sha256=setup.fmu_sha256)
     finally:
         setup.close()
@@ -623,20 +634,42 @@ def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
                              run_timeout_s=setup.run_timeout_s)
 
 
-def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, progress: bool,
+def _plan_chunks(cdir: CampaignDir, size: int, done: np.ndarray | None):
+    """The runs of the directory's plan not *done* (a mask over the plan, or None), in
+    chunks of *size* runs, read from ``plan.parquet`` as they are taken: the chunks
+    ``plan[~done].iloc[s:s + size]`` would give, without the plan in memory."""
+    held: list[pd.DataFrame] = []
+    n_held = 0
+    for frame in cdir.plan_batches(size):
+        if done is not None:
+            frame = frame[~done[frame.index.to_numpy()]]
+        held.append(frame)
+        n_held += len(frame)
+        while n_held >= size:
+            rows = pd.concat(held) if len(held) > 1 else held[0]
+            yield rows.iloc[:size]
+            held, n_held = [rows.iloc[size:]], n_held - size
+    if n_held:
+        yield pd.concat(held) if len(held) > 1 else held[0]
+
+
+def _execute(config, setup: _Setup, n_planned: int, detectors: dict, *, progress: bool,
              log) -> bool:
-    """Evaluate the runs of *plan* not done yet, chunk by chunk, each stored as a shard as
-    it finishes; returns whether every chunk ran (False after Ctrl-C)."""
+    """Evaluate the runs of the directory's plan (*n_planned* runs) not done yet, chunk by
+    chunk, each stored as a shard as it finishes; returns whether every chunk ran (False
+    after Ctrl-C)."""
     from .execute import run_local, run_on_cluster
 
     cdir, settings, pool = setup.cdir, setup.settings, setup.pool
-    todo = plan[~cdir.done_mask(plan["run_id"].to_numpy())] if setup.resumed else plan
+    done = (cdir.done_mask(cdir.read_plan(["run_id"])["run_id"].to_numpy())
+            if setup.resumed else None)
+    n_done = int(done.sum()) if done is not None else 0
     if setup.resumed:
-        log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
+        log(f"resuming {cdir.root}: {n_done} of {n_planned} runs already done")
     size = setup.chunk_size
-    # each chunk made when it is taken: a plan of 10⁶ runs is 10⁴ chunks
-    chunks = (todo.iloc[s:s + size] for s in range(0, len(todo), size)) if len(todo) else None
-    bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
+    # each chunk read from plan.parquet when it is taken: a plan of 10⁶ runs is 10⁴ chunks
+    chunks = _plan_chunks(cdir, size, done) if n_done < n_planned else None
+    bar = Progress(n_planned, n_done, enabled=progress)
     labels = list(detectors)
 
     def store(frame: pd.DataFrame) -> None:
@@ -669,7 +702,7 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
         bar.close()
 
 
-def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
+def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: bool,
              wall_s: float, fmu_sha256: str | None = None) -> CampaignResult:
     """Read the shards in plan order, a batch of runs at a time, and write
     ``summary.parquet`` (its metadata also holds ``fitted_sha256``,
@@ -684,6 +717,9 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
     runs) and, for a fixed-onset campaign, the first alarms of its runs are kept."""
     from reports.gate import gate_rows
 
+    full = plan
+    if plan is None:       # the columns this needs, read from plan.parquet
+        plan = cdir.read_plan(["run_id", "group", "fault", "onset_s"])
     acc = SummaryAccumulator()
     fixed = fixed_onset_campaign(plan)
     runs_done, gate_parts, alarm_parts = 0, [], []
@@ -706,9 +742,9 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
     if runs_done and fixed:
         times = detection_time_table(plan, pd.concat(alarm_parts, ignore_index=True))
         cdir.write_detection_times(times, config.to_json())
-    return CampaignResult(out=cdir.root, plan=plan, summary=summary, complete=complete,
+    return CampaignResult(out=cdir.root, summary=summary, complete=complete,
                           wall_s=wall_s, detection_times=times, runs_done=runs_done,
-                          gate_results=gate_results)
+                          runs_planned=len(plan), gate_results=gate_results, _plan=full)
 
 
 def load_results(out, *, gate_only: bool = False) -> tuple[pd.DataFrame, pd.DataFrame, dict]:

@@ -457,8 +457,20 @@ class CampaignDir:
         self._write_recorded(self.plan_path, lambda: write_parquet(
             plan, self.plan_path, config_json, kind="plan", model_version=model_version))
 
-    def read_plan(self) -> pd.DataFrame:
-        return pd.read_parquet(self.plan_path)
+    def read_plan(self, columns=None) -> pd.DataFrame:
+        """The run table (only *columns* when given)."""
+        return pd.read_parquet(self.plan_path, columns=columns)
+
+    def plan_batches(self, batch_rows: int) -> Iterator[pd.DataFrame]:
+        """The run table as consecutive DataFrames of *batch_rows* rows, read from
+        ``plan.parquet`` one at a time; each indexed by its rows' positions in the plan, as
+        the same rows of :meth:`read_plan` are."""
+        start = 0
+        for batch in pq.ParquetFile(self.plan_path).iter_batches(batch_size=batch_rows):
+            frame = batch.to_pandas()
+            frame.index = pd.RangeIndex(start, start + len(frame))
+            start += len(frame)
+            yield frame
 
     def check_model_version(self, model_version: str) -> None:
         """:class:`CampaignDirError` when ``plan.parquet`` was planned with another model than
