@@ -149,3 +149,50 @@ def test_gate_of_the_rows_it_reads_is_the_gate_of_all_rows(seed):
         assert [(c.name, c.message, c.run_ids) for c in part.checks] == [
             (c.name, c.message, c.run_ids) for c in whole.checks]
         assert any(c.run_ids for c in whole.checks)   # run ids are named, and compared
+
+
+@pytest.mark.parametrize("size", [7, 16, 64])
+def test_chunks_read_from_the_plan_file_are_the_plan_chunks(tmp_path, size):
+    """The runner reads its chunks from plan.parquet as they are taken: they must be the
+    chunks it cut from the plan in memory (rows, dtypes, index), with and without runs
+    already done."""
+    from campaign.config import load_config
+    from campaign.design import MODEL_VERSION, build_plan
+    from campaign.runner import _plan_chunks
+
+    config = load_config("smoke")
+    plan = build_plan(config)
+    cdir = CampaignDir(tmp_path / "c")
+    cdir.runs.mkdir(parents=True)
+    cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
+    done = np.random.default_rng(size).random(len(plan)) < 0.3
+    for mask in (None, done):
+        todo = plan if mask is None else plan[~mask]
+        expected = [todo.iloc[s:s + size] for s in range(0, len(todo), size)]
+        got = list(_plan_chunks(cdir, size, mask))
+        assert len(got) == len(expected)
+        for a, b in zip(got, expected):
+            pd.testing.assert_frame_equal(a, b, check_exact=True)
+
+
+def test_local_workers_take_a_chunk_only_when_a_worker_is_free():
+    """A plan of 10⁶ runs is 10⁴ chunks: run_local must take them from their iterator as
+    workers free up, so that at most *jobs* + 1 chunks exist beyond those finished (one in
+    flight per worker, and the next one, taken to know whether there is one)."""
+    from campaign.execute import run_local
+
+    jobs, taken, finished, ahead = 2, [0], [0], []
+
+    def chunks():
+        for i in range(40):
+            taken[0] += 1
+            ahead.append(taken[0] - finished[0])
+            yield pd.DataFrame({"run_id": [f"r{i}"]})
+
+    def on_result(frame):
+        finished[0] += 1
+
+    run_local(chunks(), lambda rows: rows, lambda rows, status, msg: rows, on_result,
+              jobs=jobs, backend="threading", run_timeout_s=None)
+    assert finished[0] == 40
+    assert max(ahead) <= jobs + 1   # in flight on each worker, and the next one
