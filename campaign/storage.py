@@ -142,6 +142,12 @@ def _is_temporary(path: Path) -> bool:
     return path.name.startswith(".") and path.name.endswith(".tmp")
 
 
+#: Rows of a row group of ``plan.parquet``: reading the plan a chunk at a time
+#: (:meth:`CampaignDir.plan_batches`) decodes one row group at a time, about 0.7 MB; a plan
+#: written in one group (before this layout, or by pyarrow's default) is decoded whole,
+#: about 1 KB per run.
+PLAN_ROW_GROUP_ROWS = 2048
+
 #: Runs whose rows one batch of :meth:`CampaignDir.result_batches` holds [runs]: 5000 runs
 #: of six detector variants are about 30 000 rows, some 10 MB as a DataFrame.
 RESULT_BATCH_RUNS = 5000
@@ -455,7 +461,8 @@ class CampaignDir:
         is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`)."""
         self.check_model_version(model_version)
         self._write_recorded(self.plan_path, lambda: write_parquet(
-            plan, self.plan_path, config_json, kind="plan", model_version=model_version))
+            plan, self.plan_path, config_json, row_group_rows=PLAN_ROW_GROUP_ROWS,
+            kind="plan", model_version=model_version))
 
     def read_plan(self, columns=None) -> pd.DataFrame:
         """The run table (only *columns* when given)."""
@@ -463,10 +470,12 @@ class CampaignDir:
 
     def plan_batches(self, batch_rows: int) -> Iterator[pd.DataFrame]:
         """The run table as consecutive DataFrames of *batch_rows* rows, read from
-        ``plan.parquet`` one at a time; each indexed by its rows' positions in the plan, as
+        ``plan.parquet`` one at a time (one row group decoded at a time,
+        :data:`PLAN_ROW_GROUP_ROWS`); each indexed by its rows' positions in the plan, as
         the same rows of :meth:`read_plan` are."""
         start = 0
-        for batch in pq.ParquetFile(self.plan_path).iter_batches(batch_size=batch_rows):
+        plan = pq.ParquetFile(self.plan_path, pre_buffer=False)
+        for batch in plan.iter_batches(batch_size=batch_rows):
             frame = batch.to_pandas()
             frame.index = pd.RangeIndex(start, start + len(frame))
             start += len(frame)
