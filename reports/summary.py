@@ -267,10 +267,6 @@ def _dtype(column: str) -> str:
     return "float64"
 
 
-#: Result columns :class:`SummaryAccumulator` reads (a reader may read only these).
-SUMMARY_INPUT_COLUMNS: tuple[str, ...] = _REQUIRED + (
-    "est_err_n", "est_err_mean_mm", "est_err_var_mm2", "est_range_mm")
-
 _COUNTS = {"n_runs": "ok", "n_errors": "err", "fa_count": "fa", "md_count": "miss",
            "late_count": "late", "n_within": "within", "est_err_runs": "e_runs"}
 _TIMES = ("dtp", "delay")
