@@ -21,7 +21,7 @@ def runs_done(out) -> int:
     from .storage import CampaignDir
 
     cdir = CampaignDir(out)
-    return len(cdir.done_run_ids()) if cdir.is_campaign() else 0
+    return cdir.runs_done() if cdir.is_campaign() else 0
 
 
 def runs_line(config, result, before: int) -> str:

@@ -825,6 +825,12 @@ class CampaignDir:
             done[pos[known & ~ok]] = False
         return done
 
+    def runs_done(self) -> int:
+        """How many runs of the plan have every result row ``ok`` (:meth:`done_mask`)."""
+        if not self.shard_paths() or not self.has_plan():
+            return len(self.done_run_ids())
+        return int(self.done_mask(self.read_plan(["run_id"])["run_id"].to_numpy()).sum())
+
     def done_run_ids(self) -> set[str]:
         """Runs whose every result row has status ``ok`` (errors are retried on resume)."""
         if not self.shard_paths():
