@@ -263,7 +263,7 @@ def _gate_one(directory, args):
         limits[key] = given if given is not None else (
             limits.get(key) if args.all_requirements else None)
     coverage = (None if camp.runs_planned is None else (camp.runs_done, camp.runs_planned))
-    result = requirements_gate(camp.summary, camp.results, limits, all_requirements=True,
+    result = requirements_gate(camp.summary, camp.gate_results, limits, all_requirements=True,
                                isolation=isolation_of_stored(meta.get("config")),
                                coverage=coverage, allow_errors=args.allow_errors,
                                allow_incomplete=args.allow_incomplete)
@@ -334,7 +334,7 @@ def _report_one(args) -> None:
     print(f"campaign {camp.name or '?'!r}: "
           f"{camp.meta.get('runs_done')} of {camp.meta.get('runs_planned')} runs")
     print(camp.table())
-    for line in error_lines(camp.results):
+    for line in error_lines(camp.gate_results):       # its failed runs
         print(f"runs not scored: {line}")
     if not args.no_html:
         write_html_report(args)

@@ -21,21 +21,21 @@ def runs_done(out) -> int:
     from .storage import CampaignDir
 
     cdir = CampaignDir(out)
-    return len(cdir.done_run_ids()) if cdir.is_campaign() else 0
+    return cdir.runs_done() if cdir.is_campaign() else 0
 
 
 def runs_line(config, result, before: int) -> str:
     """What ``run`` did: the runs done of the plan, and how many of them it computed now
     (*before*: runs done when it started)."""
-    done = result.results["run_id"].nunique() if not result.results.empty else 0
+    done = result.runs_done
     head = f"campaign {config.campaign.name!r}:"
     if before and done <= before:
         return (f"{head} nothing to compute, all {done} runs of the plan were already done "
-                f"-> {result.root}" if done == len(result.plan) else
-                f"{head} {done} of {len(result.plan)} runs done, none computed now -> "
+                f"-> {result.root}" if done == result.runs_planned else
+                f"{head} {done} of {result.runs_planned} runs done, none computed now -> "
                 f"{result.root}")
     now = f" ({done - before} computed now)" if before else ""
-    return (f"{head} {done} of {len(result.plan)} runs{now} in {result.wall_s:.1f} s -> "
+    return (f"{head} {done} of {result.runs_planned} runs{now} in {result.wall_s:.1f} s -> "
             f"{result.root}")
 
 
@@ -64,9 +64,10 @@ def gate_of(config, result, *, all_requirements: bool = False):
 
     from .isolation import isolation_of
 
-    done = result.results["run_id"].nunique() if not result.results.empty else 0
-    return requirements_gate(result.summary, result.results, config.to_dict()["requirements"],
-                             isolation=isolation_of(config), coverage=(done, len(result.plan)),
+    return requirements_gate(result.summary, result.gate_results,
+                             config.to_dict()["requirements"],
+                             isolation=isolation_of(config),
+                             coverage=(result.runs_done, result.runs_planned),
                              all_requirements=all_requirements)
 
 
@@ -94,7 +95,7 @@ def false_alarm_count(result) -> str:
     s = result.summary
     fine = s[(s["fault"] != ALL_FAULTS) & (s["manoeuvre"] != ALL_MANOEUVRES)]
     alarms, detectors = int(fine["fa_count"].sum()), fine["detector"].nunique()
-    runs = result.results["run_id"].nunique()
+    runs = result.runs_done
     of = f" of {detectors} detectors" if detectors > 1 else ""
     return f"{alarms} false alarm{'' if alarms == 1 else 's'}{of} in {runs} runs"
 

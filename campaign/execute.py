@@ -196,14 +196,25 @@ def _is_pool_failure(exc: BaseException) -> bool:
 
 def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
               run_timeout_s: float | None, pool: LocalPool | None = None, log=print) -> dict:
-    """Run *chunks* (DataFrames of runs) with ``call(rows) -> result rows`` on *jobs*
-    workers; ``fail(rows, status, message)`` makes the rows of runs that could not be run.
+    """Run *chunks* (DataFrames of runs, or an iterable making them as they are taken) with
+    ``call(rows) -> result rows`` on *jobs* workers; ``fail(rows, status, message)`` makes
+    the rows of runs that could not be run.
 
     Returns counts of what happened: ``{"pool_failures", "timeouts", "retried_chunks"}``.
     """
     stats = {"pool_failures": 0, "timeouts": 0, "retried_chunks": 0}
-    queue = deque(Task(c) for c in chunks)
+    source = iter(chunks)       # taken one at a time: a chunk exists once it is next
+    queue: deque[Task] = deque()
     isolated: deque[Task] = deque()
+
+    def more() -> bool:
+        """Whether a normal chunk waits (the next one is taken from *chunks* if need be)."""
+        if not queue:
+            rows = next(source, None)
+            if rows is not None:
+                queue.append(Task(rows))
+        return bool(queue)
+
     if pool is None:
         pool = LocalPool(backend, jobs)
     if run_timeout_s is not None and not pool.can_stop_a_task:
@@ -236,8 +247,8 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
                                                  f"{limit:g} s ([runner] run_timeout_s)"))
 
     try:
-        while queue or isolated or inflight:
-            if not queue and not inflight and isolated and pool.jobs > 1:
+        while more() or isolated or inflight:
+            if not more() and not inflight and isolated and pool.jobs > 1:
                 pool.stop()          # retries run one at a time: one worker is enough
                 pool = LocalPool(backend, 1)
             if pool.executor is None:
@@ -246,9 +257,9 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
                 pool.ready()
             # fill the free workers: normal chunks first, then isolated retries one by one
             alone_inflight = any(t.alone for t, _ in inflight.values())
-            while queue and len(inflight) < jobs and not alone_inflight:
+            while len(inflight) < jobs and not alone_inflight and more():
                 submit(queue.popleft())
-            if not queue and not inflight and isolated:
+            if not more() and not inflight and isolated:
                 submit(isolated.popleft())
             deadlines = [d for _, d in inflight.values() if d is not None]
             wait_s = None if not deadlines else max(0.0, min(deadlines) - time.perf_counter())
@@ -457,10 +468,18 @@ def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S, *, tls: TlsFiles
         raise ClusterError(f"cannot connect to the dask scheduler at {address}: {exc}") from exc
 
 
+#: Chunks a dask client keeps submitted per worker thread of the cluster: enough that no
+#: worker waits for its next chunk, few enough that the client never holds the plan's
+#: chunks all at once (nor the scheduler their tasks).
+CLUSTER_CHUNKS_PER_THREAD = 2
+
+
 def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_result,
                    log=print) -> dict:
     """Run *chunks* as dask futures, ``chunk_fn(rows, detectors, settings)`` each, handing
-    results to *on_result* as they complete (``as_completed``)."""
+    results to *on_result* as they complete (``as_completed``). At most
+    :data:`CLUSTER_CHUNKS_PER_THREAD` chunks per worker thread (at least 4) are submitted
+    at a time; each finished chunk lets the next one in."""
     from distributed import as_completed
 
     try:
@@ -470,12 +489,24 @@ def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_resul
 
     stats = {"killed_chunks": 0}
     det_future = client.scatter([detectors], broadcast=True, hash=False)[0]
+    window = max(4, CLUSTER_CHUNKS_PER_THREAD * sum(client.nthreads().values()))
+    pending = iter(chunks)
     futures = {}
-    for rows in chunks:
+
+    def submit_next() -> object | None:
+        rows = next(pending, None)
+        if rows is None:
+            return None
         fut = client.submit(chunk_fn, rows, det_future, settings, pure=False)
         futures[fut] = rows
+        return fut
+
+    for _ in range(window):
+        if submit_next() is None:
+            break
     try:
-        for fut in as_completed(list(futures)):
+        running = as_completed(list(futures))
+        for fut in running:
             rows = futures.pop(fut)
             try:
                 frame = fut.result()
@@ -487,6 +518,9 @@ def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_resul
                 frame = fail(rows, "error", f"chunk failed on the cluster: {_short(exc)}")
             on_result(frame)
             fut.release()
+            nxt = submit_next()
+            if nxt is not None:
+                running.add(nxt)
     finally:
         for fut in futures:
             fut.cancel()

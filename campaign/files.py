@@ -57,8 +57,10 @@ def atomic_write_bytes(path: Path, write) -> None:
         raise
 
 
-def write_parquet(df: pd.DataFrame, path: Path, config_json: str, **extra) -> None:
-    """Write *df* to *path* atomically with the campaign metadata in the schema."""
+def write_parquet(df: pd.DataFrame, path: Path, config_json: str, *,
+                  row_group_rows: int | None = None, **extra) -> None:
+    """Write *df* to *path* atomically with the campaign metadata in the schema, in row
+    groups of *row_group_rows* rows (default: pyarrow's, one group up to 1 Mi rows)."""
     table = pa.Table.from_pandas(df, preserve_index=False)
     meta = dict(table.schema.metadata or {})
     meta[METADATA_KEY] = json.dumps({
@@ -66,7 +68,8 @@ def write_parquet(df: pd.DataFrame, path: Path, config_json: str, **extra) -> No
         "config": json.loads(config_json), **extra,
     }).encode()
     table = table.replace_schema_metadata(meta)
-    atomic_write_bytes(Path(path), lambda tmp: pq.write_table(table, tmp))
+    atomic_write_bytes(Path(path), lambda tmp: pq.write_table(table, tmp,
+                                                              row_group_size=row_group_rows))
 
 
 def read_metadata(path: Path) -> dict:

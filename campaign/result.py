@@ -166,7 +166,8 @@ class Campaign:
     ``config``, digests), ``provenance`` (:class:`Provenance`) and ``wall_s`` (seconds the
     run took; None when read back). Read on first access: ``config``
     (:class:`campaign.config.CampaignConfig`), ``plan`` (the run table), ``results`` (one
-    row per run × detector, in plan order), ``detection_times`` (fixed-onset campaigns,
+    row per run × detector, in plan order), ``gate_results`` (only the rows the gate reads,
+    streamed), ``detection_times`` (fixed-onset campaigns,
     else None), ``fitted`` (label → fitted Detector, rebuilt as data) and ``certificate``
     (:class:`Certificate`, or None before ``fdd-campaign certify``).
     """
@@ -185,7 +186,7 @@ class Campaign:
                 raise TypeError(f"Campaign: unknown part {name!r}")
             self.__dict__[name] = value
 
-    _LAZY = ("config", "plan", "results", "detection_times")
+    _LAZY = ("config", "plan", "results", "gate_results", "detection_times")
 
     @classmethod
     def of_dir(cls, cdir: CampaignDir, **known) -> Campaign:
@@ -214,6 +215,17 @@ class Campaign:
         order they were evaluated (runs not done are absent; an interrupted campaign has
         fewer)."""
         return plan_order(self._cdir.read_results(), self.plan)
+
+    @cached_property
+    def gate_results(self) -> pd.DataFrame:
+        """The result rows the gate reads (:func:`reports.gate.gate_rows`: false alarms,
+        misses and failed runs), in plan order, read a batch of runs at a time: what ``gate``
+        and the report's error lines need, in memory that does not grow with the runs of a
+        fault-free campaign."""
+        from reports.gate import gate_rows
+
+        parts = [gate_rows(batch) for batch in self._cdir.result_batches()]
+        return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
 
     @cached_property
     def detection_times(self) -> pd.DataFrame | None:

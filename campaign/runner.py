@@ -28,7 +28,7 @@ import pandas as pd
 from detectors import make_detector, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
-from reports.summary import summarize
+from reports.summary import SummaryAccumulator
 from scenarios import kernels
 from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
@@ -44,7 +44,7 @@ from .plugins import (
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .execute import one_blas_thread
 from .plant import detector_problems, fmu_sha256, plant_of
-from .result import Campaign, plan_order
+from .result import Campaign
 from .storage import CampaignDir, DirLock
 
 
@@ -400,6 +400,10 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         plan = build_plan(config)
         if not setup.cdir.has_plan():
             setup.cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
+        # the chunks are read from plan.parquet: the plan is not held during the runs
+        n_planned = len(plan)
+        del plan
+        release_freed_memory()     # what building the plan took (1.5 KB per run)
         detectors = _learn(config, setup, log, fitted_from)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock
@@ -408,8 +412,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
             setup.close()
         raise
     try:
-        complete = _execute(config, setup, plan, detectors, progress=progress, log=log)
-        return finalize(setup.cdir, config, plan, complete, time.perf_counter() - t_start,
+        complete = _execute(config, setup, n_planned, detectors, progress=progress, log=log)
+        release_freed_memory()     # what the chunks' signals took, before the summary
+        return finalize(setup.cdir, config, None, complete, time.perf_counter() - t_start,
                         fmu_sha256=setup.fmu_sha256)
     finally:
         setup.close()
@@ -604,20 +609,42 @@ def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
                              run_timeout_s=setup.run_timeout_s)
 
 
-def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, progress: bool,
+def _plan_chunks(cdir: CampaignDir, size: int, done: np.ndarray | None):
+    """The runs of the directory's plan not *done* (a mask over the plan, or None), in
+    chunks of *size* runs, read from ``plan.parquet`` as they are taken: the chunks
+    ``plan[~done].iloc[s:s + size]`` would give, without the plan in memory."""
+    held: list[pd.DataFrame] = []
+    n_held = 0
+    for frame in cdir.plan_batches(size):
+        if done is not None:
+            frame = frame[~done[frame.index.to_numpy()]]
+        held.append(frame)
+        n_held += len(frame)
+        while n_held >= size:
+            rows = pd.concat(held) if len(held) > 1 else held[0]
+            yield rows.iloc[:size]
+            held, n_held = [rows.iloc[size:]], n_held - size
+    if n_held:
+        yield pd.concat(held) if len(held) > 1 else held[0]
+
+
+def _execute(config, setup: _Setup, n_planned: int, detectors: dict, *, progress: bool,
              log) -> bool:
-    """Evaluate the runs of *plan* not done yet, chunk by chunk, each stored as a shard as
-    it finishes; returns whether every chunk ran (False after Ctrl-C)."""
+    """Evaluate the runs of the directory's plan (*n_planned* runs) not done yet, chunk by
+    chunk, each stored as a shard as it finishes; returns whether every chunk ran (False
+    after Ctrl-C)."""
     from .execute import run_local, run_on_cluster
 
     cdir, settings, pool = setup.cdir, setup.settings, setup.pool
-    done = cdir.done_run_ids() if setup.resumed else set()
-    todo = plan[~plan["run_id"].isin(done)]
+    done = (cdir.done_mask(cdir.read_plan(["run_id"])["run_id"].to_numpy())
+            if setup.resumed else None)
+    n_done = int(done.sum()) if done is not None else 0
     if setup.resumed:
-        log(f"resuming {cdir.root}: {len(plan) - len(todo)} of {len(plan)} runs already done")
+        log(f"resuming {cdir.root}: {n_done} of {n_planned} runs already done")
     size = setup.chunk_size
-    chunks = [todo.iloc[s:s + size] for s in range(0, len(todo), size)]
-    bar = Progress(len(plan), len(plan) - len(todo), enabled=progress)
+    # each chunk read from plan.parquet when it is taken: a plan of 10⁶ runs is 10⁴ chunks
+    chunks = _plan_chunks(cdir, size, done) if n_done < n_planned else None
+    bar = Progress(n_planned, n_done, enabled=progress)
     labels = list(detectors)
 
     def store(frame: pd.DataFrame) -> None:
@@ -650,26 +677,46 @@ def _execute(config, setup: _Setup, plan: pd.DataFrame, detectors: dict, *, prog
         bar.close()
 
 
-def finalize(cdir: CampaignDir, config, plan: pd.DataFrame, complete: bool,
+def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: bool,
              wall_s: float, fmu_sha256: str | None = None) -> Campaign:
-    """Gather the shards in plan order and write ``summary.parquet`` (its metadata also
-    holds ``fitted_sha256``, :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and
-    ``fitted_from``, the directory they were taken from or None, and ``fmu_sha256``, the
-    SHA-256 of an FMU plant's file, :func:`campaign.plant.replay_plant`) and, for a campaign of
-    fixed onsets (:func:`reports.detection_times.fixed_onset_campaign`),
-    ``detection-times.parquet``."""
-    stored = cdir.read_results()
-    results = plan_order(stored, plan, by_name=True)
-    summary = summarize(results) if not results.empty else pd.DataFrame()
+    """Read the shards in plan order, a batch of runs at a time, and write
+    ``summary.parquet`` (its metadata also holds ``fitted_sha256``,
+    :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and ``fitted_from``, the
+    directory they were taken from or None, and ``fmu_sha256``, the SHA-256 of an FMU plant's
+    file, :func:`campaign.plant.replay_plant`) and, for a campaign of fixed onsets
+    (:func:`reports.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
+
+    No batch is kept: the summary is aggregated as the batches come
+    (:class:`reports.summary.SummaryAccumulator`), and of the rows only those the gate reads
+    (:func:`reports.gate.gate_rows`: in a fault-free campaign, its false alarms and failed
+    runs) and, for a fixed-onset campaign, the first alarms of its runs are kept."""
+    from reports.gate import gate_rows
+
+    full = plan
+    if plan is None:       # the columns this needs, read from plan.parquet
+        plan = cdir.read_plan(["run_id", "group", "fault", "onset_s"])
+    acc = SummaryAccumulator()
+    fixed = fixed_onset_campaign(plan)
+    runs_done, gate_parts, alarm_parts = 0, [], []
+    for batch in cdir.result_batches(plan["run_id"].to_numpy()):
+        acc.add(batch)
+        runs_done += batch["run_id"].nunique()      # a run's rows are in one batch
+        gate_parts.append(gate_rows(batch))
+        if fixed:
+            alarm_parts.append(batch[["run_id", "detector", "fault", "status",
+                                      "first_alarm_s"]])
+    summary = acc.summary() if runs_done else pd.DataFrame()
+    gate_results = (pd.concat(gate_parts, ignore_index=True) if gate_parts
+                    else pd.DataFrame())
     origin = cdir.read_fitted_origin() or {}
     cdir.write_summary(summary, config.to_json(), complete=complete,
-                       runs_done=int(results["run_id"].nunique()) if not results.empty else 0,
-                       runs_planned=len(plan),
+                       runs_done=runs_done, runs_planned=len(plan),
                        fitted_sha256=cdir.fitted_sha256([d.label for d in config.detectors]),
                        fitted_from=origin.get("fitted_from"), fmu_sha256=fmu_sha256)
     times = None
-    if not results.empty and fixed_onset_campaign(plan):
-        times = detection_time_table(plan, results)
+    if runs_done and fixed:
+        times = detection_time_table(plan, pd.concat(alarm_parts, ignore_index=True))
         cdir.write_detection_times(times, config.to_json())
-    return Campaign.of_dir(cdir, wall_s=wall_s, plan=plan,
-                           results=plan_order(stored, plan), detection_times=times)
+    known = {"plan": full} if full is not None else {}
+    return Campaign.of_dir(cdir, wall_s=wall_s, detection_times=times,
+                           gate_results=gate_results, **known)

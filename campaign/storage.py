@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -144,6 +145,60 @@ def _is_temporary(path: Path) -> bool:
     return path.name.startswith(".") and path.name.endswith(".tmp")
 
 
+#: Rows of a row group of ``plan.parquet``: reading the plan a chunk at a time
+#: (:meth:`CampaignDir.plan_batches`) decodes one row group at a time, about 0.7 MB; a plan
+#: written in one group (before this layout, or by pyarrow's default) is decoded whole,
+#: about 1 KB per run.
+PLAN_ROW_GROUP_ROWS = 2048
+
+#: Runs whose rows one batch of :meth:`CampaignDir.result_batches` holds [runs]: 5000 runs
+#: of six detector variants are about 30 000 rows, some 10 MB as a DataFrame.
+RESULT_BATCH_RUNS = 5000
+
+
+class _RunIndex:
+    """Positions of run ids in a plan's order, by binary search in the sorted ids (bytes):
+    about 28 bytes per run of the plan, where a dict of str would take over 100."""
+
+    def __init__(self, run_ids):
+        ids = _as_bytes(run_ids)
+        self.order = np.argsort(ids, kind="stable")
+        self.sorted = ids[self.order]
+
+    def __len__(self) -> int:
+        return len(self.sorted)
+
+    def positions(self, run_ids) -> np.ndarray:
+        """Each run id's position in the plan; ``len(self)`` for one that is not in it."""
+        ids = _as_bytes(run_ids)
+        n = len(self.sorted)
+        if n == 0:
+            return np.full(len(ids), 0, dtype=np.int64)
+        at = np.minimum(np.searchsorted(self.sorted, ids), n - 1)
+        return np.where(self.sorted[at] == ids, self.order[at], n).astype(np.int64)
+
+
+def _as_bytes(run_ids) -> np.ndarray:
+    """Run ids as a NumPy bytes array (UTF-8)."""
+    if hasattr(run_ids, "to_pylist"):          # a pyarrow array
+        run_ids = run_ids.to_pylist()
+    values = np.asarray(run_ids, dtype=object)
+    if values.size == 0:
+        return np.empty(0, dtype="S1")
+    try:
+        return values.astype("S")
+    except UnicodeEncodeError:
+        return np.char.encode(values.astype(str), "utf-8")
+
+
+def _plan_ordered(rows: pd.DataFrame) -> pd.DataFrame:
+    """Rows (with their plan position ``_pos``) deduplicated as :meth:`CampaignDir.read_results`
+    does (the last row of a run and detector) and sorted by plan position, then detector."""
+    rows = rows.drop_duplicates(["_pos", "detector"], keep="last")
+    rows = rows.sort_values(["_pos", "detector"], kind="stable")
+    return rows.drop(columns="_pos").reset_index(drop=True)
+
+
 class CampaignDir:
     """One campaign's output directory: the only code that names, reads and writes its files.
 
@@ -169,6 +224,7 @@ class CampaignDir:
         self.fitted = self.root / "fitted"
         self.fitted_origin_path = self.root / "fitted-origin.json"
         self._manifest: dict | None = None
+        self._next_shard: int | None = None    # number of the next shard (next_shard_path)
 
     def is_campaign(self) -> bool:
         """Whether the directory belongs to a campaign (holds ``campaign.json``)."""
@@ -408,10 +464,25 @@ class CampaignDir:
         is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`)."""
         self.check_model_version(model_version)
         self._write_recorded(self.plan_path, lambda: write_parquet(
-            plan, self.plan_path, config_json, kind="plan", model_version=model_version))
+            plan, self.plan_path, config_json, row_group_rows=PLAN_ROW_GROUP_ROWS,
+            kind="plan", model_version=model_version))
 
-    def read_plan(self) -> pd.DataFrame:
-        return pd.read_parquet(self.plan_path)
+    def read_plan(self, columns=None) -> pd.DataFrame:
+        """The run table (only *columns* when given)."""
+        return pd.read_parquet(self.plan_path, columns=columns)
+
+    def plan_batches(self, batch_rows: int) -> Iterator[pd.DataFrame]:
+        """The run table as consecutive DataFrames of *batch_rows* rows, read from
+        ``plan.parquet`` one at a time (one row group decoded at a time,
+        :data:`PLAN_ROW_GROUP_ROWS`); each indexed by its rows' positions in the plan, as
+        the same rows of :meth:`read_plan` are."""
+        start = 0
+        plan = pq.ParquetFile(self.plan_path, pre_buffer=False)
+        for batch in plan.iter_batches(batch_size=batch_rows):
+            frame = batch.to_pandas()
+            frame.index = pd.RangeIndex(start, start + len(frame))
+            start += len(frame)
+            yield frame
 
     def check_model_version(self, model_version: str) -> None:
         """:class:`CampaignDirError` when ``plan.parquet`` was planned with another model than
@@ -641,9 +712,17 @@ class CampaignDir:
         return sorted(self.runs.glob(SHARD_GLOB))
 
     def next_shard_path(self) -> Path:
-        paths = self.shard_paths()
-        last = int(paths[-1].stem.split("-")[1]) if paths else -1
-        return self.runs / f"part-{last + 1:06d}.parquet"
+        """The name of the next shard: one more than the last one's number. The directory
+        is listed once; later calls count on (only the run holding the lock writes shards),
+        so writing n shards does not list the directory n times."""
+        if self._next_shard is None:
+            paths = self.shard_paths()
+            self._next_shard = int(paths[-1].stem.split("-")[1]) + 1 if paths else 0
+        path = self.runs / f"part-{self._next_shard:06d}.parquet"
+        while path.exists():        # written by another object of this directory meanwhile
+            self._next_shard += 1
+            path = self.runs / f"part-{self._next_shard:06d}.parquet"
+        return path
 
     def write_shard(self, results: pd.DataFrame, config_json: str) -> Path:
         """Store the result rows of one finished chunk as the next shard (then record it in
@@ -651,6 +730,7 @@ class CampaignDir:
         path = self.next_shard_path()
         self._write_recorded(path, lambda: write_parquet(results, path, config_json,
                                                          kind="results"))
+        self._next_shard += 1
         return path
 
     def read_results(self) -> pd.DataFrame:
@@ -679,10 +759,94 @@ class CampaignDir:
                                                                    keep="last")
         return df.drop(columns="_seq").reset_index(drop=True)
 
+    def result_batches(self, run_ids=None, columns=None,
+                       batch_runs: int = RESULT_BATCH_RUNS) -> Iterator[pd.DataFrame]:
+        """The rows of :meth:`read_results` in plan order, as consecutive DataFrames of the
+        rows of at most *batch_runs* runs each, so that no reader holds every row at once.
+
+        Rows are ordered by the run's position in *run_ids* (default: the ``run_id`` column
+        of ``plan.parquet``), then by ``detector`` (a stable sort): concatenated, the batches
+        are ``read_results()`` sorted so, the order every table of the campaign is computed
+        in. Rows of a run id that is not in *run_ids* come last, by detector. *columns*:
+        the columns read (``run_id`` and ``detector`` are always read and returned).
+
+        Memory: the shards' ``run_id`` columns are read once to find, for each run, its
+        latest shard (one int32 per run of the plan, 4 MB for 10⁶ runs, and the plan's run
+        ids as bytes, 20 bytes each); then each batch reads the shards that hold its runs.
+        A shard is read once per batch it has rows in: the shards of a campaign's chunks are
+        runs in plan order, so about once; a retry shard, whose runs are spread over the
+        plan, once per batch."""
+        paths = self.shard_paths()
+        if not paths:
+            return
+        if run_ids is None:
+            run_ids = pq.read_table(self.plan_path, columns=["run_id"]).column(0).to_pylist()
+        index = _RunIndex(run_ids)
+        n = len(index)
+        if columns is not None:
+            columns = list(dict.fromkeys(["run_id", "detector", *columns]))
+        latest = np.full(n + 1, -1, dtype=np.int32)    # slot n: run ids not in run_ids
+        held = []
+        for seq, path in enumerate(paths):
+            pos = np.unique(index.positions(pq.read_table(path, columns=["run_id"]).column(0)))
+            latest[pos] = seq                          # shards in order: the last one wins
+            held.append(pos)
+        spans = []
+        for seq, pos in enumerate(held):
+            kept = pos[(pos < n) & (latest[pos] == seq)]
+            spans.append((int(kept[0]), int(kept[-1])) if kept.size else None)
+        del held
+        for start in range(0, n, batch_runs):
+            stop = min(start + batch_runs, n)
+            frames = []
+            for seq, span in enumerate(spans):
+                if span is None or span[1] < start or span[0] >= stop:
+                    continue
+                df = pq.read_table(paths[seq], columns=columns).to_pandas()
+                pos = index.positions(df["run_id"])
+                keep = (pos >= start) & (pos < stop) & (latest[np.minimum(pos, n)] == seq)
+                if keep.any():
+                    frames.append(df[keep].assign(_pos=pos[keep]))
+            if frames:
+                yield _plan_ordered(pd.concat(frames, ignore_index=True))
+        if latest[n] >= 0:              # run ids outside the plan: the rule of read_results
+            frames = []
+            for seq, path in enumerate(paths):
+                df = pq.read_table(path, columns=columns).to_pandas()
+                df = df[index.positions(df["run_id"]) == n]
+                if len(df):
+                    frames.append(df.assign(_pos=n, _seq=seq))
+            df = pd.concat(frames, ignore_index=True)
+            df = df[df["_seq"] == df.groupby("run_id", sort=False)["_seq"].transform("max")]
+            yield _plan_ordered(df.drop(columns="_seq"))
+
+    def done_mask(self, run_ids) -> np.ndarray:
+        """For each of *run_ids*: whether every result row of that run has status ``ok``
+        (errors are retried on resume); read a batch of rows at a time
+        (:meth:`result_batches`)."""
+        index = _RunIndex(run_ids)
+        done = np.zeros(len(index), dtype=bool)
+        for batch in self.result_batches(run_ids, columns=["status"]):
+            pos = index.positions(batch["run_id"])
+            known = pos < len(index)
+            ok = (batch["status"] == "ok").to_numpy()
+            done[pos[known & ok]] = True
+            done[pos[known & ~ok]] = False
+        return done
+
+    def runs_done(self) -> int:
+        """How many runs of the plan have every result row ``ok`` (:meth:`done_mask`)."""
+        if not self.shard_paths() or not self.has_plan():
+            return len(self.done_run_ids())
+        return int(self.done_mask(self.read_plan(["run_id"])["run_id"].to_numpy()).sum())
+
     def done_run_ids(self) -> set[str]:
         """Runs whose every result row has status ``ok`` (errors are retried on resume)."""
-        df = self.read_results()
-        if df.empty:
+        if not self.shard_paths():
             return set()
-        bad = set(df.loc[df["status"] != "ok", "run_id"])
-        return set(df["run_id"]) - bad
+        if not self.has_plan():      # results without a plan: read them whole
+            df = self.read_results()
+            bad = set(df.loc[df["status"] != "ok", "run_id"])
+            return set(df["run_id"]) - bad
+        ids = pq.read_table(self.plan_path, columns=["run_id"]).column(0).to_pylist()
+        return {rid for rid, done in zip(ids, self.done_mask(ids)) if done}

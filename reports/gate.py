@@ -44,7 +44,7 @@ from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
 __all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_probability_checks",
-           "requirements_gate",
+           "gate_rows", "requirements_gate",
            "junit_tree", "write_junit",
            "write_junit_suite", "write_junit_tree"]
 
@@ -281,6 +281,19 @@ def _coverage_check(done: int, planned: int, allow_incomplete: bool) -> Check:
                  f"{verdict} coverage: incomplete: {done} of {planned} runs done; finish the "
                  "campaign by running the same 'fdd-campaign run' command again"
                  + ("" if allow_incomplete else " (or gate part of it with --allow-incomplete)"))
+
+
+def gate_rows(results: pd.DataFrame) -> pd.DataFrame:
+    """The result rows :func:`evaluate_gate` reads of *results*, in their order: every row
+    that did not finish ``ok``, every false alarm, every row of a faulty run. The gate of a
+    summary with these rows is the gate with all the rows; a fault-free campaign of 10⁶
+    runs passes it its few alarms and failures instead of its millions of rows."""
+    if results.empty:
+        return results
+    ok = results["status"] == "ok"
+    alarm = results["false_alarm"].astype("boolean").fillna(False).astype(bool)
+    keep = ~ok | alarm | (results["fault"] != FAULT_FREE)
+    return results[keep.to_numpy()]
 
 
 def _alarmed_runs(results: pd.DataFrame | None, detector: str) -> dict:

@@ -51,7 +51,7 @@ import pandas as pd
 from .metrics import FAULT_FREE, upper_bound
 from .survival import SURVIVAL_COLUMNS, survival_stats
 
-__all__ = ["ALL_FAULTS", "ALL_MANOEUVRES", "SUMMARY_COLUMNS", "summarize"]
+__all__ = ["ALL_FAULTS", "ALL_MANOEUVRES", "SUMMARY_COLUMNS", "SummaryAccumulator", "summarize"]
 
 #: ``fault`` of the per-detector aggregate over every faulty run.
 ALL_FAULTS = "all-faults"
@@ -188,6 +188,14 @@ def _sort_key(column: pd.Series) -> pd.Series:
     return pd.Series([f"{r}{v}" for r, v in zip(rank, column)], index=column.index)
 
 
+def _check_columns(results: pd.DataFrame) -> None:
+    missing = [c for c in _REQUIRED if c not in results.columns]
+    if missing:
+        raise ValueError(
+            f"results lack column(s) {', '.join(missing)}; expected result rows with "
+            f"columns {', '.join(_REQUIRED)}")
+
+
 def summarize(results: pd.DataFrame) -> pd.DataFrame:
     """Summary table of result rows (docs/design.md §5, Metrics; see the module docstring).
 
@@ -202,11 +210,7 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     DataFrame with :data:`SUMMARY_COLUMNS`, sorted by detector, then fault (``none`` first,
     ``all-faults`` last), then manoeuvre (``all`` last).
     """
-    missing = [c for c in _REQUIRED if c not in results.columns]
-    if missing:
-        raise ValueError(
-            f"results lack column(s) {', '.join(missing)}; expected result rows with "
-            f"columns {', '.join(_REQUIRED)}")
+    _check_columns(results)
     if len(results) == 0:
         return pd.DataFrame({c: pd.Series(dtype=_dtype(c)) for c in SUMMARY_COLUMNS})
 
@@ -218,6 +222,12 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     if len(faulty_rows):
         parts.append(_aggregate(faulty_rows, ["detector"])
                      .assign(fault=ALL_FAULTS, manoeuvre=ALL_MANOEUVRES))
+    return _finish(parts)
+
+
+def _finish(parts: list[pd.DataFrame]) -> pd.DataFrame:
+    """The summary table from the group aggregates of :func:`_aggregate` (finest, per fault,
+    all faults): counts, rates, bounds and the estimation error's moments; sorted."""
     out = pd.concat(parts, ignore_index=True)
 
     out["md_req_count"] = out["md_count"] + out["late_count"]
@@ -256,3 +266,232 @@ def _dtype(column: str) -> str:
                   "est_err_runs"):
         return "int64"
     return "float64"
+
+
+_COUNTS = {"n_runs": "ok", "n_errors": "err", "fa_count": "fa", "md_count": "miss",
+           "late_count": "late", "n_within": "within", "est_err_runs": "e_runs"}
+_TIMES = ("dtp", "delay")
+_SUMS = ("e_n", "e_s1", "e_s2", "e_s1n", "e_s2n")
+#: The three groupings of the summary: detector × fault × manoeuvre, detector × fault (both
+#: over every row), and detector over the faulty rows.
+_LEVELS = ("finest", "fault", "faulty")
+_LEVEL_KEYS = {"finest": _KEYS, "fault": ["detector", "fault"], "faulty": ["detector"]}
+
+
+class _Layout:
+    """What decides how pandas sums a column per group (``groupby(sort=False)``): when the
+    groups' rows are contiguous and the column holds no NaN it adds each group's run of
+    values with ``np.add.reduceat`` (pairwise), else it adds them one by one with a
+    compensation (skipping NaN). Followed over the rows of one grouping, batch by batch."""
+
+    def __init__(self):
+        self.contiguous = True
+        self.current = None
+        self.seen: set = set()
+        self.nan: set[str] = set()          # columns that held a NaN
+
+    def add(self, keys: np.ndarray, values: dict) -> None:
+        self.nan.update(c for c, v in values.items() if np.isnan(v).any())
+        if not self.contiguous or len(keys) == 0:
+            return
+        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        for key in keys[starts].tolist():
+            if key == self.current:
+                continue
+            if key in self.seen:
+                self.contiguous = False
+                return
+            self.seen.add(key)
+            self.current = key
+
+    def reduceat(self, column: str) -> bool:
+        return self.contiguous and column not in self.nan
+
+
+class SummaryAccumulator:
+    """:func:`summarize` of result rows handed over a batch at a time (:meth:`add`), in the
+    order :func:`summarize` would read them, without holding the rows.
+
+    Kept between batches: per detector × fault × manoeuvre the counts and the largest margin
+    (sums and maxima of the batches' own); the DTP and delay of each detected run (the
+    quantile and the Kaplan–Meier statistics need every one: 20 bytes per detected run,
+    none in a fault-free campaign); the estimation-error sums (:func:`_estimate_sums`) of a
+    detector's rows from its first row with an estimate on, and how many zero rows came
+    before; and, per grouping, whether its groups' rows were contiguous and which columns
+    held a NaN (:class:`_Layout`), which decide how pandas adds a column. The table is the
+    one :func:`summarize` computes from all the rows at once, to the bit: counts, minima,
+    maxima and quantiles do not depend on how the rows are cut, and every mean and sum adds
+    the same terms in the same order by the same method — the rows left out are NaN, which
+    the compensated sum skips, or zeros before any other value of their group, which it
+    adds as no change and which are put back where the pairwise sum would see them."""
+
+    def __init__(self):
+        self._keys: list[tuple] = []           # group code → (detector, fault, manoeuvre)
+        self._code: dict[tuple, int] = {}
+        self._counts: pd.DataFrame | None = None
+        self._times: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._sums: list[pd.DataFrame] = []
+        self._estimating: set[str] = set()
+        self._skipped = np.zeros(0, dtype=np.int64)   # per group code: zero rows not kept
+        self._layout = {level: _Layout() for level in _LEVELS}
+        self._key_dtypes = None
+
+    def add(self, results: pd.DataFrame) -> None:
+        """Take in a batch of result rows (the next rows in order)."""
+        _check_columns(results)
+        if len(results) == 0:
+            return
+        rows = _per_row(results)
+        grouped = rows.groupby(_KEYS, sort=False, observed=True)
+        counts = grouped.agg(**{k: (c, "sum") for k, c in _COUNTS.items()},
+                             worst_margin=("margin", "max"))
+        if self._key_dtypes is None:
+            self._key_dtypes = {k: rows[k].dtype for k in _KEYS}
+        local = np.array([self._code_of(key) for key in counts.index], dtype=np.int64)
+        counts.index = local
+        codes = local[grouped.ngroup().to_numpy()]
+        self._follow_layout(rows, codes)
+        if self._counts is None:
+            self._counts = counts
+        else:
+            both = pd.concat([self._counts, counts])
+            self._counts = both.groupby(level=0, sort=False).agg(
+                **{k: (k, "sum") for k in _COUNTS}, worst_margin=("worst_margin", "max"))
+        dtp, delay = rows["dtp"].to_numpy(), rows["delay"].to_numpy()
+        detected = ~(np.isnan(dtp) & np.isnan(delay))
+        if detected.any():
+            self._times.append((codes[detected], dtp[detected], delay[detected]))
+        has = rows["e_runs"].to_numpy() > 0
+        seen = rows["detector"].isin(list(self._estimating)).to_numpy()
+        if has.any():     # from a detector's first row with an estimate on
+            seen = seen | pd.Series(has).groupby(rows["detector"].to_numpy()).cummax().to_numpy()
+            self._estimating.update(rows.loc[has, "detector"])
+        if seen.any():
+            self._sums.append(pd.DataFrame({"code": codes[seen],
+                                            **{c: rows[c].to_numpy()[seen] for c in _SUMS}}))
+        skipped = np.bincount(codes[~seen], minlength=len(self._keys))
+        self._skipped = np.r_[self._skipped, np.zeros(len(skipped) - len(self._skipped),
+                                                      dtype=np.int64)] + skipped
+
+    def _code_of(self, key: tuple) -> int:
+        if key not in self._code:
+            self._code[key] = len(self._keys)
+            self._keys.append(key)
+        return self._code[key]
+
+    def _follow_layout(self, rows: pd.DataFrame, codes: np.ndarray) -> None:
+        """Each grouping's groups in row order (:class:`_Layout`), its keys as hashes of the
+        key tuples so that batches agree on them."""
+        values = {c: rows[c].to_numpy() for c in (*_TIMES, *_SUMS)}
+        per_fault = np.array([hash(key[:2]) for key in self._keys], dtype=np.int64)
+        per_detector = np.array([hash(key[0]) for key in self._keys], dtype=np.int64)
+        faulty = rows["fault"].to_numpy() != FAULT_FREE
+        self._layout["finest"].add(codes, values)
+        self._layout["fault"].add(per_fault[codes], values)
+        self._layout["faulty"].add(per_detector[codes[faulty]],
+                                   {c: v[faulty] for c, v in values.items()})
+
+    def summary(self) -> pd.DataFrame:
+        """The summary table of every row added (:data:`SUMMARY_COLUMNS`)."""
+        if self._counts is None:
+            return pd.DataFrame({c: pd.Series(dtype=_dtype(c)) for c in SUMMARY_COLUMNS})
+        keys = pd.DataFrame(self._keys, columns=_KEYS).astype(self._key_dtypes)
+        counts = keys.join(self._counts.sort_index(), how="inner")
+        counts.index.name = "code"
+
+        def with_keys(frame: pd.DataFrame) -> pd.DataFrame:
+            named = keys.iloc[frame["code"].to_numpy()].reset_index(drop=True)
+            return pd.concat([named, frame.drop(columns="code")], axis=1)
+        empty = {"code": np.empty(0, dtype=np.int64)}
+        times = with_keys(pd.DataFrame(
+            {"code": np.concatenate([c for c, _, _ in self._times]),
+             "dtp": np.concatenate([d for _, d, _ in self._times]),
+             "delay": np.concatenate([d for _, _, d in self._times])}
+            if self._times else {**empty, "dtp": np.empty(0), "delay": np.empty(0)}))
+        # an estimating detector's zero rows before its first estimate, put back in front
+        estimating = np.array([key[0] in self._estimating for key in self._keys], dtype=bool)
+        skipped = np.where(estimating[:len(self._skipped)], self._skipped, 0)
+        lead = np.repeat(np.arange(len(skipped)), skipped)
+        zeros = pd.DataFrame({"code": lead, **{c: np.zeros(len(lead)) for c in _SUMS}})
+        sums = with_keys(pd.concat([zeros, *self._sums], ignore_index=True))
+        faulty = counts["fault"] != FAULT_FREE
+        parts = [self._level(counts, times, sums, "finest"),
+                 self._level(counts, times, sums, "fault").assign(manoeuvre=ALL_MANOEUVRES)]
+        if faulty.any():
+            parts.append(self._level(counts[faulty], times[times["fault"] != FAULT_FREE],
+                                     sums[sums["fault"] != FAULT_FREE], "faulty")
+                         .assign(fault=ALL_FAULTS, manoeuvre=ALL_MANOEUVRES))
+        return _finish(parts)
+
+    def _level(self, counts: pd.DataFrame, times: pd.DataFrame, sums: pd.DataFrame,
+               level: str) -> pd.DataFrame:
+        """:func:`_aggregate`'s table at one grouping, from the kept parts."""
+        keys, layout = _LEVEL_KEYS[level], self._layout[level]
+        out = counts.groupby(keys, sort=False, observed=True).agg(
+            **{k: (k, "sum") for k in _COUNTS}, worst_margin=("worst_margin", "max"))
+        t = _with_nan_group(times, keys).groupby(keys, sort=False, observed=True)
+        stats = t.agg(dtp_min=("dtp", "min"), dtp_mean=("dtp", "mean"),
+                      dtp_max=("dtp", "max"), delay_min_s=("delay", "min"),
+                      delay_mean_s=("delay", "mean"), delay_max_s=("delay", "max"))
+        stats["dtp_p95"] = t["dtp"].quantile(0.95)
+        for column, name in (("dtp", "dtp_mean"), ("delay", "delay_mean_s")):
+            if layout.reduceat(column):
+                total, size = _reduceat(times, keys, column)
+                stats.loc[total.index, name] = total / size
+        out = out.join(stats)
+        e = _with_nan_group(sums, keys).groupby(keys, sort=False, observed=True)[
+            list(_SUMS)].sum()
+        for column in _SUMS:
+            if layout.reduceat(column):
+                e.loc[:, column] = np.nan
+                total, _ = _reduceat(sums, keys, column)
+                e.loc[total.index, column] = total
+        out = out.join(e)
+        out[list(_SUMS)] = out[list(_SUMS)].fillna(0.0)
+
+        def as_key(key):
+            return key if isinstance(key, tuple) else (key,)
+        groups = {as_key(key): g for key, g in times.groupby(keys, sort=False)}
+        surv = []
+        for key, row in out.iterrows():
+            key = as_key(key)
+            if len(key) > 1 and key[1] == FAULT_FREE:     # keys[1] is "fault"
+                surv.append(dict.fromkeys(SURVIVAL_COLUMNS, np.nan))
+                continue
+            g = groups.get(key)
+            delay, dtp = ((g["delay"].to_numpy(), g["dtp"].to_numpy()) if g is not None
+                          else (np.empty(0), np.empty(0)))
+            surv.append(survival_stats(delay, dtp, int(row["md_count"])))
+        for c in SURVIVAL_COLUMNS:
+            out[c] = [s[c] for s in surv]
+        return out.reset_index()
+
+
+#: Key of the extra group :func:`_with_nan_group` adds (no detector is named so).
+_NAN_GROUP = "\x00"
+
+
+def _with_nan_group(frame: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """*frame* with one more row, of a group of its own (dropped from the result) whose
+    values are NaN: pandas then adds every float column with its compensated sum, which
+    skips NaN, whatever the layout of the other groups."""
+    extra = pd.DataFrame({**{k: [_NAN_GROUP] for k in keys},
+                          **{c: [np.nan] for c in frame.columns if c not in _KEYS}})
+    out = pd.concat([frame, extra.astype({k: frame[k].dtype for k in keys})],
+                    ignore_index=True)
+    return out
+
+
+def _reduceat(frame: pd.DataFrame, keys: list[str], column: str):
+    """Per group of *keys*: the sum of *column* as pandas adds a group's contiguous run of
+    values (``np.add.reduceat``), and the group's size."""
+    ordered = frame.assign(_g=frame.groupby(keys, sort=False).ngroup()).sort_values(
+        "_g", kind="stable")
+    groups = ordered["_g"].to_numpy()
+    starts = np.flatnonzero(np.r_[True, groups[1:] != groups[:-1]]) if len(groups) else \
+        np.empty(0, dtype=np.intp)
+    index = ordered.iloc[starts].set_index(keys).index
+    values = ordered[column].to_numpy(dtype=np.float64)
+    total = np.add.reduceat(values, starts) if len(starts) else np.empty(0)
+    size = np.diff(starts, append=len(values)).astype(np.float64)
+    return pd.Series(total, index=index), size

@@ -30,8 +30,13 @@ def _malloc_trim():
 
 
 def release_freed_memory() -> None:
-    """Give the memory freed so far back to the system (glibc's ``malloc_trim``; a no-op
-    where the C library has none)."""
+    """Give the memory freed so far back to the system: glibc's ``malloc_trim`` (a no-op
+    where the C library has none) and, once pyarrow is imported, the unused memory of its
+    allocator (the string columns of pandas' tables live there)."""
+    import sys
+
     trim = _malloc_trim()
     if trim is not None:
         trim(0)
+    if "pyarrow" in sys.modules:
+        sys.modules["pyarrow"].default_memory_pool().release_unused()
