@@ -56,7 +56,7 @@ from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from .config import CampaignConfig
 from .config.text import toml_value
-from .design import PLAN_COLUMNS, build_plan, explicit_plan, variable_ranges
+from .design import build_plan, explicit_plan, variable_ranges
 from .execute import one_blas_thread
 from .storage import write_parquet
 

@@ -733,6 +733,17 @@ class CampaignDir:
         self._next_shard += 1
         return path
 
+    def _read_shard(self, path: Path, columns=None):
+        """The table of one result shard; one that cannot be read (truncated, overwritten)
+        is the directory's damage (:class:`CampaignDirError`, exit 2), not the engine's."""
+        try:
+            return pq.read_table(path, columns=columns)
+        except (pa.ArrowInvalid, OSError) as exc:     # truncated, overwritten, unreadable
+            raise CampaignDirError(
+                f"{path}: not a readable result shard ({exc}); the directory is damaged: "
+                f"'fdd-campaign verify {self.root}' names what differs from its manifest; "
+                "rerun the campaign into a new directory") from None
+
     def read_results(self) -> pd.DataFrame:
         """Every result row; of a run written more than once (a rerun retrying its error or
         timeout rows), only the rows of its latest shard are kept: a chunk writes all the
@@ -743,13 +754,7 @@ class CampaignDir:
             return pd.DataFrame()
         frames = []
         for seq, path in enumerate(paths):
-            try:
-                df = pq.read_table(path).to_pandas()
-            except (pa.ArrowInvalid, OSError) as exc:     # truncated, overwritten, unreadable
-                raise CampaignDirError(
-                    f"{path}: not a readable result shard ({exc}); the directory is damaged: "
-                    f"'fdd-campaign verify {self.root}' names what differs from its manifest; "
-                    "rerun the campaign into a new directory") from None
+            df = self._read_shard(path).to_pandas()
             df["_seq"] = seq
             frames.append(df)
         df = pd.concat(frames, ignore_index=True)
@@ -788,7 +793,7 @@ class CampaignDir:
         latest = np.full(n + 1, -1, dtype=np.int32)    # slot n: run ids not in run_ids
         held = []
         for seq, path in enumerate(paths):
-            pos = np.unique(index.positions(pq.read_table(path, columns=["run_id"]).column(0)))
+            pos = np.unique(index.positions(self._read_shard(path, ["run_id"]).column(0)))
             latest[pos] = seq                          # shards in order: the last one wins
             held.append(pos)
         spans = []
@@ -802,7 +807,7 @@ class CampaignDir:
             for seq, span in enumerate(spans):
                 if span is None or span[1] < start or span[0] >= stop:
                     continue
-                df = pq.read_table(paths[seq], columns=columns).to_pandas()
+                df = self._read_shard(paths[seq], columns).to_pandas()
                 pos = index.positions(df["run_id"])
                 keep = (pos >= start) & (pos < stop) & (latest[np.minimum(pos, n)] == seq)
                 if keep.any():
@@ -812,7 +817,7 @@ class CampaignDir:
         if latest[n] >= 0:              # run ids outside the plan: the rule of read_results
             frames = []
             for seq, path in enumerate(paths):
-                df = pq.read_table(path, columns=columns).to_pandas()
+                df = self._read_shard(path, columns).to_pandas()
                 df = df[index.positions(df["run_id"]) == n]
                 if len(df):
                     frames.append(df.assign(_pos=n, _seq=seq))
