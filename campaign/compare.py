@@ -11,7 +11,7 @@ import pandas as pd
 from reports.compare import compare_results, differing_keys, format_compare
 from reports.table import error_lines
 
-from .fitted import compare_fitted
+from .store.fitted import compare_fitted
 
 __all__ = ["compare_dirs"]
 

@@ -34,7 +34,7 @@ from scenarios.faults import liquid_jam_bias_mm, solid_jam_offset_mm
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
 from .config import ConfigError
-from .plant import run_actuator, run_surface
+from .plant_setup import run_actuator, run_surface
 
 #: Version of the simulated models: part of every run id, so a model change never reuses
 #: results computed with the previous model (a directory planned with another version is

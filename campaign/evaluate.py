@@ -12,7 +12,7 @@ rows with ``status="error"`` and the message (docs/design.md §9, Non-negotiable
 detector reads the signals read-only (:func:`detectors.base.read_only`, zero-copy views):
 one that writes into them fails alone, and the others see what the plant produced. This
 module does not know where chunks run (:mod:`campaign.execute`) nor where results are
-stored (:mod:`campaign.storage`).
+stored (:mod:`campaign.store.directory`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import pandas as pd
 from detectors import Detection, as_variants, detection_problems
 from detectors.base import read_only, writes_input
 from reports.metrics import RESULT_COLUMNS, estimation_errors, score_runs
-from scenarios import kernels
+from scenarios import compiled as kernels
 from scenarios.faults import estimation_range_mm
 from scenarios.signals import Signals
 from scenarios.plants import Plant
@@ -78,7 +78,7 @@ class ChunkSettings:
     required_time_s : fault type → required detection time [s] (the DTP denominator)
     window_s : detection window after onset [s] (None: the rest of the run)
     plant : what the runs are simulated on (a :class:`scenarios.plants.Plant`)
-    engine : time-loop kernels, ``"compiled"`` or ``"numpy"`` (:mod:`scenarios.kernels`)
+    engine : time-loop kernels, ``"compiled"`` or ``"numpy"`` (:mod:`scenarios.compiled`)
     """
 
     ts: float

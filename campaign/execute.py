@@ -113,7 +113,7 @@ def one_blas_thread():
 
 def _worker_init() -> None:
     """Start-up of every worker process: import the engine, load the compiled kernels."""
-    from scenarios import kernels
+    from scenarios import compiled as kernels
 
     from . import evaluate  # noqa: F401  (the imports of a chunk, done before any chunk)
 

@@ -3,7 +3,7 @@
 A detector that declares the plant surfaces whose faults it detects
 (:attr:`detectors.base.Capabilities.fault_surfaces`, e.g. ``vanek-geometric``: the left inboard
 aileron) must raise no alarm on a fault of any other surface: in a campaign whose runs fault
-another surface (the run rows' ``surface``, :func:`campaign.plant.run_surface`), its alarms
+another surface (the run rows' ``surface``, :func:`campaign.plant_setup.run_surface`), its alarms
 after onset are isolation failures, which the gate reports as such
 (:func:`reports.gate.evaluate_gate`, ``isolation``), and its missed-detection and DTP limits
 do not apply there. Fault-free runs and alarms before onset are scored as for any detector.
@@ -25,7 +25,7 @@ def isolation_of(config) -> dict[str, str]:
     nothing and is scored for detection."""
     from detectors.registry import DetectorSpecError, load_detector_class
 
-    from .plant import run_surface
+    from .plant_setup import run_surface
 
     surface = run_surface(config)
     out = {}

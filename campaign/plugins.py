@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from detectors.base import read_only
-from scenarios import kernels
+from scenarios import compiled as kernels
 from scenarios.signals import Signals
 
 #: Learning runs the sampled batch-invariance check of third-party detectors uses

@@ -8,7 +8,7 @@ whether just computed or read back: ``campaign.load(DIR) == campaign.run(config,
 The heavy parts — the result rows, the run table, the fitted detectors, the certificate —
 are read from the directory on first access, not when it is loaded; the summary and the
 metadata are read at once (a few kB). Everything is read through
-:class:`campaign.storage.CampaignDir`, after its files were checked against its manifest.
+:class:`campaign.store.directory.CampaignDir`, after its files were checked against its manifest.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from reports.metrics import FAULT_FREE
 from reports.summary import ALL_FAULTS, ALL_MANOEUVRES
 from reports.table import format_table
 
-from .storage import CampaignDir, CampaignDirError, read_metadata
+from .store.directory import CampaignDir, CampaignDirError, read_metadata
 
 __all__ = ["CERTIFICATE_ASSUMPTIONS", "Campaign", "CampaignLoadError", "Certificate",
            "Provenance", "load"]
@@ -35,7 +35,7 @@ class CampaignLoadError(CampaignDirError):
 
 
 #: What the false-alarm certificate's bounds rest on (docs/evidence.md, "What they do not
-#: mean"); the hazard table's own are :data:`campaign.hazard.ASSUMPTIONS`.
+#: mean"); the hazard table's own are :data:`campaign.evidence.hazard.ASSUMPTIONS`.
 CERTIFICATE_ASSUMPTIONS: tuple[str, ...] = (
     "the fault-free runs are independent draws of one per-run false-alarm probability (the "
     "exact Clopper–Pearson bound; with Sobol designs the bounds are approximate)",
@@ -61,15 +61,15 @@ def _same(a, b) -> bool:
 @dataclass(frozen=True, eq=False)
 class Certificate:
     """The false-alarm certificate of a campaign (``fdd-campaign certify``,
-    :func:`campaign.certify.certify`; docs/evidence.md).
+    :func:`campaign.evidence.certify.certify`; docs/evidence.md).
 
     table : ``certificate.parquet``, one row per detector
-        (:data:`campaign.certify.CERTIFICATE_COLUMNS`): counting bound, tail estimate and
+        (:data:`campaign.evidence.certify.CERTIFICATE_COLUMNS`): counting bound, tail estimate and
         bound, per-hour bounds, subset simulation when sampled
     levels : ``certificate-levels.parquet``, the exceedance curve P(margin ≥ x) at every
-        level (:func:`campaign.certify_levels.level_table`), or None
+        level (:func:`campaign.evidence.certify_levels.level_table`), or None
     hazard : ``certificate-hazard.parquet``, the hazard per flight hour of both sides
-        (:func:`campaign.hazard.hazard_table`), or None
+        (:func:`campaign.evidence.hazard.hazard_table`), or None
     level : confidence of the one-sided bounds (e.g. 0.95)
     sampling_seed : seed of the subset simulation (``certify --seed``)
     assumptions : what the bounds rest on (:data:`CERTIFICATE_ASSUMPTIONS`)
@@ -121,9 +121,9 @@ class Provenance:
         (:data:`campaign.design.MODEL_VERSION`; ``servo-1`` when a plan recorded none)
     seed : the campaign's seed (``[campaign] seed``)
     identity_sha256 : SHA-256 of the campaign's identity, the part of its configuration
-        that decides its results (:func:`campaign.storage.identity_sha256`)
+        that decides its results (:func:`campaign.store.directory.identity_sha256`)
     fitted_sha256 : SHA-256 of the fitted detectors' files
-        (:meth:`campaign.storage.CampaignDir.fitted_sha256`)
+        (:meth:`campaign.store.directory.CampaignDir.fitted_sha256`)
     fitted_from : the campaign directory the fitted detectors were taken from
         (``run --fitted-from``), or None
     fmu_sha256 : SHA-256 of an FMU plant's file, or None
@@ -236,7 +236,7 @@ class Campaign:
     @cached_property
     def fitted(self) -> dict:
         """The fitted detectors: label → Detector, rebuilt from ``fitted/`` as data
-        (:meth:`campaign.storage.CampaignDir.read_fitted`), never unpickled."""
+        (:meth:`campaign.store.directory.CampaignDir.read_fitted`), never unpickled."""
         return {d.label: self._cdir.read_fitted(d.label, d.name)
                 for d in self.config.detectors}
 
@@ -356,8 +356,8 @@ def plan_order(results: pd.DataFrame, plan: pd.DataFrame, *, by_name: bool = Fal
 
 def load(directory) -> Campaign:
     """The campaign in *directory* (``fdd-campaign run --out``) after checking its files
-    against its manifest (:meth:`campaign.storage.CampaignDir.check_manifest`,
-    :class:`campaign.storage.ManifestError`); :class:`CampaignLoadError` (exit 2) names
+    against its manifest (:meth:`campaign.store.directory.CampaignDir.check_manifest`,
+    :class:`campaign.store.directory.ManifestError`); :class:`CampaignLoadError` (exit 2) names
     what is missing and what to do: no such directory, a suite's directory (give one of its
     campaigns), no summary yet (an interrupted run: run it again), or a directory of
     another kind."""

@@ -9,7 +9,7 @@ directory skips the runs already done. A run that fails (bad row, detector excep
 recorded with ``status="error"`` and its message; it never stops the campaign, and a rerun
 retries it. Where the chunks run (threads, worker processes, a dask cluster) and how a dying
 worker or a run over its time limit ends as per-run status is :mod:`campaign.execute`; every
-file of the directory is read and written by :class:`campaign.storage.CampaignDir`.
+file of the directory is read and written by :class:`campaign.store.directory.CampaignDir`.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from detectors import make_detector, writes_input
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import SummaryAccumulator
-from scenarios import kernels
+from scenarios import compiled as kernels
 from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
@@ -43,9 +43,9 @@ from .plugins import (
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .execute import one_blas_thread
-from .plant import detector_problems, fmu_sha256, plant_of
+from .plant_setup import detector_problems, fmu_sha256, plant_of
 from .result import Campaign
-from .storage import CampaignDir, DirLock
+from .store.directory import CampaignDir, DirLock
 
 
 class CampaignSetupError(InputError, ValueError):
@@ -381,9 +381,9 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     Faults of the machinery (a worker that dies, a run over ``[runner] run_timeout_s``) end
     as per-run status rows; see :mod:`campaign.execute`. The directory left is the same
     whether the campaign runs from Python or from ``fdd-campaign run``. The run holds the
-    directory's lock (:class:`campaign.storage.DirLock`) from opening it to the summary: a
+    directory's lock (:class:`campaign.store.directory.DirLock`) from opening it to the summary: a
     second run into the same directory meanwhile is refused
-    (:class:`campaign.storage.CampaignLockedError`). BLAS runs one thread per process
+    (:class:`campaign.store.directory.CampaignLockedError`). BLAS runs one thread per process
     meanwhile (:func:`campaign.execute.one_blas_thread`).
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
@@ -428,7 +428,7 @@ def prepare(config, out, *, jobs: int = 2, chunk_size: int | None = None,
 
     Returns ``(setup, detectors)``: the started setup (its ``close()`` releases the
     directory's lock and stops the workers) and the fitted detectors, label → Detector.
-    Used by ``fdd-campaign falsify`` (:mod:`campaign.falsify`), which then evaluates runs
+    Used by ``fdd-campaign falsify`` (:mod:`campaign.evidence.falsify`), which then evaluates runs
     of its own with :func:`evaluate_rows`."""
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
@@ -502,7 +502,7 @@ class _Setup:
     backend: str
     client: object = None   # a distributed.Client, or None
     pool: object = None     # a started campaign.execute.LocalPool, or None
-    lock: object = None     # the directory's held campaign.storage.DirLock
+    lock: object = None     # the directory's held campaign.store.directory.DirLock
     run_timeout_s: float | None = None   # [runner] run_timeout_s, enforced on the pool
     fmu_sha256: str | None = None        # SHA-256 of an FMU plant's file (plant.fmu_sha256)
 
@@ -683,7 +683,7 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
     ``summary.parquet`` (its metadata also holds ``fitted_sha256``,
     :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and ``fitted_from``, the
     directory they were taken from or None, and ``fmu_sha256``, the SHA-256 of an FMU plant's
-    file, :func:`campaign.plant.replay_plant`) and, for a campaign of fixed onsets
+    file, :func:`campaign.plant_setup.replay_plant`) and, for a campaign of fixed onsets
     (:func:`reports.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
 
     No batch is kept: the summary is aggregated as the batches come

@@ -39,7 +39,7 @@ from scenarios.catalog import suggest
 
 from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
 from .config.load import SUITE_DIR, shipped_dir, shipped_names
-from .storage import CampaignDirError
+from .store.directory import CampaignDirError
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
            "load_suite", "reference_text", "suite_members", "suite_references",
@@ -220,7 +220,7 @@ def is_suite_dir(directory) -> bool:
 
 def write_suite_json(suite: Suite, out, complete: dict[str, bool]) -> Path:
     """Write ``out/suite.json`` atomically; *complete*: member name → finished."""
-    from .storage import write_text
+    from .store.directory import write_text
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -237,7 +237,7 @@ def write_suite_json(suite: Suite, out, complete: dict[str, bool]) -> Path:
 def suite_members(directory) -> list[tuple[str, Path]]:
     """(title, member directory) of a suite's output directory, in the suite's order.
 
-    Raises :class:`campaign.storage.CampaignDirError` naming the problem when ``suite.json`` is damaged or a
+    Raises :class:`campaign.store.directory.CampaignDirError` naming the problem when ``suite.json`` is damaged or a
     member directory is missing."""
     root = Path(directory)
     try:

@@ -28,12 +28,12 @@ ENTRY_POINT_GROUP = "fdd_campaign.detectors"
 
 #: Built-in detectors: name → "module:Class".
 BUILTIN: dict[str, str] = {
-    "position-monitor": "detectors.position_monitor:PositionMonitor",
-    "comb-interval": "detectors.comb_interval:IntervalDetector",
-    "chen-local": "detectors.chen_local:ChenLocalEstimator",
-    "chen-global": "detectors.chen_global:ChenGlobalEstimator",
-    "chen-global-paper": "detectors.chen_global_paper:ChenGlobalPaper",
-    "vanek-geometric": "detectors.vanek_geometric:VanekGeometric",
+    "position-monitor": "detectors.builtin.position_monitor:PositionMonitor",
+    "comb-interval": "detectors.builtin.comb_interval:IntervalDetector",
+    "chen-local": "detectors.builtin.chen_local:ChenLocalEstimator",
+    "chen-global": "detectors.builtin.chen_global:ChenGlobalEstimator",
+    "chen-global-paper": "detectors.builtin.chen_global_paper:ChenGlobalPaper",
+    "vanek-geometric": "detectors.builtin.vanek_geometric:VanekGeometric",
 }
 
 

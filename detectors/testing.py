@@ -457,7 +457,7 @@ def batch_invariance_failure(detector: Detector, signals, engine: str | None = N
     detector is not modified (it runs on copies). Used by the runner on a few learning
     runs of every third-party detector before a campaign starts, with the kernels of
     *engine* (``[runner] engine``; None: the current ones)."""
-    from scenarios import kernels
+    from scenarios import compiled as kernels
 
     det = copy.deepcopy(detector)
     signals = read_only(signals)    # shared by the detectors checked: a write raises here

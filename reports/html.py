@@ -479,7 +479,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     notes : sentences on how the figures were made (sampling rules, re-simulation checks)
     warnings : shown in a highlighted box at the top
     hazard : (table, budgets, assumptions) of ``certify``'s hazard per flight hour
-        (``certificate-hazard.parquet``, ``campaign.hazard``), shown before the runs; None:
+        (``certificate-hazard.parquet``, ``campaign.evidence.hazard``), shown before the runs; None:
         ``certify`` has not made one
     certificate : ``certificate.parquet`` of ``fdd-campaign certify`` (None: no such
         section unless it has figures)
@@ -542,7 +542,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
 def hazard_section(hazard: pd.DataFrame, budgets: Mapping[str, float],
                    assumptions: Sequence[str]) -> str:
     """``<section id="hazard">``: the hazard table *hazard* (the columns of
-    ``campaign.hazard.HAZARD_COLUMNS``, one row per detector × fault type, the undetected
+    ``campaign.evidence.hazard.HAZARD_COLUMNS``, one row per detector × fault type, the undetected
     faults of every type, the false alarms), the *budgets* (AMC 25.1309 category → rate per
     flight hour) and the *assumptions* (sentences) it rests on (docs/evidence.md)."""
     level = f"{100 * float(hazard['level'].iloc[0]):g} %" if len(hazard) else "95 %"

@@ -68,7 +68,7 @@ def read_only_view(array: np.ndarray) -> np.ndarray:
     """A view of *array* whose write flag is off (no copy): how a detector receives its
     signals (:func:`detectors.base.read_only`). numba compiles a kernel once per argument
     type, read-only arrays being a type of their own, so the kernels that read signals are
-    also warmed up on such views (:mod:`scenarios.kernels`)."""
+    also warmed up on such views (:mod:`scenarios.compiled`)."""
     view = array.view()
     view.flags.writeable = False
     return view

@@ -38,7 +38,7 @@ from .aircraft.data import AIRCRAFT_SURFACES, surface_actuator
 from .catalog import FAULTS, SURFACES
 from .faults import (FAULT_DEFAULTS, NEVER, ROD_MEASUREMENT_FAULTS, default_magnitude,
                      fault_arrays, jam_onset_position, onset_steps)
-from .kernels import integrate_compiled, resolve_engine, servo_model
+from .compiled import integrate_compiled, resolve_engine, servo_model
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, manoeuvre_sets,
                    plant_draws, run_streams, validate_runs)
@@ -157,7 +157,7 @@ def rod_measurement_fault(fault, onset_s, y_com, order_mm, plant, ts: float):
     """The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of each jam run,
     from its onset on: f = y − x, y the COM acquisition of the run, x the rod of the
     *healthy, noise-free* servo-loop driven by the same order (true plant of the run,
-    :func:`scenarios.kernels.servo_model`) — [CHEN]'s "fault-free rod sensor output"
+    :func:`scenarios.compiled.servo_model`) — [CHEN]'s "fault-free rod sensor output"
     (docs/physics.md §5). For a liquid jam f starts at the bias and fades as the loop
     re-centres the biased measurement on the order; for a solid jam f = y_jam − x follows
     the order away from the stuck measurement.
@@ -199,8 +199,8 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
 
     Returns the :class:`Signals` a detector may read and the :class:`Truth` only scoring
     sees. Raises :class:`RunSpecError` (listing every problem) before any work on bad rows.
-    *engine*: ``"compiled"`` (numba kernels, :mod:`scenarios.kernels`) or ``"numpy"`` (the
-    reference :func:`integrate`); default :func:`scenarios.kernels.current_engine`.
+    *engine*: ``"compiled"`` (numba kernels, :mod:`scenarios.compiled`) or ``"numpy"`` (the
+    reference :func:`integrate`); default :func:`scenarios.compiled.current_engine`.
     *integrator* replaces the built-in time loop (an FMU plant advances the physical plant
     with its FMU, :mod:`scenarios.fmu`); the FCC, sensors and faults stay the engine's.
     Other plants (the aircraft, an FMU) are reached through :mod:`scenarios.plants`.

@@ -1,7 +1,7 @@
 """The README's quick start runs as written (on small inputs), so it cannot rot.
 
 Every command of the README's ``## Quick start`` code block is parsed and run through the
-command line's entry point (:func:`campaign.cli.main`), in a temporary working directory,
+command line's entry point (:func:`campaign.cli.commands.main`), in a temporary working directory,
 in the block's order; each must exit 0 (``gate``: 0 or 1, its documented "exit 1 on any
 false alarm") and write the files it names. ``source .venv/bin/activate`` is checked by
 running one bare ``fdd-campaign`` from the PATH it gives.
@@ -11,7 +11,7 @@ Quick equivalents, so that the block runs in about a minute (the documented mapp
 * a long campaign → ``smoke`` (:data:`QUICK_CAMPAIGNS`); the flags stay (``--plant``,
   ``--out``, …);
 * ``--jobs N`` → ``--jobs 1`` (the campaign's results do not depend on it);
-* ``--scheduler tcp://…`` → left out (no cluster here; tests/test_dask_cluster.py);
+* ``--scheduler tcp://…`` → left out (no cluster here; tests/campaign/test_dask_cluster.py);
 * ``bench`` → ``bench`` on 8 runs of 20 s without the campaign (:data:`QUICK_BENCH`);
 * ``RUN_ID`` → the first run id of the campaign directory's plan;
 * ``results-v1/``, ``results-v2/`` (compare) → ``results/`` and ``smoke/``, two campaigns the
@@ -44,7 +44,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from campaign.cli import build_parser, main
+from campaign.cli.commands import build_parser, main
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

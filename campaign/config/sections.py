@@ -26,7 +26,7 @@ from scenarios.catalog import (
 
 from scenarios.faults import SOLID_JAM_VARIANTS
 
-from ..hazard import DEFAULT_FAULT_RATES_PER_FH
+from ..evidence.hazard import DEFAULT_FAULT_RATES_PER_FH
 
 from .keys import key, sub_table, thaw
 
@@ -385,7 +385,7 @@ class RequirementsSection:
         "hour, docs/evidence.md); entries given replace the defaults, 0 for a mode that "
         "cannot occur", tuple(sorted(DEFAULT_FAULT_RATES_PER_FH.items())), unit="1/FH",
         ge=0.0, le=1.0, choices=FAULT_TYPES, example={"runaway": 1e-6},
-        source="est. (campaign.hazard.DEFAULT_FAULT_RATES_PER_FH)")
+        source="est. (campaign.evidence.hazard.DEFAULT_FAULT_RATES_PER_FH)")
     detection_window_s: float | None = key("float", "a fault counts as detected only within "
                                            "this time after onset", unit="s", gt=0.0,
                                            le=600.0, optional=True,

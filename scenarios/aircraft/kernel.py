@@ -6,7 +6,7 @@ a block of runs in one kernel (docs/physics.md §2, §3, §7).
 surfaces of the block inside, on contiguous float64 arrays. Bit for bit the same numbers:
 
 - the same equations in the same order of floating-point operations, no ``fastmath``,
-  ``error_model="numpy"`` (as :mod:`scenarios.kernels`);
+  ``error_model="numpy"`` (as :mod:`scenarios.compiled`);
 - ``arcsin`` and ``power`` are NumPy's own inner loops, called from the kernel through the
   ufunc loop interface (``ufunc._resolve_dtypes_and_context`` / ``_get_strided_loop``,
   NEP 43): on CPUs where NumPy evaluates them with its SIMD routines they differ from the C
@@ -31,7 +31,7 @@ import os
 
 import numpy as np
 
-from ..kernels import (HAVE_NUMBA, P_HM0, P_HMD, P_IMAX, P_K, P_KA, P_KCI, P_R, P_SDP,
+from ..compiled import (HAVE_NUMBA, P_HM0, P_HMD, P_IMAX, P_K, P_KA, P_KCI, P_R, P_SDP,
                        P_SDPREF, P_XMAX, P_XMIN, clip, invalidate_stale_cache, njit, sign)
 from .lpv import IA, IB, IP, IPHI, IQ, IR, ITH
 
@@ -201,7 +201,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
     L_p, L_da, N_dr, nz_de, tas_ms); *law* the scalars (bank_max [rad], bank_gain,
     roll_bandwidth, yaw_damping, sideslip_gain, sideslip_integral, g0); *scal* (ts,
     rod_quant, r_mm of the monitored actuator, runaway order limits lo/hi [deg], d_min,
-    d_max [rad], roll limit [rad]). *flags* as :func:`scenarios.kernels.integrate_block`
+    d_max [rad], roll limit [rad]). *flags* as :func:`scenarios.compiled.integrate_block`
     (has com_add, com_osc, cur_add, cur_force, any jam, any disconnection); absent fault
     arrays may be empty. Writes the recorded series in place.
     """
@@ -461,4 +461,4 @@ def _self_check() -> bool:
 
 
 # the kernel compiles in the shared kernels and the state indices of lpv (IB, IP, …)
-invalidate_stale_cache(__name__, depends=("scenarios.kernels", "scenarios.aircraft.lpv"))
+invalidate_stale_cache(__name__, depends=("scenarios.compiled", "scenarios.aircraft.lpv"))

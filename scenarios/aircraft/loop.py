@@ -43,7 +43,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pandas as pd
 
-from .. import kernels
+from .. import compiled as kernels
 from ..acquisition import acquire, acquire_com, applied_current, quantize, sensor_draws
 from ..atmosphere import G0_MS2
 from ..atmosphere import tas_ms as tas_from_mach
@@ -225,7 +225,7 @@ class AircraftTrajectory:
 def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS,
                        engine: str | None = None) -> AircraftTrajectory:
     """The closed-loop time loop: the compiled block kernel of :mod:`.kernel` with *engine*
-    ``"compiled"`` (default: :func:`scenarios.kernels.current_engine`) where it can run bit
+    ``"compiled"`` (default: :func:`scenarios.compiled.current_engine`) where it can run bit
     for bit (:func:`.kernel.available`), else :func:`integrate_reference`."""
     if kernels.resolve_engine(engine) == "compiled" and kernel.available():
         return _integrate_compiled(p, sensors)

@@ -11,7 +11,7 @@ Each module is mutated in a scratch copy of the repository, never in the checkou
 checkout stays usable while a run goes on. A mutant's ``@njit`` kernels are compiled from
 its mutated source, never served from a stale compile cache: every test run gets a fresh
 numba cache directory (``NUMBA_CACHE_DIR``), seeded from the cache the unmutated code built
-without the mutated module's entries (:func:`seed_cache`; for ``scenarios/kernels.py``, whose
+without the mutated module's entries (:func:`seed_cache`; for ``scenarios/compiled.py``, whose
 functions and constants every other kernel compiles in, without any entry). A cache entry is
 keyed on its source file's time stamp, which a same-second rewrite of the mutated file may not
 change; dropping the entries removes that risk, and the other modules' entries stay valid
@@ -69,45 +69,45 @@ EQUIVALENT_FILE = HERE / "equivalent.toml"
 #: Module (path from the repository root) -> the test files that cover it, cheapest module
 #: first. A mutant of the module is run against these files only.
 TESTS: dict[str, tuple[str, ...]] = {
-    "reports/metrics.py": ("tests/test_metrics.py", "tests/test_decision_boundaries.py"),
-    "reports/gate.py": ("tests/test_summary_gate.py", "tests/test_decision_boundaries.py"),
-    "reports/summary.py": ("tests/test_summary_gate.py", "tests/test_decision_boundaries.py"),
-    "scenarios/faults.py": ("tests/test_fault_injection_values.py",
-                            "tests/test_run_table_properties.py"),
-    "scenarios/runs.py": ("tests/test_run_validation.py", "tests/test_run_table_properties.py",
-                          "tests/test_manoeuvre_sets.py"),
-    "campaign/design.py": ("tests/test_design_values.py", "tests/test_run_table_properties.py",
-                           "tests/test_config.py"),
-    "detectors/calibrate.py": ("tests/test_calibrate_values.py", "tests/test_calibrate.py"),
-    "detectors/position_monitor.py": ("tests/test_position_monitor_values.py",
-                                      "tests/test_position_monitor_band.py",
-                                      "tests/test_decision_boundaries.py", "tests/test_kernels.py"),
-    "scenarios/servo.py": ("tests/test_servo_values.py", "tests/test_kernel_values.py",
-                           "tests/test_servo_physics.py", "tests/test_reference_physics.py"),
-    "scenarios/kernels.py": ("tests/test_kernel_values.py", "tests/test_kernels.py",
-                             "tests/test_kernel_cache.py"),
-    "detectors/base.py": ("tests/test_detector_base_values.py", "tests/test_fit_blocks.py",
-                          "tests/test_decision_boundaries.py"),
-    "detectors/comb_interval.py": ("tests/test_comb_interval_values.py",
-                                   "tests/test_interval_detector.py"),
-    "detectors/chen_local.py": ("tests/test_chen_local_fit_values.py",
-                                "tests/test_chen_local_values.py",
-                                "tests/test_chen_estimator.py"),
-    "detectors/chen_local_model.py": ("tests/test_chen_local_model_values.py",
-                                      "tests/test_chen_local_fit_values.py",
-                                      "tests/test_chen_local_values.py",
-                                      "tests/test_chen_estimator.py"),
-    "detectors/vanek_geometric.py": ("tests/test_vanek_values.py",
-                                     "tests/test_vanek_geometric.py"),
-    "detectors/vanek_hinf.py": ("tests/test_vanek_hinf_values.py", "tests/test_vanek_values.py",
-                                "tests/test_vanek_geometric.py"),
-    "detectors/vanek_model_error.py": ("tests/test_vanek_model_error.py",
-                                       "tests/test_vanek_values.py"),
-    "detectors/chen_global.py": ("tests/test_chen_global_values.py",
-                                 "tests/test_chen_global.py"),
-    "detectors/chen_global_kernel.py": ("tests/test_chen_global_kernel_values.py",
-                                        "tests/test_chen_global_values.py",
-                                        "tests/test_chen_global.py"),
+    "reports/metrics.py": ("tests/reports/test_metrics.py", "tests/reports/test_decision_boundaries.py"),
+    "reports/gate.py": ("tests/reports/test_summary_gate.py", "tests/reports/test_decision_boundaries.py"),
+    "reports/summary.py": ("tests/reports/test_summary_gate.py", "tests/reports/test_decision_boundaries.py"),
+    "scenarios/faults.py": ("tests/scenarios/test_fault_injection_values.py",
+                            "tests/campaign/test_run_table_properties.py"),
+    "scenarios/runs.py": ("tests/scenarios/test_run_validation.py", "tests/campaign/test_run_table_properties.py",
+                          "tests/scenarios/test_manoeuvre_sets.py"),
+    "campaign/design.py": ("tests/campaign/test_design_values.py", "tests/campaign/test_run_table_properties.py",
+                           "tests/campaign/test_config.py"),
+    "detectors/calibrate.py": ("tests/detectors/test_calibrate_values.py", "tests/detectors/test_calibrate.py"),
+    "detectors/builtin/position_monitor.py": ("tests/detectors/test_position_monitor_values.py",
+                                      "tests/detectors/test_position_monitor_band.py",
+                                      "tests/reports/test_decision_boundaries.py", "tests/scenarios/test_kernels.py"),
+    "scenarios/servo.py": ("tests/scenarios/test_servo_values.py", "tests/scenarios/test_kernel_values.py",
+                           "tests/scenarios/test_servo_physics.py", "tests/scenarios/test_reference_physics.py"),
+    "scenarios/compiled.py": ("tests/scenarios/test_kernel_values.py", "tests/scenarios/test_kernels.py",
+                             "tests/scenarios/test_kernel_cache.py"),
+    "detectors/base.py": ("tests/detectors/test_detector_base_values.py", "tests/detectors/test_fit_blocks.py",
+                          "tests/reports/test_decision_boundaries.py"),
+    "detectors/builtin/comb_interval.py": ("tests/detectors/test_comb_interval_values.py",
+                                   "tests/detectors/test_interval_detector.py"),
+    "detectors/builtin/chen_local.py": ("tests/detectors/test_chen_local_fit_values.py",
+                                "tests/detectors/test_chen_local_values.py",
+                                "tests/detectors/test_chen_estimator.py"),
+    "detectors/synthesis/chen_local_model.py": ("tests/detectors/test_chen_local_model_values.py",
+                                      "tests/detectors/test_chen_local_fit_values.py",
+                                      "tests/detectors/test_chen_local_values.py",
+                                      "tests/detectors/test_chen_estimator.py"),
+    "detectors/builtin/vanek_geometric.py": ("tests/detectors/test_vanek_values.py",
+                                     "tests/detectors/test_vanek_geometric.py"),
+    "detectors/synthesis/vanek_hinf.py": ("tests/detectors/test_vanek_hinf_values.py", "tests/detectors/test_vanek_values.py",
+                                "tests/detectors/test_vanek_geometric.py"),
+    "detectors/synthesis/vanek_model_error.py": ("tests/detectors/test_vanek_model_error.py",
+                                       "tests/detectors/test_vanek_values.py"),
+    "detectors/builtin/chen_global.py": ("tests/detectors/test_chen_global_values.py",
+                                 "tests/detectors/test_chen_global.py"),
+    "detectors/builtin/chen_global_kernel.py": ("tests/detectors/test_chen_global_kernel_values.py",
+                                        "tests/detectors/test_chen_global_values.py",
+                                        "tests/detectors/test_chen_global.py"),
 }
 #: cosmic-ray operators run (see the module docstring); every other operator is skipped.
 OPERATORS: tuple[str, ...] = (
@@ -194,7 +194,7 @@ def _source_hash(module: str) -> str:
 
 #: Modules whose ``@njit`` functions or constants other modules' kernels compile in: a
 #: mutant of one of them invalidates every cache entry, not only its own.
-SHARED_KERNEL_MODULES = ("scenarios/kernels.py",)
+SHARED_KERNEL_MODULES = ("scenarios/compiled.py",)
 
 
 def seed_cache(base: Path, target: Path, module: str) -> None:

@@ -1,0 +1,209 @@
+"""The command line of the evidence beyond counting (docs/evidence.md): ``fdd-campaign
+certify`` and the ``gate --max-fa-prob`` checks. Registered by :mod:`campaign.cli.commands`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks", "format_certificate",
+           "format_hazard", "format_levels", "format_sampling"]
+
+
+def cmd_certify(args) -> int:
+    """``fdd-campaign certify DIR``: write DIR/certificate.parquet and
+    DIR/certificate-levels.parquet and print them; with ``--validate N``, run and report
+    the brute-force validation of the curve."""
+    from ..evidence.certify import CertifyError, certify
+    from .common import EXIT_INTERRUPTED
+    from ..store.directory import CampaignDir
+
+    if args.validate is not None:               # bad validation options: before any work
+        from ..evidence.certify_validate import check_validation
+        from ..config import CampaignConfig
+
+        cdir = CampaignDir(args.dir)
+        if not cdir.is_campaign():
+            raise CertifyError(f"{args.dir}: not a campaign directory (no campaign.json); give "
+                               "the --out directory of a finished 'fdd-campaign run'")
+        check_validation(CampaignConfig.from_dict(cdir.read_config()), args.validate,
+                         args.validate_seed)
+    try:
+        cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
+                       seed=args.seed, detectors=args.detector, scheduler=args.scheduler,
+                       log=lambda msg: print(msg, flush=True), max_levels=args.max_levels,
+                       levels=args.levels)
+    except KeyboardInterrupt:
+        print(f"fdd-campaign: interrupted; the sampled batches done so far are kept under "
+              f"{Path(args.dir) / 'sampling'}/: the same command goes on from them")
+        return EXIT_INTERRUPTED
+    print(format_certificate(cert.table))
+    print(format_levels(cert.levels))
+    print(format_sampling(cert.table))
+    print(format_hazard(cert.hazard))
+    print(f"certificate written to {Path(args.dir) / 'certificate.parquet'} and "
+          f"{Path(args.dir) / 'certificate-levels.parquet'}; the report shows it: "
+          f"fdd-campaign report {args.dir}")
+    if args.validate is not None:
+        from ..evidence.certify_validate import summarise, validate
+
+        try:
+            table = validate(args.dir, int(args.validate), seed=args.validate_seed,
+                             jobs=args.jobs, scheduler=args.scheduler,
+                             log=lambda msg: print(msg, flush=True))
+        except KeyboardInterrupt:
+            print(f"fdd-campaign: interrupted; the validation runs done so far are kept under "
+                  f"{args.dir}/validation/: the same command goes on from them")
+            return EXIT_INTERRUPTED
+        print(summarise(table))
+    return 0
+
+
+def _g(x) -> str:
+    return "n/a" if x != x else f"{x:.3g}"
+
+
+def format_certificate(cert) -> str:
+    """The certificate as a terminal table (probabilities per run, rates per hour). A tail
+    estimate below the limit of the runs is printed as "< limit", never as a number; a
+    detector that was not sampled shows "—" in the sampled columns."""
+    lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'CP bound':>9s} {'EVT':>10s} "
+             f"{'EVT bound':>9s} {'sampled':>9s} {'bounds':>19s} {'per hour':>9s}"]
+    for r in cert.to_dict(orient="records"):
+        sampled = (f"[{_g(r['sampling_lower95'])}, {_g(r['sampling_upper95'])}]"
+                   if r["sampling_runs"] else "—")
+        est = r["fa_prob_evt"]
+        if est != est and "limit" in str(r["evt_note"]):
+            est_text = f"<{r['fa_upper95_cp'] / 100:.2g}"
+        else:
+            est_text = _g(est)
+        lines.append(f"{r['detector']:24s} {r['n_runs']:6d} {r['fa_count']:4d} "
+                     f"{_g(r['fa_upper95_cp']):>9s} {est_text:>10s} "
+                     f"{_g(r['fa_prob_evt_upper95']):>9s} "
+                     f"{_g(r['sampling_prob']) if r['sampling_runs'] else '—':>9s} "
+                     f"{sampled:>19s} {_g(r['fa_per_hour_upper95']):>9s}")
+    level = float(cert["level"].iloc[0]) if len(cert) else 0.95
+    lines.append(f"bounds one-sided at {100 * level:g} %; per-run probabilities of a run of "
+                 f"the campaign's duration; per hour from the counting bound (Poisson "
+                 f"exposure model, docs/evidence.md); \"<x\": the tail's estimate lies below "
+                 f"the limit of the runs (two decades under the counting bound), not given; "
+                 f"\"—\": not sampled (--sampling N)")
+    return "\n".join(lines)
+
+
+def format_levels(curve) -> str:
+    """The exceedance curve as a terminal table: per detector, the bound P(margin ≥ level)
+    ≤ p_upper95 at each level (and how it was obtained)."""
+    if curve is None or curve.empty:
+        return ""
+    levels = sorted(curve["level"].unique())
+    head = f"{'P(margin ≥ level) ≤':24s} " + " ".join(f"{v:>9g}" for v in levels)
+    lines = [head]
+    tag = {"counted": "c", "mixture": "", "limit of the runs": "*", "tail": ""}
+    for name, g in curve.groupby("detector", sort=False):
+        by = g.set_index("level")
+        cells = [f"{_g(by.loc[v, 'p_upper95'])}{tag.get(by.loc[v, 'method'], '?')}"
+                 if v in by.index else "" for v in levels]
+        lines.append(f"{name:24s} " + " ".join(f"{c:>9s}" for c in cells))
+    lines.append("c: counted (exact Clopper–Pearson bound of the runs at or above the level); "
+                 "*: the limit of the runs (the tail model claims less: see the note in "
+                 "certificate-levels.parquet); unmarked: mixture of the manoeuvres' tails")
+    return "\n".join(lines)
+
+
+def fa_probability_checks(camp, limit: float) -> list:
+    """The ``gate --max-fa-prob`` checks of campaign *camp* (:class:`campaign.result.Campaign`)
+    from its certificate (:func:`reports.gate.fa_probability_checks`); a CertifyError (exit
+    2) naming the command that makes it when the directory has none."""
+    from reports.gate import fa_probability_checks as checks
+
+    from ..evidence.certify import CertifyError
+
+    if camp.certificate is None:
+        raise CertifyError(f"--max-fa-prob: {camp.root} has no certificate.parquet; make it "
+                           f"first with: fdd-campaign certify {camp.root} (add --sampling "
+                           "500 for the sampled cross-check)")
+    return checks(camp.certificate.table, limit)
+
+
+def add_evidence_parsers(subs) -> None:
+    """Sub-command ``certify``."""
+    from ..evidence.certify_levels import DEFAULT_LEVELS
+    from .common import add_command
+
+    p = add_command(subs, "certify", "per-run false-alarm probability of each detector beyond "
+            "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
+            "optionally subset simulation (resumable: its batches are kept under DIR/sampling/); "
+            "writes DIR/certificate.parquet (docs/evidence.md)",
+            "fdd-campaign certify results/ --sampling 500", cmd_certify)
+    p.add_argument("dir", help="finished campaign directory written by 'fdd-campaign run'")
+    p.add_argument("--level", type=float, default=0.95,
+                   help="confidence of the one-sided bounds (default 0.95)")
+    p.add_argument("--sampling", type=int, metavar="N",
+                   help="also estimate P(margin ≥ 1) by subset simulation with N runs per "
+                        "level (a multiple of 10, ≥ 20; e.g. 500)")
+    p.add_argument("--jobs", type=int, default=2,
+                   help="local workers simulating the sampled runs (default 2)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="simulate the sampled runs on this dask.distributed scheduler's "
+                        "workers")
+    p.add_argument("--detector", action="append", metavar="NAME",
+                   help="sample only this detector (result-row name, e.g. position-monitor; "
+                        "repeat for more; default all)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the subset simulation (default 0)")
+    p.add_argument("--max-levels", type=int, default=12, metavar="L",
+                   help="levels of the subset simulation after the first before it reports "
+                        "the highest level reached instead of margin 1 (default 12: down to "
+                        "about 1e-12 per run; raising it goes on from the stored batches)")
+    p.add_argument("--levels", default=",".join(f"{v:g}" for v in DEFAULT_LEVELS),
+                   metavar="X,Y,…",
+                   help="margins of the exceedance curve written to "
+                        "DIR/certificate-levels.parquet (1.0, the false alarm, always "
+                        "included; default %(default)s)")
+    p.add_argument("--validate", type=int, metavar="N",
+                   help="validate the curve by brute force: N fault-free runs of the "
+                        "campaign's distribution with its fitted detectors, into "
+                        "DIR/validation/ (resumable), and the coverage at every level with "
+                        "≥ 5 exceedances (e.g. 60000; about 500 runs/s on 2 idle cores)")
+    p.add_argument("--validate-seed", type=int, metavar="S",
+                   help="campaign seed of the validation runs (default: the campaign's seed "
+                        "+ 1; never the campaign's own seed, whose runs are those certified)")
+
+
+
+# ---- the subset simulations' outcome and the hazard table (docs/evidence.md) ----------------
+def format_sampling(cert) -> str:
+    """One paragraph per sampled detector: what its subset simulation estimated and its
+    chains' diagnostics (the certificate's ``sampling_note``); empty without --sampling."""
+    rows = [r for r in cert.to_dict(orient="records") if r["sampling_runs"]]
+    return "\n".join(f"{r['detector']}: {r['sampling_note']}" for r in rows)
+
+
+def format_hazard(hazard) -> str:
+    """The hazard per flight hour as a terminal table: per detector, each fault type's
+    missed detections and undetected-fault rate, their total, and the false alarms, each
+    bound set against the AMC 25.1309 budgets; then the assumptions. '' for None (no
+    hazard table)."""
+    from ..evidence.hazard import AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS
+
+    if hazard is None:
+        return ""
+
+    budgets = ", ".join(f"{k} ≤ {v:g}" for k, v in AMC_25_1309_BUDGETS_PER_FH.items())
+    level = float(hazard["level"].iloc[0]) if len(hazard) else 0.95
+    lines = [f"Hazard per flight hour (both sides; AMC 25.1309 budgets /FH: {budgets})",
+             f"{'detector':24s} {'fault':14s} {'runs':>5s} {'missed':>6s} {'P bound':>9s} "
+             f"{'rate /FH':>9s} {'per FH':>9s} {'bound /FH':>9s} {'meets':>12s} "
+             f"{'in time':>9s}"]
+    for r in hazard.to_dict(orient="records"):
+        fault = "false alarm" if r["fault"] == "none" else r["fault"]
+        lines.append(f"{r['detector']:24s} {fault:14s} {r['n_runs']:5d} {r['events']:6d} "
+                     f"{_g(r['p_run_upper95']):>9s} {_g(r['rate_per_fh']):>9s} "
+                     f"{_g(r['per_fh']):>9s} {_g(r['per_fh_upper95']):>9s} {r['meets']:>12s} "
+                     f"{_g(r['in_time_per_fh_upper95']):>9s}")
+    lines.append(f"bounds one-sided at {100 * level:g} % (fault rates as given); 'all': "
+                 "undetected faults of every type; 'meets': the most severe category whose "
+                 "budget the bound does not exceed; 'in time': the bound when a detection "
+                 "after the required time counts as undetected. Assumptions:")
+    lines.extend(f"  - {a}" for a in ASSUMPTIONS)
+    return "\n".join(lines)

@@ -1,0 +1,1 @@
+"""Evidence beyond counting (docs/evidence.md): certificate, rare events, falsification, hazard."""

@@ -1,0 +1,1 @@
+"""The campaign directory: its files, manifest, lock and fitted detectors."""

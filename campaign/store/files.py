@@ -1,0 +1,88 @@
+"""Files written atomically and read back: Parquet with the campaign metadata in its schema,
+text, SHA-256 digests, the engine version (used by :class:`campaign.store.directory.CampaignDir`, which
+alone decides which files a campaign directory holds).
+
+Every file is written under a temporary name next to its target and moved into place with
+``os.replace``, so a crash or a kill leaves either the old file or the new one, never a torn
+one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import secrets
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+__all__ = ["METADATA_KEY", "UNKNOWN_VERSION", "engine_version", "read_metadata", "sha256_of",
+           "write_parquet", "write_text"]
+
+#: Schema-metadata key of the campaign metadata in every Parquet file.
+METADATA_KEY = b"fdd_campaign"
+
+
+#: The engine version of a source tree that is not installed (no package metadata).
+UNKNOWN_VERSION = "0+unknown"
+
+
+def engine_version() -> str:
+    """The installed fdd-campaign version (:data:`UNKNOWN_VERSION` when running from a
+    source tree that is not installed)."""
+    try:
+        return version("fdd-campaign")
+    except PackageNotFoundError:
+        return UNKNOWN_VERSION
+
+
+def temporary_name(path: Path) -> Path:
+    """A fresh hidden name next to *path* (``.NAME.PID.RANDOM.tmp``), not created: the
+    writer creates it, with the mode the umask gives."""
+    return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+
+
+def atomic_write_bytes(path: Path, write) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temporary_name(path)
+    try:
+        write(str(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_parquet(df: pd.DataFrame, path: Path, config_json: str, *,
+                  row_group_rows: int | None = None, **extra) -> None:
+    """Write *df* to *path* atomically with the campaign metadata in the schema, in row
+    groups of *row_group_rows* rows (default: pyarrow's, one group up to 1 Mi rows)."""
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    meta = dict(table.schema.metadata or {})
+    meta[METADATA_KEY] = json.dumps({
+        "engine_version": engine_version(), "rows": len(df),
+        "config": json.loads(config_json), **extra,
+    }).encode()
+    table = table.replace_schema_metadata(meta)
+    atomic_write_bytes(Path(path), lambda tmp: pq.write_table(table, tmp,
+                                                              row_group_size=row_group_rows))
+
+
+def read_metadata(path: Path) -> dict:
+    """The campaign metadata stored in a Parquet file by :func:`write_parquet`."""
+    meta = pq.read_schema(path).metadata or {}
+    return json.loads(meta.get(METADATA_KEY, b"{}"))
+
+
+def write_text(path: Path, text: str) -> None:
+    atomic_write_bytes(Path(path), lambda tmp: Path(tmp).write_text(text))
+
+
+def sha256_of(path: Path) -> str:
+    """The SHA-256 digest of the file *path* (hex)."""
+    with open(path, "rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()

@@ -1,0 +1,1 @@
+"""Measurements and studies beside a campaign: bench, plant cost, studies."""

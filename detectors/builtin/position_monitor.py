@@ -1,0 +1,392 @@
+"""The industrial position monitor: the state of practice every other detector must beat.
+
+Airbus-style servo-loop monitoring (Goupil 2010/2011, [CHEN] §1) compares redundant and
+modelled views of the same position and raises an alarm when a discrepancy stays above a
+threshold for a confirmation time. Three consistency checks, each optional:
+
+``loop``
+    the COM rod acquisition against the output of a *nominal* servo-loop model driven by the
+    order u — the model of docs/physics.md §3 with the nominal actuator parameters, loaded by the
+    hinge moment at the *measured* flight point (the monitor never sees the true one). It
+    catches runaways (the rod leaves the order) and solid jams (the rod stops following it).
+    The hinge moment is the model's least known input (docs/physics.md §6: coefficient
+    mismatch, [CHEN] Table 2 aerodynamic errors, q̄ from a measured airspeed), and near the
+    stall force (docs/physics.md §8) a rod's position is very sensitive to it. So the model is
+    run at the nominal hinge moment and at ``hinge_scale`` = (low, high) times it, and the loop
+    residual is how far the rod lies *outside* the hull of the three outputs (0 inside it) — a
+    set-membership check in the manner of [COMB]'s interval bounds. With ``hinge_scale =
+    (1, 1)`` it is the plain difference to the nominal model. The models are discretised
+    with the plant's RK4 integrator at the FCC period Ts (``model_step = "rk4"``, four
+    rate-law evaluations per step, the default). ``model_step = "euler"`` runs them as a
+    flight-control computer may, one evaluation per step (:func:`euler_step`): on the
+    fault-free Monte Carlo runs the two stay within 0.04 mm of each other (0.03 mm at most,
+    in the pitch protection; tests/detectors/test_position_monitor_band.py), but the falsification
+    search finds nose-up runs where the Euler model's residual crosses the learned
+    threshold (worst margins 1.26 and 1.31 against RK4's 0.88 and 0.69, docs/execution.md),
+    so Euler is not the default.
+``com_mon``
+    COM against MON rod acquisition. A liquid jam biases the acquisition the loop closes on:
+    the loop hides it on COM but MON keeps the offset (docs/physics.md §5).
+``surface``
+    the surface sensor, converted to rod travel x = r·sin δ, against the MON rod position —
+    a disconnection leaves the rod healthy while the surface floats away. Skipped when the
+    surface has no sensor.
+
+Thresholds are learned on fault-free learning runs. By default (``threshold_method = "evt"``)
+each check's threshold is calibrated from the learning runs' per-run maxima of |r_c|, per
+manoeuvre class (:mod:`detectors.calibrate`, docs/thresholds.md), so that a fault-free run
+exceeds it with probability ≤ ``target_fa_per_run``/m, m the number of active checks (the
+checks share the detector's target: by the union bound the run's false-alarm probability is
+then ≤ ``target_fa_per_run``); ``safety`` is not applied on top, and serves only as the
+factor on the largest value when the learning set cannot support the target. With
+``threshold_method = "max"``, τ_c = ``safety`` × the largest |r_c| seen. Never below
+``floor_mm``. The normalised residual is max_c |r_c|/τ_c; the alarm is raised
+once it has been ≥ 1 for ``confirm_s`` and is then latched.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from scenarios import compiled as kernels
+from scenarios.compiled import (BAND_WORK_ROWS, BLOCK, band_plants, resolve_engine, servo_band,
+                               servo_band_step, servo_model)
+from scenarios.servo import PlantArrays, plant_arrays, rk4_step, rod_rate
+from scenarios.signals import Signals
+
+from ..base import Capabilities, Detection, Detector, confirm, per_run_maxima
+from ..calibrate import THRESHOLD_PARAMS, learned_threshold
+from ..params import Param
+
+CHECKS = ("loop", "com_mon", "surface")
+#: Discretisations of the loop check's servo models (``model_step``): one explicit Euler
+#: step per FCC period, or the plant's RK4 step.
+MODEL_STEPS = ("euler", "rk4")
+
+
+def euler_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
+    """One explicit Euler step of the rod over *h* [s] with the current *i_mA* [mA] held,
+    inside the stops: x + h·ẋ(x, i) (docs/physics.md §3, :func:`scenarios.servo.rod_rate`),
+    one rate-law evaluation — the monitor's model as the FCC runs it at its period (the
+    NumPy reference of :func:`scenarios.compiled.servo_band_step` without ``rk4``)."""
+    return np.clip(x_mm + h * rod_rate(x_mm, i_mA, p, loaded), p.x_min, p.x_max)
+
+
+#: The NumPy step of each ``model_step``.
+_STEPS = {"euler": euler_step, "rk4": rk4_step}
+
+
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _decide_block(rod_com, u, plants, ts, rk4, rod_mon, surface_mm, tau, active, n_confirm,
+                  norm_out, alarm_out):
+    """Normalised residual and confirmed alarm of a block of runs, the loop check's model band
+    integrated in the same pass, compiled (the NumPy reference is :meth:`PositionMonitor._detect`
+    with :meth:`PositionMonitor.model_band` and :func:`detectors.base.confirm`).
+
+    The band: the models of *plants* (m, rows, n; :func:`scenarios.compiled.plant_fields`, the
+    nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
+    by :func:`scenarios.compiled.servo_band_step` (docs/physics.md §2–3; RK4 with *rk4*,
+    else one Euler step per period); *ts* [s].
+    norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
+    loop, com_mon, surface; NaN propagates as in ``np.maximum``),
+    r_loop = distance of y_COM outside [band low, band high] (|y_COM − model| when the band
+    is one model), r_com_mon = y_COM − y_MON, r_surface = x_surface − y_MON [mm];
+    alarm once norm ≥ 1 for *n_confirm* consecutive steps, latched. Writes *norm_out*,
+    *alarm_out* (n, T). Runs go in blocks of :data:`scenarios.compiled.BLOCK`, steps outer
+    and the runs of the block inner (the SIMD-friendly form of the band's step); every
+    run's arithmetic is independent of the others'.
+    """
+    n, T = rod_com.shape
+    use_loop, use_cm, use_surf = active[0], active[1], active[2]
+    m = plants.shape[0] if (use_loop and T > 0) else 0
+    x = np.empty((m, n))
+    for j in range(m):
+        for r in range(n):
+            x[j, r] = rod_com[r, 0]
+    i_prev = np.zeros((m, n))
+    lo = np.empty(BLOCK)
+    hi = np.empty(BLOCK)
+    work = np.empty((BAND_WORK_ROWS, BLOCK))
+    count = np.zeros(n, dtype=np.int64)
+    latched = np.zeros(n, dtype=np.bool_)
+    for b0 in range(0, n, BLOCK):
+        b1 = min(b0 + BLOCK, n)
+        for k in range(T):
+            if m > 0:
+                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi, work, rk4)
+            for r in range(b0, b1):
+                v = 0.0
+                if use_loop:
+                    y = rod_com[r, k]
+                    above = y - hi[r - b0]
+                    below = lo[r - b0] - y
+                    if math.isnan(above) or math.isnan(below):
+                        c = math.nan                    # NaN propagates as in np.abs
+                    else:
+                        c = (above if above > 0.0 else max(0.0, below)) / tau[0]
+                    v = c if (c > v or math.isnan(c)) else v
+                if use_cm and not math.isnan(v):
+                    c = abs(rod_com[r, k] - rod_mon[r, k]) / tau[1]
+                    v = c if (c > v or math.isnan(c)) else v
+                if use_surf and not math.isnan(v):
+                    c = abs(surface_mm[r, k] - rod_mon[r, k]) / tau[2]
+                    v = c if (c > v or math.isnan(c)) else v
+                norm_out[r, k] = v
+                count[r] = count[r] + 1 if v >= 1.0 else 0
+                if count[r] >= n_confirm:
+                    latched[r] = True
+                alarm_out[r, k] = latched[r]
+
+
+def _warm_kernels() -> None:
+    """Compile (or load from the cache) the kernel of this module on tiny inputs."""
+    z2 = np.zeros((1, 2))
+    plants = np.ones((2, kernels.FIELD_ROWS, 1))
+    for rod in (z2, kernels.read_only_view(z2)):  # signals as detect reads them: read-only
+        _decide_block(rod, rod, plants, 0.01, False, rod, np.zeros((0, 0)), np.ones(3),
+                      np.array([True, True, False]), 1, np.zeros((1, 2)),
+                      np.zeros((1, 2), dtype=np.bool_))
+
+
+kernels.register_warmup(_warm_kernels, kernels=(_decide_block,))
+
+
+class PositionMonitor(Detector):
+    """Threshold-and-confirmation monitor on position discrepancies.
+
+    Parameters
+    ----------
+    safety : float
+        ``"max"`` (or an ``"evt"`` learning set too small for the target): threshold =
+        safety × largest fault-free residual of the learning set (> 1).
+    confirm_s : float
+        Confirmation time [s]: the discrepancy must persist this long (≥ 0).
+    checks : sequence of str
+        Which consistency checks run: any of ``"loop"``, ``"com_mon"``, ``"surface"``.
+    floor_mm : float
+        Smallest threshold of a check [mm] (guards against a learning set without motion).
+    threshold_method, target_fa_per_run, threshold_confidence, threshold_tail
+        How thresholds are learned: calibrated to a per-run false-alarm target per
+        manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
+        (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
+    hinge_scale : (float, float)
+        (low, high) multiples of the nominal hinge moment between which the ``loop`` check
+        accepts the rod (module docstring). Default (0.6, 1.6): the true hinge moment over the
+        model's when the documented uncertainties add up — coefficient mismatch ±20 %
+        (docs/physics.md §6, est.), aerodynamic error ±5 % and q̄ from an airspeed measured
+        within ±10 % ([CHEN] Table 2; q̄ ∝ VCAS², so the true q̄ is 0.83–1.23 times the one the
+        model uses): 0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards.
+        (1, 1): the plain nominal model.
+    model_step : str
+        Discretisation of the loop check's models: ``"rk4"`` (the plant's integrator, four
+        rate-law evaluations per model and FCC period; the default) or ``"euler"`` (one
+        evaluation, as a flight-control computer may run a model: about half the monitor's
+        cost, but a smaller fault-free margin in fast nose-up manoeuvres; docs/execution.md).
+    """
+
+    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
+
+    parameters = (
+        Param("safety", "float", gt=1.0, doc="threshold of a check = safety × its largest "
+              "fault-free residual over the learning set"),
+        Param("confirm_s", "float", ge=0.0, unit="s", doc="time the discrepancy must persist "
+              "before the alarm, which is then latched"),
+        Param("checks", "choices", choices=CHECKS, doc="consistency checks that run: loop "
+              "(COM rod vs nominal servo-loop model), com_mon (COM vs MON rod), surface "
+              "(surface sensor vs MON rod)", source="Goupil 2010/2011, [CHEN] §1"),
+        Param("floor_mm", "float", gt=0.0, unit="mm", doc="smallest threshold of a check "
+              "(guards against a learning set without motion)"),
+        *THRESHOLD_PARAMS,
+        Param("hinge_scale", "floats", gt=0.0, length=2, doc="(low, high) multiples of the "
+              "nominal hinge moment: the loop check accepts the rod anywhere between the model "
+              "outputs at these loads (1, 1: the plain nominal model)",
+              source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
+        Param("model_step", "choice", choices=MODEL_STEPS, doc="discretisation of the loop "
+              "check's servo models: rk4 (the plant's integrator, four rate-law evaluations per "
+              "model and FCC period) or euler (one evaluation; cheaper, smaller fault-free "
+              "margin in fast nose-up manoeuvres)", source="docs/physics.md §2–3"),
+    )
+
+    def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
+                 threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
+                 threshold_tail="light", hinge_scale=(0.6, 1.6), model_step="rk4"):
+        self.safety = safety
+        self.confirm_s = confirm_s
+        self.checks = checks
+        self.floor_mm = floor_mm
+        self.threshold_method = threshold_method
+        self.target_fa_per_run = target_fa_per_run
+        self.threshold_confidence = threshold_confidence
+        self.threshold_tail = threshold_tail
+        self.hinge_scale = hinge_scale
+        self.model_step = model_step
+
+    # ---- residuals ---------------------------------------------------------------------
+    def _active_checks(self, signals: Signals) -> list[str]:
+        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
+        if not signals.has_surface_sensor:
+            checks = [c for c in checks if c != "surface"]
+        return checks
+
+    @staticmethod
+    def model_plant(signals: Signals, hinge_scale: float = 1.0):
+        """Plant parameters (:class:`scenarios.servo.PlantArrays`) of the nominal servo model:
+        the nominal actuator at the measured flight point (docs/physics.md §3, §6), its hinge
+        moment (both HM(0) and ∂HM/∂δ) times *hinge_scale*."""
+        sch = signals.schedule
+        plant = plant_arrays(signals.actuator, qbar_pa=sch["qbar_pa"], alpha_deg=sch["alpha_deg"],
+                             mach=sch["mach"])
+        if hinge_scale != 1.0:
+            plant = replace(plant, hm_0=plant.hm_0 * hinge_scale,
+                            hm_delta=plant.hm_delta * hinge_scale)
+        return plant
+
+    @staticmethod
+    def model_output(signals: Signals, engine: str | None = None,
+                     hinge_scale: float = 1.0, model_step: str = "rk4") -> np.ndarray:
+        """Nominal closed-loop servo model driven by the order (docs/physics.md §2–3) [mm].
+
+        *engine*: ``"compiled"`` (:func:`scenarios.compiled.servo_model`) or ``"numpy"`` (the
+        reference loop below); default :func:`scenarios.compiled.current_engine`.
+        *hinge_scale*: the model's hinge moment (both HM(0) and ∂HM/∂δ) times this factor.
+        *model_step*: one of :data:`MODEL_STEPS` (:func:`euler_step`, or the plant's RK4 step:
+        the default of this function, which other detectors call for the expected rod; the
+        monitor passes its own ``model_step``).
+        """
+        if model_step not in MODEL_STEPS:
+            raise ValueError(f"unknown model_step {model_step!r}; choose one of "
+                             f"{', '.join(MODEL_STEPS)}")
+        plant = PositionMonitor.model_plant(signals, hinge_scale)
+        if resolve_engine(engine) == "compiled":
+            return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts,
+                               rk4=model_step == "rk4")
+        step = _STEPS[model_step]
+        n, T = signals.command.shape
+        out = np.empty((n, T))
+        x = signals.rod_com[:, 0].astype(float).copy()
+        i_prev = np.zeros(n)
+        loaded = np.ones(n, dtype=bool)
+        u = signals.command
+        for k in range(T):
+            out[:, k] = x
+            i_new = np.clip(plant.K * (u[:, k] - x), -plant.i_max, plant.i_max)
+            x = step(x, i_prev, plant, loaded, signals.ts)
+            i_prev = i_new
+        return out
+
+    def band_scales(self) -> tuple[float, ...]:
+        """The hinge-moment factors of the band's models: 1 (the nominal model) first, then
+        the other values of ``hinge_scale`` in increasing order (just (1.0,) for (1, 1))."""
+        return (1.0, *sorted({float(v) for v in self.hinge_scale} - {1.0}))
+
+    def rate_evaluations_per_step(self) -> int:
+        """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
+        one per model of the band and Euler step, four per RK4 step; none without the loop
+        check (``fdd-campaign bench``'s arithmetic floor)."""
+        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
+        if "loop" not in checks:
+            return 0
+        return len(self.band_scales()) * (4 if self.model_step == "rk4" else 1)
+
+    def model_band(self, signals: Signals,
+                   engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) [mm]: the hull of the model outputs at the nominal hinge moment and at
+        ``hinge_scale`` times it (one array twice when ``hinge_scale = (1, 1)``).
+
+        *engine*: ``"compiled"`` integrates the models in one pass
+        (:func:`scenarios.compiled.servo_band`), ``"numpy"`` is the reference (each model by
+        :meth:`model_output`, then ``np.minimum``/``np.maximum``); default
+        :func:`scenarios.compiled.current_engine`. Both give the same values.
+        """
+        scales = self.band_scales()
+        if len(scales) == 1:
+            nominal = self.model_output(signals, engine=engine, model_step=self.model_step)
+            return nominal, nominal
+        if resolve_engine(engine) == "compiled":
+            return servo_band(signals.command, signals.rod_com[:, 0],
+                              [self.model_plant(signals, v) for v in scales], signals.ts,
+                              rk4=self.model_step == "rk4")
+        outs = [self.model_output(signals, engine="numpy", hinge_scale=v,
+                                  model_step=self.model_step) for v in scales]
+        return np.minimum.reduce(outs), np.maximum.reduce(outs)
+
+    def residuals(self, signals: Signals) -> dict[str, np.ndarray]:
+        """The raw residual [mm] of each active check, shape (n_runs, n_steps); the loop
+        residual is the signed distance of the COM rod outside :meth:`model_band`."""
+        out = {}
+        checks = self._active_checks(signals)
+        if "loop" in checks:
+            lo, hi = self.model_band(signals)
+            y = signals.rod_com
+            # 0 inside the band (0·(y − hi) keeps a NaN acquisition NaN)
+            out["loop"] = np.where(y > hi, y - hi, np.where(y < lo, y - lo, 0.0 * (y - hi)))
+        if "com_mon" in checks:
+            out["com_mon"] = signals.rod_com - signals.rod_mon
+        if "surface" in checks:
+            act = signals.actuator
+            out["surface"] = act.r_mm * np.sin(np.radians(signals.surface)) - signals.rod_mon
+        return out
+
+    # ---- contract ----------------------------------------------------------------------
+    def _fit(self, signals: Signals) -> None:
+        maxima = per_run_maxima(
+            signals, lambda block: {name: np.abs(r) for name, r in self.residuals(block).items()})
+        # "evt": each check at target/m, so the run's probability is ≤ target (union bound)
+        share = float(self.target_fa_per_run) / max(len(maxima), 1)
+        self.thresholds_mm_, calibration = {}, {}
+        for name, m in maxima.items():
+            tau, calibration[name] = learned_threshold(
+                m, self.threshold_method, self.safety, share,
+                self.threshold_confidence, tail=self.threshold_tail, classes=signals.classes)
+            self.thresholds_mm_[name] = float(max(tau, self.floor_mm))
+        if self.threshold_method != "max":
+            self.calibration_ = calibration
+        self.learning_runs_ = int(signals.n_runs)
+
+    def _detect(self, signals: Signals) -> Detection:
+        checks = self._active_checks(signals)
+        missing = sorted(set(checks) - set(self.thresholds_mm_))
+        if missing:
+            raise ValueError(f"no learned threshold for check(s) {missing}: the learning set "
+                             "lacked the signals these checks need")
+        if resolve_engine(None) == "compiled":
+            return self._detect_compiled(signals, checks)
+        res = self.residuals(signals)
+        norm = np.zeros((signals.n_runs, signals.n_steps))
+        for name, r in res.items():
+            np.maximum(norm, np.abs(r) / self.thresholds_mm_[name], out=norm)
+        n_confirm = int(round(self.confirm_s / signals.ts)) + 1
+        alarm = confirm(norm >= 1.0, n_confirm)
+        return Detection(alarm=alarm, residual=norm)
+
+    def _detect_compiled(self, signals: Signals, checks: list[str]) -> Detection:
+        """:meth:`_detect` through :func:`_decide_block` (same values; no (n, T) model band,
+        residual, absolute value or confirmation counter arrays)."""
+        empty = np.zeros((0, 0))
+
+        def c(a):
+            return np.ascontiguousarray(a, dtype=float)
+
+        rod_com = c(signals.rod_com)
+        if "loop" in checks:
+            u = c(signals.command)
+            plants = band_plants([self.model_plant(signals, v) for v in self.band_scales()])
+        else:
+            u, plants = empty, np.zeros((0, kernels.FIELD_ROWS, signals.n_runs))
+        rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
+        surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
+                   if "surface" in checks else empty)
+        tau = np.array([self.thresholds_mm_.get(name, 1.0) for name in CHECKS])
+        norm = np.empty(rod_com.shape)
+        alarm = np.empty(rod_com.shape, dtype=bool)
+        n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
+        active = np.array([name in checks for name in CHECKS])
+        _decide_block(rod_com, u, plants, float(signals.ts), self.model_step == "rk4", rod_mon,
+                      surface, tau, active, n_confirm, norm, alarm)
+        return Detection(alarm=alarm, residual=norm)
+
+
+kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

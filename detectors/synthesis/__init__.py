@@ -1,0 +1,1 @@
+"""Design mathematics of the built-in detectors: filters, LPV synthesis, models."""

@@ -1,0 +1,132 @@
+"""``[runner] run_timeout_s`` is enforced or refused, never ignored: with a limit every run
+is bounded on the local workers (loky processes, one for ``--jobs 1``; the fit and the
+start-up check of a third-party detector too), and thread workers or a dask cluster, which
+cannot stop a running chunk, are refused before any work with exit 2 and the fix,
+``--quiet`` or not (docs/execution.md)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from campaign.cli.commands import main
+from campaign.config import CampaignConfig
+from campaign.design import build_learning_plan, build_plan
+from campaign.store.directory import CampaignDir
+from small_campaigns import campaign_toml, small_campaign
+
+TESTS = Path(__file__).resolve().parents[1]
+ROOT = TESTS.parent
+
+#: A guard so that a regression (a limit ignored again) fails the test instead of hanging
+#: the suite: the bounded run below takes well under a minute; the hanging detector would
+#: sleep an hour.
+HANG_GUARD_S = 600
+
+#: Run through the command line in a child process (the guard above can stop it), with the
+#: misbehaving test detector registered as a third-party detector.
+DRIVER = """
+import sys
+from detectors import registry
+registry.BUILTIN["misbehaving"] = "machinery_detectors:Misbehaving"
+registry.BUILTIN["fit-sleeps"] = "plugin_detectors:FitSleeps"
+from campaign.cli.commands import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _config(marker, *, timeout_s=2.0) -> dict:
+    return small_campaign(
+        "limit", 5150, [{"name": "misbehaving", "params": {"marker": str(marker),
+                                                          "mode": "sleep", "sleep_s": 3600.0}}],
+        free=2, pm_first=False, learning_runs=1, learning_manoeuvres=("cruise",),
+        runner={"chunk_size": 2, "run_timeout_s": timeout_s})
+
+
+def _write(tmp_path, cfg: dict) -> Path:
+    path = tmp_path / "limit.toml"
+    path.write_text(campaign_toml(cfg))
+    return path
+
+
+@pytest.fixture
+def misbehaving(monkeypatch):
+    from detectors import registry
+
+    monkeypatch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_hanging_detector_is_stopped_at_the_limit(tmp_path, misbehaving, jobs):
+    """The detector sleeps an hour on one planned run and on the learning run of the
+    start-up batch-invariance check; the limit is 2 s. The check is stopped (a note says
+    so), the run is recorded as a timeout, every other run is scored, and the command ends
+    (exit 0), on the default backend with --jobs 1 (in-process before: unbounded) and 2."""
+    marker = tmp_path / "marked.json"
+    cfg = _config(marker)
+    config = CampaignConfig.from_dict(cfg)
+    plan, learning = build_plan(config), build_learning_plan(config)
+    victim = plan["run_id"].iloc[3]
+    marker.write_text(json.dumps([victim, learning["run_id"].iloc[0]]))
+    path, out = _write(tmp_path, cfg), tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(TESTS)])}
+    done = subprocess.run(
+        [sys.executable, "-c", DRIVER, "run", str(path), "--jobs", str(jobs), "--quiet",
+         "--out", str(out)], env=env, capture_output=True, text=True, timeout=HANG_GUARD_S)
+    assert done.returncode == 0, done.stderr
+    assert "did not finish its batch-invariance check" in done.stderr
+    results = CampaignDir(out).read_results().set_index(["run_id", "detector"])
+    assert len(results) == 2 * len(plan)
+    late = results.loc[victim]
+    assert (late["status"] == "timeout").all() and "run_timeout_s" in late["error"].iloc[0]
+    assert (results.drop(index=victim, level="run_id")["status"] == "ok").all()
+
+
+def test_a_hanging_fit_is_stopped_at_the_limit(tmp_path):
+    """A third-party detector whose fit sleeps an hour, with a limit of 2 s and one learning
+    run: the fit is stopped after 2 s and the start refused (exit 2) naming it."""
+    cfg = _config(tmp_path / "none.json")
+    cfg["detector"] = [{"name": "fit-sleeps", "label": "slow"},
+                       {"name": "position-monitor", "label": "pm"}]
+    path, out = _write(tmp_path, cfg), tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(TESTS)])}
+    done = subprocess.run(
+        [sys.executable, "-c", DRIVER, "run", str(path), "--jobs", "1", "--quiet",
+         "--out", str(out)], env=env, capture_output=True, text=True, timeout=HANG_GUARD_S)
+    assert done.returncode == 2, done.stderr
+    assert "detector 'slow' (FitSleeps) failed while fitting on the learning set" in done.stderr
+    assert "fit did not finish within 2 s (run_timeout_s = 2 s for each of the 1 learning " \
+           "runs)" in done.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("options, named, fix", [
+    (["--jobs", "2", "--backend", "threading"], "--backend threading", "--backend loky"),
+    (["--jobs", "1", "--backend", "threading"], "--backend threading", "--backend loky"),
+    (["--scheduler", "tcp://127.0.0.1:9"], "--scheduler tcp://127.0.0.1:9",
+     "leave out --scheduler"),
+])
+def test_a_limit_that_cannot_hold_is_refused_before_any_work(tmp_path, misbehaving, capsys,
+                                                             options, named, fix):
+    """No marker: were the refusal gone, the campaign would just run (and this fail)."""
+    path, out = _write(tmp_path, _config(tmp_path / "none.json")), tmp_path / "out"
+    assert main(["run", str(path), "--quiet", "--out", str(out), *options]) == 2
+    err = capsys.readouterr().err
+    assert f"run_timeout_s = 2 s cannot be enforced with {named}" in err
+    assert fix in err and "nothing was run" in err
+    assert not out.exists()
+
+
+def test_run_local_refuses_a_limit_on_threads():
+    import pandas as pd
+
+    from campaign.execute import run_local
+
+    with pytest.raises(ValueError, match="cannot stop a running chunk"):
+        run_local([pd.DataFrame({"run_id": ["a"]})], lambda rows: rows, None, print, jobs=1,
+                  backend="threading", run_timeout_s=1.0)

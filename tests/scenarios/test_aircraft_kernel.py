@@ -1,0 +1,107 @@
+"""The compiled aircraft loop (scenarios/aircraft/kernel.py) against its NumPy reference
+(scenarios.aircraft.loop.integrate_reference): the same numbers, bit for bit."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios import compiled as kernels
+from scenarios.aircraft import kernel, loop
+from scenarios.simulate import single_run
+
+FAULTS = ("none", "liquid_jam", "solid_jam", "disconnection", "runaway", "hardover",
+          "ofc_liquid", "ofc_solid")
+
+needs_kernel = pytest.mark.skipif(not kernel.available(),
+                                  reason="NumPy's inner loops or BLAS not found, or "
+                                         "NUMBA_DISABLE_JIT set: the NumPy reference runs "
+                                         "instead (tested there)")
+
+
+def _batch(surface, kind, manoeuvres=("cruise", "turn_coordination")):
+    rows = [single_run(kind, man, f, duration_s=6.0, onset_s=2.0 + 0.25 * i, seed=i)
+            for i, (f, man) in enumerate((f, m) for f in FAULTS for m in manoeuvres)]
+    runs = pd.concat(rows, ignore_index=True)
+    runs["surface"] = surface
+    runs["stream"] = np.arange(len(runs))
+    runs["run_id"] = [f"a{i}" for i in range(len(runs))]
+    return runs
+
+
+@needs_kernel
+@pytest.mark.parametrize("surface, kind", [("left_inboard_aileron", "aileron"),
+                                           ("left_elevator", "elevator")])
+def test_compiled_aircraft_loop_is_bit_identical_to_the_reference(surface, kind):
+    p = loop.prepare_aircraft(_batch(surface, kind))
+    ref = loop.integrate_reference(p)
+    fast = loop.integrate_aircraft(p, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    # the batch exercises what the kernel branches on
+    assert (p.faults.k_jam < 10 ** 9).any() and (p.faults.k_disc < 10 ** 9).any()
+    assert not np.array_equal(ref.x[0], ref.x[2])
+
+
+@needs_kernel
+def test_engine_numpy_runs_the_reference_and_gives_the_same_signals():
+    runs = _batch("left_inboard_aileron", "aileron", manoeuvres=("cruise",))
+    with kernels.use_engine("numpy"):
+        sig_n, truth_n = loop.simulate_aircraft(runs)
+    sig_c, truth_c = loop.simulate_aircraft(runs)
+    for name in ("command", "current", "rod_com", "rod_mon"):
+        np.testing.assert_array_equal(getattr(sig_c, name), getattr(sig_n, name), err_msg=name)
+    for name, series in sig_n.aircraft.items():
+        np.testing.assert_array_equal(sig_c.aircraft[name], series, err_msg=name)
+    np.testing.assert_array_equal(truth_c.rod_mm, truth_n.rod_mm)
+
+
+@needs_kernel
+def test_numpy_inner_loops_called_from_the_kernel_equal_numpy():
+    rng = np.random.default_rng(3)
+    v = rng.uniform(-1.0, 1.0, 1000)
+    out = np.empty_like(v)
+    kernel._asin(kernel.LOOPS, v, out, v.size, np.zeros(8, np.int64))
+    np.testing.assert_array_equal(out, np.arcsin(v))
+    kernel._pow_scalar(kernel.LOOPS, v, np.full(1, 3.0), out, v.size, np.zeros(8, np.int64))
+    np.testing.assert_array_equal(out, v ** 3)
+
+
+def test_blocks_of_runs_give_the_batch_results(monkeypatch):
+    """A batch simulated in blocks (AircraftPlant.batch_runs) equals it simulated at once,
+    Signals and Truth alike, and simulate_signals gives simulate's signals."""
+    runs = _batch("left_inboard_aileron", "aileron", manoeuvres=("cruise",)).iloc[:7]
+    whole_sig, whole_truth = loop.simulate_aircraft(runs)
+    monkeypatch.setattr(loop.AircraftPlant, "batch_runs", 3)
+    sig, truth = loop.simulate_aircraft(runs)
+    only = loop.AircraftPlant().simulate_signals(runs)
+    for got in (sig, only):
+        for name in ("command", "current", "rod_com", "rod_mon", "surface", "pressure"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(whole_sig, name), err_msg=name)
+        for group in ("aircraft", "rods", "schedule"):
+            ref = getattr(whole_sig, group)
+            assert list(getattr(got, group)) == list(ref)
+            for k, v in ref.items():
+                np.testing.assert_array_equal(getattr(got, group)[k], v, err_msg=f"{group} {k}")
+        np.testing.assert_array_equal(got.run_ids, whole_sig.run_ids)
+    for name in ("rod_mm", "surface_deg", "current_mA", "fault", "onset_s", "magnitude",
+                 "rod_fault_mm"):
+        np.testing.assert_array_equal(getattr(truth, name), getattr(whole_truth, name),
+                                      err_msg=name)
+    for group in ("aircraft", "surfaces_deg", "flight"):
+        for k, v in getattr(whole_truth, group).items():
+            np.testing.assert_array_equal(getattr(truth, group)[k], v, err_msg=f"{group} {k}")
+    # the blocks differ in their faults: a jam in one block only, NaN elsewhere
+    assert np.isnan(truth.rod_fault_mm[0]).all() and np.isfinite(truth.rod_fault_mm[2, -1])
+
+
+def test_without_jit_the_aircraft_plant_runs_the_numpy_loop():
+    """NUMBA_DISABLE_JIT (debugging, mutation testing) leaves the compiled intrinsics without
+    an interpreted form: the plant must fall back to the NumPy loop, not crash."""
+    import subprocess
+    import sys
+
+    code = ("from scenarios.aircraft import kernel; from scenarios.aircraft.loop import "
+            "_warm_kernel; assert not kernel.available(); _warm_kernel(); print('ok')")
+    env = {**__import__("os").environ, "NUMBA_DISABLE_JIT": "1"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
