@@ -1,7 +1,8 @@
 """The architecture as rules a change cannot break silently (docs/design.md §2): imports
-flow one way with no cycle (also inside functions), no private name crosses a module, and
-every citation of the physics and design documents
-points to a section that exists in the repository."""
+flow one way with no cycle (also inside functions), no private name crosses a module, every
+citation of the physics and design documents points to a section that exists in the
+repository, the tree of docs/design.md §2 is the tree on disk, and campaign/ keeps its
+modules in subpackages."""
 
 from __future__ import annotations
 
@@ -217,3 +218,63 @@ def test_the_changelog_tells_every_model_version_and_the_current_engine():
     assert models == [f"servo-{n}" for n in range(newest, 0, -1)]
     version = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
     assert re.search(rf"^- \*\*{re.escape(version)}\*\* \(current", text, flags=re.M)
+
+
+#: At most this many modules directly in campaign/; the rest belong to its subpackages by role
+#: (docs/design.md §2): a flat package of more is the layout the subpackages replaced.
+MAX_CAMPAIGN_MODULES = 15
+
+
+def _design_tree() -> dict[str, int]:
+    """Paths of docs/design.md §2's tree (``campaign/store/lock.py``, ``campaign/store/``) ->
+    line number in the document. An entry is a line whose first word ends in ``.py`` or
+    ``/``, indented two spaces per level; other lines continue the description above."""
+    lines = (REPO / "docs" / "design.md").read_text(encoding="utf-8").splitlines()
+    start = lines.index("## 2. Layout and import direction")
+    first = lines.index("```", start) + 1
+    last = lines.index("```", first)
+    entries, stack = {}, []
+    for no in range(first, last):
+        line = lines[no]
+        word = line.split(maxsplit=1)[0] if line.strip() else ""
+        if not word.endswith((".py", "/")):
+            continue
+        indent = len(line) - len(line.lstrip(" "))
+        assert indent % 2 == 0, f"docs/design.md:{no + 1}: indent by two spaces per level"
+        depth = indent // 2
+        stack[depth:] = [word.rstrip("/")]
+        path = "/".join(stack) + ("/" if word.endswith("/") else "")
+        assert path not in entries, f"docs/design.md:{no + 1}: {path} is listed twice"
+        entries[path] = no + 1
+    return entries
+
+
+TREE = _design_tree()
+
+
+def test_the_tree_reader_sees_modules_folders_and_depth():
+    # a module three levels down, a folder, a data folder: or the checks below prove nothing
+    assert "campaign/tools/studies/vanek.py" in TREE
+    assert "detectors/builtin/" in TREE and "campaign/presets/" in TREE
+    assert len([p for p in TREE if p.endswith(".py")]) > 80
+
+
+def test_every_module_of_the_packages_is_in_the_design_tree():
+    on_disk = {str(path.relative_to(REPO)) for path in MODULES.values()
+               if path.name != "__init__.py"}
+    packages = {str(path.parent.relative_to(REPO)) + "/" for path in MODULES.values()
+                if path.name == "__init__.py"}
+    missing = sorted((on_disk | packages) - set(TREE))
+    assert missing == [], "add a line for each to docs/design.md §2"
+
+
+def test_everything_in_the_design_tree_exists():
+    gone = [f"docs/design.md:{no}: {path}" for path, no in TREE.items()
+            if not (REPO / path).exists()
+            or (path.endswith(".py") and not (REPO / path).is_file())]
+    assert gone == []
+
+
+def test_campaign_holds_few_modules_directly():
+    direct = sorted(p.name for p in (REPO / "campaign").glob("*.py") if p.name != "__init__.py")
+    assert len(direct) <= MAX_CAMPAIGN_MODULES, direct
