@@ -14,7 +14,7 @@ Same equations, same order of floating-point operations as the NumPy reference
 sums and contract multiply–adds), ``error_model="numpy"`` (a division by zero gives ±inf or
 NaN as in NumPy instead of raising, and costs no check per division), ``x ** 3`` written as ``x ** 3.0`` so that both call the
 C library ``pow``, and the stops and saturations as ``min(max(·))`` like ``np.clip``. The
-tests check compiled against NumPy bit for bit (tests/scenarios/test_kernels.py).
+tests check compiled against NumPy bit for bit (tests/scenarios_tests/test_kernels.py).
 
 Engine selection
 ----------------

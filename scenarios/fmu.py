@@ -533,7 +533,7 @@ def integrate_fmu(p, sensors: SensorParams = SENSORS, spec: FmuPlant | None = No
     The FCC side of the loop is the one of :func:`scenarios.simulate.acquire_com` and
     :func:`scenarios.simulate.applied_current`, written on Python floats for one run (the
     numpy versions cost ~60 µs per step on length-1 arrays); the operations and their order
-    are the same, so both back ends round alike (checked in tests/scenarios/test_fmu.py).
+    are the same, so both back ends round alike (checked in tests/scenarios_tests/test_fmu.py).
     """
     if spec is None:
         raise ValueError("integrate_fmu needs an FmuPlant (which FMU to run)")

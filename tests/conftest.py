@@ -30,7 +30,7 @@ def libm_numpy(monkeypatch):
 
 
 # ---------------------------------------------------------------------------------------
-# FMUs (tests/scenarios/test_fmu.py, tests/scenarios/test_fmu_bad.py)
+# FMUs (tests/scenarios_tests/test_fmu.py, tests/scenarios_tests/test_fmu_bad.py)
 # ---------------------------------------------------------------------------------------
 @pytest.fixture(scope="session")
 def servo_fmu(tmp_path_factory):

@@ -1,5 +1,5 @@
 """Third-party detectors that break the contract in one way each, to test what the engine
-does with them (tests/campaign/test_plugin_contract.py). Registered per test through
+does with them (tests/campaign_tests/test_plugin_contract.py). Registered per test through
 ``detectors.registry.BUILTIN`` with their ``module:Class`` text; their module lives outside
 the ``detectors`` package, so the runner treats them as third-party detectors."""
 
@@ -90,7 +90,7 @@ class ScheduleMargin(_Quiet):
     *limit_kt* at every sample (measured VCAS = VCAS·(1 + d_vcas), docs/physics.md §4),
     alarm where it is ≥ 1; so a fault-free run alarms exactly when
     VCAS·(1 + d_vcas) ≥ *limit_kt*, a probability known in closed form over the campaign's
-    envelope box (tests/campaign/test_certify.py)."""
+    envelope box (tests/campaign_tests/test_certify.py)."""
 
     def __init__(self, limit_kt=300.0):
         self.limit_kt = limit_kt

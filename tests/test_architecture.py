@@ -278,3 +278,12 @@ def test_everything_in_the_design_tree_exists():
 def test_campaign_holds_few_modules_directly():
     direct = sorted(p.name for p in (REPO / "campaign").glob("*.py") if p.name != "__init__.py")
     assert len(direct) <= MAX_CAMPAIGN_MODULES, direct
+
+
+def test_no_test_folder_is_named_like_a_package():
+    # pytest puts tests/ on sys.path (for conftest.py), and so do the dask tests' workers: a
+    # folder tests/campaign/ would then be imported as a namespace package `campaign` by any
+    # process that finds the project through its editable install (plain `pytest`, a dask
+    # worker), shadowing the real one
+    folders = {p.name for p in (REPO / "tests").iterdir() if p.is_dir()}
+    assert not folders & set(PACKAGES)

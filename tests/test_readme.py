@@ -11,7 +11,7 @@ Quick equivalents, so that the block runs in about a minute (the documented mapp
 * a long campaign → ``smoke`` (:data:`QUICK_CAMPAIGNS`); the flags stay (``--plant``,
   ``--out``, …);
 * ``--jobs N`` → ``--jobs 1`` (the campaign's results do not depend on it);
-* ``--scheduler tcp://…`` → left out (no cluster here; tests/campaign/test_dask_cluster.py);
+* ``--scheduler tcp://…`` → left out (no cluster here; tests/campaign_tests/test_dask_cluster.py);
 * ``bench`` → ``bench`` on 8 runs of 20 s without the campaign (:data:`QUICK_BENCH`);
 * ``RUN_ID`` → the first run id of the campaign directory's plan;
 * ``results-v1/``, ``results-v2/`` (compare) → ``results/`` and ``smoke/``, two campaigns the

@@ -20,7 +20,7 @@ threshold for a confirmation time. Three consistency checks, each optional:
     rate-law evaluations per step, the default). ``model_step = "euler"`` runs them as a
     flight-control computer may, one evaluation per step (:func:`euler_step`): on the
     fault-free Monte Carlo runs the two stay within 0.04 mm of each other (0.03 mm at most,
-    in the pitch protection; tests/detectors/test_position_monitor_band.py), but the falsification
+    in the pitch protection; tests/detectors_tests/test_position_monitor_band.py), but the falsification
     search finds nose-up runs where the Euler model's residual crosses the learned
     threshold (worst margins 1.26 and 1.31 against RK4's 0.88 and 0.69, docs/execution.md),
     so Euler is not the default.

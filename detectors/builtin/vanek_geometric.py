@@ -18,7 +18,7 @@ directions ([VANEK] §5: "successive input directions from the B matrix"):
   ``decouple_gusts``, the gust sideslip's direction e_β and, with ``aoa_sensor``, the gust
   angle of attack's e_α (the β and α outputs are the air-relative angles of the vanes:
   :func:`gust_sideslip_direction`, :func:`gust_aoa_direction`). With α (C = I), S* is the
-  span of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/detectors/test_geometric.py).
+  span of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/detectors_tests/test_geometric.py).
   Without α, e_α is decoupled only by the unison model, whose S* holds the
   short-period directions;
   on the aircraft's layout S* (dimension 3) does not hold it, and it cannot be added: S*

@@ -125,7 +125,7 @@ def test_chen_run_alone_equals_the_same_run_in_a_block(batch, chen):
 def test_position_monitor_decision_is_bit_identical_to_numpy(batch, checks, libm_numpy):
     # |r|/τ, the maximum over the checks and the confirmation counter: the same operations
     # as the NumPy path; its nominal model agrees bit for bit with the same arcsin
-    # (tests/scenarios/test_kernels.py)
+    # (tests/scenarios_tests/test_kernels.py)
     learn, ev = batch
     with kernels.use_engine("numpy"):
         det = make_detector("position-monitor", {"checks": list(checks)}).fit(learn)

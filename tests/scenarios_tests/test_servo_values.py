@@ -1,7 +1,7 @@
 """The per-run plant parameters and the authority limits of scenarios/servo.py by value
 (docs/physics.md §3 and §6), against hand computations and a plain-Python scan of the
 deflection grid. The rate law, RK4 step and floating surface of the same module are pinned
-in tests/scenarios/test_kernel_values.py together with their compiled kernels."""
+in tests/scenarios_tests/test_kernel_values.py together with their compiled kernels."""
 
 from __future__ import annotations
 

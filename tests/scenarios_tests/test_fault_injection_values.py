@@ -314,7 +314,7 @@ def test_disconnected_rod_is_unloaded(engine):
     _, free = _run("none", engine, order_deg=order, alt_ft=10000.0, vcas_kt=330.0)
     assert np.diff(free.rod_mm[0, 122:130]).max() > -0.94
     # and the surface no longer follows the rod: it floats (checked in detail in
-    # tests/scenarios/test_reference_physics.py)
+    # tests/scenarios_tests/test_reference_physics.py)
     assert abs(truth.surface_deg[0, -1] - math.degrees(math.asin(x[-1] / 120.0))) > 5.0
 
 
