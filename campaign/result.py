@@ -336,18 +336,12 @@ def _same_fitted(a: CampaignDir, b: CampaignDir, config) -> bool:
     return a.fitted_sha256(labels) == b.fitted_sha256(labels)
 
 
-def plan_order(results: pd.DataFrame, plan: pd.DataFrame, *, by_name: bool = False
-               ) -> pd.DataFrame:
+def plan_order(results: pd.DataFrame, plan: pd.DataFrame) -> pd.DataFrame:
     """*results* sorted by their runs' order in *plan*, index reset. Within a run the rows
-    keep their stored order (the detectors in the order they were evaluated), or, with
-    *by_name*, are sorted by detector name (the order the summary is computed in)."""
+    keep their stored order (the detectors in the order they were evaluated)."""
     if results.empty:
         return results
     order = pd.Series(np.arange(len(plan)), index=plan["run_id"].to_numpy())
-    if by_name:
-        return (results.assign(_o=results["run_id"].map(order))
-                .sort_values(["_o", "detector"], kind="stable")
-                .drop(columns="_o").reset_index(drop=True))
     position = results["run_id"].map(order).to_numpy(dtype=float)
     if np.all(position[1:] >= position[:-1]):      # in order already (one copy saved)
         return results.reset_index(drop=True)

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from scenarios.catalog import suggest
-from scenarios.declare import BOUND_SIGNS, Declared, toml_value
+from scenarios.declare import BOUND_SIGNS, Declared, is_real, toml_value
 
 #: What a parameter value may be (``Param.kind``):
 #:
@@ -220,13 +220,13 @@ class Param(Declared):
                 return f"{_what(value)}, not an integer"
             return self._bound_problem(value, values, valid)
         if kind == "float":
-            if _is_real(value):
+            if is_real(value):
                 return self._bound_problem(value, values, valid)
             if isinstance(value, numbers.Real) and not isinstance(value, bool):
                 return "not finite"
             return f"{_what(value)}, not a number"
         # floats
-        if self.scalar and _is_real(value):
+        if self.scalar and is_real(value):
             items = [value]
         elif isinstance(value, (list, tuple)):
             items = list(value)
@@ -236,7 +236,7 @@ class Param(Declared):
             return f"{len(items)} value{'s' if len(items) != 1 else ''}, not {self.length}"
         if not items:
             return "an empty list"
-        wrong = [v for v in items if not _is_real(v)]
+        wrong = [v for v in items if not is_real(v)]
         if wrong:
             return f"{_seq(wrong)} not finite number{'s' if len(wrong) > 1 else ''}"
         out = [v for v in items if self._bound_problem(v, values, valid) is not None]
@@ -378,10 +378,6 @@ def parameter_markdown(detectors: Mapping[str, type]) -> str:
 # ---------------------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------------------
-def _is_real(v) -> bool:
-    """A finite real number that is not a bool (NumPy scalars included; NumPy bools are
-    not ``numbers.Real``)."""
-    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _is_int(v) -> bool:

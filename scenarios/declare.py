@@ -129,7 +129,7 @@ class Declared:
         for kw, bound in self.bounds().items():
             if isinstance(bound, str):
                 other = (values or {}).get(bound)
-                if not _is_real(other):
+                if not is_real(other):
                     continue
                 bound = other
             if not _holds(kw, x, bound):
@@ -168,7 +168,9 @@ def _holds(kw: str, x: float, bound: float) -> bool:
     return x <= bound
 
 
-def _is_real(v) -> bool:
+def is_real(v) -> bool:
+    """A finite real number that is not a bool (NumPy scalars included; NumPy bools are
+    not ``numbers.Real``)."""
     return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
 
 

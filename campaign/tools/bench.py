@@ -115,7 +115,8 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
               "--chunk-size": (chunk_size, "runs per chunk", 275),
               "--reference-runs": (reference_runs, "runs timed with the solve_ivp reference", 2),
               "--plant-runs": (plant_runs, "runs timed on the FMU plant", 40),
-              "--stage-runs": (stage_runs, "runs timed stage by stage", 200)}
+              "--stage-runs": (stage_runs, "runs timed stage by stage", 200),
+              "--pairs": (pairs, "rounds of the yardstick and the campaign", 3)}
     problems = [f"{option} {value}: must be an integer ≥ 1 ({what}); fix: e.g. {option} {eg}"
                 for option, (value, what, eg) in counts.items()
                 if isinstance(value, bool) or int(value) != value or value < 1]
@@ -620,10 +621,8 @@ def print_floor(floor: dict, whole: dict | None = None, echo=print) -> None:
 # ---- back to back with a yardstick -------------------------------------------------------------
 def _yardstick_command(yardstick: str | None, cwd: str | None, pairs: int,
                        campaigns: list[str]) -> list[str] | None:
-    """The yardstick's argument list, checked before any work (UsageError naming the fix)."""
-    if isinstance(pairs, bool) or int(pairs) != pairs or pairs < 1:
-        raise UsageError(f"--pairs {pairs}: must be an integer ≥ 1 (rounds of the yardstick "
-                         "and the campaign); fix: e.g. --pairs 3")
+    """The yardstick's argument list, checked before any work (UsageError naming the fix;
+    *pairs* is checked with the other counts by :func:`bench`)."""
     if yardstick is None:
         if cwd is not None:
             raise UsageError("--yardstick-dir without --yardstick: name the command to time, "

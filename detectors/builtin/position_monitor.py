@@ -225,8 +225,12 @@ class PositionMonitor(Detector):
         self.model_step = model_step
 
     # ---- residuals ---------------------------------------------------------------------
+    def _checks(self) -> list[str]:
+        """The ``checks`` parameter as a list (a single name is accepted)."""
+        return [self.checks] if isinstance(self.checks, str) else list(self.checks)
+
     def _active_checks(self, signals: Signals) -> list[str]:
-        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
+        checks = self._checks()
         if not signals.has_surface_sensor:
             checks = [c for c in checks if c != "surface"]
         return checks
@@ -286,8 +290,7 @@ class PositionMonitor(Detector):
         """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
         one per model of the band and Euler step, four per RK4 step; none without the loop
         check (``fdd-campaign bench``'s arithmetic floor)."""
-        checks = [self.checks] if isinstance(self.checks, str) else list(self.checks)
-        if "loop" not in checks:
+        if "loop" not in self._checks():
             return 0
         return len(self.band_scales()) * (4 if self.model_step == "rk4" else 1)
 

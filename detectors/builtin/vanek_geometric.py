@@ -706,10 +706,13 @@ class VanekGeometric(Detector):
             ref[:, :, n_u + outputs.index("alpha")] = ref[:, :, n_u + outputs.index("theta")]
         return v - ref
 
-    def estimates(self, signals: Signals) -> dict[str, np.ndarray]:
+    def estimates(self, signals: Signals, v: np.ndarray | None = None
+                  ) -> dict[str, np.ndarray]:
         """r̂ [deg] of each variant, shape (n_runs, n_steps): the reconstructed departure of
-        the left inboard aileron from its expected deflection (module docstring)."""
-        v = self.filter_inputs(signals, self._reads_alpha())
+        the left inboard aileron from its expected deflection (module docstring); *v*: the
+        filter's inputs when already computed (:meth:`filter_inputs`)."""
+        if v is None:
+            v = self.filter_inputs(signals, self._reads_alpha())
         n, T, _ = v.shape
         out = {}
         for variant in self._variant_list():
@@ -738,16 +741,18 @@ class VanekGeometric(Detector):
 
     # ---- model-error allowance (detectors/synthesis/vanek_model_error.py) ------------------------
     @staticmethod
-    def model_error_signals(signals: Signals) -> np.ndarray:
+    def model_error_signals(signals: Signals, v: np.ndarray | None = None) -> np.ndarray:
         """s = [x̃; u] of every run and step, shape (n_runs, n_steps, 15) [rad, rad/s]: the
         measured states in the order of :data:`scenarios.aircraft.lpv.STATES` (as
         :meth:`filter_inputs` reads them, α included), then the seven surfaces' deflections
         from their COM rods (every surface, the monitored one as it moves) relative to their
-        first sample, then the spoilers' equivalent angle."""
+        first sample, then the spoilers' equivalent angle. *v*: :meth:`filter_inputs` with
+        α, when already computed."""
         from scenarios.aircraft.data import LAYOUT
         from scenarios.aircraft.loop import AIRCRAFT_ACTUATORS
 
-        v = VanekGeometric.filter_inputs(signals, aoa_sensor=True)
+        if v is None:
+            v = VanekGeometric.filter_inputs(signals, aoa_sensor=True)
         x = v[:, :, v.shape[2] - len(OUTPUTS):]
         cols = []
         for j, name in enumerate(LAYOUT.names):
@@ -760,32 +765,29 @@ class VanekGeometric(Detector):
     def _error_matrices(self, variant: str, point: dict, mach=None, qbar_pa=None) -> np.ndarray:
         """:func:`detectors.synthesis.vanek_model_error.error_matrices` of *variant*'s filter for a run
         measured at *point* (keywords ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct``; the
-        measured Mach and q̄ the ``lpv`` filter is designed at, when given) (cached): about
-        the model the filter was designed on, the measured point's (``lpv``) or
-        :data:`NOMINAL`'s (``lti``)."""
+        measured Mach and q̄ the ``lpv`` filter is designed at, when given): about the model
+        the filter was designed on, the measured point's (``lpv``) or :data:`NOMINAL`'s
+        (``lti``). Not cached: every run has its own measured point, so a cache would only
+        grow with the runs."""
         from ..synthesis import vanek_model_error as me
 
-        cache = self.__dict__.setdefault("_cache", {})
         layout = self._layout()
-        key = (("errors", variant, layout) + tuple(round(float(point[k]), 6) for k in sorted(point))
-               + tuple(None if x is None else round(float(x), 6) for x in (mach, qbar_pa)))
-        if key not in cache:
-            at = (_point(**point, mach=mach, qbar_pa=qbar_pa) if variant == "lpv" else
-                  _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t, NOMINAL.cg_pct))
-            cache[key] = me.error_matrices(
-                lambda pt, aero: _model_at(pt, aero, layout), point, _model(at, layout))
-        return cache[key]
+        at = (_point(**point, mach=mach, qbar_pa=qbar_pa) if variant == "lpv" else
+              _point(NOMINAL.vcas_kt, NOMINAL.alt_ft, NOMINAL.mass_t, NOMINAL.cg_pct))
+        return me.error_matrices(lambda pt, aero: _model_at(pt, aero, layout), point,
+                                 _model(at, layout))
 
-    def allowances(self, signals: Signals) -> dict[str, np.ndarray]:
+    def allowances(self, signals: Signals, v: np.ndarray | None = None
+                   ) -> dict[str, np.ndarray]:
         """b(t) [deg] of each bounded variant (``lti``, ``lpv``), shape (n_runs, n_steps):
         the bound the Table-2 errors put on the part of r̂ the model error produces
         (:mod:`detectors.synthesis.vanek_model_error`); empty when the thresholds are constant
-        (:meth:`_bounded`)."""
+        (:meth:`_bounded`); *v*: :meth:`filter_inputs` with α, when already computed."""
         from ..synthesis import vanek_model_error as me
 
         if not self._bounded():
             return {}
-        s = self.model_error_signals(signals)
+        s = self.model_error_signals(signals, v)
         sched = signals.schedule
         out = {}
         for variant in [v for v in self._variant_list() if v in VARIANTS]:
@@ -801,12 +803,21 @@ class VanekGeometric(Detector):
             out[variant] = np.degrees(b)
         return out
 
+    def _estimates_and_allowances(self, signals: Signals) -> tuple[dict, dict]:
+        """:meth:`estimates` and :meth:`allowances` from one computation of the filter's
+        inputs (the monitored rod's servo model among them): with the allowance, both read
+        α (:meth:`_bounded`)."""
+        if not self._bounded():
+            return self.estimates(signals), {}
+        v = self.filter_inputs(signals, aoa_sensor=True)
+        return self.estimates(signals, v), self.allowances(signals, v)
+
     # ---- contract ----------------------------------------------------------------------
     def _fit(self, signals: Signals) -> None:
         self.design_model_ = str(self.design_model)     # the model the thresholds belong to
         self.aoa_sensor_ = bool(self.aoa_sensor)        # and the outputs
         self.adaptive_ = bool(self.adaptive) and self.aoa_sensor_   # and the allowance
-        est, bounds = self.estimates(signals), self.allowances(signals)
+        est, bounds = self._estimates_and_allowances(signals)
         # each variant is scored on its own, so each is calibrated at the full target; with
         # the allowance, on the per-run maximum of |r̂| − b(t) (τ0 of τ0 + b(t))
         self.thresholds_deg_, calibration = {}, {}
@@ -826,7 +837,7 @@ class VanekGeometric(Detector):
         self.learning_runs_ = int(signals.n_runs)
 
     def _detect(self, signals: Signals) -> dict[str, Detection]:
-        est, bounds = self.estimates(signals), self.allowances(signals)
+        est, bounds = self._estimates_and_allowances(signals)
         n_confirm = int(round(self.confirm_s / signals.ts)) + 1
         out = {}
         for k, r in est.items():

@@ -481,7 +481,7 @@ def test_affine_variant_residual_at_each_runs_schedule():
 # ---- fit and decision ------------------------------------------------------------------------
 def _stubbed(det, residuals):
     """*det* whose estimates are the given r̂ [deg] (the decision and the fit on their own)."""
-    det.estimates = lambda signals: {k: np.asarray(r, float) for k, r in residuals.items()}
+    det.estimates = lambda signals, v=None: {k: np.asarray(r, float) for k, r in residuals.items()}
     return det
 
 
@@ -505,7 +505,7 @@ def test_adaptive_threshold_is_tau0_plus_the_allowance():
     b = {"lti": np.array([[0.0, 0.6, 0.1], [0.0, 0.1, 0.0]])}
     det = _stubbed(_fitted_max(variants=("lti", "lpv-affine"), safety=1.7, aoa_sensor=True),
                    r)
-    det.allowances = lambda signals: b
+    det.allowances = lambda signals, v=None: b
     det.fit(sig)
     # lti: largest |r̂| − b per run 0.1 (run 0: 0.1, 0.1, 0.1) and 0.3 → τ0 = 1.7 × 0.3
     assert det.adaptive_ is True
