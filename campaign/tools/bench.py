@@ -193,8 +193,8 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
                                echo=echo, step=step)
         if floor:
             step(f"counting the rate-law evaluations of {name} and timing one")
-            whole["floor"] = arithmetic_floor(name, jobs)
-            print_floor(whole["floor"], whole, echo)
+            whole["floor"] = floor_ratios(arithmetic_floor(name, jobs), whole)
+            print_floor(whole["floor"], echo)
         if yard_cmd is not None:
             whole["yardstick"] = yardstick_pairs(name, jobs, yard_cmd, yardstick_dir, pairs,
                                                  echo=echo, step=step)
@@ -598,9 +598,20 @@ def arithmetic_floor(campaign: str, jobs: int, cost_s: float | None = None,
             "jobs": jobs, "cpu_s": cpu, "wall_s": imports_s + cpu / max(jobs, 1)}
 
 
-def print_floor(floor: dict, whole: dict | None = None, echo=print) -> None:
-    """The lines of :func:`arithmetic_floor`, and the campaign's ratios to it when *whole*
-    (:func:`bench_campaign`'s figures) holds its warm run."""
+def floor_ratios(floor: dict, whole: dict) -> dict:
+    """*floor* (:func:`arithmetic_floor`) with the campaign's wall and CPU times and its ratios
+    to the floor (``ratio_wall``, ``ratio_cpu``) when *whole* (:func:`bench_campaign`'s figures) holds its warm run."""
+    if "wall_s_campaign" not in whole:
+        return floor
+    wall, cpu = whole["wall_s_campaign"], whole["cpu_s_campaign"]
+    return {**floor, "campaign_wall_s": wall, "campaign_cpu_s": cpu,
+            "ratio_wall": wall / floor["wall_s"],
+            "ratio_cpu": cpu / (floor["cpu_s"] + floor["imports_s"])}
+
+
+def print_floor(floor: dict, echo=print) -> None:
+    """The lines of :func:`arithmetic_floor`, and the ratios of :func:`floor_ratios` when
+    it has them."""
     name = floor["campaign"]
     parts = ", ".join(f"{k} {v:.3g}" for k, v in floor["parts"].items())
     echo(f"  {name} arithmetic floor: {floor['evaluations']:.3g} rate-law evaluations "
@@ -609,13 +620,11 @@ def print_floor(floor: dict, whole: dict | None = None, echo=print) -> None:
          f"{floor['jobs']} worker(s)")
     if floor["uncounted"]:
         echo(f"    (not counted, no declared rate-law count: {', '.join(floor['uncounted'])})")
-    if whole and "wall_s_campaign" in whole:
-        wall, cpu = whole["wall_s_campaign"], whole["cpu_s_campaign"]
-        floor["ratio_wall"] = wall / floor["wall_s"]
-        floor["ratio_cpu"] = cpu / (floor["cpu_s"] + floor["imports_s"])
+    if "ratio_wall" in floor:
+        floor_cpu = floor["cpu_s"] + floor["imports_s"]
         echo(f"  {name} / floor       : {floor['ratio_wall']:.2f} x in wall time "
-             f"({wall:.2f} s), {floor['ratio_cpu']:.2f} x in CPU time ({cpu:.2f} s against "
-             f"{floor['cpu_s'] + floor['imports_s']:.2f} s)")
+             f"({floor['campaign_wall_s']:.2f} s), {floor['ratio_cpu']:.2f} x in CPU time "
+             f"({floor['campaign_cpu_s']:.2f} s against {floor_cpu:.2f} s)")
 
 
 # ---- back to back with a yardstick -------------------------------------------------------------

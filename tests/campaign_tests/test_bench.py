@@ -10,7 +10,7 @@ import pytest
 
 from campaign.tools import bench as bench_module
 from campaign.tools.bench import (RUN_IMPORTS, arithmetic_floor, bench_runs, import_seconds,
-                            print_floor, print_stages, rate_evaluations, stage_costs,
+                            floor_ratios, print_floor, print_stages, rate_evaluations, stage_costs,
                             yardstick_pairs)
 from campaign.cli.commands import main
 from campaign.config import load_config
@@ -172,8 +172,11 @@ def test_floor_is_evaluations_times_cost_spread_over_the_workers_after_the_impor
     assert floor["cpu_s"] == pytest.approx(n * 10e-9, rel=1e-12)
     assert floor["wall_s"] == pytest.approx(1.5 + n * 10e-9 / 2, rel=1e-12)
     lines = []
-    print_floor(floor, {"wall_s_campaign": 2 * floor["wall_s"], "cpu_s_campaign": 3.0},
-                echo=lines.append)
+    print_floor(floor, echo=lines.append)
+    assert len(lines) == 1                            # no campaign run: no ratio line
+    floor = floor_ratios(floor, {"wall_s_campaign": 2 * floor["wall_s"], "cpu_s_campaign": 3.0})
+    lines = []
+    print_floor(floor, echo=lines.append)
     assert floor["ratio_wall"] == pytest.approx(2.0, rel=1e-12)
     assert floor["ratio_cpu"] == pytest.approx(3.0 / (floor["cpu_s"] + 1.5), rel=1e-12)
     assert len(lines) == 2 and "10.0 ns" in lines[0] and "2.00 x in wall time" in lines[1]
