@@ -840,18 +840,11 @@ class CampaignDir:
         return done
 
     def runs_done(self) -> int:
-        """How many runs of the plan have every result row ``ok`` (:meth:`done_mask`)."""
-        if not self.shard_paths() or not self.has_plan():
-            return len(self.done_run_ids())
-        return int(self.done_mask(self.read_plan(["run_id"])["run_id"].to_numpy()).sum())
-
-    def done_run_ids(self) -> set[str]:
-        """Runs whose every result row has status ``ok`` (errors are retried on resume)."""
+        """How many runs of the plan have every result row ``ok`` (:meth:`done_mask`; errors
+        are retried on resume)."""
         if not self.shard_paths():
-            return set()
+            return 0
         if not self.has_plan():      # results without a plan: read them whole
             df = self.read_results()
-            bad = set(df.loc[df["status"] != "ok", "run_id"])
-            return set(df["run_id"]) - bad
-        ids = pq.read_table(self.plan_path, columns=["run_id"]).column(0).to_pylist()
-        return {rid for rid, done in zip(ids, self.done_mask(ids)) if done}
+            return len(set(df["run_id"]) - set(df.loc[df["status"] != "ok", "run_id"]))
+        return int(self.done_mask(self.read_plan(["run_id"])["run_id"].to_numpy()).sum())
