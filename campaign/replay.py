@@ -296,11 +296,8 @@ def runs_table(camp: Campaign) -> pd.DataFrame:
 def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
     """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
     (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
-    m = camp.meta
-    coverage = (None if m.get("runs_planned") is None
-                else (int(m.get("runs_done") or 0), int(m["runs_planned"])))
-    return requirements_gate(camp.summary, camp.results, req,
-                             isolation=isolation_of(camp.config), coverage=coverage,
+    return requirements_gate(camp.summary, camp.gate_results, req,
+                             isolation=isolation_of(camp.config), coverage=camp.coverage,
                              all_requirements=all_requirements)
 
 

@@ -270,6 +270,13 @@ class Campaign:
         return None if planned is None else int(planned)
 
     @property
+    def coverage(self) -> tuple[int, int] | None:
+        """(runs done, runs planned) as the gate checks them; None when the directory does
+        not record its planned runs."""
+        planned = self.runs_planned
+        return None if planned is None else (self.runs_done, planned)
+
+    @property
     def detector_names(self) -> list[str]:
         """The result-row names of the detectors (variants apart), in the summary's order."""
         return list(dict.fromkeys(self.summary["detector"].astype(str))) \

@@ -262,10 +262,9 @@ def _gate_one(directory, args):
         # the campaign file's MD and DTP limits with --all-requirements (as the report)
         limits[key] = given if given is not None else (
             limits.get(key) if args.all_requirements else None)
-    coverage = (None if camp.runs_planned is None else (camp.runs_done, camp.runs_planned))
     result = requirements_gate(camp.summary, camp.gate_results, limits, all_requirements=True,
                                isolation=isolation_of_stored(meta.get("config")),
-                               coverage=coverage, allow_errors=args.allow_errors,
+                               coverage=camp.coverage, allow_errors=args.allow_errors,
                                allow_incomplete=args.allow_incomplete)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .evidence import fa_probability_checks
@@ -332,7 +331,7 @@ def _report_one(args) -> None:
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
     print(f"campaign {camp.name or '?'!r}: "
-          f"{camp.meta.get('runs_done')} of {camp.meta.get('runs_planned')} runs")
+          f"{camp.runs_done} of {camp.runs_planned} runs")
     print(camp.table())
     for line in error_lines(camp.gate_results):       # its failed runs
         print(f"runs not scored: {line}")

@@ -67,7 +67,7 @@ def gate_of(config, result, *, all_requirements: bool = False):
     return requirements_gate(result.summary, result.gate_results,
                              config.to_dict()["requirements"],
                              isolation=isolation_of(config),
-                             coverage=(result.runs_done, result.runs_planned),
+                             coverage=result.coverage,
                              all_requirements=all_requirements)
 
 
