@@ -376,6 +376,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     try:
         records: list[pd.DataFrame] = []
         state = {"done": 0, "errors": 0}
+        worst = float("nan")
         bar = Progress(budget, enabled=progress, log=log)
         while batch := strategy.ask():
             phase = strategy.phase
@@ -389,8 +390,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                                        generation=strategy.generation, phase=phase))
             state["done"] += len(rows)
             strategy.tell(batch, margin)
-            worst = max((float(np.nanmax(r["margin"])) for r in records
-                         if np.isfinite(r["margin"]).any()), default=float("nan"))
+            if np.isfinite(margin).any():          # the running worst, not all records again
+                worst = np.fmax(worst, float(np.nanmax(margin)))
             bar.label = f"{phase} (batch {len(records)}): "
             bar.update(len(rows), note=f", worst margin so far {worst:.4g}")
         search = pd.concat(records, ignore_index=True)

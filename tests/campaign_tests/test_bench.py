@@ -226,7 +226,7 @@ def test_the_timed_rate_law_is_the_rate_law():
     np.testing.assert_allclose(out, want, rtol=1e-12, atol=0.0)
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim")
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="malloc_trim is a glibc (Linux) function; elsewhere nothing is trimmed to check")
 def test_returning_freed_memory_starts_no_child_process(monkeypatch):
     """The bench's peak sums the resident memory of the campaign's process tree: a child
     forked from the campaign (ctypes.util.find_library runs ldconfig) would show the
