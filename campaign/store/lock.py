@@ -10,6 +10,7 @@ import json
 import os
 import socket
 import sys
+import time
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -17,6 +18,8 @@ from scenarios.errors import InputError
 
 #: The lock file, in the campaign directory.
 LOCK_NAME = ".fdd-campaign.lock"
+#: How long a refused run waits for a new holder to write its name: 20 × 50 ms.
+HOLDER_WAIT_TRIES, HOLDER_WAIT_S = 20, 0.05
 
 
 class CampaignLockedError(InputError, ValueError):
@@ -68,11 +71,21 @@ class DirLock:
     def _parse(data: bytes) -> dict | None:
         if not data.strip():
             return None
-        try:
-            info = json.loads(data)
+        try:    # the first object: a holder rewriting the file may leave an older tail
+            info, _ = json.JSONDecoder().raw_decode(data.decode().lstrip())
         except (json.JSONDecodeError, UnicodeDecodeError):
             return {"pid": "?", "host": "?", "started": "? (unreadable lock file)"}
         return info if isinstance(info, dict) else {}
+
+    def _read_holder(self, fd: int) -> dict | None:
+        """The holder named in the locked file *fd*. A holder that has just taken the lock
+        writes its name a moment later: an empty file is read again for up to a second."""
+        for _ in range(HOLDER_WAIT_TRIES):
+            holder = self._parse(os.pread(fd, 65536, 0))
+            if holder is not None:
+                return holder
+            time.sleep(HOLDER_WAIT_S)
+        return None
 
     def _refuse(self, holder: dict | None) -> CampaignLockedError:
         return CampaignLockedError(
@@ -100,7 +113,7 @@ class DirLock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
-                holder = self._parse(os.pread(fd, 65536, 0))
+                holder = self._read_holder(fd)
                 os.close(fd)
                 raise self._refuse(holder) from None
             try:                               # the previous holder may have removed it
@@ -111,8 +124,9 @@ class DirLock:
                 os.close(fd)
                 continue
             self._stale_note(self._parse(os.pread(fd, 65536, 0)), log)
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, json.dumps(self._me()).encode(), 0)
+            me = json.dumps(self._me()).encode()
+            os.pwrite(fd, me, 0)               # never empty while held: written, then cut
+            os.ftruncate(fd, len(me))
             self.fd = fd
             return self
         raise CampaignLockedError(f"cannot take the lock {self.path}: it keeps being replaced")

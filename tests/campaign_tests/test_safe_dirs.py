@@ -574,6 +574,36 @@ def test_the_lock_of_a_killed_run_is_taken_over_with_a_note(tmp_path, capsys, mo
     assert main(["verify", str(out)]) == 0
 
 
+def test_a_run_refused_in_the_instant_the_holder_names_itself_still_names_the_holder(tmp_path):
+    """The holder takes the flock first and writes its name a moment later: a run refused in
+    between waits for the name instead of reporting ``pid ?`` (seen once in CI)."""
+    import fcntl
+    import threading
+
+    lock = tmp_path / "o" / LOCK_NAME
+    lock.parent.mkdir()
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)     # held, file still empty
+    holder = {"pid": 424242, "host": "elsewhere", "started": "2026-01-01T00:00:00+00:00"}
+    timer = threading.Timer(0.3, lambda: os.pwrite(fd, json.dumps(holder).encode(), 0))
+    timer.start()
+    try:
+        with pytest.raises(CampaignLockedError,
+                           match="pid 424242 on host elsewhere, started 2026-01-01"):
+            DirLock(lock).acquire()
+    finally:
+        timer.join()
+        os.close(fd)
+
+
+def test_a_lock_file_being_rewritten_names_its_new_holder():
+    """A holder writes its name over the previous one, then cuts the file: read in between,
+    the first JSON object is the new holder's."""
+    old = json.dumps({"pid": 1, "host": "h", "started": "a long time ago, before the new one"})
+    new = json.dumps({"pid": 2, "host": "h", "started": "now"})
+    assert DirLock._parse((new + old[len(new):]).encode())["pid"] == 2
+
+
 def test_a_failed_setup_releases_the_lock(tmp_path):
     out = tmp_path / "o"
     out.mkdir()
