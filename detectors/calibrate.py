@@ -87,7 +87,8 @@ THRESHOLD_PARAMS: tuple[Param, ...] = (
     Param("threshold_tail", "choice", choices=TAIL_KINDS,
           doc="evt: the tail fit's shape: free (ξ in [-0.5, 1]), light (ξ ≤ 0: exponential or "
           "lighter, as a maximum of sensor noise and bounded draws is), auto (light unless a "
-          "likelihood-ratio test rejects it; docs/thresholds.md)"),
+          "likelihood-ratio test rejects it), exponential (ξ = 0: the Gumbel domain's tail, "
+          "no end point; docs/thresholds.md)"),
 )
 
 
@@ -200,7 +201,7 @@ def calibrate_threshold(values, target_fa_per_run: float, confidence: float = 0.
         target (``method = "max-factor"``, ``supported = False``).
     tail : str
         Shape range of the tail fit, one of :data:`detectors.tail.TAIL_KINDS` (``"free"``,
-        ``"light"``, ``"auto"``; :func:`detectors.tail.fit_tail`).
+        ``"light"``, ``"auto"``, ``"exponential"``; :func:`detectors.tail.fit_tail`).
 
     Returns
     -------
@@ -329,7 +330,7 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
         q = fit.quantile(p, c)
     except TailFitError as exc:
         return str(exc)
-    edges = SHAPE_RANGE if fit.tail == "free" else (SHAPE_RANGE[0],)
+    edges = {"free": SHAPE_RANGE, "exponential": ()}.get(fit.tail, (SHAPE_RANGE[0],))
     at_bound = " (ξ at the edge of its range)" if q.shape in edges else ""
     if fit.tail == "free" and fit.light_rejected:
         at_bound += "; light tail (ξ ≤ 0) rejected by the likelihood-ratio test, free shape"
@@ -338,6 +339,11 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
                      "it for this sample: check it with fdd-campaign certify")
     elif fit.tail == "light":
         at_bound += "; light tail (ξ ≤ 0), not rejected by the likelihood-ratio test"
+    elif fit.tail == "exponential" and fit.light_rejected:
+        at_bound += ("; exponential tail assumed (ξ = 0) although the likelihood-ratio test "
+                     "rejects ξ ≤ 0 for this sample: check it with fdd-campaign certify")
+    elif fit.tail == "exponential":
+        at_bound += "; exponential tail (ξ = 0); ξ ≤ 0 not rejected by the likelihood-ratio test"
     return Calibration(
         threshold=q.upper, method="gpd", supported=True, k=k, u=fit.u, shape=q.shape,
         scale=q.scale, estimate=q.estimate, gof_pvalue=q.gof_pvalue,

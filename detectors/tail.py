@@ -50,7 +50,7 @@ import numpy as np
 
 from reports.metrics import upper_bound
 
-__all__ = ["CURVE_SHAPES", "Exceedance", "LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES",
+__all__ = ["CURVE_SHAPES", "EXPONENTIAL_SHAPES", "Exceedance", "LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES",
            "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_KINDS",
            "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError",
@@ -76,9 +76,12 @@ LIGHT_SHAPES = SHAPES[SHAPES <= 0.0]
 #: prefers is pre-asymptotic: it puts an end point where brute force finds runs beyond
 #: (docs/evidence.md, "Choosing the method"). ξ = 0 is the lightest tail the bound allows.
 CURVE_SHAPES = SHAPES[SHAPES >= 0.0]
+#: ``tail = "exponential"``: ξ = 0, the Gumbel domain's tail, the lightest with no end point.
+EXPONENTIAL_SHAPES = SHAPES[SHAPES == 0.0]
 #: What :func:`fit_tail` may assume of the tail: ``"free"`` (ξ in :data:`SHAPE_RANGE`),
-#: ``"light"`` (ξ ≤ 0), ``"auto"`` (light unless a likelihood-ratio test rejects ξ ≤ 0).
-TAIL_KINDS = ("free", "light", "auto")
+#: ``"light"`` (ξ ≤ 0), ``"auto"`` (light unless a likelihood-ratio test rejects ξ ≤ 0),
+#: ``"exponential"`` (ξ = 0).
+TAIL_KINDS = ("free", "light", "auto", "exponential")
 
 
 class TailFitError(ValueError):
@@ -215,7 +218,14 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
         1 − *confidence* (2·Δ log-likelihood > z²_confidence, the one-sided boundary test of
         Self & Liang 1987), in which case the free fit is used (:attr:`TailFit.tail` says
         which). With ``"light"`` and ``"auto"``, :attr:`TailFit.light_rejected` says whether
-        the test rejected ξ ≤ 0 (``"light"`` keeps it and reports it).
+        the test rejected ξ ≤ 0 (``"light"`` keeps it and reports it). ``"exponential"``,
+        ξ = 0: the tail of the Gumbel domain itself, with no end point. The ξ < 0 that a
+        light fit of a few tens of exceedances prefers is pre-asymptotic for a maximum of
+        Gaussian noise (its tail approaches the exponential from below) and puts an end point
+        where brute force finds runs beyond (docs/thresholds.md, "Which tail"); ξ = 0 is
+        conservative for every tail in the light domain and, like "light", wrong for a heavy
+        one (ξ > 0): the likelihood-ratio test of ξ ≤ 0 is run and reported
+        (:attr:`TailFit.light_rejected`).
     confidence : float
         ``"auto"``: the test's confidence (default 0.95).
     shapes : array_like, optional
@@ -253,8 +263,10 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
     a = math.e                                    # any quantile: the maximum is the MLE
     fits = {}
     free = SHAPES if shapes is None else np.asarray(shapes, float)
-    for kind, shapes in (("free", free), ("light", LIGHT_SHAPES)):
-        if tail == "free" and kind == "light":
+    for kind, shapes in (("free", free), ("light", LIGHT_SHAPES),
+                         ("exponential", EXPONENTIAL_SHAPES)):
+        if (tail == "free" and kind != "free") or (tail != "exponential"
+                                                   and kind == "exponential"):
             continue
         ll, t_hat, _, _ = _profile_maximum(y, a, shapes)
         fits[kind] = (ll, t_hat, float(_profile(y, a, t_hat, shapes)[1][0]), shapes)
@@ -296,8 +308,8 @@ class TailFit:
     largest: float
     unit: float = field(repr=False)                 # mean excess: the working unit
     excesses: np.ndarray = field(repr=False)        # the k excesses over u, in units of unit
-    tail: str = "free"                              # the shape range fitted: "free", "light"
-    light_rejected: bool | None = None              # light/auto: whether ξ ≤ 0 was rejected
+    tail: str = "free"                              # the shape range fitted (TAIL_KINDS)
+    light_rejected: bool | None = None              # not free: whether ξ ≤ 0 was rejected
     shapes: np.ndarray = field(repr=False, default_factory=lambda: SHAPES)  # its ξ grid
 
     # ---- quantiles ---------------------------------------------------------------------
