@@ -342,7 +342,7 @@ class ChenGlobalEstimator(Detector):
                  filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=True,
                  adaptive=True,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light"):
+                 threshold_tail="exponential"):
         self.h_perturbation = h_perturbation
         self.h_output = h_output
         self.h_rate_weight = h_rate_weight

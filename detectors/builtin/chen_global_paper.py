@@ -36,7 +36,7 @@ class ChenGlobalPaper(ChenGlobalEstimator):
                  filter_s=0.5, schedule_margin=0.25, floor_deg=0.2, gust_channel=False,
                  adaptive=False,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light"):
+                 threshold_tail="exponential"):
         super().__init__(h_perturbation=h_perturbation, h_output=h_output,
                          h_rate_weight=h_rate_weight, uncertainty=uncertainty, safety=safety,
                          confirm_s=confirm_s, filter_s=filter_s,

@@ -285,7 +285,7 @@ class ChenLocalEstimator(Detector):
                  floor_mm=0.05, post_filter_zero_rad_s=POST_FILTER.zero_rad_s,
                  post_filter_pole_rad_s=POST_FILTER.pole_rad_s, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light"):
+                 threshold_tail="exponential"):
         self.sensor = sensor
         self.safety = safety
         self.liquid_confirm_s = liquid_confirm_s

@@ -463,7 +463,7 @@ class IntervalDetector(Detector):
                  h_radius=0.0, q_max=300, x0_radius_mm=0.5, sensor="rod_com",
                  use_power_law=False, floor_mm=1e-4, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light"):
+                 threshold_tail="exponential"):
         self.poles = poles
         self.safety = safety
         self.kappa = kappa

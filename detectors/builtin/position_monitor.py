@@ -212,7 +212,7 @@ class PositionMonitor(Detector):
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light", hinge_scale=(0.6, 1.6), model_step="rk4"):
+                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="rk4"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks

@@ -534,7 +534,7 @@ class VanekGeometric(Detector):
     def __init__(self, safety=1.5, confirm_s=0.05, decay=0.5, radius=20.0, decouple_gusts=True,
                  smoothing_s=2.0, variants=VARIANTS, threshold_method="evt",
                  target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="light", design_model="aircraft", aoa_sensor=True,
+                 threshold_tail="exponential", design_model="aircraft", aoa_sensor=True,
                  adaptive=True):
         self.safety = safety
         self.confirm_s = confirm_s

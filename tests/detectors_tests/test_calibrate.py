@@ -191,7 +191,7 @@ def test_builtin_detectors_declare_the_threshold_parameters(name):
     params = det.get_params()
     assert params["threshold_method"] == "evt"
     assert params["target_fa_per_run"] == 1e-4 and params["threshold_confidence"] == 0.95
-    assert params["threshold_tail"] == "light"
+    assert params["threshold_tail"] == "exponential"
     for bad in ({"threshold_method": "gpd"}, {"target_fa_per_run": 0.5},
                 {"threshold_confidence": 0.3}, {"threshold_tail": "heavy"}):
         with pytest.raises(ValueError):

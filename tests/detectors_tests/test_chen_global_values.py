@@ -445,7 +445,7 @@ def test_the_documented_defaults_and_parameter_limits():
     assert (det.safety, det.schedule_margin, det.gust_channel, det.adaptive) == \
         (1.5, 0.25, True, True)
     assert (det.threshold_method, det.target_fa_per_run, det.threshold_confidence,
-            det.threshold_tail) == ("evt", 1e-4, 0.95, "light")
+            det.threshold_tail) == ("evt", 1e-4, 0.95, "exponential")
     det.validate_params()
     ChenGlobalEstimator(confirm_s=0.0, filter_s=0.0, schedule_margin=0.0, safety=1.01,
                         floor_deg=1e-3, h_perturbation=1e-3).validate_params()

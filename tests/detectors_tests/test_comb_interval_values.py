@@ -461,4 +461,4 @@ def test_defaults_are_the_documented_ones():
         "poles": (0.6, 0.8, 0.9, 0.95, 0.99), "safety": 1.2, "kappa": (0.02, 0.02, 0.06),
         "h_radius": 0.0, "q_max": 300, "x0_radius_mm": 0.5, "sensor": "rod_com",
         "use_power_law": False, "floor_mm": 1e-4, "threshold_method": "evt",
-        "target_fa_per_run": 1e-4, "threshold_confidence": 0.95, "threshold_tail": "light"}
+        "target_fa_per_run": 1e-4, "threshold_confidence": 0.95, "threshold_tail": "exponential"}

@@ -391,5 +391,5 @@ def test_defaults_are_the_documented_ones():
     assert PositionMonitor().get_params() == {
         "safety": 1.5, "confirm_s": 0.05, "checks": ("loop", "com_mon", "surface"),
         "floor_mm": 0.05, "threshold_method": "evt", "target_fa_per_run": 1e-4,
-        "threshold_confidence": 0.95, "threshold_tail": "light", "hinge_scale": (0.6, 1.6),
+        "threshold_confidence": 0.95, "threshold_tail": "exponential", "hinge_scale": (0.6, 1.6),
         "model_step": "rk4"}

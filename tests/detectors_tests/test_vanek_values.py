@@ -195,7 +195,7 @@ def test_documented_constants_and_defaults():
         "safety": 1.5, "confirm_s": 0.05, "decay": 0.5, "radius": 20.0,
         "decouple_gusts": True, "smoothing_s": 2.0, "variants": ("lti", "lpv"),
         "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
-        "threshold_tail": "light", "design_model": "aircraft", "aoa_sensor": True,
+        "threshold_tail": "exponential", "design_model": "aircraft", "aoa_sensor": True,
         "adaptive": True}
     assert vg.design_outputs() == NO_AOA_OUTPUTS and vg.design_outputs(True) == OUTPUTS
     assert vg.DESIGN_MODELS == ("aircraft", "unison")
