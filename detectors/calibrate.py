@@ -343,7 +343,8 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
         at_bound += ("; exponential tail assumed (ξ = 0) although the likelihood-ratio test "
                      "rejects ξ ≤ 0 for this sample: check it with fdd-campaign certify")
     elif fit.tail == "exponential":
-        at_bound += "; exponential tail (ξ = 0); ξ ≤ 0 not rejected by the likelihood-ratio test"
+        at_bound += ("; exponential tail (ξ = 0); ξ ≤ 0 not rejected by the likelihood-ratio "
+                     "test")
     return Calibration(
         threshold=q.upper, method="gpd", supported=True, k=k, u=fit.u, shape=q.shape,
         scale=q.scale, estimate=q.estimate, gof_pvalue=q.gof_pvalue,

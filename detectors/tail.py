@@ -50,8 +50,8 @@ import numpy as np
 
 from reports.metrics import upper_bound
 
-__all__ = ["CURVE_SHAPES", "EXPONENTIAL_SHAPES", "Exceedance", "LIGHT_SHAPES", "MIN_DISTINCT_EXCESSES",
-           "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
+__all__ = ["CURVE_SHAPES", "EXPONENTIAL_SHAPES", "Exceedance", "LIGHT_SHAPES",
+           "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",
            "SHAPE_RANGE", "TAIL_KINDS",
            "TAIL_FRACTION", "TailEstimate", "TailFit", "TailFitError",
            "exceedance_curve", "fit_tail", "tail_size"]
@@ -263,10 +263,11 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
     a = math.e                                    # any quantile: the maximum is the MLE
     fits = {}
     free = SHAPES if shapes is None else np.asarray(shapes, float)
+    # the fit asked for, and the free and light fits the test of ξ ≤ 0 compares
+    needed = {"free"} if tail == "free" else {"free", "light", tail}
     for kind, shapes in (("free", free), ("light", LIGHT_SHAPES),
                          ("exponential", EXPONENTIAL_SHAPES)):
-        if (tail == "free" and kind != "free") or (tail != "exponential"
-                                                   and kind == "exponential"):
+        if kind not in needed:
             continue
         ll, t_hat, _, _ = _profile_maximum(y, a, shapes)
         fits[kind] = (ll, t_hat, float(_profile(y, a, t_hat, shapes)[1][0]), shapes)

@@ -239,9 +239,9 @@ def test_exponential_tail_covers_gaussian_maxima_where_the_light_fit_does_not():
     """docs/thresholds.md, "Which tail": 100 learning sets of n = 50 maxima of 100 normals
     (one class of a preset's learning set), p = 1e-4, c = 0.95. The light fit's ξ < 0 puts
     an end point under the true quantile: measured 25/100 misses here (48/200 on other
-    draws); the exponential tail (ξ = 0) 1/100 (0/200). Bounds: light ≥ 12 is 2.6 binomial standard deviations
-    (√(100·0.24·0.76) ≈ 4.3) below its measured 24/100; exponential ≤ 10 is the nominal
-    5 % plus 2.2 standard deviations (√(100·0.05·0.95) ≈ 2.2). Seeded."""
+    draws); the exponential tail (ξ = 0) 1/100 (0/200). Bounds: light ≥ 12 is 2.8 binomial
+    standard deviations (√(100·0.24·0.76) ≈ 4.3) below 24/100; exponential ≤ 10 is the
+    nominal 5 % plus 2.3 standard deviations (√(100·0.05·0.95) ≈ 2.2). Seeded."""
     rng = np.random.default_rng(4711)
     sets = [_gauss_maxima(rng, 50) for _ in range(100)]
 
