@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -94,8 +95,8 @@ def one_blas_thread():
     threadpoolctl (restored on leaving), and the variables are set to 1 meanwhile, so that
     the worker processes started inside (loky) load their BLAS with one thread. Nested use
     changes nothing. Used by :func:`campaign.runner.run` (hence ``campaign.run``), the
-    falsification search, the certificate and every ``fdd-campaign`` command; the workers
-    of a dask cluster are the cluster's own processes, configured by whoever starts them.
+    falsification search, the certificate and every ``fdd-campaign`` command; on the workers
+    of a dask cluster each chunk runs under :func:`one_blas_thread_on_worker`.
     """
     if any(variable in os.environ for variable in BLAS_THREAD_VARIABLES):
         yield                       # the user's choice, or an enclosing one_blas_thread
@@ -109,6 +110,64 @@ def one_blas_thread():
     finally:
         for variable in BLAS_THREAD_VARIABLES:
             os.environ.pop(variable, None)
+
+
+class _SharedBlasLimit:
+    """BLAS limited to one thread while at least one holder is inside :meth:`held`: the
+    first holder applies the limit (threadpoolctl, for the whole process), the last one to
+    leave restores the limits found. For the threads of one process that run chunks at the
+    same time (a dask worker with ``--nthreads`` above 1), where each applying and
+    restoring its own limit would lift it under the others."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._holders = 0
+        self._limiter = None
+
+    @contextmanager
+    def held(self):
+        with self._lock:
+            if self._holders == 0:
+                from threadpoolctl import threadpool_limits
+
+                self._limiter = threadpool_limits(limits=1, user_api="blas")
+            self._holders += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._holders -= 1
+                if self._holders == 0:
+                    self._limiter.restore_original_limits()
+                    self._limiter = None
+
+
+_WORKER_BLAS = _SharedBlasLimit()
+
+
+@contextmanager
+def one_blas_thread_on_worker():
+    """BLAS at one thread while a chunk runs on a dask worker, for the reason of
+    :func:`one_blas_thread`, unless the worker's environment sets a thread count
+    (:data:`BLAS_THREAD_VARIABLES`; dask's nanny sets them to 1 in the worker processes it
+    starts, ``distributed.nanny.pre-spawn-environ``). A worker started without a nanny
+    (``dask worker --no-nanny``, or a worker inside another program) has BLAS's default, a
+    thread per core, and spent twice the CPU time on the aircraft plant's matrix
+    exponentials (docs/execution.md). The environment is left alone (its variables are the
+    process's, shared by the worker's threads and whatever else it runs), and the limits
+    found are restored when the last chunk running in the process ends."""
+    if any(variable in os.environ for variable in BLAS_THREAD_VARIABLES):
+        yield
+        return
+    with _WORKER_BLAS.held():
+        yield
+
+
+def run_chunk_on_worker(chunk_fn, rows, detectors, settings):
+    """The task of a chunk on a dask worker: ``chunk_fn(rows, detectors, settings)`` with
+    BLAS at one thread (:func:`one_blas_thread_on_worker`)."""
+    with one_blas_thread_on_worker():
+        return chunk_fn(rows, detectors, settings)
 
 
 def _worker_init() -> None:
@@ -476,7 +535,8 @@ CLUSTER_CHUNKS_PER_THREAD = 2
 
 def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_result,
                    log=print) -> dict:
-    """Run *chunks* as dask futures, ``chunk_fn(rows, detectors, settings)`` each, handing
+    """Run *chunks* as dask futures, ``chunk_fn(rows, detectors, settings)`` each (with BLAS
+    at one thread on the worker, :func:`run_chunk_on_worker`), handing
     results to *on_result* as they complete (``as_completed``). At most
     :data:`CLUSTER_CHUNKS_PER_THREAD` chunks per worker thread (at least 4) are submitted
     at a time; each finished chunk lets the next one in."""
@@ -497,7 +557,8 @@ def run_on_cluster(client, chunks, chunk_fn, detectors, settings, fail, on_resul
         rows = next(pending, None)
         if rows is None:
             return None
-        fut = client.submit(chunk_fn, rows, det_future, settings, pure=False)
+        fut = client.submit(run_chunk_on_worker, chunk_fn, rows, det_future, settings,
+                            pure=False)
         futures[fut] = rows
         return fut
 

@@ -94,3 +94,81 @@ def test_campaign_run_from_python_runs_one_blas_thread(no_exported_count, monkey
     with pytest.raises(_Seen):
         campaign.run(load_config("smoke"), tmp_path / "out", jobs=1, progress=False)
     assert seen == [{1}]
+
+
+
+#: The start of a fresh interpreter in the state of a dask worker: its main thread never set
+#: a BLAS count (it runs the worker's event loop) and chunks run in other threads. OpenBLAS
+#: ignores a count set from another thread once the main thread has set one, so these
+#: checks cannot run in the test process, whose main thread other tests limit.
+WORKER = """
+import threading
+import numpy
+from threadpoolctl import threadpool_info, threadpool_limits
+from campaign.execute import run_chunk_on_worker
+
+def count(*_):
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+def start(target, *args):
+    thread = threading.Thread(target=target, args=args)
+    thread.start()
+    return thread
+
+def chunk(fn, seen, name, done=None):
+    seen[name] = run_chunk_on_worker(fn, None, None, None)
+    if done is not None:
+        done.set()
+"""
+
+
+def test_a_chunk_on_a_dask_worker_runs_one_blas_thread_and_the_worker_is_restored():
+    """The task of a chunk on a dask worker (``run_chunk_on_worker``) limits BLAS itself: a
+    worker without dask's nanny has BLAS's own count (here raised to 3, so that the check
+    holds on a one-core machine too), restored after the chunk."""
+    code = WORKER + """
+start(threadpool_limits, 3, "blas").join()
+seen = {}
+start(chunk, count, seen, "chunk").join()
+print(seen["chunk"], count())
+"""
+    assert probe(clean_env(), code) == "[1] [3]"
+
+
+def test_chunks_running_at_once_in_one_worker_keep_the_limit_until_the_last_ends():
+    """Two chunks in two threads of one worker process (``--nthreads 2``): the first to end
+    must not lift the limit under the other; the last restores the count found."""
+    code = WORKER + """
+first_in, second_in, first_out = threading.Event(), threading.Event(), threading.Event()
+
+def first(*_):
+    first_in.set()
+    assert second_in.wait(10)
+    return count()
+
+def second(*_):
+    second_in.set()
+    assert first_out.wait(10)
+    return count()                       # the first chunk has ended by now
+
+start(threadpool_limits, 3, "blas").join()
+seen = {}
+a = start(chunk, first, seen, "first", first_out)
+assert first_in.wait(10)
+b = start(chunk, second, seen, "second")
+a.join(10)
+b.join(10)
+print(seen["first"], seen["second"], count())
+"""
+    assert probe(clean_env(), code) == "[1] [1] [3]"
+
+
+def test_a_thread_count_set_in_the_worker_environment_wins():
+    # dask's nanny sets OPENBLAS_NUM_THREADS=1 in the workers it starts; a count set there
+    # by whoever starts the worker is left alone, as one_blas_thread leaves an exported one
+    code = WORKER + """
+seen = {}
+start(chunk, count, seen, "chunk").join()
+print(seen["chunk"], count())
+"""
+    assert probe({**clean_env(), "OPENBLAS_NUM_THREADS": "2"}, code) == "[2] [2]"

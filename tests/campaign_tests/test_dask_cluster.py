@@ -117,6 +117,41 @@ def test_certify_sampling_on_the_cluster_equals_local_workers(cluster, tmp_path)
     pd.testing.assert_frame_equal(on_dask, local, check_exact=True)
 
 
+def test_chunks_on_workers_without_a_nanny_run_one_blas_thread(cluster):
+    """The fixture's workers run without dask's nanny, which would have set
+    OPENBLAS_NUM_THREADS=1: their BLAS has its own count (one thread per core), and the task
+    of each chunk limits it to one thread while the chunk runs, then restores it."""
+    from distributed import Client
+
+    from campaign.execute import BLAS_THREAD_VARIABLES, run_on_cluster
+
+    address, _ = cluster
+
+    def blas_threads(*_):
+        import numpy  # noqa: F401  (loads the BLAS threadpoolctl inspects)
+        from threadpoolctl import threadpool_info
+
+        return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+    def exported():
+        return any(variable in os.environ for variable in BLAS_THREAD_VARIABLES)
+
+    seen = []
+    chunks = [pd.DataFrame({"run": [i]}) for i in range(6)]
+    with Client(address, timeout=60) as client:
+        before = client.run(blas_threads)
+        # a count set in a worker's environment wins, as in the fdd-campaign process
+        expected = {w: (count if set_there else [1])
+                    for (w, count), set_there in zip(before.items(),
+                                                     client.run(exported).values())}
+        run_on_cluster(client, chunks, blas_threads, {}, None,
+                       lambda rows, status, message: message, seen.append, log=lambda m: None)
+        after = client.run(blas_threads)
+    assert len(seen) == len(chunks)
+    assert {tuple(s) for s in seen} <= {tuple(c) for c in expected.values()}
+    assert after == before
+
+
 def test_a_worker_killed_mid_campaign_ends_as_error_rows_and_a_rerun_completes(
         cluster, tmp_path, monkeypatch):
     address, workers = cluster
