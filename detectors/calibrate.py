@@ -332,19 +332,14 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
         return str(exc)
     edges = {"free": SHAPE_RANGE, "exponential": ()}.get(fit.tail, (SHAPE_RANGE[0],))
     at_bound = " (ξ at the edge of its range)" if q.shape in edges else ""
+    assumed = {"light": "light tail (ξ ≤ 0)", "exponential": "exponential tail (ξ = 0)"}
     if fit.tail == "free" and fit.light_rejected:
         at_bound += "; light tail (ξ ≤ 0) rejected by the likelihood-ratio test, free shape"
-    elif fit.tail == "light" and fit.light_rejected:
-        at_bound += ("; light tail assumed (ξ ≤ 0) although the likelihood-ratio test rejects "
-                     "it for this sample: check it with fdd-campaign certify")
-    elif fit.tail == "light":
-        at_bound += "; light tail (ξ ≤ 0), not rejected by the likelihood-ratio test"
-    elif fit.tail == "exponential" and fit.light_rejected:
-        at_bound += ("; exponential tail assumed (ξ = 0) although the likelihood-ratio test "
+    elif fit.tail in assumed and fit.light_rejected:
+        at_bound += (f"; {assumed[fit.tail]} assumed although the likelihood-ratio test "
                      "rejects ξ ≤ 0 for this sample: check it with fdd-campaign certify")
-    elif fit.tail == "exponential":
-        at_bound += ("; exponential tail (ξ = 0); ξ ≤ 0 not rejected by the likelihood-ratio "
-                     "test")
+    elif fit.tail in assumed:
+        at_bound += f"; {assumed[fit.tail]}, ξ ≤ 0 not rejected by the likelihood-ratio test"
     return Calibration(
         threshold=q.upper, method="gpd", supported=True, k=k, u=fit.u, shape=q.shape,
         scale=q.scale, estimate=q.estimate, gof_pvalue=q.gof_pvalue,
