@@ -96,7 +96,6 @@ def test_campaign_run_from_python_runs_one_blas_thread(no_exported_count, monkey
     assert seen == [{1}]
 
 
-
 #: The start of a fresh interpreter in the state of a dask worker: its main thread never set
 #: a BLAS count (it runs the worker's event loop) and chunks run in other threads. OpenBLAS
 #: ignores a count set from another thread once the main thread has set one, so these
