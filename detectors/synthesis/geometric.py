@@ -314,7 +314,9 @@ def _solve(prob, X, K, solver: str, what: str, times: int = 1):
     equilibration or regularisation move the status between points without removing it. The
     design only uses G̃ = X⁻¹K, and :func:`_injection` checks its poles against the region
     (they are within 1e-5 of −decay when inaccurate): that check, not the warning, decides
-    whether the design is used, so the warning is recorded as the status and not shown."""
+    whether the design is used, so the warning is recorded as the status and not shown.
+    Every solve starts cold, so the answer depends on the problem's data only, never on what
+    the process solved before (a campaign's workers design in any order)."""
     import cvxpy as cp
 
     try:
@@ -323,7 +325,10 @@ def _solve(prob, X, K, solver: str, what: str, times: int = 1):
             warnings.filterwarnings("ignore", message=_INACCURATE_WARNING,
                                     category=UserWarning)
             for _ in range(times):
-                prob.solve(solver=solver)
+                # never warm-started: cvxpy's default reuses the cached problem's Clarabel
+                # solver, whose answer then depends on the design solved before it (other
+                # bits, and once a pole at −0.4994 for Re λ ≤ −0.5)
+                prob.solve(solver=solver, warm_start=False)
     except cp.error.SolverError as exc:
         raise GeometricDesignError(f"{what} failed in {solver}: {exc}") from exc
     return (prob.status, None if X.value is None else np.array(X.value),
