@@ -9,7 +9,9 @@ shape ξ, scale σ), so that above u
 
 (Pickands–Balkema–de Haan; Coles, *An Introduction to Statistical Modeling of Extreme
 Values*, 2001, eqs. 4.2 and 4.13). The share k/n is taken as known (k is fixed by the rule,
-not estimated). Both uses of the fit go through one object, :class:`TailFit`:
+not estimated). The model is continuous above u, so when values tie at u (an atom, e.g.
+per-run maxima that are exactly 0 in most runs) k is the number of values strictly above
+it, and fewer than :data:`MIN_EXCEEDANCES` is a degenerate tail. Both uses of the fit go through one object, :class:`TailFit`:
 
 * :meth:`TailFit.quantile` — the (1 − p)-quantile and the upper end of its one-sided
   profile-likelihood confidence interval (threshold calibration, :mod:`detectors.calibrate`);
@@ -250,6 +252,14 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
         raise TailFitError(f"k = {k}: the exceedances must be 2 ≤ k < n = {n}")
     desc = np.sort(x)[::-1]
     u = float(desc[k])
+    if desc[k - 1] == u:
+        # an atom at u (e.g. runs whose statistic never left 0): the model is continuous
+        # above u, so only the values strictly above it are exceedances, k of them
+        k = int(np.count_nonzero(desc > u))
+        if k < MIN_EXCEEDANCES:
+            raise TailFitError(f"the tail is degenerate: {k} value(s) above the atom at "
+                               f"u = {u:g} (fewer than {MIN_EXCEEDANCES}); "
+                               f"{np.count_nonzero(desc == u)} of {n} values equal u")
     y_raw = desc[:k] - u
     positive = y_raw[y_raw > 0.0]
     if np.unique(positive).size < MIN_DISTINCT_EXCESSES:
