@@ -9,9 +9,11 @@ shape ξ, scale σ), so that above u
 
 (Pickands–Balkema–de Haan; Coles, *An Introduction to Statistical Modeling of Extreme
 Values*, 2001, eqs. 4.2 and 4.13). The share k/n is taken as known (k is fixed by the rule,
-not estimated). The model is continuous above u, so when values tie at u (an atom, e.g.
-per-run maxima that are exactly 0 in most runs) k is the number of values strictly above
-it, and fewer than :data:`MIN_EXCEEDANCES` is a degenerate tail. Both uses of the fit go through one object, :class:`TailFit`:
+not estimated). The model is continuous above u, so a value equal to u is no exceedance:
+when values tie across the cut (rounding, or an atom such as per-run maxima that are exactly
+0 in most runs) the cut moves to the nearest gap between distinct values
+(:func:`_cut_between_ties`), and fewer than :data:`MIN_EXCEEDANCES` above it is a
+degenerate tail. Both uses of the fit go through one object, :class:`TailFit`:
 
 * :meth:`TailFit.quantile` — the (1 − p)-quantile and the upper end of its one-sided
   profile-likelihood confidence interval (threshold calibration, :mod:`detectors.calibrate`);
@@ -253,13 +255,7 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
     desc = np.sort(x)[::-1]
     u = float(desc[k])
     if desc[k - 1] == u:
-        # an atom at u (e.g. runs whose statistic never left 0): the model is continuous
-        # above u, so only the values strictly above it are exceedances, k of them
-        k = int(np.count_nonzero(desc > u))
-        if k < MIN_EXCEEDANCES:
-            raise TailFitError(f"the tail is degenerate: {k} value(s) above the atom at "
-                               f"u = {u:g} (fewer than {MIN_EXCEEDANCES}); "
-                               f"{np.count_nonzero(desc == u)} of {n} values equal u")
+        k, u = _cut_between_ties(desc, k)
     y_raw = desc[:k] - u
     positive = y_raw[y_raw > 0.0]
     if np.unique(positive).size < MIN_DISTINCT_EXCESSES:
@@ -294,6 +290,25 @@ def fit_tail(values, k: int | None = None, tail: str = "free",
     return TailFit(n=n, k=k, u=u, shape=xi_hat, scale=sigma_hat * unit,
                    gof_pvalue=_ks(y, xi_hat, sigma_hat), largest=float(desc[0]), unit=unit,
                    excesses=y, tail=tail, light_rejected=rejected, shapes=shapes)
+
+
+def _cut_between_ties(desc: np.ndarray, k: int) -> tuple[int, float]:
+    """(k, u) when values tie across the cut (``desc[k - 1] == desc[k]``, *desc* sorted
+    largest first): the model is continuous above u, so a value equal to u is not an
+    exceedance. The cut moves to the gap nearest the rule's *k*, just above the tied group
+    or just below it (then u is the next smaller value; not when the group holds the
+    smallest value), the larger k on a draw: rounding ties (a residual quantised by its
+    sensor) move it by a value or two; an atom (runs whose statistic never left 0) leaves
+    the values above it. Fewer than :data:`MIN_EXCEEDANCES` is a degenerate tail."""
+    n, tie = desc.size, desc[k]
+    above, through = int(np.count_nonzero(desc > tie)), int(np.count_nonzero(desc >= tie))
+    cuts = [above] + ([through] if through < n else [])
+    k = min(cuts, key=lambda c: (abs(c - k), -c))
+    if k < MIN_EXCEEDANCES:
+        raise TailFitError(f"the tail is degenerate: {k} value(s) above the atom at "
+                           f"u = {tie:g} (fewer than {MIN_EXCEEDANCES}); {through - above} "
+                           f"of {n} values equal u")
+    return k, float(desc[k])
 
 
 @dataclass(frozen=True, eq=False)

@@ -342,3 +342,18 @@ def test_maxima_with_an_atom_at_zero_are_fitted_above_the_atom(positive):
         assert methods == {"max-factor"}
     else:
         assert methods == {"gpd"} and misses <= 10
+
+
+def test_a_rounding_tie_at_the_cut_moves_it_by_the_tie_not_to_a_fallback():
+    """Per-run maxima quantised by a sensor (0.01 mm steps, as com_mon's in addsafe-grid):
+    of 50 values the 20th and 21st largest are equal, so the (k + 1)-th largest, u, ties
+    with an exceedance. The cut moves below the tied pair (k = 21, u = the 22nd largest),
+    the fit stays supported; moving above it would leave 19, fewer than the 20 a fit needs."""
+    from detectors.tail import fit_tail
+
+    x = 0.01 * np.arange(100.0, 50.0, -1.0)           # 1.00, 0.99, ..., 0.51: 50 distinct
+    x[20] = x[19]                                     # the 20th and 21st largest tie at 0.81
+    fit = fit_tail(x, tail="exponential")
+    assert (fit.k, fit.u) == (21, x[21])
+    cal = calibrate_threshold(x, 1e-4, 0.95, tail="exponential")
+    assert cal.method == "gpd" and cal.k == 21 and cal.supported
