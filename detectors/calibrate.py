@@ -327,7 +327,7 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
     (shape range *tail*, :data:`detectors.tail.TAIL_KINDS`)."""
     try:
         fit = fit_tail(desc, k, tail=tail, confidence=c)
-        k = fit.k                     # fewer when values tie at u (an atom: fit_tail)
+        k = fit.k                     # moved when values tie across the cut (fit_tail)
         if p >= k / n:
             return f"p = {p:g} is not in the fitted tail (k/n = {k / n:g})"
         q = fit.quantile(p, c)
