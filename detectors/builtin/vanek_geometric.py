@@ -91,6 +91,7 @@ scores an alarm on another surface's faults as an isolation failure
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,6 +112,10 @@ AFFINE_VARIANTS = ("lpv-affine",)
 #: LTI filter followed by the H∞ post-filter of [VANEK] §3, and the one-step H∞ FDI filter
 #: of [VANEK] §3 designed at the same point, for comparison.
 HINF_VARIANTS = ("lti-hinf", "one-step")
+#: Most designed filters a detector keeps (oldest dropped first): the lpv and lpv-affine
+#: variants design one per run (about 2 KB), so a cache without a bound grew with the
+#: campaign; one detect needs its chunk's designs twice (r̂, then b(t)).
+DESIGN_CACHE_SIZE = 4096
 #: Measured outputs of the design model (names of Signals.aircraft), [VANEK] §4.1 and §5
 #: (body rates, attitudes and the aerodynamic angles α, β; every state of the design model).
 OUTPUTS = ("alpha", "q", "theta", "beta", "p", "r", "phi")
@@ -607,12 +612,32 @@ class VanekGeometric(Detector):
     def _design(self, point: dict, ts: float, kind: str = "geometric") -> _Filter:
         """The discretised filter of *kind* at *point* (cached): ``"geometric"`` (the
         variants lti and lpv), ``"lti-hinf"`` or ``"one-step"``."""
-        cache = self.__dict__.setdefault("_cache", {})
         layout, aoa = self._layout(), self._reads_alpha()
-        key = (kind, layout, aoa, round(float(ts), 9)) + tuple(round(float(point[k][0]), 6)
+        # the point's exact values: a rounded key made two nearby runs share the design of
+        # whichever came first in their worker
+        key = (kind, layout, aoa, round(float(ts), 9)) + tuple(float(point[k][0])
                                                           for k in sorted(point))
-        if key in cache:
+        return self._memo(key, lambda: self._design_anew(point, ts, kind, layout, aoa))
+
+    def _memo(self, key: tuple, make) -> _Filter:
+        """The filter cached under *key*, else ``make()`` cached (at most
+        :data:`DESIGN_CACHE_SIZE`, the oldest dropped first)."""
+        cache = self.__dict__.setdefault("_cache", OrderedDict())
+        try:
             return cache[key]
+        except KeyError:
+            pass
+        f = cache[key] = make()
+        while len(cache) > DESIGN_CACHE_SIZE:
+            try:
+                cache.popitem(last=False)
+            except KeyError:                    # emptied by another thread meanwhile
+                break
+        return f
+
+    def _design_anew(self, point: dict, ts: float, kind: str, layout: str, aoa: bool
+                     ) -> _Filter:
+        """:meth:`_design` without the cache."""
         if kind == "one-step":
             # on the unison model whatever design_model says: on the aircraft's layout the
             # synthesis returns a filter whose closed loop exceeds its γ (measured peak 0.49
@@ -628,24 +653,21 @@ class VanekGeometric(Detector):
                 q = post_filter(gen, sensor_sigmas(design_outputs(aoa)) * np.sqrt(ts))
                 Ad, Bd, Cd, Dd = geo.bilinear_ss(*cascade(gen, q), ts)
                 f = _Filter(Ad=Ad, Bd=Bd, Cd=Cd, Dd=Dd, c=np.ones(1))
-        cache[key] = f
         return f
 
     def _affine(self, theta: tuple, ts: float) -> _Filter:
         """The ``lpv-affine`` filter at θ (:data:`AFFINE_SCHEDULE`; family and filters
         cached)."""
-        cache = self.__dict__.setdefault("_cache", {})
+        families = self.__dict__.setdefault("_families", {})
         layout, aoa = self._layout(), self._reads_alpha()
-        fam_key = ("affine-family", layout, aoa, round(float(ts), 9))
-        if fam_key not in cache:
-            cache[fam_key] = design_affine(ts, decouple_gusts=self.decouple_gusts,
-                                           decay=float(self.decay), radius=float(self.radius),
-                                           design_model=layout, aoa_sensor=aoa)
-        key = ("affine", layout, aoa, round(float(ts), 9)) + tuple(round(float(t), 6)
-                                                              for t in theta)
-        if key not in cache:
-            cache[key] = cache[fam_key](*theta)[1]
-        return cache[key]
+        fam_key = (layout, aoa, round(float(ts), 9))
+        if fam_key not in families:
+            families[fam_key] = design_affine(ts, decouple_gusts=self.decouple_gusts,
+                                              decay=float(self.decay),
+                                              radius=float(self.radius),
+                                              design_model=layout, aoa_sensor=aoa)
+        key = ("affine", layout, aoa, round(float(ts), 9)) + tuple(float(t) for t in theta)
+        return self._memo(key, lambda: families[fam_key](*theta)[1])
 
     def _filters(self, variant: str, signals: Signals) -> list[_Filter]:
         kind = variant if variant in HINF_VARIANTS else "geometric"
@@ -849,4 +871,5 @@ class VanekGeometric(Detector):
     def __getstate__(self):
         state = dict(self.__dict__)
         state.pop("_cache", None)             # designs are rebuilt on demand
+        state.pop("_families", None)
         return state

@@ -402,6 +402,20 @@ def test_the_design_cache_is_keyed_on_the_point_and_not_pickled():
     assert "_cache" in vars(det)
 
 
+def test_the_design_cache_keys_exact_points_and_is_bounded(monkeypatch):
+    """Two runs whose measured points agree to 1e-6 (the rounding of the former key) still
+    get their own designs: which one a worker designed first must not matter. And the cache
+    keeps at most DESIGN_CACHE_SIZE designs, the oldest dropped first (the lpv variant
+    designs one per run)."""
+    det = _fitted_max(variants=("lpv",))
+    near = ((210.0, 26000.0, 180.0, 25.0), (210.0 + 1e-7, 26000.0, 180.0, 25.0))
+    det.estimates(_signals(points=near))
+    first, second = list(det._cache)
+    monkeypatch.setattr(vg, "DESIGN_CACHE_SIZE", 3)
+    det.estimates(_signals(points=POINTS))
+    assert len(det._cache) == 3 and first not in det._cache and second in det._cache
+
+
 def test_affine_model_is_the_least_squares_fit_over_the_realistic_points():
     model, err = vg.affine_model()
     pts = envelope.realistic_points()
@@ -677,10 +691,11 @@ def test_design_options_are_keyword_only():
         vg.design_affine(TS, False)
 
 
-def test_runs_within_the_cache_resolution_share_one_design():
-    # designs are cached by flight point rounded to 1e-6 (θ of lpv-affine, the point of lpv):
-    # two runs 2e-7 kt and 2e-7 t apart get the same filter, hence bit-identical r̂ for the
-    # same inputs (the mass enters the lpv point, the speed the lpv-affine one)
+def test_a_runs_estimate_does_not_depend_on_the_runs_designed_before_it():
+    # designs are cached by the exact flight point (θ of lpv-affine, the point of lpv): a run
+    # 2e-7 kt and 2e-7 t from another gets its own filter, so its r̂ is the same whether or
+    # not the other run shared its chunk (the mass enters the lpv point, the speed the
+    # lpv-affine one)
     v, h, mass, cg = POINTS[0]
     sig = _signals(points=(POINTS[0], (v + 2e-7, h, mass + 2e-7, cg)))
     same = {k: v[:1].repeat(2, axis=0) for k, v in sig.aircraft.items()}
@@ -690,15 +705,18 @@ def test_runs_within_the_cache_resolution_share_one_design():
     sig.schedule["qbar_pa"] = sig.schedule["qbar_pa"][:1].repeat(2)
     det = _fitted_max(variants=("lpv", "lpv-affine"))
     est = det.estimates(sig)
+    alone = _fitted_max(variants=("lpv", "lpv-affine")).estimates(sig.take([1]))
     for k in est:
-        np.testing.assert_array_equal(est[k][0], est[k][1], err_msg=k)
-    assert sum(key[0] == "affine" for key in det._cache) == 1
-    assert sum(key[0] == "geometric" for key in det._cache) == 1
+        np.testing.assert_array_equal(est[k][1], alone[k][0], err_msg=k)
+    assert sum(key[0] == "affine" for key in det._cache) == 2
+    assert sum(key[0] == "geometric" for key in det._cache) == 2
+    det._cache.clear()
+    det.estimates(sig.take([0]))
     # sampling periods are told apart to 1e-9 s: 2e-10 s more reuses the designs, 2e-9 s not
-    det.estimates(dataclasses.replace(sig, ts=TS + 2e-10))
-    assert len(det._cache) == 3                 # the affine family, its filter, the lpv one
-    det.estimates(dataclasses.replace(sig, ts=TS + 2e-9))
-    assert len(det._cache) == 6
+    det.estimates(dataclasses.replace(sig.take([0]), ts=TS + 2e-10))
+    assert len(det._cache) == 2                 # the affine filter and the lpv one
+    det.estimates(dataclasses.replace(sig.take([0]), ts=TS + 2e-9))
+    assert len(det._cache) == 4 and len(det._families) == 2
 
 
 def test_the_design_model_the_thresholds_were_learned_with_is_kept():
