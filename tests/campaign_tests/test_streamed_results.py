@@ -57,13 +57,19 @@ def test_summary_of_batches_equals_summary_of_all_rows(seed):
     assert whole["md_count"].sum() > 0 and whole["est_err_runs"].sum() > 0
     assert whole["n_errors"].sum() > 0 and whole["dtp_p99_upper95"].notna().any()
     assert np.isfinite(whole["delay_km_median_s"]).any()
-    rng = np.random.default_rng(100 + seed)
+    _assert_batching_does_not_matter(results, whole, np.random.default_rng(100 + seed), 7)
+
+
+def _assert_batching_does_not_matter(results: pd.DataFrame, whole: pd.DataFrame, rng,
+                                     cuts: int) -> None:
+    """Three random splits of *results* into cuts + 1 batches, each accumulated, give the
+    summary *whole* exactly: the summary the runner writes must not depend on how rows were
+    batched."""
     for _ in range(3):
-        cuts = np.sort(rng.choice(np.arange(1, len(results)), size=7, replace=False))
+        at = np.sort(rng.choice(np.arange(1, len(results)), size=cuts, replace=False))
         acc = SummaryAccumulator()
-        for part in np.split(np.arange(len(results)), cuts):
+        for part in np.split(np.arange(len(results)), at):
             acc.add(results.iloc[part])
-        # exact: the summary written by the runner must not depend on how rows were batched
         pd.testing.assert_frame_equal(acc.summary(), whole, check_exact=True)
 
 
@@ -125,13 +131,7 @@ def test_summary_of_batches_when_pandas_adds_runs_of_values(fault_free):
     results = results.sort_values(["fault", "manoeuvre"], kind="stable", ignore_index=True)
     whole = summarize(results)
     assert whole["est_err_runs"].sum() > 0
-    rng = np.random.default_rng(7)
-    for _ in range(3):
-        cuts = np.sort(rng.choice(np.arange(1, len(results)), size=5, replace=False))
-        acc = SummaryAccumulator()
-        for part in np.split(np.arange(len(results)), cuts):
-            acc.add(results.iloc[part])
-        pd.testing.assert_frame_equal(acc.summary(), whole, check_exact=True)
+    _assert_batching_does_not_matter(results, whole, np.random.default_rng(7), 5)
 
 
 @pytest.mark.parametrize("seed", [6, 7])
