@@ -283,14 +283,11 @@ def _calibrate_one(x: np.ndarray, p: float, c: float, factor: float,
     if n >= need:
         return _order_statistic(desc, p, c, common)
     why = None
-    k = tail_size(n)
     if n < MIN_TAIL_FIT_RUNS:
         why = (f"{n} runs: fewer than the {MIN_TAIL_FIT_RUNS} the tail fit needs and the "
                f"{need} the largest value needs to guarantee p = {p:g} at {c:g}")
-    elif p >= k / n:
-        why = f"p = {p:g} is not in the fitted tail (k/n = {k / n:g})"
     else:
-        fit = _gpd(desc, n, k, p, c, common, tail)
+        fit = _gpd(desc, n, tail_size(n), p, c, common, tail)
         if isinstance(fit, Calibration):
             return fit
         why = fit + f", and {n} runs are fewer than the {need} the largest value needs"
@@ -328,7 +325,7 @@ def _gpd(desc: np.ndarray, n: int, k: int, p: float, c: float, common: dict,
     try:
         fit = fit_tail(desc, k, tail=tail, confidence=c)
         k = fit.k                     # moved when values tie across the cut (fit_tail)
-        if p >= k / n:
+        if p >= k / n:                # p is in the data, not in the tail
             return f"p = {p:g} is not in the fitted tail (k/n = {k / n:g})"
         q = fit.quantile(p, c)
     except TailFitError as exc:
