@@ -462,21 +462,24 @@ def loaded_rates_all(xs, cur, pf, out):
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, rk4):
+def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, stages):
     """Advance runs ``r0 … r1 − 1`` (at most :data:`BLOCK`) of every model of a band by
     step *k* of the nominal closed loop (docs/physics.md §2–3, as
-    :meth:`detectors.builtin.position_monitor.PositionMonitor.model_output`: x_{k+1} = one RK4 or
-    Euler step of the rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low, high) [mm] of the
+    :meth:`detectors.builtin.position_monitor.PositionMonitor.model_output`: x_{k+1} = one RK4,
+    Heun or Euler step of the rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low, high) [mm] of the
     models' outputs x_k (the rod positions at the start of the step) to ``lo[r − r0]``,
     ``hi[r − r0]``.
 
     *u* (n, T): the order [mm]; *plants* (m, :data:`FIELD_ROWS`, n): model j's
     :func:`plant_fields`;
     *x*, *i_prev* (m, n): the models' rod positions [mm] and held currents [mA], updated in
-    place; *work* (:data:`BAND_WORK_ROWS`, ≥ r1 − r0): scratch. With *rk4* each model's
-    arithmetic is :func:`rk4_step_1`'s, stage by stage over the block (:func:`loaded_rates`);
-    without, one explicit Euler step per period, x_{k+1} = clip(x_k + ts·ẋ(x_k, i_{k−1})) —
-    the model discretised at the FCC period with one rate-law evaluation, as
+    place; *work* (:data:`BAND_WORK_ROWS`, ≥ r1 − r0): scratch. *stages*: the rate-law
+    evaluations of a model's step (:data:`detectors.builtin.position_monitor.MODEL_STEPS`).
+    4: each model's arithmetic is :func:`rk4_step_1`'s, stage by stage over the block
+    (:func:`loaded_rates`); 2: Heun's step, x_{k+1} = clip(x_k + ts/2·(k₁ + k₂)) with
+    k₁ = ẋ(x_k), k₂ = ẋ(x_k + ts·k₁) (the current i_{k−1} held), as
+    :func:`detectors.builtin.position_monitor.heun_step`; 1: one explicit Euler step per
+    period, x_{k+1} = clip(x_k + ts·ẋ(x_k, i_{k−1})), as
     :func:`detectors.builtin.position_monitor.euler_step`. low/high are ``np.minimum``/``np.maximum``
     reduced over the models in order (a NaN output makes both NaN).
     """
@@ -511,10 +514,20 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, rk4):
             cur[t] = ij[r]
             i_new[t] = clip(pf[P_K, r] * (u[r, k] - xr), -pf[P_IMAX, r], pf[P_IMAX, r])
         loaded_rates(x0, cur, pf, r0, b, s_buf, a_buf, k1)
-        if not rk4:
+        if stages == 1:
             for t in range(b):
                 r = r0 + t
                 xj[r] = clip(x0[t] + ts * k1[t], pf[P_XMIN, r], pf[P_XMAX, r])
+                ij[r] = i_new[t]
+            continue
+        if stages == 2:
+            for t in range(b):
+                xs[t] = x0[t] + ts * k1[t]
+            loaded_rates(xs, cur, pf, r0, b, s_buf, a_buf, k2)
+            for t in range(b):
+                r = r0 + t
+                x_new = x0[t] + (0.5 * ts) * (k1[t] + k2[t])
+                xj[r] = clip(x_new, pf[P_XMIN, r], pf[P_XMAX, r])
                 ij[r] = i_new[t]
             continue
         for t in range(b):
@@ -534,11 +547,11 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, rk4):
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def servo_band_block(u, x0, plants, ts, lo, hi, rk4):
+def servo_band_block(u, x0, plants, ts, lo, hi, stages):
     """Band of nominal servo models driven by the order *u* (n, T) [mm] from rod position
     *x0* (n,) [mm]: every model of *plants* (m ≥ 1, :data:`FIELD_ROWS`, n; :func:`plant_fields`) integrated
-    in one time loop per block of :data:`BLOCK` runs (:func:`servo_band_step`; RK4 with
-    *rk4*, else one Euler step per period). Writes only the element-wise *lo* = min and
+    in one time loop per block of :data:`BLOCK` runs (:func:`servo_band_step`; *stages*
+    4: RK4, 2: Heun, 1: Euler, per period). Writes only the element-wise *lo* = min and
     *hi* = max of the m outputs (n, T) [mm]."""
     m = plants.shape[0]
     n, T = u.shape
@@ -552,34 +565,45 @@ def servo_band_block(u, x0, plants, ts, lo, hi, rk4):
     for b0 in range(0, n, BLOCK):
         b1 = min(b0 + BLOCK, n)
         for k in range(T):
-            servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo_k, hi_k, work, rk4)
+            servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo_k, hi_k, work, stages)
             for r in range(b0, b1):
                 lo[r, k] = lo_k[r - b0]
                 hi[r, k] = hi_k[r - b0]
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def servo_model_block(u, x0, plant, ts, out, rk4):
+def servo_model_block(u, x0, plant, ts, out, stages):
     """Nominal closed loop driven by the order *u* (n, T) [mm] from rod position *x0* (n,)
     [mm] (docs/physics.md §2–3, as :meth:`detectors.builtin.position_monitor.PositionMonitor.model_output`):
     out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period. *plant*
-    (n, 11): rows of :func:`plant_matrix`; *rk4*: the plant's RK4 step, else one Euler
-    step per period. The band of one model (:func:`servo_band_block`)."""
+    (n, 11): rows of :func:`plant_matrix`; *stages*: 4 the plant's RK4 step, 2 Heun's, 1
+    one Euler step per period. The band of one model (:func:`servo_band_block`)."""
     plants = np.empty((1, FIELD_ROWS, plant.shape[0]))
     plants[0, :P_RM] = plant.T
     for r in range(plant.shape[0]):
         plants[0, P_RM, r] = plant[r, P_R] / _MM_PER_M
-    servo_band_block(u, x0, plants, ts, out, out, rk4)
+    servo_band_block(u, x0, plants, ts, out, out, stages)
 
 
-def servo_model(u, x0, plant, ts: float, rk4: bool = True) -> np.ndarray:
-    """(n, T) output [mm] of :func:`servo_model_block` for *plant* (PlantArrays); *rk4*
-    False: one Euler step per period instead of the plant's RK4."""
+def servo_model(u, x0, plant, ts: float, stages: int = 4) -> np.ndarray:
+    """(n, T) output [mm] of :func:`servo_model_block` for *plant* (PlantArrays); *stages*
+    (:func:`check_stages`): 4 the plant's RK4 step, 2 Heun's, 1 one Euler step per period."""
     u = np.ascontiguousarray(u, dtype=float)
     out = np.empty(u.shape)
     servo_model_block(u, np.ascontiguousarray(x0, dtype=float), plant_matrix(plant),
-                      float(ts), out, bool(rk4))
+                      float(ts), out, check_stages(stages))
     return out
+
+
+#: Rate-law evaluations per step of the servo models' integrators: Euler, Heun, RK4.
+STAGES = (1, 2, 4)
+
+
+def check_stages(stages) -> int:
+    """*stages* as an int, when it is one of :data:`STAGES`; else ValueError."""
+    if isinstance(stages, bool) or stages not in STAGES:
+        raise ValueError(f"stages must be one of {STAGES} (Euler, Heun, RK4), got {stages!r}")
+    return int(stages)
 
 
 def band_plants(plants) -> np.ndarray:
@@ -588,14 +612,14 @@ def band_plants(plants) -> np.ndarray:
     return np.ascontiguousarray(np.stack([plant_fields(p) for p in plants]))
 
 
-def servo_band(u, x0, plants, ts: float, rk4: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def servo_band(u, x0, plants, ts: float, stages: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """(low, high), each (n, T) [mm]: the element-wise min and max of the outputs of
-    :func:`servo_model` (with the same *rk4*) for each PlantArrays of *plants*, bit for bit,
+    :func:`servo_model` (with the same *stages*) for each PlantArrays of *plants*, bit for bit,
     in one pass (:func:`servo_band_block`) without the m output arrays."""
     u = np.ascontiguousarray(u, dtype=float)
     lo, hi = np.empty(u.shape), np.empty(u.shape)
     servo_band_block(u, np.ascontiguousarray(x0, dtype=float), band_plants(plants),
-                     float(ts), lo, hi, bool(rk4))
+                     float(ts), lo, hi, check_stages(stages))
     return lo, hi
 
 
@@ -624,12 +648,12 @@ def _warm_simulation() -> None:
     integrate_block(z1, z2, fields, z1, z1, z2, np.zeros((0, 0)), np.zeros((0, 0)), zi,
                     np.zeros((0, 0)), np.zeros((0, 0)), zi, z1, zi, np.zeros(6, dtype=np.bool_),
                     0.01, -0.5, 0.5, 0.01, *outs)
-    servo_model_block(z2, z1, plant, 0.01, outs[0], True)
-    servo_model_block(read_only_view(z2), z1, plant, 0.01, outs[0], True)   # a detector's command
-    servo_band_block(z2, z1, np.stack([fields, fields]), 0.01, outs[0], outs[1], True)
+    servo_model_block(z2, z1, plant, 0.01, outs[0], 4)
+    servo_model_block(read_only_view(z2), z1, plant, 0.01, outs[0], 4)   # a detector's command
+    servo_band_block(z2, z1, np.stack([fields, fields]), 0.01, outs[0], outs[1], 4)
     # the command as a detector reads it (read-only: the position monitor's model band)
     servo_band_block(read_only_view(z2), z1, np.stack([fields, fields]), 0.01, outs[0],
-                     outs[1], True)
+                     outs[1], 4)
 
 
 register_warmup(_warm_simulation)

@@ -63,8 +63,11 @@ from ..params import Param
 
 CHECKS = ("loop", "com_mon", "surface")
 #: Discretisations of the loop check's servo models (``model_step``): one explicit Euler
-#: step per FCC period, or the plant's RK4 step.
-MODEL_STEPS = ("euler", "rk4")
+#: step per FCC period, Heun's step, or the plant's RK4 step.
+MODEL_STEPS = ("euler", "heun", "rk4")
+#: Rate-law evaluations per model and step of each ``model_step``
+#: (:func:`scenarios.compiled.servo_band_step`'s *stages*).
+STAGES = {"euler": 1, "heun": 2, "rk4": 4}
 
 
 def euler_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
@@ -75,12 +78,22 @@ def euler_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
     return np.clip(x_mm + h * rod_rate(x_mm, i_mA, p, loaded), p.x_min, p.x_max)
 
 
+def heun_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
+    """Heun's step of the rod over *h* [s] with the current *i_mA* [mA] held, inside the
+    stops: x + h/2·(k₁ + k₂), k₁ = ẋ(x), k₂ = ẋ(x + h·k₁) (docs/physics.md §3, the explicit
+    trapezoidal rule, second order), two rate-law evaluations (the NumPy reference of
+    :func:`scenarios.compiled.servo_band_step` with two stages)."""
+    k1 = rod_rate(x_mm, i_mA, p, loaded)
+    k2 = rod_rate(x_mm + h * k1, i_mA, p, loaded)
+    return np.clip(x_mm + (0.5 * h) * (k1 + k2), p.x_min, p.x_max)
+
+
 #: The NumPy step of each ``model_step``.
-_STEPS = {"euler": euler_step, "rk4": rk4_step}
+_STEPS = {"euler": euler_step, "heun": heun_step, "rk4": rk4_step}
 
 
 @kernels.njit(nogil=True, cache=True, error_model="numpy")
-def _decide_block(rod_com, u, plants, ts, rk4, rod_mon, surface_mm, tau, active, n_confirm,
+def _decide_block(rod_com, u, plants, ts, stages, rod_mon, surface_mm, tau, active, n_confirm,
                   norm_out, alarm_out):
     """Normalised residual and confirmed alarm of a block of runs, the loop check's model band
     integrated in the same pass, compiled (the NumPy reference is :meth:`PositionMonitor._detect`
@@ -88,8 +101,8 @@ def _decide_block(rod_com, u, plants, ts, rk4, rod_mon, surface_mm, tau, active,
 
     The band: the models of *plants* (m, rows, n; :func:`scenarios.compiled.plant_fields`, the
     nominal model first) driven by the order *u* (n, T) [mm] from y_COM at step 0, advanced
-    by :func:`scenarios.compiled.servo_band_step` (docs/physics.md §2–3; RK4 with *rk4*,
-    else one Euler step per period); *ts* [s].
+    by :func:`scenarios.compiled.servo_band_step` (docs/physics.md §2–3; *stages* 4: RK4,
+    2: Heun, 1: Euler, per period); *ts* [s].
     norm = max over the active checks of |r_c|/τ_c (``tau`` and ``active`` in the order
     loop, com_mon, surface; NaN propagates as in ``np.maximum``),
     r_loop = distance of y_COM outside [band low, band high] (|y_COM − model| when the band
@@ -116,7 +129,7 @@ def _decide_block(rod_com, u, plants, ts, rk4, rod_mon, surface_mm, tau, active,
         b1 = min(b0 + BLOCK, n)
         for k in range(T):
             if m > 0:
-                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi, work, rk4)
+                servo_band_step(u, k, b0, b1, plants, x, i_prev, ts, lo, hi, work, stages)
             for r in range(b0, b1):
                 v = 0.0
                 if use_loop:
@@ -146,7 +159,7 @@ def _warm_kernels() -> None:
     z2 = np.zeros((1, 2))
     plants = np.ones((2, kernels.FIELD_ROWS, 1))
     for rod in (z2, kernels.read_only_view(z2)):  # signals as detect reads them: read-only
-        _decide_block(rod, rod, plants, 0.01, False, rod, np.zeros((0, 0)), np.ones(3),
+        _decide_block(rod, rod, plants, 0.01, 4, rod, np.zeros((0, 0)), np.ones(3),
                       np.array([True, True, False]), 1, np.zeros((1, 2)),
                       np.zeros((1, 2), dtype=np.bool_))
 
@@ -182,7 +195,8 @@ class PositionMonitor(Detector):
         (1, 1): the plain nominal model.
     model_step : str
         Discretisation of the loop check's models: ``"rk4"`` (the plant's integrator, four
-        rate-law evaluations per model and FCC period; the default) or ``"euler"`` (one
+        rate-law evaluations per model and FCC period; the default), ``"heun"`` (two,
+        :func:`heun_step`) or ``"euler"`` (one
         evaluation, as a flight-control computer may run a model: about half the monitor's
         cost, but a smaller fault-free margin in fast nose-up manoeuvres; docs/execution.md).
     """
@@ -206,7 +220,7 @@ class PositionMonitor(Detector):
               source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
         Param("model_step", "choice", choices=MODEL_STEPS, doc="discretisation of the loop "
               "check's servo models: rk4 (the plant's integrator, four rate-law evaluations per "
-              "model and FCC period) or euler (one evaluation; cheaper, smaller fault-free "
+              "model and FCC period), heun (two) or euler (one evaluation; cheaper, smaller fault-free "
               "margin in fast nose-up manoeuvres)", source="docs/physics.md §2–3"),
     )
 
@@ -266,7 +280,7 @@ class PositionMonitor(Detector):
         plant = PositionMonitor.model_plant(signals, hinge_scale)
         if resolve_engine(engine) == "compiled":
             return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts,
-                               rk4=model_step == "rk4")
+                               stages=STAGES[model_step])
         step = _STEPS[model_step]
         n, T = signals.command.shape
         out = np.empty((n, T))
@@ -288,11 +302,11 @@ class PositionMonitor(Detector):
 
     def rate_evaluations_per_step(self) -> int:
         """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
-        one per model of the band and Euler step, four per RK4 step; none without the loop
+        one per model of the band and Euler step, two per Heun step, four per RK4 step; none without the loop
         check (``fdd-campaign bench``'s arithmetic floor)."""
         if "loop" not in self._checks():
             return 0
-        return len(self.band_scales()) * (4 if self.model_step == "rk4" else 1)
+        return len(self.band_scales()) * STAGES[self.model_step]
 
     def model_band(self, signals: Signals,
                    engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -311,7 +325,7 @@ class PositionMonitor(Detector):
         if resolve_engine(engine) == "compiled":
             return servo_band(signals.command, signals.rod_com[:, 0],
                               [self.model_plant(signals, v) for v in scales], signals.ts,
-                              rk4=self.model_step == "rk4")
+                              stages=STAGES[self.model_step])
         outs = [self.model_output(signals, engine="numpy", hinge_scale=v,
                                   model_step=self.model_step) for v in scales]
         return np.minimum.reduce(outs), np.maximum.reduce(outs)
@@ -387,7 +401,7 @@ class PositionMonitor(Detector):
         alarm = np.empty(rod_com.shape, dtype=bool)
         n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
         active = np.array([name in checks for name in CHECKS])
-        _decide_block(rod_com, u, plants, float(signals.ts), self.model_step == "rk4", rod_mon,
+        _decide_block(rod_com, u, plants, float(signals.ts), STAGES[self.model_step], rod_mon,
                       surface, tau, active, n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)
 

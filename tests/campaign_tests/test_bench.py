@@ -158,10 +158,12 @@ def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     ({}, 12), ({"model_step": "euler"}, 3), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 1),
     ({"checks": ("com_mon", "surface")}, 0),
     ({"model_step": "euler", "checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
-    ({"hinge_scale": (1.0, 2.0)}, 8),
+    ({"hinge_scale": (1.0, 2.0)}, 8), ({"model_step": "heun"}, 6),
+    ({"model_step": "heun", "hinge_scale": (1.0, 2.0)}, 4),
 ])
 def test_position_monitor_declares_its_evaluations_per_model_and_step(params, count):
-    # one rate-law evaluation per model of the band and Euler step, four per RK4 step
+    # one rate-law evaluation per model of the band and Euler step, two per Heun step,
+    # four per RK4 step
     assert PositionMonitor(**params).rate_evaluations_per_step() == count
 
 

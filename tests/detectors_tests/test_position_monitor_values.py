@@ -54,7 +54,8 @@ def model_by_hand(u, x0, hinge_scale=1.0, step="rk4"):
     """The nominal loop driven by *u* from *x0* (docs/physics.md §2–3): the output at step k
     is x_k; the current sat(K·(u_k − x_k)) computed at step k is held over the next period,
     so the rod moves under the previous step's current (none before step 1). *step*:
-    ``"euler"``, x_{k+1} = clip(x_k + Ts·ẋ(x_k, i_{k−1})), or ``"rk4"``."""
+    ``"euler"``, x_{k+1} = clip(x_k + Ts·ẋ(x_k, i_{k−1})), ``"heun"``, x_{k+1} = clip(x_k +
+    Ts/2·(ẋ(x_k) + ẋ(x_k + Ts·ẋ(x_k)))), or ``"rk4"``."""
     n, T = u.shape
     p = plant_arrays(ELEVATOR, qbar_pa=np.full(n, QBAR), alpha_deg=np.full(n, ALPHA),
                      mach=np.full(n, MACH))
@@ -66,6 +67,10 @@ def model_by_hand(u, x0, hinge_scale=1.0, step="rk4"):
         i_new = np.clip(p.K * (u[:, k] - x), -p.i_max, p.i_max)
         if step == "rk4":
             x = rk4_step(x, i_prev, p, np.ones(n, bool), TS)
+        elif step == "heun":
+            k1 = rod_rate(x, i_prev, p, np.ones(n, bool))
+            k2 = rod_rate(x + TS * k1, i_prev, p, np.ones(n, bool))
+            x = np.clip(x + 0.5 * TS * (k1 + k2), p.x_min, p.x_max)
         else:
             x = np.clip(x + TS * rod_rate(x, i_prev, p, np.ones(n, bool)), p.x_min, p.x_max)
         i_prev = i_new
@@ -89,7 +94,7 @@ def _rod():
 
 # ---- the model and its band --------------------------------------------------------------
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize("step", ["euler", "rk4"])
+@pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 def test_model_output_is_the_reference_loop_with_a_one_period_current_delay(engine, step):
     sig = signals(_rod(), command=U)
     got = PositionMonitor.model_output(sig, engine=engine, model_step=step)
@@ -121,7 +126,7 @@ def test_band_scales_put_the_nominal_model_first(hinge_scale, scales):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize("step", ["euler", "rk4"])
+@pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 @pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 2.0), (1.0, 1.0)])
 def test_model_band_is_the_hull_of_the_scaled_models(engine, step, hinge_scale):
     sig = signals(_rod(), command=U)

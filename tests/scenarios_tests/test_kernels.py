@@ -47,7 +47,7 @@ def test_compiled_loop_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
         np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
 
 
-@pytest.mark.parametrize("step", ["euler", "rk4"])
+@pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
     ref = PositionMonitor.model_output(signals, engine="numpy", model_step=step)
@@ -55,7 +55,7 @@ def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(lib
     np.testing.assert_array_equal(fast, ref)
 
 
-@pytest.mark.parametrize("step", ["euler", "rk4"])
+@pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
     det = PositionMonitor(hinge_scale=(0.6, 1.6), model_step=step)
@@ -66,7 +66,7 @@ def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm
     assert np.any(fast[1] > fast[0])          # the hinge moment moves the models apart
 
 
-@pytest.mark.parametrize("step", ["euler", "rk4"])
+@pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 def test_compiled_band_equals_the_hull_of_three_compiled_models(step):
     signals, _ = simulate(every_fault_batch(), engine="compiled")
     det = PositionMonitor(hinge_scale=(1.6, 0.6), model_step=step)
@@ -92,7 +92,7 @@ def test_compiled_band_propagates_a_nan_model_like_numpy():
     np.testing.assert_array_equal(hi, np.maximum.reduce(outs))
 
 
-@pytest.mark.parametrize("step", ["euler", "rk4"])
+@pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 @pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 1.0)])
 @pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("loop",), ("com_mon",)])
 def test_compiled_monitor_decision_is_bit_identical_to_numpy_with_the_same_libm(
@@ -191,3 +191,15 @@ def test_an_offset_jam_run_alone_equals_it_inside_a_batch():
         np.testing.assert_array_equal(alone.rod_com[0], together.rod_com[j])
         np.testing.assert_array_equal(t_one.rod_mm[0], t_all.rod_mm[j])
         np.testing.assert_array_equal(t_one.rod_fault_mm[0], t_all.rod_fault_mm[j])
+
+
+@pytest.mark.parametrize("stages", [0, 3, 5, True, 4.5])
+def test_servo_models_refuse_a_step_with_another_number_of_stages(stages):
+    # 1 (Euler), 2 (Heun) and 4 (RK4) only: any other count would silently take RK4's branch
+    signals, _ = simulate(every_fault_batch().iloc[:1], engine="compiled")
+    plant = PositionMonitor.model_plant(signals)
+    with pytest.raises(ValueError, match="stages"):
+        kernels.servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts, stages)
+    with pytest.raises(ValueError, match="stages"):
+        kernels.servo_band(signals.command, signals.rod_com[:, 0], [plant, plant], signals.ts,
+                           stages)
