@@ -16,14 +16,16 @@ threshold for a confirmation time. Three consistency checks, each optional:
     residual is how far the rod lies *outside* the hull of the three outputs (0 inside it) — a
     set-membership check in the manner of [COMB]'s interval bounds. With ``hinge_scale =
     (1, 1)`` it is the plain difference to the nominal model. The models are discretised
-    with the plant's RK4 integrator at the FCC period Ts (``model_step = "rk4"``, four
-    rate-law evaluations per step, the default). ``model_step = "euler"`` runs them as a
-    flight-control computer may, one evaluation per step (:func:`euler_step`): on the
-    fault-free Monte Carlo runs the two stay within 0.04 mm of each other (0.03 mm at most,
-    in the pitch protection; tests/detectors_tests/test_position_monitor_band.py), but the falsification
-    search finds nose-up runs where the Euler model's residual crosses the learned
-    threshold (worst margins 1.26 and 1.31 against RK4's 0.88 and 0.69, docs/execution.md),
-    so Euler is not the default.
+    at the FCC period Ts with Heun's step (``model_step = "heun"``, the default: the explicit
+    trapezoidal rule, two rate-law evaluations per step, :func:`heun_step`). On fault-free
+    runs of every manoeuvre it stays within 2·10⁻⁴ mm of the plant's own RK4 integrator
+    (``model_step = "rk4"``, four evaluations), a two-thousandth of the smallest loop
+    threshold the monitor learns, and the falsification search finds the same worst runs
+    with either (docs/execution.md, "The position monitor's model step"); it halves the
+    monitor's cost. ``model_step = "euler"`` (one evaluation per step, :func:`euler_step`)
+    stays within 0.04 mm of RK4 (0.03 mm at most, in the pitch protection;
+    tests/detectors_tests/test_position_monitor_band.py) and moves the learned thresholds
+    by a few per cent.
 ``com_mon``
     COM against MON rod acquisition. A liquid jam biases the acquisition the loop closes on:
     the loop hides it on COM but MON keeps the offset (docs/physics.md §5).
@@ -194,11 +196,11 @@ class PositionMonitor(Detector):
         model uses): 0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards.
         (1, 1): the plain nominal model.
     model_step : str
-        Discretisation of the loop check's models: ``"rk4"`` (the plant's integrator, four
-        rate-law evaluations per model and FCC period; the default), ``"heun"`` (two,
-        :func:`heun_step`) or ``"euler"`` (one
-        evaluation, as a flight-control computer may run a model: about half the monitor's
-        cost, but a smaller fault-free margin in fast nose-up manoeuvres; docs/execution.md).
+        Discretisation of the loop check's models: ``"heun"`` (Heun's step, two rate-law
+        evaluations per model and FCC period; the default: within 2·10⁻⁴ mm of RK4 on
+        fault-free runs at half its cost), ``"rk4"`` (the plant's integrator, four
+        evaluations) or ``"euler"`` (one evaluation, as a flight-control computer may run a
+        model: within 0.04 mm of RK4, thresholds a few per cent apart; docs/execution.md).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
@@ -219,14 +221,15 @@ class PositionMonitor(Detector):
               "outputs at these loads (1, 1: the plain nominal model)",
               source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
         Param("model_step", "choice", choices=MODEL_STEPS, doc="discretisation of the loop "
-              "check's servo models: rk4 (the plant's integrator, four rate-law evaluations per "
-              "model and FCC period), heun (two) or euler (one evaluation; cheaper, smaller fault-free "
-              "margin in fast nose-up manoeuvres)", source="docs/physics.md §2–3"),
+              "check's servo models: heun (two rate-law evaluations per model and FCC period; "
+              "within 2e-4 mm of rk4 on fault-free runs), rk4 (the plant's integrator, four "
+              "evaluations) or euler (one evaluation; within 0.04 mm of rk4)",
+              source="docs/physics.md §2–3, docs/execution.md"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="rk4"):
+                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="heun"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks

@@ -151,14 +151,14 @@ def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     assert counts["parts"] == {
         "plant (actuator)": 4 * (len(plan) + len(learning)) * steps,
         "healthy rod model of the jam runs": 4 * jams * steps,
-        "detect position-monitor": 12 * (len(plan) + len(learning)) * steps}
+        "detect position-monitor": 6 * (len(plan) + len(learning)) * steps}
 
 
 @pytest.mark.parametrize("params, count", [
-    ({}, 12), ({"model_step": "euler"}, 3), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 1),
+    ({}, 6), ({"model_step": "rk4"}, 12), ({"model_step": "euler"}, 3), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 1),
     ({"checks": ("com_mon", "surface")}, 0),
     ({"model_step": "euler", "checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
-    ({"hinge_scale": (1.0, 2.0)}, 8), ({"model_step": "heun"}, 6),
+    ({"hinge_scale": (1.0, 2.0)}, 4), ({"model_step": "rk4", "hinge_scale": (1.0, 2.0)}, 8),
     ({"model_step": "heun", "hinge_scale": (1.0, 2.0)}, 4),
 ])
 def test_position_monitor_declares_its_evaluations_per_model_and_step(params, count):
