@@ -18,6 +18,7 @@ import copy
 import sys
 import time
 from collections import deque
+from concurrent.futures import Future
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -184,62 +185,106 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
 
 def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
                   log=print, submit=None, workers: int = 1,
-                  run_timeout_s: float | None = None) -> dict:
+                  run_timeout_s: float | None = None, fit_submit=None) -> dict:
     """Fit each detector on the learning set, or reload it when this directory has it.
 
     Every detector fits on the same learning signals, read-only
     (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``;
     a third-party one is fitted under *run_timeout_s* (:func:`campaign.plugins.fit_detector`).
+    With *fit_submit* (a thread pool's ``submit``), the detectors whose capabilities say
+    ``fit_concurrently`` are fitted on its threads while the others are fitted here, one at
+    a time, in label order; a fit's result never depends on which thread ran it.
     A detector whose ``fit`` raises (anything) is a :class:`CampaignSetupError` naming its
-    label; so is a plant that fails on the learning runs. A fitted detector is stored as data
+    label — the first such label in the campaign's order, whatever finished first; so is a
+    plant that fails on the learning runs. A fitted detector is stored as data
     (:meth:`CampaignDir.write_fitted`); one whose parameters or learned attributes are not
     plain data (:mod:`detectors.state`) stops the campaign here, before any run, with a
     :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
     detector is then checked for batch invariance (:func:`check_batch_invariance`, under
     *run_timeout_s* when set)."""
-    from detectors.state import PLAIN_TYPES_DOC, StateTypeError
-
     detectors = build_detectors(config)
     _check_compatibility(config, detectors, settings.plant)
     names = {d.label: d.name for d in config.detectors}
     learning = build_learning_plan(config)
     cdir.write_learning(learning, config.to_json())
     learning_signals = None
-    fitted = {}
+    outcomes: dict = {}     # label → Future of its fit, or a fitted (or reloaded) detector
     for label, det in detectors.items():
         if cdir.has_fitted(label):
-            fitted[label] = cdir.read_fitted(label, names[label])
+            outcomes[label] = cdir.read_fitted(label, names[label])
             continue
-        if det.capabilities.needs_fit:
-            if learning_signals is None:
-                log(f"learning set: simulating {len(learning)} fault-free runs")
-                learning_signals = _learning_signals(learning, settings, chunk_size,
-                                                     submit, workers)
-            try:
-                det = fit_detector(det, learning_signals, settings.engine, run_timeout_s)
-            except Exception as exc:  # noqa: BLE001 - any failure of fit, named for the user
-                hint = ("; the learning signals are read-only: work on a copy (np.array("
-                        "signals.rod_com)), docs/write-a-detector.md" if writes_input(exc) else "")
-                raise CampaignSetupError(
-                    f"detector {label!r} ({type(det).__name__}) failed while fitting on the "
-                    f"learning set ({learning_signals.n_runs} fault-free runs of "
-                    f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}{hint}"
-                ) from exc
-        try:
-            cdir.write_fitted(label, names[label], det)
-        except StateTypeError as exc:
-            raise CampaignSetupError(
-                f"detector {label!r} ({names[label]}): its {exc.path} cannot be stored in "
-                f"the campaign directory: {exc.detail}. A fitted detector is stored as data, "
-                f"never as a pickle; parameters and learned attributes (names ending in '_') "
-                f"may hold {PLAIN_TYPES_DOC} (docs/write-a-detector.md, 'Learned state')"
-            ) from None
-        fitted[label] = det
+        if not det.capabilities.needs_fit:
+            outcomes[label] = det
+            continue
+        if learning_signals is None:
+            log(f"learning set: simulating {len(learning)} fault-free runs")
+            learning_signals = _learning_signals(learning, settings, chunk_size, submit,
+                                                 workers)
+        if fit_submit is not None and det.capabilities.fit_concurrently:
+            outcomes[label] = fit_submit(fit_detector, det, learning_signals, settings.engine,
+                                         run_timeout_s)
+            continue
+        outcomes[label] = _fit_here(fit_detector, det, learning_signals, settings.engine,
+                                    run_timeout_s)
+        if outcomes[label].exception() is not None:
+            break                   # no later label's failure could be the one reported
+    fitted = {}
+    for label, det in detectors.items():
+        outcome = outcomes.get(label)
+        if isinstance(outcome, Future):
+            exc = outcome.exception()
+            if exc is not None:
+                for later in outcomes.values():     # let the other fits end before leaving
+                    if isinstance(later, Future):
+                        later.exception()
+                raise _fit_failure(label, det, exc, learning_signals, settings) from exc
+            outcome = outcome.result()
+        if outcome is None:         # not fitted: an earlier label's fit failed
+            continue
+        _store_fitted(cdir, label, names[label], outcome)
+        fitted[label] = outcome
     plugins = {label: det for label, det in fitted.items() if third_party(det)}
     if plugins:
         check_batch_invariance(plugins, learning, settings, learning_signals,
                                run_timeout_s=run_timeout_s, log=log)
     return fitted
+
+
+def _fit_here(fit, *args) -> Future:
+    """*fit(*args)* run on this thread, its result (or exception) held in a done Future."""
+    done: Future = Future()
+    try:
+        done.set_result(fit(*args))
+    except Exception as exc:  # noqa: BLE001 - reported in label order by fit_detectors
+        done.set_exception(exc)
+    return done
+
+
+def _fit_failure(label: str, det, exc: BaseException, learning_signals: Signals,
+                 settings: ChunkSettings) -> CampaignSetupError:
+    """The error that names the detector *label* whose ``fit`` raised *exc*."""
+    hint = ("; the learning signals are read-only: work on a copy (np.array("
+            "signals.rod_com)), docs/write-a-detector.md" if writes_input(exc) else "")
+    return CampaignSetupError(
+        f"detector {label!r} ({type(det).__name__}) failed while fitting on the "
+        f"learning set ({learning_signals.n_runs} fault-free runs of "
+        f"{plant_name(settings.plant)}): {type(exc).__name__}: {exc}{hint}")
+
+
+def _store_fitted(cdir: CampaignDir, label: str, name: str, det) -> None:
+    """Write the fitted *det* into the directory, or stop the campaign (exit 2) naming the
+    attribute that cannot be stored as data."""
+    from detectors.state import PLAIN_TYPES_DOC, StateTypeError
+
+    try:
+        cdir.write_fitted(label, name, det)
+    except StateTypeError as exc:
+        raise CampaignSetupError(
+            f"detector {label!r} ({name}): its {exc.path} cannot be stored in "
+            f"the campaign directory: {exc.detail}. A fitted detector is stored as data, "
+            f"never as a pickle; parameters and learned attributes (names ending in '_') "
+            f"may hold {PLAIN_TYPES_DOC} (docs/write-a-detector.md, 'Learned state')"
+        ) from None
 
 
 def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
@@ -602,11 +647,13 @@ def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
     with kernels.use_engine(settings.engine):
         # the learning set on the worker threads (the built-in plant's kernels release
         # the GIL; an FMU plant is simulated here, one instance at a time)
-        threads = (pool is not None and setup.backend == "threading"
-                   and settings.plant.kind == "actuator")
+        threads = pool is not None and setup.backend == "threading"
+        simulate_on_threads = threads and settings.plant.kind == "actuator"
+        # the detectors that say so fit on the worker threads too, beside the others
         return fit_detectors(config, setup.cdir, settings, setup.chunk_size, log=log,
-                             submit=pool.submit if threads else None, workers=setup.jobs,
-                             run_timeout_s=setup.run_timeout_s)
+                             submit=pool.submit if simulate_on_threads else None,
+                             workers=setup.jobs, run_timeout_s=setup.run_timeout_s,
+                             fit_submit=pool.submit if threads else None)
 
 
 def _plan_chunks(cdir: CampaignDir, size: int, done: np.ndarray | None):

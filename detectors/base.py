@@ -116,6 +116,11 @@ class Capabilities:
     #: another surface, an alarm after onset is an isolation failure, not a detection
     #: (campaign.isolation, reports.gate). Empty: whatever surface the campaign monitors.
     fault_surfaces: tuple[str, ...] = ()
+    #: its ``fit`` touches nothing but the detector itself and its read-only learning signals
+    #: (no module-level cache, no solver state shared between instances), so the engine may
+    #: fit it on a worker thread while the other detectors fit (campaign.runner.fit_detectors).
+    #: False (the default): fitted one at a time, on the thread that runs the campaign.
+    fit_concurrently: bool = False
 
 
 @dataclass(frozen=True)

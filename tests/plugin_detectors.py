@@ -5,6 +5,9 @@ the ``detectors`` package, so the runner treats them as third-party detectors.""
 
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 
 from detectors.base import Capabilities, Detection, Detector
@@ -83,6 +86,32 @@ class FitFails(_Quiet):
 
     def _fit(self, signals):
         raise RuntimeError("singular matrix in the threshold estimate")
+
+
+class FitFailsLate(_Quiet):
+    """Fits on a worker thread beside the others (``fit_concurrently``), and its fit raises
+    after 0.5 s: later than a fit that fails at once."""
+
+    capabilities = Capabilities(needs_fit=True, fit_concurrently=True)
+
+    def _fit(self, signals):
+        time.sleep(0.5)
+        raise RuntimeError("late failure of a concurrent fit")
+
+
+#: Met by two fits at once (:class:`FitsTogether`); a test resets it before use.
+FIT_BARRIER = threading.Barrier(2, timeout=20)
+
+
+class FitsTogether(_Quiet):
+    """Fits on a worker thread (``fit_concurrently``) and waits in its fit for a second
+    detector's fit to reach :data:`FIT_BARRIER`: two of them fit only when they fit at the
+    same time (one at a time, the first raises threading.BrokenBarrierError)."""
+
+    capabilities = Capabilities(needs_fit=True, fit_concurrently=True)
+
+    def _fit(self, signals):
+        FIT_BARRIER.wait()
 
 
 class ScheduleMargin(_Quiet):

@@ -432,7 +432,8 @@ class IntervalDetector(Detector):
         (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     """
 
-    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
+    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
+                                fit_concurrently=True)
 
     parameters = (
         Param("poles", "floats", gt=0.0, lt=1.0, unique=True, scalar=True,

@@ -203,7 +203,8 @@ class PositionMonitor(Detector):
         model: within 0.04 mm of RK4, thresholds a few per cent apart; docs/execution.md).
     """
 
-    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
+    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
+                                fit_concurrently=True)
 
     parameters = (
         Param("safety", "float", gt=1.0, doc="threshold of a check = safety × its largest "

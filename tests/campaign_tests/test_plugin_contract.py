@@ -21,7 +21,8 @@ from detectors.testing import check_detector
 from plugin_detectors import BadResidual, BatchMean
 from small_campaigns import campaign_toml, small_campaign
 
-PLUGINS = ("Subsampled", "BadResidual", "BatchMean", "Offline", "FitFails")
+PLUGINS = ("Subsampled", "BadResidual", "BatchMean", "Offline", "FitFails", "FitFailsLate",
+           "FitsTogether")
 
 
 @pytest.fixture
@@ -155,6 +156,31 @@ def test_fit_failure_exit_2_and_nothing_left(tmp_path, plugins, capsys):
     empty.mkdir()
     assert main(["run", str(path), "--jobs", "1", "--quiet", "--out", str(empty)]) == 2
     assert empty.is_dir() and not any(empty.iterdir())
+
+
+def test_the_fit_failure_reported_is_the_first_in_the_campaign_order(tmp_path, plugins, capsys):
+    # 'late' fits on a worker thread and fails after 'soon', fitted here, has failed: the
+    # error still names 'late', the first in the campaign's order, as one fit at a time would
+    path = tmp_path / "c.toml"
+    path.write_text(campaign_toml(_config({"name": "fit-fails-late", "label": "late"},
+                                          {"name": "fit-fails", "label": "soon"})))
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--jobs", "2", "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "detector 'late' (FitFailsLate) failed while fitting" in err
+    assert "'soon'" not in err
+    assert not out.exists()
+
+
+def test_detectors_that_say_so_fit_at_the_same_time(tmp_path, plugins):
+    # each fit waits for the other at a barrier: the campaign runs only if both fit at once
+    import plugin_detectors
+
+    plugin_detectors.FIT_BARRIER.reset()
+    path = tmp_path / "c.toml"
+    path.write_text(campaign_toml(_config({"name": "fits-together", "label": "a"},
+                                          {"name": "fits-together", "label": "b"})))
+    assert main(["run", str(path), "--jobs", "2", "--quiet", "--out", str(tmp_path / "o")]) == 0
 
 
 def test_plant_failure_in_learning_names_the_plant(tmp_path, monkeypatch, capsys):
