@@ -5,7 +5,8 @@ into detections or result rows goes through here: the runner's chunks
 (:func:`evaluate`), the report's and ``show``'s re-simulation (:func:`simulate_and_detect`),
 the learning set (:func:`simulate_signals`), ``bench`` and the studies. The plant is
 called in one place (:func:`_simulate`); the scoring rules are those of
-:func:`reports.metrics.score_runs` and nowhere else.
+:func:`reports.metrics.score_columns` (behind :func:`reports.metrics.score_runs`) and
+nowhere else.
 
 :func:`evaluate` never raises for a bad run or a failing detector: those runs get result
 rows with ``status="error"`` and the message (docs/design.md §9, Non-negotiables). Every
@@ -26,7 +27,7 @@ import pandas as pd
 
 from detectors import Detection, as_variants, detection_problems
 from detectors.base import read_only, writes_input
-from reports.metrics import RESULT_COLUMNS, estimation_errors, score_runs
+from reports.metrics import RESULT_COLUMNS, estimation_errors, score_columns
 from scenarios import compiled as kernels
 from scenarios.faults import estimation_range_mm
 from scenarios.signals import Signals
@@ -217,21 +218,26 @@ def _estimate_columns(detection, truth, range_mm: float) -> dict:
 
 def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
             settings: ChunkSettings, range_mm: float = np.nan) -> list[pd.DataFrame]:
-    frames = []
+    """The result rows of *detections* on *rows*, variant after variant, as one table (in a
+    list, as the callers concatenate them): assembled from the columns of every variant,
+    so a chunk costs one DataFrame per detector, not one per variant and column."""
+    if not detections:
+        return []
+    n = len(rows)
+    manoeuvre = rows["manoeuvre"].to_numpy()
+    parts: dict[str, list] = {c: [] for c in RESULT_COLUMNS}
     for name, detection in detections.items():
-        scored = score_runs(
+        scored = score_columns(
             run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
             alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
             required_time_s=required, window_s=settings.window_s)
-        scored.insert(1, "detector", name)
-        scored.insert(2, "fault", truth.fault)
-        scored.insert(3, "manoeuvre", rows["manoeuvre"].to_numpy())
-        scored.insert(4, "status", "ok")
-        scored.insert(5, "error", "")
-        for column, values in _estimate_columns(detection, truth, range_mm).items():
-            scored[column] = values
-        frames.append(scored)
-    return frames
+        scored.update(_estimate_columns(detection, truth, range_mm))
+        scored.update(detector=np.full(n, name, dtype=object),
+                      fault=np.asarray(truth.fault), manoeuvre=manoeuvre,
+                      status=np.full(n, "ok", dtype=object), error=np.full(n, "", dtype=object))
+        for column in RESULT_COLUMNS:
+            parts[column].append(scored[column])
+    return [pd.DataFrame({c: np.concatenate(v) for c, v in parts.items()})]
 
 
 def score(rows: pd.DataFrame, truth, detections: dict, settings: ChunkSettings,

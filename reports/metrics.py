@@ -25,6 +25,7 @@ __all__ = [
     "clopper_pearson",
     "estimation_errors",
     "lower_bound",
+    "score_columns",
     "score_runs",
     "upper_bound",
 ]
@@ -78,7 +79,18 @@ def _per_run(value, n: int, name: str) -> np.ndarray:
 
 def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
                window_s=None) -> pd.DataFrame:
-    """Score a batch of runs of one detector (docs/design.md §5, Metrics).
+    """Score a batch of runs of one detector (docs/design.md §5, Metrics): the columns of
+    :func:`score_columns` as a DataFrame (see there for the parameters and the rules)."""
+    return pd.DataFrame(score_columns(
+        run_id=run_id, fault=fault, onset_s=onset_s, alarm=alarm, residual=residual, ts=ts,
+        required_time_s=required_time_s, window_s=window_s), columns=list(SCORE_COLUMNS))
+
+
+def score_columns(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
+                  window_s=None) -> dict[str, np.ndarray]:
+    """Score a batch of runs of one detector (docs/design.md §5, Metrics): {column of
+    :data:`SCORE_COLUMNS` → (n,) array}, for callers that assemble many batches into one
+    table (:func:`campaign.evaluate.evaluate`).
 
     Parameters
     ----------
@@ -105,7 +117,7 @@ def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
 
     Returns
     -------
-    DataFrame with :data:`SCORE_COLUMNS`, one row per run, in input order:
+    {column: (n,) array} of :data:`SCORE_COLUMNS`, one value per run, in input order:
 
     * fault-free run: ``false_alarm`` = any alarm; ``pre_onset_alarm`` = ``false_alarm``;
       ``first_alarm_s`` = first alarm time (NaN if none); ``detected`` False; ``delay_s``
@@ -163,32 +175,46 @@ def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
             f"missing or invalid for fault type(s): {kinds}")
 
     # Fault-free runs: the whole run is "before onset" and there is no detection window.
+    # As step indices: steps k < k_on are before onset (t_k < onset − ONSET_TOL_S), steps
+    # k_on ≤ k < k_end are in the detection window (t_k ≤ onset + window + ONSET_TOL_S);
+    # searchsorted on the sorted times gives exactly the steps those comparisons select.
     onset_eff = np.where(faulty, onset, np.inf)
     t = np.arange(n_steps) * ts
-    after_onset = t[None, :] >= (onset_eff - ONSET_TOL_S)[:, None]
-    before_onset = ~after_onset
-    in_window = after_onset & (t[None, :] <= (onset_eff + window + ONSET_TOL_S)[:, None])
+    k_on = np.searchsorted(t, onset_eff - ONSET_TOL_S, side="left")
+    k_end = np.searchsorted(t, onset_eff + window + ONSET_TOL_S, side="right")
 
-    pre_onset_alarm = np.any(alarm & before_onset, axis=1)
-
-    idx_win, detected = _first_true(alarm & in_window)
     idx_any, any_alarm = _first_true(alarm)
+    # an alarm before onset ⟺ the first alarm is before onset
+    pre_onset_alarm = any_alarm & (idx_any < k_on)
+    # the first alarm in the window: the run's first alarm when it lies there; after an
+    # alarm before onset (a false alarm: few runs), searched for from the onset on
+    idx_win = idx_any.copy()
+    in_window = any_alarm & (idx_any >= k_on) & (idx_any < k_end)
+    for i in np.flatnonzero(pre_onset_alarm & (k_on < k_end)):
+        later = alarm[i, k_on[i]:k_end[i]]
+        j = int(np.argmax(later))
+        if later[j]:
+            idx_win[i] = k_on[i] + j
+            in_window[i] = True
     first_alarm_s = np.where(
         faulty,
-        np.where(detected, idx_win * ts, np.nan),
+        np.where(in_window, idx_win * ts, np.nan),
         np.where(any_alarm, idx_any * ts, np.nan),
     )
-    detected = faulty & detected
+    detected = faulty & in_window
     delay_s = np.where(detected, first_alarm_s - onset, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         dtp = np.where(detected, delay_s / required, np.nan)
 
-    valid = before_onset & ~np.isnan(residual)
-    masked = np.where(valid, residual, -np.inf)
-    margin = masked.max(axis=1) if n_steps else np.full(n, -np.inf)
-    margin = np.where(valid.any(axis=1), margin, np.nan)
+    # margin: the largest residual before onset, NaN samples left out (NaN when none is left)
+    margin = np.full(n, np.nan)
+    whole = k_on >= n_steps                 # fault-free runs, and onsets after the run
+    if whole.any():
+        margin[whole] = np.fmax.reduce(residual[whole], axis=1)
+    for i in np.flatnonzero(~whole & (k_on > 0)):
+        margin[i] = np.fmax.reduce(residual[i, :k_on[i]])
 
-    return pd.DataFrame({
+    return {
         "run_id": run_id.astype(object),
         "false_alarm": pre_onset_alarm,
         "pre_onset_alarm": pre_onset_alarm,
@@ -197,7 +223,7 @@ def score_runs(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
         "delay_s": delay_s,
         "dtp": dtp,
         "margin": margin,
-    }, columns=list(SCORE_COLUMNS))
+    }
 
 
 def estimation_errors(estimate, fault) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
