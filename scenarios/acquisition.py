@@ -65,11 +65,10 @@ def sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = True
     rows = 4 if pressure else 3
     u = np.empty((n, 5))
     noise = np.empty((rows, n, T))       # each noise series one contiguous (n, T) block
-    buf = np.empty((rows, T))
     for i, rng in enumerate(rngs):
         u[i] = rng.uniform(-1.0, 1.0, size=5)
-        rng.standard_normal(out=buf)
-        noise[:, i] = buf
+        for row in noise[:, i]:          # drawn in place, series after series: the same
+            rng.standard_normal(out=row)  # normals, in the same order, as one draw of rows·T
     noise[0] *= s.rod_noise_mm           # scaled in place: no second copy of the noise
     noise[1] *= s.rod_noise_mm
     noise[2] *= s.surface_noise_deg
