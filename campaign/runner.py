@@ -695,7 +695,8 @@ def _execute(config, setup: _Setup, n_planned: int, detectors: dict, *, progress
     labels = list(detectors)
 
     def store(frame: pd.DataFrame) -> None:
-        cdir.write_shard(frame, config.to_json())
+        # the manifest takes the shards a few seconds at a time (flushed below)
+        cdir.write_shard(frame, config.to_json(), defer_manifest=True)
         bar.update(frame["run_id"].nunique())
 
     def fail(rows, status, message):
@@ -721,6 +722,7 @@ def _execute(config, setup: _Setup, n_planned: int, detectors: dict, *, progress
             "command again to resume")
         return False
     finally:
+        cdir.flush_manifest()
         bar.close()
 
 
