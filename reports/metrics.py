@@ -187,15 +187,14 @@ def score_columns(*, run_id, fault, onset_s, alarm, residual, ts, required_time_
     # an alarm before onset ⟺ the first alarm is before onset
     pre_onset_alarm = any_alarm & (idx_any < k_on)
     # the first alarm in the window: the run's first alarm when it lies there; after an
-    # alarm before onset (a false alarm: few runs), searched for from the onset on
+    # alarm before onset (a false alarm: few runs), searched for in those runs' windows
     idx_win = idx_any.copy()
     in_window = any_alarm & (idx_any >= k_on) & (idx_any < k_end)
-    for i in np.flatnonzero(pre_onset_alarm & (k_on < k_end)):
-        later = alarm[i, k_on[i]:k_end[i]]
-        j = int(np.argmax(later))
-        if later[j]:
-            idx_win[i] = k_on[i] + j
-            in_window[i] = True
+    again = np.flatnonzero(pre_onset_alarm & (k_on < k_end))
+    if again.size:
+        steps = np.arange(n_steps)
+        window_steps = ((steps >= k_on[again, None]) & (steps < k_end[again, None]))
+        idx_win[again], in_window[again] = _first_true(alarm[again] & window_steps)
     first_alarm_s = np.where(
         faulty,
         np.where(in_window, idx_win * ts, np.nan),
@@ -206,13 +205,17 @@ def score_columns(*, run_id, fault, onset_s, alarm, residual, ts, required_time_
     with np.errstate(invalid="ignore", divide="ignore"):
         dtp = np.where(detected, delay_s / required, np.nan)
 
-    # margin: the largest residual before onset, NaN samples left out (NaN when none is left)
-    margin = np.full(n, np.nan)
-    whole = k_on >= n_steps                 # fault-free runs, and onsets after the run
-    if whole.any():
-        margin[whole] = np.fmax.reduce(residual[whole], axis=1)
-    for i in np.flatnonzero(~whole & (k_on > 0)):
-        margin[i] = np.fmax.reduce(residual[i, :k_on[i]])
+    # margin: the largest residual before onset, NaN samples left out (NaN when none is
+    # left): the whole run's for fault-free runs (and onsets after the run), else the
+    # maximum over steps [0, k_on) of the row, all of them in one fmax.reduceat over the
+    # flat residual (segments alternate: a run's steps before onset, then the rest)
+    margin = np.fmax.reduce(residual, axis=1) if n_steps else np.full(n, np.nan)
+    part = np.flatnonzero(k_on < n_steps)
+    if part.size:
+        starts = part * n_steps
+        bounds = np.column_stack([starts, starts + k_on[part]]).ravel()
+        margin[part] = np.fmax.reduceat(residual.reshape(-1), bounds)[::2]
+        margin[part[k_on[part] == 0]] = np.nan      # no step before onset
 
     return {
         "run_id": run_id.astype(object),
