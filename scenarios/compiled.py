@@ -595,8 +595,11 @@ def servo_model(u, x0, plant, ts: float, stages: int = 4) -> np.ndarray:
     return out
 
 
-#: Rate-law evaluations per step of the servo models' integrators: Euler, Heun, RK4.
-STAGES = (1, 2, 4)
+#: Rate-law evaluations per step of each integrator of the servo models (a model's
+#: ``model_step``, :class:`detectors.builtin.position_monitor.PositionMonitor`).
+STEP_STAGES = {"euler": 1, "heun": 2, "rk4": 4}
+#: The numbers of stages :func:`servo_band_step` takes.
+STAGES = tuple(STEP_STAGES.values())
 
 
 def check_stages(stages) -> int:

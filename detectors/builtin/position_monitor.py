@@ -54,8 +54,8 @@ from dataclasses import replace
 import numpy as np
 
 from scenarios import compiled as kernels
-from scenarios.compiled import (BAND_WORK_ROWS, BLOCK, band_plants, resolve_engine, servo_band,
-                               servo_band_step, servo_model)
+from scenarios.compiled import (BAND_WORK_ROWS, BLOCK, STEP_STAGES, band_plants, resolve_engine,
+                               servo_band, servo_band_step, servo_model)
 from scenarios.servo import PlantArrays, plant_arrays, rk4_step, rod_rate
 from scenarios.signals import Signals
 
@@ -65,11 +65,9 @@ from ..params import Param
 
 CHECKS = ("loop", "com_mon", "surface")
 #: Discretisations of the loop check's servo models (``model_step``): one explicit Euler
-#: step per FCC period, Heun's step, or the plant's RK4 step.
-MODEL_STEPS = ("euler", "heun", "rk4")
-#: Rate-law evaluations per model and step of each ``model_step``
-#: (:func:`scenarios.compiled.servo_band_step`'s *stages*).
-STAGES = {"euler": 1, "heun": 2, "rk4": 4}
+#: step per FCC period, Heun's step, or the plant's RK4 step; each one's rate-law
+#: evaluations per step are :data:`scenarios.compiled.STEP_STAGES`.
+MODEL_STEPS = tuple(STEP_STAGES)
 
 
 def euler_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
@@ -284,7 +282,7 @@ class PositionMonitor(Detector):
         plant = PositionMonitor.model_plant(signals, hinge_scale)
         if resolve_engine(engine) == "compiled":
             return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts,
-                               stages=STAGES[model_step])
+                               stages=STEP_STAGES[model_step])
         step = _STEPS[model_step]
         n, T = signals.command.shape
         out = np.empty((n, T))
@@ -306,11 +304,12 @@ class PositionMonitor(Detector):
 
     def rate_evaluations_per_step(self) -> int:
         """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
-        one per model of the band and Euler step, two per Heun step, four per RK4 step; none without the loop
-        check (``fdd-campaign bench``'s arithmetic floor)."""
+        :data:`scenarios.compiled.STEP_STAGES` of its ``model_step`` per model of the band
+        (Euler 1, Heun 2, RK4 4); none without the loop check (``fdd-campaign bench``'s
+        arithmetic floor)."""
         if "loop" not in self._checks():
             return 0
-        return len(self.band_scales()) * STAGES[self.model_step]
+        return len(self.band_scales()) * STEP_STAGES[self.model_step]
 
     def model_band(self, signals: Signals,
                    engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -329,7 +328,7 @@ class PositionMonitor(Detector):
         if resolve_engine(engine) == "compiled":
             return servo_band(signals.command, signals.rod_com[:, 0],
                               [self.model_plant(signals, v) for v in scales], signals.ts,
-                              stages=STAGES[self.model_step])
+                              stages=STEP_STAGES[self.model_step])
         outs = [self.model_output(signals, engine="numpy", hinge_scale=v,
                                   model_step=self.model_step) for v in scales]
         return np.minimum.reduce(outs), np.maximum.reduce(outs)
@@ -405,8 +404,8 @@ class PositionMonitor(Detector):
         alarm = np.empty(rod_com.shape, dtype=bool)
         n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
         active = np.array([name in checks for name in CHECKS])
-        _decide_block(rod_com, u, plants, float(signals.ts), STAGES[self.model_step], rod_mon,
-                      surface, tau, active, n_confirm, norm, alarm)
+        _decide_block(rod_com, u, plants, float(signals.ts), STEP_STAGES[self.model_step],
+                      rod_mon, surface, tau, active, n_confirm, norm, alarm)
         return Detection(alarm=alarm, residual=norm)
 
 
