@@ -41,8 +41,9 @@ a file written just before a crash may be missing from it, and resuming removes 
 :data:`MANIFEST_DEFER_S` seconds (``write_shard(..., defer_manifest=True)``, then
 :meth:`CampaignDir.flush_manifest`): the manifest is rewritten whole, so one rewrite per
 shard made a campaign's manifest writes grow with the square of its shards (7 ms a shard at
-4 000 shards); a kill then re-runs at most those seconds of shards. It makes a directory tamper-evident, not tamper-proof: anyone
-who can write the files can write a matching manifest too.
+4 000 shards); a kill then re-runs at most those seconds of shards. It makes a directory
+tamper-evident, not tamper-proof: anyone who can write the files can write a matching
+manifest too.
 """
 
 from __future__ import annotations
@@ -403,11 +404,12 @@ class CampaignDir:
                 del self._manifest["files"][rel]
             self._write_manifest()
 
-    def _write_recorded(self, path: Path, write) -> None:
-        """``write()`` the file *path*, keeping the manifest true at every moment."""
+    def _write_recorded(self, path: Path, write, defer: bool = False) -> None:
+        """``write()`` the file *path*, keeping the manifest true at every moment (*defer*:
+        recorded as :meth:`_record` says)."""
         self._forget(path)
         write()
-        self._record(path)
+        self._record(path, defer=defer)
 
     def remove(self, path) -> None:
         """Remove the file *path* of this directory (and its manifest entry first)."""
@@ -754,9 +756,9 @@ class CampaignDir:
         :meth:`flush_manifest` when it stops (a shard a crash leaves out of the manifest is
         removed on resume, and its runs are run again)."""
         path = self.next_shard_path()
-        self._forget(path)
-        write_parquet(results, path, config_json, kind="results")
-        self._record(path, defer=defer_manifest)
+        self._write_recorded(path, lambda: write_parquet(results, path, config_json,
+                                                         kind="results"),
+                             defer=defer_manifest)
         self._next_shard += 1
         return path
 
