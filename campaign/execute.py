@@ -92,7 +92,8 @@ def one_blas_thread():
     two cores a batch of 100 matrix exponentials took 40–130 ms with OpenBLAS's default
     threads, 3–10 ms with one, and chen-mc 82 → 55 CPU-s), and a result computed with one
     thread does not depend on the machine's core count. This process's BLAS is limited with
-    threadpoolctl (restored on leaving), and the variables are set to 1 meanwhile, so that
+    threadpoolctl (restored on leaving; from any thread, :func:`_blas_control`), and the
+    variables are set to 1 meanwhile, so that
     the worker processes started inside (loky) load their BLAS with one thread. Nested use
     changes nothing. Used by :func:`campaign.runner.run` (hence ``campaign.run``), the
     falsification search, the certificate and every ``fdd-campaign`` command; on the workers
@@ -105,19 +106,49 @@ def one_blas_thread():
 
     os.environ.update({variable: "1" for variable in BLAS_THREAD_VARIABLES})
     try:
-        with threadpool_limits(limits=1, user_api="blas"):
+        with _blas_control():               # also when another thread set a count first
+            limiter = threadpool_limits(limits=1, user_api="blas")
+        try:
             yield
+        finally:
+            with _blas_control():
+                limiter.restore_original_limits()
     finally:
         for variable in BLAS_THREAD_VARIABLES:
             os.environ.pop(variable, None)
 
 
+@contextmanager
+def _blas_control():
+    """Control of OpenBLAS's process-wide thread count for this thread, handed back after.
+
+    Since threadpoolctl 3.8, only one thread at a time may change that count: the first to
+    set it, until it clears its claim or ends; the calls of every other thread are silently
+    ignored (``OpenBLASController`` in threadpoolctl). A dask worker's pool threads live as
+    long as the worker, so the thread that limited BLAS for one chunk would keep the claim,
+    and the restore by the thread whose chunk ends last, or the next limit after a count
+    set by the worker's main thread, would do nothing. :class:`_SharedBlasLimit` orders its
+    holders itself (its lock and count), so each change takes the claim for its duration
+    and gives it back. Older threadpoolctl versions have no claim and need nothing."""
+    from threadpoolctl import OpenBLASController
+
+    clear = getattr(OpenBLASController, "clear_controlling_thread", None)
+    if clear is not None:
+        clear(force=True)
+    try:
+        yield
+    finally:
+        if clear is not None:
+            clear(force=True)
+
+
 class _SharedBlasLimit:
     """BLAS limited to one thread while at least one holder is inside :meth:`held`: the
     first holder applies the limit (threadpoolctl, for the whole process), the last one to
-    leave restores the limits found. For the threads of one process that run chunks at the
-    same time (a dask worker with ``--nthreads`` above 1), where each applying and
-    restoring its own limit would lift it under the others."""
+    leave restores the limits found, whichever threads they are (:func:`_blas_control`).
+    For the threads of one process that run chunks at the same time (a dask worker with
+    ``--nthreads`` above 1), where each applying and restoring its own limit would lift it
+    under the others."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -130,7 +161,8 @@ class _SharedBlasLimit:
             if self._holders == 0:
                 from threadpoolctl import threadpool_limits
 
-                self._limiter = threadpool_limits(limits=1, user_api="blas")
+                with _blas_control():
+                    self._limiter = threadpool_limits(limits=1, user_api="blas")
             self._holders += 1
         try:
             yield
@@ -138,7 +170,8 @@ class _SharedBlasLimit:
             with self._lock:
                 self._holders -= 1
                 if self._holders == 0:
-                    self._limiter.restore_original_limits()
+                    with _blas_control():
+                        self._limiter.restore_original_limits()
                     self._limiter = None
 
 

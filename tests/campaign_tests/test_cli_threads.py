@@ -71,6 +71,25 @@ def test_a_thread_count_the_user_exported_wins(value):
     assert probe({**clean_env(), "OPENBLAS_NUM_THREADS": value}, code) == f"True {value}"
 
 
+def test_a_campaign_limits_blas_although_another_live_thread_set_a_count_first():
+    """A thread that set a BLAS count and lives on (a thread of the program that calls
+    ``campaign.run``) would make threadpoolctl ignore the campaign's limit: the campaign
+    still runs BLAS at one thread, and the count found comes back after it."""
+    code = ("import threading, numpy\n"
+            "from threadpoolctl import threadpool_info, threadpool_limits\n"
+            "from campaign.execute import one_blas_thread\n"
+            "count = lambda: sorted({i['num_threads'] for i in threadpool_info() "
+            "if i['user_api'] == 'blas'})\n"
+            "set_, end = threading.Event(), threading.Event()\n"
+            "def other():\n"
+            "    threadpool_limits(3, 'blas'); set_.set(); end.wait(10)\n"
+            "t = threading.Thread(target=other); t.start(); set_.wait(10)\n"
+            "with one_blas_thread():\n"
+            "    inside = count()\n"
+            "print(inside, count()); end.set(); t.join()")
+    assert probe(clean_env(), code) == "[1] [3]"
+
+
 class _Seen(Exception):
     pass
 
@@ -96,10 +115,11 @@ def test_campaign_run_from_python_runs_one_blas_thread(no_exported_count, monkey
     assert seen == [{1}]
 
 
-#: The start of a fresh interpreter in the state of a dask worker: its main thread never set
-#: a BLAS count (it runs the worker's event loop) and chunks run in other threads. OpenBLAS
-#: ignores a count set from another thread once the main thread has set one, so these
-#: checks cannot run in the test process, whose main thread other tests limit.
+#: The start of a fresh interpreter in the state of a dask worker: chunks run in the threads
+#: of its pool, which live as long as the worker. Since threadpoolctl 3.8 only one thread at
+#: a time may change OpenBLAS's process-wide count (the first to set it, until it clears or
+#: ends; the others' calls are silently ignored), so these checks run in a fresh process
+#: whose threads are known.
 WORKER = """
 import threading
 import numpy
@@ -114,10 +134,12 @@ def start(target, *args):
     thread.start()
     return thread
 
-def chunk(fn, seen, name, done=None):
+def chunk(fn, seen, name, done=None, stay=None):
     seen[name] = run_chunk_on_worker(fn, None, None, None)
     if done is not None:
         done.set()
+    if stay is not None:              # a pool thread outlives its chunk
+        assert stay.wait(10)
 """
 
 
@@ -136,9 +158,12 @@ print(seen["chunk"], count())
 
 def test_chunks_running_at_once_in_one_worker_keep_the_limit_until_the_last_ends():
     """Two chunks in two threads of one worker process (``--nthreads 2``): the first to end
-    must not lift the limit under the other; the last restores the count found."""
+    must not lift the limit under the other; the last restores the count found, although
+    the thread that set the limit is still alive (as a pool thread is): threadpoolctl would
+    ignore the restore from the other thread unless the limit hands control back."""
     code = WORKER + """
 first_in, second_in, first_out = threading.Event(), threading.Event(), threading.Event()
+printed = threading.Event()
 
 def first(*_):
     first_in.set()
@@ -152,14 +177,28 @@ def second(*_):
 
 start(threadpool_limits, 3, "blas").join()
 seen = {}
-a = start(chunk, first, seen, "first", first_out)
+a = start(chunk, first, seen, "first", first_out, printed)
 assert first_in.wait(10)
 b = start(chunk, second, seen, "second")
-a.join(10)
 b.join(10)
 print(seen["first"], seen["second"], count())
+printed.set()
+a.join(10)
 """
     assert probe(clean_env(), code) == "[1] [1] [3]"
+
+
+def test_a_chunk_limits_blas_although_another_thread_of_the_worker_set_a_count_first():
+    """A thread of the worker that set a count and lives on (here the main thread, which
+    never hands control back) would make threadpoolctl ignore the chunk's limit: the chunk
+    must still run at one thread, and the count found must come back after it."""
+    code = WORKER + """
+threadpool_limits(3, "blas")
+seen = {}
+start(chunk, count, seen, "chunk").join()
+print(seen["chunk"], count())
+"""
+    assert probe(clean_env(), code) == "[1] [3]"
 
 
 def test_a_thread_count_set_in_the_worker_environment_wins():
