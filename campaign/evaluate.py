@@ -207,7 +207,8 @@ def _estimate_columns(detection, truth, range_mm: float) -> dict:
     (``Truth.rod_fault_mm``) and the detector gives an estimate; 0 samples otherwise."""
     n = len(truth.fault)
     estimate = getattr(detection, "estimate", None)
-    fault = getattr(truth, "rod_fault_mm", None)
+    # read only for an estimate: the truth computes it on its first read (Truth.rod_fault_mm)
+    fault = None if estimate is None else getattr(truth, "rod_fault_mm", None)
     if estimate is None or fault is None:
         count, mean, var = np.zeros(n, np.int64), np.full(n, np.nan), np.full(n, np.nan)
     else:
@@ -312,11 +313,12 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
 def _scoring_truth(truth):
     """*truth* without its (n, T) true series, which scoring does not read (fault type and
     onset only): their memory is freed before the detectors run. The series become
-    all-NaN read-only views of the same shape."""
+    all-NaN read-only views of the same shape; the rod fault stays as it was stored
+    (computed only if a detector's estimate is scored)."""
     shape = np.shape(truth.rod_mm)
     nan = np.broadcast_to(np.nan, shape)
     return replace(truth, rod_mm=nan, surface_deg=nan, current_mA=nan, aircraft=None,
-                   surfaces_deg=None)
+                   surfaces_deg=None, rod_fault_mm=truth.stored_rod_fault())
 
 
 # ---- runs that could not be evaluated --------------------------------------------------------

@@ -121,6 +121,12 @@ class Capabilities:
     #: fit it on a worker thread while the other detectors fit (campaign.runner.fit_detectors).
     #: False (the default): fitted one at a time, on the thread that runs the campaign.
     fit_concurrently: bool = False
+    #: its detections carry an ``estimate`` of the rod fault ([CHEN] eq. 4), scored against
+    #: the truth's rod fault, which a healthy servo model of every jam run computes
+    #: (scenarios.signals.Truth). Informative: an estimate is scored whenever a detection
+    #: gives one; ``fdd-campaign bench`` counts that model in the floor of campaigns with
+    #: such a detector.
+    estimates_rod_fault: bool = False
 
 
 @dataclass(frozen=True)

@@ -259,7 +259,11 @@ class Truth:
     rod_fault_mm : ndarray (n_runs, n_steps) or None
         The additive fault f [mm] of [CHEN] eq. 4 on the COM rod measurement of the jam runs
         from their onset on (:func:`scenarios.simulate.rod_measurement_fault`); NaN before
-        onset and for other runs; None when the batch holds no jam.
+        onset and for other runs; None when the batch holds no jam. It may be given as a
+        function of no argument that returns it: it is then computed on its first read and
+        kept. Only a detector's fault estimate is scored against it, and computing it takes
+        a healthy servo model of every jam run (0.2 CPU-s of addsafe-mc's runs, whose
+        detectors estimate nothing).
     """
 
     rod_mm: np.ndarray
@@ -273,6 +277,13 @@ class Truth:
     surfaces_deg: dict | None = None
     rod_fault_mm: np.ndarray | None = None
 
+    def __getattribute__(self, name):
+        value = object.__getattribute__(self, name)
+        if name == "rod_fault_mm" and callable(value):     # deferred: computed once, kept
+            value = value()
+            object.__setattr__(self, name, value)
+        return value
+
     def take(self, index) -> "Truth":
         return Truth(
             rod_mm=self.rod_mm[index],
@@ -284,8 +295,19 @@ class Truth:
             flight={k: np.asarray(v)[index] for k, v in self.flight.items()},
             aircraft=_map(self.aircraft, lambda v: v[index]),
             surfaces_deg=_map(self.surfaces_deg, lambda v: v[index]),
-            rod_fault_mm=None if self.rod_fault_mm is None else self.rod_fault_mm[index],
+            rod_fault_mm=self._rod_fault_of(index),
         )
+
+    def stored_rod_fault(self):
+        """``rod_fault_mm`` as stored, without computing it: the array, None or the function
+        that computes it (to pass on, e.g. to ``dataclasses.replace``, which would read it)."""
+        return object.__getattribute__(self, "rod_fault_mm")
+
+    def _rod_fault_of(self, index):
+        """``rod_fault_mm[index]``, still deferred when ``rod_fault_mm`` is."""
+        if callable(self.stored_rod_fault()):
+            return lambda: None if self.rod_fault_mm is None else self.rod_fault_mm[index]
+        return None if self.rod_fault_mm is None else self.rod_fault_mm[index]
 
 
 def _same_view(a, b) -> bool:

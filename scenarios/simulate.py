@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Callable
 
 import numpy as np
@@ -228,8 +229,8 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         traj = integrate(p, sensors)
     lap("plant")
     act = p.act
-    rod_fault = rod_measurement_fault(runs["fault"].to_numpy(), runs["onset_s"].to_numpy(float),
-                                      traj.y_com, p.u, p.plant, ts)
+    rod_fault = partial(rod_measurement_fault, runs["fault"].to_numpy(),
+                        runs["onset_s"].to_numpy(float), traj.y_com, p.u, p.plant, ts)
     p = replace(p, order_deg=None, com_noise=None)   # read by the time loop only: free them
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor)
     signals = Signals(
@@ -241,7 +242,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
         rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
         fault=runs["fault"].astype(str).to_numpy(),
         onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
-        flight=p.flight_true, rod_fault_mm=rod_fault,
+        flight=p.flight_true, rod_fault_mm=rod_fault,      # computed when first read
     )
     lap("sensors and truth")
     return signals, truth

@@ -515,8 +515,10 @@ def rate_evaluations(campaign: str) -> dict:
     Each part declares its count per run and step: the plant
     (``rate_evaluations_per_step``, 4 for the built-in servo-loop's RK4), each detector
     (``rate_evaluations_per_step()``, over the plan and, when it is fitted, the learning set)
-    and, on the built-in servo-loop, the healthy noise-free model of the jam runs that
-    defines their rod fault (:func:`scenarios.simulate.rod_measurement_fault`, RK4). Returns
+    and, on the built-in servo-loop when a detector estimates the rod fault
+    (``Capabilities.estimates_rod_fault``; otherwise it is never computed), the healthy
+    noise-free model of the jam runs that defines their rod fault
+    (:func:`scenarios.simulate.rod_measurement_fault`, RK4). Returns
     ``{"campaign", "steps", "runs", "learning_runs", "parts": {name: evaluations},
     "uncounted": [names without a declared count]}``."""
     from scenarios.faults import ROD_MEASUREMENT_FAULTS
@@ -537,8 +539,9 @@ def rate_evaluations(campaign: str) -> dict:
         uncounted.append(f"plant ({plant.kind})")
     else:
         parts[f"plant ({plant.kind})"] = per_step * (len(plan) + len(learning)) * steps
-        jams = int(plan["fault"].isin(ROD_MEASUREMENT_FAULTS).sum())
-        parts["healthy rod model of the jam runs"] = per_step * jams * steps
+        if any(det.capabilities.estimates_rod_fault for det in detectors.values()):
+            jams = int(plan["fault"].isin(ROD_MEASUREMENT_FAULTS).sum())
+            parts["healthy rod model of the jam runs"] = per_step * jams * steps
     for label, det in detectors.items():
         count = getattr(det, "rate_evaluations_per_step", None)
         if count is None:

@@ -243,7 +243,8 @@ class ChenLocalEstimator(Detector):
         (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     """
 
-    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True)
+    capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
+                                estimates_rod_fault=True)
 
     parameters = (
         Param("sensor", "choice", choices=SENSORS, doc="rod measurement y of eq. 24 (the "

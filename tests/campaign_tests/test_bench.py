@@ -139,19 +139,32 @@ def test_bench_announces_each_measurement_on_stderr_unless_quiet(capsys):
 
 # ---- the arithmetic floor ----------------------------------------------------------------------
 def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
-    """smoke: the actuator plant's RK4 (4 per step) on the plan and the learning set, the
-    healthy RK4 rod model on the jam runs of the plan, and the position monitor's band of
-    three RK4 models (12 per step, its default) on both sets (it is fitted)."""
+    """smoke: the actuator plant's RK4 (4 per step) on the plan and the learning set and the
+    position monitor's band of three Heun models (6 per step, its default) on both sets (it
+    is fitted); no detector estimates the rod fault, so the jam runs' healthy rod model is
+    never computed nor counted."""
     config = load_config("smoke")
     plan, learning = build_plan(config), build_learning_plan(config)
     steps = round(config.campaign.duration_s / config.campaign.ts_s)
     jams = int(plan["fault"].isin(["liquid_jam", "solid_jam"]).sum())
     counts = rate_evaluations("smoke")
     assert counts["steps"] == steps and counts["uncounted"] == []
+    assert jams > 0
     assert counts["parts"] == {
         "plant (actuator)": 4 * (len(plan) + len(learning)) * steps,
-        "healthy rod model of the jam runs": 4 * jams * steps,
         "detect position-monitor": 6 * (len(plan) + len(learning)) * steps}
+
+
+def test_rate_evaluations_count_the_healthy_rod_model_when_a_detector_estimates_it():
+    # chen-local estimates the rod fault: the healthy RK4 rod model of each jam run of the
+    # plan is counted (4 evaluations per step), beside the plant's
+    config = load_config("chen-local")
+    plan = build_plan(config)
+    steps = round(config.campaign.duration_s / config.campaign.ts_s)
+    jams = int(plan["fault"].isin(["liquid_jam", "solid_jam"]).sum())
+    assert jams > 0
+    assert rate_evaluations("chen-local")["parts"]["healthy rod model of the jam runs"] == (
+        4 * jams * steps)
 
 
 @pytest.mark.parametrize("params, count", [

@@ -434,6 +434,52 @@ def test_evaluate_stores_the_estimation_error_of_detectors_that_estimate_the_fau
     assert (out.loc[out["detector"] == "n", "est_err_n"] == 0).all()
 
 
+def test_the_rod_fault_is_computed_only_when_an_estimate_is_scored(monkeypatch):
+    """The truth's rod fault ([CHEN] eq. 4) takes a healthy servo model of every jam run:
+    simulate defers it (Truth.rod_fault_mm), evaluating detectors without an estimate never
+    computes it, and read later it is the array rod_measurement_fault gives, for the batch
+    and for one run taken out of it."""
+    import scenarios.simulate as sim
+    from detectors.base import Capabilities, Detection, Detector
+
+    class NoEstimate(Detector):
+        capabilities = Capabilities(needs_fit=False)
+
+        def _detect(self, signals):
+            shape = signals.command.shape
+            return Detection(alarm=np.zeros(shape, bool), residual=np.zeros(shape))
+
+    runs = pd.concat([sim.single_run("elevator", "cruise", f, seed=i, onset_s=5.0,
+                                     duration_s=20.0, **extra)
+                      for i, (f, extra) in enumerate([("none", {}), ("liquid_jam", {}),
+                                                      ("solid_jam", {"magnitude": -1.0})])],
+                     ignore_index=True)
+    runs["stream"] = [0, 1, 2]
+    runs["run_id"] = ["ff", "liq", "sol"]
+    models = []
+    servo_model = sim.servo_model
+    monkeypatch.setattr(sim, "servo_model",
+                        lambda *a, **k: models.append(1) or servo_model(*a, **k))
+    settings = ChunkSettings(ts=0.01, pressure_sensor=False, required_time_s={},
+                             window_s=None)
+    out = evaluate(runs, {"n": NoEstimate()}, settings)
+    assert len(out) == 3 and models == []           # scored without the healthy model
+
+    signals, truth = sim.simulate(runs)
+    assert models == []
+    one = truth.take([2])
+    eager = sim.rod_measurement_fault(runs["fault"].to_numpy(), runs["onset_s"].to_numpy(float),
+                                      signals.rod_com, signals.command, sim.prepare(runs).plant,
+                                      0.01)
+    assert len(models) == 1                          # the reference's own healthy model
+    np.testing.assert_array_equal(truth.rod_fault_mm, eager)
+    assert len(models) == 2
+    np.testing.assert_array_equal(truth.rod_fault_mm, eager)    # kept: not computed again
+    np.testing.assert_array_equal(one.rod_fault_mm, eager[[2]])
+    assert len(models) == 2
+    assert np.isfinite(eager[1:, 600:]).all() and np.isnan(eager[0]).all()
+
+
 def test_the_progress_reporter_rates_only_the_runs_computed_now():
     """One reporter for run, falsify and certify (campaign.runner.Progress): runs done
     before it started or read back count as done, never in the rate, so the ETA is not
