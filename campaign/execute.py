@@ -314,6 +314,12 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
                          f"{pool.backend!r} cannot stop a running chunk (use 'loky')")
     limit = run_timeout_s
     inflight: dict = {}  # future -> (task, deadline)
+    # Threads: a chunk waits queued behind each running one, so that a worker that finishes
+    # takes the next at once instead of idling while this thread stores the result and
+    # submits another (8–10 ms per chunk, 0.1 s when the manifest is written: about 5 % of
+    # addsafe-mc's runs). Processes: none, as a chunk's time limit and the retries after a
+    # dead worker count from a worker taking it.
+    depth = jobs if pool.can_stop_a_task else 2 * jobs
 
     def submit(task: Task) -> None:
         deadline = None if limit is None else time.perf_counter() + limit * task.n
@@ -349,7 +355,7 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
                 pool.ready()
             # fill the free workers: normal chunks first, then isolated retries one by one
             alone_inflight = any(t.alone for t, _ in inflight.values())
-            while len(inflight) < jobs and not alone_inflight and more():
+            while len(inflight) < depth and not alone_inflight and more():
                 submit(queue.popleft())
             if not more() and not inflight and isolated:
                 submit(isolated.popleft())

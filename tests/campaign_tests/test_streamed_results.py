@@ -177,8 +177,9 @@ def test_chunks_read_from_the_plan_file_are_the_plan_chunks(tmp_path, size):
 
 def test_local_workers_take_a_chunk_only_when_a_worker_is_free():
     """A plan of 10⁶ runs is 10⁴ chunks: run_local must take them from their iterator as
-    workers free up, so that at most *jobs* + 1 chunks exist beyond those finished (one in
-    flight per worker, and the next one, taken to know whether there is one)."""
+    workers free up, so that at most 2·*jobs* + 1 chunks exist beyond those finished (on
+    threads, one running and one queued behind it per worker, and the next one, taken to
+    know whether there is one)."""
     from campaign.execute import run_local
 
     jobs, taken, finished, ahead = 2, [0], [0], []
@@ -195,4 +196,56 @@ def test_local_workers_take_a_chunk_only_when_a_worker_is_free():
     run_local(chunks(), lambda rows: rows, lambda rows, status, msg: rows, on_result,
               jobs=jobs, backend="threading", run_timeout_s=None)
     assert finished[0] == 40
-    assert max(ahead) <= jobs + 1   # in flight on each worker, and the next one
+    assert max(ahead) <= 2 * jobs + 1   # running and queued on each worker, and the next
+
+
+def test_a_thread_worker_takes_the_queued_chunk_while_the_last_result_is_stored():
+    """On threads a chunk waits queued behind the running one: the worker starts it while
+    the runner is still storing the previous result (here held until the next chunk has
+    started), instead of idling until the runner submits it."""
+    import threading
+
+    from campaign.execute import run_local
+
+    started = {i: threading.Event() for i in range(3)}
+
+    def call(rows):
+        started[int(rows["run_id"].iloc[0][1:])].set()
+        return rows
+
+    waited = []
+
+    def on_result(frame):
+        i = int(frame["run_id"].iloc[0][1:])
+        if i + 1 in started:            # storing result i: chunk i + 1 must start meanwhile
+            waited.append(started[i + 1].wait(10))
+
+    chunks = (pd.DataFrame({"run_id": [f"r{i}"]}) for i in range(3))
+    run_local(chunks, call, lambda rows, status, msg: rows, on_result, jobs=1,
+              backend="threading", run_timeout_s=None)
+    assert waited == [True, True]
+
+
+def test_a_worker_process_is_given_a_chunk_only_when_it_is_free():
+    """Processes get no queued chunk (a chunk's time limit counts from a worker taking it):
+    at most *jobs* + 1 chunks exist beyond those finished."""
+    from campaign.execute import run_local
+
+    jobs, taken, finished, ahead = 1, [0], [0], []
+
+    def chunks():
+        for i in range(6):
+            taken[0] += 1
+            ahead.append(taken[0] - finished[0])
+            yield pd.DataFrame({"run_id": [f"r{i}"]})
+
+    def on_result(frame):
+        finished[0] += 1
+
+    run_local(chunks(), _identity, lambda rows, status, msg: rows, on_result,
+              jobs=jobs, backend="loky", run_timeout_s=None)
+    assert finished[0] == 6 and max(ahead) <= jobs + 1
+
+
+def _identity(rows):
+    return rows
