@@ -1,6 +1,7 @@
 """Expand a campaign configuration into its run table (docs/design.md §3, data flow step 2).
 
-Two designs, one signature (``build_plan(config) -> DataFrame``):
+Two designs, one signature (``build_plan(config) -> DataFrame``; a campaign makes and writes
+the same table block by block, :class:`PlanBlocks`):
 
 * ``mc`` — Monte Carlo over the envelope box and the uncertainty box with a scrambled Sobol
   sequence (``scipy.stats.qmc``; plain random with ``sampler = "random"``), one sequence per
@@ -23,6 +24,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import warnings
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pandas as pd
@@ -31,6 +34,7 @@ from scipy.stats import qmc
 from scenarios import envelope
 from scenarios.catalog import MANOEUVRES, latest_onset_s
 from scenarios.faults import liquid_jam_bias_mm, solid_jam_offset_mm
+from scenarios.memory import release_freed_memory
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
 from .config import ConfigError
@@ -88,12 +92,28 @@ def _manoeuvres(names) -> list[str]:
 
 
 def _unit_samples(n: int, config, cell_key: int) -> np.ndarray:
-    """*n* points of the unit hypercube for one design cell (Sobol or plain random)."""
+    """The first *n* points of the unit hypercube of one design cell (Sobol or plain
+    random, :func:`_unit_sample_stream`)."""
+    return _unit_sample_stream(config, cell_key)(n)
+
+
+def _unit_sample_stream(config, cell_key: int) -> Callable[[int], np.ndarray]:
+    """The sequence of unit-hypercube points of one design cell, drawn on: each call
+    ``draw(size)`` returns its next *size* points, so that successive draws are its first
+    points, the same numbers (a Sobol engine continues its sequence; a generator its stream
+    of doubles, row after row)."""
     ss = np.random.SeedSequence(config.campaign.seed, spawn_key=(_DESIGN_KEY, cell_key))
     if config.campaign.sampler == "sobol":
         sampler = qmc.Sobol(d=len(_DIMS), scramble=True, seed=np.random.default_rng(ss))
-        return sampler.random_base2(max(int(math.ceil(math.log2(max(n, 2)))), 1))[:n]
-    return np.random.default_rng(ss).random((n, len(_DIMS)))
+
+        def draw(size: int) -> np.ndarray:
+            with warnings.catch_warnings():   # a prefix of the sequence is what the design
+                warnings.filterwarnings(      # takes (_unit_samples slices one too)
+                    "ignore", message="The balance properties of Sobol", category=UserWarning)
+                return sampler.random(size)
+        return draw
+    rng = np.random.default_rng(ss)
+    return lambda size: rng.random((size, len(_DIMS)))
 
 
 def _fault_values(fault: str, u_mag, u_sign, u_freq, config, act, variant=None):
@@ -199,13 +219,32 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     return out
 
 
+#: The points of its sequence an ``mc`` cell of n runs may draw to find n realistic ones:
+#: max(4·n, 16) · 2^6 (four per run, doubled six times); fewer is a configuration error.
+MC_SEARCH_DOUBLINGS = 6
+
+
 def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
-             manoeuvre_set: str) -> pd.DataFrame:
+             manoeuvre_set: str, block_rows: int = 2 ** 62) -> Iterator[pd.DataFrame]:
+    """The runs (without ids, seeds or streams) of one ``mc`` cell, consecutive frames of at
+    most *block_rows* rows: the first *n* points of the cell's sequence that the
+    realistic-envelope rule keeps (any point without ``realistic_only``), drawn
+    *block_rows* points at a time, so a cell of any size holds one block of draws at once.
+    The frames do not depend on *block_rows*: each point's values, verdict and run are its
+    own (elementwise arithmetic)."""
     ranges = variable_ranges(config)
     n_flight = len(envelope.FLIGHT_COLUMNS)
-    need, extra = n, 0
-    while True:
-        u = _unit_samples(max(4 * need, 16) << extra, config, cell_key)
+    cap = max(4 * n, 16) << MC_SEARCH_DOUBLINGS
+    draw = _unit_sample_stream(config, cell_key)
+    found = drawn = 0
+    while found < n:
+        if drawn >= cap:
+            raise ConfigError(
+                f"group {group.name!r}: fewer than {n} realistic flight points in the envelope "
+                "box; widen [envelope] or set realistic_only = false")
+        size = int(min(block_rows, max(4 * (n - found), 16), cap - drawn))
+        u = draw(size)
+        drawn += size
         pts = pd.DataFrame({col: ranges[col][0] + (ranges[col][1] - ranges[col][0]) * u[:, j]
                             for j, col in enumerate(envelope.FLIGHT_COLUMNS)})
         for j, col in enumerate(envelope.DRAW_COLUMNS):
@@ -213,18 +252,14 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
         pts["realistic"] = envelope.realistic_rule(pts[list(envelope.FLIGHT_COLUMNS)],
                                                    config.uncertainty)["realistic"].to_numpy()
         keep = pts["realistic"].to_numpy() if config.campaign.realistic_only else np.ones(len(pts), bool)
-        if keep.sum() >= n:
-            idx = np.flatnonzero(keep)[:n]
-            break
-        extra += 1
-        if extra > 6:
-            raise ConfigError(
-                f"group {group.name!r}: fewer than {n} realistic flight points in the envelope "
-                "box; widen [envelope] or set realistic_only = false")
-    pts = pts.iloc[idx].reset_index(drop=True)
-    pts["level"] = "mc"
-    pts["point"] = -1
-    return _fill_runs(config, group, manoeuvre, pts, u[idx][:, -4:], duration, manoeuvre_set)
+        idx = np.flatnonzero(keep)[:n - found]
+        if idx.size == 0:
+            continue
+        pts = pts.iloc[idx].reset_index(drop=True)
+        pts["level"] = "mc"
+        pts["point"] = -1
+        found += idx.size
+        yield _fill_runs(config, group, manoeuvre, pts, u[idx][:, -4:], duration, manoeuvre_set)
 
 
 def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float,
@@ -288,7 +323,7 @@ def explicit_rows(config, runs) -> pd.DataFrame:
 def explicit_plan(config, runs) -> pd.DataFrame:
     """The run table (columns :data:`PLAN_COLUMNS`, run ids filled) of the explicit runs
     *runs* alone (:func:`explicit_rows`); two equal runs keep the same run id."""
-    return _finish([explicit_rows(config, runs)], config.campaign.seed, 0, unique=False)
+    return _finish_block(explicit_rows(config, runs), config.campaign.seed, 0)
 
 
 #: Rows whose run ids are computed from one list of row dicts [rows]: the dicts (about 3 KB
@@ -305,11 +340,13 @@ def _run_ids(plan: pd.DataFrame) -> list[str]:
     return ids
 
 
-def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
-            unique: bool = True) -> pd.DataFrame:
-    plan = pd.concat(frames, ignore_index=True)
+def _finish_block(frame: pd.DataFrame, seed: int, first_stream: int) -> pd.DataFrame:
+    """Rows of a plan, complete: the columns :data:`PLAN_COLUMNS` in order, the campaign's
+    *seed*, consecutive streams from *first_stream* (an explicit run keeps its own) and the
+    run ids."""
+    plan = frame.reset_index(drop=True)
     plan["seed"] = int(seed)
-    plan["stream"] = np.arange(len(plan), dtype=np.int64) + stream_base
+    plan["stream"] = np.arange(len(plan), dtype=np.int64) + first_stream
     if "explicit_stream" in plan.columns:      # explicit runs keep their own streams
         given = plan["explicit_stream"].to_numpy(float)
         keep = np.isfinite(given)
@@ -319,28 +356,116 @@ def _finish(frames: list[pd.DataFrame], seed: int, stream_base: int,
     plan["point"] = plan["point"].astype(np.int64)
     plan["realistic"] = plan["realistic"].astype(bool)
     plan["run_id"] = _run_ids(plan)
-    if unique and plan["run_id"].duplicated().any():
-        dup = plan.loc[plan["run_id"].duplicated(), "group"].iloc[0]
-        raise ConfigError(f"duplicate runs in group {dup!r}: two rows describe the same run")
     return plan
 
 
+class DuplicateRuns:
+    """The run ids of a plan seen block by block (20 bytes a run, in one array of the plan's
+    *rows*), to refuse two rows that describe the same run: :meth:`check` raises
+    :class:`ConfigError` naming the group of the first row (in plan order) whose run an
+    earlier row already describes."""
+
+    def __init__(self, rows: int) -> None:
+        self._ids = np.empty(rows, dtype=f"S{RUN_ID_CHARS}")
+        self._seen = 0
+        self._groups: list[tuple[int, object]] = []   # (rows, the group or each row's)
+
+    def add(self, block: pd.DataFrame) -> None:
+        end = self._seen + len(block)
+        self._ids[self._seen:end] = block["run_id"].to_numpy().astype(f"S{RUN_ID_CHARS}")
+        self._seen = end
+        groups = block["group"].unique()
+        self._groups.append((len(block), groups[0] if len(groups) == 1
+                             else block["group"].to_numpy(object)))
+
+    def check(self) -> None:
+        ids = self._ids[:self._seen]
+        ordered = np.sort(ids)
+        if not (ordered[1:] == ordered[:-1]).any():
+            return
+        del ordered
+        order = np.argsort(ids, kind="stable")    # equal ids: in plan order
+        later = order[1:][ids[order[1:]] == ids[order[:-1]]]
+        row = int(later.min())
+        for rows, groups in self._groups:
+            if row < rows:
+                dup = groups if isinstance(groups, str) else groups[row]
+                raise ConfigError(f"duplicate runs in group {dup!r}: two rows describe the "
+                                  "same run")
+            row -= rows
+
+
+#: Characters of a run id (:func:`run_id`).
+RUN_ID_CHARS = 20
+
+#: Rows of a plan made at once when it is made block by block (:class:`PlanBlocks`) [rows]:
+#: about 25 MB of draws and rows at a time, whatever the size of the plan.
+PLAN_BLOCK_ROWS = 32768
+
+
+class PlanBlocks:
+    """The evaluation run table of *config* (:func:`build_plan`) made block by block: iterating
+    gives its rows in order as consecutive DataFrames of at most *block_rows* rows, each
+    complete (run ids, seed, streams) and indexed by its rows' positions in the plan, so that
+    a plan of any size is written (:meth:`campaign.store.directory.CampaignDir.write_plan`)
+    with one block in memory. ``rows``, the number of rows, is known before the first block.
+    The rows do not depend on *block_rows* (:func:`_mc_cell`). Once every block is read,
+    :meth:`check` refuses two rows that describe the same run (:class:`DuplicateRuns`)."""
+
+    def __init__(self, config, block_rows: int = PLAN_BLOCK_ROWS):
+        self.config, self.block_rows = config, int(block_rows)
+        self._cells: list[tuple[int, Callable[[], Iterator[pd.DataFrame]]]] = []
+        duration, mset = config.campaign.duration_s, config.manoeuvres.set
+        cell = 0
+        for group in config.groups:
+            for manoeuvre in _manoeuvres(group.manoeuvres):
+                if config.campaign.design == "grid":       # a few hundred rows: made now
+                    frame = _grid_cell(config, group, manoeuvre, cell, duration, mset)
+                    self._cells.append((len(frame), lambda frame=frame: iter([frame])))
+                else:
+                    self._cells.append((group.count, lambda a=(group, manoeuvre, group.count,
+                                                             cell, duration, mset):
+                                        _mc_cell(config, *a, block_rows=self.block_rows)))
+                cell += 1
+        if config.runs:         # explicit runs after the groups' (whose streams stay 0…n−1)
+            frame = explicit_rows(config, config.runs)
+            self._cells.append((len(frame), lambda frame=frame: iter([frame])))
+        self.rows = sum(rows for rows, _ in self._cells)
+        self._duplicates = DuplicateRuns(self.rows)
+
+    def check(self) -> None:
+        """:class:`ConfigError` when two rows of the blocks read so far describe the same
+        run (call it once they are all read)."""
+        self._duplicates.check()
+
+    def __iter__(self) -> Iterator[pd.DataFrame]:
+        start, empty = 0, None
+        self._duplicates = DuplicateRuns(self.rows)
+        for _, frames in self._cells:
+            for frame in frames():
+                for lo in range(0, len(frame), self.block_rows):
+                    block = _finish_block(frame.iloc[lo:lo + self.block_rows],
+                                          self.config.campaign.seed, start)
+                    block.index = pd.RangeIndex(start, start + len(block))
+                    self._duplicates.add(block)
+                    start += len(block)
+                    yield block
+                    del block
+                    if self.rows > self.block_rows:     # what the block's rows and run ids
+                        release_freed_memory()          # took (fragmented), given back
+                if len(frame) == 0 and empty is None:
+                    empty = frame
+        if start == 0 and empty is not None:       # no row at all: the columns, typed
+            yield _finish_block(empty, self.config.campaign.seed, 0)
+
+
 def build_plan(config) -> pd.DataFrame:
-    """The evaluation run table of *config* (columns :data:`PLAN_COLUMNS`)."""
-    frames, cell = [], 0
-    mset = config.manoeuvres.set
-    for group in config.groups:
-        for manoeuvre in _manoeuvres(group.manoeuvres):
-            if config.campaign.design == "grid":
-                frames.append(_grid_cell(config, group, manoeuvre, cell,
-                                         config.campaign.duration_s, mset))
-            else:
-                frames.append(_mc_cell(config, group, manoeuvre, group.count, cell,
-                                       config.campaign.duration_s, mset))
-            cell += 1
-    if config.runs:             # explicit runs after the groups' (whose streams stay 0…n−1)
-        frames.append(explicit_rows(config, config.runs))
-    return _finish(frames, config.campaign.seed, 0)
+    """The evaluation run table of *config* (columns :data:`PLAN_COLUMNS`), in memory; a
+    campaign writes it block by block (:class:`PlanBlocks`)."""
+    plan = PlanBlocks(config)
+    blocks = list(plan)
+    plan.check()
+    return pd.concat(blocks, ignore_index=True)
 
 
 def build_learning_plan(config) -> pd.DataFrame:
@@ -354,9 +479,14 @@ def build_learning_plan(config) -> pd.DataFrame:
     mset = config.manoeuvres.learning_set or config.manoeuvres.set
     frames = []
     for j, manoeuvre in enumerate(_manoeuvres(learn.manoeuvres)):
-        frames.append(_mc_cell(config, group, manoeuvre, learn.runs_per_manoeuvre,
+        frames.extend(_mc_cell(config, group, manoeuvre, learn.runs_per_manoeuvre,
                                _LEARNING_KEY + j, duration, mset))
-    return _finish(frames, config.campaign.seed, LEARNING_STREAM_BASE)
+    plan = _finish_block(pd.concat(frames, ignore_index=True), config.campaign.seed,
+                         LEARNING_STREAM_BASE)
+    duplicates = DuplicateRuns(len(plan))
+    duplicates.add(plan)
+    duplicates.check()
+    return plan
 
 
 def plan_counts(plan: pd.DataFrame) -> pd.DataFrame:

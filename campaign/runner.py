@@ -35,7 +35,7 @@ from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
-from .design import MODEL_VERSION, build_learning_plan, build_plan
+from .design import MODEL_VERSION, PlanBlocks, build_learning_plan
 from .plugins import (
     batch_check_runs,
     batch_dependence,
@@ -442,13 +442,14 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
                        scheduler=scheduler, engine=engine, log=log, tls=tls)
         setup.cdir.check_model_version(MODEL_VERSION)
-        plan = build_plan(config)
+        # written as it is made, one block at a time; the chunks are read back from
+        # plan.parquet: the plan is never held whole
         if not setup.cdir.has_plan():
-            setup.cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
-        # the chunks are read from plan.parquet: the plan is not held during the runs
-        n_planned = len(plan)
-        del plan
-        release_freed_memory()     # what building the plan took (1.5 KB per run)
+            n_planned = setup.cdir.write_plan(PlanBlocks(config), config.to_json(),
+                                              MODEL_VERSION)
+        else:
+            n_planned = setup.cdir.planned_runs()
+        release_freed_memory()     # what making the plan's blocks took
         detectors = _learn(config, setup, log, fitted_from)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock

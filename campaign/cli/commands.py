@@ -203,17 +203,29 @@ def cmd_plan(args) -> int:
 
 
 def _plan_one(config, out: Path) -> None:
-    from ..design import MODEL_VERSION, build_learning_plan, build_plan, plan_counts
+    from ..design import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
     from ..store.directory import CampaignDir
 
-    plan = build_plan(config)
+    from ..runner import _remove_created
+
+    blocks = PlanBlocks(config)
     cdir = CampaignDir(out)
+    existed = out.exists()
+    fresh = not existed or (out.is_dir() and not any(out.iterdir()))
     with cdir.locked():
         # the campaign's directory, as run makes it: a run into it starts from there
         cdir.check_model_version(MODEL_VERSION)
-        cdir.open(config.to_json(), log=partial(print, file=sys.stderr))
-        cdir.write_plan(plan, config.to_json(), MODEL_VERSION)
+        try:
+            cdir.open(config.to_json(), log=partial(print, file=sys.stderr))
+            # written as it is made: a plan it refuses (a group without enough realistic
+            # points, two equal runs) leaves no directory behind
+            cdir.write_plan(blocks, config.to_json(), MODEL_VERSION)
+        except BaseException:
+            if fresh:
+                _remove_created(out, existed)
+            raise
     learning = build_learning_plan(config)
+    plan = cdir.read_plan(["group", "fault", "manoeuvre"])
     counts = plan_counts(plan)
     print(counts.to_string(index=False))
     print(f"total: {len(plan)} runs ({int((plan['fault'] == 'none').sum())} fault-free, "

@@ -64,7 +64,7 @@ from scenarios.errors import InputError
 
 from .lock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
 from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of,
-                    write_parquet, write_text)
+                    write_parquet, write_parquet_blocks, write_text)
 
 __all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
            "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
@@ -483,13 +483,29 @@ class CampaignDir:
     def has_plan(self) -> bool:
         return self.plan_path.exists()
 
-    def write_plan(self, plan: pd.DataFrame, config_json: str, model_version: str) -> None:
+    def write_plan(self, plan, config_json: str, model_version: str) -> int:
         """Write the run table ``plan.parquet`` with the version of the simulated models it
-        is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`)."""
+        is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`);
+        returns its number of rows. *plan*: a DataFrame, or the blocks of one as they are
+        made (:class:`campaign.design.PlanBlocks`: iterable, with ``rows`` and ``check()``),
+        written as they come, so the memory holds one block whatever the size of the plan;
+        the same file. Their ``check()`` may refuse the plan once every block is read, before
+        the file takes its name."""
         self.check_model_version(model_version)
-        self._write_recorded(self.plan_path, lambda: write_parquet(
-            plan, self.plan_path, config_json, row_group_rows=PLAN_ROW_GROUP_ROWS,
-            kind="plan", model_version=model_version))
+        extra = {"kind": "plan", "model_version": model_version}
+        if isinstance(plan, pd.DataFrame):
+            self._write_recorded(self.plan_path, lambda: write_parquet(
+                plan, self.plan_path, config_json, row_group_rows=PLAN_ROW_GROUP_ROWS,
+                **extra))
+            return len(plan)
+        self._write_recorded(self.plan_path, lambda: write_parquet_blocks(
+            plan, self.plan_path, config_json, rows=plan.rows,
+            row_group_rows=PLAN_ROW_GROUP_ROWS, before_commit=plan.check, **extra))
+        return plan.rows
+
+    def planned_runs(self) -> int:
+        """The number of rows of ``plan.parquet`` (from its footer)."""
+        return pq.read_metadata(self.plan_path).num_rows
 
     def read_plan(self, columns=None) -> pd.DataFrame:
         """The run table (only *columns* when given)."""

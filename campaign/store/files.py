@@ -72,6 +72,58 @@ def write_parquet(df: pd.DataFrame, path: Path, config_json: str, *,
                                                               row_group_size=row_group_rows))
 
 
+def write_parquet_blocks(frames, path: Path, config_json: str, *, rows: int,
+                         row_group_rows: int, before_commit=None, **extra) -> None:
+    """:func:`write_parquet` of the table whose rows *frames* (DataFrames of the same
+    columns and types) give in order, *rows* of them in all, written as they come: memory
+    holds a row group and a frame, whatever the size of the table. The row groups and the
+    metadata are those :func:`write_parquet` gives the whole table. *before_commit*, called
+    once every frame is written and before the file takes its name, may refuse the table by
+    raising (nothing is written then)."""
+    meta = {METADATA_KEY: json.dumps({
+        "engine_version": engine_version(), "rows": int(rows),
+        "config": json.loads(config_json), **extra,
+    }).encode()}
+
+    def write(tmp) -> None:
+        writer = schema = None
+        pending: list[pa.Table] = []
+        held = written = 0
+
+        def flush(n: int) -> None:
+            nonlocal pending, held, written
+            table = pa.concat_tables(pending)
+            writer.write_table(table.slice(0, n), row_group_size=row_group_rows)
+            rest = table.slice(n)
+            pending, held, written = ([rest] if len(rest) else []), len(rest), written + n
+
+        try:
+            for frame in frames:
+                table = pa.Table.from_pandas(frame, preserve_index=False)
+                if writer is None:
+                    schema = table.schema.with_metadata({**(table.schema.metadata or {}),
+                                                         **meta})
+                    writer = pq.ParquetWriter(tmp, schema)
+                pending.append(table.cast(schema))
+                held += len(table)
+                while held >= row_group_rows:
+                    flush(row_group_rows)
+            if writer is None:
+                raise ValueError("write_parquet_blocks: no frame to write (not even an empty "
+                                 "one with the columns)")
+            if held:
+                flush(held)
+        finally:
+            if writer is not None:
+                writer.close()
+        if written != rows:
+            raise ValueError(f"write_parquet_blocks: {written} rows written, {rows} announced")
+        if before_commit is not None:
+            before_commit()
+
+    atomic_write_bytes(Path(path), write)
+
+
 def read_metadata(path: Path) -> dict:
     """The campaign metadata stored in a Parquet file by :func:`write_parquet`."""
     meta = pq.read_schema(path).metadata or {}

@@ -388,28 +388,24 @@ def test_every_parquet_file_says_how_it_was_made(tmp_path):
         assert meta["engine_version"]
 
 
-def test_evaluate_stores_the_estimation_error_of_detectors_that_estimate_the_fault():
-    # a detector whose estimate is always 0 errs by −f after onset: the stored mean is
-    # minus the mean of the truth's rod-measurement fault over that window ([CHEN] §6.2),
-    # the sample count the post-onset steps; fault-free runs and detectors without an
-    # estimate store no sample
-    import pandas as pd
-
+def _zero_estimate(with_estimate: bool = True):
+    """A detector that never alarms and, *with_estimate*, estimates the rod fault as 0."""
     from detectors.base import Capabilities, Detection, Detector
-    from scenarios.faults import estimation_range_mm
-    from scenarios.params import ELEVATOR
-    from scenarios.simulate import simulate, single_run
 
     class ZeroEstimate(Detector):
         capabilities = Capabilities(needs_fit=False)
 
-        def __init__(self, with_estimate=True):
-            self.with_estimate = with_estimate
-
         def _detect(self, signals):
             shape = signals.command.shape
             return Detection(alarm=np.zeros(shape, bool), residual=np.zeros(shape),
-                             estimate=np.zeros(shape) if self.with_estimate else None)
+                             estimate=np.zeros(shape) if with_estimate else None)
+
+    return ZeroEstimate()
+
+
+def _jam_runs() -> pd.DataFrame:
+    """Three 20 s elevator runs in cruise: fault-free, liquid jam, solid jam (onset 5 s)."""
+    from scenarios.simulate import single_run
 
     runs = pd.concat([single_run("elevator", "cruise", f, seed=i, onset_s=5.0,
                                  duration_s=20.0, **extra)
@@ -418,10 +414,23 @@ def test_evaluate_stores_the_estimation_error_of_detectors_that_estimate_the_fau
                      ignore_index=True)
     runs["stream"] = [0, 1, 2]
     runs["run_id"] = ["ff", "liq", "sol"]
+    return runs
+
+
+def test_evaluate_stores_the_estimation_error_of_detectors_that_estimate_the_fault():
+    # a detector whose estimate is always 0 errs by −f after onset: the stored mean is
+    # minus the mean of the truth's rod-measurement fault over that window ([CHEN] §6.2),
+    # the sample count the post-onset steps; fault-free runs and detectors without an
+    # estimate store no sample
+    from scenarios.faults import estimation_range_mm
+    from scenarios.params import ELEVATOR
+    from scenarios.simulate import simulate
+
+    runs = _jam_runs()
     settings = ChunkSettings(ts=0.01, pressure_sensor=False,
                              required_time_s={"liquid_jam": 2.0, "solid_jam": 2.0},
                              window_s=None)
-    out = evaluate(runs, {"z": ZeroEstimate(), "n": ZeroEstimate(False)}, settings)
+    out = evaluate(runs, {"z": _zero_estimate(), "n": _zero_estimate(False)}, settings)
     z = out[out["detector"] == "z"].set_index("run_id")
     _, truth = simulate(runs)
     f = truth.rod_fault_mm
@@ -440,29 +449,15 @@ def test_the_rod_fault_is_computed_only_when_an_estimate_is_scored(monkeypatch):
     computes it, and read later it is the array rod_measurement_fault gives, for the batch
     and for one run taken out of it."""
     import scenarios.simulate as sim
-    from detectors.base import Capabilities, Detection, Detector
 
-    class NoEstimate(Detector):
-        capabilities = Capabilities(needs_fit=False)
-
-        def _detect(self, signals):
-            shape = signals.command.shape
-            return Detection(alarm=np.zeros(shape, bool), residual=np.zeros(shape))
-
-    runs = pd.concat([sim.single_run("elevator", "cruise", f, seed=i, onset_s=5.0,
-                                     duration_s=20.0, **extra)
-                      for i, (f, extra) in enumerate([("none", {}), ("liquid_jam", {}),
-                                                      ("solid_jam", {"magnitude": -1.0})])],
-                     ignore_index=True)
-    runs["stream"] = [0, 1, 2]
-    runs["run_id"] = ["ff", "liq", "sol"]
+    runs = _jam_runs()
     models = []
     servo_model = sim.servo_model
     monkeypatch.setattr(sim, "servo_model",
                         lambda *a, **k: models.append(1) or servo_model(*a, **k))
     settings = ChunkSettings(ts=0.01, pressure_sensor=False, required_time_s={},
                              window_s=None)
-    out = evaluate(runs, {"n": NoEstimate()}, settings)
+    out = evaluate(runs, {"n": _zero_estimate(with_estimate=False)}, settings)
     assert len(out) == 3 and models == []           # scored without the healthy model
 
     signals, truth = sim.simulate(runs)

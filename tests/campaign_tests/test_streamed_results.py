@@ -180,12 +180,21 @@ def test_local_workers_take_a_chunk_only_when_a_worker_is_free():
     workers free up, so that at most 2·*jobs* + 1 chunks exist beyond those finished (on
     threads, one running and one queued behind it per worker, and the next one, taken to
     know whether there is one)."""
+    jobs = 2
+    finished, ahead = _chunks_ahead(40, jobs, "threading")
+    assert finished == 40
+    assert ahead <= 2 * jobs + 1   # running and queued on each worker, and the next
+
+
+def _chunks_ahead(n: int, jobs: int, backend: str) -> tuple[int, int]:
+    """run_local of *n* one-row chunks taken from a generator: (chunks finished, most
+    chunks that existed beyond those finished)."""
     from campaign.execute import run_local
 
-    jobs, taken, finished, ahead = 2, [0], [0], []
+    taken, finished, ahead = [0], [0], []
 
     def chunks():
-        for i in range(40):
+        for i in range(n):
             taken[0] += 1
             ahead.append(taken[0] - finished[0])
             yield pd.DataFrame({"run_id": [f"r{i}"]})
@@ -193,10 +202,9 @@ def test_local_workers_take_a_chunk_only_when_a_worker_is_free():
     def on_result(frame):
         finished[0] += 1
 
-    run_local(chunks(), lambda rows: rows, lambda rows, status, msg: rows, on_result,
-              jobs=jobs, backend="threading", run_timeout_s=None)
-    assert finished[0] == 40
-    assert max(ahead) <= 2 * jobs + 1   # running and queued on each worker, and the next
+    run_local(chunks(), _identity, lambda rows, status, msg: rows, on_result,
+              jobs=jobs, backend=backend, run_timeout_s=None)
+    return finished[0], max(ahead)
 
 
 def test_a_thread_worker_takes_the_queued_chunk_while_the_last_result_is_stored():
@@ -229,22 +237,8 @@ def test_a_thread_worker_takes_the_queued_chunk_while_the_last_result_is_stored(
 def test_a_worker_process_is_given_a_chunk_only_when_it_is_free():
     """Processes get no queued chunk (a chunk's time limit counts from a worker taking it):
     at most *jobs* + 1 chunks exist beyond those finished."""
-    from campaign.execute import run_local
-
-    jobs, taken, finished, ahead = 1, [0], [0], []
-
-    def chunks():
-        for i in range(6):
-            taken[0] += 1
-            ahead.append(taken[0] - finished[0])
-            yield pd.DataFrame({"run_id": [f"r{i}"]})
-
-    def on_result(frame):
-        finished[0] += 1
-
-    run_local(chunks(), _identity, lambda rows, status, msg: rows, on_result,
-              jobs=jobs, backend="loky", run_timeout_s=None)
-    assert finished[0] == 6 and max(ahead) <= jobs + 1
+    finished, ahead = _chunks_ahead(6, 1, "loky")
+    assert finished == 6 and ahead <= 1 + 1
 
 
 def _identity(rows):
