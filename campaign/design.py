@@ -489,7 +489,14 @@ def build_learning_plan(config) -> pd.DataFrame:
     return plan
 
 
-def plan_counts(plan: pd.DataFrame) -> pd.DataFrame:
-    """Runs per group × manoeuvre × fault (what ``fdd-campaign plan`` prints)."""
-    return (plan.groupby(["group", "fault", "manoeuvre"], sort=False).size()
-            .rename("runs").reset_index())
+def plan_counts(plan) -> pd.DataFrame:
+    """Runs per group × manoeuvre × fault (what ``fdd-campaign plan`` prints), in the order
+    of their first rows. *plan*: the run table, or consecutive parts of it (an iterable of
+    DataFrames, e.g. :meth:`campaign.store.directory.CampaignDir.plan_batches`)."""
+    keys = ["group", "fault", "manoeuvre"]
+    parts = [plan] if isinstance(plan, pd.DataFrame) else plan
+    counts: dict[tuple, int] = {}
+    for part in parts:
+        for key, n in part.groupby(keys, sort=False).size().items():
+            counts[key] = counts.get(key, 0) + int(n)
+    return pd.DataFrame([(*key, n) for key, n in counts.items()], columns=[*keys, "runs"])

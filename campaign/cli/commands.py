@@ -225,11 +225,12 @@ def _plan_one(config, out: Path) -> None:
                 _remove_created(out, existed)
             raise
     learning = build_learning_plan(config)
-    plan = cdir.read_plan(["group", "fault", "manoeuvre"])
-    counts = plan_counts(plan)
+    counts = plan_counts(cdir.plan_batches(65536, columns=["group", "fault", "manoeuvre"]))
+    free = int(counts.loc[counts["fault"] == "none", "runs"].sum())
+    total = int(counts["runs"].sum())
     print(counts.to_string(index=False))
-    print(f"total: {len(plan)} runs ({int((plan['fault'] == 'none').sum())} fault-free, "
-          f"{int((plan['fault'] != 'none').sum())} faulty); learning set: {len(learning)} runs")
+    print(f"total: {total} runs ({free} fault-free, {total - free} faulty); learning set: "
+          f"{len(learning)} runs")
     print(f"run table written to {cdir.plan_path}")
 
 

@@ -511,14 +511,14 @@ class CampaignDir:
         """The run table (only *columns* when given)."""
         return pd.read_parquet(self.plan_path, columns=columns)
 
-    def plan_batches(self, batch_rows: int) -> Iterator[pd.DataFrame]:
-        """The run table as consecutive DataFrames of *batch_rows* rows, read from
-        ``plan.parquet`` one at a time (one row group decoded at a time,
-        :data:`PLAN_ROW_GROUP_ROWS`); each indexed by its rows' positions in the plan, as
-        the same rows of :meth:`read_plan` are."""
+    def plan_batches(self, batch_rows: int, columns=None) -> Iterator[pd.DataFrame]:
+        """The run table (only *columns* when given) as consecutive DataFrames of
+        *batch_rows* rows, read from ``plan.parquet`` one at a time (one row group decoded at
+        a time, :data:`PLAN_ROW_GROUP_ROWS`); each indexed by its rows' positions in the
+        plan, as the same rows of :meth:`read_plan` are."""
         start = 0
         plan = pq.ParquetFile(self.plan_path, pre_buffer=False)
-        for batch in plan.iter_batches(batch_size=batch_rows):
+        for batch in plan.iter_batches(batch_size=batch_rows, columns=columns):
             frame = batch.to_pandas()
             frame.index = pd.RangeIndex(start, start + len(frame))
             start += len(frame)

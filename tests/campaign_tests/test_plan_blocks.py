@@ -118,3 +118,19 @@ def test_the_plan_command_leaves_nothing_when_the_plan_is_refused(tmp_path, caps
     assert main(["plan", str(box), "--out", str(out)]) == 2
     assert "fewer than 3 realistic flight points" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_plan_counts_of_the_plan_read_in_batches_are_those_of_the_whole_plan(tmp_path):
+    # fdd-campaign plan counts the written plan batch by batch: the same table, in the
+    # order of the groups' first rows, whatever the batch cuts
+    from campaign.design import plan_counts
+
+    cfg = config(ALL_FAULTS, run=[RUNS[0]])
+    whole = build_plan(cfg)
+    cdir = CampaignDir(tmp_path / "e")
+    cdir.write_plan(whole, cfg.to_json(), "servo-4")
+    expected = (whole.groupby(["group", "fault", "manoeuvre"], sort=False).size()
+                .rename("runs").reset_index())
+    for batch_rows in (3, 1000):
+        got = plan_counts(cdir.plan_batches(batch_rows, columns=["group", "fault", "manoeuvre"]))
+        pd.testing.assert_frame_equal(got, expected)
