@@ -684,8 +684,7 @@ def _execute(config, setup: _Setup, n_planned: int, detectors: dict, *, progress
     from .execute import run_local, run_on_cluster
 
     cdir, settings, pool = setup.cdir, setup.settings, setup.pool
-    done = (cdir.done_mask(cdir.read_plan(["run_id"])["run_id"].to_numpy())
-            if setup.resumed else None)
+    done = cdir.done_mask(cdir.plan_run_ids()) if setup.resumed else None
     n_done = int(done.sum()) if done is not None else 0
     if setup.resumed:
         log(f"resuming {cdir.root}: {n_done} of {n_planned} runs already done")
@@ -743,12 +742,19 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
     from reports.gate import gate_rows
 
     full = plan
-    if plan is None:       # the columns this needs, read from plan.parquet
-        plan = cdir.read_plan(["run_id", "group", "fault", "onset_s"])
+    columns = ["run_id", "group", "fault", "onset_s"]
+    if plan is None:       # what this needs, read from plan.parquet without the whole plan
+        fixed = fixed_onset_campaign(cdir.plan_batches(65536, columns=columns[1:]))
+        n_planned, run_ids = cdir.planned_runs(), cdir.plan_run_ids()
+        plan = cdir.read_plan(columns) if fixed else None   # Table-1 campaigns: small
+    else:
+        fixed = fixed_onset_campaign(plan)
+        n_planned, run_ids = len(plan), plan["run_id"].to_numpy()
     acc = SummaryAccumulator()
-    fixed = fixed_onset_campaign(plan)
     runs_done, gate_parts, alarm_parts = 0, [], []
-    for batch in cdir.result_batches(plan["run_id"].to_numpy()):
+    batches = cdir.result_batches(run_ids)
+    del run_ids            # the batches keep the ids as 28 bytes a run (_RunIndex)
+    for batch in batches:
         acc.add(batch)
         runs_done += batch["run_id"].nunique()      # a run's rows are in one batch
         gate_parts.append(gate_rows(batch))
@@ -760,7 +766,7 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
                     else pd.DataFrame())
     origin = cdir.read_fitted_origin() or {}
     cdir.write_summary(summary, config.to_json(), complete=complete,
-                       runs_done=runs_done, runs_planned=len(plan),
+                       runs_done=runs_done, runs_planned=n_planned,
                        fitted_sha256=cdir.fitted_sha256([d.label for d in config.detectors]),
                        fitted_from=origin.get("fitted_from"), fmu_sha256=fmu_sha256)
     times = None

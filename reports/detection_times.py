@@ -30,12 +30,19 @@ DETECTION_TIME_COLUMNS: tuple[str, ...] = (
 )
 
 
-def fixed_onset_campaign(plan: pd.DataFrame) -> bool:
-    """Whether every faulty group of *plan* has one onset (the Table-1 view applies)."""
-    faulty = plan[plan["fault"] != FAULT_FREE]
-    if faulty.empty:
-        return False
-    return bool((faulty.groupby("group", sort=False)["onset_s"].nunique() == 1).all())
+def fixed_onset_campaign(plan) -> bool:
+    """Whether every faulty group of *plan* has one onset (the Table-1 view applies).
+    *plan*: the run table (columns ``group``, ``fault``, ``onset_s`` at least), or
+    consecutive parts of it (an iterable of DataFrames, read one at a time)."""
+    parts = [plan] if isinstance(plan, pd.DataFrame) else plan
+    onsets: dict = {}                 # faulty group -> its distinct onsets (NaN left out)
+    for part in parts:
+        faulty = part[part["fault"] != FAULT_FREE]
+        for group, values in faulty.groupby("group", sort=False)["onset_s"]:
+            seen = onsets.setdefault(group, set())
+            if len(seen) < 2:         # two already decide it
+                seen.update(values.dropna().unique().tolist())
+    return bool(onsets) and all(len(seen) == 1 for seen in onsets.values())
 
 
 def detection_time_table(plan: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:

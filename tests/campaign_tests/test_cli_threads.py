@@ -105,11 +105,11 @@ def test_campaign_run_from_python_runs_one_blas_thread(no_exported_count, monkey
 
     seen = []
 
-    def build_plan(config):
+    def plan_blocks(config):
         seen.append(blas_threads())
         raise _Seen
 
-    monkeypatch.setattr(runner, "build_plan", build_plan)
+    monkeypatch.setattr(runner, "PlanBlocks", plan_blocks)
     with pytest.raises(_Seen):
         campaign.run(load_config("smoke"), tmp_path / "out", jobs=1, progress=False)
     assert seen == [{1}]

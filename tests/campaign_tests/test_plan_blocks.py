@@ -134,3 +134,41 @@ def test_plan_counts_of_the_plan_read_in_batches_are_those_of_the_whole_plan(tmp
     for batch_rows in (3, 1000):
         got = plan_counts(cdir.plan_batches(batch_rows, columns=["group", "fault", "manoeuvre"]))
         pd.testing.assert_frame_equal(got, expected)
+
+
+def test_run_ids_are_read_as_bytes_from_the_arrow_buffer_when_they_have_one_length():
+    # the run ids of a plan (20 hex characters) go from plan.parquet to the run index
+    # without a Python string each; anything else takes the general path, same bytes
+    import pyarrow as pa
+
+    from campaign.store.directory import _as_bytes, _fixed_width_bytes
+
+    ids = [f"{i:020x}" for i in range(1000)]
+    column = pa.chunked_array([pa.array(ids[:300]), pa.array(ids[300:])])
+    for col in (column, pa.array(ids).slice(7, 500), pa.array(ids, pa.large_string())):
+        got = _fixed_width_bytes(col)
+        assert got is not None and got.dtype == np.dtype("S20")
+        np.testing.assert_array_equal(got, np.array(col.to_pylist(), dtype="S"))
+    for other in (pa.array(["ab", "abc"]), pa.array(["ab", None]), pa.array(["a\x00", "bc"]),
+                  pa.array([1, 2]), pa.array([], pa.string())):
+        assert _fixed_width_bytes(other) is None
+    np.testing.assert_array_equal(_as_bytes(pa.array(["ab", "abc", "é"])),
+                                  np.array([b"ab", b"abc", "é".encode()]))
+
+
+def test_whether_onsets_are_fixed_is_decided_alike_from_parts_of_the_plan():
+    # finalize decides it from plan.parquet batch by batch: the verdict of the whole plan
+    from campaign.config import load_config
+    from reports.detection_times import fixed_onset_campaign
+
+    for preset, fixed in (("comb-table1", True), ("addsafe-mc", False), ("smoke", False)):
+        plan = build_plan(load_config(preset))
+        assert fixed_onset_campaign(plan) is fixed
+        for size in (1, 7, 500):
+            parts = (plan.iloc[i:i + size] for i in range(0, len(plan), size))
+            assert fixed_onset_campaign(parts) is fixed
+    # a faulty group whose onsets are all NaN has none: not fixed, in parts too
+    plan = build_plan(load_config("comb-table1"))
+    plan.loc[plan["fault"] != "none", "onset_s"] = np.nan
+    assert not fixed_onset_campaign(plan)
+    assert not fixed_onset_campaign(plan.iloc[i:i + 3] for i in range(0, len(plan), 3))
