@@ -454,7 +454,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     except BaseException:
         if setup is not None:       # this call holds the directory's lock
             if fresh:               # nothing that looks like a campaign is left behind
-                _remove_created(root, existed)
+                remove_created(root, existed)
             setup.close()
         raise
     try:
@@ -518,7 +518,7 @@ def evaluate_rows(setup, rows: pd.DataFrame, detectors: dict, log=None) -> pd.Da
             .reset_index(drop=True))
 
 
-def _remove_created(root: Path, existed: bool) -> None:
+def remove_created(root: Path, existed: bool) -> None:
     """Remove what a campaign start that failed before its first run created in *root*:
     the directory itself when this call created it, else its content (it was empty:
     :meth:`CampaignDir.open` refuses a non-empty directory without ``campaign.json``)."""

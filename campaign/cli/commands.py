@@ -206,7 +206,7 @@ def _plan_one(config, out: Path) -> None:
     from ..design import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
     from ..store.directory import CampaignDir
 
-    from ..runner import _remove_created
+    from ..runner import remove_created
 
     blocks = PlanBlocks(config)
     cdir = CampaignDir(out)
@@ -222,7 +222,7 @@ def _plan_one(config, out: Path) -> None:
             cdir.write_plan(blocks, config.to_json(), MODEL_VERSION)
         except BaseException:
             if fresh:
-                _remove_created(out, existed)
+                remove_created(out, existed)
             raise
     learning = build_learning_plan(config)
     counts = plan_counts(cdir.plan_batches(65536, columns=["group", "fault", "manoeuvre"]))

@@ -172,3 +172,28 @@ def test_whether_onsets_are_fixed_is_decided_alike_from_parts_of_the_plan():
     plan.loc[plan["fault"] != "none", "onset_s"] = np.nan
     assert not fixed_onset_campaign(plan)
     assert not fixed_onset_campaign(plan.iloc[i:i + 3] for i in range(0, len(plan), 3))
+
+
+def test_duplicate_runs_name_the_group_of_the_first_repeated_row_across_blocks():
+    # the repeated row is the first of a block: its own group is named, not the group of
+    # the block before (explicit runs of two groups, blocks of two rows)
+    first = {**RUNS[0], "group": "first"}
+    cfg = config(ALL_FAULTS[:1], run=[first, RUNS[1], RUNS[1]])
+    blocks = PlanBlocks(cfg, block_rows=2)
+    parts = list(blocks)
+    assert parts[-1]["group"].tolist() == ["worst"] and len(parts[-1]) == 1
+    with pytest.raises(ConfigError, match="duplicate runs in group 'worst'"):
+        blocks.check()
+
+
+def test_run_ids_differing_in_their_last_character_are_two_runs():
+    from campaign.design import RUN_ID_CHARS, DuplicateRuns
+
+    ids = ["a" * (RUN_ID_CHARS - 1) + c for c in "xy"]
+    runs = DuplicateRuns(2)
+    runs.add(pd.DataFrame({"run_id": ids, "group": ["g", "g"]}))
+    runs.check()                                          # nothing raised
+    same = DuplicateRuns(3)
+    same.add(pd.DataFrame({"run_id": ids + ids[:1], "group": ["g", "g", "h"]}))
+    with pytest.raises(ConfigError, match="group 'h'"):
+        same.check()
