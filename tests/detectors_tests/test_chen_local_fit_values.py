@@ -552,7 +552,7 @@ def test_documented_defaults_and_capabilities():
                                                   0.05)
     assert (det.post_filter_zero_rad_s, det.post_filter_pole_rad_s) == (1.0, 5.0)
     assert ChenLocalEstimator.capabilities == Capabilities(
-        needs_fit=True, needs_surface_sensor=False, causal=True)
+        needs_fit=True, needs_surface_sensor=False, causal=True, estimates_rod_fault=True)
 
 
 def test_fit_needs_no_surface_sensor(hand_model):
