@@ -57,29 +57,28 @@ def atomic_write_bytes(path: Path, write) -> None:
         raise
 
 
+#: Rows of a row group when the writer is not told (pyarrow's default, 1 Mi rows).
+DEFAULT_ROW_GROUP_ROWS = 1024 * 1024
+
+
 def write_parquet(df: pd.DataFrame, path: Path, config_json: str, *,
                   row_group_rows: int | None = None, **extra) -> None:
     """Write *df* to *path* atomically with the campaign metadata in the schema, in row
-    groups of *row_group_rows* rows (default: pyarrow's, one group up to 1 Mi rows)."""
-    table = pa.Table.from_pandas(df, preserve_index=False)
-    meta = dict(table.schema.metadata or {})
-    meta[METADATA_KEY] = json.dumps({
-        "engine_version": engine_version(), "rows": len(df),
-        "config": json.loads(config_json), **extra,
-    }).encode()
-    table = table.replace_schema_metadata(meta)
-    atomic_write_bytes(Path(path), lambda tmp: pq.write_table(table, tmp,
-                                                              row_group_size=row_group_rows))
+    groups of *row_group_rows* rows (default :data:`DEFAULT_ROW_GROUP_ROWS`): the table of
+    one frame (:func:`write_parquet_blocks`)."""
+    write_parquet_blocks([df], path, config_json, rows=len(df),
+                         row_group_rows=row_group_rows or DEFAULT_ROW_GROUP_ROWS, **extra)
 
 
 def write_parquet_blocks(frames, path: Path, config_json: str, *, rows: int,
                          row_group_rows: int, before_commit=None, **extra) -> None:
-    """:func:`write_parquet` of the table whose rows *frames* (DataFrames of the same
-    columns and types) give in order, *rows* of them in all, written as they come: memory
-    holds a row group and a frame, whatever the size of the table. The row groups and the
-    metadata are those :func:`write_parquet` gives the whole table. *before_commit*, called
-    once every frame is written and before the file takes its name, may refuse the table by
-    raising (nothing is written then)."""
+    """Write the table whose rows *frames* (DataFrames of the same columns and types) give
+    in order, *rows* of them in all, to *path* atomically with the campaign metadata in the
+    schema, in row groups of *row_group_rows* rows, as the frames come: memory holds a row
+    group and a frame, whatever the size of the table, and the row groups do not depend on
+    how the rows are cut into frames. *before_commit*, called once every frame is written
+    and before the file takes its name, may refuse the table by raising (nothing is
+    written then)."""
     meta = {METADATA_KEY: json.dumps({
         "engine_version": engine_version(), "rows": int(rows),
         "config": json.loads(config_json), **extra,

@@ -226,7 +226,7 @@ def test_a_failure_inside_a_library_is_an_internal_error(tmp_path, capsys, monke
     def broken(*args, **kwargs):
         raise ValueError("planted failure in write_table")
 
-    monkeypatch.setattr(files.pq, "write_table", broken)
+    monkeypatch.setattr(files.pq.ParquetWriter, "write_table", broken)
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))     # the traceback file lands here
     code = main(["run", "smoke", "--jobs", "1", "--quiet", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
