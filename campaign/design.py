@@ -225,11 +225,12 @@ MC_SEARCH_DOUBLINGS = 6
 
 
 def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
-             manoeuvre_set: str, block_rows: int = 2 ** 62) -> Iterator[pd.DataFrame]:
+             manoeuvre_set: str, block_rows: int | None = None) -> Iterator[pd.DataFrame]:
     """The runs (without ids, seeds or streams) of one ``mc`` cell, consecutive frames of at
     most *block_rows* rows: the first *n* points of the cell's sequence that the
     realistic-envelope rule keeps (any point without ``realistic_only``), drawn
-    *block_rows* points at a time, so a cell of any size holds one block of draws at once.
+    *block_rows* points at a time (None: as many as the search needs at once), so a cell
+    of any size holds one block of draws at once.
     The frames do not depend on *block_rows*: each point's values, verdict and run are its
     own (elementwise arithmetic)."""
     ranges = variable_ranges(config)
@@ -242,7 +243,7 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
             raise ConfigError(
                 f"group {group.name!r}: fewer than {n} realistic flight points in the envelope "
                 "box; widen [envelope] or set realistic_only = false")
-        size = int(min(block_rows, max(4 * (n - found), 16), cap - drawn))
+        size = min(max(4 * (n - found), 16), cap - drawn, block_rows or cap)
         u = draw(size)
         drawn += size
         pts = pd.DataFrame({col: ranges[col][0] + (ranges[col][1] - ranges[col][0]) * u[:, j]
@@ -431,12 +432,13 @@ class PlanBlocks:
             frame = explicit_rows(config, config.runs)
             self._cells.append((len(frame), lambda frame=frame: iter([frame])))
         self.rows = sum(rows for rows, _ in self._cells)
-        self._duplicates = DuplicateRuns(self.rows)
+        self._duplicates: DuplicateRuns | None = None    # the ids of the last iteration
 
     def check(self) -> None:
         """:class:`ConfigError` when two rows of the blocks read so far describe the same
         run (call it once they are all read)."""
-        self._duplicates.check()
+        if self._duplicates is not None:
+            self._duplicates.check()
 
     def __iter__(self) -> Iterator[pd.DataFrame]:
         start, empty = 0, None
