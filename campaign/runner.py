@@ -744,7 +744,7 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
     full = plan
     columns = ["run_id", "group", "fault", "onset_s"]
     if plan is None:       # what this needs, read from plan.parquet without the whole plan
-        fixed = fixed_onset_campaign(cdir.plan_batches(65536, columns=columns[1:]))
+        fixed = fixed_onset_campaign(cdir.plan_batches(columns=columns[1:]))
         n_planned, run_ids = cdir.planned_runs(), cdir.plan_run_ids()
         plan = cdir.read_plan(columns) if fixed else None   # Table-1 campaigns: small
     else:

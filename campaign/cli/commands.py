@@ -225,7 +225,7 @@ def _plan_one(config, out: Path) -> None:
                 remove_created(out, existed)
             raise
     learning = build_learning_plan(config)
-    counts = plan_counts(cdir.plan_batches(65536, columns=["group", "fault", "manoeuvre"]))
+    counts = plan_counts(cdir.plan_batches(columns=["group", "fault", "manoeuvre"]))
     free = int(counts.loc[counts["fault"] == "none", "runs"].sum())
     total = int(counts["runs"].sum())
     print(counts.to_string(index=False))

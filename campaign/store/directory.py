@@ -159,6 +159,9 @@ def _is_temporary(path: Path) -> bool:
 #: written in one group (before this layout, or by pyarrow's default) is decoded whole,
 #: about 1 KB per run.
 PLAN_ROW_GROUP_ROWS = 2048
+#: Rows of the plan decoded at once by a reader that scans some of its columns
+#: (:meth:`CampaignDir.plan_batches`): a few MB, whatever the size of the plan.
+PLAN_SCAN_ROWS = 65536
 
 #: Runs whose rows one batch of :meth:`CampaignDir.result_batches` holds [runs]: 5000 runs
 #: of six detector variants are about 30 000 rows, some 10 MB as a DataFrame.
@@ -541,7 +544,8 @@ class CampaignDir:
         """The run table (only *columns* when given)."""
         return pd.read_parquet(self.plan_path, columns=columns)
 
-    def plan_batches(self, batch_rows: int, columns=None) -> Iterator[pd.DataFrame]:
+    def plan_batches(self, batch_rows: int = PLAN_SCAN_ROWS,
+                     columns=None) -> Iterator[pd.DataFrame]:
         """The run table (only *columns* when given) as consecutive DataFrames of
         *batch_rows* rows, read from ``plan.parquet`` one at a time (one row group decoded at
         a time, :data:`PLAN_ROW_GROUP_ROWS`); each indexed by its rows' positions in the
