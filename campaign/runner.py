@@ -434,9 +434,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t_start = time.perf_counter()
     root = Path(out)
-    # what a failed start may remove: a directory this call creates, or fills from empty
-    existed = root.exists()
-    fresh = not existed or (root.is_dir() and not any(root.iterdir()))
+    existed, fresh = start_state(root)
     setup = None
     try:
         setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
@@ -516,6 +514,14 @@ def evaluate_rows(setup, rows: pd.DataFrame, detectors: dict, log=None) -> pd.Da
     return (results.assign(_o=results["run_id"].map(order))
             .sort_values(["_o", "detector"], kind="stable").drop(columns="_o")
             .reset_index(drop=True))
+
+
+def start_state(root: Path) -> tuple[bool, bool]:
+    """``(existed, fresh)`` of a campaign directory about to be started: whether *root*
+    exists, and whether it is absent or an empty directory — what a start that fails may
+    then remove (:func:`remove_created`)."""
+    existed = root.exists()
+    return existed, not existed or (root.is_dir() and not any(root.iterdir()))
 
 
 def remove_created(root: Path, existed: bool) -> None:

@@ -206,12 +206,11 @@ def _plan_one(config, out: Path) -> None:
     from ..design import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
     from ..store.directory import CampaignDir
 
-    from ..runner import remove_created
+    from ..runner import remove_created, start_state
 
     blocks = PlanBlocks(config)
     cdir = CampaignDir(out)
-    existed = out.exists()
-    fresh = not existed or (out.is_dir() and not any(out.iterdir()))
+    existed, fresh = start_state(out)
     with cdir.locked():
         # the campaign's directory, as run makes it: a run into it starts from there
         cdir.check_model_version(MODEL_VERSION)
