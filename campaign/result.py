@@ -24,7 +24,7 @@ from reports.metrics import FAULT_FREE
 from reports.summary import ALL_FAULTS, ALL_MANOEUVRES
 from reports.table import format_table
 
-from .store.directory import CampaignDir, CampaignDirError, read_metadata
+from .store.directory import RESULT_BATCH_RUNS, CampaignDir, CampaignDirError, read_metadata
 
 __all__ = ["CERTIFICATE_ASSUMPTIONS", "Campaign", "CampaignLoadError", "Certificate",
            "Provenance", "load"]
@@ -215,6 +215,23 @@ class Campaign:
         order they were evaluated (runs not done are absent; an interrupted campaign has
         fewer)."""
         return plan_order(self._cdir.read_results(), self.plan)
+
+    def result_batches(self, columns=None, batch_runs: int = RESULT_BATCH_RUNS,
+                       positions: bool = False):
+        """The rows of :attr:`results`, in its order, as consecutive DataFrames of the rows
+        of at most *batch_runs* runs, only *columns* (and ``run_id``, ``detector``) when
+        given, with *positions* also ``plan_pos``, the run's row in the plan
+        (:meth:`campaign.store.directory.CampaignDir.result_batches`): what a reader of
+        every row uses so as not to hold them all at once."""
+        return self._cdir.result_batches(columns=columns, batch_runs=batch_runs,
+                                         stored_order=True, positions=positions)
+
+    def plan_column(self, name: str) -> np.ndarray:
+        """One column of the plan, in plan order, as a NumPy array (8 bytes a run for a
+        number), without reading the rest of the run table."""
+        if "plan" in self.__dict__:
+            return self.plan[name].to_numpy()
+        return self._cdir.read_plan(columns=[name])[name].to_numpy()
 
     @cached_property
     def gate_results(self) -> pd.DataFrame:

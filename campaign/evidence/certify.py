@@ -48,6 +48,7 @@ from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.errors import InputError
 
 from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
+from .certify_rows import CertifyRows
 from ..design import run_id, variable_ranges
 from ..execute import one_blas_thread
 from .hazard import per_hour
@@ -109,26 +110,29 @@ def evt_estimate(margins, manoeuvres=None, level: float = 0.95, at_one: dict | N
     return out
 
 
-def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
+def certificate(results, plan: pd.DataFrame | None = None, level: float = 0.95,
                 levels: pd.DataFrame | None = None) -> pd.DataFrame:
     """The counting and tail-fit columns of :data:`CERTIFICATE_COLUMNS` (sampling columns
-    NaN) from the result rows and the run table of a campaign; *levels*: its exceedance
-    curve (:func:`campaign.evidence.certify_levels.level_table`) when already computed (its
+    NaN) from the result rows and the run table *plan* of a campaign, or from the
+    :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them a batch at a
+    time (*plan* then unused: the durations are in it); *levels*: its exceedance curve
+    (:func:`campaign.evidence.certify_levels.level_table`) when already computed (its
     level-1 rows are used), else the level 1 is computed here."""
-    ff = results[(results["fault"].astype(str) == FAULT_FREE)
-                 & (results["status"].astype(str) == "ok")]
-    duration = plan.set_index("run_id")["duration_s"]
+    if isinstance(results, pd.DataFrame):
+        results = CertifyRows.of_table(results, plan)
     if levels is None or not (levels["level"] == 1.0).any():
         levels = level_table(results, (1.0,), level)
     at_one = levels[levels["level"] == 1.0].set_index("detector")
     rows = []
-    for detector, g in ff.groupby("detector", sort=False):
-        n = len(g)
-        k = int(g["false_alarm"].astype(bool).sum())
-        d_s = duration.reindex(g["run_id"]).to_numpy(float)
+    for detector in results.free_names():
+        free = results.free(detector)
+        margin = free.margin
+        n = len(margin)
+        k = free.false_alarms
+        d_s = free.duration_s
         mean_h = float(np.nanmean(d_s)) / 3600.0
         cp = float(upper_bound(k, n, level))
-        evt = evt_estimate(g["margin"].to_numpy(float), g["manoeuvre"].to_numpy(str), level,
+        evt = evt_estimate(margin, free.manoeuvre, level,
                            at_one.loc[detector].to_dict() if detector in at_one.index
                            else None)
         if k and evt["fa_prob_evt_upper95"] < k / n:
@@ -140,8 +144,8 @@ def certificate(results: pd.DataFrame, plan: pd.DataFrame, level: float = 0.95,
             "fa_count": k, "fa_rate": k / n, "fa_upper95_cp": cp,
             "fa_per_hour_upper95": per_hour(cp, mean_h),
             "fa_per_hour_evt_upper95": per_hour(evt["fa_prob_evt_upper95"], mean_h),
-            "worst_margin": float(np.nanmax(g["margin"].to_numpy(float)))
-            if g["margin"].notna().any() else math.nan, **evt,
+            "worst_margin": float(np.nanmax(margin)) if (~np.isnan(margin)).any()
+            else math.nan, **evt,
             "sampling_runs": 0, "sampling_prob": math.nan, "sampling_lower95": math.nan,
             "sampling_upper95": math.nan, "sampling_cov": math.nan, "sampling_levels": 0,
             "sampling_note": "", "sampling_reached_level": math.nan,
@@ -462,8 +466,9 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
             f"{directory}: the campaign is unfinished ({done} of {planned} runs done); a "
             "certificate is made from every fault-free run of the plan: finish it by running "
             "the same 'fdd-campaign run' command again")
-    curve = level_table(loaded.results, levels, float(level))
-    cert = certificate(loaded.results, loaded.plan, float(level), curve)
+    rows = CertifyRows.of_campaign(loaded)        # never every result row at once
+    curve = level_table(rows, levels, float(level))
+    cert = certificate(rows, None, float(level), curve)
     if cert.empty:
         raise CertifyError(f"{directory}: no fault-free run finished with status ok; a "
                            "false-alarm certificate needs fault-free runs (fault = \"none\")")
@@ -480,8 +485,8 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
                                       progress=progress, max_levels=int(max_levels))
         fill_sampling_columns(cert, found, seed=int(seed), n=int(sampling))
         write_sampling_levels(loaded.root, found, loaded.config.to_json())
-    hazard = hazard_table(loaded.results, loaded.plan,
-                          dict(loaded.config.requirements.fault_rate_per_fh), float(level))
+    hazard = hazard_table(rows, None, dict(loaded.config.requirements.fault_rate_per_fh),
+                          float(level))
     cdir = CampaignDir(loaded.root)
     with cdir.locked():
         cdir.write_certificate(cert, loaded.config.to_json(), sampling_seed=int(seed))

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from detectors.tail import exceedance_curve
-from reports.metrics import FAULT_FREE, upper_bound
+from reports.metrics import upper_bound
 
 from .rare import P0
 
@@ -150,16 +150,19 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
     return rows
 
 
-def level_table(results: pd.DataFrame, levels=DEFAULT_LEVELS,
-                confidence: float = 0.95) -> pd.DataFrame:
-    """``certificate-levels.parquet`` (:data:`LEVEL_COLUMNS`) of a campaign's result rows:
-    one row per detector (result-row name) × level, detectors in the order of the results."""
-    ff = results[(results["fault"].astype(str) == FAULT_FREE)
-                 & (results["status"].astype(str) == "ok")]
+def level_table(results, levels=DEFAULT_LEVELS, confidence: float = 0.95) -> pd.DataFrame:
+    """``certificate-levels.parquet`` (:data:`LEVEL_COLUMNS`) of a campaign's result rows
+    (a DataFrame, or :class:`campaign.evidence.certify_rows.CertifyRows` gathered a batch at
+    a time): one row per detector (result-row name) × level, detectors in the order of the
+    results."""
+    from .certify_rows import CertifyRows
+
+    if isinstance(results, pd.DataFrame):
+        results = CertifyRows.of_table(results)
     rows = []
-    for name, g in ff.groupby("detector", sort=False):
-        rows += detector_rows(str(name), g["margin"].to_numpy(float),
-                              g["manoeuvre"].to_numpy(str), levels, confidence)
+    for name in results.free_names():
+        free = results.free(name)
+        rows += detector_rows(str(name), free.margin, free.manoeuvre, levels, confidence)
     out = pd.DataFrame(rows, columns=list(LEVEL_COLUMNS))
     for c in ("n_runs", "n_exceed"):
         out[c] = out[c].astype("int64")

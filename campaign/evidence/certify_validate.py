@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.metrics import FAULT_FREE, lower_bound
+from reports.metrics import lower_bound
 
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
            "check_validation", "coverage_table", "summarise", "validate", "validate_levels",
@@ -57,12 +57,16 @@ def validation_config(config, n: int, seed: int):
     return CampaignConfig.from_dict(data, source=f"{config.source} (validation, seed {seed})")
 
 
-def coverage_table(levels: pd.DataFrame, results: pd.DataFrame, seed: int) -> pd.DataFrame:
+def coverage_table(levels: pd.DataFrame, results, seed: int) -> pd.DataFrame:
     """:data:`VALIDATION_COLUMNS` of an exceedance curve *levels* (rows of
-    ``certificate-levels.parquet``) against the result rows of a brute-force campaign."""
-    ff = results[(results["fault"].astype(str) == FAULT_FREE)
-                 & (results["status"].astype(str) == "ok")]
-    margins = {str(name): g["margin"].to_numpy(float) for name, g in ff.groupby("detector")}
+    ``certificate-levels.parquet``) against the result rows of a brute-force campaign (a
+    DataFrame, or the :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them
+    a batch at a time: one margin per fault-free run and detector is kept)."""
+    from .certify_rows import CertifyRows
+
+    if isinstance(results, pd.DataFrame):
+        results = CertifyRows.of_table(results)
+    margins = {str(name): results.free(name).margin for name in results.free_names()}
     rows = []
     for r in levels.to_dict(orient="records"):
         m = margins.get(str(r["detector"]))
@@ -92,6 +96,7 @@ def validate_levels(directory, config, levels: pd.DataFrame, n: int, *, seed: in
     """Run the validation of the campaign in *directory* (its *config*, its exceedance curve
     *levels*) with *n* runs at campaign seed *seed* (module docstring) and return its
     :func:`coverage_table`, also written to ``DIR/validation/seed-S-nN.parquet``."""
+    from .certify_rows import CertifyRows
     from ..store.files import write_parquet
     from ..runner import run
 
@@ -100,7 +105,7 @@ def validate_levels(directory, config, levels: pd.DataFrame, n: int, *, seed: in
     vconfig = validation_config(config, n, seed)
     done = run(vconfig, out, jobs=int(jobs), scheduler=scheduler, tls=tls,
                fitted_from=directory, log=log)
-    table = coverage_table(levels, done.results, seed)
+    table = coverage_table(levels, CertifyRows.of_campaign(done), seed)
     write_parquet(table, root / f"seed-{int(seed)}-n{int(n)}.parquet", vconfig.to_json(),
                   kind="certify-validation", validation_seed=int(seed))
     return table

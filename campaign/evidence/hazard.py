@@ -120,31 +120,31 @@ def per_hour(p: float, duration_h: float) -> float:
     return math.inf if p >= 1.0 else -math.log1p(-p) / duration_h
 
 
-def hazard_table(results: pd.DataFrame, plan: pd.DataFrame, rates: dict[str, float],
+def hazard_table(results, plan: pd.DataFrame | None, rates: dict[str, float],
                  level: float = 0.95) -> pd.DataFrame:
     """The hazard table (:data:`HAZARD_COLUMNS`, module docstring) from a campaign's result
-    rows, its run table *plan* (``run_id``, ``duration_s``) and the fault modes' rates
-    *rates* [1/FH] (fault type → rate; a fault type of the campaign without a rate raises
-    ValueError)."""
+    rows and its run table *plan* (``run_id``, ``duration_s``), or from the
+    :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them a batch at a time
+    (*plan* then unused), and the fault modes' rates *rates* [1/FH] (fault type → rate; a
+    fault type of the campaign without a rate raises ValueError)."""
     from reports.metrics import FAULT_FREE, upper_bound
+
+    from .certify_rows import CertifyRows
 
     if not 0.5 < float(level) < 1.0:
         raise ValueError(f"level {level!r} must be a confidence in (0.5, 1), e.g. 0.95")
-    ok = results[results["status"].astype(str) == "ok"]
-    faulty = ok[ok["fault"].astype(str) != FAULT_FREE]
-    missing = sorted(set(faulty["fault"].astype(str)) - set(rates))
+    if isinstance(results, pd.DataFrame):
+        results = CertifyRows.of_table(results, plan)
+    names = results.ok_names()
+    missing = sorted({f for name in names for f in results.faulty(name)} - set(rates))
     if missing:
         raise ValueError(f"no occurrence rate for fault type(s) {', '.join(missing)}; give "
                          "them in [requirements] fault_rate_per_fh")
-    duration_h = plan.set_index("run_id")["duration_s"] / 3600.0
+    free_names = set(results.free_names())
     rows = []
-    for detector, rows_d in ok.groupby("detector", sort=False):
+    for detector in names:
         per_fault = []
-        for fault, g in rows_d[rows_d["fault"].astype(str) != FAULT_FREE].groupby(
-                "fault", sort=True):
-            n = len(g)
-            missed = int((~g["detected"].astype(bool)).sum())
-            late = missed + int((g["detected"].astype(bool) & (g["dtp"] > 1.0)).sum())
+        for fault, (n, missed, late) in results.faulty(detector).items():
             lam = float(rates[str(fault)])
             p_up = float(upper_bound(missed, n, level))
             per_fault.append({
@@ -157,10 +157,10 @@ def hazard_table(results: pd.DataFrame, plan: pd.DataFrame, rates: dict[str, flo
         rows.extend(per_fault)
         if per_fault:
             rows.append(_total(per_fault, detector, float(level)))
-        free = rows_d[rows_d["fault"].astype(str) == FAULT_FREE]
-        if len(free):
-            n, k = len(free), int(free["false_alarm"].astype(bool).sum())
-            d_h = float(np.nanmean(duration_h.reindex(free["run_id"]).to_numpy(float)))
+        if detector in free_names:
+            free = results.free(detector)
+            n, k = len(free.margin), free.false_alarms
+            d_h = float(np.nanmean(free.duration_s / 3600.0))
             p_up = float(upper_bound(k, n, level))
             rows.append({
                 "detector": detector, "fault": FAULT_FREE, "n_runs": n, "events": k,

@@ -227,12 +227,16 @@ def _fixed_width_bytes(column) -> np.ndarray | None:
     return ids
 
 
-def _plan_ordered(rows: pd.DataFrame) -> pd.DataFrame:
+def _plan_ordered(rows: pd.DataFrame, stored_order: bool = False,
+                  positions: bool = False) -> pd.DataFrame:
     """Rows (with their plan position ``_pos``) deduplicated as :meth:`CampaignDir.read_results`
-    does (the last row of a run and detector) and sorted by plan position, then detector."""
+    does (the last row of a run and detector) and sorted by plan position, then detector
+    (with *stored_order*: a run's rows in the order they were stored, the rows of a run
+    being those of one shard); *positions* keeps ``_pos`` as the column ``plan_pos``."""
     rows = rows.drop_duplicates(["_pos", "detector"], keep="last")
-    rows = rows.sort_values(["_pos", "detector"], kind="stable")
-    return rows.drop(columns="_pos").reset_index(drop=True)
+    rows = rows.sort_values(["_pos"] if stored_order else ["_pos", "detector"], kind="stable")
+    rows = rows.rename(columns={"_pos": "plan_pos"}) if positions else rows.drop(columns="_pos")
+    return rows.reset_index(drop=True)
 
 
 class CampaignDir:
@@ -844,7 +848,8 @@ class CampaignDir:
         return df.drop(columns="_seq").reset_index(drop=True)
 
     def result_batches(self, run_ids=None, columns=None,
-                       batch_runs: int = RESULT_BATCH_RUNS) -> Iterator[pd.DataFrame]:
+                       batch_runs: int = RESULT_BATCH_RUNS, *, stored_order: bool = False,
+                       positions: bool = False) -> Iterator[pd.DataFrame]:
         """The rows of :meth:`read_results` in plan order, as consecutive DataFrames of the
         rows of at most *batch_runs* runs each, so that no reader holds every row at once.
 
@@ -853,6 +858,10 @@ class CampaignDir:
         are ``read_results()`` sorted so, the order every table of the campaign is computed
         in. Rows of a run id that is not in *run_ids* come last, by detector. *columns*:
         the columns read (``run_id`` and ``detector`` are always read and returned).
+        With *stored_order*, a run's rows keep the order they were stored in (the detectors
+        in the order they were evaluated), the order of :attr:`campaign.result.Campaign.results`;
+        with *positions*, each row also has ``plan_pos`` (int64), its run's position in
+        *run_ids* (their count for a run id not among them).
 
         Memory: the shards' ``run_id`` columns are read once to find, for each run, its
         latest shard (one int32 per run of the plan, 4 MB for 10⁶ runs, and the plan's run
@@ -893,7 +902,8 @@ class CampaignDir:
                 if keep.any():
                     frames.append(df[keep].assign(_pos=pos[keep]))
             if frames:
-                yield _plan_ordered(pd.concat(frames, ignore_index=True))
+                yield _plan_ordered(pd.concat(frames, ignore_index=True), stored_order,
+                                    positions)
         if latest[n] >= 0:              # run ids outside the plan: the rule of read_results
             frames = []
             for seq, path in enumerate(paths):
@@ -903,7 +913,7 @@ class CampaignDir:
                     frames.append(df.assign(_pos=n, _seq=seq))
             df = pd.concat(frames, ignore_index=True)
             df = df[df["_seq"] == df.groupby("run_id", sort=False)["_seq"].transform("max")]
-            yield _plan_ordered(df.drop(columns="_seq"))
+            yield _plan_ordered(df.drop(columns="_seq"), stored_order, positions)
 
     def done_mask(self, run_ids) -> np.ndarray:
         """For each of *run_ids*: whether every result row of that run has status ``ok``
