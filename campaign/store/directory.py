@@ -544,6 +544,11 @@ class CampaignDir:
         for :meth:`result_batches` and :meth:`done_mask`."""
         return pq.read_table(self.plan_path, columns=["run_id"]).column(0)
 
+    def run_index(self) -> _RunIndex:
+        """The plan's run ids indexed: ``.positions(run_ids)`` gives each id's row in the
+        plan (the plan's length for an id it does not hold), 28 bytes a run."""
+        return _RunIndex(self.plan_run_ids())
+
     def read_plan(self, columns=None) -> pd.DataFrame:
         """The run table (only *columns* when given)."""
         return pd.read_parquet(self.plan_path, columns=columns)
