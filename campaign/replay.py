@@ -165,11 +165,12 @@ def _envelope_subset(free: pd.DataFrame, results: pd.DataFrame, cfg: ReportSetti
     return pd.concat(keep) if keep else free.iloc[:0]
 
 
-def _envelope_runs(camp: Campaign, cfg: ReportSettings):
-    """(fault-free plan rows to re-simulate, number of fault-free runs scored ok)."""
-    ok_ids = set(camp.results.loc[camp.results["status"] == "ok", "run_id"])
+def _envelope_runs(camp: Campaign, cfg: ReportSettings, runs: pd.DataFrame):
+    """(fault-free plan rows to re-simulate, number of fault-free runs scored ok), from the
+    campaign's :func:`runs_table` *runs*."""
+    ok_ids = set(runs.loc[runs["status"] == "ok", "run_id"])
     free = camp.plan[(camp.plan["fault"] == FAULT_FREE) & camp.plan["run_id"].isin(ok_ids)]
-    return _envelope_subset(free, camp.results, cfg), len(free)
+    return _envelope_subset(free, runs, cfg), len(free)
 
 
 def _chunks(free: pd.DataFrame, extra: pd.DataFrame, jobs: int) -> list:
@@ -287,10 +288,30 @@ def _requirements(config: CampaignConfig) -> dict:
             "detector_max_fa_rate": dict(r.detector_max_fa_rate)}
 
 
+#: Result columns the report reads (its tables, figures and drill-down lists).
+REPORT_COLUMNS = ("fault", "manoeuvre", "status", "error", "false_alarm", "detected", "dtp",
+                  "delay_s", "margin")
+
+
 def runs_table(camp: Campaign) -> pd.DataFrame:
-    """Result rows with the flight point of each run (one row per run × detector)."""
-    point = camp.plan[["run_id", *POINT_COLUMNS]]
-    return camp.results.merge(point, on="run_id", how="left", validate="many_to_one")
+    """Result rows with the flight point of each run (one row per run × detector), only the
+    columns the report reads (:data:`REPORT_COLUMNS`, then :data:`POINT_COLUMNS`), read a
+    batch of runs at a time: the report's one table of every run (it lists every run and
+    maps every fault-free one), about 6 object and 12 numeric columns per run × detector,
+    where the result rows have 17 and the plan rows some 40."""
+    point = camp.plan_column
+    columns = {c: point(c) for c in POINT_COLUMNS}
+    parts = []
+    for batch in camp.result_batches(columns=list(REPORT_COLUMNS), positions=True):
+        pos = batch.pop("plan_pos").to_numpy()
+        inside = pos < len(columns[POINT_COLUMNS[0]])
+        for c, values in columns.items():
+            batch[c] = (values[pos] if inside.all()              # a run outside the plan:
+                        else np.where(inside, values[np.where(inside, pos, 0)], np.nan))
+        parts.append(batch)
+    if not parts:
+        return pd.DataFrame()
+    return pd.concat(parts, ignore_index=True)
 
 
 def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
@@ -349,7 +370,7 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
     data = _gather_report_data(directory, cfg, jobs, t0, requirements, fmu, log)
-    specs = _figure_specs(data) + evidence_figure_specs(data.camp)
+    specs = _figure_specs(data) + evidence_figure_specs(data.camp, data.runs)
     t1 = time.perf_counter()
     pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
                        for *_, kind, args, kwargs in specs], jobs,
@@ -374,7 +395,8 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
     the envelopes) with the example runs riding along (phase 1); none on an FMU plant
     without *fmu* (:func:`replay_settings`)."""
     camp = load(directory)
-    if camp.results.empty:
+    runs = runs_table(camp)
+    if runs.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
     detectors = camp.fitted
     req = _requirements(camp.config) if requirements is None else requirements
@@ -388,9 +410,9 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
         log(note)
         warnings.append(f"{note} (the residual envelopes and example runs need it; the "
                         "tables and maps need no simulation).")
-    free, n_free = _envelope_runs(camp, cfg)
+    free, n_free = _envelope_runs(camp, cfg, runs)
     order = list(dict.fromkeys(camp.summary["detector"].astype(str)))
-    examples = _example_ids(camp.results, cfg.examples_per_fault, order) if settings else []
+    examples = _example_ids(runs, cfg.examples_per_fault, order) if settings else []
     example_ids = frozenset(rid for _, rid, _ in examples)
     plan = camp.plan.set_index("run_id", drop=False)
     extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
@@ -399,12 +421,12 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
                                n_bins=cfg.envelope_bins, example_ids=example_ids)
          for e, x in _chunks(free, extra, jobs)], jobs)
     t_sim = time.perf_counter() - t0
-    warnings += error_lines(camp.results)
+    warnings += error_lines(runs)
     warnings += _resimulation_warnings([p[4] for p in parts])
     return _ReportData(
         camp=camp, cfg=cfg, requirements=req, gate=campaign_gate(camp, req),
         all_requirements=campaign_gate(camp, req, all_requirements=True),
-        detectors=order, runs=runs_table(camp), plan=plan,
+        detectors=order, runs=runs, plan=plan,
         n_free=n_free, env=_gather_envelopes(parts, free, settings), examples=examples,
         traces={rid: tr for p in parts for rid, tr in p[3].items()}, t_sim=t_sim,
         warnings=warnings)
@@ -436,7 +458,7 @@ def _envelope_specs(data: _ReportData) -> list[tuple]:
     if env is None:
         return []
     n_sim = len(env["run_ids"])
-    delta = _margin_check(env, data.camp.results)
+    delta = _margin_check(env, data.runs)
     rule = ("all of them" if n_sim == data.n_free else
             f"{n_sim} of {data.n_free}: per manoeuvre at most {cfg.envelope_runs}, always the "
             f"{cfg.worst_kept} runs of largest stored margin of each detector, the rest "
@@ -587,8 +609,9 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
                                  "report.html (e.g. " + ", ".join(ids[:3]) + ")")
     settings, note = replay_settings(camp, fmu)
     row = match.iloc[0]
-    stored = camp.results[camp.results["run_id"].astype(str) == str(run_id)].set_index(
-        "detector")
+    stored = pd.concat([b[b["run_id"].astype(str) == str(run_id)]     # a batch at a time
+                        for b in camp.result_batches()] or [pd.DataFrame(columns=["detector"])],
+                       ignore_index=True).set_index("detector")
     if settings is None:             # an FMU plant and no --fmu: what needs no simulation
         if plot or out:
             raise CampaignSetupError(f"--plot and --out need the run's traces; {note}")

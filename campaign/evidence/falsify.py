@@ -431,22 +431,33 @@ def _against(directory, config, label, keep) -> tuple:
     from ..result import load
 
     camp = load(directory)
-    results = camp.results
-    names = sorted(set(results["detector"]))
+    # a batch of runs at a time, keeping the detector names, the count and largest margin
+    # of the fault-free runs, and their `keep` worst rows (the worst of each batch, sorted
+    # stably again: the worst of all)
+    names, n_free, top, worst = set(), 0, math.nan, []
+    for batch in camp.result_batches(columns=["fault", "status", "margin"]):
+        names |= set(batch["detector"])
+        free = batch[(batch["detector"] == label) & (batch["fault"] == "none")
+                     & (batch["status"] == "ok")]
+        if free.empty:
+            continue
+        n_free += len(free)
+        top = np.fmax(top, free["margin"].max())
+        worst.append(free.sort_values("margin", ascending=False, kind="stable").head(keep))
+    names = sorted(names)
     if label not in names:
         raise FalsifyError(f"--against {directory}: its results hold no detector {label!r}; "
                            f"they hold: {', '.join(names)}")
-    free = results[(results["detector"] == label) & (results["fault"] == "none")
-                   & (results["status"] == "ok")]
-    if free.empty:
+    if not n_free:
         raise FalsifyError(f"--against {directory}: no fault-free run of {label!r} to "
                            "compare with")
     name = camp.name
-    worst = free.sort_values("margin", ascending=False, kind="stable").head(keep)
+    worst = (pd.concat(worst, ignore_index=True)
+             .sort_values("margin", ascending=False, kind="stable").head(keep))
     plan = camp.plan.set_index("run_id")
     rows = plan.reindex(worst["run_id"]).dropna(subset=["manoeuvre"]).reset_index()
-    return ((float(free["margin"].max()), len(free),
-             f"the {len(free)} fault-free runs of {directory} (campaign {name!r})"), rows)
+    return ((float(top), n_free,
+             f"the {n_free} fault-free runs of {directory} (campaign {name!r})"), rows)
 
 
 def drawn_start_s(seed: int, stream: int, duration_s: float) -> float:

@@ -75,9 +75,12 @@ def _tail_specs(name: str, g, curve) -> list[tuple]:
     ]
 
 
-def evidence_figure_specs(camp) -> list[tuple]:
-    """Figure specs of a campaign (:class:`campaign.result.Campaign`)."""
-    res = camp.results
+def evidence_figure_specs(camp, results=None) -> list[tuple]:
+    """Figure specs of a campaign (:class:`campaign.result.Campaign`) from its result rows
+    *results* (default :attr:`campaign.result.Campaign.results`; at least ``run_id``,
+    ``detector``, ``fault``, ``manoeuvre``, ``status``, ``margin``, ``detected``,
+    ``delay_s``)."""
+    res = camp.results if results is None else results
     if res.empty:
         return []
     ok = res[res["status"].astype(str) == "ok"]
