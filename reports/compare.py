@@ -97,9 +97,10 @@ class ScoredRows:
             (results["status"].astype(str) == "ok").to_numpy()]
         part = {"run_id": keys}
         for k in _KEYS:
+            codes, values = pd.factorize(rows[k])
             labels = self._labels[k]
-            part[k] = np.fromiter((labels.setdefault(v, len(labels)) for v in rows[k]),
-                                  dtype=np.int16, count=len(rows))
+            known = np.array([labels.setdefault(v, len(labels)) for v in values], np.int16)
+            part[k] = known[codes]
         part.update(fa=rows["fa"].to_numpy(bool), det=rows["det"].to_numpy(bool),
                     dtp=rows["dtp"].to_numpy(float))
         self._parts.append(pd.DataFrame(part))
@@ -123,13 +124,14 @@ def _several(rows: pd.DataFrame) -> set:
 
 
 def _cells(rows: pd.DataFrame, aggregate: set) -> dict:
-    """(detector, fault, manoeuvre) → rows, plus the aggregate over manoeuvres of the
-    (detector, fault) pairs in *aggregate*."""
-    out = {k: g for k, g in rows.groupby(_KEYS, sort=True, observed=True)}
-    for (detector, fault), g in rows.groupby(["detector", "fault"], sort=True,
-                                             observed=True):
+    """(detector, fault, manoeuvre) → the positions of its rows in *rows* (in order), plus
+    the aggregate over manoeuvres of the (detector, fault) pairs in *aggregate*: positions,
+    8 bytes a row, so that one cell's rows at a time are copied out."""
+    out = dict(rows.groupby(_KEYS, sort=True, observed=True).indices)
+    for (detector, fault), at in rows.groupby(["detector", "fault"], sort=True,
+                                              observed=True).indices.items():
         if (detector, fault) in aggregate:
-            out[(detector, fault, ALL_MANOEUVRES)] = g
+            out[(detector, fault, ALL_MANOEUVRES)] = at
     return out
 
 
@@ -212,7 +214,8 @@ def compare_scored(rows_a: pd.DataFrame, rows_b: pd.DataFrame, *,
     cells_a, cells_b = _cells(rows_a, aggregate), _cells(rows_b, aggregate)
     rows = []
     for key in sorted(set(cells_a) | set(cells_b)):
-        ga, gb = cells_a.get(key), cells_b.get(key)
+        ga, gb = (None if key not in cells else scored.iloc[cells[key]]
+                  for scored, cells in ((rows_a, cells_a), (rows_b, cells_b)))
         row = dict(zip(_KEYS, key))
         if ga is None or gb is None:
             only = "only in B" if ga is None else "only in A"

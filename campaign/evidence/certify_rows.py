@@ -117,8 +117,9 @@ class CertifyRows:
         # no alarm count; one of alarms alone (the hazard's) no margin
         man = (free["manoeuvre"].astype(str).to_numpy() if "manoeuvre" in free
                else np.full(len(free), "", dtype=object))
-        codes = np.fromiter((self._manoeuvres.setdefault(m, len(self._manoeuvres))
-                             for m in man), dtype=np.int64, count=len(man))
+        local, values = pd.factorize(man)
+        codes = np.array([self._manoeuvres.setdefault(m, len(self._manoeuvres))
+                          for m in values], dtype=np.int64)[local]
         margin = (free["margin"].to_numpy(float) if "margin" in free   # the hazard's rows
                   else np.full(len(free), np.nan))                      # need no margin
         alarm = (free["false_alarm"].astype(bool).to_numpy() if "false_alarm" in free
