@@ -165,11 +165,17 @@ def _envelope_subset(free: pd.DataFrame, results: pd.DataFrame, cfg: ReportSetti
     return pd.concat(keep) if keep else free.iloc[:0]
 
 
-def _envelope_runs(camp: Campaign, cfg: ReportSettings, runs: pd.DataFrame):
-    """(fault-free plan rows to re-simulate, number of fault-free runs scored ok), from the
-    campaign's :func:`runs_table` *runs*."""
+#: Plan columns the report reads of every run (to choose the runs it re-simulates); it
+#: reads whole plan rows only of the runs it re-simulates.
+PLAN_KEY_COLUMNS = ("run_id", "fault", "manoeuvre")
+
+
+def _envelope_runs(plan: pd.DataFrame, cfg: ReportSettings, runs: pd.DataFrame):
+    """(fault-free runs to re-simulate, number of fault-free runs scored ok): rows of
+    *plan* (at least :data:`PLAN_KEY_COLUMNS`), chosen with the campaign's
+    :func:`runs_table` *runs*."""
     ok_ids = set(runs.loc[runs["status"] == "ok", "run_id"])
-    free = camp.plan[(camp.plan["fault"] == FAULT_FREE) & camp.plan["run_id"].isin(ok_ids)]
+    free = plan[(plan["fault"] == FAULT_FREE) & plan["run_id"].isin(ok_ids)]
     return _envelope_subset(free, runs, cfg), len(free)
 
 
@@ -333,7 +339,7 @@ class _ReportData:
     all_requirements: object       # of `fdd-campaign gate DIR --all-requirements`
     detectors: list                # detector names in the summary's order (the page's)
     runs: pd.DataFrame             # runs_table(camp)
-    plan: pd.DataFrame             # the plan indexed by run id
+    plan: pd.DataFrame             # the plan rows of the runs re-simulated, by run id
     n_free: int                    # fault-free runs scored ok
     env: dict | None               # re-simulated envelopes (_gather_envelopes)
     examples: list                 # (fault, run_id, why)
@@ -410,11 +416,17 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
         log(note)
         warnings.append(f"{note} (the residual envelopes and example runs need it; the "
                         "tables and maps need no simulation).")
-    free, n_free = _envelope_runs(camp, cfg, runs)
+    keys = camp.plan_columns(PLAN_KEY_COLUMNS)
+    chosen, n_free = _envelope_runs(keys, cfg, runs)
     order = list(dict.fromkeys(camp.summary["detector"].astype(str)))
     examples = _example_ids(runs, cfg.examples_per_fault, order) if settings else []
     example_ids = frozenset(rid for _, rid, _ in examples)
-    plan = camp.plan.set_index("run_id", drop=False)
+    # whole plan rows only of the runs re-simulated (about 0.6 KB each)
+    wanted = chosen.index.union(keys.index[keys["run_id"].isin(example_ids)])
+    del keys
+    rows = camp.plan_rows(wanted)
+    free = rows.loc[chosen.index]
+    plan = rows.set_index("run_id", drop=False)
     extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
     parts = [] if settings is None else _run_tasks(
         [delayed(_trace_chunk)(e, x, detectors=detectors, settings=settings,

@@ -229,9 +229,22 @@ class Campaign:
     def plan_column(self, name: str) -> np.ndarray:
         """One column of the plan, in plan order, as a NumPy array (8 bytes a run for a
         number), without reading the rest of the run table."""
+        return self.plan_columns([name])[name].to_numpy()
+
+    def plan_columns(self, names) -> pd.DataFrame:
+        """Some columns of the plan (indexed by plan position, as :attr:`plan`), without
+        reading the rest of the run table."""
         if "plan" in self.__dict__:
-            return self.plan[name].to_numpy()
-        return self._cdir.read_plan(columns=[name])[name].to_numpy()
+            return self.plan[list(names)]
+        return self._cdir.read_plan(columns=list(names))
+
+    def plan_rows(self, positions) -> pd.DataFrame:
+        """The rows of the plan at *positions* (distinct, ascending), indexed by them, as
+        the same rows of :attr:`plan` (:meth:`campaign.store.directory.CampaignDir.plan_rows`:
+        a row group read at a time)."""
+        if "plan" in self.__dict__:
+            return self.plan.loc[np.asarray(positions, dtype=np.int64)]
+        return self._cdir.plan_rows(positions)
 
     @cached_property
     def gate_results(self) -> pd.DataFrame:

@@ -544,6 +544,23 @@ class CampaignDir:
         for :meth:`result_batches` and :meth:`done_mask`."""
         return pq.read_table(self.plan_path, columns=["run_id"]).column(0)
 
+    def plan_rows(self, positions) -> pd.DataFrame:
+        """The rows of the run table at *positions* (distinct, ascending row numbers),
+        indexed by them as the same rows of :meth:`read_plan` are, read a row group at a
+        time (:meth:`plan_batches`): a few runs of a large plan without the rest."""
+        positions = np.asarray(positions, dtype=np.int64)
+        parts, none = [], None
+        for batch in self.plan_batches(PLAN_ROW_GROUP_ROWS):
+            inside = positions[(positions >= batch.index.start)
+                               & (positions < batch.index.stop)]
+            if inside.size:
+                parts.append(batch.loc[inside])
+            elif none is None:
+                none = batch.iloc[:0]       # no row asked for: the columns and dtypes
+        if parts:
+            return pd.concat(parts)
+        return self.read_plan() if none is None else none     # (a plan of no rows)
+
     def run_index(self) -> _RunIndex:
         """The plan's run ids indexed: ``.positions(run_ids)`` gives each id's row in the
         plan (the plan's length for an id it does not hold), 28 bytes a run."""

@@ -117,3 +117,15 @@ def test_no_command_reads_every_result_row(camp_dir, tmp_path, small_batches, mo
     assert "24 cells: 24 unchanged" in capsys.readouterr().out
     assert main(["report", str(here), "--jobs", "1", "--envelope-runs", "2"]) == 0
     assert (here / "report.html").stat().st_size > 0
+
+
+def test_plan_rows_are_the_rows_of_the_plan(camp_dir, monkeypatch):
+    """A few rows of the plan read a row group at a time (groups of 5 rows here, so that
+    the rows asked for fall in several) are those of the plan read whole."""
+    import campaign.store.directory as store
+
+    monkeypatch.setattr(store, "PLAN_ROW_GROUP_ROWS", 5)
+    whole = load(camp_dir).plan
+    for positions in ([0], [1, 5, 6, 11], [], list(range(12))):
+        got = load(camp_dir).plan_rows(positions)
+        pd.testing.assert_frame_equal(got, whole.loc[positions], check_exact=True)
