@@ -383,6 +383,7 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                       min_tasks=MIN_PARALLEL_FIGURES)
     figures = [ReportFigure(section, group, title, png, caption)
                for (section, group, title, caption, *_), png in zip(specs, pngs)]
+    del specs, pngs             # the maps' copies of the runs, not needed for the page
     t_fig = time.perf_counter() - t1
     data.notes.append(f"Report made with {jobs} job(s): re-simulation {data.t_sim:.1f} s, "
                       f"{len(figures)} figures {t_fig:.1f} s.")

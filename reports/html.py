@@ -407,16 +407,20 @@ def _drilldown(runs: pd.DataFrame, detectors: list[str]) -> str:
            "(add <code>--out RUN_ID.parquet</code> for the traces).</p>"]
     faults = sorted(f for f in runs["fault"].unique() if f != FAULT_FREE)
     order = ([FAULT_FREE] if (runs["fault"] == FAULT_FREE).any() else []) + faults
-    opened_faulty = False
+    by_fault = runs.groupby("fault", sort=False).indices     # row positions: no copy of
+    opened_faulty = False                                     # a fault's rows but a cell's
     for fault in order:
         if fault != FAULT_FREE and not opened_faulty:
             out.append(f'<section id="{anchor("faulty")}">')
             opened_faulty = True
-        sub = runs[runs["fault"] == fault]
+        at = by_fault[fault]
         label = "fault-free" if fault == FAULT_FREE else fault
         out.append(f'<section id="{anchor(fault)}"><h3>{_e(label)} '
-                   f"({sub['run_id'].nunique()} runs)</h3>")
-        for man, cell in sub.groupby("manoeuvre", sort=True):
+                   f"({runs['run_id'].iloc[at].nunique()} runs)</h3>")
+        manoeuvres = runs["manoeuvre"].to_numpy()[at]
+        cells = pd.Series(manoeuvres).groupby(manoeuvres).indices
+        for man in sorted(cells):
+            cell = runs.iloc[at[cells[man]]]
             out.append(f'<div class="runs" id="{anchor(fault, man)}">'
                        f"<h4>{_e(label)} × {_e(man)}: {cell['run_id'].nunique()} runs</h4>")
             out.append('<div class="scroll">' + _cell_table(cell, detectors) + "</div></div>")
