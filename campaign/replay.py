@@ -303,8 +303,8 @@ def runs_table(camp: Campaign) -> pd.DataFrame:
     """Result rows with the flight point of each run (one row per run × detector), only the
     columns the report reads (:data:`REPORT_COLUMNS`, then :data:`POINT_COLUMNS`), read a
     batch of runs at a time: the report's one table of every run (it lists every run and
-    maps every fault-free one), about 6 object and 12 numeric columns per run × detector,
-    where the result rows have 17 and the plan rows some 40."""
+    maps every fault-free one): 6 text, 2 boolean and 9 float columns per run × detector,
+    where the result rows have 17 columns and the plan rows 35."""
     point = camp.plan_column
     columns = {c: point(c) for c in POINT_COLUMNS}
     parts = []
