@@ -130,16 +130,28 @@ def _h(a: float, xi: np.ndarray) -> np.ndarray:
 
 def _loglik(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """Generalised Pareto log-likelihood of the excesses *y* (k,) for parameters broadcast
-    together (−inf outside the support; Coles 2001 eq. 4.10)."""
+    together (−inf outside the support; Coles 2001 eq. 4.10).
+
+    One (…, k) array is made and transformed in place (y/σ, then ξ·y/σ, then its log1p)
+    instead of a new array at each step: the profiles evaluate it on millions of
+    (σ, ξ, y) triples. Whether a parameter pair holds every excess in the support
+    (ξ·y/σ > −1 for all y) is decided at the smallest and the largest excess, where
+    ξ·(y/σ), monotone in y, takes its extremes, with the same operations; outside the
+    support the sum is not used (−inf is returned), so its log1p may be NaN there. The
+    values are those of the elementwise form, to the bit."""
     sigma, xi = np.broadcast_arrays(np.asarray(sigma, float), np.asarray(xi, float))
-    q = y / sigma[..., None]                             # excesses in units of σ
     zero = xi == 0.0
     safe = np.where(zero, 1.0, xi)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        z = safe[..., None] * q                          # ξ·y/σ
-        inside = (z > -1.0).all(axis=-1) & (sigma > 0.0)
-        tail = np.where(zero, q.sum(axis=-1),
-                        (1.0 + 1.0 / safe) * np.log1p(np.where(z > -1.0, z, 0.0)).sum(axis=-1))
+        z = y / sigma[..., None]                         # excesses in units of σ
+        z *= safe[..., None]                             # ξ·y/σ (y/σ itself where ξ = 0)
+        inside = sigma > 0.0
+        if y.size:
+            inside &= (safe * (y.min() / sigma) > -1.0) & (safe * (y.max() / sigma) > -1.0)
+        q_sum = z[zero].sum(axis=-1)                     # ξ = 0: Σ y/σ
+        np.log1p(z, out=z)
+        tail = np.asarray((1.0 + 1.0 / safe) * z.sum(axis=-1))
+        tail[zero] = q_sum
         ll = -y.size * np.log(sigma) - tail
     return np.where(inside, ll, -np.inf)
 
