@@ -142,7 +142,8 @@ def add_evidence_parsers(subs) -> None:
                    help="also estimate P(margin ≥ 1) by subset simulation with N runs per "
                         "level (a multiple of 10, ≥ 20; e.g. 500)")
     p.add_argument("--jobs", type=int, default=2,
-                   help="local workers simulating the sampled runs (default 2)")
+                   help="threads fitting the manoeuvres' tails, and local workers "
+                        "simulating the sampled runs (default 2)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="simulate the sampled runs on this dask.distributed scheduler's "
                         "workers")

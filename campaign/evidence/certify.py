@@ -430,7 +430,9 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     ``certificate`` of ``campaign.load(DIR)`` from then on.
 
     *detectors*: the result-row names sampled (default all; the others keep NaN sampling
-    columns). With *sampling*, the runs are simulated on *jobs* local workers or on the dask
+    columns). The exceedance curve's tail fits run on *jobs* threads, one manoeuvre each at
+    a time (the same curve with any *jobs*). With *sampling*, the runs are simulated on *jobs*
+    local workers or on the dask
     scheduler *scheduler* (*tls*: its :class:`campaign.execute.TlsFiles`), their batches
     kept under ``DIR/sampling/`` (resumable), *progress* (default stderr) told each batch
     (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished
@@ -467,7 +469,7 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
             "certificate is made from every fault-free run of the plan: finish it by running "
             "the same 'fdd-campaign run' command again")
     rows = CertifyRows.of_campaign(loaded)        # never every result row at once
-    curve = level_table(rows, levels, float(level))
+    curve = level_table(rows, levels, float(level), jobs=int(jobs))
     cert = certificate(rows, None, float(level), curve)
     if cert.empty:
         raise CertifyError(f"{directory}: no fault-free run finished with status ok; a "

@@ -99,9 +99,10 @@ def _limit_note(model_up: float, limit: float, counted_up: float, n: int,
 
 
 def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.95,
-                  ) -> list[dict]:
+                  jobs: int = 1) -> list[dict]:
     """The rows of :data:`LEVEL_COLUMNS` of one detector from its fault-free runs' margins
-    and manoeuvres (module docstring)."""
+    and manoeuvres (module docstring); *jobs*: threads for the manoeuvres' tail fits
+    (:func:`detectors.tail.exceedance_curve`)."""
     m = np.asarray(margins, float)
     keep = np.isfinite(m)
     m, cls = m[keep], np.asarray(manoeuvres).astype(str)[keep]
@@ -115,7 +116,7 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
                          "tail_class": "", "confidence": float(confidence),
                          "note": "no fault-free run with a finite margin"})
         return rows
-    curve = exceedance_curve(m, levels, classes=cls, confidence=confidence)
+    curve = exceedance_curve(m, levels, classes=cls, confidence=confidence, jobs=jobs)
     for e in curve:
         counted_up = float(upper_bound(e.count, n, confidence))
         limit = counted_up / 10.0 ** EXTRAPOLATION_DECADES
@@ -150,11 +151,13 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
     return rows
 
 
-def level_table(results, levels=DEFAULT_LEVELS, confidence: float = 0.95) -> pd.DataFrame:
+def level_table(results, levels=DEFAULT_LEVELS, confidence: float = 0.95,
+                jobs: int = 1) -> pd.DataFrame:
     """``certificate-levels.parquet`` (:data:`LEVEL_COLUMNS`) of a campaign's result rows
     (a DataFrame, or :class:`campaign.evidence.certify_rows.CertifyRows` gathered a batch at
     a time): one row per detector (result-row name) × level, detectors in the order of the
-    results."""
+    results. *jobs*: threads for each detector's tail fits, one manoeuvre each at a time;
+    the table does not depend on it."""
     from .certify_rows import CertifyRows
 
     if isinstance(results, pd.DataFrame):
@@ -162,7 +165,8 @@ def level_table(results, levels=DEFAULT_LEVELS, confidence: float = 0.95) -> pd.
     rows = []
     for name in results.free_names():
         free = results.free(name)
-        rows += detector_rows(str(name), free.margin, free.manoeuvre, levels, confidence)
+        rows += detector_rows(str(name), free.margin, free.manoeuvre, levels, confidence,
+                              jobs=jobs)
     out = pd.DataFrame(rows, columns=list(LEVEL_COLUMNS))
     for c in ("n_runs", "n_exceed"):
         out[c] = out[c].astype("int64")

@@ -203,3 +203,13 @@ def test_the_in_place_log_likelihood_is_the_elementwise_one_to_the_bit():
     assert _loglik(y, 0.99, -0.5) == -np.inf
     assert np.isfinite(_loglik(y, 1.01, -0.5))
 
+
+def test_the_curve_of_a_mixture_is_the_same_on_threads():
+    x, cls = _two_class_sample(3, n_per=700)
+    cls = np.where(np.arange(x.size) % 3 == 0, "c", cls)      # three classes
+    levels = (0.5, 6.0, 10.0, 14.0)
+    one = exceedance_curve(x, levels, classes=cls)
+    assert any(p[1] == "tail" for e in one for p in e.parts)  # the tail fits are exercised
+    assert exceedance_curve(x, levels, classes=cls, jobs=2) == one
+    rows = detector_rows("d", x, cls, levels)
+    assert detector_rows("d", x, cls, levels, jobs=3) == rows
