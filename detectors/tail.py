@@ -128,9 +128,27 @@ def _h(a: float, xi: np.ndarray) -> np.ndarray:
     return np.where(xi == 0.0, math.log(a), np.expm1(safe * math.log(a)) / safe)
 
 
+#: Largest number of (parameter pair × excess) terms one evaluation of the log-likelihood
+#: holds at once (16 MB of float64): more parameter pairs are taken a block at a time.
+LOGLIK_TERMS = 2_000_000
+
+
 def _loglik(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """Generalised Pareto log-likelihood of the excesses *y* (k,) for parameters broadcast
-    together (−inf outside the support; Coles 2001 eq. 4.10).
+    together (−inf outside the support; Coles 2001 eq. 4.10), at most
+    :data:`LOGLIK_TERMS` terms at a time (each pair's value does not depend on the block it
+    is computed in)."""
+    sigma, xi = np.broadcast_arrays(np.asarray(sigma, float), np.asarray(xi, float))
+    per = max(1, LOGLIK_TERMS // max(y.size, 1))
+    if sigma.size <= per:
+        return _loglik_block(y, sigma, xi)
+    s, x = sigma.ravel(), xi.ravel()
+    return np.concatenate([_loglik_block(y, s[i:i + per], x[i:i + per])
+                           for i in range(0, s.size, per)]).reshape(sigma.shape)
+
+
+def _loglik_block(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """:func:`_loglik` of one block of parameter pairs (*sigma*, *xi* of one shape).
 
     One (…, k) array is made and transformed in place (y/σ, then ξ·y/σ, then its log1p)
     instead of a new array at each step: the profiles evaluate it on millions of
@@ -139,7 +157,6 @@ def _loglik(y: np.ndarray, sigma: np.ndarray, xi: np.ndarray) -> np.ndarray:
     ξ·(y/σ), monotone in y, takes its extremes, with the same operations; outside the
     support the sum is not used (−inf is returned), so its log1p may be NaN there. The
     values are those of the elementwise form, to the bit."""
-    sigma, xi = np.broadcast_arrays(np.asarray(sigma, float), np.asarray(xi, float))
     zero = xi == 0.0
     safe = np.where(zero, 1.0, xi)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -163,7 +180,7 @@ def _profile(y: np.ndarray, a: float, t, shapes: np.ndarray = SHAPES,
     t = np.atleast_1d(np.asarray(t, float))
     h = _h(a, shapes)
     out, arg = np.empty(t.size), np.empty(t.size)
-    step = max(1, 2_000_000 // (shapes.size * y.size))
+    step = max(1, LOGLIK_TERMS // (shapes.size * y.size))
     for s in range(0, t.size, step):
         ll = _loglik(y, t[s:s + step, None] / h[None, :], shapes[None, :])
         j = np.argmax(ll, axis=1)
@@ -178,7 +195,7 @@ def _profile_rate(y: np.ndarray, t: float, s, shapes: np.ndarray = SHAPES) -> np
     σ = t/h(e^s, ξ), maximised over ξ."""
     s = np.atleast_1d(np.asarray(s, float))
     out = np.empty(s.size)
-    step = max(1, 2_000_000 // (shapes.size * y.size))
+    step = max(1, LOGLIK_TERMS // (shapes.size * y.size))
     xi = shapes[None, :]
     safe = np.where(xi == 0.0, 1.0, xi)
     for i in range(0, s.size, step):

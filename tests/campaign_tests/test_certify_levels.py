@@ -213,3 +213,17 @@ def test_the_curve_of_a_mixture_is_the_same_on_threads():
     assert exceedance_curve(x, levels, classes=cls, jobs=2) == one
     rows = detector_rows("d", x, cls, levels)
     assert detector_rows("d", x, cls, levels, jobs=3) == rows
+
+
+def test_the_log_likelihood_taken_a_block_at_a_time_is_the_same(monkeypatch):
+    import detectors.tail as tail
+
+    rng = np.random.default_rng(4)
+    y = rng.exponential(0.7, 450)
+    sigma = rng.uniform(0.05, 4.0, (3, tail.SHAPES.size))
+    xi = np.broadcast_to(tail.SHAPES, sigma.shape)
+    whole = tail._loglik(y, sigma, xi)           # 3 × 301 × 450 terms: one block
+    monkeypatch.setattr(tail, "LOGLIK_TERMS", 1000)   # two pairs a block, and a remainder
+    np.testing.assert_array_equal(tail._loglik(y, sigma, xi), whole)
+    monkeypatch.setattr(tail, "LOGLIK_TERMS", 10)     # fewer terms than one pair has
+    np.testing.assert_array_equal(tail._loglik(y, sigma, xi), whole)
