@@ -51,6 +51,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+import pandas as pd
 
 from reports.metrics import upper_bound
 
@@ -558,22 +559,27 @@ def exceedance_curve(values, levels, *, classes=None, confidence: float = 0.95,
     if classes is None:
         return [Exceedance(float(v), p, up, float(confidence), m, c, n)
                 for v, c, (m, p, up) in zip(lv, counts, _one_curve(x, lv, confidence, shapes))]
-    labels = np.asarray(classes).astype(str).ravel()
+    labels = np.asarray(classes).ravel()
     if labels.shape != x.shape:
         raise ValueError(f"classes has {labels.size} entries for {x.size} values; give one "
                          "class per value")
-    names, sizes = np.unique(labels, return_counts=True)
-    weights = sizes / n
-    def curve(c):
-        return _one_curve(x[labels == c], lv, confidence, shapes)
+    # the classes named as str and sorted (those of np.unique of the labels as str), each
+    # value's class found by hashing the labels: no str copy of every label is made
+    codes, uniques = pd.factorize(labels, use_na_sentinel=False)
+    names, which = np.unique(np.asarray(uniques).astype(str), return_inverse=True)
+    cls = which.ravel()[codes]
+    weights = np.bincount(cls, minlength=names.size) / n
+
+    def curve(j):
+        return _one_curve(x[cls == j], lv, confidence, shapes)
 
     if jobs > 1 and names.size > 1:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(min(int(jobs), names.size)) as pool:
-            per_class = list(pool.map(curve, names))
+            per_class = list(pool.map(curve, range(names.size)))
     else:
-        per_class = [curve(c) for c in names]
+        per_class = [curve(j) for j in range(names.size)]
     pooled = [float(upper_bound(c, n, confidence)) for c in counts]
     out = []
     for i, v in enumerate(lv):

@@ -105,7 +105,7 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
     (:func:`detectors.tail.exceedance_curve`)."""
     m = np.asarray(margins, float)
     keep = np.isfinite(m)
-    m, cls = m[keep], np.asarray(manoeuvres).astype(str)[keep]
+    m, cls = m[keep], np.asarray(manoeuvres)[keep]
     n = int(m.size)
     rows = []
     if n == 0:

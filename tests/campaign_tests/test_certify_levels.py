@@ -211,6 +211,13 @@ def test_the_curve_of_a_mixture_is_the_same_on_threads():
     one = exceedance_curve(x, levels, classes=cls)
     assert any(p[1] == "tail" for e in one for p in e.parts)  # the tail fits are exercised
     assert exceedance_curve(x, levels, classes=cls, jobs=2) == one
+    # the classes as str objects (as certify holds them) or as numbers named by their str
+    assert exceedance_curve(x, levels, classes=cls.astype(object)) == one
+    # a → 10, b → 2, c → 3: ordered as str ("10" < "2" < "3"), as a, b, c are, not as numbers
+    codes = np.array([10, 2, 3])[np.searchsorted(np.array(["a", "b", "c"]), cls)]
+    numbered = exceedance_curve(x, levels, classes=codes)
+    assert [[p[0] for p in e.parts] for e in numbered] == [["10", "2", "3"]] * len(levels)
+    assert [(e.estimate, e.upper) for e in numbered] == [(e.estimate, e.upper) for e in one]
     rows = detector_rows("d", x, cls, levels)
     assert detector_rows("d", x, cls, levels, jobs=3) == rows
 
