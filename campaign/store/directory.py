@@ -233,7 +233,8 @@ def _plan_ordered(rows: pd.DataFrame, stored_order: bool = False,
     does (the last row of a run and detector) and sorted by plan position, then detector
     (with *stored_order*: a run's rows in the order they were stored, the rows of a run
     being those of one shard); *positions* keeps ``_pos`` as the column ``plan_pos``."""
-    rows = rows.drop_duplicates(["_pos", "detector"], keep="last")
+    # by run id, not position: the runs outside the plan all have the position n
+    rows = rows.drop_duplicates(["run_id", "detector"], keep="last")
     rows = rows.sort_values(["_pos"] if stored_order else ["_pos", "detector"], kind="stable")
     rows = rows.rename(columns={"_pos": "plan_pos"}) if positions else rows.drop(columns="_pos")
     return rows.reset_index(drop=True)

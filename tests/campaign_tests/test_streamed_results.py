@@ -116,6 +116,28 @@ def test_batches_are_the_latest_rows_in_plan_order(tmp_path):
                                == "ok").all()]
 
 
+def test_batches_keep_every_run_outside_the_plan(tmp_path):
+    # runs r00040…r00059 are in the shards but not in the plan: each is a run of its own,
+    # as read_results keeps it, not one run per detector
+    results = synthetic_results(6, n_runs=60)
+    plan_ids = [f"r{i:05d}" for i in range(40)]
+    cdir = _shards(tmp_path, results, [list(range(0, 30)), list(range(30, 60))])
+    whole = cdir.read_results()
+    for stored_order in (False, True):
+        rows = pd.concat(cdir.result_batches(plan_ids, batch_runs=7, stored_order=stored_order),
+                         ignore_index=True)
+        assert len(rows) == len(whole) == len(results)
+        outside = rows[~rows["run_id"].isin(plan_ids)]
+        assert outside["run_id"].nunique() == 20
+        # they come last, in the order the rule gives (by detector, or as stored)
+        assert (rows.index[~rows["run_id"].isin(plan_ids)] >= len(rows) - len(outside)).all()
+        key = ["run_id", "detector"]
+        pd.testing.assert_frame_equal(
+            outside.sort_values(key).reset_index(drop=True),
+            whole[~whole["run_id"].isin(plan_ids)].sort_values(key).reset_index(drop=True),
+            check_exact=True)
+
+
 @pytest.mark.parametrize("fault_free", [True, False])
 def test_summary_of_batches_when_pandas_adds_runs_of_values(fault_free):
     """One detector, runs planned cell by cell: every group's rows are contiguous, so pandas
