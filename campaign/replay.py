@@ -305,8 +305,9 @@ def runs_table(camp: Campaign) -> pd.DataFrame:
     batch of runs at a time: the report's one table of every run (it lists every run and
     maps every fault-free one): 6 text, 2 boolean and 9 float columns per run × detector,
     where the result rows have 17 columns and the plan rows 35."""
-    point = camp.plan_column
-    columns = {c: point(c) for c in POINT_COLUMNS}
+    point = camp.plan_columns(POINT_COLUMNS)           # one read of the plan's columns
+    columns = {c: point[c].to_numpy() for c in POINT_COLUMNS}
+    del point
     parts = []
     for batch in camp.result_batches(columns=list(REPORT_COLUMNS), positions=True):
         pos = batch.pop("plan_pos").to_numpy()
