@@ -429,13 +429,14 @@ def _against(directory, config, label, keep) -> tuple:
     baseline), and the run-table rows of its *keep* worst fault-free runs (the warm start,
     :func:`_strategy`)."""
     from ..result import load
+    from ..store.directory import CampaignDir
 
     camp = load(directory)
     # a batch of runs at a time, keeping the detector names, the count and largest margin
     # of the fault-free runs, and their `keep` worst rows (the worst of each batch, sorted
     # stably again: the worst of all)
     names, n_free, top, worst = set(), 0, math.nan, []
-    for batch in camp.result_batches(columns=["fault", "status", "margin"]):
+    for batch in camp.result_batches(columns=["fault", "status", "margin"], positions=True):
         names |= set(batch["detector"])
         free = batch[(batch["detector"] == label) & (batch["fault"] == "none")
                      & (batch["status"] == "ok")]
@@ -454,8 +455,10 @@ def _against(directory, config, label, keep) -> tuple:
     name = camp.name
     worst = (pd.concat(worst, ignore_index=True)
              .sort_values("margin", ascending=False, kind="stable").head(keep))
-    plan = camp.plan.set_index("run_id")
-    rows = plan.reindex(worst["run_id"]).dropna(subset=["manoeuvre"]).reset_index()
+    # the plan rows of those runs alone, in their order (a run the plan lacks left out)
+    at = worst["plan_pos"].to_numpy()
+    at = at[at < CampaignDir(camp.root).planned_runs()]
+    rows = camp.plan_rows(np.unique(at)).loc[at].reset_index(drop=True)
     return ((float(top), n_free,
              f"the {n_free} fault-free runs of {directory} (campaign {name!r})"), rows)
 
