@@ -143,11 +143,14 @@ class CertifyRows:
 
     def free(self, name: str) -> FreeRuns:
         """Detector *name*'s fault-free runs (:class:`FreeRuns`)."""
-        margins, codes, durations, k = self._free[name]
+        acc = self._free[name]
+        for i in range(3):      # the batches' parts joined once (certify reads them thrice)
+            if len(acc[i]) != 1:
+                acc[i] = [np.concatenate(acc[i])]
+        (margin,), (codes,), (durations,), k = acc
         labels = np.asarray(list(self._manoeuvres), dtype=object)
-        return FreeRuns(margin=np.concatenate(margins),
-                        manoeuvre=labels[np.concatenate(codes).astype(np.int64)],
-                        duration_s=np.concatenate(durations), false_alarms=k)
+        return FreeRuns(margin=margin, manoeuvre=labels[codes.astype(np.int64)],
+                        duration_s=durations, false_alarms=k)
 
     def faulty(self, name: str) -> dict[str, tuple[int, int, int]]:
         """Detector *name*'s faulty ``ok`` runs: fault type → (runs, missed, missed or late),
