@@ -16,16 +16,16 @@ threshold for a confirmation time. Three consistency checks, each optional:
     residual is how far the rod lies *outside* the hull of the three outputs (0 inside it) — a
     set-membership check in the manner of [COMB]'s interval bounds. With ``hinge_scale =
     (1, 1)`` it is the plain difference to the nominal model. The models are discretised
-    at the FCC period Ts with Heun's step (``model_step = "heun"``, the default: the explicit
-    trapezoidal rule, two rate-law evaluations per step, :func:`heun_step`). On fault-free
-    runs of every manoeuvre it stays within 2·10⁻⁴ mm of the plant's own RK4 integrator
-    (``model_step = "rk4"``, four evaluations), a two-thousandth of the smallest loop
-    threshold the monitor learns, and the falsification search finds the same worst runs
-    with either (docs/execution.md, "The position monitor's model step"); it halves the
-    monitor's cost. ``model_step = "euler"`` (one evaluation per step, :func:`euler_step`)
-    stays within 0.04 mm of RK4 (0.03 mm at most, in the pitch protection;
-    tests/detectors_tests/test_position_monitor_band.py) and moves the learned thresholds
-    by a few per cent.
+    at the FCC period Ts with one explicit Euler step (``model_step = "euler"``, the
+    default: one rate-law evaluation per model and step, :func:`euler_step`, the model as
+    a flight-control computer runs it at its period). On fault-free runs it stays within
+    0.04 mm of the plant's own RK4 integrator (0.03 mm at most, in the pitch protection;
+    tests/detectors_tests/test_position_monitor_band.py), a tenth of the smallest loop
+    threshold the monitor learns, which it moves by a few per cent; the false alarms and
+    misses of ``addsafe-mc`` are those of RK4 on seeds no test uses (docs/execution.md,
+    "The position monitor's model step"). ``model_step = "heun"`` (Heun's step, the
+    explicit trapezoidal rule, two evaluations, :func:`heun_step`) stays within
+    2·10⁻⁴ mm of RK4 and ``model_step = "rk4"`` (four evaluations) is the plant's own.
 ``com_mon``
     COM against MON rod acquisition. A liquid jam biases the acquisition the loop closes on:
     the loop hides it on COM but MON keeps the offset (docs/physics.md §5).
@@ -194,11 +194,11 @@ class PositionMonitor(Detector):
         model uses): 0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards.
         (1, 1): the plain nominal model.
     model_step : str
-        Discretisation of the loop check's models: ``"heun"`` (Heun's step, two rate-law
-        evaluations per model and FCC period; the default: within 2·10⁻⁴ mm of RK4 on
-        fault-free runs at half its cost), ``"rk4"`` (the plant's integrator, four
-        evaluations) or ``"euler"`` (one evaluation, as a flight-control computer may run a
-        model: within 0.04 mm of RK4, thresholds a few per cent apart; docs/execution.md).
+        Discretisation of the loop check's models: ``"euler"`` (the default: one rate-law
+        evaluation per model and FCC period, as a flight-control computer runs a model;
+        within 0.04 mm of RK4 on fault-free runs, thresholds a few per cent apart, the same
+        false alarms and misses; docs/execution.md), ``"heun"`` (Heun's step, two
+        evaluations, within 2·10⁻⁴ mm of RK4) or ``"rk4"`` (the plant's integrator, four).
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
@@ -220,15 +220,16 @@ class PositionMonitor(Detector):
               "outputs at these loads (1, 1: the plain nominal model)",
               source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
         Param("model_step", "choice", choices=MODEL_STEPS, doc="discretisation of the loop "
-              "check's servo models: heun (two rate-law evaluations per model and FCC period; "
-              "within 2e-4 mm of rk4 on fault-free runs), rk4 (the plant's integrator, four "
-              "evaluations) or euler (one evaluation; within 0.04 mm of rk4)",
+              "check's servo models: euler (one rate-law evaluation per model and FCC period, as "
+              "a flight-control computer runs it; within 0.04 mm of rk4 on fault-free runs), "
+              "heun (two evaluations; within 2e-4 mm of rk4) or rk4 (the plant's integrator, "
+              "four evaluations)",
               source="docs/physics.md §2–3, docs/execution.md"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="heun"):
+                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="euler"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks

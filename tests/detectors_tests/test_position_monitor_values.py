@@ -6,8 +6,8 @@ by the active checks) and the normalised residual and confirmation of several ch
 
 Expected values come from :func:`scenarios.servo.rod_rate` and
 :func:`scenarios.servo.rk4_step` (the rate law and the reference RK4 of the rod: the monitor's
-model takes Heun's step by default, the RK4 step with ``model_step = "rk4"`` and one explicit
-Euler step with ``model_step = "euler"``),
+model takes one explicit Euler step by default, Heun's step with ``model_step = "heun"`` and
+the RK4 step with ``model_step = "rk4"``),
 from the order statistic of docs/thresholds.md and from residuals written out by hand, never
 from the method under test.
 """
@@ -51,7 +51,7 @@ def signals(rod_com, rod_mon=None, surface=None, command=None, classes=None):
         actuator=ELEVATOR, run_ids=np.array([f"r{i}" for i in range(n)]), classes=classes)
 
 
-def model_by_hand(u, x0, hinge_scale=1.0, step="heun"):
+def model_by_hand(u, x0, hinge_scale=1.0, step="euler"):
     """The nominal loop driven by *u* from *x0* (docs/physics.md §2–3): the output at step k
     is x_k; the current sat(K·(u_k − x_k)) computed at step k is held over the next period,
     so the rod moves under the previous step's current (none before step 1). *step*:
@@ -398,4 +398,4 @@ def test_defaults_are_the_documented_ones():
         "safety": 1.5, "confirm_s": 0.05, "checks": ("loop", "com_mon", "surface"),
         "floor_mm": 0.05, "threshold_method": "evt", "target_fa_per_run": 1e-4,
         "threshold_confidence": 0.95, "threshold_tail": "exponential", "hinge_scale": (0.6, 1.6),
-        "model_step": "heun"}
+        "model_step": "euler"}
