@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .compiled import resolve_engine, sensor_draws_1
 from .faults import FAULT_DEFAULTS, FaultArrays
 from .params import ActuatorParams, SensorParams
 from .servo import PlantArrays, aero_force
@@ -53,22 +54,30 @@ class Trajectory:
 
 
 
-def sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = True):
+def sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = True,
+                 engine: str | None = None):
     """The sensor errors of every run of a batch, each stacked over the runs (n, …).
 
     Run i draws from its own generator ``rngs[i]`` in a fixed order (5 uniforms, then 4·T
     normals: COM, MON, surface, pressure noise), so its draws never depend on the batch; the
     scaling is elementwise. *pressure* False skips the pressure noise (the last T normals
     of the run's sensor stream, which nothing draws after) and returns None for it.
+    *engine*: ``"compiled"`` draws each run in one call of
+    :func:`scenarios.compiled.sensor_draws_1`, ``"numpy"`` with the generator's methods (the
+    reference); the same values bit for bit. Default :func:`scenarios.compiled.current_engine`.
     """
     n = len(rngs)
     rows = 4 if pressure else 3
     u = np.empty((n, 5))
     noise = np.empty((rows, n, T))       # each noise series one contiguous (n, T) block
-    for i, rng in enumerate(rngs):
-        u[i] = rng.uniform(-1.0, 1.0, size=5)
-        for row in noise[:, i]:          # drawn in place, series after series: the same
-            rng.standard_normal(out=row)  # normals, in the same order, as one draw of rows·T
+    if resolve_engine(engine) == "compiled":
+        for i, rng in enumerate(rngs):
+            sensor_draws_1(rng, u[i], noise, i)
+    else:
+        for i, rng in enumerate(rngs):
+            u[i] = rng.uniform(-1.0, 1.0, size=5)
+            for row in noise[:, i]:          # drawn in place, series after series: the same
+                rng.standard_normal(out=row)  # normals, in the same order, as one draw of rows·T
     noise[0] *= s.rod_noise_mm           # scaled in place: no second copy of the noise
     noise[1] *= s.rod_noise_mm
     noise[2] *= s.surface_noise_deg

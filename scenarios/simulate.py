@@ -53,12 +53,14 @@ __all__ = ["ActuatorPlant", "DEFAULT_POINT", "Prepared", "RUN_COLUMNS", "RunSpec
 
 def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
             actuators: dict | None = None, orders_deg: np.ndarray | None = None,
-            pressure_sensor: bool = True) -> Prepared:
+            pressure_sensor: bool = True, engine: str | None = None) -> Prepared:
     """Validate *runs* and compute every open-loop input of the batch.
 
     *orders_deg* (n_runs, n_steps), when given, replaces the manoeuvre-generated surface
     orders [deg] (recorded flight-test orders, or the test signals of the physics checks).
     *pressure_sensor* False leaves ``pres_noise`` None (not drawn; no other draw changes).
+    *engine*: how the per-run draws are made (:func:`scenarios.acquisition.sensor_draws`;
+    the same values with either); default :func:`scenarios.compiled.current_engine`.
     """
     validate_runs(runs)
     actuators = actuators or ACTUATORS
@@ -99,7 +101,8 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
                                 f"(runs × duration_s/ts), got {order_deg.shape}"])
     u = act.r_mm * np.sin(np.radians(order_deg))
 
-    stack = sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor)
+    stack = sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor,
+                         engine=engine)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
                           order_deg, act, ts, plant.i_max, command_mm=u)
@@ -219,7 +222,7 @@ def simulate(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SE
             clock[0] = now
 
     p = prepare(runs, ts=ts, sensors=sensors, actuators=actuators, orders_deg=orders_deg,
-                pressure_sensor=pressure_sensor)
+                pressure_sensor=pressure_sensor, engine=engine)
     lap("preparation")
     if integrator is not None:
         traj = integrator(p, sensors)
