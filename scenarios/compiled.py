@@ -408,6 +408,24 @@ def sensor_draws_1(rng, uniforms, noise, i):
             noise[r, i, k] = rng.standard_normal()
 
 
+@njit(nogil=True, cache=True)
+def filtered_normals_1(rng, b, a, z, out):
+    """``out[:] = scipy.signal.lfilter(b, a, x, zi=z)[0]`` of ``x = rng.standard_normal(out.size)``,
+    the normals drawn one by one and filtered as they come, compiled: the transposed direct
+    form II as scipy evaluates it (y = z₀ + b₀·x; zₙ = zₙ₊₁ + x·bₙ₊₁ − y·aₙ₊₁; the last
+    z = x·b_m − y·a_m), so the same bits. *b*, *a*: the same length m ≥ 2, a[0] = 1 (scipy
+    divides both by a[0], which then changes nothing); *z*: the m − 1 initial states,
+    left as the final ones. One GIL-free call instead of a draw and a filter."""
+    m = b.size
+    for k in range(out.size):
+        x = rng.standard_normal()
+        y = z[0] + b[0] * x
+        for n in range(m - 2):
+            z[n] = z[n + 1] + x * b[n + 1] - y * a[n + 1]
+        z[m - 2] = x * b[m - 1] - y * a[m - 1]
+        out[k] = y
+
+
 # ---- nominal servo-loop models of the position monitor (SIMD-friendly block form) ------------
 #: Runs a block kernel advances together: steps outer, a contiguous block of runs inner, so
 #: that every stage of a step is one branch-free loop over the block that the compiler turns
@@ -676,11 +694,14 @@ def _warm_simulation() -> None:
     servo_band_block(read_only_view(z2), z1, np.stack([fields, fields]), 0.01, outs[0],
                      outs[1], 4)
     sensor_draws_1(np.random.default_rng(0), np.empty(5), np.empty((3, 1, T)), 0)
+    filtered_normals_1(np.random.default_rng(0), np.ones(3), np.ones(3), np.zeros(2),
+                       np.empty(T))
 
 
 register_warmup(_warm_simulation)
 
-_KERNELS = ("integrate_block", "servo_model_block", "servo_band_block", "sensor_draws_1")
+_KERNELS = ("integrate_block", "servo_model_block", "servo_band_block", "sensor_draws_1",
+            "filtered_normals_1")
 
 
 def _cache_is_warm() -> bool:

@@ -409,8 +409,10 @@ def _sequential(steps: list[tuple[float, float, float]]) -> list[tuple[float, fl
 
 def _order(manoeuvre: str, surface: str, t_rel: np.ndarray, ts: float, flight: dict[str, float],
            rng: np.random.Generator, actuator: ActuatorParams, p: ManoeuvreParams,
-           turbulence: DrydenParams, start_s: float | None = None) -> np.ndarray:
-    """One run's order from validated inputs (see :func:`surface_order_deg`)."""
+           turbulence: DrydenParams, start_s: float | None = None,
+           engine: str | None = None) -> np.ndarray:
+    """One run's order from validated inputs (see :func:`surface_order_deg`); *engine* of
+    the gust's draws and filter (:func:`scenarios.turbulence.lagged_gust`)."""
     u = rng.random(N_SHAPE_DRAWS).tolist()
     scale = amplitude_scale(flight["qbar_pa"], p)
     trim = (elevator_trim_deg(flight["alpha_deg"], flight["cg_pct"], actuator, p)
@@ -421,7 +423,8 @@ def _order(manoeuvre: str, surface: str, t_rel: np.ndarray, ts: float, flight: d
     component, gain = (("w", p.gust_gain_elevator) if surface == "elevator"
                        else ("v", p.gust_gain_aileron))
     order = lagged_gust(t_rel.size, ts, flight["tas_ms"], flight["alt_ft"], rng,
-                        component=component, lag_s=p.gust_lag_s, params=turbulence)
+                        component=component, lag_s=p.gust_lag_s, params=turbulence,
+                        engine=engine)
     order *= math.degrees(gain / flight["tas_ms"])
 
     # Trim + manoeuvre, one pass: constant levels between the raised-cosine transitions.
@@ -485,7 +488,8 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
                     rngs: Sequence[np.random.Generator], actuator: ActuatorParams, *,
                     params: ManoeuvreParams | Sequence[ManoeuvreParams] = MANOEUVRE_PARAMS,
                     turbulence: DrydenParams = MODERATE,
-                    start_s: Sequence[float] | None = None) -> np.ndarray:
+                    start_s: Sequence[float] | None = None,
+                    engine: str | None = None) -> np.ndarray:
     """Orders [deg] of a batch of runs, shape (n_runs, n_steps).
 
     Run i is exactly ``surface_order_deg(manoeuvres[i], surface, t, {k: flight[k][i]},
@@ -493,7 +497,8 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
     ``flight`` maps each of :data:`FLIGHT_KEYS` to an array of shape (n_runs,). ``params``
     is one shape table for every run or one per run (e.g. the table of each run's manoeuvre
     set, :func:`set_params`). ``start_s`` (n_runs,), when given, fixes each run's manoeuvre
-    start [s] (NaN: sampled).
+    start [s] (NaN: sampled). ``engine``: how the gusts are drawn and filtered
+    (:func:`scenarios.turbulence.lagged_gust`; the same values with either).
     """
     if isinstance(manoeuvres, str):
         raise ValueError("manoeuvres must be a sequence of names, one per run, not a single string")
@@ -528,5 +533,5 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
         run_flight = _check_flight({k: c[i] for k, c in columns.items()}, where)
         start = None if start_s is None else _check_start(start_s[i], where)
         orders[i] = _order(manoeuvres[i], surface, t_rel, ts, run_flight, rngs[i], actuator,
-                           per_run[i], turbulence, start)
+                           per_run[i], turbulence, start, engine)
     return orders

@@ -59,8 +59,9 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     *orders_deg* (n_runs, n_steps), when given, replaces the manoeuvre-generated surface
     orders [deg] (recorded flight-test orders, or the test signals of the physics checks).
     *pressure_sensor* False leaves ``pres_noise`` None (not drawn; no other draw changes).
-    *engine*: how the per-run draws are made (:func:`scenarios.acquisition.sensor_draws`;
-    the same values with either); default :func:`scenarios.compiled.current_engine`.
+    *engine*: how the per-run draws are made (:func:`scenarios.acquisition.sensor_draws`,
+    :func:`scenarios.turbulence.lagged_gust`; the same values with either); default
+    :func:`scenarios.compiled.current_engine`.
     """
     validate_runs(runs)
     actuators = actuators or ACTUATORS
@@ -91,7 +92,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
             [g[0] for g in gens], act,
             params=params,
             start_s=(runs["manoeuvre_start_s"].to_numpy(float)
-                     if "manoeuvre_start_s" in runs.columns else None))
+                     if "manoeuvre_start_s" in runs.columns else None), engine=engine)
         lo, hi = authority_limits(plant, act)
         order_deg = np.clip(order_deg, lo[:, None], hi[:, None])
     else:

@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .compiled import filtered_normals_1, resolve_engine
 from .params import param
 
 #: Metres per foot [m/ft] (international foot, exact by definition).
@@ -257,7 +258,7 @@ def _lagged_initial_state(filt: DiscreteFilter, beta: float, gamma: float,
 
 def lagged_gust(n_steps: int, ts: float, tas_ms: float, alt_ft: float,
                 rng: np.random.Generator, *, component: str = "w", lag_s: float = 0.0,
-                params: DrydenParams = MODERATE) -> np.ndarray:
+                params: DrydenParams = MODERATE, engine: str | None = None) -> np.ndarray:
     """One Dryden gust component [m/s] through a first-order lag 1/(1 + lag_s·s), (n_steps,).
 
     The response of a control law of bandwidth 1/lag_s to one gust component. The lag is
@@ -267,10 +268,12 @@ def lagged_gust(n_steps: int, ts: float, tas_ms: float, alt_ft: float,
     (:func:`_lagged_initial_state`), so the response is stationary from the first sample.
     ``lag_s = 0`` gives the gust itself, with the statistics of the matching row of
     :func:`dryden_gusts` (not the same numbers: the draws differ). Random numbers: the
-    initial-state normals (order of the cascade), then n_steps driving normals.
+    initial-state normals (order of the cascade), then n_steps driving normals. *engine*:
+    ``"compiled"`` draws and filters the driving normals in one call
+    (:func:`scenarios.compiled.filtered_normals_1`), ``"numpy"`` with ``rng.standard_normal``
+    and ``scipy.signal.lfilter``; the same values bit for bit. Default
+    :func:`scenarios.compiled.current_engine`.
     """
-    from scipy.signal import lfilter
-
     n_steps = _check_inputs(n_steps, alt_ft, rng)
     if component not in GUST_COMPONENTS:
         raise ValueError(
@@ -294,5 +297,12 @@ def lagged_gust(n_steps: int, ts: float, tas_ms: float, alt_ft: float,
         a = np.zeros(m + 1)
         a[:m] = forming.a
         a[1:] -= gamma * forming.a                           # a·(1 − γ·z⁻¹)
+    if resolve_engine(engine) == "compiled":
+        gust = np.empty(n_steps)
+        filtered_normals_1(rng, np.asarray(b, float), np.asarray(a, float),
+                           np.array(zi, dtype=float), gust)
+        return gust
+    from scipy.signal import lfilter
+
     gust, _ = lfilter(b, a, rng.standard_normal(n_steps), zi=zi)
     return gust
