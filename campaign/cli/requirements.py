@@ -46,9 +46,13 @@ def print_verdict(config, result) -> bool:
     evaluated on these results (a detector variant they name is not among them)."""
     from reports.gate import GateInputError
 
+    try:       # one evaluation serves both lines (the gate's checks are a part of it)
+        full = gate_of(config, result, all_requirements=True)
+    except GateInputError:
+        full = None          # said below, after the gate's own verdict if that one holds
     try:
-        print(verdict(config, result))
-        print(other_requirements(config, result))
+        print(verdict(config, result, full=full))
+        print(other_requirements(config, result, full=full))
     except GateInputError as exc:
         print_error(f"the gate cannot be evaluated: {exc}")
         print(f"the results are kept: correct the file's [requirements], then: fdd-campaign "
@@ -71,10 +75,15 @@ def gate_of(config, result, *, all_requirements: bool = False):
                              all_requirements=all_requirements)
 
 
-def verdict(config, result) -> str:
+def verdict(config, result, *, full=None) -> str:
     """One line: would ``fdd-campaign gate`` (the campaign file's false-alarm limit) pass on
-    this result, and the command to run next."""
-    gate = gate_of(config, result)
+    this result, and the command to run next. *full*: the gate of all the requirements
+    (``gate_of(..., all_requirements=True)``) when already evaluated; the gate's own checks
+    are its checks other than :data:`MD_DTP_CHECKS`, in the same order."""
+    from reports.gate import GateResult
+
+    gate = (gate_of(config, result) if full is None else
+            GateResult([c for c in full.checks if c.name not in MD_DTP_CHECKS]))
     if gate.passed:
         return (f"verdict: the gate passes ({false_alarm_count(result)}; all "
                 f"{len(gate.checks)} checks); next: fdd-campaign gate {result.root} --junit "
@@ -104,12 +113,13 @@ def false_alarm_count(result) -> str:
 MD_DTP_CHECKS = ("missed_detection", "dtp")
 
 
-def other_requirements(config, result, shown: int = 4) -> str:
+def other_requirements(config, result, shown: int = 4, *, full=None) -> str:
     """One line: what the campaign file's MD and DTP limits say (what ``gate
     --all-requirements`` adds to the gate), the first *shown* unmet ones named. Said as the
     MD and DTP limits, not "all requirements": the line above it carries the gate's own
-    checks (false alarms, errors, isolation), which may fail while these limits are met."""
-    full = gate_of(config, result, all_requirements=True)
+    checks (false alarms, errors, isolation), which may fail while these limits are met.
+    *full*: ``gate_of(..., all_requirements=True)`` when already evaluated."""
+    full = full if full is not None else gate_of(config, result, all_requirements=True)
     checks = [c for c in full.checks if c.name in MD_DTP_CHECKS]
     how = f"(fdd-campaign gate {result.root} --all-requirements)"
     req = config.requirements

@@ -86,6 +86,31 @@ def test_run_ends_with_the_gate_then_what_else_the_requirements_say(tmp_path, ca
     assert [(d, f.replace(" ", "_"), v) for d, f, v in named] == failed[:4]
 
 
+@pytest.mark.parametrize("requirements", ["max_dtp = 0.1", "max_fa_rate = 0.0\nmax_md_rate = 1.0",
+                                          'detector_max_fa_rate = { "position-monitor" = 0.5 }'])
+def test_the_verdict_lines_from_one_gate_evaluation_are_those_of_two(tmp_path, requirements):
+    """``run`` evaluates the gate of all the requirements once and reads the gate's own
+    verdict from its checks other than MD and DTP: the same checks, in the same order, and
+    the same two lines as two evaluations (MD and DTP limits met and not met)."""
+    import campaign
+    from reports.gate import GateResult
+
+    from campaign.cli.requirements import (MD_DTP_CHECKS, gate_of, other_requirements,
+                                           verdict)
+
+    path = _campaign(tmp_path, requirements)
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--quiet", "--jobs", "1"]) == 0
+    config, result = load_config(path), campaign.load(out)
+    full = gate_of(config, result, all_requirements=True)
+    own = gate_of(config, result)
+    assert full.checks != own.checks          # the MD and DTP checks are there
+    part = GateResult([c for c in full.checks if c.name not in MD_DTP_CHECKS])
+    assert part.checks == own.checks
+    assert verdict(config, result, full=full) == verdict(config, result)
+    assert other_requirements(config, result, full=full) == other_requirements(config, result)
+
+
 def test_a_resume_that_computes_nothing_says_so(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["run", "smoke", "--out", str(out), "--quiet", "--jobs", "1"]) == 0
