@@ -19,11 +19,11 @@ run and never import this module; this module only names them.
 
 from __future__ import annotations
 
+import importlib
 from typing import Protocol, runtime_checkable
 
 import pandas as pd
 
-from .aircraft.loop import AircraftPlant
 from .catalog import PLANT_KINDS, suggest
 from .fmu import FmuPlant
 from .params import SENSORS, TS_S, ActuatorParams, SensorParams
@@ -70,10 +70,25 @@ class Plant(Protocol):
         and what only scoring sees."""
 
 
-#: The built-in plants that need no options, by kind (an FMU plant needs its file:
-#: :meth:`scenarios.fmu.FmuPlant.of`); their names, :data:`PLANT_KINDS`, are listed in
-#: :mod:`scenarios.catalog`, which costs no import.
-_BUILT_IN: dict[str, type] = {"actuator": ActuatorPlant, "aircraft": AircraftPlant}
+#: The built-in plants that need no options, by kind: (module, class) (an FMU plant needs
+#: its file: :meth:`scenarios.fmu.FmuPlant.of`); their names, :data:`PLANT_KINDS`, are
+#: listed in :mod:`scenarios.catalog`, which costs no import. The aircraft's modules (its
+#: laws, LPV models and compiled loop) are imported when an aircraft plant is asked for,
+#: not by a campaign of the actuator alone.
+_BUILT_IN: dict[str, tuple[str, str]] = {"actuator": ("scenarios.simulate", "ActuatorPlant"),
+                                         "aircraft": ("scenarios.aircraft.loop", "AircraftPlant")}
+
+
+def _built_in(kind: str) -> type:
+    module, name = _BUILT_IN[kind]
+    return getattr(importlib.import_module(module), name)
+
+
+def __getattr__(name: str):
+    """``AircraftPlant``, imported from :mod:`scenarios.aircraft.loop` when first asked for."""
+    if name == "AircraftPlant":
+        return _built_in("aircraft")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 
@@ -87,7 +102,7 @@ def get_plant(plant: str | Plant = "actuator") -> Plant:
                     if plant == "fmu" else suggest(plant, list(_BUILT_IN)))
             raise ValueError(f"unknown plant {plant!r}{hint}; allowed: "
                              f"{', '.join(_BUILT_IN)}")
-        return _BUILT_IN[plant]()
+        return _built_in(plant)()
     if not isinstance(plant, Plant):
         raise TypeError(f"{plant!r} is not a plant: a plant has kind, needs_processes, "
                         "surfaces, run_surface, actuator, provides, check and simulate "
