@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .compiled import resolve_engine, sensor_draws_1
 from .faults import FAULT_DEFAULTS, FaultArrays
 from .params import ActuatorParams, SensorParams
 from .servo import PlantArrays, aero_force
@@ -55,24 +54,26 @@ class Trajectory:
 
 
 def sensor_draws(rngs, T: int, s: SensorParams, dP: float, pressure: bool = True,
-                 engine: str | None = None):
+                 draw_run=None):
     """The sensor errors of every run of a batch, each stacked over the runs (n, …).
 
     Run i draws from its own generator ``rngs[i]`` in a fixed order (5 uniforms, then 4·T
     normals: COM, MON, surface, pressure noise), so its draws never depend on the batch; the
     scaling is elementwise. *pressure* False skips the pressure noise (the last T normals
     of the run's sensor stream, which nothing draws after) and returns None for it.
-    *engine*: ``"compiled"`` draws each run in one call of
-    :func:`scenarios.compiled.sensor_draws_1`, ``"numpy"`` with the generator's methods (the
-    reference); the same values bit for bit. Default :func:`scenarios.compiled.current_engine`.
+    *draw_run*: a function ``draw_run(rng, uniforms, noise, i)`` that makes run i's draws
+    into ``uniforms`` (5,) and ``noise[:, i]`` in this order — the compiled
+    :func:`scenarios.compiled.sensor_draws_1`, which :func:`scenarios.simulate.prepare`
+    passes with the compiled engine; the same values bit for bit. None: the generator's own
+    methods (the reference).
     """
     n = len(rngs)
     rows = 4 if pressure else 3
     u = np.empty((n, 5))
     noise = np.empty((rows, n, T))       # each noise series one contiguous (n, T) block
-    if resolve_engine(engine) == "compiled":
+    if draw_run is not None:
         for i, rng in enumerate(rngs):
-            sensor_draws_1(rng, u[i], noise, i)
+            draw_run(rng, u[i], noise, i)
     else:
         for i, rng in enumerate(rngs):
             u[i] = rng.uniform(-1.0, 1.0, size=5)

@@ -400,7 +400,8 @@ def sensor_draws_1(rng, uniforms, noise, i):
     NumPy's algorithms (the uniform as low + (high − low)·U, the normals by NumPy's
     ziggurat), so the values are NumPy's bit for bit (tests/scenarios_tests/
     test_sensor_draws.py); it runs without the GIL, in one call per run instead of one per
-    series, and without NumPy's per-call overhead."""
+    series, and without NumPy's per-call overhead. The ``draw_run`` of
+    :func:`scenarios.acquisition.sensor_draws`."""
     for j in range(uniforms.size):
         uniforms[j] = rng.uniform(-1.0, 1.0)
     for r in range(noise.shape[0]):

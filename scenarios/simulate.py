@@ -39,7 +39,7 @@ from .aircraft.data import AIRCRAFT_SURFACES, surface_actuator
 from .catalog import FAULTS, SURFACES
 from .faults import (FAULT_DEFAULTS, NEVER, ROD_MEASUREMENT_FAULTS, default_magnitude,
                      fault_arrays, jam_onset_position, onset_steps)
-from .compiled import integrate_compiled, resolve_engine, servo_model
+from .compiled import integrate_compiled, resolve_engine, sensor_draws_1, servo_model
 from .params import ACTUATORS, SENSORS, TS_S, ActuatorParams, SensorParams
 from .runs import (RUN_COLUMNS, RUN_RANGES, RunSpecError, flight_of, manoeuvre_sets,
                    plant_draws, run_streams, validate_runs)
@@ -103,7 +103,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
     u = act.r_mm * np.sin(np.radians(order_deg))
 
     stack = sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor,
-                         engine=engine)
+                         draw_run=sensor_draws_1 if resolve_engine(engine) == "compiled" else None)
 
     faults = fault_arrays(col["fault"], col["onset_s"], col["magnitude"], col["freq_hz"],
                           order_deg, act, ts, plant.i_max, command_mm=u)

@@ -9,15 +9,16 @@ import numpy as np
 import pytest
 
 from scenarios.acquisition import sensor_draws
+from scenarios.compiled import sensor_draws_1
 from scenarios.params import SENSORS
 
 
-@pytest.mark.parametrize("engine", ["numpy", "compiled"])
+@pytest.mark.parametrize("draw_run", [None, sensor_draws_1])
 @pytest.mark.parametrize("pressure", [False, True])
-def test_each_run_draws_its_stream_in_the_documented_order(pressure, engine):
+def test_each_run_draws_its_stream_in_the_documented_order(pressure, draw_run):
     T, dP, seeds = 500, 2.1e7, (11, 12, 13)
     got = sensor_draws([np.random.default_rng(s) for s in seeds], T, SENSORS, dP, pressure,
-                       engine=engine)
+                       draw_run=draw_run)
     rows = 4 if pressure else 3
     for i, seed in enumerate(seeds):
         rng = np.random.default_rng(seed)
@@ -45,8 +46,8 @@ def test_compiled_draws_are_numpys_bit_for_bit_over_millions_of_values(pressure)
     T, dP, seeds = 6000, 2.1e7, range(9000, 9150)
     gens_np = [np.random.default_rng(s) for s in seeds]
     gens_nb = [np.random.default_rng(s) for s in seeds]
-    ref = sensor_draws(gens_np, T, SENSORS, dP, pressure, engine="numpy")
-    got = sensor_draws(gens_nb, T, SENSORS, dP, pressure, engine="compiled")
+    ref = sensor_draws(gens_np, T, SENSORS, dP, pressure)
+    got = sensor_draws(gens_nb, T, SENSORS, dP, pressure, draw_run=sensor_draws_1)
     for k, (g, w) in enumerate(zip(got, ref)):
         if w is None:
             assert g is None
