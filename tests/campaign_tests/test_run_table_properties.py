@@ -87,6 +87,13 @@ def test_run_streams_are_the_documented_seed_sequences():
     a, b = ss.spawn(2)
     assert man.random() == np.random.default_rng(a).random()
     assert sens.random() == np.random.default_rng(b).random()
+    # made without the parent, they are its spawned children exactly: the same states, for
+    # small and large seeds and streams (the plan's seeds, and LEARNING_STREAM_BASE's range)
+    for seed in (0, 1, 9091, 2**31 - 1, 2**63 - 1):
+        for stream in (0, 1, 2399, 10**6, 2**32, 2**32 + 299, 2**40 + 7):
+            kids = np.random.SeedSequence(seed, spawn_key=(stream,)).spawn(2)
+            assert ([g.bit_generator.state for g in run_streams(seed, stream)]
+                    == [np.random.default_rng(k).bit_generator.state for k in kids])
     # the two streams of a run, and the same stream of two runs, differ
     m0, s0 = run_streams(11, 5)
     m1, _ = run_streams(11, 6)
