@@ -697,4 +697,36 @@ def yardstick_pairs(campaign: str, jobs: int, command: list[str], cwd: str | Non
              f"{r['ratio_wall']:.2f} wall, {r['ratio_cpu']:.2f} CPU")
     echo(f"    median ratio: {out['median_ratio_wall']:.2f} wall, "
          f"{out['median_ratio_cpu']:.2f} CPU (user + system)")
+    missing, total = modules_without_bytecode()
+    if missing:
+        why = " (PYTHONDONTWRITEBYTECODE is set)" if sys.flags.dont_write_bytecode else ""
+        echo(f"    note: {len(missing)} of the project's {total} modules have no bytecode "
+             f"cache{why}, so each start of {campaign} compiles those it imports (about "
+             "0.1 s of addsafe-mc, docs/execution.md); `python -m compileall -q "
+             f"{' '.join(sorted({str(m.parent) for m in _package_inits()}))}` writes it once")
     return out
+
+
+#: The project's packages, whose modules a command imports from their source files.
+PROJECT_PACKAGES = ("campaign", "scenarios", "detectors", "reports")
+
+
+def _package_inits(packages=PROJECT_PACKAGES) -> list[Path]:
+    import importlib.util
+
+    return [Path(importlib.util.find_spec(name).origin) for name in packages]
+
+
+def modules_without_bytecode(roots=None) -> tuple[list[Path], int]:
+    """``(missing, total)``: the Python files under the package directories *roots*
+    (default: the project's, :data:`PROJECT_PACKAGES`) whose bytecode cache
+    (``importlib.util.cache_from_source``) does not exist, and how many there are. Python
+    compiles such a module each time a process imports it (an editable install has no
+    cache until a process writes it, and none is written under PYTHONDONTWRITEBYTECODE)."""
+    import importlib.util
+
+    dirs = [Path(r) for r in roots] if roots is not None else [
+        p.parent for p in _package_inits()]
+    files = [f for d in dirs for f in sorted(d.rglob("*.py"))]
+    missing = [f for f in files if not Path(importlib.util.cache_from_source(str(f))).is_file()]
+    return missing, len(files)

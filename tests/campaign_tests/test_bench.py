@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -205,6 +206,7 @@ def test_yardstick_pairs_time_both_back_to_back_and_take_the_medians(monkeypatch
         return {"wall_s": 3.0 * len(seen), "cpu_s": 1.0, "peak_rss_mb": 100.0}
 
     monkeypatch.setattr(bench_module, "run_campaign_process", campaign_run)
+    monkeypatch.setattr(bench_module, "modules_without_bytecode", lambda: ([], 70))
     lines = []
     out = yardstick_pairs("smoke", 2, [sys.executable, "-c", "pass"], pairs=3,
                           echo=lines.append)
@@ -215,6 +217,36 @@ def test_yardstick_pairs_time_both_back_to_back_and_take_the_medians(monkeypatch
     assert out["median_ratio_wall"] == pytest.approx(
         sorted(p["ratio_wall"] for p in out["pairs"])[1], rel=1e-12)
     assert len(lines) == 5 and lines[-1].strip().startswith("median ratio")
+
+
+def test_modules_without_bytecode_are_those_whose_cache_file_is_missing(tmp_path):
+    import importlib.util
+    import py_compile
+
+    from campaign.tools.bench import modules_without_bytecode
+
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    for name in ("__init__.py", "a.py", "sub/__init__.py", "sub/b.py"):
+        (pkg / name).write_text("x = 1\n")
+    assert modules_without_bytecode([pkg]) == (sorted(pkg.rglob("*.py")), 4)
+    py_compile.compile(str(pkg / "a.py"), cfile=importlib.util.cache_from_source(
+        str(pkg / "a.py")))
+    missing, total = modules_without_bytecode([pkg])
+    assert total == 4 and pkg / "a.py" not in missing and len(missing) == 3
+
+
+def test_yardstick_pairs_say_when_the_projects_modules_are_compiled_at_each_start(
+        monkeypatch):
+    monkeypatch.setattr(bench_module, "run_campaign_process",
+                        lambda campaign, jobs: {"wall_s": 2.0, "cpu_s": 1.0,
+                                                "peak_rss_mb": 1.0})
+    monkeypatch.setattr(bench_module, "modules_without_bytecode",
+                        lambda: ([Path("campaign/runner.py")] * 3, 70))
+    lines = []
+    yardstick_pairs("smoke", 2, [sys.executable, "-c", "pass"], pairs=1, echo=lines.append)
+    assert lines[-1].strip().startswith("note: 3 of the project's 70 modules have no bytecode")
+    assert "python -m compileall -q " in lines[-1]
 
 
 def test_the_timed_rate_law_is_the_rate_law():
