@@ -219,13 +219,7 @@ def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
     manoeuvre. Rates are fractions; ``dtp_shift`` is median(B) − median(A) over detected
     runs; p-values are NaN where a test has no data.
     """
-    _check_alpha(alpha)
     return compare_scored(_scored(results_a), _scored(results_b), alpha=alpha)
-
-
-def _check_alpha(alpha: float) -> None:
-    if not 0.0 < float(alpha) < 1.0:
-        raise ValueError(f"alpha must be a significance level in (0, 1), got {alpha}")
 
 
 def compare_scored(rows_a: pd.DataFrame, rows_b: pd.DataFrame, *,
@@ -233,7 +227,8 @@ def compare_scored(rows_a: pd.DataFrame, rows_b: pd.DataFrame, *,
     """:func:`compare_results` of the scored rows of two campaigns (``run_id``, ``detector``,
     ``fault``, ``manoeuvre``, ``fa``, ``det``, ``dtp``; the run ids of any type that names
     one run the same in both, the names str or categories): :meth:`ScoredRows.table`."""
-    _check_alpha(alpha)
+    if not 0.0 < float(alpha) < 1.0:
+        raise ValueError(f"alpha must be a significance level in (0, 1), got {alpha}")
     aggregate = _several(rows_a) | _several(rows_b)
     cells_a, cells_b = _Cells(rows_a, aggregate), _Cells(rows_b, aggregate)
     rows = []
