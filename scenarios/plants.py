@@ -20,7 +20,7 @@ run and never import this module; this module only names them.
 from __future__ import annotations
 
 import importlib
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import pandas as pd
 
@@ -29,6 +29,9 @@ from .fmu import FmuPlant
 from .params import SENSORS, TS_S, ActuatorParams, SensorParams
 from .signals import Signals, Truth
 from .simulate import ActuatorPlant
+
+if TYPE_CHECKING:      # imported when first asked for (module __getattr__ below)
+    from .aircraft.loop import AircraftPlant
 
 __all__ = ["PLANT_KINDS", "ActuatorPlant", "AircraftPlant", "FmuPlant", "Plant", "get_plant",
            "simulate"]
