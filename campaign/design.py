@@ -78,8 +78,12 @@ _OPTIONAL_ID_COLUMNS: dict[str, object] = {"manoeuvre_start_s": None,
 
 def run_id(row: dict) -> str:
     """Hash of the canonical JSON of a run row (without its id) and the model version."""
-    payload = {k: (None if isinstance(v, float) and math.isnan(v) else v)
-               for k, v in row.items() if k != "run_id"}
+    return _hash_payload({k: (None if isinstance(v, float) and math.isnan(v) else v)
+                          for k, v in row.items() if k != "run_id"})
+
+
+def _hash_payload(payload: dict) -> str:
+    """:func:`run_id` of the row *payload* (without its id, NaN already None)."""
     for k, default in _OPTIONAL_ID_COLUMNS.items():
         if k in payload and payload[k] == default:
             del payload[k]
@@ -333,11 +337,16 @@ RUN_ID_BLOCK = 4096
 
 
 def _run_ids(plan: pd.DataFrame) -> list[str]:
-    """:func:`run_id` of every row of *plan*, in order."""
+    """:func:`run_id` of every row of *plan*, in order: the rows' values taken a column at a
+    time (``Series.tolist``, the Python values ``to_dict(orient="records")`` gives, NaN made
+    None there), about half the time of a dict per row from pandas."""
+    keys = [c for c in plan.columns if c != "run_id"]
     ids: list[str] = []
     for start in range(0, len(plan), RUN_ID_BLOCK):
-        block = plan.iloc[start:start + RUN_ID_BLOCK].to_dict(orient="records")
-        ids.extend(run_id(r) for r in block)
+        block = plan.iloc[start:start + RUN_ID_BLOCK]
+        columns = [[None if isinstance(v, float) and math.isnan(v) else v
+                    for v in block[c].tolist()] for c in keys]
+        ids.extend(_hash_payload(dict(zip(keys, values))) for values in zip(*columns))
     return ids
 
 
