@@ -9,6 +9,7 @@ one.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -31,9 +32,11 @@ METADATA_KEY = b"fdd_campaign"
 UNKNOWN_VERSION = "0+unknown"
 
 
+@functools.cache
 def engine_version() -> str:
     """The installed fdd-campaign version (:data:`UNKNOWN_VERSION` when running from a
-    source tree that is not installed)."""
+    source tree that is not installed): the version of the code this process runs, read
+    from the package metadata once (each Parquet file and manifest write names it)."""
     try:
         return version("fdd-campaign")
     except PackageNotFoundError:
