@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -158,8 +161,21 @@ def test_warm_up_compiles_every_registered_kernel():
     finally:
         kernels._WARMUPS.pop()
     assert calls == [1]
-    assert kernels.integrate_block.signatures and kernels.servo_model_block.signatures
-    assert kernels.servo_band_block.signatures
+    assert kernels.integrate_block.signatures and kernels.servo_band_block.signatures
+    assert kernels.sensor_draws_1.signatures and kernels.filtered_normals_1.signatures
+
+
+@pytest.mark.skipif(not kernels.HAVE_NUMBA
+                    or __import__("numba").core.config.DISABLE_JIT,
+                    reason="NUMBA_DISABLE_JIT set or numba missing: nothing is compiled")
+def test_warm_up_leaves_the_single_servo_model_to_its_first_call():
+    # a fresh process: this one may have called servo_model already
+    code = ("from scenarios import compiled as k; k.warm_up(); "
+            "assert k.integrate_block.signatures; "
+            "print(len(k.servo_model_block.signatures))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[2]).stdout
+    assert out.split() == ["0"]
 
 
 def offset_jam_batch() -> pd.DataFrame:
