@@ -150,9 +150,15 @@ def test_engine_is_explicit_and_checked():
     assert kernels.current_engine() == "compiled"
 
 
-@pytest.mark.skipif(not kernels.HAVE_NUMBA
-                    or __import__("numba").core.config.DISABLE_JIT,
-                    reason="NUMBA_DISABLE_JIT set or numba missing: nothing is compiled")
+#: A test of what numba compiles and loads: nothing is, without numba or under
+#: NUMBA_DISABLE_JIT (debugging, mutation testing), in this process or a child it starts.
+compiles = pytest.mark.skipif(not kernels.HAVE_NUMBA
+                              or __import__("numba").core.config.DISABLE_JIT,
+                              reason="NUMBA_DISABLE_JIT set or numba missing: nothing is "
+                                     "compiled")
+
+
+@compiles
 def test_warm_up_compiles_every_registered_kernel():
     calls = []
     kernels.register_warmup(lambda: calls.append(1))
@@ -165,9 +171,7 @@ def test_warm_up_compiles_every_registered_kernel():
     assert kernels.sensor_draws_1.signatures and kernels.filtered_normals_1.signatures
 
 
-@pytest.mark.skipif(not kernels.HAVE_NUMBA
-                    or __import__("numba").core.config.DISABLE_JIT,
-                    reason="NUMBA_DISABLE_JIT set or numba missing: nothing is compiled")
+@compiles
 def test_warm_up_leaves_the_single_servo_model_to_its_first_call():
     # a fresh process: this one may have called servo_model already. Every kernel whose
     # cache decides whether a start says "compiling kernels" (_KERNELS) is one warm_up
