@@ -32,7 +32,7 @@ from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import SummaryAccumulator
 from scenarios import compiled as kernels
 from scenarios.errors import InputError
-from scenarios.memory import release_freed_memory
+from scenarios.memory import release_freed_memory, start_up_done
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, PlanBlocks, build_learning_plan
@@ -629,6 +629,9 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
             for spec in config.detectors:   # import their modules: they register their kernels
                 load_detector_class(spec.name)
             kernels.warm_up(log)
+        # the modules and kernels made so far live to the exit: out of the collector's
+        # reach, and the collector on again if the command line deferred it (scenarios.memory)
+        start_up_done()
         if client is None and (jobs > 1 or limit is not None):
             # a time limit needs a worker process to stop, even for --jobs 1
             setup.pool = LocalPool(backend, jobs)

@@ -12,6 +12,7 @@ from functools import partial
 from pathlib import Path
 
 from scenarios.errors import InputError
+from scenarios.memory import defer_collection, start_up_done
 
 from . import requirements as creq
 from .common import (  # noqa: F401  (part of this module's interface)
@@ -760,6 +761,10 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
+    if args.func is not cmd_run:
+        # the collector deferred by console_main waits for a campaign's kernels only
+        # (campaign.runner turns it on again); every other command has it from here on
+        start_up_done()
     from ..execute import one_blas_thread
 
     try:
@@ -786,8 +791,11 @@ def main(argv=None) -> int:
 
 
 def console_main() -> None:
-    """The ``fdd-campaign`` executable: :func:`main`, then an exit without the interpreter's
-    teardown when nothing else is running (:func:`leave`)."""
+    """The ``fdd-campaign`` executable: :func:`main` with the garbage collector off while
+    ``run`` imports its libraries and loads its kernels (:func:`scenarios.memory.defer_collection`),
+    then an exit without the interpreter's teardown when nothing else is running
+    (:func:`leave`)."""
+    defer_collection()
     leave(main())
 
 
