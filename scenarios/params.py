@@ -135,10 +135,17 @@ class ActuatorParams:
         return self.delta_max_deg - self.delta_min_deg
 
     def deg_to_mm(self, delta_deg):
-        """Rod position for a surface deflection, x = r·sin δ [mm]."""
+        """Rod position for a surface deflection, x = r·sin δ [mm]. An array is converted
+        in one new array (no temporaries of its size: a chunk's orders or surface signals
+        are 5 MB each); the values are those of ``r_mm * np.sin(np.radians(delta_deg))``."""
         import numpy as np
 
-        return self.r_mm * np.sin(np.radians(delta_deg))
+        x = np.radians(delta_deg)
+        if not isinstance(x, np.ndarray):
+            return self.r_mm * np.sin(x)
+        np.sin(x, out=x)
+        x *= self.r_mm
+        return x
 
     def mm_to_deg(self, x_mm):
         """Surface deflection for a rod position, δ = asin(x/r) [deg]."""

@@ -100,7 +100,7 @@ def prepare(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SEN
         if order_deg.shape != (n, T) or not np.isfinite(order_deg).all():
             raise RunSpecError([f"orders_deg must be finite with shape {(n, T)} "
                                 f"(runs × duration_s/ts), got {order_deg.shape}"])
-    u = act.r_mm * np.sin(np.radians(order_deg))
+    u = act.deg_to_mm(order_deg)
 
     stack = sensor_draws([g[1] for g in gens], T, sensors, act.dP_Pa, pressure=pressure_sensor,
                          draw_run=sensor_draws_1 if resolve_engine(engine) == "compiled" else None)

@@ -398,7 +398,7 @@ class PositionMonitor(Detector):
         else:
             u, plants = empty, np.zeros((0, kernels.FIELD_ROWS, signals.n_runs))
         rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty
-        surface = (c(signals.actuator.r_mm * np.sin(np.radians(signals.surface)))
+        surface = (c(signals.actuator.deg_to_mm(signals.surface))
                    if "surface" in checks else empty)
         tau = np.array([self.thresholds_mm_.get(name, 1.0) for name in CHECKS])
         norm = np.empty(rod_com.shape)
