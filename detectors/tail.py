@@ -230,7 +230,9 @@ def _ks(y: np.ndarray, xi: float, sigma: float) -> float:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return float(kstest(y, genpareto(xi, scale=sigma).cdf).pvalue)
+        # the distribution's own cdf with the parameters, not a frozen distribution: the
+        # same values without building one (0.3 ms, 18 tail fits in a monitor's fit)
+        return float(kstest(y, lambda x: genpareto.cdf(x, xi, scale=sigma)).pvalue)
 
 
 def fit_tail(values, k: int | None = None, tail: str = "free",
