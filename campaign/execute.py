@@ -55,6 +55,8 @@ import pandas as pd
 
 from scenarios.errors import InputError
 
+from .startup import BLAS_THREAD_VARIABLES
+
 BACKENDS = ("loky", "threading")
 
 #: Seconds a fresh pool may take to start its workers (imports, kernels from the cache).
@@ -75,11 +77,6 @@ class Task:
 
     def split(self) -> list["Task"]:
         return [Task(self.rows.iloc[[j]], alone=True, single=True) for j in range(self.n)]
-
-
-#: Environment variables that set the thread count of the BLAS libraries NumPy and SciPy load
-#: (OpenBLAS, MKL); one exported by the user wins over :func:`one_blas_thread`.
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 @contextmanager

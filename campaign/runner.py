@@ -32,7 +32,7 @@ from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import SummaryAccumulator
 from scenarios import compiled as kernels
 from scenarios.errors import InputError
-from scenarios.memory import release_freed_memory, start_up_done
+from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
 from .design import MODEL_VERSION, PlanBlocks, build_learning_plan
@@ -46,6 +46,7 @@ from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
 from .execute import one_blas_thread
 from .plant_setup import detector_problems, fmu_sha256, plant_of
 from .result import Campaign
+from .startup import start_up_done
 from .store.directory import CampaignDir, DirLock
 
 
@@ -630,7 +631,7 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
                 load_detector_class(spec.name)
             kernels.warm_up(log)
         # the modules and kernels made so far live to the exit: out of the collector's
-        # reach, and the collector on again if the command line deferred it (scenarios.memory)
+        # reach, and the collector on again if the command line deferred it (campaign.startup)
         start_up_done()
         if client is None and (jobs > 1 or limit is not None):
             # a time limit needs a worker process to stop, even for --jobs 1

@@ -12,7 +12,6 @@ from functools import partial
 from pathlib import Path
 
 from scenarios.errors import InputError
-from scenarios.memory import defer_collection, start_up_done
 
 from . import requirements as creq
 from .common import (  # noqa: F401  (part of this module's interface)
@@ -28,6 +27,7 @@ from .common import (  # noqa: F401  (part of this module's interface)
     report_internal_error,
 )
 from ..isolation import isolation_of_stored
+from ..startup import defer_collection, start_up_done
 
 
 # ---- the command line's overrides ---------------------------------------------------------
@@ -792,7 +792,7 @@ def main(argv=None) -> int:
 
 def console_main() -> None:
     """The ``fdd-campaign`` executable: :func:`main` with the garbage collector off while
-    ``run`` imports its libraries and loads its kernels (:func:`scenarios.memory.defer_collection`),
+    ``run`` imports its libraries and loads its kernels (:func:`campaign.startup.defer_collection`),
     then an exit without the interpreter's teardown when nothing else is running
     (:func:`leave`)."""
     defer_collection()

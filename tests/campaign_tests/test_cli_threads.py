@@ -11,7 +11,8 @@ import sys
 import pytest
 from threadpoolctl import threadpool_info
 
-from campaign.execute import BLAS_THREAD_VARIABLES, one_blas_thread
+from campaign.execute import one_blas_thread
+from campaign.startup import BLAS_THREAD_VARIABLES
 
 
 def blas_threads() -> set[int]:

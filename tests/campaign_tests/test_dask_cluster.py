@@ -123,7 +123,8 @@ def test_chunks_on_workers_without_a_nanny_run_one_blas_thread(cluster):
     of each chunk limits it to one thread while the chunk runs, then restores it."""
     from distributed import Client
 
-    from campaign.execute import BLAS_THREAD_VARIABLES, run_on_cluster
+    from campaign.execute import run_on_cluster
+    from campaign.startup import BLAS_THREAD_VARIABLES
 
     address, _ = cluster
 

@@ -1,4 +1,4 @@
-"""The garbage collector at the start of ``fdd-campaign run`` (scenarios/memory.py,
+"""The garbage collector at the start of ``fdd-campaign run`` (campaign/startup.py,
 ``defer_collection`` and ``start_up_done``; docs/execution.md, "The collector at start-up"):
 nothing is collected while the command imports its libraries and loads its kernels, those
 objects are then frozen out of the collector's reach, and the collector is on again for the
@@ -87,7 +87,7 @@ def test_a_program_that_runs_a_campaign_keeps_its_collector(tmp_path):
 
 def test_a_collector_turned_off_by_the_caller_stays_off(tmp_path):
     state = in_child("""
-        from scenarios.memory import defer_collection, start_up_done
+        from campaign.startup import defer_collection, start_up_done
         gc.disable()
         passes.clear()
         defer_collection()
