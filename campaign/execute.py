@@ -55,7 +55,7 @@ import pandas as pd
 
 from scenarios.errors import InputError
 
-from .startup import BLAS_THREAD_VARIABLES
+from .startup import BLAS_THREAD_VARIABLES, blas_variables_at_one
 
 BACKENDS = ("loky", "threading")
 
@@ -97,12 +97,11 @@ def one_blas_thread():
     of a dask cluster each chunk runs under :func:`one_blas_thread_on_worker`.
     """
     if any(variable in os.environ for variable in BLAS_THREAD_VARIABLES):
-        yield                       # the user's choice, or an enclosing one_blas_thread
+        yield           # the user's choice, the executable's (startup) or an enclosing one's
         return
     from threadpoolctl import threadpool_limits
 
-    os.environ.update({variable: "1" for variable in BLAS_THREAD_VARIABLES})
-    try:
+    with blas_variables_at_one():
         with _blas_control():               # also when another thread set a count first
             limiter = threadpool_limits(limits=1, user_api="blas")
         try:
@@ -110,9 +109,6 @@ def one_blas_thread():
         finally:
             with _blas_control():
                 limiter.restore_original_limits()
-    finally:
-        for variable in BLAS_THREAD_VARIABLES:
-            os.environ.pop(variable, None)
 
 
 @contextmanager

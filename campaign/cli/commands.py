@@ -791,10 +791,10 @@ def main(argv=None) -> int:
 
 
 def console_main() -> None:
-    """The ``fdd-campaign`` executable: :func:`main` with the garbage collector off while
-    ``run`` imports its libraries and loads its kernels (:func:`campaign.startup.defer_collection`),
-    then an exit without the interpreter's teardown when nothing else is running
-    (:func:`leave`)."""
+    """:func:`campaign.cli.console_main` once this module is imported (NumPy with it, so BLAS
+    keeps the threads it started: :func:`campaign.execute.one_blas_thread` limits them): the
+    executable of an installation made before it moved there, and ``python -m
+    campaign.cli.commands``."""
     defer_collection()
     leave(main())
 

@@ -51,6 +51,7 @@ from scenarios.simulate import RUN_COLUMNS, prepare
 
 from ..cli.common import UsageError
 from ..evaluate import detect, simulate_signals
+from ..startup import user_environment
 from .plant_bench import bench_settings
 
 
@@ -274,11 +275,11 @@ def run_campaign_process(campaign: str, jobs: int, cache_dir: Path | None = None
     system, of the process and the workers it waited for), peak memory [MiB] of its process
     tree (sampled every *poll_s*), and its output. *cache_dir* points numba's compile cache
     there (an empty directory: a first run without a cache)."""
-    env = dict(os.environ)
+    env = user_environment()       # as from the user's shell (not this command's BLAS count)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = str(cache_dir)
     with tempfile.TemporaryDirectory(prefix="fdd-bench-") as tmp:
-        cmd = [sys.executable, "-m", "campaign.cli.commands", "run", campaign, "--out",
+        cmd = [sys.executable, "-m", "campaign.cli", "run", campaign, "--out",
                str(Path(tmp) / "out"), "--jobs", str(jobs), "--quiet"]
         cpu0 = _children_cpu_s()
         t0 = time.perf_counter()
@@ -659,7 +660,7 @@ def _timed_process(cmd: list[str], cwd: str | None) -> dict:
     """Wall and CPU time (user + system) [s] of *cmd* run to its end in *cwd*."""
     cpu0 = _children_cpu_s()
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, env=user_environment())
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise RuntimeError(f"yardstick {' '.join(cmd)} failed with exit code "

@@ -53,4 +53,4 @@ def test_a_thread_still_working_is_waited_for(tmp_path):
 
 def test_the_executable_is_the_one_that_leaves():
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    assert scripts["fdd-campaign"] == "campaign.cli.commands:console_main"
+    assert scripts["fdd-campaign"] == "campaign.cli:console_main"

@@ -4,6 +4,7 @@ the package changes nothing."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -211,3 +212,67 @@ start(chunk, count, seen, "chunk").join()
 print(seen["chunk"], count())
 """
     assert probe({**clean_env(), "OPENBLAS_NUM_THREADS": "2"}, code) == "[2] [2]"
+
+
+# ---- the executable exports one BLAS thread before NumPy loads (campaign/startup.py) ---------
+#: A child's record at its exit of the BLAS variables, BLAS's thread counts and the
+#: environment a command beside it gets (campaign.startup.user_environment).
+EXECUTABLE = """
+import atexit, json, os, sys
+report = sys.argv[1]
+def record():
+    import scipy.linalg  # noqa: F401  (SciPy's BLAS too, loaded after the command)
+    from threadpoolctl import threadpool_info
+    from campaign.startup import user_environment
+    json.dump({"env": [os.environ.get(v) for v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")],
+               "threads": sorted({i["num_threads"] for i in threadpool_info()
+                                  if i["user_api"] == "blas"}),
+               "user": user_environment().get("OPENBLAS_NUM_THREADS")}, open(report, "w"))
+atexit.register(record)
+sys.argv = ["fdd-campaign", "presets"]
+"""
+
+
+def run_executable(tmp_path, env: dict, entry: str) -> dict:
+    subprocess.run([sys.executable, "-c", EXECUTABLE + entry, str(tmp_path / "r.json")],
+                   env=env, capture_output=True, text=True, check=True, timeout=120)
+    return json.loads((tmp_path / "r.json").read_text())
+
+
+def test_importing_the_executable_loads_nothing_before_it_starts():
+    code = "import campaign.cli, sys; print('numpy' in sys.modules)"
+    assert probe(clean_env(), code) == "False"
+
+
+def test_the_executable_starts_blas_at_one_thread_for_the_process(tmp_path):
+    # the BLAS of NumPy and SciPy loaded with one thread (no pool started), for the whole
+    # process and what it starts; a command beside it gets the user's environment
+    state = run_executable(tmp_path, clean_env(),
+                           "from campaign.cli import console_main\nconsole_main()")
+    assert state == {"env": ["1", "1"], "threads": [1], "user": None}
+
+
+def test_the_executable_keeps_a_thread_count_the_user_exported(tmp_path):
+    state = run_executable(tmp_path, {**clean_env(), "OPENBLAS_NUM_THREADS": "2"},
+                           "from campaign.cli import console_main\nconsole_main()")
+    assert state == {"env": ["2", None], "threads": [2], "user": "2"}
+
+
+def test_too_late_once_numpy_is_loaded(tmp_path):
+    # the older entry (its module imports NumPy first): nothing exported, BLAS keeps the
+    # threads it started, limited to one while the command runs (one_blas_thread)
+    state = run_executable(tmp_path, clean_env(),
+                           "from campaign.cli.commands import console_main\nconsole_main()")
+    own = probe(clean_env(), "import numpy, scipy.linalg; from threadpoolctl import "
+                "threadpool_info; print(sorted({i['num_threads'] for i in threadpool_info() "
+                "if i['user_api'] == 'blas'}))")
+    assert state == {"env": [None, None], "threads": json.loads(own), "user": None}
+
+
+def test_one_blas_thread_is_not_the_users_environment(no_exported_count):
+    from campaign.startup import user_environment
+
+    with one_blas_thread():
+        assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
+        assert not any(v in user_environment() for v in BLAS_THREAD_VARIABLES)
+    assert not any(v in os.environ for v in BLAS_THREAD_VARIABLES)

@@ -50,7 +50,7 @@ def small_file(tmp_path: Path) -> Path:
 
 
 CONSOLE = """
-    from campaign.cli.commands import console_main
+    from campaign.cli import console_main
     sys.argv = ["fdd-campaign", *sys.argv[2:]]
     passes.clear()                    # what importing the entry point collected
     console_main()
