@@ -66,6 +66,7 @@ def user_environment() -> dict[str, str]:
     yardstick of ``fdd-campaign bench``)."""
     return {k: v for k, v in os.environ.items() if k not in _exported}
 
+
 #: Whether :func:`defer_collection` turned the collector off and :func:`start_up_done` has
 #: not yet turned it on again.
 _deferred = False
