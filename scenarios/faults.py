@@ -78,7 +78,7 @@ SOLID_JAM_VARIANTS: tuple[str, ...] = ("seized", "offset")
 
 def liquid_jam_bias_mm(act: ActuatorParams, pct_of_range: float) -> float:
     """Rod-signal bias [mm] equivalent to *pct_of_range* % of the deflection range."""
-    return float(act.r_mm * np.sin(np.radians(pct_of_range / 100.0 * act.deflection_range_deg)))
+    return float(act.deg_to_mm(pct_of_range / 100.0 * act.deflection_range_deg))
 
 
 def solid_jam_offset_mm(act: ActuatorParams, pct_of_range: float) -> float:
@@ -180,7 +180,7 @@ def fault_arrays(fault, onset_s, magnitude, freq_hz, order_deg, act: ActuatorPar
         ramp = np.where(runaway[rows, None] & active, np.nan_to_num(mag[rows])[:, None] * dt_on,
                         0.0)
         order_loop = np.clip(order_deg[rows] + ramp, lo, hi)
-        u_loop[rows] = act.r_mm * np.sin(np.radians(order_loop))
+        u_loop[rows] = act.deg_to_mm(order_loop)
 
     def injected(name, fill, values):
         """(n, T) array: *fill*, and ``values(rows, active, dt_on)`` after the onset of the

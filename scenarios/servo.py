@@ -173,7 +173,7 @@ def authority_limits(p: PlantArrays, act: ActuatorParams, n_grid: int = 721):
     ``act.order_load_limit`` × S·ΔP (docs/physics.md §3: the actuator never stalls in normal
     flight, so the flight control laws do not order such deflections)."""
     grid = np.linspace(act.delta_min_deg, act.delta_max_deg, n_grid)            # (G,)
-    x = act.r_mm * np.sin(np.radians(grid))
+    x = act.deg_to_mm(grid)
     col = PlantArrays(**{k: np.asarray(v)[:, None] for k, v in vars(p).items()})
     ok = np.abs(aero_force(x[None, :], col)) <= act.order_load_limit * col.SdP   # (n, G)
     d_f = np.degrees(p.delta_float_rad)[:, None]

@@ -335,7 +335,7 @@ class ChenLocalEstimator(Detector):
                              mach=fc["mach"])
         d_lo, d_hi = authority_limits(plant, act)
         frac = np.linspace(0.0, 1.0, NUMERICS.grid_x)
-        x = act.r_mm * np.sin(np.radians(d_lo[:, None] + (d_hi - d_lo)[:, None] * frac))
+        x = act.deg_to_mm(d_lo[:, None] + (d_hi - d_lo)[:, None] * frac)
         w = envelope.UNCERTAINTY
         scale = 1.0 + float(self.schedule_margin)
         rhos = []

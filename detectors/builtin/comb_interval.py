@@ -241,7 +241,7 @@ def stability_margin(kappa, act: ActuatorParams, ts: float, max_error_mm: float,
     nd, ne = NUMERICS.stability_grid_deflections, NUMERICS.stability_grid_errors
     frac = np.linspace(0.0, 1.0, nd)
     defl = lo[:, None] + (hi - lo)[:, None] * frac[None, :]                  # (P, D)
-    y = act.r_mm * np.sin(np.radians(defl))[:, :, None]                        # (P, D, 1)
+    y = act.deg_to_mm(defl)[:, :, None]                                         # (P, D, 1)
     err = np.linspace(-max_error_mm, max_error_mm, ne)[None, None, :]          # (1, 1, E)
     col = PlantArrays(**{k: np.asarray(v)[:, None, None] for k, v in vars(plant).items()})
     gc = g_center(y + err, y, col, ts)
@@ -503,7 +503,7 @@ class IntervalDetector(Detector):
     def measurement(self, signals: Signals) -> np.ndarray:
         """y_k [mm], shape (n_runs, n_steps)."""
         if self.sensor == "surface":
-            return signals.actuator.r_mm * np.sin(np.radians(signals.surface))
+            return signals.actuator.deg_to_mm(signals.surface)
         return np.asarray(getattr(signals, self.sensor), float)
 
     def _plant(self, signals: Signals) -> PlantArrays:

@@ -348,7 +348,7 @@ class PositionMonitor(Detector):
             out["com_mon"] = signals.rod_com - signals.rod_mon
         if "surface" in checks:
             act = signals.actuator
-            out["surface"] = act.r_mm * np.sin(np.radians(signals.surface)) - signals.rod_mon
+            out["surface"] = act.deg_to_mm(signals.surface) - signals.rod_mon
         return out
 
     # ---- contract ----------------------------------------------------------------------

@@ -351,7 +351,7 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
                                       + _YAW[:, None] * dr)
         order = np.clip(raw, p.lo_deg, p.hi_deg)
         pitch_clipped = (order[_ELEVATORS] != raw[_ELEVATORS]).any(axis=0)
-        u_free_m = act_m.r_mm * np.sin(np.radians(order[m]))
+        u_free_m = act_m.deg_to_mm(order[m])
         order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
                            act_m.stop_max_deg + run_margin)
         u_loop = r_flat * np.sin(np.radians(order.ravel()))
