@@ -78,8 +78,12 @@ _OPTIONAL_ID_COLUMNS: dict[str, object] = {"manoeuvre_start_s": None,
 
 def run_id(row: dict) -> str:
     """Hash of the canonical JSON of a run row (without its id) and the model version."""
-    return _hash_payload({k: (None if isinstance(v, float) and math.isnan(v) else v)
-                          for k, v in row.items() if k != "run_id"})
+    return _hash_payload({k: _id_value(v) for k, v in row.items() if k != "run_id"})
+
+
+def _id_value(v):
+    """A row's value as its run id hashes it: NaN as None (JSON null)."""
+    return None if isinstance(v, float) and math.isnan(v) else v
 
 
 def _hash_payload(payload: dict) -> str:
@@ -344,8 +348,7 @@ def _run_ids(plan: pd.DataFrame) -> list[str]:
     ids: list[str] = []
     for start in range(0, len(plan), RUN_ID_BLOCK):
         block = plan.iloc[start:start + RUN_ID_BLOCK]
-        columns = [[None if isinstance(v, float) and math.isnan(v) else v
-                    for v in block[c].tolist()] for c in keys]
+        columns = [[_id_value(v) for v in block[c].tolist()] for c in keys]
         ids.extend(_hash_payload(dict(zip(keys, values))) for values in zip(*columns))
     return ids
 

@@ -41,6 +41,11 @@ def export_one_blas_thread() -> None:
     cores, docs/execution.md, "BLAS threads that no command uses")."""
     if "numpy" in sys.modules or any(v in os.environ for v in BLAS_THREAD_VARIABLES):
         return
+    _export_one()
+
+
+def _export_one() -> None:
+    """:data:`BLAS_THREAD_VARIABLES` set to 1, as this process's own."""
     os.environ.update({variable: "1" for variable in BLAS_THREAD_VARIABLES})
     _exported.update(BLAS_THREAD_VARIABLES)
 
@@ -49,8 +54,7 @@ def export_one_blas_thread() -> None:
 def blas_variables_at_one():
     """:data:`BLAS_THREAD_VARIABLES` set to 1 inside the block, as this process's own (not in
     :func:`user_environment`), and removed after it."""
-    os.environ.update({variable: "1" for variable in BLAS_THREAD_VARIABLES})
-    _exported.update(BLAS_THREAD_VARIABLES)
+    _export_one()
     try:
         yield
     finally:
