@@ -655,7 +655,7 @@ class CampaignDir:
         learned attributes set; never unpickles anything (arrays are read with
         ``allow_pickle=False``). *name*: the registry name the campaign gives *label*, checked
         against the stored one. :class:`CampaignDirError` when it is missing or damaged."""
-        from detectors.registry import make_detector
+        from detectors.registry import load_detector_class, make_detector
         from detectors.state import StateFormatError, decode
 
         self.refuse_pickles()
@@ -681,6 +681,9 @@ class CampaignDir:
         stored = doc.get("detector")
         if name is not None and stored != name:
             raise damaged(f"it holds detector {stored!r}, the campaign names {name!r}")
+        # the detector's module first: the dataclasses of its learned state (e.g. the
+        # threshold calibrations) are registered when it is imported, and decoded by name
+        load_detector_class(stored)
         try:
             with np.load(npz_path, allow_pickle=False) as npz:
                 arrays = {key: npz[key] for key in npz.files}

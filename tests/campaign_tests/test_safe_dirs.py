@@ -227,6 +227,21 @@ def smoke_dir(tmp_path_factory):
     return out
 
 
+def test_a_fitted_detector_reads_back_in_a_process_that_never_imported_it(smoke_dir):
+    """The position monitor's learned calibrations are registered dataclasses, known once
+    its module is imported: reading the directory from a fresh process (a script, a
+    notebook) imports it first, instead of calling the directory damaged."""
+    code = ("import sys; from campaign.store.directory import CampaignDir\n"
+            "assert 'detectors.builtin.position_monitor' not in sys.modules\n"
+            "det = CampaignDir(sys.argv[1]).read_fitted('position-monitor', 'position-monitor')\n"
+            "print(type(det.calibration_['loop']).__name__, det.thresholds_mm_['loop'])")
+    done = subprocess.run([sys.executable, "-c", code, str(smoke_dir)], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    threshold = CampaignDir(smoke_dir).read_fitted("position-monitor").thresholds_mm_["loop"]
+    assert done.stdout.split() == ["Calibration", repr(threshold)]
+
+
 def _copy(src: Path, dst: Path) -> Path:
     import shutil
 
