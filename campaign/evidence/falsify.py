@@ -261,10 +261,12 @@ def _scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
     detector raised a false alarm in it (scored, :func:`reports.metrics.score_runs`;
     False for a run in error)."""
     mine = results[results["detector"] == label].drop_duplicates("run_id")
-    ok = mine["status"] == "ok"
-    margin = pd.Series(np.where(ok, mine["margin"], np.nan), index=mine["run_id"])
-    alarm = pd.Series(ok & mine["false_alarm"].fillna(False).astype(bool).to_numpy(),
-                      index=mine["run_id"])
+    # plain arrays: a Series given to pd.Series(..., index=...) is reindexed by label
+    ok = (mine["status"] == "ok").to_numpy()
+    margin = pd.Series(np.where(ok, mine["margin"].to_numpy(float), np.nan),
+                       index=mine["run_id"].to_numpy())
+    alarm = pd.Series(ok & mine["false_alarm"].fillna(False).to_numpy(bool),
+                      index=mine["run_id"].to_numpy())
     return (rows["run_id"].map(margin).to_numpy(float),
             rows["run_id"].map(alarm).fillna(False).to_numpy(bool))
 

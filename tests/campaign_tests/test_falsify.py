@@ -321,3 +321,20 @@ def test_against_warm_start_replays_the_campaign_worst_runs(searched, tmp_path):
     first = search.iloc[:3]
     assert first["manoeuvre_start_s"].isna().all() and (first["phase"] == "screen").all()
     np.testing.assert_array_equal(first["margin"].to_numpy(), worst["margin"].to_numpy())
+
+
+def test_scores_keep_the_flags_of_results_with_any_index():
+    """The search's flag of a run is the campaign's ``false_alarm`` of that run, whatever
+    the index of the result rows (a chunk's rows arrive with a non-default index; a flag
+    taken by label through pandas' reindexing turned every one into False)."""
+    from campaign.evidence.falsify import _scores
+
+    results = pd.DataFrame({
+        "run_id": ["a", "b", "c", "d"], "detector": "m",
+        "status": ["ok", "ok", "error", "ok"],
+        "false_alarm": [True, False, False, True], "margin": [1.4, 0.7, np.nan, 1.1],
+    }, index=[10, 11, 12, 13])
+    rows = pd.DataFrame({"run_id": ["d", "c", "b", "a"]})
+    margin, alarm = _scores(results, rows, "m")
+    np.testing.assert_array_equal(alarm, [True, False, False, True])
+    np.testing.assert_array_equal(margin, [1.1, np.nan, 0.7, 1.4])
