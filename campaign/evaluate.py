@@ -157,10 +157,14 @@ def detect_runs(signals: Signals, detectors: dict) -> tuple[dict, dict]:
         names = dict.fromkeys(name for out in parts.values() for name in out)
         for name in names:
             alarm, residual = np.zeros(shape, bool), np.full(shape, np.nan)
+            decided = [out[name].decision is not None for out in parts.values() if name in out]
+            decision = np.full(shape, np.nan) if decided and all(decided) else None
             for j, out in parts.items():
                 if name in out:
                     alarm[j], residual[j] = out[name].alarm[0], out[name].residual[0]
-            detections[name] = Detection(alarm=alarm, residual=residual)
+                    if decision is not None:
+                        decision[j] = out[name].decision[0]
+            detections[name] = Detection(alarm=alarm, residual=residual, decision=decision)
     return detections, failures
 
 
@@ -169,8 +173,13 @@ def _checked(label: str, det, signals: Signals) -> dict:
     contract."""
     variants = as_variants(label, det.detect(read_only(signals)))
     shape = (signals.n_runs, signals.n_steps)
+    scaled = getattr(det.capabilities, "threshold_scale", False)
     for name, detection in variants.items():
         problems = detection_problems(detection, *shape)
+        if scaled and detection.decision is None:
+            problems.append("decision is missing: the detector declares threshold_scale "
+                            "(Capabilities), so each Detection must carry the decision "
+                            "statistic its alarm compares with 1")
         if problems:
             raise DetectorContractError(label, det, name, problems, detection, shape)
     return variants
@@ -230,7 +239,7 @@ def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
     for name, detection in detections.items():
         scored = score_columns(
             run_id=rows["run_id"].to_numpy(), fault=truth.fault, onset_s=truth.onset_s,
-            alarm=detection.alarm, residual=detection.residual, ts=settings.ts,
+            alarm=detection.alarm, residual=detection.margin_statistic, ts=settings.ts,
             required_time_s=required, window_s=settings.window_s)
         scored.update(_estimate_columns(detection, truth, range_mm))
         scored.update(detector=np.full(n, name, dtype=object),

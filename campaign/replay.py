@@ -94,8 +94,9 @@ def replay_settings(camp: Campaign, fmu=None) -> tuple[ChunkSettings | None, str
 
 # ---- re-simulation -------------------------------------------------------------------------
 def _run_margin(residual: np.ndarray) -> np.ndarray:
-    """max |r|/τ over a whole run, NaN samples ignored (the margin of a fault-free run,
-    reports.metrics.score_runs)."""
+    """The largest value of a margin statistic over a whole run (the decision, else |r|/τ:
+    :attr:`detectors.base.Detection.margin_statistic`), NaN samples ignored: the margin
+    of a fault-free run (reports.metrics.score_runs)."""
     finite = ~np.isnan(residual)
     peak = np.where(finite, residual, -np.inf).max(axis=1)
     return np.where(finite.any(axis=1), peak, np.nan)
@@ -123,7 +124,7 @@ def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors:
         for name, d in detections.items():
             res = np.asarray(d.residual[:n_env], dtype=float)
             starts, binned = bin_max(res, n_bins)
-            env[name] = (binned, _run_margin(res))
+            env[name] = (binned, _run_margin(np.asarray(d.margin_statistic[:n_env], float)))
     examples = {}
     for i, rid in enumerate(rows["run_id"].astype(str)):
         if rid in example_ids and rid not in examples:

@@ -7,8 +7,10 @@ from .base import (
     NotFittedError,
     as_variants,
     confirm,
+    decide,
     detection_problems,
     read_only,
+    windowed_min,
     writes_input,
 )
 from .params import Param, parameter_problems, parameter_table
@@ -22,7 +24,7 @@ from .registry import (
 
 __all__ = [
     "Capabilities", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
-    "detection_problems", "read_only", "writes_input",
+    "decide", "detection_problems", "read_only", "windowed_min", "writes_input",
     "DetectorSpecError", "available_detectors", "load_detector_class", "make_detector",
     "parameter_errors", "Param", "parameter_problems", "parameter_table",
 ]

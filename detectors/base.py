@@ -127,6 +127,14 @@ class Capabilities:
     #: gives one; ``fdd-campaign bench`` counts that model in the floor of campaigns with
     #: such a detector.
     estimates_rod_fault: bool = False
+    #: its detections carry a ``decision`` statistic (:class:`Detection`): the alarm is
+    #: raised at the first step where decision ≥ 1, and with every threshold of the
+    #: detector multiplied by s > 0 it would be raised at the first step where decision ≥ s.
+    #: A run's margin is then the distance to the alarm decision (margin ≥ s ⟺ an alarm
+    #: before onset at threshold × s; docs/design.md §5, Metrics). False (the default of a
+    #: plugin): the decision has no threshold scale, and the margin is the largest
+    #: normalised residual before any confirmation logic, labelled so.
+    threshold_scale: bool = False
 
 
 @dataclass(frozen=True)
@@ -143,11 +151,30 @@ class Detection:
         estimate f̂ [mm] of [CHEN] eq. 4 (e.g. ``chen-local``). The campaign then records the
         mean and variance of f̂ − f over each jam run's post-onset window
         (docs/chen-estimator.md §8). None: the detector gives no estimate.
+    decision : ndarray (n_runs, n_steps) of float, or None (default)
+        The statistic the alarm decision compares, normalised by the threshold and scaled
+        as 1/s when every threshold is multiplied by s: the alarm is raised at the first
+        step where decision ≥ 1 (after the confirmation logic: for a confirmation over n
+        steps, the least normalised residual of the last n, :func:`windowed_min`), and
+        would be raised at the first step where decision ≥ s at threshold × s. NaN: no
+        decision possible at that step (no alarm at any scale). The run's margin is its
+        largest value before onset (:func:`reports.metrics.score_columns`), so margin ≥ 1
+        exactly when the run alarms before onset; the engine checks that the first alarm
+        is the first step with decision ≥ 1 (:func:`detection_problems`). None: the
+        decision has no threshold scale (``Capabilities.threshold_scale`` False) and the
+        margin is the residual's.
     """
 
     alarm: np.ndarray
     residual: np.ndarray
     estimate: np.ndarray | None = None
+    decision: np.ndarray | None = None
+
+    @property
+    def margin_statistic(self) -> np.ndarray:
+        """What a run's margin is the largest value of before onset: ``decision`` when the
+        detection gives one, else ``residual`` (docs/design.md §5, Metrics)."""
+        return self.residual if self.decision is None else self.decision
 
     def __post_init__(self):
         alarm = np.asarray(self.alarm)
@@ -297,7 +324,78 @@ def detection_problems(detection: Detection, n_runs: int, n_steps: int) -> list[
                 "NaN is allowed only before the first non-NaN sample of a run (warm-up)")
         problems.append(f"residual must be finite floats ({what}): got {value} at run {i}, "
                         f"step {k} ({int(bad.any(axis=1).sum())} of {want[0]} runs affected)")
+    decision = getattr(detection, "decision", None)
+    if decision is not None and alarm.shape == want and alarm.dtype == np.bool_:
+        problems.extend(decision_problems(alarm, np.asarray(decision), want))
     return problems
+
+
+def decision_problems(alarm: np.ndarray, decision: np.ndarray,
+                      want: tuple[int, int]) -> list[str]:
+    """The rules a ``decision`` breaks (:func:`detection_problems`): a float array of the
+    signals' shape, never ±inf, whose first step ≥ 1 in each run is the run's first alarm
+    (no such step: no alarm). This is what makes the margin the distance to the alarm:
+    margin ≥ 1 exactly when the run alarms before onset."""
+    if not np.issubdtype(decision.dtype, np.floating):
+        return [f"decision, when given, must be a float array, got dtype {decision.dtype}"]
+    if decision.shape != want:
+        return [f"decision, when given, must have the shape of the signals (n_runs, n_steps) "
+                f"= {want}, got {decision.shape}"]
+    if np.isinf(decision).any():
+        i, k = (int(v) for v in np.argwhere(np.isinf(decision))[0])
+        return [f"decision must not be ±inf (NaN: no decision at that step): got "
+                f"{decision[i, k]} at run {i}, step {k}"]
+    first_alarm = first_steps(alarm)
+    first_decision = first_steps(decision_reached(decision))
+    differ = first_alarm != first_decision
+    if not differ.any():
+        return []
+    i = int(np.flatnonzero(differ)[0])
+
+    def at(k):
+        return "never" if k < 0 else f"step {k}"
+
+    return [f"alarm and decision disagree: the first alarm must be the first step where "
+            f"decision ≥ 1; run {i}: first alarm {at(first_alarm[i])}, decision ≥ 1 "
+            f"{at(first_decision[i])} ({int(differ.sum())} of {want[0]} runs affected)"]
+
+
+def first_steps(mask: np.ndarray) -> np.ndarray:
+    """(n_runs,) index of the first True step of each run of *mask* (n_runs, n_steps), −1
+    where there is none."""
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape[1] == 0:
+        return np.full(mask.shape[0], -1)
+    idx = np.argmax(mask, axis=1)
+    return np.where(mask[np.arange(mask.shape[0]), idx], idx, -1)
+
+
+def decision_reached(decision: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """(n_runs, n_steps) bool: where *decision* ≥ *scale* (NaN: False)."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(decision) >= scale
+
+
+def decide(decision: np.ndarray) -> np.ndarray:
+    """The latched alarm of a *decision* statistic (:class:`Detection`): raised at the first
+    step where decision ≥ 1 and kept until the end of the run."""
+    return np.logical_or.accumulate(decision_reached(decision), axis=1)
+
+
+def windowed_min(statistic: np.ndarray, n: int) -> np.ndarray:
+    """The least value of *statistic* (n_runs, n_steps) over each step's last *n* steps
+    [k − n + 1, k] (n ≥ 1), NaN before a full window exists (k < n − 1) and wherever the
+    window holds a NaN: the decision statistic of a confirmation over n steps. With it,
+    ``confirm(statistic >= 1, n)`` is ``decide(windowed_min(statistic, n))``, and the
+    alarm at threshold × s is raised where ``windowed_min`` first reaches s (the least of
+    the window scales with the threshold as each sample does)."""
+    statistic = np.asarray(statistic, dtype=float)
+    n = max(int(n), 1)
+    out = statistic.copy()
+    for j in range(1, min(n, out.shape[1] + 1)):
+        np.minimum(out[:, j:], statistic[:, :-j], out=out[:, j:])
+    out[:, :n - 1] = np.nan
+    return out
 
 
 def residual_breaches(residual: np.ndarray) -> np.ndarray:

@@ -104,8 +104,12 @@ def score_columns(*, run_id, fault, onset_s, alarm, residual, ts, required_time_
     alarm : array-like (n, T) of bool
         Alarm flag of the detector at each step.
     residual : array-like (n, T) of float [-]
-        Residual normalised by its threshold, |r|/τ (≥ 1 means alarm). NaN samples (e.g. a
-        filter warming up) are ignored by the margin.
+        The statistic the margin is the largest value of: the detection's decision
+        statistic when it gives one (:attr:`detectors.base.Detection.margin_statistic`:
+        ≥ 1 exactly where the alarm is first raised, so margin ≥ 1 ⟺ an alarm before
+        onset), else its residual normalised by its threshold, |r|/τ, before any
+        confirmation logic. NaN samples (a filter warming up, a confirmation window not
+        yet full) are ignored by the margin.
     ts : float [s]
         Sampling period; step ``k`` is at ``k * ts``.
     required_time_s : array-like (n,) of float [s]

@@ -68,8 +68,12 @@ def cmd_falsify(args) -> int:
           f"(budget {args.budget}) -> {out / 'search.parquet'}, {out / 'worst.toml'}")
     if result.errors:
         print(f"runs in error (not scored): {result.errors}")
+    what = ("the distance to the alarm decision: ≥ 1 is an alarm"
+            if result.margin_kind == "decision" else
+            "the largest |r|/τ before the detector's confirmation: it gives no decision "
+            "statistic, docs/write-a-detector.md")
     print(f"worst margin found by the search: {w['margin']:.6g} (run {w['run_id']}, "
-          f"{w['manoeuvre']}, generation {int(w['generation'])})")
+          f"{w['manoeuvre']}, generation {int(w['generation'])}; {what})")
     above = int((result.search["margin"] >= 1.0).sum())
     print(f"false alarms raised by {result.label}: {result.false_alarms} of "
           f"{len(result.search)} searched runs"

@@ -244,6 +244,10 @@ class FalsifyResult:
     baseline_runs: int
     baseline_source: str
     errors: int
+    #: what the margins measure: ``"decision"``, the distance to the alarm decision (margin
+    #: ≥ 1 exactly when the run alarms; ``Capabilities.threshold_scale``), or
+    #: ``"residual"``, a plugin's largest |r|/τ before its confirmation logic
+    margin_kind: str = "decision"
 
     @property
     def false_alarms(self) -> int:
@@ -415,7 +419,16 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     worst = _write_worst(config, search, label, keep, out, fitted_from, seed, budget)
     return FalsifyResult(label=label, search=search, worst=worst, baseline_margin=baseline[0],
                          baseline_runs=baseline[1], baseline_source=baseline[2],
-                         errors=state["errors"])
+                         errors=state["errors"], margin_kind=margin_kind(detectors, label))
+
+
+def margin_kind(detectors: dict, label: str) -> str:
+    """``"decision"`` when the fitted detector of *label* (``LABEL`` or ``LABEL[variant]``)
+    declares a threshold scale (its margins are distances to the alarm decision), else
+    ``"residual"`` (docs/design.md §5, Metrics)."""
+    det = detectors.get(label.split("[", 1)[0] if label.endswith("]") else label)
+    scaled = getattr(getattr(det, "capabilities", None), "threshold_scale", False)
+    return "decision" if scaled else "residual"
 
 
 def _check_variant(results: pd.DataFrame, label: str, config) -> None:

@@ -88,7 +88,7 @@ from scenarios import compiled as kernels
 from scenarios.params import param
 from scenarios.signals import Signals
 
-from ..base import Capabilities, Detection, Detector, confirm, per_run_maxima
+from ..base import Capabilities, Detection, Detector, decide, per_run_maxima, windowed_min
 from ..calibrate import THRESHOLD_PARAMS, learned_threshold
 from .chen_global_kernel import recursion_window
 from ..params import Param
@@ -305,7 +305,7 @@ class ChenGlobalEstimator(Detector):
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
-                                needs_aircraft=True)
+                                needs_aircraft=True, threshold_scale=True)
 
     parameters = (
         Param("h_perturbation", "float", gt=0.0, unit="deg/deg", doc="ε of Remark 4.1: "
@@ -674,4 +674,7 @@ class ChenGlobalEstimator(Detector):
         f_abs, b = self._components(signals)
         r = f_abs / (self.threshold_ + b)
         n_c = max(int(round(float(self.confirm_s) / float(signals.ts))), 1)
-        return Detection(alarm=confirm(r > 1.0, n_c), residual=r)
+        # the decision: the least r over the confirmation window (≥ 1 for the alarm; r = 1
+        # exactly, where > and ≥ differ, has probability 0)
+        decision = windowed_min(r, n_c)
+        return Detection(alarm=decide(decision), residual=r, decision=decision)

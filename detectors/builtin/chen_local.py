@@ -71,9 +71,10 @@ Decision ([CHEN] §6.1–6.2), constant thresholds learned on the fault-free lea
   rate of the orders (correlation time about 0.2 s in cruise; the loaded roll-ins of the
   turns are its largest): it is nearly the same in both windows and cancels, while white
   sensor noise enters with σ·√(1/n_a + 1/n_b). Then an integrator of the time |d|
-  spends beyond τ_liq (it never resets: it "maintains the effect of the fault bias till
+  spends at or beyond τ_liq (it never resets: it "maintains the effect of the fault bias till
   the end of the simulation"), and the liquid alarm is raised once it reaches
-  ``liquid_confirm_s``. τ_liq is learned
+  ``liquid_confirm_s`` (its decision statistic: the n-th largest |d|/τ_liq so far, n the
+  steps that time takes; the margin is its largest value before onset). τ_liq is learned
   on max |d| per fault-free run. ``liquid_reference_s = 0`` and ``liquid_window_s = 0``
   give the level |T f̂| itself (a statistic whose calibrated threshold was measured at
   the size of a 1.3 % jam on the aircraft plant: docs/chen-estimator.md §3). Integrating
@@ -96,7 +97,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from ..synthesis import chen_local_model as lm
-from ..base import Capabilities, Detection, Detector, per_run_maxima
+from ..base import Capabilities, Detection, Detector, decide, per_run_maxima
 from ..calibrate import THRESHOLD_PARAMS, learned_threshold
 from ..params import Param
 
@@ -190,8 +191,32 @@ def _estimate_block(u, y, c0, c1, c2, L1, L2, delay, x_lo, x_hi, k_lo, k_hi, ke_
             xh_run[r] = target + (xh - target) * ((1.0 - half_ts * a) / (1.0 + half_ts * a))
 
 
+@kernels.njit(nogil=True, cache=True, error_model="numpy")
+def _nth_largest_so_far(x, n, out):
+    """out[r, k] = the *n*-th largest of x[r, 0 … k] (NaN samples left out; NaN until n
+    values exist): the decision statistic of the liquid check, whose alarm is raised once
+    *n* samples have reached the threshold (at threshold × s: once n samples are ≥ s, i.e.
+    where this statistic first reaches s). Each run keeps its n largest values so far,
+    sorted ascending. *x*, *out* (runs, T); n ≥ 1."""
+    runs, T = x.shape
+    top = np.empty(n)
+    for r in range(runs):
+        top[:] = -np.inf
+        for k in range(T):
+            v = x[r, k]
+            if v > top[0]:                    # NaN compares False: left out
+                j = 0
+                while j + 1 < n and top[j + 1] < v:
+                    top[j] = top[j + 1]
+                    j += 1
+                top[j] = v
+            out[r, k] = top[0] if top[0] > -np.inf else np.nan
+
+
 def _warm_kernels() -> None:
-    """Compile (or load from the cache) the kernel of this module on tiny inputs."""
+    """Compile (or load from the cache) the kernels of this module on tiny inputs."""
+    for z in (np.zeros((1, 2)), kernels.read_only_view(np.zeros((1, 2)))):
+        _nth_largest_so_far(z, 1, np.zeros((1, 2)))
     z2, z1 = np.zeros((1, 2)), np.ones(1)
     ro = kernels.read_only_view   # signals (and the schedule) as detect reads them: read-only
     for z, c in ((z2, z1), (ro(z2), z1), (ro(z2), ro(z1))):
@@ -199,7 +224,7 @@ def _warm_kernels() -> None:
                         0.01, np.zeros((1, 2)))
 
 
-kernels.register_warmup(_warm_kernels, kernels=(_estimate_block,))
+kernels.register_warmup(_warm_kernels, kernels=(_estimate_block, _nth_largest_so_far))
 
 
 class ChenLocalEstimator(Detector):
@@ -244,7 +269,7 @@ class ChenLocalEstimator(Detector):
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
-                                estimates_rod_fault=True)
+                                estimates_rod_fault=True, threshold_scale=True)
 
     parameters = (
         Param("sensor", "choice", choices=SENSORS, doc="rod measurement y of eq. 24 (the "
@@ -526,14 +551,31 @@ class ChenLocalEstimator(Detector):
         ts = float(signals.ts)
         norm_liq = np.abs(g) / self.thresholds_["liquid"]
         norm_sol = self._solid_statistic(f_hat, ts) / self.thresholds_["solid"]
-        # liquid: integrator of the time beyond the threshold (never reset, §6.2)
-        held = np.cumsum(norm_liq > 1.0, axis=1) * ts
-        need = max(float(self.liquid_confirm_s), ts)
-        alarm_liq = held >= need - 0.5 * ts
-        alarm_sol = norm_sol > 1.0        # beyond τ_sol over the whole confirmation window
+        # liquid: integrator of the time at or beyond the threshold (never reset, §6.2): the
+        # alarm once liquid_samples(ts) samples have reached it, i.e. where their n-th
+        # largest so far first reaches 1 (at threshold × s: first reaches s)
+        decision_liq = np.empty(norm_liq.shape)
+        _nth_largest_so_far(norm_liq, self.liquid_samples(ts), decision_liq)
+        # solid: beyond τ_sol over the whole confirmation window (_solid_statistic is
+        # already that window's least distance)
         # both variants carry the estimate f̂ [mm] (error statistics, docs/chen-estimator.md §8)
-        return {"liquid": Detection(alarm=alarm_liq, residual=norm_liq, estimate=f_hat),
-                "solid": Detection(alarm=alarm_sol, residual=norm_sol, estimate=f_hat)}
+        return {"liquid": Detection(alarm=decide(decision_liq), residual=norm_liq,
+                                    estimate=f_hat, decision=decision_liq),
+                "solid": Detection(alarm=decide(norm_sol), residual=norm_sol, estimate=f_hat,
+                                   decision=norm_sol)}
+
+    def liquid_samples(self, ts: float) -> int:
+        """Samples at or beyond τ_liq the liquid alarm waits for: the fewest n ≥ 1 whose
+        integrated time n·Ts reaches ``liquid_confirm_s`` (at least one step) within half
+        a step, n·Ts ≥ max(liquid_confirm_s, Ts) − Ts/2 as written here in floats."""
+        ts = float(ts)
+        need = max(float(self.liquid_confirm_s), ts) - 0.5 * ts
+        n = max(int(np.ceil(need / ts)), 1)
+        while n > 1 and (n - 1) * ts >= need:       # the float rounding of need / ts, both ways
+            n -= 1
+        while n * ts < need:
+            n += 1
+        return n
 
 
 kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

@@ -57,8 +57,10 @@ Residual, filter and threshold ([COMB] §3.1–3.3)
 
       τ_{k,r} = a^r·λ_1 + (1 − a)·( r·a^{r−1}·λ_r + Σ_{q=1}^{r−1} q·(a^{q−1} − a^q)·λ_q )
 
-* decision: alarm from the first step with |ε_k| > τ_k, latched. One detector variant per
-  pole a (``"a=0.9"``); the normalised residual is |ε_k|/τ_k.
+* decision: alarm from the first step with |ε_k| ≥ τ_k, latched ([COMB] §4 writes >; the
+  two differ only at equality, and ≥ makes a run's margin, the largest |ε_k|/τ_k before
+  onset, ≥ s exactly when it alarms at threshold × s). One detector variant per pole a
+  (``"a=0.9"``); the normalised residual |ε_k|/τ_k is also the decision statistic.
 
 Also learned and stored ([COMB] §3.1.1): the power-law bound λ_q ≤ α·q^γ + β (memory
 compression; ``use_power_law`` makes the threshold use it) and the variability measure
@@ -78,7 +80,7 @@ from scenarios.params import ActuatorParams, param
 from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rate
 from scenarios.signals import Signals
 
-from ..base import Capabilities, Detection, Detector
+from ..base import Capabilities, Detection, Detector, decide
 from ..calibrate import (THRESHOLD_PARAMS, calibrate_threshold, leave_one_out_ratios,
                         usable_classes)
 from ..params import Param
@@ -330,7 +332,9 @@ def _predict_block(u, y, plant, ts, eps_mm, kappa, hr, x0_radius, xc_out, xr_out
 def _decide_block(r, a, tau, norm_out, alarm_out):
     """Filter F_a, normalised residual and latched alarm of one pole, compiled
     ([COMB] eq. 8–9: ε_k = a·ε_{k−1} + (1 − a)·r_k, ε_0 = r_0; |ε_k|/τ_k with τ_k =
-    ``tau[min(k, len(tau) − 1)]``; alarm from the first |ε_k| > τ_k on).
+    ``tau[min(k, len(tau) − 1)]``; alarm from the first |ε_k| ≥ τ_k on: [COMB] §4 writes
+    > τ, which differs only where |ε_k| = τ_k exactly, and ≥ makes the run's margin ≥ s
+    exactly the alarm at threshold × s, :class:`detectors.base.Detection`).
 
     The filter update is written as ``scipy.signal.lfilter`` evaluates it for this
     first-order filter (state z = a·ε, output ε = z + (1 − a)·r), so both give the same
@@ -348,7 +352,7 @@ def _decide_block(r, a, tau, norm_out, alarm_out):
             z = 0.0 * x - (-a) * eps
             v = abs(eps) / tau[min(k, last)]
             norm_out[i, k] = v
-            if v > 1.0:
+            if v >= 1.0:
                 latched = True
             alarm_out[i, k] = latched
 
@@ -433,7 +437,7 @@ class IntervalDetector(Detector):
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
-                                fit_concurrently=True)
+                                fit_concurrently=True, threshold_scale=True)
 
     parameters = (
         Param("poles", "floats", gt=0.0, lt=1.0, unique=True, scalar=True,
@@ -658,12 +662,13 @@ class IntervalDetector(Detector):
                 alarm = np.empty(r.shape, dtype=bool)
                 _decide_block(r, float(a), np.ascontiguousarray(self.thresholds_[name],
                                                                 dtype=float), norm, alarm)
-                out[name] = Detection(alarm=alarm, residual=norm)
+                out[name] = Detection(alarm=alarm, residual=norm, decision=norm)
                 continue
             tau = self.thresholds_[name][k][None, :]
             norm = np.abs(self.filtered(r, a)) / tau
-            alarm = np.logical_or.accumulate(norm > 1.0, axis=1)
-            out[name] = Detection(alarm=alarm, residual=norm)
+            # the decision is |ε_k|/τ_k itself (no confirmation): the alarm where it first
+            # reaches 1 ([COMB] §4, ≥ for > as in _decide_block)
+            out[name] = Detection(alarm=decide(norm), residual=norm, decision=norm)
         return out
 
 

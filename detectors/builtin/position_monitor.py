@@ -43,7 +43,10 @@ then ≤ ``target_fa_per_run``); ``safety`` is not applied on top, and serves on
 factor on the largest value when the learning set cannot support the target. With
 ``threshold_method = "max"``, τ_c = ``safety`` × the largest |r_c| seen. Never below
 ``floor_mm``. The normalised residual is max_c |r_c|/τ_c; the alarm is raised
-once it has been ≥ 1 for ``confirm_s`` and is then latched.
+once it has been ≥ 1 for ``confirm_s`` and is then latched. The decision statistic is its
+least value over that confirmation window (:func:`detectors.base.windowed_min`): the alarm
+is raised where it first reaches 1, and a run's margin is its largest value before onset,
+so with every threshold times s the run alarms exactly when its margin is ≥ s.
 """
 
 from __future__ import annotations
@@ -59,7 +62,7 @@ from scenarios.compiled import (BAND_WORK_ROWS, BLOCK, STEP_STAGES, band_plants,
 from scenarios.servo import PlantArrays, plant_arrays, rk4_step, rod_rate
 from scenarios.signals import Signals
 
-from ..base import Capabilities, Detection, Detector, confirm, per_run_maxima
+from ..base import Capabilities, Detection, Detector, decide, per_run_maxima, windowed_min
 from ..calibrate import THRESHOLD_PARAMS, learned_threshold
 from ..params import Param
 
@@ -202,7 +205,7 @@ class PositionMonitor(Detector):
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
-                                fit_concurrently=True)
+                                fit_concurrently=True, threshold_scale=True)
 
     parameters = (
         Param("safety", "float", gt=1.0, doc="threshold of a check = safety × its largest "
@@ -379,9 +382,13 @@ class PositionMonitor(Detector):
         norm = np.zeros((signals.n_runs, signals.n_steps))
         for name, r in res.items():
             np.maximum(norm, np.abs(r) / self.thresholds_mm_[name], out=norm)
-        n_confirm = int(round(self.confirm_s / signals.ts)) + 1
-        alarm = confirm(norm >= 1.0, n_confirm)
-        return Detection(alarm=alarm, residual=norm)
+        decision = windowed_min(norm, self._n_confirm(signals.ts))
+        return Detection(alarm=decide(decision), residual=norm, decision=decision)
+
+    def _n_confirm(self, ts: float) -> int:
+        """Steps the normalised residual must stay ≥ 1 for the alarm: ``confirm_s`` / Ts + 1
+        (the step that crosses and ``confirm_s`` after it)."""
+        return max(int(round(self.confirm_s / ts)) + 1, 1)
 
     def _detect_compiled(self, signals: Signals, checks: list[str]) -> Detection:
         """:meth:`_detect` through :func:`_decide_block` (same values; no (n, T) model band,
@@ -403,11 +410,11 @@ class PositionMonitor(Detector):
         tau = np.array([self.thresholds_mm_.get(name, 1.0) for name in CHECKS])
         norm = np.empty(rod_com.shape)
         alarm = np.empty(rod_com.shape, dtype=bool)
-        n_confirm = max(int(round(self.confirm_s / signals.ts)) + 1, 1)
+        n_confirm = self._n_confirm(signals.ts)
         active = np.array([name in checks for name in CHECKS])
         _decide_block(rod_com, u, plants, float(signals.ts), STEP_STAGES[self.model_step],
                       rod_mon, surface, tau, active, n_confirm, norm, alarm)
-        return Detection(alarm=alarm, residual=norm)
+        return Detection(alarm=alarm, residual=norm, decision=windowed_min(norm, n_confirm))
 
 
 kernels.invalidate_stale_cache(__name__)   # numba cache built from other kernel sources: flushed

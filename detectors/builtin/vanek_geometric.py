@@ -101,7 +101,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from ..synthesis import geometric as geo
-from ..base import Capabilities, Detection, Detector, confirm
+from ..base import Capabilities, Detection, Detector, decide, windowed_min
 from ..calibrate import THRESHOLD_PARAMS, learned_threshold
 from ..params import Param
 
@@ -501,7 +501,7 @@ class VanekGeometric(Detector):
     #: an aileron filter, blind to the left elevator and the rudder: an alarm on their faults
     #: is an isolation failure (docs/vanek-geometric.md, "Isolation in the gate")
     capabilities = Capabilities(needs_fit=True, causal=True, needs_aircraft=True,
-                                fault_surfaces=(FAULT_SURFACE,))
+                                fault_surfaces=(FAULT_SURFACE,), threshold_scale=True)
 
     parameters = (
         Param("safety", "float", gt=1.0, doc="threshold_method = max: threshold = safety × "
@@ -866,7 +866,10 @@ class VanekGeometric(Detector):
         for k, r in est.items():
             tau = self.thresholds_deg_[k] + bounds[k] if k in bounds else self.thresholds_deg_[k]
             norm = np.abs(r) / tau
-            out[k] = Detection(alarm=confirm(norm >= 1.0, n_confirm), residual=norm)
+            # the decision: the least |r̂|/(τ0 + b) of the confirmation window (the whole
+            # threshold τ0 + b(t) times s gives norm/s)
+            decision = windowed_min(norm, n_confirm)
+            out[k] = Detection(alarm=decide(decision), residual=norm, decision=decision)
         return out
 
     def __getstate__(self):

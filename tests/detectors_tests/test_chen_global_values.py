@@ -497,16 +497,18 @@ def _blank(n, T, ts=TS):
                    surface=zeros, pressure=zeros)
 
 
-def test_decision_is_f_over_tau0_plus_b_strictly_above_one_for_n_steps_latched():
-    """r = |f̂|/(τ0 + b); alarm once r > 1 held confirm_s/ts = 3 steps, kept to the end;
-    r = 1 exactly is no exceedance; 2 steps are not enough; an alarm at the last step."""
+def test_decision_is_f_over_tau0_plus_b_at_least_one_for_n_steps_latched():
+    """r = |f̂|/(τ0 + b); alarm once r ≥ 1 held confirm_s/ts = 3 steps, kept to the end;
+    r = 1 exactly is an exceedance (the decision statistic, the least r of the window,
+    reaches 1 there: margin ≥ s ⟺ alarm at threshold × s); 2 steps are not enough; an
+    alarm at the last step."""
     T = 12
     b = np.tile(np.linspace(0.0, 1.1, T), (5, 1))
     f_abs = np.zeros((5, T))
     f_abs[0, 3:6] = 2.0 + b[0, 3:6] + 1e-9         # 3 steps above: alarm at step 5, latched
     f_abs[1, 3:5] = 2.0 + b[1, 3:5] + 1e-9         # 2 steps above: none
     f_abs[1, 7:9] = 2.0 + b[1, 7:9] + 1e-9
-    f_abs[2, 2:8] = 2.0 + b[2, 2:8]                # exactly on τ0 + b: none
+    f_abs[2, 2:8] = 2.0 + b[2, 2:8]                # exactly on τ0 + b: alarm at step 4
     f_abs[3, 9:] = 2.0 + b[3, 9:] + 0.5            # the last three steps: alarm at the end
     f_abs[4, 4:7] = 1.9                            # above τ0 − 0.1 but b > 0.3 there: none
     det = _decision_detector(f_abs, b)
@@ -514,10 +516,11 @@ def test_decision_is_f_over_tau0_plus_b_strictly_above_one_for_n_steps_latched()
     np.testing.assert_allclose(out.residual, f_abs / (2.0 + b), rtol=1e-15)
     expected = np.zeros((5, T), bool)
     expected[0, 5:] = True
+    expected[2, 4:] = True
     expected[3, 11] = True
     np.testing.assert_array_equal(out.alarm, expected)
     # n_c = round(confirm_s/ts): 0.05 s at 10 ms → 5 steps; 0 s → one step
-    raw = f_abs / (2.0 + b) > 1.0
+    raw = f_abs / (2.0 + b) >= 1.0
     for confirm_s, n_c in ((0.05, 5), (0.0, 1), (0.02, 2)):
         out = _decision_detector(f_abs, b, confirm_s=confirm_s)._detect(_blank(5, T))
         np.testing.assert_array_equal(out.alarm, plain_confirm(raw, n_c))

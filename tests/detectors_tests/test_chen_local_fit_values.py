@@ -508,28 +508,42 @@ def test_residuals_are_the_statistics_over_their_thresholds(hand_model):
     np.testing.assert_allclose(out["solid"].residual,
                                _step_persistence(f_hat, n_c, n_b) / 0.2, rtol=1e-9,
                                atol=1e-12)
-    np.testing.assert_array_equal(out["solid"].alarm, out["solid"].residual > 1.0)
+    # the alarm from the first step at or beyond τ_sol on (latched), the decision the
+    # statistic itself
+    np.testing.assert_array_equal(out["solid"].alarm, np.logical_or.accumulate(
+        out["solid"].residual >= 1.0, axis=1))
+    np.testing.assert_array_equal(out["solid"].decision, out["solid"].residual)
     assert out["solid"].alarm.any() and not out["solid"].alarm.all()
 
 
 @pytest.mark.parametrize("confirm_steps, needed", [(0.0, 1), (2.0, 2), (2.5, 2), (3.0, 3)])
 def test_liquid_alarm_after_n_steps_beyond_the_threshold(hand_model, confirm_steps, needed):
-    """The integrator counts the steps with |d| > τ (never reset) and the alarm is raised
-    once they cover liquid_confirm_s (half a step rounds down; 0 means the first step)."""
+    """The integrator counts the steps with |d| ≥ τ (never reset) and the alarm is raised
+    once they cover liquid_confirm_s (half a step rounds down; 0 means the first step); the
+    decision statistic is the needed-th largest |d|/τ so far (≥ 1 where the alarm is
+    raised)."""
     det, u, y = _fitted(hand_model, liquid_confirm_s=confirm_steps * TS)
     sig = _signals(*_runs(512, offset_mm=0.8))
     det.thresholds_ = {"liquid": 1.0, "solid": 1.0}
     level = det.detect(sig)["liquid"].residual          # |d| [mm] (τ = 1 mm)
-    tau = float(np.sort(level[2])[-6])                  # five steps of run 2 beyond it
+    tau = float(np.sort(level[2])[-6])                  # six steps of run 2 at or beyond it
     det.thresholds_ = {"liquid": tau, "solid": 1.0}
-    alarm = det.detect(sig)["liquid"].alarm
-    count = np.cumsum(level > tau, axis=1)
+    liquid = det.detect(sig)["liquid"]
+    alarm = liquid.alarm
+    count = np.cumsum(level >= tau, axis=1)
     np.testing.assert_array_equal(alarm, count >= needed)
+    # the decision: the needed-th largest of |d|/τ so far, by a plain sort per step
+    norm = level[2] / tau
+    plain = [np.sort(norm[:k + 1])[-needed] if k + 1 >= needed else np.nan
+             for k in range(norm.size)]
+    np.testing.assert_array_equal(liquid.decision[2], plain)
     first = int(np.argmax(alarm[2]))
     assert count[2, first] == needed and not alarm[2, first - 1] and alarm[2, -1]
 
 
-def test_a_statistic_equal_to_its_threshold_is_not_beyond_it(hand_model):
+def test_a_statistic_equal_to_its_threshold_raises_the_alarm(hand_model):
+    """≥, not >: a statistic exactly at τ is an alarm, so that the margin (the decision's
+    largest value before onset) is ≥ s exactly when the run alarms at threshold × s."""
     det, u, y = _fitted(hand_model, liquid_confirm_s=0.0, solid_confirm_s=0.25)
     sig = _signals(*_runs(512, offset_mm=0.8))
     det.thresholds_ = {"liquid": 1.0, "solid": 1.0}
@@ -539,7 +553,8 @@ def test_a_statistic_equal_to_its_threshold_is_not_beyond_it(hand_model):
     det.thresholds_ = {"liquid": float(liq[2, k_liq]), "solid": float(sol[2, k_sol])}
     out = det.detect(sig)
     assert out["liquid"].residual[2, k_liq] == 1.0 and out["solid"].residual[2, k_sol] == 1.0
-    assert not out["liquid"].alarm[2].any() and not out["solid"].alarm[2].any()
+    assert out["liquid"].alarm[2, k_liq] and not out["liquid"].alarm[2, :k_liq].any()
+    assert out["solid"].alarm[2, k_sol] and not out["solid"].alarm[2, :k_sol].any()
 
 
 # ---- parameters and constants ------------------------------------------------------------
@@ -552,7 +567,8 @@ def test_documented_defaults_and_capabilities():
                                                   0.05)
     assert (det.post_filter_zero_rad_s, det.post_filter_pole_rad_s) == (1.0, 5.0)
     assert ChenLocalEstimator.capabilities == Capabilities(
-        needs_fit=True, needs_surface_sensor=False, causal=True, estimates_rod_fault=True)
+        needs_fit=True, needs_surface_sensor=False, causal=True, estimates_rod_fault=True,
+        threshold_scale=True)
 
 
 def test_fit_needs_no_surface_sensor(hand_model):

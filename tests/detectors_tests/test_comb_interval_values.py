@@ -202,18 +202,22 @@ def _decider(r, thresholds, a=0.5):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_filtered_residual_exactly_at_the_threshold_is_no_alarm(engine):
-    # a = 0.5, r ≡ 1: ε_k = 1 exactly (ε_0 = r_0, then 0.5·1 + 0.5·1), τ ≡ 1 → |ε|/τ = 1
-    r = np.ones((3, 12))
-    r[1, 7] = 3.0           # ε_7 = 0.5·1 + 0.5·3 = 2: alarm at step 7, latched after
-    r[2, -1] = 3.0          # the same at the last step
+def test_filtered_residual_at_the_threshold_is_an_alarm_just_below_none(engine):
+    # a = 0.5, r ≡ c: ε_k = c exactly (ε_0 = r_0, then 0.5·c + 0.5·c), τ ≡ 1 → |ε|/τ = c.
+    # The alarm is |ε|/τ ≥ 1 ([COMB] §4 writes >, which differs only at equality): with ≥
+    # the run's margin ≥ s is exactly its alarm at threshold × s (Detection.decision)
+    below = np.nextafter(1.0, 0.0)
+    r = np.full((3, 12), below)
+    r[0] = 1.0              # exactly at the threshold: alarm at step 0
+    r[2, 7] = 3.0           # ε_7 = 0.5·below + 1.5 ≈ 2: alarm at step 7, latched after
     det = _decider(r, [1.0, 1.0, 1.0])
     with use_engine(engine):
         d = det.detect(signals(np.zeros((3, 12)), np.zeros((3, 12))))["a=0.5"]
-    assert np.all(d.residual[0] == 1.0) and not d.alarm[0].any()
-    assert d.residual[1, 7] == 2.0 and d.residual[1, 8] == 1.5   # ε_8 = 0.5·2 + 0.5·1
-    assert not d.alarm[1, :7].any() and d.alarm[1, 7:].all()    # latched once raised
-    assert not d.alarm[2, :-1].any() and d.alarm[2, -1]
+    assert np.all(d.residual[0] == 1.0) and d.alarm[0].all()
+    assert np.all(d.residual[1] == below) and not d.alarm[1].any()
+    assert d.residual[2, 7] == 0.5 * below + 1.5
+    assert not d.alarm[2, :7].any() and d.alarm[2, 7:].all()    # latched once raised
+    np.testing.assert_array_equal(d.decision, d.residual)       # no confirmation logic
 
 
 @pytest.mark.parametrize("engine", ENGINES)
