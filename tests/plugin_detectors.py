@@ -63,6 +63,16 @@ class BadResidual(_Quiet):
         return alarm, residual
 
 
+class NaNLater(_Quiet):
+    """A numerical blow-up: the residual of every run turns NaN from the middle of the run
+    on, and stays so (a breach: NaN is allowed only before a run's first value); no alarm."""
+
+    def _output(self, signals):
+        alarm, residual = super()._output(signals)
+        residual[:, signals.n_steps // 2:] = np.nan
+        return alarm, residual
+
+
 class BatchMean(_Quiet):
     """Normalises each run's loop error by the mean over the batch: its results depend on
     which runs share a chunk."""

@@ -16,13 +16,14 @@ from campaign.cli.commands import main
 from campaign.config import CampaignConfig, ConfigError
 from campaign.design import build_plan
 from campaign.runner import CampaignSetupError
+from campaign.store.directory import CampaignDir
 from detectors import Detection, detection_problems, registry
 from detectors.testing import check_detector
 from plugin_detectors import BadResidual, BatchMean
 from small_campaigns import campaign_toml, small_campaign
 
 PLUGINS = ("Subsampled", "BadResidual", "BatchMean", "Offline", "FitFails", "FitFailsLate",
-           "FitsTogether")
+           "FitsTogether", "NaNLater")
 
 
 @pytest.fixture
@@ -102,6 +103,27 @@ def test_contract_breaches_become_error_rows(tmp_path, plugins):
     # never scored: no false alarm, no detection on a breached run
     bad = result.results[result.results["status"] == "error"]
     assert not bad["false_alarm"].any() and not bad["detected"].any()
+
+
+def test_a_residual_that_turns_nan_mid_run_gets_no_ok_row_and_fails_the_gate(tmp_path,
+                                                                            plugins, capsys):
+    """A detector whose residual blows up to NaN half-way through every run, in every batch
+    of the campaign (not only the few runs of the start-up checks), has every row an error
+    naming the breach, never an ok row without alarm; the zero-false-alarm gate fails."""
+    cfg = _config({"name": "na-n-later", "label": "blow-up"}, chunk_size=2)
+    path = tmp_path / "c.toml"
+    path.write_text(campaign_toml(cfg))
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--jobs", "2", "--quiet", "--out", str(out)]) in (0, 1)
+    rows = CampaignDir(out).read_results()
+    mine = rows[rows["detector"] == "blow-up"]
+    assert len(mine) == len(build_plan(CampaignConfig.from_dict(cfg)))
+    assert (mine["status"] == "error").all()
+    assert mine["error"].str.contains("NaN is allowed only before").all()
+    assert (rows.loc[rows["detector"] == "pm", "status"] == "ok").all()
+    capsys.readouterr()
+    assert main(["gate", str(out), "--max-fa", "0"]) == 1
+    assert "blow-up" in capsys.readouterr().out
 
 
 def test_well_behaved_results_unchanged_by_the_check(tmp_path, plugins):
