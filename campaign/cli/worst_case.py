@@ -79,9 +79,10 @@ def _check(camp, found):
     else:
         first = found.alarms[0]
         in_corpus = sum(a.source == "corpus" for a in found.alarms)
+        corpus = (f"{in_corpus} in the {found.corpus_runs} corpus runs replayed first, "
+                  if found.corpus_runs else "")
         message = (f"FAIL worst case: {found.name}: {len(found.alarms)} false alarm(s) "
-                   f"({in_corpus} in the {found.corpus_runs} corpus runs replayed, "
-                   f"{len(found.alarms) - in_corpus} new in {search}): "
+                   f"({corpus}{len(found.alarms) - in_corpus} new in {search}): "
                    f"{first.describe()}; replay: {replay_command(camp.root, first, found.name)}")
     return Check("worst_case", found.name, "none", "all", float(len(found.alarms)), 0.0,
                  found.passed, message)
@@ -100,11 +101,14 @@ def _report(camp, found) -> list[str]:
              f"{found.worst_manoeuvre})" if found.worst_run else "")
     lines.append(f"  search ({state}): {found.searched} runs, seed {found.seed}{worst}, "
                  f"{found.search_alarms} false alarm(s) -> {found.search_dir}")
-    for alarm in found.alarms[:5]:
-        lines.append(f"  FALSE ALARM ({alarm.source}): {alarm.describe()}")
-        lines.append(f"    replay: {replay_command(camp.root, alarm, found.name)}")
-    if len(found.alarms) > 5:
-        lines.append(f"  … and {len(found.alarms) - 5} more")
+    shown = found.alarms[:5]
+    lines += [f"  FALSE ALARM ({alarm.source}): {alarm.describe()}" for alarm in shown]
+    if len(found.alarms) > len(shown):
+        lines.append(f"  … and {len(found.alarms) - len(shown)} more")
+    firsts = {alarm.worst_toml: alarm for alarm in reversed(shown)}   # one per file
+    lines += [f"  replay (the runs above of {path.name}): "
+              f"{replay_command(camp.root, alarm, found.name)}"
+              for path, alarm in reversed(firsts.items())]
     return lines
 
 

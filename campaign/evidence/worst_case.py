@@ -19,8 +19,9 @@ accepted false-alarm rate is 0 and that has fault-free runs), in this order:
 
 A detector fails on a **false alarm**: the ``false_alarm`` of the scored run (the detector's
 own decision, with its confirmation), never a margin ≥ 1 alone. The false alarms are those of
-the corpus replay and those of the searches run now (a reused search's worst runs, its false
-alarms first, are in the corpus, replayed above). Each is named with its run id, manoeuvre,
+the corpus replay, then those of the search that the corpus did not hold (a reused search's
+as it stored them: its worst runs, false alarms first, are in the corpus and were evaluated
+again above). Each is named with its run id, manoeuvre,
 flight point and the ``worst.toml`` that replays it. A search is a falsification attempt of N
 runs, not a proof: finding none bounds nothing by itself.
 """
@@ -61,7 +62,8 @@ class Alarm:
     point: dict                # alt_ft, vcas_kt, mass_t, cg_pct
     margin: float
     worst_toml: Path           # the campaign file whose [[run]] entries replay it
-    source: str                # "corpus" (replayed first) or "search" (found now)
+    source: str                # "corpus" (replayed first), "search" (found now) or
+                               # "stored search" (found by the reused search, not replayed)
 
     def describe(self) -> str:
         """``run ID (manoeuvre, alt … ft, … kt, … t, cg … %), margin …``."""
@@ -206,7 +208,7 @@ def search_detector(camp, found: WorstCase, *, jobs: int, scheduler=None, tls=No
                     log) -> None:
     """The search of *found* (its name, budget and seed) on campaign *camp*: read back when
     a finished one is stored, else run and stored (module docstring); fills its search
-    fields and, for a search run now, its false alarms that the corpus did not hold."""
+    fields and adds its false alarms that the corpus replay did not name."""
     from ..store.directory import SEARCH_FILE, WORST_FILE, CampaignDir
 
     cdir = CampaignDir(camp.root)
@@ -234,11 +236,12 @@ def search_detector(camp, found: WorstCase, *, jobs: int, scheduler=None, tls=No
         found.worst_margin = float(margin[worst])
         found.worst_run = str(search["run_id"].iloc[worst])
         found.worst_manoeuvre = str(search["manoeuvre"].iloc[worst])
-    if not found.reused:          # a reused search's false alarms are in the corpus
-        known = {a.run_id for a in found.alarms}
-        new = flags & ~search["run_id"].isin(known).to_numpy()
-        found.alarms += _alarms(search, new, margin,
-                                [found.search_dir / WORST_FILE] * len(search), "search")
+    # its false alarms that the corpus replay did not name already (a reused search's
+    # worst runs are in the corpus: replayed there; the rest as the search stored them)
+    known = {a.run_id for a in found.alarms}
+    new = flags & ~search["run_id"].isin(known).to_numpy()
+    found.alarms += _alarms(search, new, margin, [found.search_dir / WORST_FILE] * len(search),
+                            "stored search" if found.reused else "search")
 
 
 def worst_case(camp, budget, names, *, seed: int = DEFAULT_SEED, jobs: int = 2,
