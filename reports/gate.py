@@ -43,7 +43,8 @@ from scenarios.errors import InputError
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_probability_checks",
+__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_limits",
+           "fa_probability_checks",
            "gate_rows", "requirements_gate",
            "junit_tree", "write_junit",
            "write_junit_suite", "write_junit_tree"]
@@ -268,6 +269,16 @@ def _allowances(summary: pd.DataFrame, limits: dict):
             return float(limits[detector])
         return float(limits.get(detector.split("[", 1)[0], default))
     return limit
+
+
+def fa_limits(summary: pd.DataFrame, requirements) -> dict[str, float]:
+    """Each detector (result-row name) of *summary* → the false-alarm rate the gate accepts
+    for it under *requirements* (their JSON form, as :func:`requirements_gate` takes them):
+    its ``detector_max_fa_rate`` allowance, else ``max_fa_rate``."""
+    limit = _allowances(summary, dict(requirements.get("detector_max_fa_rate") or {}))
+    default = float(requirements.get("max_fa_rate", 0.0))
+    names = summary["detector"].astype(str) if "detector" in summary else []
+    return {name: float(limit(name, default)) for name in dict.fromkeys(names)}
 
 
 def _coverage_check(done: int, planned: int, allow_incomplete: bool) -> Check:

@@ -11,6 +11,7 @@ Quick equivalents, so that the block runs in about a minute (the documented mapp
 * a long campaign → ``smoke`` (:data:`QUICK_CAMPAIGNS`); the flags stay (``--plant``,
   ``--out``, …);
 * ``--jobs N`` → ``--jobs 1`` (the campaign's results do not depend on it);
+* ``--worst-case N`` → ``--worst-case 40`` (the gate's worst-case searches, on smoke);
 * ``--scheduler tcp://…`` → left out (no cluster here; tests/campaign_tests/test_dask_cluster.py);
 * ``bench`` → ``bench`` on 8 runs of 20 s without the campaign (:data:`QUICK_BENCH`);
 * ``RUN_ID`` → the first run id of the campaign directory's plan;
@@ -89,6 +90,8 @@ def _quick(argv: list[str]) -> list[str]:
             continue
         if i > 0 and argv[i - 1] == "--jobs":
             arg = "1"
+        if i > 0 and argv[i - 1] == "--worst-case":
+            arg = "40"
         out.append(QUICK_CAMPAIGNS.get(arg, COMPARE_DIRS.get(arg, arg)))
     if out[:1] == ["bench"]:
         out = ["bench", *QUICK_BENCH]

@@ -237,6 +237,9 @@ def _plan_one(config, out: Path) -> None:
 def cmd_gate(args) -> int:
     from reports.gate import write_junit, write_junit_suite
 
+    from .worst_case import check_worst_case_options
+
+    check_worst_case_options(args)          # bad --worst-case options: before any work
     if args.junit:
         check_writable(args.junit, "--junit")
     targets = _campaign_dirs(args.dir)
@@ -283,6 +286,10 @@ def _gate_one(directory, args):
         from .evidence import fa_probability_checks
 
         result.checks += fa_probability_checks(camp, args.max_fa_prob)
+    if args.worst_case is not None:       # the corpus, then a search per gated detector
+        from .worst_case import worst_case_checks
+
+        result.checks += worst_case_checks(camp, limits, args)
     print(result.format())
     failing = [run for c in result.failures for run in c.run_ids]
     if failing:
@@ -621,6 +628,9 @@ def _add_result_parsers(subs) -> None:
                         "certify DIR' when absent; docs/evidence.md)")
     creq.add_requirements_option(p)
     p.add_argument("--junit", help="write a JUnit XML report to this file")
+    from .worst_case import add_worst_case_options
+
+    add_worst_case_options(p)
 
 
 def _add_simulate_parser(subs) -> None:

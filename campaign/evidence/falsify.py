@@ -58,10 +58,10 @@ from ..config import CampaignConfig
 from ..config.text import toml_value
 from ..design import build_plan, explicit_plan, variable_ranges
 from ..execute import one_blas_thread
-from ..store.directory import write_parquet
+from ..store.directory import SEARCH_FILE, WORST_FILE, write_parquet, write_text
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
-           "drawn_start_s", "monte_carlo_config", "search_space", "worst_toml"]
+           "drawn_start_s", "monte_carlo_config", "scores", "search_space", "worst_toml"]
 
 #: Random streams searched: [0, STREAM_SPAN) (below the learning streams, 2³²).
 STREAM_SPAN: int = 2 ** 31
@@ -260,7 +260,7 @@ class FalsifyResult:
         return self.false_alarms > 0
 
 
-def _scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
+def scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
     """Margin of *label* per row of *rows* (NaN for a run in error) and whether the
     detector raised a false alarm in it (scored, :func:`reports.metrics.score_runs`;
     False for a run in error)."""
@@ -390,7 +390,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
             results = evaluate_rows(setup, rows, detectors, log=log)
             if not state["done"]:
                 _check_variant(results, label, config)
-            margin, alarm = _scores(results, rows, label)
+            margin, alarm = scores(results, rows, label)
             state["errors"] += int(np.isnan(margin).sum())
             records.append(rows.assign(margin=margin, false_alarm=alarm,
                                        generation=strategy.generation, phase=phase))
@@ -405,7 +405,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
             mc = build_plan(monte_carlo_config(config, budget)).iloc[:budget]
             log(f"plain Monte Carlo of about the same budget: {_mc_size_text(mc, budget)}")
             results = evaluate_rows(setup, mc, detectors, log=log)
-            mc = mc.assign(margin=_scores(results, mc, label)[0])
+            mc = mc.assign(margin=scores(results, mc, label)[0])
             write_parquet(mc, out / "monte-carlo.parquet", config.to_json(), kind="falsify-mc",
                           detector=label)
             baseline = (float(np.nanmax(mc["margin"])), len(mc),
@@ -413,7 +413,7 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
                         f"({_mc_size_text(mc, budget)})")
     finally:
         setup.close()
-    write_parquet(search, out / "search.parquet", config.to_json(), kind="falsify-search",
+    write_parquet(search, out / SEARCH_FILE, config.to_json(), kind="falsify-search",
                   detector=label, budget=budget, seed=seed, dimensions=space.names,
                   strategy="sobol screening, CMA-ES on the worst cells, stream sweep")
     worst = _write_worst(config, search, label, keep, out, fitted_from, seed, budget)
@@ -547,5 +547,6 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
             f"({int(top['false_alarm'].sum())}), then by largest margin; margins "
             f"{', '.join(f'{m:.6g}' for m in top['margin'])}.\n"
             f"Replay (same margins): {replay}.")
-    (out / "worst.toml").write_text(worst_toml(config, runs, label=label, note=note))
+    # atomic, and written last: a search directory with worst.toml holds a finished search
+    write_text(out / WORST_FILE, worst_toml(config, runs, label=label, note=note))
     return ranked.iloc[0]

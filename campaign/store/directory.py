@@ -18,6 +18,12 @@ Layout (docs/design.md §6, Outputs)::
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
                               campaigns only, :mod:`reports.detection_times`)
     DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
+    DIR/worst-case/NAME-nN-seedS/  one worst-case search of ``gate --worst-case N``
+                              (:meth:`CampaignDir.worst_case_search_dir`): ``search.parquet``,
+                              ``worst.toml`` (the corpus later gates replay first) and
+                              ``learned/``; ``DIR/worst-case/replay/`` the corpus replay's
+                              work directory. Not in the manifest (as ``sampling/`` and
+                              ``validation/``): evidence re-evaluated by every gate
     DIR/.fdd-campaign.lock    held by the run writing into the directory
                               (:class:`campaign.store.lock.DirLock`)
 
@@ -71,6 +77,14 @@ __all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", 
            "write_text"]
 
 SHARD_GLOB = "part-*.parquet"
+#: Files of one worst-case search directory (``fdd-campaign falsify --out DIR`` and each
+#: search of ``gate --worst-case``): every evaluated run, and the campaign file of explicit
+#: ``[[run]]`` entries replaying the worst of them (written last: a search is finished when
+#: it is there).
+SEARCH_FILE = "search.parquet"
+WORST_FILE = "worst.toml"
+#: Sub-directory of a campaign directory holding the searches of ``gate --worst-case``.
+WORST_CASE_DIR = "worst-case"
 MANIFEST_NAME = "manifest.json"
 #: ``format`` of manifest.json and of fitted/LABEL.json: a reader refuses any other.
 MANIFEST_FORMAT = "fdd-campaign manifest 1"
@@ -804,6 +818,53 @@ class CampaignDir:
         """The stored exceedance curve of the certificate, or None when ``certify`` has not
         written one."""
         return _read_optional(self.certificate_levels_path)
+
+    # ---- worst-case searches (gate --worst-case) ----------------------------------------
+    @property
+    def worst_case_root(self) -> Path:
+        """``DIR/worst-case``: the searches of ``gate --worst-case`` and their corpus."""
+        return self.root / WORST_CASE_DIR
+
+    def worst_case_search_dir(self, name: str, budget: int, seed: int) -> Path:
+        """The directory of the search of detector *name* (result-row name) with *budget*
+        runs and *seed*: ``worst-case/NAME-nBUDGET-seedSEED`` (the name made file-safe)."""
+        safe = "".join(ch if ch.isalnum() or ch in "-_.=" else "_" for ch in name)
+        return self.worst_case_root / f"{safe}-n{int(budget)}-seed{int(seed)}"
+
+    def worst_case_replay_dir(self) -> Path:
+        """The work directory of the corpus replay (the fitted detectors taken from here)."""
+        return self.worst_case_root / "replay"
+
+    @staticmethod
+    def _search_meta(search_dir: Path) -> dict | None:
+        """The metadata of a finished search in *search_dir* (its ``worst.toml`` written,
+        hence its ``search.parquet``), or None."""
+        search_dir = Path(search_dir)
+        if not (search_dir / WORST_FILE).is_file() or not (search_dir / SEARCH_FILE).is_file():
+            return None
+        try:
+            return read_metadata(search_dir / SEARCH_FILE)
+        except (pa.ArrowInvalid, OSError):       # torn by a kill: computed again
+            return None
+
+    def finished_search(self, name: str, budget: int, seed: int, config_json: str) -> bool:
+        """Whether the search of (*name*, *budget*, *seed*) is stored, finished, and was
+        made for this campaign (*config_json*, the JSON form in its metadata)."""
+        meta = self._search_meta(self.worst_case_search_dir(name, budget, seed))
+        return (meta is not None and meta.get("detector") == name
+                and int(meta.get("budget", -1)) == int(budget)
+                and int(meta.get("seed", -1)) == int(seed)
+                and campaign_identity(meta.get("config") or {})
+                == campaign_identity(json.loads(config_json)))
+
+    def worst_case_corpus(self, name: str) -> list[Path]:
+        """The ``worst.toml`` of every finished search of detector *name* stored here (any
+        budget and seed), sorted by path: the corpus a worst-case gate replays first."""
+        root = self.worst_case_root
+        if not root.is_dir():
+            return []
+        return [d / WORST_FILE for d in sorted(root.iterdir())
+                if d.is_dir() and (self._search_meta(d) or {}).get("detector") == name]
 
     def write_report(self, page: str, path=None) -> Path:
         """Write the HTML report *page* to *path* (default ``report.html`` here)."""

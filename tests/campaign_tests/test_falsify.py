@@ -327,7 +327,7 @@ def test_scores_keep_the_flags_of_results_with_any_index():
     """The search's flag of a run is the campaign's ``false_alarm`` of that run, whatever
     the index of the result rows (a chunk's rows arrive with a non-default index; a flag
     taken by label through pandas' reindexing turned every one into False)."""
-    from campaign.evidence.falsify import _scores
+    from campaign.evidence.falsify import scores
 
     results = pd.DataFrame({
         "run_id": ["a", "b", "c", "d"], "detector": "m",
@@ -335,6 +335,6 @@ def test_scores_keep_the_flags_of_results_with_any_index():
         "false_alarm": [True, False, False, True], "margin": [1.4, 0.7, np.nan, 1.1],
     }, index=[10, 11, 12, 13])
     rows = pd.DataFrame({"run_id": ["d", "c", "b", "a"]})
-    margin, alarm = _scores(results, rows, "m")
+    margin, alarm = scores(results, rows, "m")
     np.testing.assert_array_equal(alarm, [True, False, False, True])
     np.testing.assert_array_equal(margin, [1.1, np.nan, 0.7, 1.4])
