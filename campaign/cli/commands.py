@@ -765,7 +765,51 @@ def _note(message, category, filename, lineno, file=None, line=None) -> None:
     print(f"{prefix}: {message}", file=sys.stderr, flush=True)
 
 
+class _ReaderMayLeave:
+    """Standard output that a reader may stop reading (``fdd-campaign run … | head -1``):
+    once a write finds the pipe closed, the rest of the output goes to the null device, so
+    the command finishes its work and exits with its own status (a gate's verdict
+    included) instead of stopping half-way with an error about a path."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _left(self):
+        import os
+
+        self._stream = open(os.devnull, "w")
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._left()
+            return len(text)
+
+    def flush(self):
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._left()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def main(argv=None) -> int:
+    """Run the command of *argv* (default the process's arguments); returns its exit code."""
+    if isinstance(sys.stdout, _ReaderMayLeave):
+        return _main(argv)
+    stdout = sys.stdout
+    sys.stdout = _ReaderMayLeave(stdout)
+    try:
+        return _main(argv)
+    finally:
+        if isinstance(sys.stdout, _ReaderMayLeave):
+            sys.stdout = stdout
+
+
+def _main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
