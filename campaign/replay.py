@@ -653,6 +653,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
         res, alarm = np.asarray(d.residual[0], float), np.asarray(d.alarm[0], bool)
         residuals[name] = (res, alarm)
         frame[f"{name} |r|/tau [-]"] = res
+        if d.decision is not None:     # what the alarm compares with 1; the margin's statistic
+            frame[f"{name} decision [-]"] = np.asarray(d.decision[0], float)
         frame[f"{name} alarm"] = alarm
         now = _score_text(again.loc[name])
         if name in stored.index and stored.loc[name, "status"] == "ok":
