@@ -1,6 +1,8 @@
-"""The position monitor's loop check against the hinge-moment band (detectors/builtin/position_monitor.py):
-the rod is accepted anywhere between the nominal servo model's outputs at the nominal hinge
-moment and at ``hinge_scale`` times it (docs/detectors.md, docs/thresholds.md)."""
+"""The position monitor's loop check against its band of models (detectors/builtin/position_monitor.py):
+the rod is accepted anywhere between the outputs of the nominal servo model and of its corner
+models — the servo-valve gain and the stall force at ``kci_scale`` / ``supply_scale`` (slow
+and fast valve corners), the hinge offset HM(0) and slope ∂HM/∂δ at the ends of
+``hinge_scale`` (docs/physics.md §6, docs/detectors.md, docs/thresholds.md)."""
 
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ from scenarios.runs import RUN_COLUMNS
 from scenarios.simulate import simulate, single_run
 
 ENGINES = ("compiled", "numpy")
+#: the band of one model: the plain nominal model (every range of the band at 1)
+PLAIN = {"hinge_scale": (1.0, 1.0), "kci_scale": (1.0, 1.0), "supply_scale": (1.0, 1.0)}
 
 
 def _batch(manoeuvre: str, n: int, **point) -> pd.DataFrame:
@@ -36,17 +40,20 @@ def near_stall():
                            **LIGHT_HINGE))[0]
 
 
-def test_hinge_scale_one_is_the_plain_nominal_model_bit_for_bit(near_stall):
-    plain = PositionMonitor(hinge_scale=(1.0, 1.0)).residuals(near_stall)["loop"]
+def test_a_band_of_ones_is_the_plain_nominal_model_bit_for_bit(near_stall):
+    plain = PositionMonitor(**PLAIN).residuals(near_stall)["loop"]
     np.testing.assert_array_equal(plain,
                                   near_stall.rod_com - PositionMonitor.model_output(
                                       near_stall, model_step="euler"))
 
 
-def test_loop_residual_is_the_distance_outside_the_hull_of_the_three_models(near_stall):
-    det = PositionMonitor(hinge_scale=(0.6, 1.6))
-    outs = [PositionMonitor.model_output(near_stall, hinge_scale=s, model_step="euler")
-            for s in (1.0, 0.6, 1.6)]
+def test_loop_residual_is_the_distance_outside_the_hull_of_the_nine_models(near_stall):
+    det = PositionMonitor()
+    corners = [(1.0, 1.0, 1.0, 1.0)] + [(v, v, o, d) for v in (0.95, 1.05)
+                                        for o in (0.6, 1.6) for d in (0.6, 1.6)]
+    assert det.band_corners() == tuple(corners)
+    outs = [PositionMonitor.model_output(near_stall, corner=c, model_step="euler")
+            for c in corners]
     lo, hi = np.minimum.reduce(outs), np.maximum.reduce(outs)
     np.testing.assert_array_equal(det.model_band(near_stall)[0], lo)
     np.testing.assert_array_equal(det.model_band(near_stall)[1], hi)
@@ -62,8 +69,8 @@ def test_loop_residual_is_the_distance_outside_the_hull_of_the_three_models(near
 def test_band_absorbs_a_lighter_hinge_moment_near_stall(near_stall):
     # The plain model leaves 0.52-0.60 mm of residual on these runs (measured), about twice the
     # loop threshold this monitor learns on addsafe-mc (0.30 mm, docs/thresholds.md); inside the
-    # band only the sensor noise and the ±5 % supply/valve-gain effects remain (0.10-0.14 mm).
-    plain = np.abs(PositionMonitor(hinge_scale=(1, 1)).residuals(near_stall)["loop"]).max(axis=1)
+    # band only the sensor noise and the supply/valve-gain effects remain.
+    plain = np.abs(PositionMonitor(**PLAIN).residuals(near_stall)["loop"]).max(axis=1)
     band = np.abs(PositionMonitor().residuals(near_stall)["loop"]).max(axis=1)
     assert np.all(plain > 0.45)
     assert np.all(band < 0.2)
@@ -105,9 +112,12 @@ def test_nan_acquisition_stays_nan_in_both_engines(near_stall):
             assert np.isnan(det.detect(sig).residual[0, 100]), engine
 
 
-def test_hinge_scale_is_validated():
-    with pytest.raises(ValueError, match="hinge_scale"):
-        PositionMonitor(hinge_scale=(0.6,)).validate_params()
+@pytest.mark.parametrize("params, name", [
+    ({"hinge_scale": (0.6,)}, "hinge_scale"), ({"kci_scale": (0.0, 1.05)}, "kci_scale"),
+    ({"supply_scale": (0.95, 1.0, 1.05)}, "supply_scale"), ({"band": "all"}, "band")])
+def test_band_parameters_are_validated(params, name):
+    with pytest.raises(ValueError, match=name):
+        PositionMonitor(**params).validate_params()
 
 
 def test_euler_model_stays_within_a_tenth_of_the_loop_threshold_of_the_rk4_model():
