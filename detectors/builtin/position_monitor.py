@@ -9,13 +9,27 @@ threshold for a confirmation time. Three consistency checks, each optional:
     order u — the model of docs/physics.md §3 with the nominal actuator parameters, loaded by the
     hinge moment at the *measured* flight point (the monitor never sees the true one). It
     catches runaways (the rod leaves the order) and solid jams (the rod stops following it).
-    The hinge moment is the model's least known input (docs/physics.md §6: coefficient
-    mismatch, [CHEN] Table 2 aerodynamic errors, q̄ from a measured airspeed), and near the
-    stall force (docs/physics.md §8) a rod's position is very sensitive to it. So the model is
-    run at the nominal hinge moment and at ``hinge_scale`` = (low, high) times it, and the loop
-    residual is how far the rod lies *outside* the hull of the three outputs (0 inside it) — a
-    set-membership check in the manner of [COMB]'s interval bounds. With ``hinge_scale =
-    (1, 1)`` it is the plain difference to the nominal model. The models are discretised
+    The plant differs from that model by a mismatch drawn per run (docs/physics.md §6): the
+    servo-valve gain Kci and the supply pressure (the stall force S·ΔP) within ±5 %, and the
+    hinge moment, the model's least known input (Ch0, Chα and Chδ each within ±20 %, [CHEN]
+    Table 2 aerodynamic errors, q̄ from a measured airspeed). Near the stall force
+    (docs/physics.md §8) a rod's position is very sensitive to the hinge moment, and while
+    the current is saturated the rod moves open loop at a speed set by Kci and S·ΔP
+    (docs/physics.md §3), so a valve-gain or supply error accumulates into a position error
+    until the loop closes again. So the model is run at the corners of that mismatch, a band
+    of models (:meth:`PositionMonitor.band_corners`): the nominal one, and a slow valve corner
+    (Kci × the low ``kci_scale``, S·ΔP × the low ``supply_scale``; S·ΔP_ref stays nominal,
+    as in the plant, docs/physics.md §3) and a fast one (both high), each with the hinge
+    offset HM(0) = q̄·S_c·c_c·(Ch0 + Chα·α_s) and slope ∂HM/∂δ = q̄·S_c·c_c·Chδ at the ends
+    of ``hinge_scale`` — independently (``band = "corners"``, the default: 1 + 2 × 2 × 2 = 9
+    models) or both at the same end (``band = "paired"``, 5 models, cheaper, measured to
+    leave false alarms: docs/thresholds.md, "The band of corner models"). The rod speed
+    grows with Kci and with S·ΔP, so the two valve corners bound the speeds the plant can
+    draw. The loop residual is how far the rod lies *outside* the hull of the models'
+    outputs (0 inside it) — a set-membership check in the manner of [COMB]'s interval
+    bounds. With every range at (1, 1) it is the plain difference to the nominal model;
+    ``kci_scale = supply_scale = (1, 1)`` with ``band = "paired"`` is the band of three
+    hinge-moment models of the versions before. The models are discretised
     at the FCC period Ts with one explicit Euler step (``model_step = "euler"``, the
     default: one rate-law evaluation per model and step, :func:`euler_step`, the model as
     a flight-control computer runs it at its period). On fault-free runs it stays within
@@ -71,6 +85,10 @@ CHECKS = ("loop", "com_mon", "surface")
 #: step per FCC period, Heun's step, or the plant's RK4 step; each one's rate-law
 #: evaluations per step are :data:`scenarios.compiled.STEP_STAGES`.
 MODEL_STEPS = tuple(STEP_STAGES)
+#: Layouts of the loop check's band of models (``band``, :meth:`PositionMonitor.band_corners`):
+#: every valve corner with the hinge offset and slope factors at their ends independently, or
+#: with both at the same end.
+BANDS = ("corners", "paired")
 
 
 def euler_step(x_mm, i_mA, p: PlantArrays, loaded, h: float) -> np.ndarray:
@@ -189,13 +207,24 @@ class PositionMonitor(Detector):
         manoeuvre (``"evt"``, the default) or ``safety`` × the largest learning value
         (``"max"``); :data:`detectors.calibrate.THRESHOLD_PARAMS`, docs/thresholds.md.
     hinge_scale : (float, float)
-        (low, high) multiples of the nominal hinge moment between which the ``loop`` check
-        accepts the rod (module docstring). Default (0.6, 1.6): the true hinge moment over the
-        model's when the documented uncertainties add up — coefficient mismatch ±20 %
-        (docs/physics.md §6, est.), aerodynamic error ±5 % and q̄ from an airspeed measured
-        within ±10 % ([CHEN] Table 2; q̄ ∝ VCAS², so the true q̄ is 0.83–1.23 times the one the
-        model uses): 0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards.
-        (1, 1): the plain nominal model.
+        (low, high) multiples of the nominal hinge moment's offset HM(0) and slope ∂HM/∂δ at
+        which the band's models run (module docstring; each independently with ``band =
+        "corners"``). Default (0.6, 1.6): the true hinge moment over the model's when the
+        documented uncertainties add up — coefficient mismatch ±20 % (docs/physics.md §6,
+        est.), aerodynamic error ±5 % and q̄ from an airspeed measured within ±10 % ([CHEN]
+        Table 2; q̄ ∝ VCAS², so the true q̄ is 0.83–1.23 times the one the model uses):
+        0.8 · 0.95 · 0.83 = 0.63 and 1.2 · 1.05 · 1.23 = 1.55, rounded outwards. (1, 1): the
+        nominal hinge moment.
+    kci_scale, supply_scale : (float, float)
+        (low, high) multiples of the servo-valve gain Kci and of the stall force S·ΔP (S·ΔP_ref
+        stays nominal) of the band's slow (both low) and fast (both high) valve corners.
+        Default (0.95, 1.05): the half-widths of the plant's d_kci and d_supply draws
+        (docs/physics.md §6, ±5 %, est.). (1, 1): the nominal valve and supply.
+    band : str
+        ``"corners"`` (the default): the nominal model and each valve corner with HM(0) and
+        ∂HM/∂δ at the ends of ``hinge_scale`` independently, 9 models; ``"paired"``: both
+        hinge factors at the same end, 5 models (docs/thresholds.md, "The band of corner
+        models": it leaves false alarms the nine do not).
     model_step : str
         Discretisation of the loop check's models: ``"euler"`` (the default: one rate-law
         evaluation per model and FCC period, as a flight-control computer runs a model;
@@ -219,8 +248,9 @@ class PositionMonitor(Detector):
               "(guards against a learning set without motion)"),
         *THRESHOLD_PARAMS,
         Param("hinge_scale", "floats", gt=0.0, length=2, doc="(low, high) multiples of the "
-              "nominal hinge moment: the loop check accepts the rod anywhere between the model "
-              "outputs at these loads (1, 1: the plain nominal model)",
+              "nominal hinge moment's offset HM(0) and slope ∂HM/∂δ: the band's models take "
+              "each at these ends (independently with band = corners, together with band = "
+              "paired); (1, 1): the nominal hinge moment",
               source="docs/physics.md §6 and [CHEN] Table 2 half-widths combined"),
         Param("model_step", "choice", choices=MODEL_STEPS, doc="discretisation of the loop "
               "check's servo models: euler (one rate-law evaluation per model and FCC period, as "
@@ -228,11 +258,25 @@ class PositionMonitor(Detector):
               "heun (two evaluations; within 2e-4 mm of rk4) or rk4 (the plant's integrator, "
               "four evaluations)",
               source="docs/physics.md §2–3, docs/execution.md"),
+        Param("kci_scale", "floats", gt=0.0, length=2, doc="(low, high) multiples of the "
+              "servo-valve gain Kci of the band's slow and fast valve corners (paired with "
+              "supply_scale); (1, 1): the nominal gain",
+              source="docs/physics.md §6, d_kci half-width 5 % (est.)"),
+        Param("supply_scale", "floats", gt=0.0, length=2, doc="(low, high) multiples of the "
+              "stall force S·ΔP (ΔP_ref stays nominal) of the band's slow and fast valve "
+              "corners (paired with kci_scale); (1, 1): the nominal supply pressure",
+              source="docs/physics.md §3 and §6, d_supply half-width 5 % (est.)"),
+        Param("band", "choice", choices=BANDS, doc="models of the loop check's band: corners "
+              "(the nominal model and each valve corner with the hinge offset and slope "
+              "factors at their ends independently, 9 models) or paired (each valve corner "
+              "with both hinge factors low or both high, 5 models)",
+              source="docs/physics.md §6 (the mismatch the plant draws), docs/thresholds.md"),
     )
 
     def __init__(self, safety=1.5, confirm_s=0.05, checks=CHECKS, floor_mm=0.05,
                  threshold_method="evt", target_fa_per_run=1e-4, threshold_confidence=0.95,
-                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="euler"):
+                 threshold_tail="exponential", hinge_scale=(0.6, 1.6), model_step="euler",
+                 kci_scale=(0.95, 1.05), supply_scale=(0.95, 1.05), band="corners"):
         self.safety = safety
         self.confirm_s = confirm_s
         self.checks = checks
@@ -243,6 +287,9 @@ class PositionMonitor(Detector):
         self.threshold_tail = threshold_tail
         self.hinge_scale = hinge_scale
         self.model_step = model_step
+        self.kci_scale = kci_scale
+        self.supply_scale = supply_scale
+        self.band = band
 
     # ---- residuals ---------------------------------------------------------------------
     def _checks(self) -> list[str]:
@@ -256,26 +303,41 @@ class PositionMonitor(Detector):
         return checks
 
     @staticmethod
-    def model_plant(signals: Signals, hinge_scale: float = 1.0):
-        """Plant parameters (:class:`scenarios.servo.PlantArrays`) of the nominal servo model:
-        the nominal actuator at the measured flight point (docs/physics.md §3, §6), its hinge
-        moment (both HM(0) and ∂HM/∂δ) times *hinge_scale*."""
+    def model_plant(signals: Signals, hinge_scale: float = 1.0, corner=None):
+        """Plant parameters (:class:`scenarios.servo.PlantArrays`) of a servo model of the
+        band: the nominal actuator at the measured flight point (docs/physics.md §3, §6), its
+        hinge moment (both HM(0) and ∂HM/∂δ) times *hinge_scale*; or, given *corner* =
+        (Kci, S·ΔP, HM(0), ∂HM/∂δ) factors (:meth:`band_corners`), the servo-valve gain Kci,
+        the stall force S·ΔP, HM(0) = q̄·S_c·c_c·(Ch0 + Chα·α_s) and ∂HM/∂δ = q̄·S_c·c_c·Chδ
+        each times its factor (docs/physics.md §6, the mismatch the plant draws: d_kci,
+        d_supply, d_ch0/d_cha, d_chd). The supply factor moves S·ΔP only, as the plant's
+        d_supply does: S·ΔP_ref stays nominal (docs/physics.md §3, "Limits")."""
         sch = signals.schedule
         plant = plant_arrays(signals.actuator, qbar_pa=sch["qbar_pa"], alpha_deg=sch["alpha_deg"],
                              mach=sch["mach"])
-        if hinge_scale != 1.0:
-            plant = replace(plant, hm_0=plant.hm_0 * hinge_scale,
-                            hm_delta=plant.hm_delta * hinge_scale)
-        return plant
+        kci, supply, offset, slope = ((1.0, 1.0, hinge_scale, hinge_scale) if corner is None
+                                      else (float(v) for v in corner))
+        changes = {}
+        if kci != 1.0:
+            changes["Kci"] = plant.Kci * kci
+        if supply != 1.0:
+            changes["SdP"] = plant.SdP * supply
+        if offset != 1.0:
+            changes["hm_0"] = plant.hm_0 * offset
+        if slope != 1.0:
+            changes["hm_delta"] = plant.hm_delta * slope
+        return replace(plant, **changes) if changes else plant
 
     @staticmethod
     def model_output(signals: Signals, engine: str | None = None,
-                     hinge_scale: float = 1.0, model_step: str = "rk4") -> np.ndarray:
+                     hinge_scale: float = 1.0, model_step: str = "rk4",
+                     corner=None) -> np.ndarray:
         """Nominal closed-loop servo model driven by the order (docs/physics.md §2–3) [mm].
 
         *engine*: ``"compiled"`` (:func:`scenarios.compiled.servo_model`) or ``"numpy"`` (the
         reference loop below); default :func:`scenarios.compiled.current_engine`.
-        *hinge_scale*: the model's hinge moment (both HM(0) and ∂HM/∂δ) times this factor.
+        *hinge_scale*: the model's hinge moment (both HM(0) and ∂HM/∂δ) times this factor;
+        *corner*: (Kci, S·ΔP, HM(0), ∂HM/∂δ) factors instead (:meth:`model_plant`).
         *model_step*: one of :data:`MODEL_STEPS` (:func:`euler_step`, or the plant's RK4 step:
         the default of this function, which other detectors call for the expected rod; the
         monitor passes its own ``model_step``).
@@ -283,7 +345,7 @@ class PositionMonitor(Detector):
         if model_step not in MODEL_STEPS:
             raise ValueError(f"unknown model_step {model_step!r}; choose one of "
                              f"{', '.join(MODEL_STEPS)}")
-        plant = PositionMonitor.model_plant(signals, hinge_scale)
+        plant = PositionMonitor.model_plant(signals, hinge_scale, corner)
         if resolve_engine(engine) == "compiled":
             return servo_model(signals.command, signals.rod_com[:, 0], plant, signals.ts,
                                stages=STEP_STAGES[model_step])
@@ -301,10 +363,28 @@ class PositionMonitor(Detector):
             i_prev = i_new
         return out
 
-    def band_scales(self) -> tuple[float, ...]:
-        """The hinge-moment factors of the band's models: 1 (the nominal model) first, then
-        the other values of ``hinge_scale`` in increasing order (just (1.0,) for (1, 1))."""
-        return (1.0, *sorted({float(v) for v in self.hinge_scale} - {1.0}))
+    def band_corners(self) -> tuple[tuple[float, float, float, float], ...]:
+        """The (Kci, S·ΔP, HM(0), ∂HM/∂δ) factors of the band's models (:meth:`model_plant`),
+        the nominal model (1, 1, 1, 1) first, without repeats (just the nominal one when every
+        range is (1, 1)). The valve corners: slow (the low ``kci_scale`` with the low
+        ``supply_scale``; the rod speed of docs/physics.md §3 grows with both) and fast (both
+        high). ``band = "corners"``: each valve corner with HM(0) and ∂HM/∂δ at the ends of
+        ``hinge_scale`` independently (2 × 2 × 2, nine models with the nominal one);
+        ``"paired"``: with both hinge factors low or both high (2 × 2, five models)."""
+        kci = sorted(float(v) for v in self.kci_scale)
+        supply = sorted(float(v) for v in self.supply_scale)
+        h_lo, h_hi = sorted(float(v) for v in self.hinge_scale)
+        if self.band == "paired":
+            hinges = [(h_lo, h_lo), (h_hi, h_hi)]
+        else:
+            hinges = [(o, d) for o in (h_lo, h_hi) for d in (h_lo, h_hi)]
+        corners = [(1.0, 1.0, 1.0, 1.0)]
+        for valve in ((kci[0], supply[0]), (kci[1], supply[1])):
+            for hinge in hinges:
+                corner = (*valve, *hinge)
+                if corner not in corners:
+                    corners.append(corner)
+        return tuple(corners)
 
     def rate_evaluations_per_step(self) -> int:
         """Evaluations of the rate law (docs/physics.md §3) per run and step of ``detect``:
@@ -313,7 +393,7 @@ class PositionMonitor(Detector):
         arithmetic floor)."""
         if "loop" not in self._checks():
             return 0
-        return len(self.band_scales()) * STEP_STAGES[self.model_step]
+        return len(self.band_corners()) * STEP_STAGES[self.model_step]
 
     def model_band(self, signals: Signals,
                    engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -325,16 +405,16 @@ class PositionMonitor(Detector):
         :meth:`model_output`, then ``np.minimum``/``np.maximum``); default
         :func:`scenarios.compiled.current_engine`. Both give the same values.
         """
-        scales = self.band_scales()
-        if len(scales) == 1:
+        corners = self.band_corners()
+        if len(corners) == 1:
             nominal = self.model_output(signals, engine=engine, model_step=self.model_step)
             return nominal, nominal
         if resolve_engine(engine) == "compiled":
             return servo_band(signals.command, signals.rod_com[:, 0],
-                              [self.model_plant(signals, v) for v in scales], signals.ts,
+                              [self.model_plant(signals, corner=c) for c in corners], signals.ts,
                               stages=STEP_STAGES[self.model_step])
-        outs = [self.model_output(signals, engine="numpy", hinge_scale=v,
-                                  model_step=self.model_step) for v in scales]
+        outs = [self.model_output(signals, engine="numpy", corner=c,
+                                  model_step=self.model_step) for c in corners]
         return np.minimum.reduce(outs), np.maximum.reduce(outs)
 
     def residuals(self, signals: Signals) -> dict[str, np.ndarray]:
@@ -401,7 +481,8 @@ class PositionMonitor(Detector):
         rod_com = c(signals.rod_com)
         if "loop" in checks:
             u = c(signals.command)
-            plants = band_plants([self.model_plant(signals, v) for v in self.band_scales()])
+            plants = band_plants([self.model_plant(signals, corner=c)
+                                  for c in self.band_corners()])
         else:
             u, plants = empty, np.zeros((0, kernels.FIELD_ROWS, signals.n_runs))
         rod_mon = c(signals.rod_mon) if ("com_mon" in checks or "surface" in checks) else empty

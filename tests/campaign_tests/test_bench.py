@@ -141,7 +141,8 @@ def test_bench_announces_each_measurement_on_stderr_unless_quiet(capsys):
 # ---- the arithmetic floor ----------------------------------------------------------------------
 def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     """smoke: the actuator plant's RK4 (4 per step) on the plan and the learning set and the
-    position monitor's band of three Euler models (3 per step, its default) on both sets (it
+    position monitor's band of nine Euler models (9 per step, its default: the nominal model
+    and the eight valve and hinge corners) on both sets (it
     is fitted); no detector estimates the rod fault, so the jam runs' healthy rod model is
     never computed nor counted."""
     config = load_config("smoke")
@@ -153,7 +154,7 @@ def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     assert jams > 0
     assert counts["parts"] == {
         "plant (actuator)": 4 * (len(plan) + len(learning)) * steps,
-        "detect position-monitor": 3 * (len(plan) + len(learning)) * steps}
+        "detect position-monitor": 9 * (len(plan) + len(learning)) * steps}
 
 
 def test_rate_evaluations_count_the_healthy_rod_model_when_a_detector_estimates_it():
@@ -168,12 +169,19 @@ def test_rate_evaluations_count_the_healthy_rod_model_when_a_detector_estimates_
         4 * jams * steps)
 
 
+#: the band of one model (every range at 1)
+_PLAIN = {"hinge_scale": (1.0, 1.0), "kci_scale": (1.0, 1.0), "supply_scale": (1.0, 1.0)}
+
+
 @pytest.mark.parametrize("params, count", [
-    ({}, 3), ({"model_step": "heun"}, 6), ({"model_step": "rk4"}, 12), ({"model_step": "euler"}, 3), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 1),
+    ({}, 9), ({"model_step": "heun"}, 18), ({"model_step": "rk4"}, 36), ({"model_step": "euler"}, 9),
+    ({"band": "paired"}, 5), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 3),
+    ({"model_step": "euler", **_PLAIN}, 1),
     ({"checks": ("com_mon", "surface")}, 0),
-    ({"model_step": "euler", "checks": "loop", "hinge_scale": (1.0, 2.0)}, 2),
-    ({"hinge_scale": (1.0, 2.0)}, 2), ({"model_step": "rk4", "hinge_scale": (1.0, 2.0)}, 8),
-    ({"model_step": "heun", "hinge_scale": (1.0, 2.0)}, 4),
+    ({"model_step": "euler", "checks": "loop", **_PLAIN, "hinge_scale": (1.0, 2.0)}, 4),
+    ({**_PLAIN, "hinge_scale": (1.0, 2.0), "band": "paired"}, 2),
+    ({**_PLAIN, "model_step": "rk4", "hinge_scale": (1.0, 2.0), "band": "paired"}, 8),
+    ({**_PLAIN, "model_step": "heun", "hinge_scale": (1.0, 2.0), "band": "paired"}, 4),
 ])
 def test_position_monitor_declares_its_evaluations_per_model_and_step(params, count):
     # one rate-law evaluation per model of the band and Euler step, two per Heun step,

@@ -1,6 +1,7 @@
 """The position monitor (detectors/builtin/position_monitor.py, docs/detectors.md) pinned by value on
 hand-built inputs, in both engines and in a few seconds: the nominal servo model and its
-hinge-moment band against the reference integrator (docs/physics.md §2–3), each check's
+band of corner models (servo-valve gain, supply pressure, hinge offset and slope) against the
+reference integrator (docs/physics.md §2–3), each check's
 residual and its sign, the learned thresholds (``"max"`` and ``"evt"`` with the target shared
 by the active checks) and the normalised residual and confirmation of several checks at once.
 
@@ -31,6 +32,8 @@ TS = 0.01
 #: flight point of the hand-built runs [Pa, deg, -]: q̄ = 20 kPa loads the rod, so the
 #: hinge-moment scale moves the model (docs/physics.md §3)
 QBAR, ALPHA, MACH = 20e3, 3.0, 0.7
+#: the band of one model: the plain nominal model (every range of the band at 1)
+PLAIN = {"hinge_scale": (1.0, 1.0), "kci_scale": (1.0, 1.0), "supply_scale": (1.0, 1.0)}
 
 
 def signals(rod_com, rod_mon=None, surface=None, command=None, classes=None):
@@ -51,16 +54,20 @@ def signals(rod_com, rod_mon=None, surface=None, command=None, classes=None):
         actuator=ELEVATOR, run_ids=np.array([f"r{i}" for i in range(n)]), classes=classes)
 
 
-def model_by_hand(u, x0, hinge_scale=1.0, step="euler"):
+def model_by_hand(u, x0, hinge_scale=1.0, step="euler", corner=None):
     """The nominal loop driven by *u* from *x0* (docs/physics.md §2–3): the output at step k
     is x_k; the current sat(K·(u_k − x_k)) computed at step k is held over the next period,
     so the rod moves under the previous step's current (none before step 1). *step*:
     ``"euler"``, x_{k+1} = clip(x_k + Ts·ẋ(x_k, i_{k−1})), ``"heun"``, x_{k+1} = clip(x_k +
-    Ts/2·(ẋ(x_k) + ẋ(x_k + Ts·ẋ(x_k)))), or ``"rk4"``."""
+    Ts/2·(ẋ(x_k) + ẋ(x_k + Ts·ẋ(x_k)))), or ``"rk4"``. *corner*: (Kci, S·ΔP, HM(0),
+    ∂HM/∂δ) factors of the model instead of *hinge_scale* (docs/physics.md §6; S·ΔP_ref
+    stays nominal, §3)."""
     n, T = u.shape
     p = plant_arrays(ELEVATOR, qbar_pa=np.full(n, QBAR), alpha_deg=np.full(n, ALPHA),
                      mach=np.full(n, MACH))
-    p = replace(p, hm_0=p.hm_0 * hinge_scale, hm_delta=p.hm_delta * hinge_scale)
+    kci, supply, offset, slope = (1.0, 1.0, hinge_scale, hinge_scale) if corner is None else corner
+    p = replace(p, Kci=p.Kci * kci, SdP=p.SdP * supply, hm_0=p.hm_0 * offset,
+                hm_delta=p.hm_delta * slope)
     out = np.empty((n, T))
     x, i_prev = np.asarray(x0, float).copy(), np.zeros(n)
     for k in range(T):
@@ -118,26 +125,96 @@ def test_model_plant_scales_both_hinge_moment_terms_only():
             np.testing.assert_array_equal(getattr(scaled, name), value, err_msg=name)
 
 
-@pytest.mark.parametrize("hinge_scale, scales", [
-    ((0.6, 1.6), (1.0, 0.6, 1.6)), ((1.6, 0.6), (1.0, 0.6, 1.6)), ((1.0, 1.0), (1.0,)),
-    ((1.0, 2.0), (1.0, 2.0)), ((0.5, 0.5), (1.0, 0.5)),
+def test_model_plant_corner_scales_kci_stall_force_and_each_hinge_term_only():
+    # docs/physics.md §6: the plant's d_kci, d_supply, d_ch0/d_cha and d_chd; the supply
+    # moves S·ΔP only, S·ΔP_ref stays nominal (docs/physics.md §3, "Limits")
+    sig = signals(_rod(), command=U)
+    nominal = PositionMonitor.model_plant(sig)
+    corner = PositionMonitor.model_plant(sig, corner=(0.95, 1.05, 0.6, 1.6))
+    assert corner.Kci == pytest.approx(0.95 * nominal.Kci, rel=1e-15)
+    assert corner.SdP == pytest.approx(1.05 * nominal.SdP, rel=1e-15)
+    assert corner.hm_0 == pytest.approx(0.6 * nominal.hm_0, rel=1e-15)
+    assert corner.hm_delta == pytest.approx(1.6 * nominal.hm_delta, rel=1e-15)
+    for name, value in vars(nominal).items():
+        if name not in ("Kci", "SdP", "hm_0", "hm_delta"):
+            np.testing.assert_array_equal(getattr(corner, name), value, err_msg=name)
+
+
+def _corners(hinge_scale, kci=(0.95, 1.05), supply=(0.95, 1.05), band="corners"):
+    """The band's corners written out: nominal first, then the slow valve corner (low Kci,
+    low S·ΔP) and the fast one, each with the hinge (offset, slope) ends, without repeats."""
+    lo, hi = sorted(hinge_scale)
+    hinges = ([(lo, lo), (hi, hi)] if band == "paired"
+              else [(lo, lo), (lo, hi), (hi, lo), (hi, hi)])
+    out = [(1.0, 1.0, 1.0, 1.0)]
+    for valve in ((min(kci), min(supply)), (max(kci), max(supply))):
+        for h in hinges:
+            if (*valve, *h) not in out:
+                out.append((*valve, *h))
+    return tuple(out)
+
+
+@pytest.mark.parametrize("params, count", [
+    ({}, 9), ({"band": "paired"}, 5), ({"hinge_scale": (1.6, 0.6)}, 9),
+    ({"hinge_scale": (1.0, 1.0)}, 3), ({"kci_scale": (1.0, 1.0), "supply_scale": (1.0, 1.0)}, 5),
+    (PLAIN, 1), ({**PLAIN, "hinge_scale": (1.0, 2.0)}, 4),
+    ({**PLAIN, "hinge_scale": (1.0, 2.0), "band": "paired"}, 2),
+    ({**PLAIN, "hinge_scale": (0.5, 0.5)}, 2),
 ])
-def test_band_scales_put_the_nominal_model_first(hinge_scale, scales):
-    assert PositionMonitor(hinge_scale=hinge_scale).band_scales() == scales
+def test_band_corners_put_the_nominal_model_first(params, count):
+    corners = PositionMonitor(**params).band_corners()
+    assert corners[0] == (1.0, 1.0, 1.0, 1.0)
+    assert len(corners) == count == len(set(corners))
+    assert corners == _corners(params.get("hinge_scale", (0.6, 1.6)),
+                               params.get("kci_scale", (0.95, 1.05)),
+                               params.get("supply_scale", (0.95, 1.05)),
+                               params.get("band", "corners"))
+
+
+def test_default_band_is_the_nine_corners_of_the_mismatch_the_plant_draws():
+    # docs/physics.md §6: Kci and S·ΔP ±5 % (slow and fast valve corners), HM(0) and ∂HM/∂δ
+    # each at 0.6 or 1.6 (hinge_scale) independently
+    assert PositionMonitor().band_corners() == (
+        (1.0, 1.0, 1.0, 1.0),
+        (0.95, 0.95, 0.6, 0.6), (0.95, 0.95, 0.6, 1.6), (0.95, 0.95, 1.6, 0.6),
+        (0.95, 0.95, 1.6, 1.6),
+        (1.05, 1.05, 0.6, 0.6), (1.05, 1.05, 0.6, 1.6), (1.05, 1.05, 1.6, 0.6),
+        (1.05, 1.05, 1.6, 1.6))
 
 
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
-@pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 2.0), (1.0, 1.0)])
-def test_model_band_is_the_hull_of_the_scaled_models(engine, step, hinge_scale):
+@pytest.mark.parametrize("params", [{}, {"band": "paired"}, {**PLAIN, "hinge_scale": (1.0, 2.0)},
+                                    PLAIN, {"hinge_scale": (1.0, 1.0)}])
+def test_model_band_is_the_hull_of_the_corner_models(engine, step, params):
     sig = signals(_rod(), command=U)
-    det = PositionMonitor(hinge_scale=hinge_scale, model_step=step)
+    det = PositionMonitor(model_step=step, **params)
     lo, hi = det.model_band(sig, engine=engine)
-    outs = [model_by_hand(U, X0, s, step=step) for s in {1.0, *hinge_scale}]
+    corners = _corners(params.get("hinge_scale", (0.6, 1.6)),
+                       params.get("kci_scale", (0.95, 1.05)),
+                       params.get("supply_scale", (0.95, 1.05)), params.get("band", "corners"))
+    outs = [model_by_hand(U, X0, step=step, corner=c) for c in corners]
     assert lo == pytest.approx(np.minimum.reduce(outs), rel=1e-12, abs=1e-12)
     assert hi == pytest.approx(np.maximum.reduce(outs), rel=1e-12, abs=1e-12)
-    if hinge_scale != (1.0, 1.0):
-        assert np.max(hi - lo) > 1e-3          # the hinge moment moves the models apart
+    if params != PLAIN:
+        assert np.max(hi - lo) > 1e-3          # the corners move the models apart
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_valve_corners_bound_the_saturated_rod_speed(engine):
+    # run 0: the current saturates at −i_max from step 2 on; the rod then moves open-loop
+    # at Kci·i_max·sqrt(num/(S·ΔP_ref + Ka·(Kci·i_max)²)) (docs/physics.md §3), slower with
+    # the low Kci and S·ΔP, faster with the high ones: the slow and fast corners (hinge
+    # moment nominal) straddle the nominal model there
+    sig = signals(_rod(), command=U)
+    det = PositionMonitor(hinge_scale=(1.0, 1.0))
+    lo, hi = det.model_band(sig, engine=engine)
+    slow = model_by_hand(U, X0, corner=(0.95, 0.95, 1.0, 1.0))
+    fast = model_by_hand(U, X0, corner=(1.05, 1.05, 1.0, 1.0))
+    nominal = model_by_hand(U, X0)
+    assert np.all(fast[0, 3:] < nominal[0, 3:]) and np.all(nominal[0, 3:] < slow[0, 3:])
+    assert lo[0] == pytest.approx(fast[0], rel=1e-12, abs=1e-12)
+    assert hi[0] == pytest.approx(slow[0], rel=1e-12, abs=1e-12)
 
 
 # ---- residuals ---------------------------------------------------------------------------
@@ -146,7 +223,7 @@ def test_each_check_residual_by_hand():
     mon = rod - 0.25
     surface = np.full(rod.shape, 1.5)                        # deg
     sig = signals(rod, mon, surface, command=U)
-    res = PositionMonitor(hinge_scale=(1.0, 1.0)).residuals(sig)
+    res = PositionMonitor(**PLAIN).residuals(sig)
     assert set(res) == {"loop", "com_mon", "surface"}
     np.testing.assert_array_equal(res["com_mon"], np.full(rod.shape, 0.25))   # COM − MON
     assert res["surface"] == pytest.approx(ELEVATOR.r_mm * np.sin(np.radians(1.5)) - mon,
@@ -258,7 +335,7 @@ def _decision_case():
 @pytest.mark.parametrize("engine", ENGINES)
 def test_normalised_residual_is_the_largest_check_ratio(engine):
     sig = _decision_case()
-    det = PositionMonitor(confirm_s=0.02, hinge_scale=(1.0, 1.0))
+    det = PositionMonitor(confirm_s=0.02, **PLAIN)
     det.thresholds_mm_ = {"loop": 0.6, "com_mon": 0.2, "surface": 2.0}
     det.learning_runs_ = 1
     with use_engine(engine):
@@ -283,7 +360,7 @@ def test_normalised_residual_is_the_largest_check_ratio(engine):
 @pytest.mark.parametrize("checks", [("surface",), ("com_mon",), ("loop",)])
 def test_a_single_check_decides_alone(engine, checks):
     sig = _decision_case()
-    det = PositionMonitor(confirm_s=0.0, checks=checks, hinge_scale=(1.0, 1.0))
+    det = PositionMonitor(confirm_s=0.0, checks=checks, **PLAIN)
     det.thresholds_mm_ = {checks[0]: 0.25}
     det.learning_runs_ = 1
     with use_engine(engine):
@@ -305,7 +382,7 @@ def test_a_nan_acquisition_makes_the_residual_nan(engine):
     mon = sig.rod_mon.copy()
     mon[0, 4] = np.nan
     sig = replace(sig, rod_mon=mon)
-    det = PositionMonitor(confirm_s=0.0, hinge_scale=(1.0, 1.0))
+    det = PositionMonitor(confirm_s=0.0, **PLAIN)
     det.thresholds_mm_ = {"loop": 0.6, "com_mon": 0.2, "surface": 2.0}
     det.learning_runs_ = 1
     with use_engine(engine):
@@ -321,7 +398,7 @@ def test_a_nan_com_acquisition_makes_the_residual_nan(engine, checks):
     rod = sig.rod_com.copy()
     rod[1, 4] = np.nan
     sig = replace(sig, rod_com=rod)
-    det = PositionMonitor(confirm_s=0.0, checks=checks, hinge_scale=(1.0, 1.0))
+    det = PositionMonitor(confirm_s=0.0, checks=checks, **PLAIN)
     det.thresholds_mm_ = {"loop": 0.6, "com_mon": 0.2, "surface": 2.0}
     det.learning_runs_ = 1
     with use_engine(engine):
@@ -331,13 +408,15 @@ def test_a_nan_com_acquisition_makes_the_residual_nan(engine, checks):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize("hinge_scale", [(0.5, 2.0), (1.0, 1.0)])
-def test_loop_decision_away_from_zero_follows_the_band(engine, hinge_scale):
+@pytest.mark.parametrize("params", [{"hinge_scale": (0.5, 2.0)}, PLAIN])
+def test_loop_decision_away_from_zero_follows_the_band(engine, params):
     # the rod above the band, below it and inside it, with the band far from 0 mm
-    det = PositionMonitor(confirm_s=0.0, checks=("loop",), hinge_scale=hinge_scale)
+    det = PositionMonitor(confirm_s=0.0, checks=("loop",), **params)
     det.thresholds_mm_ = {"loop": 0.4}
     det.learning_runs_ = 1
-    outs = [model_by_hand(U, X0, s) for s in {1.0, *hinge_scale}]
+    outs = [model_by_hand(U, X0, corner=c)
+            for c in _corners(params["hinge_scale"], params.get("kci_scale", (0.95, 1.05)),
+                              params.get("supply_scale", (0.95, 1.05)))]
     lo, hi = np.minimum.reduce(outs), np.maximum.reduce(outs)
     assert np.median(np.abs(hi)) > 1.0                        # the band is mostly away from 0
     k = np.arange(12)
@@ -398,4 +477,5 @@ def test_defaults_are_the_documented_ones():
         "safety": 1.5, "confirm_s": 0.05, "checks": ("loop", "com_mon", "surface"),
         "floor_mm": 0.05, "threshold_method": "evt", "target_fa_per_run": 1e-4,
         "threshold_confidence": 0.95, "threshold_tail": "exponential", "hinge_scale": (0.6, 1.6),
-        "model_step": "euler"}
+        "model_step": "euler", "kci_scale": (0.95, 1.05), "supply_scale": (0.95, 1.05),
+        "band": "corners"}

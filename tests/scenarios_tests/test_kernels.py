@@ -62,20 +62,23 @@ def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(lib
 def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
     det = PositionMonitor(hinge_scale=(0.6, 1.6), model_step=step)
+    assert len(det.band_corners()) == 9      # the valve and hinge corners (docs/physics.md §6)
     ref = det.model_band(signals, engine="numpy")
     fast = det.model_band(signals, engine="compiled")
     for got, want in zip(fast, ref):
         np.testing.assert_array_equal(got, want)
-    assert np.any(fast[1] > fast[0])          # the hinge moment moves the models apart
+    assert np.any(fast[1] > fast[0])          # the corners move the models apart
 
 
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
-def test_compiled_band_equals_the_hull_of_three_compiled_models(step):
+def test_compiled_band_equals_the_hull_of_the_compiled_corner_models(step):
     signals, _ = simulate(every_fault_batch(), engine="compiled")
     det = PositionMonitor(hinge_scale=(1.6, 0.6), model_step=step)
-    outs = [PositionMonitor.model_output(signals, engine="compiled", hinge_scale=s,
+    corners = [(1.0, 1.0, 1.0, 1.0)] + [(v, v, o, d) for v in (0.95, 1.05)
+                                        for o in (0.6, 1.6) for d in (0.6, 1.6)]
+    outs = [PositionMonitor.model_output(signals, engine="compiled", corner=c,
                                          model_step=step)
-            for s in (1.0, 0.6, 1.6)]
+            for c in corners]
     lo, hi = det.model_band(signals, engine="compiled")
     np.testing.assert_array_equal(lo, np.minimum.reduce(outs))
     np.testing.assert_array_equal(hi, np.maximum.reduce(outs))
@@ -96,13 +99,14 @@ def test_compiled_band_propagates_a_nan_model_like_numpy():
 
 
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
-@pytest.mark.parametrize("hinge_scale", [(0.6, 1.6), (1.0, 1.0)])
+@pytest.mark.parametrize("band", [{}, {"band": "paired"}, {"hinge_scale": (1.0, 1.0)},
+                                  {"hinge_scale": (1.0, 1.0), "kci_scale": (1.0, 1.0),
+                                   "supply_scale": (1.0, 1.0)}])
 @pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("loop",), ("com_mon",)])
 def test_compiled_monitor_decision_is_bit_identical_to_numpy_with_the_same_libm(
-        libm_numpy, hinge_scale, checks, step):
+        libm_numpy, band, checks, step):
     signals, _ = simulate(every_fault_batch(), engine="numpy")
-    det = PositionMonitor(hinge_scale=hinge_scale, checks=checks, confirm_s=0.03,
-                          model_step=step)
+    det = PositionMonitor(checks=checks, confirm_s=0.03, model_step=step, **band)
     # thresholds a fraction of the largest residuals, so that alarms are raised and cleared
     det.thresholds_mm_ = {name: 0.3 * float(np.max(np.abs(r)))
                           for name, r in det.residuals(signals).items()}
