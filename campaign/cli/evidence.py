@@ -37,6 +37,9 @@ def cmd_certify(args) -> int:
               f"{Path(args.dir) / 'sampling'}/: the same command goes on from them")
         return EXIT_INTERRUPTED
     print(format_certificate(cert.table))
+    note = residual_margin_note(CampaignDir(args.dir).read_config())
+    if note:
+        print(note)
     print(format_levels(cert.levels))
     print(format_sampling(cert.table))
     print(format_hazard(cert.hazard))
@@ -88,6 +91,25 @@ def format_certificate(cert) -> str:
                  f"the limit of the runs (two decades under the counting bound), not given; "
                  f"\"—\": not sampled (--sampling N)")
     return "\n".join(lines)
+
+
+def residual_margin_note(config: dict) -> str:
+    """A line naming the detectors of the campaign (*config*, its stored dict) whose margin
+    is their residual before confirmation, not the distance to the alarm decision (no
+    ``Capabilities.threshold_scale``): for them P(margin ≥ 1) bounds more than their false
+    alarms (docs/design.md §5, Metrics); empty when every detector gives a decision."""
+    from detectors import load_detector_class
+
+    from ..config import CampaignConfig
+
+    labels = [d.label for d in CampaignConfig.from_dict(config).detectors
+              if not getattr(load_detector_class(d.name).capabilities, "threshold_scale",
+                             False)]
+    if not labels:
+        return ""
+    return (f"margins of {', '.join(labels)}: the largest |r|/τ before the detector's "
+            "confirmation (it gives no decision statistic, docs/write-a-detector.md), so "
+            "P(margin ≥ 1) bounds more than its false alarms")
 
 
 def format_levels(curve) -> str:

@@ -253,3 +253,14 @@ def test_a_plugin_whose_module_fails_on_import_is_named_exit_2(tmp_path, monkeyp
     assert "detector 'broken' (broken_plugin:Broken, a third-party detector) fails when its " \
            "module is imported: ValueError: Param 'gain'" in err
     assert "internal error" not in err and not out.exists()
+
+
+def test_certify_names_the_detectors_whose_margin_is_a_residual(plugins):
+    """A plugin without a decision statistic (no threshold_scale) has the margin of its
+    residual before confirmation: certify names it; the built-in monitor it does not."""
+    from campaign.cli.evidence import residual_margin_note
+
+    assert residual_margin_note(_config()) == ""
+    note = residual_margin_note(_config({"name": "bad-residual", "label": "plug"}))
+    assert note.startswith("margins of plug:") and "pm" not in note.split(":")[0]
+    assert "no decision statistic" in note
