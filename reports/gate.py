@@ -43,8 +43,8 @@ from scenarios.errors import InputError
 from .metrics import FAULT_FREE
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_limits",
-           "fa_probability_checks",
+__all__ = ["Check", "GateInputError", "GateResult", "bound_label", "curve_method",
+           "evaluate_gate", "fa_limits", "fa_probability_checks",
            "gate_rows", "requirements_gate",
            "junit_tree", "write_junit",
            "write_junit_suite", "write_junit_tree"]
@@ -540,13 +540,65 @@ def write_junit_tree(suites: list, path) -> None:
         raise
 
 
+#: The name of the certificate's ``fa_prob_evt_upper95`` by its ``evt_method``
+#: (campaign.evidence.certify: the exceedance curve at margin 1).
+_CURVE_BOUNDS = {
+    "mixture": "tail fit",
+    "counted per manoeuvre": "counting, Clopper–Pearson per manoeuvre of the margins ≥ 1, "
+                             "mixed by the manoeuvres' shares; no tail fit",
+    "counted": "counting, Clopper–Pearson, of the margins ≥ 1",
+    "limit of the runs": "limit of the runs: the counting (Clopper–Pearson) bound / 100; "
+                         "the tail fit claims less",
+}
+
+
+def curve_method(row: dict) -> str:
+    """Which bound a certificate row's ``fa_prob_evt_upper95`` is: its ``evt_method``, or,
+    for a certificate made before that column, the method that begins its ``evt_note``
+    ("mixture" whose note says every manoeuvre was counted: "counted per manoeuvre"); ""
+    when neither says."""
+    method = row.get("evt_method")
+    if isinstance(method, str) and method:
+        return method
+    note = row.get("evt_note")
+    if not isinstance(note, str):
+        return ""
+    method = next((m for m in ("counted", "mixture", "limit of the runs", "none")
+                   if note.startswith(m)), "")
+    if method == "mixture" and "every manoeuvre counted" in note:
+        return "counted per manoeuvre"
+    return method
+
+
+def bound_label(row: dict, which: str) -> str:
+    """The name of the bound a ``fa_probability`` check shows, from the certificate's row
+    *row*: *which* is ``"counting"`` (``fa_upper95_cp``), ``"curve"``
+    (``fa_prob_evt_upper95``, by :func:`curve_method`) or ``"sampling"``
+    (``sampling_upper95``: subset simulation, at the highest level it reached when that is
+    below margin 1)."""
+    if which == "counting":
+        return "counting, Clopper–Pearson; no tail fit or sampling"
+    if which == "sampling":
+        reached = row.get("sampling_reached_level")
+        try:
+            reached = float(reached)
+        except (TypeError, ValueError):
+            reached = math.nan
+        return ("subset simulation" if not reached < 1.0 else
+                f"subset simulation, P(margin ≥ {reached:.3g}) at the highest level reached")
+    return _CURVE_BOUNDS.get(curve_method(row),
+                             "tail fit or counting (the certificate does not say which: "
+                             "make it again with fdd-campaign certify DIR)")
+
+
 def fa_probability_checks(certificate: pd.DataFrame, limit: float) -> list[Check]:
     """One ``fa_probability`` check per detector of a false-alarm certificate
     (``fdd-campaign certify``, docs/evidence.md): the per-run false-alarm probability bound
-    must be ≤ *limit*. The bound is the larger of the tail fit's
+    must be ≤ *limit*. The bound is the larger of the exceedance curve's at margin 1
     (``fa_prob_evt_upper95``) and the sampled estimate's (``sampling_upper95``) where they
     are present; a detector with neither is held to its counting bound
-    (``fa_upper95_cp``).
+    (``fa_upper95_cp``). The message names the bound it shows (:func:`bound_label`): the
+    curve's is a tail fit, a counting bound or the limit of the runs by its ``evt_method``.
 
     Raises :class:`GateInputError` when *limit* is not a probability in [0, 1] or the
     certificate lacks its columns.
@@ -569,15 +621,15 @@ def fa_probability_checks(certificate: pd.DataFrame, limit: float) -> list[Check
         raise GateInputError(problems)
     out = []
     for r in certificate.to_dict(orient="records"):
-        bounds = {"tail fit": r.get("fa_prob_evt_upper95"),
-                  "subset simulation": r.get("sampling_upper95")}
+        bounds = {"curve": r.get("fa_prob_evt_upper95"),
+                  "sampling": r.get("sampling_upper95")}
         bounds = {k: float(v) for k, v in bounds.items()
                   if v is not None and math.isfinite(float(v))}
         if bounds:
-            source = max(bounds, key=bounds.get)
-            value = bounds[source]
+            which = max(bounds, key=bounds.get)
+            source, value = bound_label(r, which), bounds[which]
         else:
-            source, value = "counting (no tail fit)", float(r["fa_upper95_cp"])
+            source, value = bound_label(r, "counting"), float(r["fa_upper95_cp"])
         passed = value <= limit
         level = f"{100 * float(r['level']):g} %"
         msg = (f"{'PASS' if passed else 'FAIL'} false-alarm probability: {r['detector']}: "

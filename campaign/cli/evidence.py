@@ -68,9 +68,14 @@ def _g(x) -> str:
 def format_certificate(cert) -> str:
     """The certificate as a terminal table (probabilities per run, rates per hour). A tail
     estimate below the limit of the runs is printed as "< limit", never as a number; a
-    detector that was not sampled shows "—" in the sampled columns."""
-    lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'CP bound':>9s} {'EVT':>10s} "
-             f"{'EVT bound':>9s} {'sampled':>9s} {'bounds':>19s} {'per hour':>9s}"]
+    detector that was not sampled shows "—" in the sampled columns. Each bound is named:
+    "count ≤" the counting bound, "tail ≤" the curve's at margin 1 marked by what it is
+    (:func:`reports.gate.curve_method`), "sampled" subset simulation."""
+    from reports.gate import curve_method
+
+    lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'count ≤':>9s} {'tail est':>10s} "
+             f"{'tail ≤':>10s} {'sampled':>9s} {'sampled bounds':>19s} {'per hour':>9s}"]
+    tag = {"counted": "c", "counted per manoeuvre": "c", "limit of the runs": "*"}
     for r in cert.to_dict(orient="records"):
         sampled = (f"[{_g(r['sampling_lower95'])}, {_g(r['sampling_upper95'])}]"
                    if r["sampling_runs"] else "—")
@@ -81,16 +86,22 @@ def format_certificate(cert) -> str:
             est_text = _g(est)
         lines.append(f"{r['detector']:24s} {r['n_runs']:6d} {r['fa_count']:4d} "
                      f"{_g(r['fa_upper95_cp']):>9s} {est_text:>10s} "
-                     f"{_g(r['fa_prob_evt_upper95']):>9s} "
+                     f"{_g(r['fa_prob_evt_upper95']) + tag.get(curve_method(r), ''):>10s} "
                      f"{_g(r['sampling_prob']) if r['sampling_runs'] else '—':>9s} "
                      f"{sampled:>19s} {_g(r['fa_per_hour_upper95']):>9s}")
     level = float(cert["level"].iloc[0]) if len(cert) else 0.95
     lines.append(f"bounds one-sided at {100 * level:g} %; per-run probabilities of a run of "
-                 f"the campaign's duration; per hour from the counting bound (Poisson "
-                 f"exposure model, docs/evidence.md); \"<x\": the tail's estimate lies below "
-                 f"the limit of the runs (two decades under the counting bound), not given; "
-                 f"\"—\": not sampled (--sampling N)")
+                 f"the campaign's duration. count ≤: counting bound (exact Clopper–Pearson) "
+                 f"of the false alarms; tail ≤: tail fit (the manoeuvres' generalised Pareto "
+                 f"tails at margin 1), or, marked c, the counting bound (Clopper–Pearson) of "
+                 f"the margins ≥ 1 (pooled where it is the smaller, or per manoeuvre where "
+                 f"the runs are too few for a tail fit), or, marked *, the limit of the "
+                 f"runs (the counting bound / 100; the tail fit claims less); sampled: subset "
+                 f"simulation; per hour from the counting bound (Poisson exposure model, "
+                 f"docs/evidence.md); \"<x\": the tail's estimate lies below the limit of the "
+                 f"runs, not given; \"—\": not sampled (--sampling N)")
     return "\n".join(lines)
+
 
 
 def residual_margin_note(config: dict) -> str:
@@ -121,14 +132,21 @@ def format_levels(curve) -> str:
     head = f"{'P(margin ≥ level) ≤':24s} " + " ".join(f"{v:>9g}" for v in levels)
     lines = [head]
     tag = {"counted": "c", "mixture": "", "limit of the runs": "*", "tail": ""}
+
+    def mark(row) -> str:
+        if row["method"] == "mixture" and not row.get("tail_class", "x"):
+            return "c"                  # a mixture of the manoeuvres' counts, no tail fit
+        return tag.get(row["method"], "?")
+
     for name, g in curve.groupby("detector", sort=False):
         by = g.set_index("level")
-        cells = [f"{_g(by.loc[v, 'p_upper95'])}{tag.get(by.loc[v, 'method'], '?')}"
+        cells = [f"{_g(by.loc[v, 'p_upper95'])}{mark(by.loc[v])}"
                  if v in by.index else "" for v in levels]
         lines.append(f"{name:24s} " + " ".join(f"{c:>9s}" for c in cells))
-    lines.append("c: counted (exact Clopper–Pearson bound of the runs at or above the level); "
-                 "*: the limit of the runs (the tail model claims less: see the note in "
-                 "certificate-levels.parquet); unmarked: mixture of the manoeuvres' tails")
+    lines.append("c: counted (exact Clopper–Pearson bound of the runs at or above the level, "
+                 "pooled or per manoeuvre mixed by their shares); *: the limit of the runs "
+                 "(the tail model claims less: see the note in certificate-levels.parquet); "
+                 "unmarked: tail fit (mixture of the manoeuvres' tails)")
     return "\n".join(lines)
 
 

@@ -16,7 +16,12 @@ detector (result-row name, variants apart):
   the pooled count's bound when smaller, and never more than two decades below the counting
   bound (a point estimate below that limit is NaN, ``evt_note`` says why and what would
   carry it); ``evt_k`` … ``evt_gof_pvalue``: the tail fit of the manoeuvre whose term
-  dominates the bound;
+  dominates the bound; ``evt_method``: which bound ``fa_prob_evt_upper95`` is — "mixture"
+  (a tail fit: the manoeuvres' tails, some of them perhaps counted), "counted per manoeuvre"
+  (the mixture with every manoeuvre counted: too few runs for any tail fit), "counted"
+  (the pooled counting bound of the margins ≥ 1, smaller than the mixture's), "limit of
+  the runs" (the tail fits claim less; the bound is the counting bound two decades down)
+  or "none";
 * ``exposure_h`` = Σ fault-free run durations [h] and ``fa_per_hour_upper95`` (and
   ``fa_per_hour_evt_upper95``): exposure model — false alarms arrive as a homogeneous
   Poisson process of rate λ [1/h] over flight time, independently between runs, so a run
@@ -63,8 +68,8 @@ CERTIFICATE_COLUMNS: tuple[str, ...] = (
     "detector", "level", "n_runs", "exposure_h", "run_duration_s", "fa_count", "fa_rate",
     "fa_upper95_cp", "fa_prob_evt", "fa_prob_evt_upper95", "fa_per_hour_upper95",
     "fa_per_hour_evt_upper95", "worst_margin", "evt_k", "evt_u", "evt_shape", "evt_scale",
-    "evt_gof_pvalue", "evt_note", "sampling_runs", "sampling_prob", "sampling_lower95",
-    "sampling_upper95", "sampling_cov", "sampling_levels", "sampling_note",
+    "evt_gof_pvalue", "evt_note", "evt_method", "sampling_runs", "sampling_prob",
+    "sampling_lower95", "sampling_upper95", "sampling_cov", "sampling_levels", "sampling_note",
     "sampling_reached_level", "sampling_reached_prob",
 )
 
@@ -83,9 +88,10 @@ def evt_estimate(margins, manoeuvres=None, level: float = 0.95, at_one: dict | N
     """P(margin ≥ 1) with its bound (``fa_prob_evt``, ``fa_prob_evt_upper95``) and the
     ``evt_*`` diagnostics of one detector's fault-free *margins* (one *manoeuvres* label
     each; None: one class): the level-1 row of the exceedance curve
-    (:func:`campaign.evidence.certify_levels.detector_rows`, or *at_one* when already computed),
-    and the tail fit of the manoeuvre whose term dominates its bound (k, u, ξ, σ, KS
-    p-value; NaN when that term is counted)."""
+    (:func:`campaign.evidence.certify_levels.detector_rows`, or *at_one* when already computed)
+    with the method that gave its bound (``evt_method``), and the tail fit of the manoeuvre
+    whose term dominates its bound (k, u, ξ, σ, KS p-value; NaN when that term is
+    counted)."""
     m = np.asarray(margins, float)
     cls = (np.full(m.size, "all") if manoeuvres is None
            else np.asarray(manoeuvres).astype(str))
@@ -95,8 +101,11 @@ def evt_estimate(margins, manoeuvres=None, level: float = 0.95, at_one: dict | N
     out = {"fa_prob_evt": row["p_estimate"], "fa_prob_evt_upper95": row["p_upper95"],
            "evt_k": 0, "evt_u": math.nan, "evt_shape": math.nan, "evt_scale": math.nan,
            "evt_gof_pvalue": math.nan,
-           "evt_note": f"{row['method']}: {row['note']}" if row["note"] else row["method"]}
+           "evt_note": f"{row['method']}: {row['note']}" if row["note"] else row["method"],
+           "evt_method": row["method"]}
     dominant = row.get("tail_class", "")
+    if row["method"] == "mixture" and not dominant:     # no manoeuvre's tail was fitted
+        out["evt_method"] = "counted per manoeuvre"
     if dominant:
         try:
             fit = fit_tail(m[cls == dominant], shapes=CURVE_SHAPES)

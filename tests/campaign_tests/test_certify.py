@@ -233,6 +233,39 @@ def test_gate_probability_check_uses_the_larger_model_bound():
         fa_probability_checks(cert, 2.0)
 
 
+def test_gate_names_a_counted_curve_bound_counting_not_tail_fit():
+    """12 fault-free runs (the smoke preset's number), too few for a tail fit, all with
+    margins below 1. In two manoeuvres of 6 the curve's bound at margin 1 is the pooled
+    counting bound 1 − 0.05^(1/12) (smaller than the manoeuvres' counts mixed,
+    ``evt_method`` "counted"); in one manoeuvre it is that manoeuvre's count ("counted per
+    manoeuvre"). The gate's message names either a counting bound, never "tail fit"; a
+    certificate made before ``evt_method`` existed is read from its note. The limit of the
+    runs is named as such."""
+    rng = np.random.default_rng(3)
+    n = 12
+    results = pd.DataFrame({
+        "run_id": [f"r{i}" for i in range(n)], "detector": "d", "fault": "none",
+        "manoeuvre": np.repeat(["cruise", "pitch"], n // 2), "status": "ok",
+        "false_alarm": False, "margin": rng.uniform(0.1, 0.4, n)})
+    plan = pd.DataFrame({"run_id": results["run_id"], "duration_s": 60.0})
+    one = results.assign(manoeuvre="cruise")
+    for res, method, label in (
+            (results, "counted", "(counting, Clopper–Pearson, of the margins ≥ 1)"),
+            (one, "counted per manoeuvre", "(counting, Clopper–Pearson per manoeuvre")):
+        cert = certificate(res, plan)
+        [check] = fa_probability_checks(cert, 1e-3)
+        assert label in check.message and "(tail fit" not in check.message
+        assert not check.passed and check.value == pytest.approx(0.221, abs=5e-4)
+        assert cert["fa_prob_evt_upper95"].iloc[0] == pytest.approx(1 - 0.05 ** (1 / n),
+                                                                    rel=1e-12)
+        assert cert["evt_method"].iloc[0] == method
+        [old] = fa_probability_checks(cert.drop(columns="evt_method"), 1e-3)
+        assert old.message == check.message
+    limit = cert.assign(evt_method="limit of the runs", fa_prob_evt_upper95=2.49e-5)
+    [lim] = fa_probability_checks(limit, 1e-3)
+    assert "(limit of the runs: the counting (Clopper–Pearson) bound / 100" in lim.message
+
+
 # ---- detection time as survival data -------------------------------------------------------------
 def test_kaplan_meier_keeps_the_misses_at_risk():
     from reports.survival import kaplan_meier, survival_stats

@@ -497,8 +497,11 @@ def test_gate_on_an_empty_summary_is_one_failed_runs_check():
 
 
 def _certificate(**bounds):
+    """Certificate rows whose curve bound at margin 1 is the tail fit's (``evt_method``
+    "mixture")."""
     return pd.DataFrame([{"detector": d, "level": 0.95, "fa_upper95_cp": cp,
-                          "fa_prob_evt_upper95": evt, "sampling_upper95": ss}
+                          "fa_prob_evt_upper95": evt, "evt_method": "mixture",
+                          "sampling_upper95": ss}
                          for d, (cp, evt, ss) in bounds.items()])
 
 
@@ -510,7 +513,7 @@ def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
     checks = {c.detector: c for c in fa_probability_checks(cert, 2e-6)}
     assert checks["a"].value == 1e-6 and checks["a"].passed and "(tail fit)" in checks["a"].message
     assert checks["b"].value == 2.5e-3 and not checks["b"].passed
-    assert "counting (no tail fit)" in checks["b"].message
+    assert "(counting, Clopper–Pearson; no tail fit or sampling)" in checks["b"].message
     assert checks["c"].value == 3e-6 and not checks["c"].passed
     assert "(subset simulation)" in checks["c"].message
     assert checks["d"].value == 4e-7 and checks["d"].passed
