@@ -548,25 +548,50 @@ def hazard_section(hazard: pd.DataFrame, budgets: Mapping[str, float],
     """``<section id="hazard">``: the hazard table *hazard* (the columns of
     ``campaign.evidence.hazard.HAZARD_COLUMNS``, one row per detector × fault type, the undetected
     faults of every type, the false alarms), the *budgets* (AMC 25.1309 category → rate per
-    flight hour) and the *assumptions* (sentences) it rests on (docs/evidence.md)."""
+    flight hour) and the *assumptions* (sentences) it rests on (docs/evidence.md): per row the
+    undetected rate without and with the detector, the category credited to the detector and
+    the claim in words; a placeholder fault rate is marked (est.)."""
     level = f"{100 * float(hazard['level'].iloc[0]):g} %" if len(hazard) else "95 %"
-    head = ["detector", "fault", "runs", "missed / FA", f"P per run ≤ ({level})",
-            "rate [1/FH]", "per FH", f"per FH ≤ ({level})", "meets",
-            "per FH ≤, late = undetected"]
+    head = ["detector", "fault", "runs", "missed / FA", f"P per run ≤ ({level}, counting)",
+            "fault rate [1/FH]", "without detector [1/FH]", f"with detector ≤ [1/FH] ({level})",
+            "credited to the detector", "claim", "with ≤, late = undetected",
+            "credited, late = undetected"]
     names = {"none": "false alarm", "all": "all faults (undetected)"}
+
+    def rate(r) -> str:
+        if r["fault"] == "none":
+            return "–"
+        src = str(r["rate_source"])
+        mark = (" (est.)" if src.startswith("placeholder")
+                else " (partly est.)" if src.startswith("partly") else "")
+        return f'<span title="{_e(src)}">{_num(r["rate_per_fh"])}{mark}</span>'
+
     rows = [[_e(r["detector"]), _e(names.get(r["fault"], r["fault"])), str(int(r["n_runs"])),
-             str(int(r["events"])), _num(r["p_run_upper95"]), _num(r["rate_per_fh"]),
-             _num(r["per_fh"]), _num(r["per_fh_upper95"]), _e(r["meets"]),
-             _num(r["in_time_per_fh_upper95"])] for r in hazard.to_dict(orient="records")]
+             str(int(r["events"])), _num(r["p_run_upper95"]), rate(r),
+             _num(r["without_per_fh"]), _num(r["per_fh_upper95"]), _e(r["credited"]),
+             _e(r["claim"]), _num(r["in_time_per_fh_upper95"]), _e(r["credited_in_time"])]
+            for r in hazard.to_dict(orient="records")]
     budget_text = ", ".join(f"{_e(k)} ≤ {v:g}" for k, v in budgets.items())
+    placeholder = any(str(s).startswith(("placeholder", "partly"))
+                      for s in hazard.get("rate_source", ()))
     return ('<section id="hazard"><h2>Hazard per flight hour</h2>'
             "<p>Both sides of each detector (Hu and Seiler's combination, docs/evidence.md): "
-            "the rate of undetected actuator faults per flight hour, each fault mode's "
-            "occurrence rate times its missed-detection probability (exact one-sided "
-            f"Clopper–Pearson bound at {level}; the total's bound Bonferroni-adjusted over "
-            "the fault types), and the false-alarm rate per flight hour of the fault-free "
-            f"runs. AMC 25.1309 budgets per flight hour: {budget_text}; <i>meets</i> names the "
-            "most severe category whose budget the bound does not exceed.</p>"
+            "the rate of undetected actuator faults per flight hour without the detector (the "
+            "fault mode's occurrence rate: every fault undetected) and with it (the occurrence "
+            "rate times the counting bound — exact one-sided Clopper–Pearson at "
+            f"{level} — of its missed-detection probability; the total's bound "
+            "Bonferroni-adjusted over the fault types), and the false-alarm rate per flight "
+            "hour of the fault-free runs (counting bound). AMC 25.1309 budgets per flight "
+            f"hour: {budget_text}. A category is <i>credited to the detector</i> only where "
+            "the bound with it is under the category's budget and the fault rate alone is "
+            "not; a detector that detected none of the runs is credited nothing; a bound "
+            "above 0.5, or one that leaves the rate in the category it has without the "
+            "detector, shows nothing (<i>not shown</i>).</p>"
+            + ("<p><b>(est.)</b>: a placeholder fault rate (the default of "
+               "campaign.evidence.hazard.DEFAULT_FAULT_RATES_PER_FH, an estimate with no "
+               "cited source): set [requirements] fault_rate_per_fh from your safety "
+               "assessment; a category resting on it is a placeholder too.</p>"
+               if placeholder else "")
             + _table([_e(h) for h in head], rows, tid="hazard-table")
             + "<p>Assumptions:</p><ul>" + "".join(f"<li>{_e(a)}</li>" for a in assumptions)
             + "</ul></section>")

@@ -222,29 +222,49 @@ def format_sampling(cert) -> str:
 
 def format_hazard(hazard) -> str:
     """The hazard per flight hour as a terminal table: per detector, each fault type's
-    missed detections and undetected-fault rate, their total, and the false alarms, each
-    bound set against the AMC 25.1309 budgets; then the assumptions. '' for None (no
-    hazard table)."""
-    from ..evidence.hazard import AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS
+    missed detections, the undetected rate per flight hour without the detector (the fault
+    rate, "(est.)" when a placeholder) and with it (the bound), the category credited to
+    the detector and why (:func:`campaign.evidence.hazard.credit`), their total, and the
+    false alarms; then what the columns mean and the assumptions. '' for None (no hazard
+    table)."""
+    from ..evidence.hazard import (AMC_25_1309_BUDGETS_PER_FH, ASSUMPTIONS, RATE_GIVEN,
+                                   RATE_PLACEHOLDER, WIDEST_CREDITED_BOUND, with_claims)
 
     if hazard is None:
         return ""
-
+    hazard = with_claims(hazard)
     budgets = ", ".join(f"{k} ≤ {v:g}" for k, v in AMC_25_1309_BUDGETS_PER_FH.items())
     level = float(hazard["level"].iloc[0]) if len(hazard) else 0.95
     lines = [f"Hazard per flight hour (both sides; AMC 25.1309 budgets /FH: {budgets})",
-             f"{'detector':24s} {'fault':14s} {'runs':>5s} {'missed':>6s} {'P bound':>9s} "
-             f"{'rate /FH':>9s} {'per FH':>9s} {'bound /FH':>9s} {'meets':>12s} "
-             f"{'in time':>9s}"]
+             f"{'detector':24s} {'fault':14s} {'runs':>5s} {'missed':>6s} {'P ≤ (CP)':>9s} "
+             f"{'without /FH':>14s} {'with ≤ /FH':>10s} {'credited':>12s} "
+             f"{'in time ≤':>9s} {'credited':>12s}  claim"]
     for r in hazard.to_dict(orient="records"):
-        fault = "false alarm" if r["fault"] == "none" else r["fault"]
+        free = r["fault"] == "none"
+        fault = "false alarm" if free else r["fault"]
+        src = str(r["rate_source"])
+        mark = "" if free or src == RATE_GIVEN else " (est.)"
+        without = "—" if free else f"{_g(r['without_per_fh'])}{mark}"
         lines.append(f"{r['detector']:24s} {fault:14s} {r['n_runs']:5d} {r['events']:6d} "
-                     f"{_g(r['p_run_upper95']):>9s} {_g(r['rate_per_fh']):>9s} "
-                     f"{_g(r['per_fh']):>9s} {_g(r['per_fh_upper95']):>9s} {r['meets']:>12s} "
-                     f"{_g(r['in_time_per_fh_upper95']):>9s}")
-    lines.append(f"bounds one-sided at {100 * level:g} % (fault rates as given); 'all': "
-                 "undetected faults of every type; 'meets': the most severe category whose "
-                 "budget the bound does not exceed; 'in time': the bound when a detection "
-                 "after the required time counts as undetected. Assumptions:")
+                     f"{_g(r['p_run_upper95']):>9s} {without:>14s} "
+                     f"{_g(r['per_fh_upper95']):>10s} {r['credited']:>12s} "
+                     f"{_g(r['in_time_per_fh_upper95']):>9s} {r['credited_in_time']:>12s}  "
+                     f"{r['claim']}")
+    lines.append(
+        f"bounds one-sided at {100 * level:g} %, all counting bounds: P ≤ (CP) is the exact "
+        "Clopper–Pearson bound of the missed share (of the false alarms per run on the false-"
+        "alarm row); 'all': undetected faults of every type, its bound Bonferroni-adjusted over "
+        "the types. without: the undetected rate with no detector, the fault rate; with: the "
+        "fault rate × P ≤; 'in time': the same when a detection after the required time counts "
+        "as undetected. credited: the most severe category whose budget the rate with the "
+        f"detector meets and the fault rate alone does not — none when the detector detected "
+        f"none of the runs, when P ≤ is above {WIDEST_CREDITED_BOUND:g} or when the bound "
+        "leaves the rate in its category without the detector ('not shown'); n/a: false "
+        "alarms are a cost of the detector, not a credit.")
+    if any(s != RATE_GIVEN for s in hazard.loc[hazard["fault"] != "none", "rate_source"]):
+        lines.append(f"(est.): {RATE_PLACEHOLDER.replace('placeholder (est.)', 'a placeholder')}"
+                     "; the default rates are estimates with no cited source, and a category "
+                     "resting on them is a placeholder too")
+    lines.append("Assumptions:")
     lines.extend(f"  - {a}" for a in ASSUMPTIONS)
     return "\n".join(lines)

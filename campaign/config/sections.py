@@ -385,7 +385,8 @@ class RequirementsSection:
         "hour, docs/evidence.md); entries given replace the defaults, 0 for a mode that "
         "cannot occur", tuple(sorted(DEFAULT_FAULT_RATES_PER_FH.items())), unit="1/FH",
         ge=0.0, le=1.0, choices=FAULT_TYPES, example={"runaway": 1e-6},
-        source="est. (campaign.evidence.hazard.DEFAULT_FAULT_RATES_PER_FH)")
+        source="placeholder (est.), no cited source: set these from your safety assessment "
+               "(campaign.evidence.hazard.DEFAULT_FAULT_RATES_PER_FH)")
     detection_window_s: float | None = key("float", "a fault counts as detected only within "
                                            "this time after onset", unit="s", gt=0.0,
                                            le=600.0, optional=True,

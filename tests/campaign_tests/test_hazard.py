@@ -14,7 +14,8 @@ from scipy import stats
 
 from campaign.config import CampaignConfig, ConfigError
 from campaign.evidence.hazard import (AMC_25_1309_BUDGETS_PER_FH, DEFAULT_FAULT_RATES_PER_FH,
-                             HAZARD_COLUMNS, hazard_table, meets)
+                                     HAZARD_COLUMNS, RATE_GIVEN, RATE_PLACEHOLDER, credit,
+                                     hazard_table, meets, with_claims)
 
 
 def _results():
@@ -47,8 +48,13 @@ def test_undetected_fault_rates_against_hand_arithmetic():
     assert h.loc["runaway", "p_run_upper95"] == pytest.approx(up, rel=1e-12)
     assert h.loc["runaway", "per_fh"] == pytest.approx(1e-8, rel=1e-12)
     assert h.loc["runaway", "per_fh_upper95"] == pytest.approx(1e-6 * up, rel=1e-12)
-    # 1e-6 × 0.0312 = 3.1e-8 ≤ 1e-7: hazardous met, catastrophic (1e-9) not
-    assert h.loc["runaway", "meets"] == "hazardous"
+    # 1e-6 × 0.0312 = 3.1e-8 ≤ 1e-7: hazardous met, catastrophic (1e-9) not; without the
+    # detector 1e-6 (major): the detector is credited hazardous
+    assert h.loc["runaway", "meets_with"] == "hazardous"
+    assert h.loc["runaway", "without_per_fh"] == 1e-6
+    assert h.loc["runaway", "meets_without"] == "major"
+    assert h.loc["runaway", "credited"] == "hazardous"
+    assert h.loc["runaway", "bound"] == "counting (Clopper–Pearson)"
     # in time: 2 missed + 3 late of 200
     assert h.loc["runaway", "late_or_missed"] == 5
     assert h.loc["runaway", "in_time_per_fh_upper95"] == pytest.approx(
@@ -66,7 +72,10 @@ def test_undetected_fault_rates_against_hand_arithmetic():
     p_up = stats.beta.ppf(0.95, 2, 299)
     assert h.loc["none", "per_fh"] == pytest.approx(-math.log1p(-1 / 300) * 60, rel=1e-12)
     assert h.loc["none", "per_fh_upper95"] == pytest.approx(-math.log1p(-p_up) * 60, rel=1e-12)
-    assert h.loc["none", "meets"] == "none"          # ≈ 0.95 per hour
+    assert h.loc["none", "meets_with"] == "none"          # ≈ 0.95 per hour
+    # false alarms are no credit of the detector, and none happen without it
+    assert h.loc["none", "credited"] == "n/a" and h.loc["none", "without_per_fh"] == 0.0
+    assert h.loc["none", "bound"].startswith("counting (Clopper–Pearson)")
 
 
 def test_a_missing_rate_and_a_bad_level_are_refused():
@@ -84,6 +93,113 @@ def test_amc_categories_at_their_budgets():
     assert meets(1e-7) == "hazardous" and meets(1e-6) == "major"
     assert meets(1e-5) == "major" and meets(1.01e-5) == "none"
     assert meets(0.0) == "catastrophic" and meets(math.nan) == "n/a"
+
+
+def _faulty(fault: str, n: int, missed: int, detector: str = "d") -> pd.DataFrame:
+    """*n* faulty runs of type *fault*, the first *missed* of them never detected, the
+    others detected in time (DTP 0.5)."""
+    detected = np.arange(n) >= missed
+    return pd.DataFrame({"run_id": [f"{detector}-{fault}-{i}" for i in range(n)],
+                         "detector": detector, "fault": fault, "status": "ok",
+                         "detected": detected, "dtp": np.where(detected, 0.5, np.nan),
+                         "false_alarm": False})
+
+
+def test_a_detector_that_detected_none_of_its_runs_is_credited_nothing():
+    """The measured case of addsafe-mc: every comb-interval variant misses all 334
+    disconnections; at the default 1e-7/FH the undetected rate is the fault rate, at the
+    hazardous budget: met by the fault rate alone, and the detector gets no credit (the
+    old table said "meets hazardous" for it)."""
+    table = hazard_table(_faulty("disconnection", 334, 334), None,
+                         DEFAULT_FAULT_RATES_PER_FH)
+    h = table.set_index("fault")
+    for fault in ("disconnection", "all"):
+        assert h.loc[fault, "events"] == 334 and h.loc[fault, "p_run_upper95"] != 0.0
+        assert h.loc[fault, "without_per_fh"] == 1e-7
+        assert h.loc[fault, "per_fh_upper95"] == pytest.approx(1e-7, rel=1e-12)
+        assert h.loc[fault, "credited"] == "none"
+        assert h.loc[fault, "credited_in_time"] == "none"
+        assert "detected none of its 334 runs" in h.loc[fault, "claim"]
+        assert "met by the fault rate alone (hazardous), no credit" in h.loc[fault, "claim"]
+        assert h.loc[fault, "rate_source"] == RATE_PLACEHOLDER
+    # the rule holds whatever the rate: never a category for a detector that caught nothing
+    for lam in (1e-12, 1e-8, 5e-6, 1e-3):
+        assert credit(20, 20, 1.0, lam, lam)[0] == "none"
+    assert "no credit: detected none of its 20 runs" in credit(20, 20, 1.0, 1e-3, 1e-3)[1]
+
+
+def test_a_bound_above_one_half_shows_no_category():
+    """2 runs of a fault, both detected: the counting bound of the missed share is
+    1 − 0.05^(1/2) = 0.776. At a rate of 1.2e-7/FH (major alone) the bound with the
+    detector, 9.3e-8/FH, is under the hazardous budget, but the runs cannot tell a detector
+    that misses most faults from one that misses none: not shown, no credit."""
+    table = hazard_table(_faulty("runaway", 2, 0), None, {"runaway": 1.2e-7})
+    h = table.set_index("fault")
+    p_up = 1 - 0.05 ** 0.5
+    assert h.loc["runaway", "p_run_upper95"] == pytest.approx(p_up, rel=1e-12)
+    assert h.loc["runaway", "per_fh_upper95"] == pytest.approx(1.2e-7 * p_up, rel=1e-12)
+    assert h.loc["runaway", "meets_with"] == "hazardous"
+    assert h.loc["runaway", "meets_without"] == "major"
+    assert h.loc["runaway", "credited"] == "none"
+    assert "not shown" in h.loc["runaway", "claim"] and "0.776" in h.loc["runaway", "claim"]
+    assert h.loc["runaway", "rate_source"] == RATE_GIVEN
+    # the total: Σ λ_f P_f^up / Σ λ_f = 0.776 too (one type, Bonferroni over one)
+    assert h.loc["all", "credited"] == "none" and "not shown" in h.loc["all", "claim"]
+    # at the limit: 0.5 is still shown, just above it is not
+    assert credit(10, 1, 0.5, 1.2e-7, 6e-8)[0] == "hazardous"
+    assert credit(10, 1, 0.5000001, 1.2e-7, 6e-8)[0] == "none"
+
+
+def test_a_category_met_by_the_fault_rate_alone_is_no_credit():
+    """Disconnection at 1e-7/FH is within the hazardous budget with no detector at all; a
+    detector missing 1 of 100 (bound 0.0466, 4.7e-9/FH) stays in it: met by the fault rate
+    alone, no credit, not shown. Runaway at 1e-6/FH (major alone), 0 of 300 missed (bound
+    0.00994, 9.9e-9/FH): the detector brings it under the hazardous budget, credited."""
+    results = pd.concat([_faulty("disconnection", 100, 1), _faulty("runaway", 300, 0)])
+    h = hazard_table(results, None, DEFAULT_FAULT_RATES_PER_FH).set_index("fault")
+    d = h.loc["disconnection"]
+    assert d["p_run_upper95"] == pytest.approx(stats.beta.ppf(0.95, 2, 99), rel=1e-12)
+    assert (d["meets_without"], d["meets_with"], d["credited"]) == (
+        "hazardous", "hazardous", "none")
+    assert d["claim"].startswith("met by the fault rate alone (hazardous), no credit")
+    assert "not shown" in d["claim"]
+    r = h.loc["runaway"]
+    assert r["per_fh_upper95"] == pytest.approx(1e-6 * (1 - 0.05 ** (1 / 300)), rel=1e-12)
+    assert (r["meets_without"], r["credited"]) == ("major", "hazardous")
+    assert r["claim"].startswith("credited hazardous")
+    # a mode that cannot occur (rate 0) is met alone, never credited
+    assert credit(50, 0, 0.058, 0.0, 0.0) == (
+        "none", "met by the fault rate alone (catastrophic), no credit; fault rate 0 (the "
+        "mode cannot occur)")
+
+
+def test_the_claims_of_a_table_stored_before_them_are_derived_when_shown():
+    """A hazard table written before the claim columns existed (its counted columns and
+    the old ``meets``) is shown with them: the same claims as a table made now."""
+    results, plan = _results()
+    table = hazard_table(results, plan, {"runaway": 1e-6, "solid_jam": 2e-6})
+    old = table[list(HAZARD_COLUMNS[:12])].assign(meets=table["meets_with"])
+    pd.testing.assert_frame_equal(with_claims(old), table)
+    with pytest.raises(ValueError, match="lacks column.*late_or_missed"):
+        with_claims(old.drop(columns="late_or_missed"))
+
+
+def test_the_printed_table_shows_both_rates_the_credit_and_the_placeholder():
+    from campaign.cli.evidence import format_hazard
+
+    results = pd.concat([_faulty("disconnection", 334, 334), _faulty("runaway", 300, 0)])
+    text = format_hazard(hazard_table(results, None, dict(DEFAULT_FAULT_RATES_PER_FH,
+                                                          runaway=2e-6)))
+    lines = {ln.split()[1]: ln for ln in text.splitlines() if ln.startswith("d ")}
+    # disconnection: without = the placeholder 1e-7, with = 1e-7, no credit
+    assert "1e-07 (est.)" in lines["disconnection"]
+    assert " none " in lines["disconnection"]
+    assert "detected none of its 334 runs" in lines["disconnection"]
+    # runaway: a given rate, unmarked; the detector is credited hazardous
+    assert "2e-06 " in lines["runaway"] and "(est.)" not in lines["runaway"]
+    assert "credited hazardous" in lines["runaway"]
+    assert "(est.): a placeholder: set [requirements] fault_rate_per_fh" in text
+    assert "P ≤ (CP)" in text and "Clopper–Pearson" in text
 
 
 def _config(**requirements):
@@ -147,6 +263,14 @@ def test_certify_writes_and_prints_the_hazard_table(tmp_path, capsys):
     row = hazard[(hazard["detector"] == "position-monitor") & (hazard["fault"] == "runaway")]
     missed = int((~runaway[runaway["detector"] == "position-monitor"]["detected"]).sum())
     assert row["rate_per_fh"].iloc[0] == 4e-6
+    # the given rate is the campaign file's, the defaults are placeholders, in the file too
+    assert row["rate_source"].iloc[0] == RATE_GIVEN
+    jam = hazard[(hazard["detector"] == "position-monitor") & (hazard["fault"] == "solid_jam")]
+    assert jam["rate_source"].iloc[0] == RATE_PLACEHOLDER
+    assert "(est.): a placeholder" in printed
+    # 2 runs of a type: a counting bound above 0.5, no category credited anywhere
+    faulty = hazard[~hazard["fault"].isin(["none"])]
+    assert (faulty["credited"] == "none").all()
     assert row["per_fh"].iloc[0] == pytest.approx(4e-6 * missed / 2, abs=1e-20)
     assert set(hazard["fault"]) == {"runaway", "liquid_jam", "solid_jam", "disconnection",
                                     "all", "none"}
@@ -165,6 +289,11 @@ def test_the_report_section_lists_every_row_and_assumption():
     section = hazard_section(*report_section(table))
     assert section.count("<tr") == 1 + len(table)
     assert "false alarm" in section and "all faults (undetected)" in section
+    # both rates, the credit and its claim; runaway's 1e-6 is the placeholder, marked
+    assert "without detector" in section and "credited to the detector" in section
+    assert "1e-06 (est.)" in section and "2e-06 (est.)" not in section
+    assert html.escape(table.set_index("fault").loc["runaway", "claim"]) in section
+    assert "set [requirements] fault_rate_per_fh from your safety assessment" in section
     assert all(html.escape(a) in section for a in ASSUMPTIONS)
     assert report_section(None) is None
     runs = results.assign(manoeuvre="cruise", delay_s=np.nan, margin=0.5, alt_ft=0.0,
