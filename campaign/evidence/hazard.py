@@ -154,7 +154,7 @@ def meets(rate_per_fh: float) -> str:
 
 
 def credit(n_runs: int, undetected: int, p_upper: float, without_per_fh: float,
-           with_per_fh: float) -> tuple[str, str]:
+           with_per_fh: float, in_time: bool = False) -> tuple[str, str]:
     """(the category credited to the detector, the row's claim in words) of one row of
     *n_runs* faulty runs of which *undetected* went undetected, *p_upper* the upper bound
     of the undetected probability per run, *without_per_fh* the undetected rate without
@@ -165,7 +165,8 @@ def credit(n_runs: int, undetected: int, p_upper: float, without_per_fh: float,
     detected none of the runs, when *p_upper* exceeds :data:`WIDEST_CREDITED_BOUND`, or
     when the bound with the detector lands in the category of the rate without it ("not
     shown": the bound does not separate the categories). A row met by the fault rate
-    alone says so."""
+    alone says so. *in_time*: *undetected* counts the late detections too (the claim says
+    "in time")."""
     if n_runs <= 0:
         return "n/a", "no run"
     alone = meets(without_per_fh)
@@ -177,7 +178,7 @@ def credit(n_runs: int, undetected: int, p_upper: float, without_per_fh: float,
     if without_per_fh == 0.0:
         return no("fault rate 0 (the mode cannot occur)")
     if undetected >= n_runs:
-        return no(f"detected none of its {n_runs} runs")
+        return no(f"detected none of its {n_runs} runs" + (" in time" if in_time else ""))
     if not p_upper <= WIDEST_CREDITED_BOUND:
         return no(f"not shown: the undetected-probability bound {p_upper:.3g} is above "
                   f"{WIDEST_CREDITED_BOUND:g}")
@@ -326,7 +327,7 @@ def with_claims(hazard: pd.DataFrame) -> pd.DataFrame:
                 p_in = r["in_time_per_fh_upper95"] / lam if lam > 0 else math.nan
             credited, claim = credit(n, int(r["events"]), p_up, lam, r["per_fh_upper95"])
             credited_t, claim_t = credit(n, int(r["late_or_missed"]), p_in, lam,
-                                         r["in_time_per_fh_upper95"])
+                                         r["in_time_per_fh_upper95"], in_time=True)
             row = {"bound": bound, "rate_source": src, "without_per_fh": lam,
                    "meets_without": meets(lam), "meets_with": meets(r["per_fh_upper95"]),
                    "credited": credited, "claim": claim,
