@@ -41,7 +41,7 @@ import pandas as pd
 from scenarios.errors import InputError
 
 from .metrics import FAULT_FREE
-from .summary import ALL_FAULTS, ALL_MANOEUVRES
+from .summary import ALL_FAULTS, ALL_MANOEUVRES, detector_order
 
 __all__ = ["Check", "GateInputError", "GateResult", "evaluate_gate", "fa_limits",
            "fa_probability_checks",
@@ -222,8 +222,9 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
                             "FAIL scored runs: no run has finished yet"))
         return GateResult(checks)
     fine = summary[(summary["fault"] != ALL_FAULTS) & (summary["manoeuvre"] != ALL_MANOEUVRES)]
-    # the summary's order of the detectors (by name, numbers by value: reports.summary)
-    for detector, rows in fine.groupby("detector", sort=False):
+    # the one order of the detectors (by name, numbers by value), whatever the rows' order
+    for detector in detector_order(fine["detector"]):
+        rows = fine[fine["detector"] == detector]
         checks += _runs_check(detector, rows)
         checks += _fa_checks(detector, rows, float(allowance(detector, max_fa)),
                              _alarmed_runs(results, detector))
