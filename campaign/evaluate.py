@@ -27,6 +27,7 @@ import pandas as pd
 
 from detectors import Detection, as_variants, detection_problems
 from detectors.base import read_only, writes_input
+from detectors.system import DetectionSystem
 from reports.metrics import RESULT_COLUMNS, estimation_errors, score_columns
 from scenarios import compiled as kernels
 from scenarios.faults import estimation_range_mm
@@ -106,7 +107,8 @@ def simulate_signals(rows: pd.DataFrame, settings: ChunkSettings) -> Signals:
         return _simulate(rows, settings)[0]
 
 
-def detect(signals: Signals, detectors: dict, failures: dict | None = None) -> dict:
+def detect(signals: Signals, detectors: dict, failures: dict | None = None,
+           known: dict | None = None) -> dict:
     """Every fitted detector (label → Detector) on *signals*: {variant name →
     :class:`detectors.base.Detection`}, the names of the result rows
     (:func:`detectors.as_variants`).
@@ -120,15 +122,24 @@ def detect(signals: Signals, detectors: dict, failures: dict | None = None) -> d
     *failures*, a detector that raises (or breaks the contract) is left out and its
     message stored there under its label instead (the report and ``show`` go on with the
     others).
+
+    A detection system (:class:`detectors.system.DetectionSystem`) is combined from its
+    members' detections when they were made before it on the same *signals* — in this
+    call, or found in *known* (result name → Detection, filled with what this call makes,
+    for a caller that runs the detectors one at a time) — instead of running them again.
     """
     detections = {}
+    known = {} if known is None else known
     for label, det in detectors.items():
         try:
-            detections.update(_checked(label, det, signals))
+            made = _checked(label, det, signals, known)
         except Exception as exc:  # noqa: BLE001 - recorded for the caller when asked to
             if failures is None:
                 raise
             failures[label] = failure_message(exc)
+            continue
+        detections.update(made)
+        known.update(made)
     return detections
 
 
@@ -168,10 +179,15 @@ def detect_runs(signals: Signals, detectors: dict) -> tuple[dict, dict]:
     return detections, failures
 
 
-def _checked(label: str, det, signals: Signals) -> dict:
+def _checked(label: str, det, signals: Signals, known: dict | None = None) -> dict:
     """The variants of *det* on read-only *signals*, each checked against the output
-    contract."""
-    variants = as_variants(label, det.detect(read_only(signals)))
+    contract; a detection system's from the members' detections in *known* when they are
+    all there (:func:`detect`)."""
+    if isinstance(det, DetectionSystem) and known and all(
+            any(n == m or n.startswith(m + "[") for n in known) for m in det.member_labels):
+        variants = {label: det.combine(known)}
+    else:
+        variants = as_variants(label, det.detect(read_only(signals)))
     shape = (signals.n_runs, signals.n_steps)
     scaled = getattr(det.capabilities, "threshold_scale", False)
     for name, detection in variants.items():
@@ -299,10 +315,13 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
     required = _required(truth.fault, settings)
     range_mm = estimation_range_mm(signals.actuator)
     frames = []
+    needed = _system_members(detectors)
+    known: dict = {}          # the detections of the block that a system is made of
     for label, det in detectors.items():
         try:
-            frames.extend(_scored(rows, truth, detect(signals, {label: det}), required,
-                                  settings, range_mm))
+            made = detect(signals, {label: det}, known=known)
+            known = {n: d for n, d in known.items() if n.split("[", 1)[0] in needed}
+            frames.extend(_scored(rows, truth, made, required, settings, range_mm))
         except Exception as exc:  # noqa: BLE001
             if len(rows) == 1:
                 frames.append(_error_rows(rows, label, failure_message(exc)))
@@ -317,6 +336,12 @@ def _evaluate(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings) -> p
                     frames.append(_error_rows(rows.iloc[[j]], label,
                                               failure_message(exc_j)))
     return pd.concat(frames, ignore_index=True)[list(RESULT_COLUMNS)]
+
+
+def _system_members(detectors: dict) -> set[str]:
+    """The labels of the detectors some detection system of *detectors* is made of."""
+    return {label for det in detectors.values() if isinstance(det, DetectionSystem)
+            for label in det.member_labels}
 
 
 def _scoring_truth(truth):

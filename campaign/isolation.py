@@ -1,4 +1,5 @@
-"""Which detectors of a campaign are checked for *isolation* rather than detection.
+"""What each detector of a campaign is checked for besides false alarms: *isolation* rather
+than detection, the fault types it covers, the detection system it belongs to (:class:`Roles`).
 
 A detector that declares the plant surfaces whose faults it detects
 (:attr:`detectors.base.Capabilities.fault_surfaces`, e.g. ``vanek-geometric``: the left inboard
@@ -13,8 +14,11 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 
-__all__ = ["isolation_of", "isolation_of_stored"]
+from detectors.base import Coverage
+
+__all__ = ["Roles", "isolation_of", "isolation_of_stored", "roles_of", "roles_of_stored"]
 
 
 def isolation_of(config) -> dict[str, str]:
@@ -45,14 +49,80 @@ def isolation_of_stored(config_dict: Mapping | None) -> dict[str, str]:
     JSON form); empty when there is none. The stored file was validated when it ran; the
     one-line notes a reload may give (old spellings) are not repeated here. A stored
     configuration this version cannot read (an older directory) gives none either."""
+    config = _stored_config(config_dict)
+    return {} if config is None else isolation_of(config)
+
+
+def _stored_config(config_dict: Mapping | None):
+    """The configuration stored with a campaign's results, validated again without its
+    one-line notes (old spellings); None when there is none or this version cannot read
+    it."""
     if not config_dict:
-        return {}
+        return None
     from .config import CampaignConfig, ConfigError
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)
-            config = CampaignConfig.from_dict(dict(config_dict), "stored campaign")
+            return CampaignConfig.from_dict(dict(config_dict), "stored campaign")
     except ConfigError:
-        return {}
-    return isolation_of(config)
+        return None
+
+
+@dataclass(frozen=True)
+class Roles:
+    """What each detector of a campaign is held to, beyond false alarms: the surface it must
+    stay silent on (:attr:`isolation`, :func:`isolation_of`), the fault types it is designed
+    to detect (:meth:`coverage`) and the detection system whose member it is
+    (:meth:`system_of`), by result name (``label`` or ``label[variant]``, a system's name).
+    Built from a campaign's configuration by :func:`roles_of`."""
+
+    isolation: dict = field(default_factory=dict)
+    #: label → the detector built from the campaign file (unfitted: coverage reads its
+    #: parameters only); a label whose class cannot be imported is left out
+    detectors: dict = field(default_factory=dict)
+    #: system name → its members (``[[system]]``)
+    systems: dict = field(default_factory=dict)
+
+    def coverage(self, name: str) -> Coverage:
+        """The fault types result name *name* is designed to detect (every fault type for a
+        detector that declares none, or whose class is not installed here)."""
+        if name in self.systems:
+            total = None
+            for member in self.systems[name]:
+                cov = self.coverage(member)
+                total = cov if total is None else total.union(cov)
+            return total or Coverage()
+        label, _, rest = name.partition("[")
+        det = self.detectors.get(label)
+        return Coverage() if det is None else det.coverage(rest[:-1] if rest else None)
+
+    def system_of(self, name: str) -> str | None:
+        """The first detection system that has result name *name* among its members (named,
+        or by its label), or None."""
+        label = name.split("[", 1)[0]
+        for system, members in self.systems.items():
+            if name in members or label in members:
+                return system
+        return None
+
+
+def roles_of(config) -> Roles:
+    """The :class:`Roles` of the detectors and systems of *config*."""
+    from detectors.registry import DetectorSpecError, make_detector
+
+    built = {}
+    for d in config.detectors:
+        try:
+            built[d.label] = make_detector(d.name, d.params_dict())
+        except (DetectorSpecError, ValueError, TypeError):
+            continue
+    return Roles(isolation=isolation_of(config), detectors=built,
+                 systems={s.name: tuple(s.members) for s in config.systems})
+
+
+def roles_of_stored(config_dict: Mapping | None) -> Roles:
+    """:func:`roles_of` for the configuration stored with a campaign's results (its JSON
+    form), as :func:`isolation_of_stored` reads it; no roles when there is none."""
+    config = _stored_config(config_dict)
+    return Roles() if config is None else roles_of(config)

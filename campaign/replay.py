@@ -33,6 +33,7 @@ from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import requirements_gate
 from reports.html import ReportFigure, render_report, show_command
 from reports.metrics import FAULT_FREE
+from reports.summary import detector_order
 from reports.table import error_lines
 from scenarios.envelope import FLIGHT_COLUMNS
 
@@ -40,7 +41,7 @@ from .cli.common import UsageError
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .evidence.hazard import report_section
-from .isolation import isolation_of
+from .isolation import roles_of
 from .evidence.figures import evidence_figure_specs
 from .plant_setup import replay_plant
 from .result import Campaign, load
@@ -326,7 +327,7 @@ def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
     """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
     (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
     return requirements_gate(camp.summary, camp.gate_results, req,
-                             isolation=isolation_of(camp.config), coverage=camp.coverage,
+                             roles=roles_of(camp.config), coverage=camp.coverage,
                              all_requirements=all_requirements)
 
 
@@ -407,7 +408,7 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
     runs = runs_table(camp)
     if runs.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
-    detectors = camp.fitted
+    detectors = camp.evaluated
     req = _requirements(camp.config) if requirements is None else requirements
     warnings: list[str] = []
     if camp.meta.get("complete") is False:
@@ -632,7 +633,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
             raise CampaignSetupError(f"--plot and --out need the run's traces; {note}")
         log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)} (seed "
             f"{row['seed']}, stream {row['stream']})")
-        for name, r in stored.iterrows():
+        for name in detector_order(stored.index):
+            r = stored.loc[name]
             log(f"  {name}: stored " + (_score_text(r) if r["status"] == "ok" else
                                         f"status {r['status']}: {r['error']}"))
         log(note)
@@ -640,7 +642,7 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
     if note:
         log(note)
     failed: dict = {}
-    signals, truth, detections = simulate_and_detect(match, camp.fitted, settings, failed)
+    signals, truth, detections = simulate_and_detect(match, camp.evaluated, settings, failed)
     frame = _run_frame(signals, truth, 0)
     onset = float(truth.onset_s[0])
     log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)}"
@@ -649,6 +651,7 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
     # scored again with the campaign's own rules (campaign.evaluate.score)
     again = score(match, truth, detections, settings, signals.actuator).set_index("detector")
     residuals = {}
+    detections = {name: detections[name] for name in detector_order(detections)}
     for name, d in detections.items():
         res, alarm = np.asarray(d.residual[0], float), np.asarray(d.alarm[0], bool)
         residuals[name] = (res, alarm)

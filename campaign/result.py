@@ -271,6 +271,15 @@ class Campaign:
                 for d in self.config.detectors}
 
     @cached_property
+    def evaluated(self) -> dict:
+        """What the campaign's runs are scored with: the fitted detectors (:attr:`fitted`)
+        followed by its detection systems (``[[system]]``,
+        :class:`detectors.system.DetectionSystem`), name → Detector."""
+        from detectors.system import with_systems
+
+        return with_systems(self.fitted, self.config.systems)
+
+    @cached_property
     def certificate(self) -> Certificate | None:
         """The false-alarm certificate, or None when ``fdd-campaign certify`` has not run."""
         return Certificate.read(self._cdir)

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from detectors import make_detector, writes_input
+from detectors.system import with_systems
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import SummaryAccumulator
@@ -449,7 +450,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         else:
             n_planned = setup.cdir.planned_runs()
         release_freed_memory()     # what making the plan's blocks took
-        detectors = _learn(config, setup, log, fitted_from)
+        detectors = with_systems(_learn(config, setup, log, fitted_from), config.systems)
     except BaseException:
         if setup is not None:       # this call holds the directory's lock
             if fresh:               # nothing that looks like a campaign is left behind
@@ -479,7 +480,7 @@ def prepare(config, out, *, jobs: int = 2, chunk_size: int | None = None,
     setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
                    scheduler=scheduler, engine=None, log=log, tls=tls)
     try:
-        return setup, _learn(config, setup, log, fitted_from)
+        return setup, with_systems(_learn(config, setup, log, fitted_from), config.systems)
     except BaseException:
         setup.close()
         raise

@@ -2,6 +2,7 @@
 
 from .base import (
     Capabilities,
+    Coverage,
     Detection,
     Detector,
     NotFittedError,
@@ -23,7 +24,7 @@ from .registry import (
 )
 
 __all__ = [
-    "Capabilities", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
+    "Capabilities", "Coverage", "Detection", "Detector", "NotFittedError", "as_variants", "confirm",
     "decide", "detection_problems", "read_only", "windowed_min", "writes_input",
     "DetectorSpecError", "available_detectors", "load_detector_class", "make_detector",
     "parameter_errors", "Param", "parameter_problems", "parameter_table",

@@ -135,6 +135,36 @@ class Capabilities:
     #: plugin): the decision has no threshold scale, and the margin is the largest
     #: normalised residual before any confirmation logic, labelled so.
     threshold_scale: bool = False
+    #: the fault types (``scenarios.catalog.FAULT_TYPES``) it is designed to detect, with
+    #: ``coverage_reason`` saying why (a source, or what it cannot see): its missed-detection
+    #: and detection-time requirements apply to those only, and its runs of other faults
+    #: are reported as "not designed for" (:class:`Coverage`, :meth:`Detector.coverage`).
+    #: Empty (the default): every fault type.
+    covers: tuple[str, ...] = ()
+    coverage_reason: str = ""
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """What a detector (variant) is designed to detect: the fault types *faults* (None: every
+    fault type) and *reason*, the source of that design or what it cannot see. The gate
+    holds a detector to its missed-detection and detection-time requirements on the faults
+    it covers only (:func:`reports.gate.evaluate_gate`); the rest are reported, never
+    failed."""
+
+    faults: tuple[str, ...] | None = None
+    reason: str = ""
+
+    def covers(self, fault: str) -> bool:
+        """Whether *fault* (a fault type) is one the detector is designed to detect."""
+        return self.faults is None or fault in self.faults
+
+    def union(self, other: "Coverage") -> "Coverage":
+        """The coverage of an alarm raised by either detector (a detection system)."""
+        if self.faults is None or other.faults is None:
+            return Coverage(None, "")
+        faults = tuple(dict.fromkeys(self.faults + other.faults))
+        return Coverage(faults, "; ".join(r for r in (self.reason, other.reason) if r))
 
 
 @dataclass(frozen=True)
@@ -227,6 +257,15 @@ class Detector:
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
         return f"{type(self).__name__}({args})"
+
+    def coverage(self, variant: str | None = None) -> Coverage:
+        """The fault types this detector (its variant *variant*, the name inside the
+        brackets of a result name) is designed to detect: by default what
+        :attr:`Capabilities.covers` declares (every fault type when it declares none). A
+        detector whose coverage depends on its parameters or variants overrides this."""
+        caps = self.capabilities
+        covers = tuple(getattr(caps, "covers", ()) or ())
+        return Coverage(covers or None, getattr(caps, "coverage_reason", "") or "")
 
     # ---- learning and detection --------------------------------------------------------
     @property

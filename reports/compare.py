@@ -40,7 +40,7 @@ import pandas as pd
 from scipy import stats
 
 from .metrics import FAULT_FREE
-from .summary import ALL_MANOEUVRES
+from .summary import ALL_MANOEUVRES, natural_key
 from .table import number_text
 
 __all__ = ["COMPARE_COLUMNS", "ScoredRows", "compare_results", "compare_scored",
@@ -232,7 +232,9 @@ def compare_scored(rows_a: pd.DataFrame, rows_b: pd.DataFrame, *,
     aggregate = _several(rows_a) | _several(rows_b)
     cells_a, cells_b = _Cells(rows_a, aggregate), _Cells(rows_b, aggregate)
     rows = []
-    for key in sorted(cells_a.keys | cells_b.keys):
+    # detectors in the one order of every output (reports.summary.detector_order)
+    for key in sorted(cells_a.keys | cells_b.keys,
+                      key=lambda k: (natural_key(str(k[0])), *map(str, k[1:]))):
         ga, gb = cells_a.get(key), cells_b.get(key)
         row = dict(zip(_KEYS, key))
         if ga is None or gb is None:

@@ -41,7 +41,7 @@ import pandas as pd
 from scenarios.errors import InputError
 
 from .metrics import FAULT_FREE
-from .summary import ALL_FAULTS, ALL_MANOEUVRES
+from .summary import ALL_FAULTS, ALL_MANOEUVRES, detector_order
 
 __all__ = ["Check", "GateInputError", "GateResult", "bound_label", "curve_method",
            "evaluate_gate", "fa_limits", "fa_probability_checks",
@@ -86,6 +86,9 @@ class Check:
     message: str
     #: the first failing runs (false alarms, misses, late detections), for replaying one
     run_ids: tuple[str, ...] = ()
+    #: reported for information, never failed: a fault the detector is not designed for, or
+    #: a member's part of its detection system's requirement (a JUnit ``skipped`` case)
+    informative: bool = False
 
 
 @dataclass
@@ -109,8 +112,11 @@ class GateResult:
         """The verdict line: ``gate PASSED: all N checks passed`` or ``gate FAILED: k of N
         checks failed``."""
         k = len(self.failures)
-        return (f"gate FAILED: {k} of {len(self.checks)} checks failed" if k
-                else f"gate PASSED: all {len(self.checks)} checks passed")
+        told = sum(c.informative for c in self.checks)
+        n = len(self.checks) - told
+        info = f" ({told} more for information)" if told else ""
+        return (f"gate FAILED: {k} of {n} checks failed{info}" if k
+                else f"gate PASSED: all {n} checks passed{info}")
 
     def format(self) -> str:
         """Human report: one line per check, the verdict, and the failures repeated."""
@@ -155,7 +161,7 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
                   coverage: tuple[int, int] | None = None, allow_incomplete: bool = False,
                   results: pd.DataFrame | None = None,
                   detector_max_fa: dict | None = None,
-                  isolation: dict | None = None) -> GateResult:
+                  isolation: dict | None = None, roles=None) -> GateResult:
     """Evaluate the acceptance requirements on a summary (see the module docstring).
 
     Parameters
@@ -189,6 +195,15 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         which it must not alarm on (:func:`campaign.isolation.isolation_of`): its faulty
         runs are checked by :func:`_isolation_checks` instead of the missed-detection and
         DTP limits.
+    roles : object or None
+        What each detector is designed for (:class:`campaign.isolation.Roles`):
+        ``roles.coverage(name)`` the fault types it covers (``.covers(fault)``,
+        ``.reason``) and ``roles.system_of(name)`` the detection system it is a member of
+        (or None); its ``isolation`` is used when *isolation* is not given. The
+        missed-detection and DTP limits hold a detector to the faults it covers, and a
+        member of a system to none (the system is held to them): those rows are reported
+        as informative checks, which pass (:func:`_informative_checks`). None: every
+        detector is held to every fault.
 
     Raises
     ------
@@ -197,6 +212,8 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
     """
     _validate(summary, {"max_fa": max_fa, "max_md": max_md, "max_dtp": max_dtp})
     allowance = _allowances(summary, detector_max_fa or {})
+    if isolation is None and roles is not None:
+        isolation = getattr(roles, "isolation", None)
     checks: list[Check] = []
     if coverage is not None:
         checks.append(_coverage_check(*coverage, allow_incomplete))
@@ -205,7 +222,9 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
                             "FAIL scored runs: no run has finished yet"))
         return GateResult(checks)
     fine = summary[(summary["fault"] != ALL_FAULTS) & (summary["manoeuvre"] != ALL_MANOEUVRES)]
-    for detector, rows in fine.groupby("detector", sort=True):
+    # the one order of the detectors (by name, numbers by value), whatever the rows' order
+    for detector in detector_order(fine["detector"]):
+        rows = fine[fine["detector"] == detector]
         checks += _runs_check(detector, rows)
         checks += _fa_checks(detector, rows, float(allowance(detector, max_fa)),
                              _alarmed_runs(results, detector))
@@ -214,10 +233,13 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
             checks += _isolation_checks(detector, rows, isolated, results)
         else:
             scored = _faulty_runs(results, detector)
+            held, told = _held_rows(detector, rows, roles)
             if max_md is not None:
-                checks += _md_checks(detector, rows, float(max_md), scored)
+                checks += _md_checks(detector, held, float(max_md), scored)
             if max_dtp is not None:
-                checks += _dtp_checks(detector, rows, float(max_dtp), scored)
+                checks += _dtp_checks(detector, held, float(max_dtp), scored)
+            if max_md is not None or max_dtp is not None:
+                checks += _informative_checks(detector, told, roles)
         checks += _error_checks(detector, rows, allow_errors, _first_error(results, detector))
     if fine.empty:
         checks.append(Check("runs", "all", "all", "all", 0.0, 1.0, False,
@@ -227,7 +249,7 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
 
 
 def requirements_gate(summary: pd.DataFrame, results: pd.DataFrame | None, requirements,
-                      *, isolation: dict | None = None,
+                      *, isolation: dict | None = None, roles=None,
                       coverage: tuple[int, int] | None = None,
                       all_requirements: bool = False, allow_errors: bool = False,
                       allow_incomplete: bool = False) -> GateResult:
@@ -242,7 +264,7 @@ def requirements_gate(summary: pd.DataFrame, results: pd.DataFrame | None, requi
         detector_max_fa=dict(requirements.get("detector_max_fa_rate") or {}),
         max_md=requirements.get("max_md_rate") if all_requirements else None,
         max_dtp=requirements.get("max_dtp") if all_requirements else None,
-        isolation=isolation, coverage=coverage, allow_errors=allow_errors,
+        isolation=isolation, roles=roles, coverage=coverage, allow_errors=allow_errors,
         allow_incomplete=allow_incomplete)
 
 
@@ -430,6 +452,47 @@ def _dtp_checks(detector, rows, limit, scored: pd.DataFrame) -> list[Check]:
     return out
 
 
+def _held_rows(detector: str, rows: pd.DataFrame, roles) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """*detector*'s rows split into those its missed-detection and DTP limits hold it to
+    (faulty rows of fault types it covers, when it belongs to no detection system) and the
+    faulty rows reported for information only."""
+    faulty = rows["fault"] != FAULT_FREE
+    if roles is None:
+        return rows, rows.iloc[0:0]
+    if roles.system_of(detector) is not None:
+        return rows[~faulty], rows[faulty]
+    coverage = roles.coverage(detector)
+    covered = rows["fault"].map(lambda f: f == FAULT_FREE or coverage.covers(f)).astype(bool)
+    return rows[covered], rows[~covered]
+
+
+def _informative_checks(detector: str, rows: pd.DataFrame, roles) -> list[Check]:
+    """One passing, informative check per fault type of *rows* (:func:`_held_rows`): what
+    the detector detected of a fault it is not designed for, or, for a member of a
+    detection system, of the faults the system is held to."""
+    out = []
+    rows = rows[rows["n_runs"] > 0]
+    if rows.empty:
+        return out
+    system = roles.system_of(detector)
+    coverage = roles.coverage(detector)
+    for fault, g in rows.groupby("fault", sort=True):
+        n = int(g["n_runs"].sum())
+        k = n - int(g["md_count"].sum())
+        dtp = g["dtp_max"].to_numpy(dtype=float)
+        worst = "" if np.all(np.isnan(dtp)) else f", max DTP {np.nanmax(dtp):.3g}"
+        if system is not None:
+            name, what = "member", f"member of {system}"
+            why = "the detection system is held to the missed-detection and DTP limits"
+        else:
+            name, what = "not_designed_for", "not designed for"
+            why = coverage.reason or "the detector does not declare this fault type"
+        msg = f"INFO {what}: {detector}, {fault}: {k}/{n} detected{worst} ({why})"
+        out.append(Check(name, detector, fault, ALL_MANOEUVRES, k / n, math.nan, True, msg,
+                         informative=True))
+    return out
+
+
 def _isolated_surface(detector: str, isolation: dict) -> str | None:
     """The surface *detector* (result-row name) must not alarm on, by name or base label."""
     if detector in isolation:
@@ -490,13 +553,17 @@ def junit_tree(result: GateResult, name: str = "fdd-campaign gate") -> ET.Elemen
     ``failure`` per failed check."""
     failures = result.failures
     n, k = str(len(result.checks)), str(len(failures))
-    suite = ET.Element("testsuite", name=name, tests=n, failures=k, errors="0", skipped="0")
+    skipped = str(sum(c.informative for c in result.checks))
+    suite = ET.Element("testsuite", name=name, tests=n, failures=k, errors="0",
+                       skipped=skipped)
     for c in result.checks:
         case = ET.SubElement(suite, "testcase", classname=f"gate.{c.detector}",
                              name=f"{c.name}[{c.fault}/{c.manoeuvre}]")
         if not c.passed:
             fail = ET.SubElement(case, "failure", message=c.message, type=c.name)
             fail.text = c.message
+        elif c.informative:
+            ET.SubElement(case, "skipped", message=c.message)
         else:
             ET.SubElement(case, "system-out").text = c.message
     return suite

@@ -51,7 +51,8 @@ import pandas as pd
 from .metrics import FAULT_FREE, upper_bound
 from .survival import SURVIVAL_COLUMNS, survival_stats
 
-__all__ = ["ALL_FAULTS", "ALL_MANOEUVRES", "SUMMARY_COLUMNS", "SummaryAccumulator", "summarize"]
+__all__ = ["ALL_FAULTS", "ALL_MANOEUVRES", "SUMMARY_COLUMNS", "SummaryAccumulator",
+           "detector_order", "natural_key", "summarize"]
 
 #: ``fault`` of the per-detector aggregate over every faulty run.
 ALL_FAULTS = "all-faults"
@@ -172,6 +173,15 @@ def natural_key(name: str) -> str:
     by value (a=0.9 before a=0.95, a=0.95 before a=0.99, a=2 before a=10); a string, so it
     serves ``sorted`` and a pandas sort alike."""
     return _NUMBER.sub(lambda m: f"{float(m.group()):024.9f}", name)
+
+
+def detector_order(names) -> list[str]:
+    """*names* (detector result names, detection systems' among them) once each, in the one
+    order every output lists detectors in: by name, numbers by value (:func:`natural_key`:
+    ``comb-interval[a=0.9]`` before ``comb-interval[a=0.95]``) — the summary's order, which
+    ``run``, ``gate``, ``compare``, ``show``, ``certify``, the report and
+    ``repr(Campaign)`` follow (docs/report.md)."""
+    return sorted(dict.fromkeys(str(n) for n in names), key=natural_key)
 
 
 def _sort_key(column: pd.Series) -> pd.Series:

@@ -13,7 +13,7 @@ import pandas as pd
 
 from .metrics import FAULT_FREE
 from .paper import CHEN_ESTIMATOR, PAPER_TABLES
-from .summary import ALL_FAULTS, ALL_MANOEUVRES
+from .summary import ALL_FAULTS, ALL_MANOEUVRES, detector_order
 
 __all__ = ["error_lines", "format_paper_table", "format_table", "late_text", "number_text",
            "percent_text"]
@@ -80,7 +80,8 @@ def format_table(summary: pd.DataFrame) -> str:
     if summary is None or len(summary) == 0:
         return "no results"
     lines: list[str] = []
-    for detector, det in summary.groupby("detector", sort=True):
+    for detector in detector_order(summary["detector"]):
+        det = summary[summary["detector"] == detector]
         if lines:
             lines.append("")
         lines.append(f"Detector: {detector}")
@@ -122,7 +123,8 @@ def error_lines(results: pd.DataFrame, per_detector: int = 3) -> list[str]:
     many, with which status, and its first distinct messages with a run id each."""
     bad = results[results["status"].astype(str) != "ok"]
     out = []
-    for detector, g in bad.groupby("detector", sort=True):
+    for detector in detector_order(bad["detector"]):
+        g = bad[bad["detector"] == detector]
         counts = ", ".join(f"{n} {status}" for status, n in
                            g["status"].astype(str).value_counts().sort_index().items())
         first = g.drop_duplicates("error").head(per_detector)

@@ -26,7 +26,7 @@ from .common import (  # noqa: F401  (part of this module's interface)
     print_error,
     report_internal_error,
 )
-from ..isolation import isolation_of_stored
+from ..isolation import roles_of_stored
 from ..startup import defer_collection, start_up_done
 
 
@@ -279,7 +279,7 @@ def _gate_one(directory, args):
         limits[key] = given if given is not None else (
             limits.get(key) if args.all_requirements else None)
     result = requirements_gate(camp.summary, camp.gate_results, limits, all_requirements=True,
-                               isolation=isolation_of_stored(meta.get("config")),
+                               roles=roles_of_stored(meta.get("config")),
                                coverage=camp.coverage, allow_errors=args.allow_errors,
                                allow_incomplete=args.allow_incomplete)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)

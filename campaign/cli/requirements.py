@@ -66,11 +66,11 @@ def gate_of(config, result, *, all_requirements: bool = False):
     coverage (``fdd-campaign gate``), and with *all_requirements* its MD and DTP limits."""
     from reports.gate import requirements_gate
 
-    from ..isolation import isolation_of
+    from ..isolation import roles_of
 
     return requirements_gate(result.summary, result.gate_results,
                              config.to_dict()["requirements"],
-                             isolation=isolation_of(config),
+                             roles=roles_of(config),
                              coverage=result.coverage,
                              all_requirements=all_requirements)
 
@@ -110,7 +110,9 @@ def false_alarm_count(result) -> str:
 
 
 #: Requirement checks that only ``gate --all-requirements`` (and report.html) apply.
-MD_DTP_CHECKS = ("missed_detection", "dtp")
+#: (with the informative checks of the faults a detector is not designed for and of a
+#: detection system's members, :func:`reports.gate.evaluate_gate`)
+MD_DTP_CHECKS = ("missed_detection", "dtp", "not_designed_for", "member")
 
 
 def other_requirements(config, result, shown: int = 4, *, full=None) -> str:
@@ -120,7 +122,7 @@ def other_requirements(config, result, shown: int = 4, *, full=None) -> str:
     checks (false alarms, errors, isolation), which may fail while these limits are met.
     *full*: ``gate_of(..., all_requirements=True)`` when already evaluated."""
     full = full if full is not None else gate_of(config, result, all_requirements=True)
-    checks = [c for c in full.checks if c.name in MD_DTP_CHECKS]
+    checks = [c for c in full.checks if c.name in MD_DTP_CHECKS and not c.informative]
     how = f"(fdd-campaign gate {result.root} --all-requirements)"
     req = config.requirements
     limits = f"MD ≤ {100 * req.max_md_rate:g} %, DTP ≤ {req.max_dtp:g}"

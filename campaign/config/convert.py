@@ -186,6 +186,16 @@ def _to_names(c: _Check, value: Any) -> Any:
     return tuple(n for n in choices if n in value) if ok else BAD
 
 
+def _to_labels(c: _Check, value: Any) -> Any:
+    """A non-empty list of distinct free names (detector result names)."""
+    if not (isinstance(value, list) and value and all(isinstance(x, str) and x.strip()
+                                                      for x in value)):
+        return c.bad(f"expected a non-empty list of names, {c.got}; {c.fix}")
+    if len(set(value)) != len(value):
+        return c.bad("a name is repeated; fix: list each name once")
+    return tuple(value)
+
+
 def _to_table(c: _Check, value: Any) -> Any:
     if not isinstance(value, dict):
         return c.bad(f"expected a table, {c.got}; fix: e.g. {c.name} = "
@@ -254,6 +264,7 @@ _CONVERTERS: dict[str, Callable[[_Check, Any], Any]] = {
     "floats": _to_floats,
     "pair": _to_pair,
     "names": _to_names,
+    "labels": _to_labels,
     "table": _to_table,
     "fault_seconds": _to_fault_seconds,
     "number_table": _to_number_table,

@@ -49,6 +49,8 @@ def _allowed_text(spec: Key, name: str = "value") -> str:
         return ", ".join(spec.choices)
     if spec.kind == "names":
         return "any of " + ", ".join(spec.choices) + "; or [\"all\"]"
+    if spec.kind == "labels":
+        return "distinct names"
     if spec.kind == "fault_seconds":
         return "keys " + ", ".join(spec.choices) + "; each " + spec.range_text("value")
     if spec.kind == "table":

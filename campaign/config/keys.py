@@ -43,6 +43,7 @@ KIND_NAMES: dict[str, str] = {
     "floats": "list of floats",
     "pair": "[low, high]",
     "names": "list of names",
+    "labels": "list of names",
     "table": "table",
     "fault_seconds": "table fault → float",
     "number_table": "table name → float",

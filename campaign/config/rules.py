@@ -43,7 +43,7 @@ from .sections import (
 )
 from .text import num
 
-__all__ = ["normalise", "check_rules", "check_detectors", "requirement_name_problems",
+__all__ = ["normalise", "check_rules", "check_detectors", "check_systems", "requirement_name_problems",
            "derive_group_names"]
 
 
@@ -160,6 +160,7 @@ def check_rules(values: Mapping[str, Any], errors: list[str], *,
     _check_groups(values["groups"], design, duration, errors, values["faults"])
     _check_runs(values, errors)
     check_detectors(values["detectors"], camp, values["plant"], errors)
+    check_systems(values["systems"], values["detectors"], errors)
     if requirement_names:
         _check_requirement_names(values["requirements"], values["detectors"], errors)
     _check_plant(values["plant"], camp, errors)
@@ -537,6 +538,37 @@ def signature_text(cls: type) -> str:
             continue
         parts.append(prm.name if prm.default is prm.empty else f"{prm.name}={prm.default!r}")
     return ", ".join(parts) or "(none)"
+
+
+# ---- [[system]] ---------------------------------------------------------------------------
+def check_systems(systems: list, dets: list, errors: list[str]) -> None:
+    """Each [[system]]: a name no detector label or other system has, and members that name
+    the campaign's detectors (a label, or a label followed by a variant, LABEL[VARIANT];
+    which variants a detector has is known from its results, where the engine checks
+    them)."""
+    labels = [d["label"] for d in dets]
+    if not is_ok(*labels) or None in labels:
+        labels = []
+    seen: dict[str, str] = {label: "a [[detector]] label" for label in labels}
+    for i, sysspec in enumerate(systems):
+        p = f"system[{i}]"
+        name = sysspec["name"]
+        if is_ok(name):
+            if name in seen:
+                errors.append(f"{p}.name: {name!r} is already {seen[name]}; fix: give the "
+                              "system a name of its own")
+            seen.setdefault(name, f"the name of {p}")
+        members = sysspec["members"]
+        if not (labels and is_ok(members)):
+            continue
+        for j, member in enumerate(members):
+            base = member.split("[", 1)[0]
+            if base in labels and (member == base or member.endswith("]")):
+                continue
+            errors.append(f"{p}.members[{j}]: {member!r} names no detector of this "
+                          f"campaign{suggest(base, labels)}; its detectors ([[detector]] "
+                          f"labels): {', '.join(labels)} (or one of their variants: "
+                          "LABEL[VARIANT])")
 
 
 # ---- [requirements] -----------------------------------------------------------------------

@@ -25,6 +25,7 @@ from .sections import (
     ARRAY_EXAMPLES,
     CampaignSection,
     DetectorSpec,
+    SystemSpec,
     EnvelopeSection,
     FaultsSection,
     GroupSpec,
@@ -83,6 +84,13 @@ class CampaignConfig:
     detectors: tuple[DetectorSpec, ...] = section(
         DetectorSpec, "detector", "Detectors evaluated (at least one; labels unique).",
         array=True)
+    systems: tuple[SystemSpec, ...] = section(
+        SystemSpec, "system", "Detection systems (optional): a set of the campaign's "
+        "detectors whose alarm is the first alarm of any member, scored, gated, certified and "
+        "reported like a detector. With a system, the missed-detection and detection-time "
+        "requirements apply to the systems and to the detectors that belong to none; a "
+        "member's are reported for information (docs/design.md §5, Detection systems).",
+        array=True, required=False)
     requirements: RequirementsSection = section(
         RequirementsSection, "requirements", "Requirements used for scoring and by "
         "`fdd-campaign gate`.")
@@ -133,6 +141,10 @@ class CampaignConfig:
     @property
     def detector_labels(self) -> tuple[str, ...]:
         return tuple(d.label for d in self.detectors)
+
+    @property
+    def system_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.systems)
 
 
 # ----------------------------------------------------------------------------------------

@@ -361,6 +361,19 @@ class DetectorSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SystemSpec:
+    name: str = key("str", "name of the detection system in the results (unique among the "
+                    "[[detector]] labels and the systems)", example="fdd-system",
+                    nonempty=True)
+    members: tuple[str, ...] = key(
+        "labels", "its detectors: [[detector]] labels (a label stands for every variant of "
+        "that detector) or result names LABEL[VARIANT]; the system's alarm is the first "
+        "alarm of any member, and it covers the fault types any member covers "
+        "(docs/design.md §5, Detection systems)",
+        example=["position-monitor", "comb-interval[a=0.9]"])
+
+
+@dataclass(frozen=True, kw_only=True)
 class RequirementsSection:
     detection_time_s: tuple[tuple[str, float], ...] = key(
         "fault_seconds", "required detection time per fault type, the DTP denominator "

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from reports.metrics import FAULT_FREE
+from reports.summary import detector_order
 
 __all__ = ["CERTIFY_COLUMNS", "CertifyRows", "FreeRuns"]
 
@@ -134,12 +135,14 @@ class CertifyRows:
             acc[3] = None if alarm is None or acc[3] is None else acc[3] + int(alarm[sel].sum())
 
     def free_names(self) -> list[str]:
-        """Detectors with fault-free ``ok`` runs, in the order of their first such row."""
-        return list(self._free)
+        """Detectors with fault-free ``ok`` runs, in the one order of every output
+        (:func:`reports.summary.detector_order`)."""
+        return detector_order(self._free)
 
     def ok_names(self) -> list[str]:
-        """Detectors with ``ok`` runs, in the order of their first such row."""
-        return list(self._faulty)
+        """Detectors with ``ok`` runs, in the one order of every output
+        (:func:`reports.summary.detector_order`)."""
+        return detector_order(self._faulty)
 
     def free(self, name: str) -> FreeRuns:
         """Detector *name*'s fault-free runs (:class:`FreeRuns`)."""

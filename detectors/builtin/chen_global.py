@@ -305,7 +305,11 @@ class ChenGlobalEstimator(Detector):
     """
 
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
-                                needs_aircraft=True, threshold_scale=True)
+                                needs_aircraft=True, threshold_scale=True,
+                                covers=("disconnection",),
+                                coverage_reason="[CHEN] §6.1, eq. 25: the global estimator "
+                                "of an aileron disconnection from the aircraft's lateral "
+                                "motion")
 
     parameters = (
         Param("h_perturbation", "float", gt=0.0, unit="deg/deg", doc="ε of Remark 4.1: "

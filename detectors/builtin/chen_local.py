@@ -97,7 +97,7 @@ from scenarios.params import param
 from scenarios.signals import Signals
 
 from ..synthesis import chen_local_model as lm
-from ..base import Capabilities, Detection, Detector, decide, per_run_maxima
+from ..base import Capabilities, Coverage, Detection, Detector, decide, per_run_maxima
 from ..calibrate import THRESHOLD_PARAMS, learned_threshold
 from ..params import Param
 
@@ -271,6 +271,15 @@ class ChenLocalEstimator(Detector):
     capabilities = Capabilities(needs_fit=True, needs_surface_sensor=False, causal=True,
                                 estimates_rod_fault=True, threshold_scale=True)
 
+    #: variant → (fault types it is designed to detect, source) ([CHEN] §6.2: one
+    #: statistic of f̂ per jam type)
+    VARIANT_COVERAGE = {
+        "liquid": (("liquid_jam",), "[CHEN] §6.2: the liquid-jam statistic (post-filtered "
+                   "T f̂) is designed for liquid jams"),
+        "solid": (("solid_jam",), "[CHEN] §6.2: the solid-jam statistic (f̂ held away from "
+                  "its reference) is designed for solid jams"),
+    }
+
     parameters = (
         Param("sensor", "choice", choices=SENSORS, doc="rod measurement y of eq. 24 (the "
               "acquisition the loop closes on, or the monitoring one)", source="[CHEN] eq. 24"),
@@ -328,6 +337,14 @@ class ChenLocalEstimator(Detector):
         self.target_fa_per_run = target_fa_per_run
         self.threshold_confidence = threshold_confidence
         self.threshold_tail = threshold_tail
+
+    def coverage(self, variant: str | None = None) -> Coverage:
+        """Each variant covers its own jam type (:data:`VARIANT_COVERAGE`); the detector
+        as a whole, both."""
+        if variant in self.VARIANT_COVERAGE:
+            return Coverage(*self.VARIANT_COVERAGE[variant])
+        both = [Coverage(*c) for c in self.VARIANT_COVERAGE.values()]
+        return both[0].union(both[1])
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)

@@ -78,9 +78,10 @@ import numpy as np
 from scenarios import compiled as kernels
 from scenarios.params import ActuatorParams, param
 from scenarios.servo import PlantArrays, authority_limits, plant_arrays, rod_rate
+from scenarios.catalog import FAULT_TYPES
 from scenarios.signals import Signals
 
-from ..base import Capabilities, Detection, Detector, decide
+from ..base import Capabilities, Coverage, Detection, Detector, decide
 from ..calibrate import (THRESHOLD_PARAMS, calibrate_threshold, leave_one_out_ratios,
                         usable_classes)
 from ..params import Param
@@ -492,6 +493,18 @@ class IntervalDetector(Detector):
     def variant_name(a: float) -> str:
         """Name of the variant of pole *a* (``"a=0.9"``)."""
         return f"a={a:g}"
+
+    def coverage(self, variant: str | None = None) -> Coverage:
+        """Every fault type on the surface sensor; on a rod sensor every one but the
+        disconnection, which leaves the rod following its order (docs/physics.md §5:
+        "rod signals look healthy"), so the residual of the rod never sees it
+        (docs/interval-detector.md)."""
+        if self.sensor == "surface":
+            return Coverage(None, "")
+        return Coverage(tuple(f for f in FAULT_TYPES if f != "disconnection"),
+                        f"a disconnection leaves the {self.sensor} measurement following "
+                        "its order (docs/physics.md §5), which the interval residual "
+                        "reads ([COMB] §3, docs/interval-detector.md)")
 
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)

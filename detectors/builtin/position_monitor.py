@@ -74,9 +74,11 @@ from scenarios import compiled as kernels
 from scenarios.compiled import (BAND_WORK_ROWS, BLOCK, STEP_STAGES, band_plants, resolve_engine,
                                servo_band, servo_band_step, servo_model)
 from scenarios.servo import PlantArrays, plant_arrays, rk4_step, rod_rate
+from scenarios.catalog import FAULT_TYPES
 from scenarios.signals import Signals
 
-from ..base import Capabilities, Detection, Detector, decide, per_run_maxima, windowed_min
+from ..base import (Capabilities, Coverage, Detection, Detector, decide, per_run_maxima,
+                    windowed_min)
 from ..calibrate import THRESHOLD_PARAMS, learned_threshold
 from ..params import Param
 
@@ -292,6 +294,17 @@ class PositionMonitor(Detector):
         self.band = band
 
     # ---- residuals ---------------------------------------------------------------------
+    def coverage(self, variant: str | None = None) -> Coverage:
+        """Every fault type with the surface check (Goupil 2010/2011: the monitor of a
+        servo-loop's every failure case); without it every one but the disconnection, which
+        leaves the rod signals healthy (docs/physics.md §5) and shows only on the surface
+        sensor."""
+        if "surface" in self._checks():
+            return Coverage(None, "")
+        return Coverage(tuple(f for f in FAULT_TYPES if f != "disconnection"),
+                        "without the surface check a disconnection leaves the rod signals "
+                        "the loop and com_mon checks read healthy (docs/physics.md §5)")
+
     def _checks(self) -> list[str]:
         """The ``checks`` parameter as a list (a single name is accepted)."""
         return [self.checks] if isinstance(self.checks, str) else list(self.checks)

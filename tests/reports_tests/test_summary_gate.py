@@ -659,6 +659,16 @@ def test_checks_come_per_detector_in_name_order_and_one_scored_run_is_enough():
         assert [c.detector for c in result.checks] == ["a-monitor"] * 2 + ["b-monitor"] * 2
 
 
+def test_checks_come_with_variant_numbers_by_value():
+    """The one detector order (reports.summary.detector_order): a=0.9 before a=0.95, which
+    the text order reverses (']' sorts after '5')."""
+    names = ["d[a=0.95]", "d[a=0.9]", "d[a=0.6]"]
+    s = summarize(pd.concat([fault_free("cruise", 1, detector=n) for n in names],
+                            ignore_index=True))
+    order = list(dict.fromkeys(c.detector for c in evaluate_gate(s).checks))
+    assert order == ["d[a=0.6]", "d[a=0.9]", "d[a=0.95]"]
+
+
 def test_a_bound_that_is_not_a_number_reads_n_a():
     s = summarize(campaign()).assign(fa_upper95=np.nan)
     cruise = next(c for c in evaluate_gate(s).checks if (c.name, c.fault, c.manoeuvre) == (
