@@ -182,8 +182,10 @@ def test_the_flight_data_errors_make_the_turns_large():
     the aerodynamic coefficients, which stay in both readings): the same simulated signals
     give a peak low-passed |f̂| at least 4 times larger with the measured schedule
     (``Signals.schedule``, what a campaign gives the detector) than with the true one.
-    Measured 11–13° against 1.5–1.9° (ratio 7–8.5 over the runs' largest; seeds 3 and 4),
-    so 4 leaves room for the turn's shape, which the seed draws. The peaks are taken from
+    Measured: the largest peak 12.7–13.0° against 1.55–1.85° (ratio 6.9–8.4; seeds 3 and 4;
+    per run 4.9–13.0° against 1.3–1.9°), so 4 leaves room for the turn's shape, which the
+    seed draws. Without the aerodynamic errors the measured-schedule peaks move by at most
+    1.6° and the true-schedule ones fall to 0.6–1.1°. The peaks are taken from
     the manoeuvre's earliest start (``lead_s`` = 3 s) on: before it, the estimator's start
     from x̂ = y (β̂ = 0) gives up to 1.5° in both readings."""
     import dataclasses
