@@ -219,10 +219,10 @@ def test_the_flight_data_errors_make_the_turns_large():
 def test_e_along_phi_plus_p_passes_the_sensor_noise_to_the_estimate():
     """docs/chen-estimator.md §5.1: in calm cruise (no manoeuvre, no wind: what moves f̂ is
     the sensors' noise and the estimator's start) the raw f̂ of E along φ + 0.01·p has a
-    standard deviation over 20 times that of E along φ (measured 16–17.5° against 0.7° per
-    run over ten 60 s runs; here two 30 s runs at two flight points, after the first 10 s).
-    10 leaves room for the two runs' noise draws; the fast pole of the test above is the
-    path."""
+    standard deviation over 20 times that of E along φ (here, two 30 s runs at two flight
+    points after their first 10 s: 16.5–17.1° against 0.70°; ten 60 s runs at sampled
+    points: 16–17.5° against 0.7°). 10 leaves room for the runs' noise draws; the fast pole
+    of the test above is the path."""
     import pandas as pd
 
     from scenarios.aircraft.loop import AircraftPlant
