@@ -8,6 +8,7 @@ running one bare ``fdd-campaign`` from the PATH it gives.
 
 Quick equivalents, so that the block runs in about a minute (the documented mapping):
 
+* a study that runs campaigns → the same with fewer runs (:data:`QUICK_STUDIES`);
 * a long campaign → ``smoke`` (:data:`QUICK_CAMPAIGNS`); the flags stay (``--plant``,
   ``--out``, …);
 * ``--jobs N`` → ``--jobs 1`` (the campaign's results do not depend on it);
@@ -55,6 +56,13 @@ QUICK_CAMPAIGNS = {name: "smoke" for name in (
 #: The arguments of the quick ``bench``.
 QUICK_BENCH = ["--runs", "8", "--duration", "20", "--reference-runs", "1", "--campaign", "none",
                "--no-cold", "--no-detectors"]
+#: Quick equivalents of the studies that run campaigns: arguments appended to the example
+#: (a repeated option's last value wins), each a smaller campaign of the same kind.
+QUICK_STUDIES = {
+    "chen-flight-data": ["--levels", "0.02", "--fault-free", "1", "--disconnections", "2",
+                         "--learning-runs", "2"],
+    "vanek-jam-limit": ["--learning-runs", "3"],
+}
 #: Directories standing in for compare's results-v1/ and results-v2/.
 COMPARE_DIRS = {"results-v1/": "results/", "results-v2/": "smoke/"}
 
@@ -95,6 +103,8 @@ def _quick(argv: list[str]) -> list[str]:
         out.append(QUICK_CAMPAIGNS.get(arg, COMPARE_DIRS.get(arg, arg)))
     if out[:1] == ["bench"]:
         out = ["bench", *QUICK_BENCH]
+    if out[:1] == ["study"] and len(out) > 1:
+        out += QUICK_STUDIES.get(out[1], [])
     return out
 
 

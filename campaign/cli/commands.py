@@ -494,6 +494,33 @@ def cmd_study_vanek(args) -> int:
     return EXIT_OK
 
 
+def cmd_study_chen_flight_data(args) -> int:
+    from ..tools.studies.chen_flight_data import run_study
+
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: must be ≥ 1 (local workers); fix: e.g. --jobs 2")
+    check_writable(args.out, "--out", directory=True)
+    table = run_study(args.out, seed=args.seed, levels=args.levels, jobs=args.jobs,
+                      turbulence=args.turbulence, progress=not args.quiet,
+                      fault_free=args.fault_free, disconnections=args.disconnections,
+                      learning_runs=args.learning_runs)
+    return EXIT_INTERRUPTED if table is None else EXIT_OK
+
+
+def cmd_study_vanek_jam_limit(args) -> int:
+    from ..tools.studies.vanek_jam_limit import run_study
+
+    if not abs(args.bias_deg) < 5.0:
+        raise UsageError(f"--bias-deg {args.bias_deg}: a β-vane bias must be below 5° in size; "
+                         "fix: e.g. --bias-deg 0.02")
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: must be ≥ 1 (local workers); fix: e.g. --jobs 2")
+    table = run_study(args.directory, group=args.group, bias_deg=args.bias_deg,
+                      seed=args.seed, jobs=args.jobs, learning_runs=args.learning_runs,
+                      progress=not args.quiet)
+    return EXIT_INTERRUPTED if table is None else EXIT_OK
+
+
 def cmd_fmu(args) -> int:
     from scenarios.fmu_build import build_servo_fmu
 
@@ -730,6 +757,52 @@ def _add_study_parsers(subs) -> None:
     p.add_argument("--noise-scale", type=float, default=1.0,
                    help="factor on the σ of every aircraft sensor (default 1)")
     p.add_argument("--seed", type=int, default=0, help="seed of the scenarios (default 0)")
+    p = add_command(ssubs, "chen-flight-data", "the global [CHEN] estimators (chen-global, "
+                    "chen-global-paper with its calibrated and its max threshold) on chen-mc's "
+                    "fault-free and disconnection runs at several sizes of the [CHEN] Table-2 "
+                    "flight-data errors (VCAS, altitude, mass, CG): false alarms, misses and "
+                    "delays per size (docs/chen-estimator.md §5.2)",
+                    "fdd-campaign study chen-flight-data --seed 4711 --jobs 2 --out fd/",
+                    cmd_study_chen_flight_data)
+    p.add_argument("--out", required=True, help="directory of the campaigns, one per size "
+                   "(rerun into it to resume)")
+    p.add_argument("--seed", type=int, default=None, help="campaign seed (default: chen-mc's)")
+    p.add_argument("--levels", type=float, nargs="+", default=[0.10, 0.05, 0.02, 0.0],
+                   metavar="W", help="relative half-widths of the VCAS, altitude, mass and CG "
+                   "errors, each 0–0.5 (default 0.1 0.05 0.02 0: [CHEN] Table 2's ±10 %%, then "
+                   "smaller)")
+    p.add_argument("--jobs", type=int, default=2, help="local workers (default 2)")
+    p.add_argument("--turbulence", choices=["moderate", "none"], default=None,
+                   help="the Dryden turbulence flown (default: chen-mc's calm air)")
+    p.add_argument("--fault-free", type=int, default=None, metavar="N",
+                   help="fault-free runs per manoeuvre (default chen-mc's 200)")
+    p.add_argument("--disconnections", type=int, default=None, metavar="N",
+                   help="disconnection runs (default chen-mc's 334)")
+    p.add_argument("--learning-runs", type=int, default=None, metavar="N",
+                   help="learning runs per manoeuvre (default chen-mc's 50)")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p = add_command(ssubs, "vanek-jam-limit", "why vanek-geometric's LPV filter misses most "
+                    "default-size aileron jams: each jam run of a vanek-scenarios campaign "
+                    "beside its fault-free twin — steady residual, τ0, the allowance b(t) and "
+                    "its largest Table-2 term, the effect of a β-vane bias "
+                    "(docs/vanek-geometric.md)",
+                    "fdd-campaign study vanek-jam-limit vanek-jams/ --seed 90210",
+                    cmd_study_vanek_jam_limit)
+    p.add_argument("directory", help="a vanek-scenarios campaign directory (or a vanek-section5 "
+                   "suite directory); an empty or new one gets the preset run into it first")
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed of the campaign run into an empty directory (default the "
+                   "preset's); with a finished one, its seed or nothing")
+    p.add_argument("--jobs", type=int, default=2, help="local workers (default 2)")
+    p.add_argument("--learning-runs", type=int, default=None, metavar="N",
+                   help="learning runs of the campaign run into an empty directory "
+                   "(default the preset's 60)")
+    p.add_argument("--group", default="liquid-jam-default",
+                   help="the jam group studied (default liquid-jam-default)")
+    p.add_argument("--bias-deg", type=float, default=0.02,
+                   help="constant bias added to the β vane of the fault-free twins [deg] "
+                   "(default 0.02)")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
 
 
 def build_parser() -> argparse.ArgumentParser:

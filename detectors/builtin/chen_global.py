@@ -47,8 +47,8 @@ the aircraft like tens of degrees of one inboard aileron; with ``gust_channel`` 
 second unknown input decoupled by the same eq. 20–21 (F = [B_b W, A_b[:, β]], E gets a
 second column along r or φ), and f̂ is the first component of the estimate. [CHEN]'s model
 has no such input (u_w = 0, its footnote 1); ``chen-mc`` and ``chen-sweep`` run without it
-by default, and :mod:`detectors.builtin.chen_global_paper` is the variant with every [CHEN] choice
-(docs/chen-estimator.md §5.1).
+by default; :mod:`detectors.builtin.chen_global_paper` has what [CHEN] prints, and ours where
+it prints nothing, each labelled (docs/chen-estimator.md §5.1).
 
 Synthesis: :func:`detectors.synthesis.lpv_synthesis.synthesise` (vertex LMIs of eq. 23, Z1 = P⁻¹S,
 gains of eq. 20–21, L1(ρ) = −F(ρ)H† + Z1H⊥ affine in ρ). It runs once in ``fit`` and its

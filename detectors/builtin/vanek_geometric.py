@@ -877,3 +877,32 @@ class VanekGeometric(Detector):
         state.pop("_cache", None)             # designs are rebuilt on demand
         state.pop("_families", None)
         return state
+
+    def allowance_terms(self, signals: Signals, variant: str = "lpv") -> dict[str, np.ndarray]:
+        """The terms of b(t) of *variant* (``lti`` or ``lpv``) [deg], each (n_runs, n_steps):
+        ``"design point"`` |r̂_0| (zero for ``lpv``), then for each error of
+        :data:`detectors.synthesis.vanek_model_error.ERRORS` max(|r̂_j+|, |r̂_j−|), low-passed
+        (:mod:`detectors.synthesis.vanek_model_error`). They sum to :meth:`allowances`' b(t)
+        of the variant; what share of it each Table-2 error takes (docs/vanek-geometric.md,
+        "Why the default-size jam is missed")."""
+        from ..synthesis import vanek_model_error as me
+
+        if variant not in VARIANTS:
+            raise ValueError(f"variant {variant!r} has no model-error allowance; allowed: "
+                             f"{', '.join(VARIANTS)}")
+        s = self.model_error_signals(signals)
+        sched = signals.schedule
+        fl = self._filters(variant, signals)
+        K = np.stack([self._error_matrices(variant, {k: float(sched[k][i]) for k in
+                                                     ("vcas_kt", "alt_ft", "mass_t", "cg_pct")},
+                                           sched["mach"][i], sched["qbar_pa"][i])
+                      for i in range(signals.n_runs)])
+        path = (np.stack([f.Ad for f in fl]), np.stack([f.Bdist for f in fl]),
+                np.stack([f.c @ f.Cd for f in fl]), np.stack([f.c @ f.Ddist for f in fl]))
+        lowpass = self._lowpass(signals.ts)
+        out = {"design point": np.degrees(me.bound(K[:, :1], *path, s, lowpass))}
+        zero = np.zeros_like(K[:, :1])
+        for j, e in enumerate(me.ERRORS):
+            Kj = np.concatenate([zero, K[:, 1 + 2 * j:3 + 2 * j]], axis=1)
+            out[e] = np.degrees(me.bound(Kj, *path, s, lowpass))
+        return out
