@@ -300,9 +300,9 @@ def tradeoff(directory, scales=SCALES, confidence: float = 0.95) -> Tradeoff:
                     continue
                 rows_out.append(_table_row(name, f, scale, scaled, cell, levels, mean_h,
                                            confidence))
-        unknown = sum(c.n_unknown for (n, f, s), c in cells.items()
-                      if n == name and f != ALL_FAULTS and f != FAULT_FREE and s == scales[-1]
-                      and s != 1.0)
+        unknown = max([sum(c.n_unknown for (n, f, s), c in cells.items()
+                           if n == name and f not in (ALL_FAULTS, FAULT_FREE) and s == scale)
+                       for scale in scales if scale != 1.0] or [0])
         if scaled and unknown:
             notes.append(_predates_note(name, unknown, cdir.root))
     if unscaled:
@@ -467,13 +467,14 @@ def at_threshold_scales(camp, scales: dict):
     runs = _plan_runs(cdir, camp.config)
     acc, kept = SummaryAccumulator(), []
     for batch in cdir.result_batches(positions=True):
+        if ALARM_STEPS_COLUMN not in batch:          # every shard predates the column
+            batch[ALARM_STEPS_COLUMN] = None
         parts = []
         for name, rows in batch.groupby("detector", sort=False):
             scale = chosen.get(str(name), 1.0)
             if scale != 1.0:
-                steps = rows[ALARM_STEPS_COLUMN] if ALARM_STEPS_COLUMN in rows else None
-                if steps is None or not _has_scale(str(name), labels, set(
-                        rows.loc[steps.notna(), "detector"].astype(str))):
+                stored = set(rows.loc[rows[ALARM_STEPS_COLUMN].notna(), "detector"])
+                if not _has_scale(str(name), labels, stored):
                     raise TradeoffError(
                         f"--threshold-scale: {name} has no threshold scale (its decision is "
                         "not a statistic compared with 1); gate it at its own thresholds")
