@@ -489,3 +489,39 @@ def at_threshold_scales(camp, scales: dict):
         kept.append(gate_rows(batch))
     gate = pd.concat(kept, ignore_index=True) if kept else pd.DataFrame()
     return _AtScales(camp, acc.summary(), gate, chosen)
+
+
+# ---- the report's figures --------------------------------------------------------------------
+def report_figures(camp, requirements: dict | None = None, notes: list | None = None) -> list:
+    """The report's trade-off figures of *camp* (a loaded Campaign): one per fault type in
+    the section "Detection per fault type" (:class:`reports.html.ReportFigure`), from the
+    stored runs at every scale of :data:`SCALES`; *notes* receives the sentences that go
+    with them (a directory that predates the stored first alarms). None for a campaign
+    without faulty runs or without a detector with a threshold scale."""
+    from reports.figures import figure_png
+    from reports.html import ReportFigure
+    from reports.tradeoff_figure import tradeoff_figure, tradeoff_points
+
+    result = tradeoff(camp.root)
+    table = result.table
+    faults = sorted(set(table["fault"]) - {FAULT_FREE, ALL_FAULTS})
+    max_dtp = (requirements or {}).get("max_dtp")
+    figures = []
+    for fault in faults:
+        points = tradeoff_points(table, fault)
+        if not points:
+            continue
+        fig = tradeoff_figure(points, title=f"{fault}: false alarms against detection time, "
+                              "every threshold × the scale", max_dtp=max_dtp)
+        figures.append(ReportFigure(
+            "fault", fault, f"Threshold trade-off — {fault}",
+            figure_png(fig),
+            "Each detector at the threshold scales the campaign stores (every threshold × "
+            f"{', '.join(f'{s:g}' for s in SCALES)}), computed from its stored runs "
+            "(fdd-campaign tradeoff): the Clopper–Pearson bound of its fault-free false "
+            "alarms (dotted: certify's bound where it has one) against the worst DTP of its "
+            "detected runs; the ringed point is the campaign's own thresholds; a hollow "
+            "point misses runs."))
+    if notes is not None and figures:
+        notes.extend(f"Threshold trade-off: {n}" for n in result.notes)
+    return figures

@@ -47,8 +47,7 @@ ESTIMATE_COLUMNS: tuple[str, ...] = (
 )
 
 #: Columns of a result row: one row per run × detector (docs/design.md §7, Command line minimum
-#: columns, plus ``error`` and ``pre_onset_alarm``, then :data:`ESTIMATE_COLUMNS`), then the
-#: first alarms at other thresholds (:mod:`reports.alarm_steps`; absent from older shards).
+#: columns, plus ``error``, ``pre_onset_alarm``, :data:`ESTIMATE_COLUMNS`, ``alarm_steps``).
 RESULT_COLUMNS: tuple[str, ...] = (
     "run_id", "detector", "fault", "manoeuvre", "status", "error",
     "false_alarm", "pre_onset_alarm", "detected", "first_alarm_s", "delay_s", "dtp", "margin",

@@ -17,6 +17,8 @@ Layout (docs/design.md §6, Outputs)::
     DIR/summary.parquet       rates, bounds, DTP statistics
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
                               campaigns only, :mod:`reports.detection_times`)
+    DIR/tradeoff.parquet      the results at other threshold scales (``fdd-campaign tradeoff``,
+                              :mod:`campaign.tradeoff`)
     DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
     DIR/worst-case/NAME-nN-seedS/  one worst-case search of ``gate --worst-case N``
                               (:meth:`CampaignDir.worst_case_search_dir`): ``search.parquet``,
