@@ -198,3 +198,19 @@ def test_the_key_is_refused_for_a_detector_without_threshold_scale(monkeypatch, 
     # scale 1 is the default, allowed for every detector, and not in the canonical form
     cfg["detector"][1]["threshold_scale"] = 1
     assert "threshold_scale" not in CampaignConfig.from_dict(cfg).to_json()
+
+
+def test_the_report_gets_one_trade_off_figure_per_fault_type(dirs):
+    from PIL import Image
+    import io
+
+    from campaign.tradeoff import report_figures
+
+    notes: list = []
+    figures = report_figures(load(dirs / "base"), {"max_dtp": 1.0}, notes)
+    assert [f.group for f in figures] == ["disconnection", "runaway", "solid_jam"]
+    assert all(f.section == "fault" and f.title.startswith("Threshold trade-off") for f in figures)
+    for f in figures:
+        width, height = Image.open(io.BytesIO(f.png)).size
+        assert 400 < width <= 1100 and 250 < height < 700       # within the page's width
+    assert notes == []                                          # nothing predates here
