@@ -305,6 +305,10 @@ def tradeoff(directory, scales=SCALES, confidence: float = 0.95) -> Tradeoff:
                        for scale in scales if scale != 1.0] or [0])
         if scaled and unknown:
             notes.append(_predates_note(name, unknown, cdir.root))
+    if not camp.complete:
+        notes.append(f"the campaign is unfinished ({camp.runs_done} of {camp.runs_planned} "
+                     "runs done): these are the counts of its finished runs; finish it by "
+                     "running the same 'fdd-campaign run' command again")
     if unscaled:
         notes.append(f"no threshold scale (their decision is not a statistic compared with 1, "
                      f"or they give none): {', '.join(unscaled)}; given at scale 1 only, "

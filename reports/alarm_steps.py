@@ -41,6 +41,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import pandas as pd
 
 from .metrics import FAULT_FREE, ONSET_TOL_S
 
@@ -200,8 +201,7 @@ def scaled_columns(*, scale: float, fault, onset_s, margin, steps, ts: float,
     with np.errstate(invalid="ignore"):
         alarm = margin >= scale
     steps = np.asarray(steps, dtype=object) if n else np.zeros(0, dtype=object)
-    stored = np.array([s is not None and not (isinstance(s, float) and np.isnan(s))
-                       for s in steps], dtype=bool) if n else np.zeros(0, dtype=bool)
+    stored = ~pd.isna(steps)                 # None, or NaN from a frame without the column
     known = ~faulty | stored
     onset = np.asarray(onset_s, dtype=float)
     k_on = onset_steps(np.where(faulty, onset, 0.0), ts)
@@ -240,7 +240,7 @@ def combine_breakpoints(members) -> np.ndarray:
     out = np.full(n, None, dtype=object)
     for i in range(n):
         values = [c[i] for c in columns]
-        if any(v is None or (isinstance(v, float) and np.isnan(v)) for v in values):
+        if any(pd.isna(v) for v in values):
             continue
         decoded = [decode_steps(v) for v in values]
         length = max(len(d) for d in decoded)

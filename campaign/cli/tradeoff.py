@@ -32,13 +32,28 @@ def cmd_tradeoff(args) -> int:
     print(format_tradeoff(result))
     for note in result.notes:
         print(f"note: {note}")
+    example = _gate_example(result.table)
     if args.max_fa_prob is not None or args.max_fa_per_hour is not None:
         points = operating_points(result.table, max_fa_prob=args.max_fa_prob,
                                   max_fa_per_hour=args.max_fa_per_hour)
         print(format_operating_points(points, args.max_fa_prob, args.max_fa_per_hour))
-    print(f"trade-off written to {path}; gate one scale with: fdd-campaign gate {args.dir} "
-          "--threshold-scale DETECTOR=SCALE")
+        met = points.dropna(subset="scale")
+        if len(met):
+            example = (str(met["detector"].iloc[0]), float(met["scale"].iloc[0]))
+    print(f"trade-off written to {path}" + ("" if example is None else
+          f"; gate a detector at a scale: fdd-campaign gate {args.dir} --threshold-scale "
+          f"{example[0]}={example[1]:g}"))
     return 0
+
+
+def _gate_example(table):
+    """(detector, scale) of a ``gate --threshold-scale`` hint: the first detector with a
+    threshold scale, at the largest scale of the table other than 1 (None: none)."""
+    scaled = table[table["threshold_scale"] & (table["scale"] != 1.0)]
+    if scaled.empty:
+        return None
+    name = str(scaled["detector"].iloc[0])
+    return name, float(scaled.loc[scaled["detector"] == name, "scale"].max())
 
 
 def _g(x, fmt: str = ".3g") -> str:
