@@ -20,7 +20,7 @@ def tradeoff_points(table: pd.DataFrame, fault: str) -> dict[str, pd.DataFrame]:
     (worst DTP of the detected runs of that fault type), ``md_count``, ``fa_upper95`` (the
     Clopper–Pearson bound of its fault-free runs) and ``fa_certified`` (``certify``'s bound,
     NaN where it gives none); only detectors with a threshold scale and the scales where
-    the detections are known."""
+    the detections are known, when there are two or more."""
     out = {}
     for name, g in table.groupby("detector", sort=False):
         if not bool(g["threshold_scale"].iloc[0]):
@@ -28,7 +28,7 @@ def tradeoff_points(table: pd.DataFrame, fault: str) -> dict[str, pd.DataFrame]:
         free = g[g["fault"] == FAULT_FREE].set_index("scale")
         hit = g[(g["fault"] == fault) & g["md_rate"].notna()].set_index("scale")
         scales = sorted(set(free.index) & set(hit.index))
-        if not scales:
+        if len(scales) < 2:             # no curve: detections known at one scale only
             continue
         out[str(name)] = pd.DataFrame({
             "scale": scales,
