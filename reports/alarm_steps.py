@@ -1,9 +1,10 @@
 """First alarms at other thresholds, stored with each run: the ``alarm_steps`` result column
 (docs/thresholds.md, "Other thresholds from one campaign: tradeoff").
 
-A detector whose decision has a threshold scale (:attr:`detectors.base.Capabilities.threshold_scale`)
-raises its alarm at the first step where its decision statistic reaches 1, and with every
-threshold multiplied by s at the first step where it reaches s (:class:`detectors.base.Detection`).
+A detector whose decision has a threshold scale
+(:attr:`detectors.base.Capabilities.threshold_scale`) raises its alarm at the first step where
+its decision statistic reaches 1, and with every threshold multiplied by s at the first step
+where it reaches s (:class:`detectors.base.Detection`).
 Of a run scored at s = 1 the engine keeps, besides its result row, what fixes its result at
 the other scales of :data:`ALARM_SCALES`:
 

@@ -40,12 +40,14 @@ def tradeoff_points(table: pd.DataFrame, fault: str) -> dict[str, pd.DataFrame]:
     return out
 
 
-def tradeoff_figure(points: dict[str, pd.DataFrame], *, title: str, max_dtp: float | None = None):
+def tradeoff_figure(points: dict[str, pd.DataFrame], *, title: str,
+                    max_dtp: float | None = None):
     """The figure of :func:`tradeoff_points`: x the worst-case DTP of the detected runs,
     y the per-run false-alarm bound (log), a line per detector through its scales (the
-    smallest and the largest labelled), a dotted line through ``certify``'s bounds where it gives them, the scale-1
-    point ringed in black; a scale with missed runs is a hollow marker, its misses
-    written beside it; the DTP requirement *max_dtp* as a dashed vertical line."""
+    smallest and the largest labelled), a dotted line through ``certify``'s bounds where it
+    gives them, the scale-1 point ringed in black; a scale with missed runs is a hollow
+    marker, its misses written beside it; the DTP requirement *max_dtp* as a dashed
+    vertical line."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.6, 4.2))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
