@@ -214,3 +214,33 @@ def test_the_report_gets_one_trade_off_figure_per_fault_type(dirs):
         width, height = Image.open(io.BytesIO(f.png)).size
         assert 400 < width <= 1100 and 250 < height < 700       # within the page's width
     assert notes == []                                          # nothing predates here
+
+
+def test_false_alarms_per_flight_hour_and_their_operating_point(dirs):
+    table = tradeoff(dirs / "base", (0.8, 1.0)).table
+    free = table[table["fault"] == "none"]
+    hours = 20.0 / 3600.0                              # the runs' duration
+    np.testing.assert_allclose(free["fa_per_hour_upper95"],
+                               -np.log1p(-free["fa_upper95"]) / hours, rtol=1e-12)
+    assert table.loc[table["fault"] != "none", "fa_per_hour_upper95"].isna().all()
+    rate = float(free["fa_per_hour_upper95"].max())    # every scale meets it
+    points = operating_points(table, max_fa_per_hour=rate)
+    assert points["scale"].notna().all()
+    assert operating_points(table, max_fa_per_hour=rate / 1e6)["scale"].isna().all()
+    with pytest.raises(TradeoffError, match="one false-alarm target"):
+        operating_points(table, max_fa_prob=0.1, max_fa_per_hour=rate)
+
+
+def test_a_detector_without_threshold_scale_is_listed_with_no_curve(monkeypatch, tmp_path):
+    monkeypatch.setitem(registry.BUILTIN, "subsampled", "plugin_detectors:Subsampled")
+    cfg = small_campaign("noscale", 23, [{"name": "subsampled", "label": "sub"}])
+    run(CampaignConfig.from_dict(cfg), tmp_path / "c", jobs=1, progress=False)
+    result = tradeoff(tmp_path / "c", (0.8, 1.0, 1.25))
+    assert result.unscaled == ["sub"]
+    assert any("no threshold scale" in note and "sub" in note for note in result.notes)
+    sub = result.table[result.table["detector"] == "sub"]
+    assert set(sub["scale"]) == {1.0} and not sub["threshold_scale"].any()
+    pm = result.table[result.table["detector"] == "pm"]
+    assert set(pm["scale"]) == {0.8, 1.0, 1.25} and pm["threshold_scale"].all()
+    with pytest.raises(TradeoffError, match="sub has no threshold scale"):
+        at_threshold_scales(load(tmp_path / "c"), {"sub": 0.8})

@@ -78,6 +78,8 @@ def test_rows_at_a_stored_scale_are_those_of_the_scaled_detection(window_s):
     rng = np.random.default_rng(11)
     ts, n, n_steps = 0.01, 160, 400
     fault, onset, decision = _random_decisions(rng, n, n_steps, ts)
+    # onsets at the first step, at the last and after the run's end
+    fault[:3], onset[:3] = "runaway", [0.0, (n_steps - 1) * ts, n_steps * ts + 1.0]
     run_id = np.array([f"r{i}" for i in range(n)])
     required = np.where(fault == "none", np.nan, rng.uniform(0.05, 0.4, n))
     own = Detection(alarm=decide(decision), residual=decision, decision=decision)
@@ -86,6 +88,7 @@ def test_rows_at_a_stored_scale_are_those_of_the_scaled_detection(window_s):
     at_one = score_columns(alarm=own.alarm, residual=own.decision, **kw)
     steps = alarm_steps(decision, fault=fault, onset_s=onset, ts=ts, window_s=window_s)
     assert all((s is None) == (f == "none") for s, f in zip(steps, fault))
+    assert steps[2] == b""                    # an onset after the run: no window, no alarm
     differs = 0
     for scale in ALARM_SCALES:
         det = at_threshold_scale(own, scale)
