@@ -244,3 +244,21 @@ def test_a_detector_without_threshold_scale_is_listed_with_no_curve(monkeypatch,
     assert set(pm["scale"]) == {0.8, 1.0, 1.25} and pm["threshold_scale"].all()
     with pytest.raises(TradeoffError, match="sub has no threshold scale"):
         at_threshold_scales(load(tmp_path / "c"), {"sub": 0.8})
+
+
+def test_a_threshold_scale_is_a_mark_on_the_detector_not_a_learned_value():
+    from detectors.base import set_threshold_scale, set_threshold_scales, threshold_scale_of
+    from detectors.builtin.position_monitor import PositionMonitor
+    from plugin_detectors import Subsampled
+
+    pm = PositionMonitor()
+    assert threshold_scale_of(pm) == 1.0
+    assert threshold_scale_of(set_threshold_scale(pm, 1.25)) == 1.25
+    assert "_threshold_scale" not in pm.fitted_state() and "threshold_scale" not in str(
+        pm.get_params())
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="finite number > 0"):
+            set_threshold_scale(pm, bad)
+    set_threshold_scale(Subsampled(), 1.0)                 # 1: every detector takes it
+    with pytest.raises(ValueError, match="'sub'.*has no threshold scale"):
+        set_threshold_scales({"sub": Subsampled()}, {"sub": 0.8})
