@@ -526,6 +526,6 @@ def report_figures(camp, requirements: dict | None = None, notes: list | None = 
             "alarms (dotted: certify's bound where it has one) against the worst DTP of its "
             "detected runs; the ringed point is the campaign's own thresholds; a hollow "
             "point misses runs."))
-    if notes is not None and figures:
+    if notes is not None and faults:         # why a detector has no curve, among others
         notes.extend(f"Threshold trade-off: {n}" for n in result.notes)
     return figures
