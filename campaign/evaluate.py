@@ -26,8 +26,9 @@ import numpy as np
 import pandas as pd
 
 from detectors import Detection, as_variants, detection_problems
-from detectors.base import read_only, writes_input
+from detectors.base import at_threshold_scale, read_only, threshold_scale_of, writes_input
 from detectors.system import DetectionSystem
+from reports.alarm_steps import ALARM_STEPS_COLUMN, alarm_steps
 from reports.metrics import RESULT_COLUMNS, estimation_errors, score_columns
 from scenarios import compiled as kernels
 from scenarios.faults import estimation_range_mm
@@ -198,7 +199,8 @@ def _checked(label: str, det, signals: Signals, known: dict | None = None) -> di
                             "statistic its alarm compares with 1")
         if problems:
             raise DetectorContractError(label, det, name, problems, detection, shape)
-    return variants
+    # every threshold × the detector's [[detector]] threshold_scale (1: as it gave them)
+    return {name: at_threshold_scale(d, threshold_scale_of(det)) for name, d in variants.items()}
 
 
 def simulate_and_detect(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings,
@@ -258,6 +260,9 @@ def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
             alarm=detection.alarm, residual=detection.margin_statistic, ts=settings.ts,
             required_time_s=required, window_s=settings.window_s)
         scored.update(_estimate_columns(detection, truth, range_mm))
+        scored[ALARM_STEPS_COLUMN] = alarm_steps(      # the first alarms at other thresholds
+            detection.decision, fault=truth.fault, onset_s=truth.onset_s, ts=settings.ts,
+            window_s=settings.window_s)
         scored.update(detector=np.full(n, name, dtype=object),
                       fault=np.asarray(truth.fault), manoeuvre=manoeuvre,
                       status=np.full(n, "ok", dtype=object), error=np.full(n, "", dtype=object))
@@ -367,7 +372,7 @@ def _error_rows(rows: pd.DataFrame, detector: str, message: str,
         "detected": np.zeros(n, bool), "first_alarm_s": np.nan, "delay_s": np.nan,
         "dtp": np.nan, "margin": np.nan,
         "est_err_n": np.zeros(n, np.int64), "est_err_mean_mm": np.nan,
-        "est_err_var_mm2": np.nan, "est_range_mm": np.nan,
+        "est_err_var_mm2": np.nan, "est_range_mm": np.nan, ALARM_STEPS_COLUMN: None,
     })
 
 

@@ -47,6 +47,7 @@ from .plant_setup import replay_plant
 from .result import Campaign, load
 from .runner import CampaignSetupError, settings_of
 from .store.directory import CampaignDir
+from .tradeoff import report_figures as tradeoff_figures
 
 __all__ = ["ReportSettings", "build_report", "replay_settings", "show_run"]
 
@@ -386,6 +387,7 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
                       min_tasks=MIN_PARALLEL_FIGURES)
     figures = [ReportFigure(section, group, title, png, caption)
                for (section, group, title, caption, *_), png in zip(specs, pngs)]
+    figures += tradeoff_figures(data.camp, data.requirements, data.notes)
     del specs, pngs             # the maps' copies of the runs, not needed for the page
     t_fig = time.perf_counter() - t1
     data.notes.append(f"Report made with {jobs} job(s): re-simulation {data.t_sim:.1f} s, "

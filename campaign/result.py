@@ -266,9 +266,13 @@ class Campaign:
     @cached_property
     def fitted(self) -> dict:
         """The fitted detectors: label → Detector, rebuilt from ``fitted/`` as data
-        (:meth:`campaign.store.directory.CampaignDir.read_fitted`), never unpickled."""
-        return {d.label: self._cdir.read_fitted(d.label, d.name)
-                for d in self.config.detectors}
+        (:meth:`campaign.store.directory.CampaignDir.read_fitted`), never unpickled, each at
+        the ``threshold_scale`` of its ``[[detector]]`` entry."""
+        from detectors.base import set_threshold_scales
+
+        return set_threshold_scales(
+            {d.label: self._cdir.read_fitted(d.label, d.name) for d in self.config.detectors},
+            {d.label: d.scale for d in self.config.detectors})
 
     @cached_property
     def evaluated(self) -> dict:

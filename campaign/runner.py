@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from detectors import make_detector, writes_input
+from detectors.base import set_threshold_scales
 from detectors.system import with_systems
 from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
@@ -317,8 +318,9 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     src.refuse_pickles()
     src.check_manifest()
     theirs = CampaignConfig.from_dict(src.read_config(), source=str(src.config_path))
-    ours_d = {"detector": config.to_dict().get("detector")}
-    theirs_d = {"detector": theirs.to_dict().get("detector")}
+    # a threshold scale is applied when the detectors run, not learned: any is reused
+    ours_d = {"detector": _without_scales(config.to_dict().get("detector"))}
+    theirs_d = {"detector": _without_scales(theirs.to_dict().get("detector"))}
     differ = differing_keys(theirs_d, ours_d)
     if differ:
         raise CampaignSetupError(
@@ -342,6 +344,12 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
             f"{held[:12]}… ≠ {want[:12]}…); choose a new --out directory")
     names = {d.label: d.name for d in config.detectors}
     return {label: cdir.read_fitted(label, names[label]) for label in labels}
+
+
+def _without_scales(entries) -> list:
+    """``[[detector]]`` entries (JSON form) without their ``threshold_scale``."""
+    return [{k: v for k, v in entry.items() if k != "threshold_scale"}
+            for entry in entries or ()]
 
 
 def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
@@ -646,7 +654,28 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
 
 def _learn(config, setup: _Setup, log, fitted_from=None) -> dict:
     """The fitted detectors (fitted on the learning set, reloaded from the directory, or
-    taken from the campaign directory *fitted_from*)."""
+    taken from the campaign directory *fitted_from*), each at the threshold scale of its
+    ``[[detector]]`` entry (:func:`with_threshold_scales`)."""
+    return with_threshold_scales(config, _fitted(config, setup, log, fitted_from))
+
+
+def with_threshold_scales(config, detectors: dict) -> dict:
+    """*detectors* (label → fitted Detector) marked with the ``threshold_scale`` of their
+    ``[[detector]]`` entries of *config* (:func:`detectors.base.set_threshold_scales`): the
+    engine then multiplies every threshold of each by its factor when it runs it
+    (:func:`campaign.evaluate.detect`). Fitting never sees the scale, so the detectors
+    fitted at one scale serve every other (``run --fitted-from``). A detector whose own
+    capabilities do not declare ``threshold_scale`` and is given another factor than 1 is a
+    :class:`CampaignSetupError` naming it."""
+    try:
+        return set_threshold_scales(detectors, {d.label: d.scale for d in config.detectors})
+    except ValueError as exc:
+        raise CampaignSetupError(f"{exc}; fix: remove threshold_scale from its [[detector]] "
+                                 "entry") from None
+
+
+def _fitted(config, setup: _Setup, log, fitted_from=None) -> dict:
+    """The fitted detectors of :func:`_learn`, at their own thresholds."""
     settings, pool = setup.settings, setup.pool
     origin = setup.cdir.read_fitted_origin()
     if fitted_from is None and origin is not None:

@@ -421,6 +421,61 @@ def decide(decision: np.ndarray) -> np.ndarray:
     return np.logical_or.accumulate(decision_reached(decision), axis=1)
 
 
+def at_threshold_scale(detection: Detection, scale: float) -> Detection:
+    """*detection* as its detector would give it with every threshold multiplied by *scale*
+    (> 0): the decision and the normalised residual divided by *scale*, the alarm raised at
+    the first step where the scaled decision reaches 1 and latched (:func:`decide`); the
+    estimate unchanged. Since ``d/s ≥ 1`` exactly when ``d ≥ s`` (a correctly rounded
+    division by s > 0 is monotone and 1 is a double), the alarm is raised at the first step
+    where the decision reaches *scale*, the rule of :class:`Detection`. Scale 1 (or a
+    detection without a decision) returns *detection* itself."""
+    scale = float(scale)
+    if scale == 1.0 or detection.decision is None:
+        return detection
+    decision = np.asarray(detection.decision, dtype=float) / scale
+    return Detection(alarm=decide(decision), residual=np.asarray(detection.residual) / scale,
+                     estimate=detection.estimate, decision=decision)
+
+
+def set_threshold_scale(detector: "Detector", scale: float) -> "Detector":
+    """Make the engine multiply every threshold of *detector* by *scale* (> 0) when it
+    runs it (:func:`threshold_scale_of`, :func:`at_threshold_scale`; a campaign file's
+    ``[[detector]] threshold_scale``); returns *detector*. Nothing of the detector changes
+    but this mark, which is not a learned attribute: its stored fitted state is the same at
+    every scale. ``ValueError`` for a scale that is not a finite number > 0 or a detector
+    whose capabilities do not declare ``threshold_scale``."""
+    scale = float(scale)
+    if not (np.isfinite(scale) and scale > 0.0):
+        raise ValueError(f"threshold scale must be a finite number > 0, got {scale!r}")
+    if scale != 1.0 and not getattr(detector.capabilities, "threshold_scale", False):
+        raise ValueError(f"{type(detector).__name__} has no threshold scale (its "
+                         "Capabilities.threshold_scale is False: its alarm is not a decision "
+                         "statistic compared with 1), so its thresholds cannot be scaled")
+    vars(detector)["_threshold_scale"] = scale
+    return detector
+
+
+def set_threshold_scales(detectors: Mapping, scales: Mapping) -> Mapping:
+    """:func:`set_threshold_scale` on each of *detectors* (label → Detector) that *scales*
+    (label → factor) names; returns *detectors*. ``ValueError`` naming the label of a
+    detector that cannot take its factor."""
+    for label, scale in scales.items():
+        if label in detectors:
+            try:
+                set_threshold_scale(detectors[label], scale)
+            except ValueError as exc:
+                raise ValueError(f"detector {label!r}: threshold_scale = {float(scale):g}: "
+                                 f"{exc}") from None
+    return detectors
+
+
+def threshold_scale_of(detector) -> float:
+    """The factor the engine multiplies *detector*'s thresholds by (1 unless
+    :func:`set_threshold_scale` set another)."""
+    return float(vars(detector).get("_threshold_scale", 1.0)) if hasattr(
+        detector, "__dict__") else 1.0
+
+
 def windowed_min(statistic: np.ndarray, n: int) -> np.ndarray:
     """The least value of *statistic* (n_runs, n_steps) over each step's last *n* steps
     [k − n + 1, k] (n ≥ 1), NaN before a full window exists (k < n − 1) and wherever the

@@ -29,7 +29,8 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from .base import Capabilities, Coverage, Detection, Detector, as_variants
+from .base import (Capabilities, Coverage, Detection, Detector, as_variants,
+                   at_threshold_scale, threshold_scale_of)
 
 __all__ = ["DetectionSystem", "with_systems"]
 
@@ -110,12 +111,14 @@ class DetectionSystem(Detector):
         return Detection(alarm=alarm, residual=residual, decision=decision)
 
     def _detect(self, signals):
-        """The members run here, on *signals* (a caller that already has their detections
-        uses :meth:`combine`)."""
+        """The members run here, on *signals*, each at its threshold scale (a caller that
+        already has their detections uses :meth:`combine`)."""
         detections = {}
         for label, det in self.member_detectors.items():
             try:
-                detections.update(as_variants(label, det.detect(signals)))
+                # each member at its own [[detector]] threshold_scale, as the engine runs it
+                detections.update({name: at_threshold_scale(d, threshold_scale_of(det))
+                                   for name, d in as_variants(label, det.detect(signals)).items()})
             except Exception as exc:
                 raise RuntimeError(f"member {label!r} failed: {type(exc).__name__}: "
                                    f"{exc}") from exc

@@ -47,11 +47,11 @@ ESTIMATE_COLUMNS: tuple[str, ...] = (
 )
 
 #: Columns of a result row: one row per run × detector (docs/design.md §7, Command line minimum
-#: columns, plus ``error`` and ``pre_onset_alarm``, then :data:`ESTIMATE_COLUMNS`).
+#: columns, plus ``error``, ``pre_onset_alarm``, :data:`ESTIMATE_COLUMNS`, ``alarm_steps``).
 RESULT_COLUMNS: tuple[str, ...] = (
     "run_id", "detector", "fault", "manoeuvre", "status", "error",
     "false_alarm", "pre_onset_alarm", "detected", "first_alarm_s", "delay_s", "dtp", "margin",
-    *ESTIMATE_COLUMNS,
+    *ESTIMATE_COLUMNS, "alarm_steps",
 )
 
 #: Columns returned by :func:`score_runs` (the scoring part of a result row).

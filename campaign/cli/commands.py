@@ -270,6 +270,9 @@ def _gate_one(directory, args):
     from ..result import load
 
     camp = load(directory)
+    from .tradeoff import gated_at_scales
+
+    camp = gated_at_scales(camp, args)          # --threshold-scale D=s: from the stored runs
     meta = camp.meta
     limits = dict(creq.requirements_of(meta, args))
     if args.max_fa is not None:       # one limit for every detector: no allowance
@@ -655,9 +658,11 @@ def _add_result_parsers(subs) -> None:
                         "certify DIR' when absent; docs/evidence.md)")
     creq.add_requirements_option(p)
     p.add_argument("--junit", help="write a JUnit XML report to this file")
+    from .tradeoff import add_threshold_scale_option
     from .worst_case import add_worst_case_options
 
     add_worst_case_options(p)
+    add_threshold_scale_option(p)
 
 
 def _add_simulate_parser(subs) -> None:
@@ -825,9 +830,11 @@ def build_parser() -> argparse.ArgumentParser:
     subs = parser.add_subparsers(dest="command", metavar="COMMAND")
     from .evidence import add_evidence_parsers
     from .falsify import add_falsify_parser
+    from .tradeoff import add_tradeoff_parser
 
     for add in (_add_run_parsers, _add_result_parsers, _add_simulate_parser, _add_tool_parsers,
-                _add_study_parsers, add_falsify_parser, add_evidence_parsers):
+                _add_study_parsers, add_falsify_parser, add_evidence_parsers,
+                add_tradeoff_parser):
         add(subs)
     return parser
 

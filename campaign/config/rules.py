@@ -110,9 +110,14 @@ def _without_mc_only_keys(table: Mapping[str, Any], cls: type, design: Any) -> d
 
 
 def _with_label(det: Mapping[str, Any]) -> dict:
+    """*det* with its label (its name when none is given) and without a ``threshold_scale``
+    of 1, the default: a file that writes it has the canonical form of one that does not."""
+    out = dict(det)
     if is_ok(det["name"]) and det["label"] is None:
-        return {**det, "label": det["name"]}
-    return dict(det)
+        out["label"] = det["name"]
+    if det.get("threshold_scale") == 1.0:
+        out["threshold_scale"] = None
+    return out
 
 
 def derive_group_names(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -501,7 +506,20 @@ def check_detectors(dets: list, camp: Mapping, plant: Mapping, errors: list[str]
         caps = getattr(cls, "capabilities", None)
         if caps is not None:
             _check_compatibility(name, caps, p, camp, plant, errors)
+            _check_threshold_scale(d, name, caps, p, errors)
             errors.extend(f"{p}.name: {msg}" for msg in offline_problems({name: caps}))
+
+
+def _check_threshold_scale(d: Mapping, name: str, caps, p: str, errors: list[str]) -> None:
+    """A ``threshold_scale`` other than 1 needs a detector whose decision has a threshold
+    scale (:attr:`detectors.base.Capabilities.threshold_scale`)."""
+    scale = d.get("threshold_scale")
+    if is_ok(scale) and scale is not None and not getattr(caps, "threshold_scale", False):
+        errors.append(f"{p}.threshold_scale: detector {name!r} has no threshold scale (its "
+                      "Capabilities.threshold_scale is False: its alarm is not a decision "
+                      "statistic compared with 1, so its thresholds cannot be multiplied); "
+                      "fix: remove threshold_scale, or set the detector's own threshold "
+                      "parameters in params")
 
 
 def _check_unique_label(d: Mapping, p: str, seen: dict[str, str], errors: list[str]) -> None:

@@ -354,6 +354,20 @@ class DetectorSpec:
     params: tuple[tuple[str, Any], ...] = key(
         "table", "keyword parameters of the detector (checked against its signature and "
         "ranges)", (), example={"safety": 2.0})
+    threshold_scale: float | None = key(
+        "float", "every threshold of the detector multiplied by this factor: its alarm is "
+        "raised where its decision statistic reaches it (below 1: earlier detection, likelier "
+        "false alarms); only for a detector whose capabilities declare threshold_scale (every "
+        "built-in one). The detectors fitted by another campaign are reused at any scale "
+        "(run --fitted-from), and 'fdd-campaign tradeoff DIR' predicts a campaign's results "
+        "at the scales it stores (docs/thresholds.md)", unit="-", gt=0.0, optional=True,
+        default_doc="1 (the detector's own thresholds)", example=1.25,
+        source="the user's choice of operating point")
+
+    @property
+    def scale(self) -> float:
+        """The factor of every threshold (1 when ``threshold_scale`` is not set)."""
+        return 1.0 if self.threshold_scale is None else float(self.threshold_scale)
 
     def params_dict(self) -> dict:
         """The parameters as a plain dict (lists and dicts), ready for ``make_detector``."""

@@ -17,6 +17,8 @@ Layout (docs/design.md §6, Outputs)::
     DIR/summary.parquet       rates, bounds, DTP statistics
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
                               campaigns only, :mod:`reports.detection_times`)
+    DIR/tradeoff.parquet      the results at other threshold scales (``fdd-campaign tradeoff``,
+                              :mod:`campaign.tradeoff`)
     DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
     DIR/worst-case/NAME-nN-seedS/  one worst-case search of ``gate --worst-case N``
                               (:meth:`CampaignDir.worst_case_search_dir`): ``search.parquet``,
@@ -66,6 +68,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from reports.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN
 from scenarios.errors import InputError
 
 from .lock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
@@ -92,6 +95,25 @@ MANIFEST_FORMAT = "fdd-campaign manifest 1"
 #: be rewritten with it (:meth:`CampaignDir.write_shard`).
 MANIFEST_DEFER_S = 2.0
 FITTED_FORMAT = "fdd-campaign fitted detector 1"
+
+
+#: Result columns a shard may lack: written by a later version than the directory's first
+#: shards, or left out of a shard where every value is null (:func:`_stored_alarm_steps`).
+OPTIONAL_RESULT_COLUMNS: tuple[str, ...] = (ALARM_STEPS_COLUMN,)
+#: Key of a shard's metadata listing the threshold scales its ``alarm_steps`` hold.
+ALARM_SCALES_KEY = "alarm_scales"
+
+
+def _stored_alarm_steps(results: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
+    """(*results* as a shard stores them, the shard's extra metadata): the ``alarm_steps``
+    column (:mod:`reports.alarm_steps`) left out when every value is null (a chunk of
+    fault-free runs: about 500 bytes of schema a shard), else kept, packed
+    (:func:`campaign.store.files.write_parquet`), with the scales it holds in the metadata."""
+    if ALARM_STEPS_COLUMN not in results.columns:
+        return results, {}
+    if results[ALARM_STEPS_COLUMN].isna().all():
+        return results.drop(columns=ALARM_STEPS_COLUMN), {}
+    return results, {"packed": (ALARM_STEPS_COLUMN,), ALARM_SCALES_KEY: list(ALARM_SCALES)}
 
 
 def _read_optional(path: Path) -> pd.DataFrame | None:
@@ -154,7 +176,7 @@ MANIFEST_TOP_FILES: tuple[str, ...] = ("campaign.json", "plan.parquet", "learnin
                                        "summary.parquet", "detection-times.parquet",
                                        "fitted-origin.json", "certificate.parquet",
                                        "certificate-hazard.parquet",
-                                       "certificate-levels.parquet")
+                                       "certificate-levels.parquet", "tradeoff.parquet")
 
 
 def identity_sha256(config_json: str) -> str:
@@ -274,6 +296,7 @@ class CampaignDir:
         self.certificate_path = self.root / "certificate.parquet"
         self.hazard_path = self.root / "certificate-hazard.parquet"
         self.certificate_levels_path = self.root / "certificate-levels.parquet"
+        self.tradeoff_path = self.root / "tradeoff.parquet"
         self.report_path = self.root / "report.html"
         self.runs = self.root / "runs"
         self.fitted = self.root / "fitted"
@@ -819,6 +842,36 @@ class CampaignDir:
         written one."""
         return _read_optional(self.certificate_levels_path)
 
+    def write_tradeoff(self, table: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``tradeoff.parquet`` (:func:`campaign.tradeoff.tradeoff`); *extra* goes
+        into its metadata."""
+        self._write_recorded(self.tradeoff_path, lambda: write_parquet(
+            table, self.tradeoff_path, config_json, kind="tradeoff", **extra))
+
+    def read_tradeoff(self) -> pd.DataFrame | None:
+        """The stored trade-off table, or None when ``tradeoff`` has not run."""
+        return _read_optional(self.tradeoff_path)
+
+    def alarm_scales_stored(self) -> tuple[int, list]:
+        """(shards that hold the ``alarm_steps`` column, the distinct scale lists their
+        metadata records, in first-seen order): what :mod:`campaign.tradeoff` checks before
+        it reads the column."""
+        held, seen = 0, []
+        for path in self.shard_paths():
+            try:
+                names = pq.read_schema(path).names
+            except (pa.ArrowInvalid, OSError) as exc:
+                raise CampaignDirError(f"{path}: not a readable result shard ({exc}); the "
+                                       f"directory is damaged: 'fdd-campaign verify "
+                                       f"{self.root}' names what differs") from None
+            if ALARM_STEPS_COLUMN not in names:
+                continue
+            held += 1
+            scales = read_metadata(path).get(ALARM_SCALES_KEY)
+            if scales not in seen:
+                seen.append(scales)
+        return held, seen
+
     # ---- worst-case searches (gate --worst-case) ----------------------------------------
     @property
     def worst_case_root(self) -> Path:
@@ -897,17 +950,28 @@ class CampaignDir:
         :meth:`flush_manifest` when it stops (a shard a crash leaves out of the manifest is
         removed on resume, and its runs are run again)."""
         path = self.next_shard_path()
+        results, extra = _stored_alarm_steps(results)
         self._write_recorded(path, lambda: write_parquet(results, path, config_json,
-                                                         kind="results"),
+                                                         kind="results", **extra),
                              defer=defer_manifest)
         self._next_shard += 1
         return path
 
     def _read_shard(self, path: Path, columns=None):
         """The table of one result shard; one that cannot be read (truncated, overwritten)
-        is the directory's damage (:class:`CampaignDirError`, exit 2), not the engine's."""
+        is the directory's damage (:class:`CampaignDirError`, exit 2), not the engine's. An
+        optional column (:data:`OPTIONAL_RESULT_COLUMNS`) asked for and not in the shard
+        comes back null."""
         try:
-            return pq.read_table(path, columns=columns)
+            if columns is None or not set(columns) & set(OPTIONAL_RESULT_COLUMNS):
+                return pq.read_table(path, columns=columns)
+            shard = pq.ParquetFile(path)
+            held = set(shard.schema_arrow.names)
+            table = shard.read(columns=[c for c in columns if c in held])
+            for c in columns:
+                if c not in held:
+                    table = table.append_column(c, pa.nulls(len(table), pa.binary()))
+            return table.select(list(columns))
         except (pa.ArrowInvalid, OSError) as exc:     # truncated, overwritten, unreadable
             raise CampaignDirError(
                 f"{path}: not a readable result shard ({exc}); the directory is damaged: "

@@ -65,23 +65,45 @@ DEFAULT_ROW_GROUP_ROWS = 1024 * 1024
 
 
 def write_parquet(df: pd.DataFrame, path: Path, config_json: str, *,
-                  row_group_rows: int | None = None, **extra) -> None:
+                  row_group_rows: int | None = None, packed: tuple[str, ...] = (),
+                  **extra) -> None:
     """Write *df* to *path* atomically with the campaign metadata in the schema, in row
     groups of *row_group_rows* rows (default :data:`DEFAULT_ROW_GROUP_ROWS`): the table of
     one frame (:func:`write_parquet_blocks`)."""
     write_parquet_blocks([df], path, config_json, rows=len(df),
-                         row_group_rows=row_group_rows or DEFAULT_ROW_GROUP_ROWS, **extra)
+                         row_group_rows=row_group_rows or DEFAULT_ROW_GROUP_ROWS,
+                         packed=packed, **extra)
+
+
+#: Compression of the columns a writer names *packed* (bytes packed by the engine itself,
+#: e.g. :data:`reports.alarm_steps.ALARM_STEPS_COLUMN`): zstd takes them to 0.77 of snappy's
+#: size (21.3 against 27.6 kB on addsafe-mc's shards, seed 4242); the other columns keep
+#: pyarrow's default, snappy.
+PACKED_COMPRESSION = "zstd"
+
+
+def _writer_options(schema: pa.Schema, packed: tuple[str, ...]) -> dict:
+    """ParquetWriter options: pyarrow's defaults, except that the *packed* columns of
+    *schema* are compressed with :data:`PACKED_COMPRESSION` and carry no min/max statistics
+    (of packed bytes they say nothing)."""
+    packed = [name for name in schema.names if name in packed]
+    if not packed:
+        return {}
+    return {"compression": {name: PACKED_COMPRESSION if name in packed else "snappy"
+                            for name in schema.names},
+            "write_statistics": [name for name in schema.names if name not in packed]}
 
 
 def write_parquet_blocks(frames, path: Path, config_json: str, *, rows: int,
-                         row_group_rows: int, before_commit=None, **extra) -> None:
+                         row_group_rows: int, before_commit=None,
+                         packed: tuple[str, ...] = (), **extra) -> None:
     """Write the table whose rows *frames* (DataFrames of the same columns and types) give
     in order, *rows* of them in all, to *path* atomically with the campaign metadata in the
     schema, in row groups of *row_group_rows* rows, as the frames come: memory holds a row
     group and a frame, whatever the size of the table, and the row groups do not depend on
     how the rows are cut into frames. *before_commit*, called once every frame is written
     and before the file takes its name, may refuse the table by raising (nothing is
-    written then)."""
+    written then). The *packed* columns are written as :func:`_writer_options` says."""
     meta = {METADATA_KEY: json.dumps({
         "engine_version": engine_version(), "rows": int(rows),
         "config": json.loads(config_json), **extra,
@@ -105,7 +127,7 @@ def write_parquet_blocks(frames, path: Path, config_json: str, *, rows: int,
                 if writer is None:
                     schema = table.schema.with_metadata({**(table.schema.metadata or {}),
                                                          **meta})
-                    writer = pq.ParquetWriter(tmp, schema)
+                    writer = pq.ParquetWriter(tmp, schema, **_writer_options(schema, packed))
                 pending.append(table.cast(schema))
                 held += len(table)
                 while held >= row_group_rows:

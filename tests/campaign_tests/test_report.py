@@ -115,6 +115,8 @@ def test_report_has_the_verdict_first_and_every_figure(campaign_dir, report):
     # delay as survival data (docs/evidence.md; the certificate's figures only once
     # fdd-campaign certify has run); per fault type one figure across the detectors
     expected = {f"Detection of {f}" for f in FAULTS}
+    # and its threshold trade-off (campaign/tradeoff.py, docs/thresholds.md)
+    expected |= {f"Threshold trade-off — {f}" for f in FAULTS}
     for det in ORDER:
         expected |= {f"Residual envelopes — {det}", f"Margin to false alarm — {det}",
                      f"Detection time performance — {det}",
@@ -424,10 +426,10 @@ def _png_sizes(page: str) -> list[tuple[int, int, int]]:
 def test_the_page_is_small_and_its_figures_fit_a_laptop_screen(report):
     _, page = report
     sizes = _png_sizes(page)
-    # 2 detectors: 2 envelope figures, 3 fault types, 4 maps, 2 survival curves, 8
-    # example runs (1 fault-free, up to 3 per fault type) = 19 figures, not one per
-    # detector × manoeuvre or detector × fault type
-    assert len(sizes) == 19
+    # 2 detectors: 2 envelope figures, 3 fault types (a detection and a trade-off figure
+    # each), 4 maps, 2 survival curves, 8 example runs (1 fault-free, up to 3 per fault
+    # type) = 22 figures, not one per detector × manoeuvre or detector × fault type
+    assert len(sizes) == 22
     # no figure wider than the page's content at 1366 px: nothing is cut or scrolled
     assert max(w for _, w, _ in sizes) <= CONTENT_PX
     # measured: 9–56 kB per figure at 100 dpi in 256 colours (the example runs, dense noisy

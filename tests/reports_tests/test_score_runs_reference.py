@@ -120,6 +120,7 @@ def test_a_chunk_s_result_table_is_the_variants_scored_one_by_one():
 
     from campaign.evaluate import ChunkSettings, _estimate_columns, _scored
     from detectors.base import Detection
+    from reports.alarm_steps import alarm_steps
     from reports.metrics import RESULT_COLUMNS
 
     rng = np.random.default_rng(7)
@@ -132,7 +133,8 @@ def test_a_chunk_s_result_table_is_the_variants_scored_one_by_one():
     truth = SimpleNamespace(fault=np.asarray(batch["fault"]), onset_s=batch["onset_s"],
                             rod_fault_mm=fault)
     detections = {
-        "a": Detection(alarm=batch["alarm"], residual=batch["residual"]),
+        "a": Detection(alarm=batch["alarm"], residual=batch["residual"],
+                       decision=batch["residual"]),
         "b[x=1]": Detection(alarm=batch["alarm"][::-1].copy(), residual=batch["residual"],
                             estimate=rng.normal(size=(n, n_steps))),
     }
@@ -151,9 +153,12 @@ def test_a_chunk_s_result_table_is_the_variants_scored_one_by_one():
         frame.insert(5, "error", "")
         for column, values in _estimate_columns(det, truth, 12.5).items():
             frame[column] = values
+        frame["alarm_steps"] = alarm_steps(det.decision, fault=truth.fault,
+                                           onset_s=truth.onset_s, ts=settings.ts, window_s=0.5)
         want.append(frame)
     want = pd.concat(want, ignore_index=True)[list(RESULT_COLUMNS)]
     got = pd.concat(_scored(rows, truth, detections, required, settings, 12.5),
                     ignore_index=True)[list(RESULT_COLUMNS)]
     pd.testing.assert_frame_equal(got, want, check_exact=True)
     assert (got["est_err_n"] > 0).any()
+    assert got["alarm_steps"].notna().any() and got["alarm_steps"].isna().any()

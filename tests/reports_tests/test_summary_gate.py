@@ -69,6 +69,7 @@ def campaign(*extra):
     for column in ESTIMATE_COLUMNS:
         if column not in out.columns:
             out[column] = 0 if column == "est_err_n" else np.nan
+    out["alarm_steps"] = None          # no first alarms at other scales stored
     return out
 
 
