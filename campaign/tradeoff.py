@@ -133,6 +133,11 @@ def _scaled_labels(config) -> dict[str, bool | None]:
             out[spec.label] = bool(getattr(caps, "threshold_scale", False))
         except (DetectorSpecError, ImportError, AttributeError):
             out[spec.label] = None
+    # a detection system has a threshold scale when each of its members has one
+    # (detectors.system.DetectionSystem)
+    for system in getattr(config, "systems", ()):
+        members = [out.get(m.split("[", 1)[0]) for m in system.members]
+        out[system.name] = None if None in members else all(members)
     return out
 
 
