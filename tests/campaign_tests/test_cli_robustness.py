@@ -124,6 +124,28 @@ def test_output_below_a_file(tmp_path, capsys, monkeypatch):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert "afile" in err and "fix:" in err and "Traceback" not in err, argv
+        # what is wrong is the file, not a permission: no hint about writable locations
+        assert "writable" not in err and "permission" not in err, argv
+        assert ("is a file, not a directory; fix: pass a directory" in err
+                if argv[-1] == "afile" else "is a file, not a folder" in err), argv
+
+
+def test_a_file_option_into_a_missing_folder_creates_the_folder(flaky_campaign, tmp_path,
+                                                                capsys, monkeypatch):
+    # every file option (--junit, --html, --plot, --out of a file, init's file) writes into
+    # folders that do not exist yet, as mkdir -p: no error about a temporary file's name
+    out, bad, _ = flaky_campaign
+    monkeypatch.chdir(tmp_path)
+    for path, argv in (
+            ("m1/d/gate.xml", ["gate", str(out), "--allow-errors", "--junit", "m1/d/gate.xml"]),
+            ("m2/d/r.html", ["report", str(out), "--envelope-runs", "1", "--jobs", "1",
+                             "--html", "m2/d/r.html"]),
+            ("m3/d/r.png", ["show", str(out), bad[0], "--plot", "m3/d/r.png"]),
+            ("m4/d/a.parquet", ["simulate", "--duration", "20", "--out", "m4/d/a.parquet"]),
+            ("m5/d/c.toml", ["init", "m5/d/c.toml"])):
+        assert main(argv) == 0, argv
+        assert ".tmp" not in capsys.readouterr().err, argv
+        assert (tmp_path / path).is_file(), argv
 
 
 def _read_only_dir(tmp_path):
