@@ -350,13 +350,48 @@ def _report_one(args) -> None:
     args.requirements_values = creq.report_limits(camp.meta, args)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
-    print(f"campaign {camp.name or '?'!r}: "
-          f"{camp.runs_done} of {camp.runs_planned} runs")
+    unfinished = _unfinished_text(camp, args.dir)
+    print(f"campaign {camp.name or '?'!r}: " + (unfinished or
+          f"{camp.runs_done} of {camp.runs_planned} runs"))
     print(camp.table())
     for line in error_lines(camp.gate_results):       # its failed runs
         print(f"runs not scored: {line}")
+    if unfinished:          # again below the tables, which are long
+        print(unfinished)
     if not args.no_html:
         write_html_report(args)
+
+
+def _unfinished_text(camp, directory) -> str | None:
+    """What ``report`` says of a campaign that has not done every run of its plan (stopped
+    by Ctrl-C, a kill or a time limit): the runs done, that every rate and table covers those
+    only, and the command that finishes it (None when it is finished)."""
+    planned = camp.runs_planned
+    if planned is None or camp.runs_done >= planned:
+        return None
+    return (f"report of an unfinished campaign: {camp.runs_done} of {planned} runs done (the "
+            f"tables and rates cover those runs only); finish it with: "
+            f"{_resume_command(camp, directory)} (finished runs are kept)")
+
+
+def _resume_command(camp, directory) -> str:
+    """The ``run`` command that resumes campaign directory *directory*: the preset's name
+    (with ``--seed``) when the directory holds a shipped preset, else the file's place."""
+    import json
+
+    from ..config import list_presets, load_config
+    from ..store.directory import campaign_identity, identity_changes
+
+    name = camp.name
+    if name in list_presets():
+        stored = campaign_identity(json.loads(camp.config.to_json()))
+        preset = campaign_identity(json.loads(load_config(name).to_json()))
+        changes = identity_changes(preset, stored)
+        seed = stored.get("campaign", {}).get("seed")
+        if all(c.startswith("[campaign] seed:") for c in changes):
+            return (f"fdd-campaign run {name}{f' --seed {seed}' if changes else ''} "
+                    f"--out {directory}")
+    return f"fdd-campaign run CAMPAIGN.toml --out {directory} (the file it was started with)"
 
 
 def write_html_report(args) -> None:
