@@ -152,7 +152,7 @@ def _fault_values(fault: str, u_mag, u_sign, u_freq, config, act, variant=None):
     return nan, nan
 
 
-def _fixed_magnitude(fault: str, size: float, drawn: np.ndarray, act) -> np.ndarray:
+def fixed_magnitude(fault: str, size: float, drawn: np.ndarray, act) -> np.ndarray:
     """Run-table magnitudes of a group that fixes ``magnitude = size`` (in the unit of the
     fault's ``[faults.*]`` range, docs/campaign-file.md "Fault magnitudes"): a jam's % of the
     deflection range becomes its rod bias/offset [mm] (:func:`liquid_jam_bias_mm`,
@@ -202,7 +202,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     mag, freq = _fault_values(group.fault, u_rest[:, 1], u_rest[:, 2], u_rest[:, 3], config, act,
                               variant)
     if group.magnitude is not None and group.fault != "none":
-        mag = _fixed_magnitude(group.fault, float(group.magnitude), mag, act)
+        mag = fixed_magnitude(group.fault, float(group.magnitude), mag, act)
     if getattr(group, "freq_hz", None) is not None:
         freq = np.full(n, float(group.freq_hz))
     direction = getattr(group, "sign", None)

@@ -38,7 +38,7 @@ from reports.paper import PAPER_TABLES
 from scenarios.catalog import suggest
 
 from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
-from .config.load import SUITE_DIR, shipped_dir, shipped_names
+from .config.load import PRESET_DIR, SUITE_DIR, shipped_dir, shipped_names
 from .store.directory import CampaignDirError
 
 __all__ = ["SUITE_FILE", "Member", "Suite", "is_suite_dir", "list_suites", "load_spec",
@@ -208,8 +208,19 @@ def load_suite(spec) -> Suite:
 
 def load_spec(spec) -> CampaignConfig | Suite:
     """A campaign (:func:`campaign.config.load_config`) or, when *spec* names a suite, the
-    suite (:func:`load_suite`)."""
-    return load_suite(spec) if _suite_path(spec) is not None else load_config(spec)
+    suite (:func:`load_suite`). A name that is neither a shipped preset nor a shipped suite
+    (nor a file) is refused naming the closest of both and listing both."""
+    if _suite_path(spec) is not None:
+        return load_suite(spec)
+    text = str(spec)
+    presets = shipped_names(PRESET_DIR)
+    if (not isinstance(spec, Path) and not looks_like_path(text) and not Path(text).is_file()
+            and text not in presets):
+        suites = _suite_names()
+        raise ConfigError([f"{text}: unknown preset or suite{suggest(text, presets + suites)}; "
+                           f"presets: {', '.join(presets)}; suites: {', '.join(suites)}; or a "
+                           "path to a .toml file ('fdd-campaign presets' describes each)"], text)
+    return load_config(spec)
 
 
 # ---- output directories -------------------------------------------------------------------

@@ -26,6 +26,13 @@ more misses, larger DTP), else ``better`` when some test has p < α the other wa
 ``unchanged``; ``only in A`` / ``only in B`` for cells one campaign lacks. The column
 ``test`` says which tests a cell got.
 
+A cell with too few runs for its test to reach α is flagged ``too few runs``, not
+``unchanged``: an exact test on n runs has a smallest p-value it can give, reached when the
+outcomes differ as much as they can (every run of the cell changed its outcome, paired:
+2·2⁻ⁿ; all of A's runs one way and all of B's the other, Fisher: 1/C(n_a + n_b, n_a) for
+each extreme); when that floor is ≥ α no outcome is ever flagged, so the test has no power
+at any size of change and "unchanged" would claim what it cannot tell (:func:`p_floor`).
+
 Each test is read on its own at level α (no correction for the number of cells: the flag
 is a pointer to look at, the table prints every p-value).
 """
@@ -43,8 +50,9 @@ from .metrics import FAULT_FREE
 from .summary import ALL_MANOEUVRES, natural_key
 from .table import number_text
 
-__all__ = ["COMPARE_COLUMNS", "ScoredRows", "compare_results", "compare_scored",
-           "differing_keys", "format_compare", "threshold_changes", "threshold_text"]
+__all__ = ["COMPARE_COLUMNS", "TOO_FEW", "ScoredRows", "compare_results", "compare_scored",
+           "differing_keys", "format_compare", "p_floor", "runs_needed", "threshold_changes",
+           "threshold_text", "too_few_summary"]
 
 #: Default significance level of the flags.
 ALPHA = 0.01
@@ -58,6 +66,9 @@ COMPARE_COLUMNS: tuple[str, ...] = (
 )
 
 _KEYS = ["detector", "fault", "manoeuvre"]
+
+#: The flag of a cell whose test cannot reach α (:func:`p_floor`).
+TOO_FEW = "too few runs"
 
 
 def _scored(results: pd.DataFrame) -> pd.DataFrame:
@@ -200,6 +211,45 @@ def _mannwhitney(a: np.ndarray, b: np.ndarray) -> float:
         return float(stats.mannwhitneyu(a, b, alternative="two-sided").pvalue)
 
 
+def p_floor(paired: bool, n_a: int, n_b: int) -> float:
+    """The smallest two-sided p-value the cell's rate test can give with *n_a* and *n_b*
+    runs, whatever the outcomes: paired (n_a = n_b = n runs), the exact McNemar test with
+    every run discordant and all one way, ``binomtest(n, n, ½)`` = 2·2⁻ⁿ; independent, the
+    Fisher exact test of the table [[n_a, 0], [0, n_b]] (every run of A one way, every run
+    of B the other: 1/C(n_a + n_b, n_a) when n_a ≠ n_b, twice that when equal). The DTP
+    tests of the cell run on at most as many runs and have floors no lower (Wilcoxon
+    signed-rank 2·2⁻ᵐ on m pairs, Mann–Whitney U 2/C(n_a + n_b, n_a) on untied samples), so
+    a cell whose floor is ≥ α can be flagged by none of its tests."""
+    if n_a == 0 or n_b == 0:
+        return 1.0
+    if paired:
+        return float(stats.binomtest(n_a, n_a, 0.5).pvalue)
+    return float(stats.fisher_exact([[n_a, 0], [0, n_b]])[1])
+
+
+def runs_needed(alpha: float) -> int:
+    """The fewest runs a paired cell needs for its exact test to reach p < *alpha*
+    (2·2⁻ⁿ < α)."""
+    n = 1
+    while 2.0 * 0.5 ** n >= alpha:
+        n += 1
+    return n
+
+
+def _too_few_text(paired: bool, n_a: int, n_b: int, floor: float, alpha: float) -> str:
+    """Why a cell is ``too few runs``: the exact test, its floor and its power."""
+    if paired:
+        test = (f"the exact McNemar test on its {n_a} shared run{'s' * (n_a != 1)} gives "
+                f"p ≥ {floor:.2g} even when every run changes its outcome the same way")
+        need = f"; a paired cell needs ≥ {runs_needed(alpha)} runs"
+    else:
+        test = (f"Fisher's exact test on {n_a} and {n_b} runs gives p ≥ {floor:.2g} even when "
+                "every run of A has one outcome and every run of B the other")
+        need = ""
+    return (f"too few runs to compare: {test}, not below α = {alpha:g}: no change can be "
+            f"detected here (power 0 at any size of change){need}")
+
+
 def _rate(k: int, n: int) -> float:
     return k / n if n else math.nan
 
@@ -293,6 +343,10 @@ def compare_scored(rows_a: pd.DataFrame, rows_b: pd.DataFrame, *,
         row["reasons"] = "; ".join(
             ([f"worse: {', '.join(worse)}"] if worse else [])
             + ([f"better: {', '.join(better)}"] if better else []))
+        floor = p_floor(paired, n_a, n_b)
+        if floor >= alpha:                  # no outcome could have been flagged
+            row["flag"] = TOO_FEW
+            row["reasons"] = _too_few_text(paired, n_a, n_b, floor, alpha)
         rows.append(row)
     out = pd.DataFrame(rows, columns=list(COMPARE_COLUMNS))
     for c in ("n_a", "n_b", "fa_a", "fa_b", "md_a", "md_b"):
@@ -329,7 +383,7 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA,
     counts = table["flag"].value_counts()
     lines.append("")
     lines.append(f"{len(table)} cells: " + ", ".join(f"{int(counts.get(k, 0))} {k}" for k in
-                 ("worse", "better", "unchanged", "only in A", "only in B")
+                 ("worse", "better", "unchanged", TOO_FEW, "only in A", "only in B")
                  if counts.get(k, 0)) + f" (two-sided tests at p < {alpha:g}; same runs: "
                  "exact McNemar for FA/MD, Wilcoxon signed-rank for DTP; other runs: Fisher "
                  "exact, Mann–Whitney U)")
@@ -338,7 +392,29 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA,
             note = notes.get(str(r.detector).split("[", 1)[0])
             lines.append(f"  {r.detector} / {r.fault} / {r.manoeuvre}: {r.reasons}"
                          + (f" [{note}]" if note else ""))
+    few = table[table["flag"] == TOO_FEW]
+    if len(few):
+        lines.append(too_few_summary(few, alpha))
     return "\n".join(lines)
+
+
+def too_few_summary(few: pd.DataFrame, alpha: float) -> str:
+    """One line on the cells flagged ``too few runs`` (*few*: rows of the compare table):
+    why none of them can be flagged, grouped by their test and run counts."""
+    parts = []
+    groups = few.groupby(["test", "n_a", "n_b"], sort=True, observed=True).size()
+    for (test, n_a, n_b), count in groups.items():
+        paired = test == "paired"
+        floor = p_floor(paired, int(n_a), int(n_b))
+        cells = f"{count} cell{'s' * (count != 1)}"
+        parts.append(f"{cells} of {n_a} shared run{'s' * (n_a != 1)} (exact McNemar: "
+                     f"p ≥ {floor:.2g})" if paired else
+                     f"{cells} of {n_a} and {n_b} runs (Fisher exact: p ≥ {floor:.2g})")
+    need = (f"; a paired cell needs ≥ {runs_needed(alpha)} runs"
+            if (few["test"] == "paired").any() else "")
+    return (f"too few runs to compare ({len(few)} cells): even the largest difference their "
+            f"runs can show gives no p below α = {alpha:g}, so no change can be detected there "
+            f"(power 0 at any size of change): {', '.join(parts)}{need}")
 
 
 def threshold_text(value) -> str:

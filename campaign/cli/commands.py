@@ -353,13 +353,48 @@ def _report_one(args) -> None:
     args.requirements_values = creq.report_limits(camp.meta, args)
     if not args.no_html:
         check_writable(args.html or Path(args.dir) / "report.html", "--html")
-    print(f"campaign {camp.name or '?'!r}: "
-          f"{camp.runs_done} of {camp.runs_planned} runs")
+    unfinished = _unfinished_text(camp, args.dir)
+    print(f"campaign {camp.name or '?'!r}: " + (unfinished or
+          f"{camp.runs_done} of {camp.runs_planned} runs"))
     print(camp.table())
     for line in error_lines(camp.gate_results):       # its failed runs
         print(f"runs not scored: {line}")
+    if unfinished:          # again below the tables, which are long
+        print(unfinished)
     if not args.no_html:
         write_html_report(args)
+
+
+def _unfinished_text(camp, directory) -> str | None:
+    """What ``report`` says of a campaign that has not done every run of its plan (stopped
+    by Ctrl-C, a kill or a time limit): the runs done, that every rate and table covers those
+    only, and the command that finishes it (None when it is finished)."""
+    planned = camp.runs_planned
+    if planned is None or camp.runs_done >= planned:
+        return None
+    return (f"report of an unfinished campaign: {camp.runs_done} of {planned} runs done (the "
+            f"tables and rates cover those runs only); finish it with: "
+            f"{_resume_command(camp, directory)} (finished runs are kept)")
+
+
+def _resume_command(camp, directory) -> str:
+    """The ``run`` command that resumes campaign directory *directory*: the preset's name
+    (with ``--seed``) when the directory holds a shipped preset, else the file's place."""
+    import json
+
+    from ..config import list_presets, load_config
+    from ..store.directory import campaign_identity, identity_changes
+
+    name = camp.name
+    if name in list_presets():
+        stored = campaign_identity(json.loads(camp.config.to_json()))
+        preset = campaign_identity(json.loads(load_config(name).to_json()))
+        changes = identity_changes(preset, stored)
+        seed = stored.get("campaign", {}).get("seed")
+        if all(c.startswith("[campaign] seed:") for c in changes):
+            return (f"fdd-campaign run {name}{f' --seed {seed}' if changes else ''} "
+                    f"--out {directory}")
+    return f"fdd-campaign run CAMPAIGN.toml --out {directory} (the file it was started with)"
 
 
 def write_html_report(args) -> None:
@@ -437,9 +472,10 @@ def cmd_simulate(args) -> int:
         raise UsageError(f"invalid choice --surface {args.surface} at the actuator plant "
                          f"level: it is an aircraft surface; use --plant aircraft, or one "
                          f"of {', '.join(plant.surfaces)}")
+    magnitude = _simulate_magnitude(args, plant.actuator(surface))
     runs = single_run(surface, args.manoeuvre, args.fault, seed=args.seed,
                       onset_s=args.onset, duration_s=args.duration,
-                      **({} if args.magnitude is None else {"magnitude": args.magnitude}))
+                      **({} if magnitude is None else {"magnitude": magnitude}))
     signals, truth = plant.simulate(runs, pressure_sensor=args.pressure)
     frame = signals.to_pandas(0)
     frame["true_rod [mm]"] = truth.rod_mm[0]
@@ -474,6 +510,41 @@ def cmd_simulate(args) -> int:
                  path=args.plot)
         print(f"plot written to {args.plot}")
     return EXIT_OK
+
+
+#: How ``simulate`` spells the [[group]] keys of a fault (its options).
+_SIMULATE_NAMES = {"magnitude": "--magnitude", "variant": "--variant", "sign": "--sign",
+                   "onset_s": "--onset", "duration_s": "--duration"}
+
+
+def _simulate_magnitude(args, act) -> float | None:
+    """The run-table magnitude of ``simulate``'s fault (None: the single run's default,
+    :func:`scenarios.faults.default_magnitude`). ``--magnitude``, ``--variant`` and ``--sign``
+    follow the rules of a campaign file's ``[[group]]`` keys of the same names
+    (:func:`campaign.config.rules.single_fault_problems`: the unit and bounds of the fault's
+    ``[faults.*]`` range, a jam's % of the deflection range; exit 2 naming the option), and
+    become a run-table magnitude as a group's do (:func:`campaign.design.fixed_magnitude`)."""
+    import numpy as np
+
+    from scenarios.faults import FAULT_DEFAULTS, default_magnitude, solid_jam_offset_mm
+
+    from ..config.rules import single_fault_problems
+    from ..design import fixed_magnitude
+
+    problems = single_fault_problems(args.fault, magnitude=args.magnitude,
+                                     variant=args.variant, sign=args.sign, onset_s=args.onset,
+                                     duration_s=args.duration, names=_SIMULATE_NAMES)
+    if problems:
+        raise UsageError("; ".join(problems))
+    direction = np.array([-1.0 if args.sign == "negative" else 1.0])
+    if args.magnitude is not None:
+        return float(fixed_magnitude(args.fault, args.magnitude, direction, act)[0])
+    if args.fault == "solid_jam" and args.variant == "offset":
+        return float(direction[0] * solid_jam_offset_mm(
+            act, FAULT_DEFAULTS.solid_jam_offset_pct_range))
+    if args.sign is not None:
+        return float(direction[0] * abs(default_magnitude(args.fault, act)))
+    return None
 
 
 def cmd_bench(args) -> int:
@@ -670,6 +741,9 @@ def _add_simulate_parser(subs) -> None:
     from scenarios.aircraft.data import AIRCRAFT_SURFACES
     from scenarios.catalog import PLANT_KINDS
     from scenarios.catalog import FAULTS, MANOEUVRES, SURFACES
+    from scenarios.faults import SOLID_JAM_VARIANTS
+
+    from ..config.sections import SIGNED_FAULT_DIRECTIONS
 
     p = add_command(subs, "simulate", "simulate one run and write/plot its signals and truth",
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
@@ -686,7 +760,18 @@ def _add_simulate_parser(subs) -> None:
                    help="fault injected at --onset (default none; docs/physics.md §5)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random draw (default 0)")
     p.add_argument("--onset", type=float, default=10.0, help="fault onset [s] (default 10)")
-    p.add_argument("--magnitude", type=float, help="fault magnitude (unit per fault type)")
+    p.add_argument("--magnitude", type=float,
+                   help="fixed fault magnitude, > 0, in the unit and within the bounds of a "
+                        "campaign file's [[group]] magnitude: runaway deg/s, liquid_jam and "
+                        "solid_jam (with --variant offset) %% of the deflection range, "
+                        "ofc_liquid mA, ofc_solid mm (default: docs/physics.md §5, Default "
+                        "magnitudes)")
+    p.add_argument("--variant", choices=SOLID_JAM_VARIANTS,
+                   help="solid_jam only: seized (default; no magnitude) or offset (seized "
+                        "--magnitude %% of the deflection range away)")
+    p.add_argument("--sign", choices=SIGNED_FAULT_DIRECTIONS,
+                   help="direction of a runaway, hardover, liquid_jam or offset solid_jam "
+                        "(default positive)")
     p.add_argument("--duration", type=float, default=30.0, help="run duration [s]")
     p.add_argument("--pressure", action="store_true", help="simulate the chamber pressure sensor")
     p.add_argument("--out", help="Parquet file for the signals and the truth")

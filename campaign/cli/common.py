@@ -64,16 +64,22 @@ def report_internal_error(exc: BaseException, argv: list[str]) -> Path | None:
 
 def check_writable(path, option: str, *, directory: bool = False) -> None:
     """Raise :class:`UsageError` (exit 2) naming *option*, *path* and the fix when *path*
-    (a file, or a directory when *directory*) cannot be written: it exists and is not
-    writable (or not of its kind), or the nearest existing folder above it is not a
-    writable directory."""
+    (a file, or a directory when *directory*) cannot be written: it exists and is not of its
+    kind (a file where a directory is wanted, or the reverse) or is not writable, or a folder
+    above it is a file, or the nearest existing folder above it is not writable.
+
+    A file's folders that do not exist yet are created here, before any work (as ``mkdir
+    -p``; as a directory option's directory is created by the command that writes it), so
+    that ``gate DIR --junit reports/gate.xml`` writes its report where it is asked to."""
     import os
 
     target = Path(path)
     fix = "fix: choose a writable location (e.g. under your home directory)"
     if target.exists():
         if directory and not target.is_dir():
-            raise UsageError(f"{option} {path}: exists and is not a directory; {fix}")
+            raise UsageError(f"{option} {path}: is a file, not a directory; fix: pass a "
+                             f"directory (a new or empty one), e.g. {option} "
+                             f"{target.with_suffix('')}-out/")
         if not directory and target.is_dir():
             raise UsageError(f"{option} {path}: is a directory, a file name is needed; fix: "
                              f"e.g. {option} {target / 'out'}")
@@ -85,8 +91,15 @@ def check_writable(path, option: str, *, directory: bool = False) -> None:
     while not parent.exists():
         parent = parent.parent
     if not parent.is_dir():
-        raise UsageError(f"{option} {path}: {parent} is a file, not a folder; {fix}")
+        raise UsageError(f"{option} {path}: {parent} is a file, not a folder; fix: name a "
+                         f"path in a folder (or a new one), not under the file {parent}")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise UsageError(f"{option} {path}: cannot create it, the folder {parent} is not "
                          f"writable (permission denied); {fix}, or make that folder "
                          f"writable: chmod u+w {parent}")
+    if not directory:
+        try:
+            target.absolute().parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UsageError(f"{option} {path}: cannot create its folder "
+                             f"{target.absolute().parent}: {exc.strerror or exc}; {fix}") from None

@@ -43,8 +43,9 @@ from .sections import (
 )
 from .text import num
 
-__all__ = ["normalise", "check_rules", "check_detectors", "check_systems", "requirement_name_problems",
-           "derive_group_names"]
+__all__ = ["normalise", "check_rules", "check_detectors", "check_systems",
+           "requirement_name_problems", "derive_group_names", "magnitude_spec",
+           "single_fault_problems"]
 
 
 # ----------------------------------------------------------------------------------------
@@ -305,19 +306,81 @@ def _check_magnitude(g: Mapping, p: str, fault: str, errors: list[str]) -> None:
         return
     if _without_magnitude(g, p, "magnitude", fault, errors):
         return
-    if fault not in FAULT_MAGNITUDE_KEY:
+    spec = magnitude_spec(fault)
+    if spec is None:
         errors.append(f"{p}.magnitude: fault {fault!r} has no magnitude; "
                       f"allowed only with: {', '.join(FAULT_MAGNITUDE_KEY)}; "
                       "fix: remove it")
         return
-    sub, k = FAULT_MAGNITUDE_KEY[fault]
-    spec = key_spec(FaultsSection, sub, k)
     if spec.out_of_range(g["magnitude"]):
         errors.append(f"{p}.magnitude: {num(g['magnitude'])} is out of range "
                       f"for {fault}; allowed: "
                       f"{spec.range_text('magnitude')}")
         return
     _announce_fixed_magnitude(g, p, fault)
+
+
+def magnitude_spec(fault: str):
+    """The key whose bounds and unit a fixed magnitude of *fault* has (its ``[faults.*]``
+    range's, :data:`FAULT_MAGNITUDE_KEY`: runaway deg/s, a jam's %, the OFC amplitudes mA
+    and mm), or None when the fault has no magnitude."""
+    if fault not in FAULT_MAGNITUDE_KEY:
+        return None
+    sub, k = FAULT_MAGNITUDE_KEY[fault]
+    return key_spec(FaultsSection, sub, k)
+
+
+def single_fault_problems(fault: str, *, magnitude: float | None, variant: str | None,
+                          sign: str | None, onset_s: float, duration_s: float,
+                          names: Mapping[str, str]) -> list[str]:
+    """The rules of a ``[[group]]``'s fault keys (``magnitude``, ``variant``, ``sign``,
+    ``onset_s``) for one run given outside a campaign file (``fdd-campaign simulate``):
+    the same ranges, units and combinations, each problem naming the key as *names* spells
+    it (group key → e.g. ``"--magnitude"``; ``duration_s`` too) and its fix."""
+    out: list[str] = []
+    if fault == "none":
+        return [f"{names[k]}: a fault-free run has no {k}; fix: leave it out, or give a fault"
+                for k, v in (("magnitude", magnitude), ("variant", variant), ("sign", sign))
+                if v is not None]
+    if variant is not None and fault not in FAULT_VARIANTS:
+        out.append(f"{names['variant']} {variant}: fault {fault!r} has no variants; allowed "
+                   f"only with: {', '.join(FAULT_VARIANTS)}; fix: leave it out")
+    chosen = (variant or FAULT_VARIANTS[fault][0]) if fault in FAULT_VARIANTS else None
+    needed = MAGNITUDE_VARIANT.get(fault)
+    for k, value in (("magnitude", magnitude), ("sign", sign)):
+        if value is None:
+            continue
+        what = "direction" if k == "sign" else k
+        if needed is not None and chosen != needed:
+            out.append(f"{names[k]} {num(value) if k == 'magnitude' else value}: fault "
+                       f"{fault!r} has no {what} with {names['variant']} {chosen}"
+                       f"{' (the default)' if variant is None else ''}; fix: leave it out, "
+                       f"or add {names['variant']} {needed}")
+        elif k == "sign" and fault not in SIGNED_FAULTS:
+            out.append(f"{names['sign']} {value}: fault {fault!r} has no direction; allowed "
+                       f"only with: {', '.join(SIGNED_FAULTS)}; fix: leave it out")
+        elif k == "magnitude":
+            spec = magnitude_spec(fault)
+            if spec is None:
+                out.append(f"{names['magnitude']} {num(value)}: fault {fault!r} has no "
+                           f"magnitude; allowed only with: {', '.join(FAULT_MAGNITUDE_KEY)}; "
+                           "fix: leave it out")
+            elif spec.out_of_range(value):
+                sub, key_name = FAULT_MAGNITUDE_KEY[fault]
+                fix = (f"{names['magnitude']} {num(-value)} {names['sign']} negative (the "
+                       "direction is its own option)"
+                       if fault in SIGNED_FAULTS and -value > 0 and not spec.out_of_range(-value)
+                       else f"a {names['magnitude']} in that range")
+                out.append(f"{names['magnitude']} {num(value)}: out of range for {fault}; "
+                           f"allowed: {spec.range_text('magnitude')}, in the unit and within "
+                           f"the bounds of [faults.{sub}] {key_name} (as a [[group]] "
+                           f"magnitude); fix: {fix}")
+    if not 0.0 <= onset_s < duration_s:
+        out.append(f"{names['onset_s']} {num(onset_s)}: the fault's onset must fall within "
+                   f"the run; allowed: 0 ≤ {names['onset_s']} < {names['duration_s']} = "
+                   f"{num(duration_s)} s; fix: an earlier {names['onset_s']}, or a longer "
+                   f"{names['duration_s']}")
+    return out
 
 
 class MagnitudeReadingNote(FutureWarning):

@@ -59,7 +59,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -168,6 +168,86 @@ def campaign_identity(config: dict) -> dict:
               if k not in RESULT_NEUTRAL_RUNNER_KEYS}
     out["runner"] = runner
     return out
+
+
+#: Differences named at most by :func:`identity_changes` (the rest are counted).
+MAX_CHANGES_NAMED = 8
+#: A key one of two campaigns does not have.
+_ABSENT = object()
+
+
+def _value_text(value) -> str:
+    """*value* of a campaign's JSON form as a short text (TOML-like, cut at 40 characters)."""
+    if value is _ABSENT:
+        return "(absent)"
+    text = json.dumps(value, ensure_ascii=False, separators=(", ", " = "))
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _table_title(section: str, index: int, table: Mapping) -> str:
+    """``[[group]] 2 ("liquid_jam@cruise")``: the *index*-th (0-based) table of an array of
+    tables, counted from 1 as in the file, with its name or label."""
+    name = table.get("name") if section != "detector" else table.get("label")
+    return f"[[{section}]] {index + 1}" + (f" ({json.dumps(name)})" if name else "")
+
+
+def _dict_changes(where: str, old: Mapping, new: Mapping, out: list[str],
+                  prefix: str = "") -> None:
+    """Each key of *old* and *new* (dicts) whose values differ, as ``WHERE key: old → new``;
+    dicts are entered (``params.safety``)."""
+    for key in list(old) + [k for k in new if k not in old]:
+        a, b = old.get(key, _ABSENT), new.get(key, _ABSENT)
+        if a == b:
+            continue
+        if isinstance(a, dict) and isinstance(b, dict):
+            _dict_changes(where, a, b, out, prefix=f"{prefix}{key}.")
+        else:
+            out.append(f"{where} {prefix}{key}: {_value_text(a)} → {_value_text(b)}")
+
+
+def identity_changes(stored: Mapping, new: Mapping) -> list[str]:
+    """What differs between two campaigns' identities (:func:`campaign_identity` of their
+    JSON forms), in the campaign file's words, one text per changed value:
+    ``[campaign] seed: 0 → 5``, ``[[group]] 2 ("liquid_jam@cruise") count: 333 → 100``,
+    ``[faults.runaway] rate_deg_s: [1.0, 10.0] → [1.0, 5.0]``, ``[[detector]] 3 ("x")
+    added``. Empty when they are the same campaign."""
+    out: list[str] = []
+    for section in list(stored) + [k for k in new if k not in stored]:
+        a, b = stored.get(section, _ABSENT), new.get(section, _ABSENT)
+        if a == b:
+            continue
+        if isinstance(a, list) and isinstance(b, list):      # an array of tables
+            for i in range(max(len(a), len(b))):
+                if i >= len(a):
+                    out.append(f"{_table_title(section, i, b[i])} added")
+                elif i >= len(b):
+                    out.append(f"{_table_title(section, i, a[i])} removed")
+                elif a[i] != b[i]:
+                    if isinstance(a[i], dict) and isinstance(b[i], dict):
+                        _dict_changes(_table_title(section, i, a[i]), a[i], b[i], out)
+                    else:
+                        out.append(f"[[{section}]] {i + 1}: {_value_text(a[i])} → "
+                                   f"{_value_text(b[i])}")
+        elif isinstance(a, dict) and isinstance(b, dict):
+            for key in list(a) + [k for k in b if k not in a]:
+                x, y = a.get(key, _ABSENT), b.get(key, _ABSENT)
+                if x == y:
+                    continue
+                if isinstance(x, dict) and isinstance(y, dict):   # [faults.runaway]
+                    _dict_changes(f"[{section}.{key}]", x, y, out)
+                else:
+                    out.append(f"[{section}] {key}: {_value_text(x)} → {_value_text(y)}")
+        else:
+            out.append(f"[{section}]: {_value_text(a)} → {_value_text(b)}")
+    return out
+
+
+def changes_text(changes: list[str]) -> str:
+    """*changes* (:func:`identity_changes`) joined with "; ", the first
+    :data:`MAX_CHANGES_NAMED` of them and the count of the rest."""
+    named = "; ".join(changes[:MAX_CHANGES_NAMED])
+    rest = len(changes) - MAX_CHANGES_NAMED
+    return named + (f"; and {rest} more" if rest > 0 else "")
 
 
 #: Top-level files of a campaign directory that the manifest covers (with every file under
@@ -343,13 +423,19 @@ class CampaignDir:
         if self.root.exists() and not self.root.is_dir():
             raise CampaignDirError(f"{self.root} exists and is not a directory")
         if stored.exists():
-            if (campaign_identity(_current_form(self.read_config()))
-                    != campaign_identity(json.loads(config_json))):
+            changes = identity_changes(campaign_identity(_current_form(self.read_config())),
+                                       campaign_identity(json.loads(config_json)))
+            if changes:
                 raise CampaignDirError(
-                    f"{self.root} holds the results of a different campaign (its campaign.json "
-                    "differs from this configuration beyond [runner] chunk_size and "
-                    "run_timeout_s); choose another --out directory, or delete this one to "
-                    "start again"
+                    f"{self.root} holds the results of a different campaign: its campaign.json "
+                    f"differs from this configuration in {changes_text(changes)}. A directory "
+                    "holds one campaign: a rerun resumes it only with the same configuration "
+                    "([runner] chunk_size and run_timeout_s may differ; other [requirements] "
+                    f"limits need no rerun: fdd-campaign gate {self.root} --requirements FILE); "
+                    "fix: run the edited campaign into a new --out directory (this one stays as "
+                    f"it is; 'fdd-campaign compare {self.root} NEW' then shows what the edit "
+                    "changed), "
+                    "or delete this one to start again"
                 )
         elif self.root.exists() and any(p.name != LOCK_NAME for p in self.root.iterdir()):
             raise CampaignDirError(

@@ -1,6 +1,7 @@
 """The campaign engine end to end: plan, determinism across jobs and chunk sizes, resume
 after a kill, per-run errors, the gate and the command line."""
 
+import json
 import signal
 import subprocess
 import sys
@@ -300,6 +301,64 @@ def test_rerun_into_a_directory_of_another_campaign_is_refused(tmp_path, capsys)
                      '[[detector]]\nname = "position-monitor"\n')
     assert main(["run", str(other), "--out", str(out), "--quiet"]) == 2
     assert "different campaign" in capsys.readouterr().err
+
+
+_EDITABLE = """[campaign]
+name = "edited"
+seed = {seed}
+duration_s = 20.0
+[[group]]
+name = "ff"
+fault = "none"
+manoeuvres = ["cruise"]
+count = 2
+[[group]]
+name = "jam"
+fault = "solid_jam"
+manoeuvres = ["cruise"]
+count = {count}
+[[detector]]
+name = "position-monitor"
+[learning]
+runs_per_manoeuvre = 2
+"""
+
+
+def test_rerun_of_an_edited_campaign_file_names_what_changed(tmp_path, capsys):
+    # the README's "edit it, run again": the refusal names each changed key with its stored
+    # and new value, in the file's words, and the way on (a new --out)
+    file, out = tmp_path / "c.toml", tmp_path / "c"
+    file.write_text(_EDITABLE.format(seed=0, count=3))
+    assert main(["plan", str(file), "--out", str(out)]) == 0
+    capsys.readouterr()
+    file.write_text(_EDITABLE.format(seed=5, count=1))
+    assert main(["run", str(file), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert '[[group]] 2 ("jam") count: 3 → 1' in err
+    assert "[campaign] seed: 0 → 5" in err
+    assert "[[group]] 1" not in err                 # unchanged tables are not named
+    assert "new --out directory" in err and "compare" in err
+    assert not list((out / "runs").glob("part-*.parquet"))     # nothing ran
+
+
+def test_identity_changes_name_added_tables_and_nested_keys():
+    from campaign.store.directory import campaign_identity, changes_text, identity_changes
+
+    a = json.loads(tiny().to_json())
+    b = json.loads(tiny(detector=[{"name": "position-monitor", "params": {"safety": 2.0}},
+                                  {"name": "comb-interval"}],
+                        faults={"onset_min_s": 6.0, "onset_before_end_s": 5.0,
+                                "runaway": {"rate_deg_s": [1.0, 5.0]}}).to_json())
+    changes = identity_changes(campaign_identity(a), campaign_identity(b))
+    assert "[faults] onset_min_s: 5.0 → 6.0" in changes
+    assert "[faults.runaway] rate_deg_s: [1.0, 10.0] → [1.0, 5.0]" in changes
+    assert '[[detector]] 1 ("position-monitor") params.safety: (absent) → 2.0' in changes
+    assert '[[detector]] 2 ("comb-interval") added' in changes
+    # chunk_size is not part of the identity: no change named for it
+    c = json.loads(tiny(runner={"chunk_size": 9}).to_json())
+    assert identity_changes(campaign_identity(a), campaign_identity(c)) == []
+    many = [f"k{i}" for i in range(11)]
+    assert changes_text(many).endswith("k7; and 3 more")
 
 
 def test_resume_with_another_chunk_size_continues_the_same_campaign(tmp_path):

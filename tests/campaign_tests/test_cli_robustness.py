@@ -124,6 +124,28 @@ def test_output_below_a_file(tmp_path, capsys, monkeypatch):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert "afile" in err and "fix:" in err and "Traceback" not in err, argv
+        # what is wrong is the file, not a permission: no hint about writable locations
+        assert "writable" not in err and "permission" not in err, argv
+        assert ("is a file, not a directory; fix: pass a directory" in err
+                if argv[-1] == "afile" else "is a file, not a folder" in err), argv
+
+
+def test_a_file_option_into_a_missing_folder_creates_the_folder(flaky_campaign, tmp_path,
+                                                                capsys, monkeypatch):
+    # every file option (--junit, --html, --plot, --out of a file, init's file) writes into
+    # folders that do not exist yet, as mkdir -p: no error about a temporary file's name
+    out, bad, _ = flaky_campaign
+    monkeypatch.chdir(tmp_path)
+    for path, argv in (
+            ("m1/d/gate.xml", ["gate", str(out), "--allow-errors", "--junit", "m1/d/gate.xml"]),
+            ("m2/d/r.html", ["report", str(out), "--envelope-runs", "1", "--jobs", "1",
+                             "--html", "m2/d/r.html"]),
+            ("m3/d/r.png", ["show", str(out), bad[0], "--plot", "m3/d/r.png"]),
+            ("m4/d/a.parquet", ["simulate", "--duration", "20", "--out", "m4/d/a.parquet"]),
+            ("m5/d/c.toml", ["init", "m5/d/c.toml"])):
+        assert main(argv) == 0, argv
+        assert ".tmp" not in capsys.readouterr().err, argv
+        assert (tmp_path / path).is_file(), argv
 
 
 def _read_only_dir(tmp_path):
@@ -309,3 +331,89 @@ def test_what_is_not_the_users_input_stays_out_of_the_family(module, name):
     from scenarios.errors import InputError
 
     assert not issubclass(getattr(importlib.import_module(module), name), InputError)
+
+
+# ---- simulate: the fault options follow the campaign file's rules -------------------------
+def _group_errors(fault: str, magnitude: float, extra: dict | None = None) -> list[str]:
+    """The campaign file's problems with one [[group]] of *fault* at *magnitude*."""
+    from campaign.config import ConfigError
+
+    cfg = _config("unused")
+    cfg["detector"] = [{"name": "position-monitor"}]
+    cfg["group"] = [{"name": "ff", "fault": "none", "manoeuvres": ["cruise"], "count": 1},
+                    {"name": "f", "fault": fault, "manoeuvres": ["cruise"], "count": 1,
+                     "magnitude": magnitude, **(extra or {})}]
+    try:
+        CampaignConfig.from_dict(cfg)
+    except ConfigError as exc:
+        return exc.errors
+    return []
+
+
+@pytest.mark.parametrize("fault", ["runaway", "liquid_jam", "solid_jam", "ofc_liquid",
+                                   "ofc_solid"])
+def test_simulate_refuses_the_magnitudes_a_campaign_file_refuses(fault, capsys):
+    # just above each fault's [faults.*] bound, zero and negative: refused by the file and by
+    # simulate (exit 2, naming --magnitude and the allowed range), before any simulation
+    from campaign.config.rules import magnitude_spec
+
+    spec = magnitude_spec(fault)
+    extra = {"variant": "offset"} if fault == "solid_jam" else {}
+    cli_extra = ["--variant", "offset"] if fault == "solid_jam" else []
+    for value in (spec.upper * 1.01, 0.0, -1.0):
+        assert _group_errors(fault, value, extra), (fault, value)
+        assert main(["simulate", "--fault", fault, "--magnitude", repr(value),
+                     *cli_extra]) == 2, (fault, value)
+        err = capsys.readouterr().err
+        assert f"--magnitude {value:g}: out of range for {fault}" in err, err
+        assert spec.range_text("magnitude") in err and "fix:" in err
+    # the bound itself is accepted by both
+    assert _group_errors(fault, spec.upper, extra) == []
+    from campaign.config.rules import single_fault_problems
+    from campaign.cli.commands import _SIMULATE_NAMES
+
+    assert single_fault_problems(fault, magnitude=spec.upper, variant=extra.get("variant"),
+                                 sign=None, onset_s=10.0, duration_s=30.0,
+                                 names=_SIMULATE_NAMES) == []
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--fault", "disconnection", "--magnitude", "3"],
+     "--magnitude 3: fault 'disconnection' has no magnitude"),
+    (["--fault", "solid_jam", "--magnitude", "3"],
+     "--magnitude 3: fault 'solid_jam' has no magnitude with --variant seized (the default); "
+     "fix: leave it out, or add --variant offset"),
+    (["--fault", "liquid_jam", "--variant", "offset"],
+     "--variant offset: fault 'liquid_jam' has no variants"),
+    (["--fault", "ofc_solid", "--sign", "negative"],
+     "--sign negative: fault 'ofc_solid' has no direction"),
+    (["--fault", "runaway", "--magnitude", "-3"], "fix: --magnitude 3 --sign negative"),
+    (["--fault", "runaway", "--onset", "40"],
+     "--onset 40: the fault's onset must fall within the run; allowed: 0 ≤ --onset < "
+     "--duration = 30 s"),
+    (["--fault", "runaway", "--onset", "-1", "--duration", "20"],
+     "allowed: 0 ≤ --onset < --duration = 20 s"),
+])
+def test_simulate_names_the_option_that_is_wrong(argv, needle, tmp_path, capsys):
+    out = tmp_path / "run.parquet"
+    assert main(["simulate", *argv, "--out", str(out)]) == 2
+    assert needle in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_simulate_reads_a_magnitude_in_the_campaign_files_unit(tmp_path, capsys):
+    # a liquid jam's --magnitude is % of the deflection range, as a [[group]] magnitude: the
+    # run table holds its rod bias in mm (r·sin(p·Δδ)), in the direction of --sign
+    import pyarrow.parquet as pq
+
+    from scenarios.faults import liquid_jam_bias_mm
+    from scenarios.params import ACTUATORS
+
+    out = tmp_path / "run.parquet"
+    assert main(["simulate", "--fault", "liquid_jam", "--magnitude", "2", "--sign",
+                 "negative", "--duration", "20", "--out", str(out)]) == 0
+    runs = json.loads(pq.read_schema(out).metadata[b"fdd_campaign"])
+    # rel 1e-9: the metadata's JSON keeps 10 decimals (pandas' to_json)
+    assert runs[0]["magnitude"] == pytest.approx(-liquid_jam_bias_mm(ACTUATORS["elevator"], 2.0),
+                                                 rel=1e-9)
+    assert 1.5 < -runs[0]["magnitude"] < 2.5      # mm: not the 2 % taken as 2 mm

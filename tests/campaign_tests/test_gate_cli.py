@@ -116,3 +116,31 @@ def test_run_ends_with_the_gate_verdict_and_the_next_command(tmp_path, capsys):
     # the file's MD and DTP limits, one check of each per fault type (4 faults)
     assert others == (f"MD and DTP limits met (MD ≤ 0 %, DTP ≤ 1, 8 checks) (fdd-campaign "
                       f"gate {out} --all-requirements)")
+
+
+def test_report_of_an_interrupted_campaign_says_so_in_the_terminal(smoke_dir, tmp_path,
+                                                                   capsys):
+    # the first line and the last (below the long tables) say it, with the command that
+    # finishes it: the preset's name, since the directory holds the preset as shipped
+    copy, planned = _interrupted(smoke_dir, tmp_path, 5)
+    assert main(["report", str(copy), "--no-html"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    said = (f"report of an unfinished campaign: 5 of {planned} runs done (the tables and rates "
+            f"cover those runs only); finish it with: fdd-campaign run smoke --out {copy}")
+    assert said in lines[0] and said in lines[-1]
+    assert main(["report", str(smoke_dir), "--no-html"]) == 0
+    assert "unfinished" not in capsys.readouterr().out
+
+
+def test_the_command_that_finishes_a_campaign_keeps_its_seed_or_names_its_file(tmp_path,
+                                                                                capsys):
+    from types import SimpleNamespace
+
+    from campaign.cli.commands import _resume_command
+    from campaign.config import with_overrides
+
+    seeded = SimpleNamespace(name="smoke", config=with_overrides(load_config("smoke"), seed=3))
+    assert _resume_command(seeded, "D") == "fdd-campaign run smoke --seed 3 --out D"
+    edited = SimpleNamespace(name="smoke", config=with_overrides(
+        load_config("smoke"), values={"campaign.duration_s": 40.0}))
+    assert _resume_command(edited, "D").startswith("fdd-campaign run CAMPAIGN.toml --out D")

@@ -261,8 +261,15 @@ def test_compare_flags_a_degraded_detector_and_not_an_identical_campaign(tmp_pat
     out = capsys.readouterr().out
     a, b = load(campaign_dir).results, load(same).results
     table = compare_results(a, b)
-    assert (table["flag"] == "unchanged").all(), out
+    # the cells of 8 runs and more are unchanged; those of 2 runs (runaway, solid jam) are
+    # too few for the exact McNemar test to reach 0.01 (p ≥ 2·2⁻² = 0.5): said, not
+    # called unchanged
+    enough = table["n_a"] >= 8
+    assert enough.any() and (~enough).any()
+    assert (table.loc[enough, "flag"] == "unchanged").all(), out
+    assert (table.loc[~enough, "flag"] == "too few runs").all(), out
     assert "0 worse" not in out and "unchanged" in out
+    assert "cells of 2 shared runs (exact McNemar: p ≥ 0.5)" in out
 
     bad = tmp_path / "bad"
     run(small(**DEGRADED), bad, jobs=1, progress=False)
@@ -330,6 +337,37 @@ def test_compare_pairs_the_runs_of_a_shared_plan():
     later = rows("d", "solid_jam", "cruise", 0, 300, dtp + 0.01)
     t = compare_results(a, later).iloc[0]
     assert t["dtp_p"] < 1e-6 and t["flag"] == "worse" and t["md_p"] == 1.0
+
+
+def test_compare_says_a_cell_of_too_few_runs_cannot_tell():
+    # the largest difference a cell can show: every run of B misses where A detected
+    from reports.compare import format_compare, p_floor
+
+    rows = _compare_rows
+    dtp = np.full(2, 0.3)
+    # paired, 2 runs, both changed: McNemar p = 2·2⁻² = 0.5, the floor: "too few runs"
+    t = compare_results(rows("d", "solid_jam", "cruise", 0, 2, dtp),
+                        rows("d", "solid_jam", "cruise", 0, 2, dtp, missed=range(2))).iloc[0]
+    assert t["md_p"] == pytest.approx(0.5) == p_floor(True, 2, 2)
+    assert t["flag"] == "too few runs"
+    assert "exact McNemar test on its 2 shared runs gives p ≥ 0.5" in t["reasons"]
+    assert "power 0" in t["reasons"] and "needs ≥ 8 runs" in t["reasons"]
+    # independent, 2 and 3 runs: Fisher p of [[2, 0], [0, 3]] = 1/C(5, 2) = 0.1
+    t = compare_results(rows("d", "solid_jam", "cruise", 0, 2, dtp, ids="a"),
+                        rows("d", "solid_jam", "cruise", 0, 3, np.full(3, 0.3), ids="b",
+                             missed=range(3)))
+    assert t.iloc[0]["md_p"] == pytest.approx(1 / comb(5, 2)) == p_floor(False, 2, 3)
+    assert t.iloc[0]["flag"] == "too few runs"
+    assert "Fisher exact: p ≥ 0.1" in format_compare(t)
+    # 8 paired runs can reach 0.01 (2·2⁻⁸ = 0.0078): flagged by what they show
+    same8 = rows("d", "solid_jam", "cruise", 0, 8, np.full(8, 0.3))
+    assert compare_results(same8, same8).iloc[0]["flag"] == "unchanged"
+    assert compare_results(same8, rows("d", "solid_jam", "cruise", 0, 8, np.full(8, 0.3),
+                                       missed=range(8))).iloc[0]["flag"] == "worse"
+    # at α = 0.1 the 2-and-3-run cell is tested, and worse
+    assert compare_results(rows("d", "solid_jam", "cruise", 0, 2, dtp, ids="a"),
+                           rows("d", "solid_jam", "cruise", 0, 3, np.full(3, 0.3), ids="b",
+                                missed=range(3)), alpha=0.11).iloc[0]["flag"] == "worse"
 
 
 def test_bin_max_keeps_every_peak_and_ignores_nan():

@@ -191,6 +191,20 @@ def test_chen_tables_suite_is_shipped_and_listed(capsys):
         load_config("chen-tables")
 
 
+@pytest.mark.parametrize("command", ["run", "plan"])
+@pytest.mark.parametrize("typed, meant", [("chen-tabels", "chen-tables"), ("smok", "smoke"),
+                                          ("vanek-sektion5", "vanek-section5")])
+def test_a_misspelt_preset_or_suite_gets_the_closest_of_both(tmp_path, capsys, command, typed,
+                                                             meant):
+    out = tmp_path / "out"
+    assert main([command, typed, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"did you mean {meant!r}?" in err
+    listed = err.split("presets:")[1]
+    assert "chen-tables" in listed and "vanek-section5" in listed and "smoke" in listed
+    assert not out.exists()
+
+
 def test_vanek_section5_suite_names_its_three_campaigns():
     suite = load_suite("vanek-section5")
     assert [m.name for m in suite.members] == ["vanek-scenarios", "vanek-isolation",
