@@ -17,13 +17,15 @@ from scenarios.envelope import AERO_COEFFICIENTS
 from scenarios.params import TS_S
 from scenarios.simulate import single_run
 
-#: Level 1 flying qualities, MIL-F-8785C: short-period damping ζ_sp of §3.2.2.1.2 Table IV
-#: (Categories A and C 0.35–1.30: the narrower band), control anticipation parameter
-#: CAP = ω_sp²/(n/α) [1/(g·s²)] of §3.2.2.1.1 (Category A 0.28–3.6, the narrowest, with
-#: ω_sp ≥ 1.0 rad/s) and roll-mode time constant of §3.3.1.2 Table IX (Class III 1.4 s).
+#: Level 1 flying qualities, MIL-F-8785C, for the flight phases of the realistic envelope
+#: (climb, cruise, descent: Category B; the low-speed, low-altitude points: terminal,
+#: Category C), the narrower of the two bands: short-period damping ζ_sp of §3.2.2.1.2
+#: Table IV (C: 0.35–1.30; B: 0.30–2.00), control anticipation parameter CAP = ω_sp²/(n/α)
+#: [1/(g·s²)] of §3.2.2.1.1 (C: 0.16–3.6 with ω_sp ≥ 0.7 rad/s for Class III; B: 0.085–3.6)
+#: and the roll-mode time constant of §3.3.1.2 Table IX (Class III: 1.4 s).
 ZETA_SP = (0.35, 1.30)
-CAP = (0.28, 3.6)
-OMEGA_SP_MIN = 1.0
+CAP = (0.16, 3.6)
+OMEGA_SP_MIN = 0.7
 TAU_ROLL_MAX_S = 1.4
 
 
@@ -80,8 +82,11 @@ def test_closed_pitch_loop_is_level_1_over_the_envelope_and_its_uncertainty(flig
     """docs/aircraft.md §4.5: the gains placed on the nominal model, flown on the aircraft at
     each uncertainty corner (every aerodynamic draw at its min, 0 or max), with the filters
     and the elevator servo in the loop: every closed-loop pole is stable and the short-period
-    pair stays inside the Level 1 band of MIL-F-8785C for every category (ζ_sp, CAP, ω_sp ≥
-    1 rad/s). Measured, nominal: ζ_sp 0.53–0.78, CAP 0.32–0.84, ω_sp 1.43–3.24 rad/s."""
+    pair stays inside the Level 1 band of MIL-F-8785C for Categories B and C (ζ_sp, CAP,
+    ω_sp). Measured (min / nominal / max draws): ζ_sp 0.54–0.76 / 0.53–0.78 / 0.51–0.80,
+    CAP 0.29–0.70 / 0.32–0.84 / 0.35–0.98, ω_sp 1.33–2.95 / 1.43–3.24 / 1.55–3.51 rad/s:
+    inside Category A's band too but for its CAP floor of 0.28, which the min draws come
+    within 0.01 of."""
     n = len(flight["mass_t"])
     g = laws.gains(lpv.run_models(flight, 0.0))
     model = lpv.run_models(flight, _aero(level, n))
@@ -115,8 +120,8 @@ def test_load_factor_gain_bounded_where_the_fixed_placement_was_not(flight):
 def test_roll_mode_time_constant_is_level_1(flight, level):
     """docs/aircraft.md §4.5: the roll-rate loop (roll subsidence of the aircraft at the
     uncertainty corner, filter, aileron servo) is stable and its slowest pole has a time
-    constant below the 1.4 s of MIL-F-8785C Table IX, Class III, Level 1 (measured,
-    nominal: 0.17–0.25 s)."""
+    constant below the 1.4 s of MIL-F-8785C Table IX, Class III, Level 1 (measured: 0.15–0.27
+    s over the three corners)."""
     n = len(flight["mass_t"])
     g = laws.gains(lpv.run_models(flight, 0.0))
     ev = np.linalg.eigvals(laws.roll_loop_matrix(lpv.run_models(flight, _aero(level, n)), g))
