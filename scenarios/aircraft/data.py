@@ -298,13 +298,15 @@ class LawParams:
     sideslip_gain: float = param("1/s²", "est.", "sideslip feedback: added ∂ṙ/∂β")
     sideslip_integral: float = param("1/s³", "est.", "sideslip integral (turn coordination)")
     yaw_filter_s: float = param(
-        "s", "est. 0.2: corner at 5 rad/s, five times the Dutch roll's 0.95 rad/s (§8 of "
-        "docs/physics.md); the sideslip vane's noise (σ 0.1°) is ten times the gyros'",
+        "s", "est. 0.2: corner at 5 rad/s, five times the Dutch roll frequency of the "
+        "reference condition (0.95 rad/s, docs/physics.md §8); the sideslip vane's noise "
+        "(σ 0.1°) is ten times the gyros'",
         "time constant of the first-order filter on the fed-back r and β", gt=0.0)
     elevator_rate_deg_s: float = param(
         "deg/s", "est. 24: half the elevator servo's saturated no-load rate Kci·i_max/r = "
         "47.7 °/s (scenarios.params.ELEVATOR), so that an order moving at the limit is followed "
-        "with the current below its saturation up to a hinge load of 70 % of the stall force",
+        "with the current below its saturation up to a hinge load of about 70 % of the stall "
+        "force (docs/aircraft.md §4.4)",
         "rate limit of each elevator order", gt=0.0)
     aileron_rate_deg_s: float = param(
         "deg/s", "est. 28: half the aileron servo's saturated no-load rate 57.3 °/s "
