@@ -595,6 +595,25 @@ def cmd_study_vanek_jam_limit(args) -> int:
     return EXIT_INTERRUPTED if table is None else EXIT_OK
 
 
+def cmd_study_saturation(args) -> int:
+    from scenarios.aircraft.data import AIRCRAFT_SURFACES
+
+    from ..tools.studies.saturation import run_study
+
+    bad = [s for s in args.surfaces if s not in AIRCRAFT_SURFACES]
+    if bad:
+        raise UsageError(f"--surfaces: unknown aircraft surface(s) {', '.join(bad)}; allowed: "
+                         f"{', '.join(AIRCRAFT_SURFACES)}")
+    if args.runs < 1:
+        raise UsageError(f"--runs must be at least 1 (runs per manoeuvre and seed), got {args.runs}")
+    if not args.duration > 0.0:
+        raise UsageError(f"--duration must be > 0 s, got {args.duration}")
+    run_study(tuple(args.seeds), tuple(args.surfaces), args.runs, args.duration,
+              args.turbulence, args.manoeuvres,
+              progress=None if args.quiet else partial(print, file=sys.stderr, flush=True))
+    return EXIT_OK
+
+
 def cmd_fmu(args) -> int:
     from scenarios.fmu_build import build_servo_fmu
 
@@ -836,10 +855,11 @@ def _add_tool_parsers(subs) -> None:
 
 def _add_study_parsers(subs) -> None:
     """Sub-commands: the studies (``fdd-campaign study NAME``, :mod:`campaign.tools.studies`)."""
-    study = subs.add_parser("study", help="reproduce a published comparison (a fixed set of "
-                            "scenarios, one table)",
-                            description="studies: fixed comparisons reproduced from a paper, "
-                                        "one table each (campaign.tools.studies)")
+    study = subs.add_parser("study", help="reproduce a published comparison or count the "
+                            "aircraft laws' surface activity (one table)",
+                            description="studies: fixed comparisons reproduced from a paper and "
+                                        "censuses of the model, one table each "
+                                        "(campaign.tools.studies)")
     ssubs = study.add_subparsers(dest="study", metavar="STUDY", required=True)
     p = add_command(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
              "residual peaks, thresholds, detection delays and DTP (docs/vanek-geometric.md)",
@@ -893,6 +913,31 @@ def _add_study_parsers(subs) -> None:
                    help="constant bias added to the β vane of the fault-free twins [deg] "
                    "(default 0.02)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    from scenarios.catalog import MANOEUVRE_SETS
+    from scenarios.turbulence import LEVELS
+
+    from ..tools.studies import saturation
+
+    p = add_command(ssubs, "saturation", "census of the control laws on the aircraft plant: per "
+             "monitored surface and manoeuvre, fault-free runs in turbulence whose servo "
+             "current saturates, extreme deflections and RMS surface rate (docs/aircraft.md §5)",
+             "fdd-campaign study saturation --seeds 52361 70913 --runs 50", cmd_study_saturation)
+    p.add_argument("--seeds", type=int, nargs="+", default=list(saturation.DEFAULT_SEEDS),
+                   help="campaign seeds of the sampled runs (default: "
+                        f"{' '.join(map(str, saturation.DEFAULT_SEEDS))})")
+    p.add_argument("--runs", type=int, default=saturation.DEFAULT_RUNS,
+                   help=f"fault-free runs per manoeuvre and seed (default {saturation.DEFAULT_RUNS})")
+    p.add_argument("--duration", type=float, default=saturation.DEFAULT_DURATION_S,
+                   help=f"run duration [s] (default {saturation.DEFAULT_DURATION_S:g})")
+    p.add_argument("--surfaces", nargs="+", default=list(saturation.DEFAULT_SURFACES),
+                   help="monitored surfaces (default: "
+                        f"{' '.join(saturation.DEFAULT_SURFACES)})")
+    p.add_argument("--turbulence", choices=tuple(LEVELS), default="moderate",
+                   help="Dryden turbulence level (default moderate)")
+    p.add_argument("--manoeuvres", choices=MANOEUVRE_SETS, default="normal",
+                   help="manoeuvre set (default normal; stress: turns rolled in at 15 deg/s, "
+                        "amplitudes at their high end, docs/physics.md §7)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -92,10 +92,10 @@ def list_presets() -> dict[str, str]:
 PRESET_PLANTS: dict[str, tuple[tuple[str, ...], str]] = {
     name: (("actuator",),
            "its comb-interval uses the default kappa = [0.02, 0.02, 0.06], tuned on the "
-           "actuator plant's learning runs (loop errors of a few mm); on the aircraft plant "
-           "the control laws drive the elevator servo into rate saturation (loop errors up to "
-           "40 mm in its learning runs), where that kappa breaks [COMB] eq. 17 (|g^c| + g^r "
-           "< 1), which the detector's fit checks. Fix: run it on the aircraft plant from a "
+           "actuator plant's learning runs (loop errors of a few mm) and not evaluated on the "
+           "aircraft plant, where the control laws of model servo-4 drove the elevator servo "
+           "into rate saturation (loop errors up to 40 mm) and that kappa broke [COMB] eq. 17 "
+           "(|g^c| + g^r < 1; docs/aircraft.md §5). Fix: run it on the aircraft plant from a "
            "campaign file (fdd-campaign init) with [plant] kind = \"aircraft\" and "
            "params = { kappa = [0.01, 0.002, 0.012] } for comb-interval, valid there "
            "(docs/interval-detector.md), or run a preset valid there (e.g. smoke, chen-*, "

@@ -26,6 +26,7 @@ from __future__ import annotations
 import types
 from dataclasses import dataclass
 
+from ..declare import field_problems
 from ..params import AILERON, ELEVATOR, RUDDER, ActuatorParams, param
 
 
@@ -237,34 +238,96 @@ def surface_actuator(surface: str) -> ActuatorParams:
 
 @dataclass(frozen=True)
 class LawParams:
-    """Normal-law-like control laws (est.; structure after Goupil 2011 / docs/physics.md §7).
+    """Normal-law-like control laws (structure after Goupil 2011; equations in
+    docs/aircraft.md §4).
 
-    Pitch: load-factor command with integral action; gains placed on the short-period
-    model of the *measured* flight point so that the closed loop has a short-period pair
-    (ω, ζ) and an integral pole a. Roll: roll-rate command with bank hold through a
-    nominal-model inversion of the roll subsidence. Yaw: yaw damper on r − r_turn and
-    sideslip feedback; turn coordination r_turn = g·sin φ/V.
+    Pitch: load-factor command with pitch-rate feedback and integral action; the gains are
+    placed on the short-period model of the *measured* flight point for a closed-loop short
+    period (ω_sp, ζ) and an integral pole a, with ω_sp scheduled on the control anticipation
+    parameter: ω_sp = sqrt(CAP·n_α) bounded to [ω_min, ω_max] (docs/aircraft.md §4.1).
+    Roll: roll-rate command with bank hold through a nominal-model inversion of the roll
+    subsidence (docs/aircraft.md §4.2). Yaw: yaw damper on r − r_turn and sideslip feedback;
+    turn coordination r_turn = g·sin φ/V (docs/aircraft.md §4.3). Every fed-back measurement
+    passes a first-order filter and every surface order a rate limiter (docs/aircraft.md §4.4).
+    A value outside its declared bounds, or ω_min above ω_max, is refused.
     """
 
-    pitch_omega: float = param("rad/s", "est. (transport C* response)", "closed-loop short-period ω")
-    pitch_zeta: float = param("-", "est.", "closed-loop short-period damping")
-    pitch_integral: float = param("rad/s", "est.", "integral pole a")
-    roll_bandwidth: float = param("rad/s", "est.", "roll-rate loop bandwidth ω_p")
-    bank_gain: float = param("1/s", "est. (ζ = 1 with ω_p = 3)", "bank hold gain k_φ")
+    def __post_init__(self):
+        problems = field_problems(self)
+        if problems:
+            raise ValueError("control laws (LawParams): " + "; ".join(problems))
+        if self.pitch_omega_min > self.pitch_omega_max:
+            raise ValueError(f"control laws (LawParams): pitch_omega_min "
+                             f"{self.pitch_omega_min} rad/s is above pitch_omega_max "
+                             f"{self.pitch_omega_max} rad/s; give min <= max")
+
+    pitch_cap: float = param(
+        "1/(g·s²)", "est. 0.3, inside the Level 1 band of the control anticipation parameter "
+        "CAP = ω_sp²/(n/α) of MIL-F-8785C §3.2.2.1.1 for the flight phases of the realistic "
+        "envelope (Category B 0.085–3.6, Category C 0.16–3.6); near its low end, as the "
+        "unaugmented A330-class airframe (0.05–0.21 over the realistic points), to keep the "
+        "surface activity low", "CAP the closed-loop short period is scheduled on", gt=0.0)
+    pitch_omega_min: float = param(
+        "rad/s", "est. 1.0, above the Level 1 floor ω_sp ≥ 0.7 rad/s of MIL-F-8785C "
+        "§3.2.2.1.1 for Category C, Class III", "lowest closed-loop short-period ω_sp", gt=0.0)
+    pitch_omega_max: float = param(
+        "rad/s", "est. 2.0 (the fixed ω_sp of the laws of model servo-4); CAP ≤ 3.6 for every "
+        "n/α above 1.1 g/rad", "highest closed-loop short-period ω_sp", gt=0.0)
+    pitch_zeta: float = param(
+        "-", "est. 0.7, inside the Level 1 short-period damping of MIL-F-8785C §3.2.2.1.2 "
+        "Table IV (Categories A and C 0.35–1.30, B 0.30–2.00)", "closed-loop short-period "
+        "damping ζ_sp", gt=0.0)
+    pitch_integral: float = param("rad/s", "est.", "integral pole a", gt=0.0)
+    pitch_filter_s: float = param(
+        "s", "est. 0.1: corner at 10 rad/s, five times the highest ω_sp (phase lag at ω_sp "
+        "≤ 11°); takes the sensors' white noise on n_z and q down by sqrt(Ts/(2τ)) = 0.22",
+        "time constant of the first-order filter on the fed-back Δn_z and q", gt=0.0)
+    roll_bandwidth: float = param(
+        "rad/s", "est. 3.0: closed-loop roll-mode time constant 1/ω_p = 0.33 s, inside the "
+        "Level 1 limit of MIL-F-8785C §3.3.1.2 Table IX for Class III airplanes (1.4 s "
+        "in Categories A, B and C); with the bank hold it sets the steady bank offset a "
+        "steady rolling moment leaves (no integral action on the bank)",
+        "roll-rate loop bandwidth ω_p", gt=0.0)
+    bank_gain: float = param("1/s", "est. (ζ = 1 with ω_p: k_φ = ω_p/4)", "bank hold gain k_φ")
     bank_max_deg: float = param("deg", "A330 normal law (bank protection 33° stick free)",
                                 "bank angle used by the turn compensation at most")
+    roll_filter_s: float = param(
+        "s", "est. 0.05: corner at 20 rad/s, 6.7 times ω_p", "time constant of the first-order "
+        "filter on the fed-back p", gt=0.0)
     yaw_damping: float = param("1/s", "est.", "yaw damper: added −∂ṙ/∂r")
     sideslip_gain: float = param("1/s²", "est.", "sideslip feedback: added ∂ṙ/∂β")
     sideslip_integral: float = param("1/s³", "est.", "sideslip integral (turn coordination)")
+    yaw_filter_s: float = param(
+        "s", "est. 0.2: corner at 5 rad/s, five times the Dutch roll frequency of the "
+        "reference condition (0.95 rad/s, docs/physics.md §8); the sideslip vane's noise "
+        "(σ 0.1°) is ten times the gyros'",
+        "time constant of the first-order filter on the fed-back r and β", gt=0.0)
+    elevator_rate_deg_s: float = param(
+        "deg/s", "est. 24: half the elevator servo's saturated no-load rate Kci·i_max/r = "
+        "47.7 °/s (scenarios.params.ELEVATOR), so that an order moving at the limit is followed "
+        "with the current below its saturation up to a hinge load of about 70 % of the stall "
+        "force (docs/aircraft.md §4.4)",
+        "rate limit of each elevator order", gt=0.0)
+    aileron_rate_deg_s: float = param(
+        "deg/s", "est. 28: half the aileron servo's saturated no-load rate 57.3 °/s "
+        "(scenarios.params.AILERON), as elevator_rate_deg_s; the spoilers' order too",
+        "rate limit of each aileron order and of the spoilers' roll order", gt=0.0)
+    rudder_rate_deg_s: float = param(
+        "deg/s", "est. 26: half the rudder servo's saturated no-load rate 52.1 °/s "
+        "(scenarios.params.RUDDER), as elevator_rate_deg_s", "rate limit of the rudder order",
+        gt=0.0)
     hinge_load_limit: float = param(
         "-", "est. (docs/physics.md §3: no stall in normal flight; like a rudder travel limiter)",
         "orders stay where the hinge load is below this share of the stall force S·ΔP")
 
 
 LAWS = LawParams(
-    pitch_omega=2.0, pitch_zeta=0.7, pitch_integral=1.0,
-    roll_bandwidth=3.0, bank_gain=0.75, bank_max_deg=33.0,
-    yaw_damping=1.0, sideslip_gain=1.0, sideslip_integral=0.5, hinge_load_limit=0.9,
+    pitch_cap=0.3, pitch_omega_min=1.0, pitch_omega_max=2.0, pitch_zeta=0.7,
+    pitch_integral=1.0, pitch_filter_s=0.1,
+    roll_bandwidth=3.0, bank_gain=0.75, bank_max_deg=33.0, roll_filter_s=0.05,
+    yaw_damping=1.0, sideslip_gain=1.0, sideslip_integral=0.5, yaw_filter_s=0.2,
+    elevator_rate_deg_s=24.0, aileron_rate_deg_s=28.0, rudder_rate_deg_s=26.0,
+    hinge_load_limit=0.9,
 )
 
 

@@ -188,7 +188,8 @@ def _rod_rates(loops, xa, cur, plant, loaded, out, s, asn, scratch):
 
 @njit(nogil=True, cache=True, error_model="numpy")
 def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, plant,
-                    pitch, roll, yaw, elevators, step_matrix, load_matrix, gains, law, theta0,
+                    pitch, roll, yaw, elevators, step_deg, step_matrix, load_matrix, gains, law,
+                    theta0,
                     nz_c_in, p_c_in, beta_c_in, gust_alpha, gust_beta, nse,
                     com_scale, com_bias, com_noise, com_add, com_osc, k_osc, cur_add, cur_force,
                     k_jam, jam_offset, k_disc, flags, ramp_deg, scal,
@@ -197,9 +198,13 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
     n runs and S surfaces (arrays surface-major, index s·n + i, as there).
 
     *x*, *delta* (S·n,) hold the initial rod positions [mm] and deflections [rad] and are
-    advanced in place. *gains* (8, n) are the fields of :class:`laws.Gains` (k_n, k_q, k_i,
-    L_p, L_da, N_dr, nz_de, tas_ms); *law* the scalars (bank_max [rad], bank_gain,
-    roll_bandwidth, yaw_damping, sideslip_gain, sideslip_integral, g0); *scal* (ts,
+    advanced in place. *gains* (9, n) are the fields of :class:`laws.Gains` (k_n, k_q, k_i,
+    L_p, L_da, N_dr, nz_de, tas_ms, omega_sp; the last unused here); *law* the scalars
+    (bank_max [rad], bank_gain, roll_bandwidth, yaw_damping, sideslip_gain,
+    sideslip_integral, g0, the pitch, roll and yaw filter gains c of
+    :func:`laws.filter_coefficient` and the spoilers' largest step per period [rad]);
+    *step_deg* (S,) the largest step of each surface order per period [deg]
+    (docs/aircraft.md §4.4); *scal* (ts,
     rod_quant, r_mm of the monitored actuator, runaway order limits lo/hi [deg], d_min,
     d_max [rad], roll limit [rad]). *flags* as :func:`scenarios.compiled.integrate_block`
     (has com_add, com_osc, cur_add, cur_force, any jam, any disconnection); absent fault
@@ -217,6 +222,7 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
     run_lo, run_hi, d_min, d_max, roll_lim = scal[3], scal[4], scal[5], scal[6], scal[7]
     bank_max, bank_gain, roll_bw, yaw_damp, beta_gain, beta_int, g0 = (
         law[0], law[1], law[2], law[3], law[4], law[5], law[6])
+    c_pitch, c_roll, c_yaw, sp_step = law[7], law[8], law[9], law[10]
     has_com_add, has_com_osc, has_cur_add, has_cur_force, any_jam, any_disc = (
         flags[0], flags[1], flags[2], flags[3], flags[4], flags[5])
     base = mon * n
@@ -239,6 +245,12 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
     z_pitch = np.zeros(n)
     phi_ref = np.zeros(n)
     z_beta = np.zeros(n)
+    nz_f = np.zeros(n)
+    q_f = np.zeros(n)
+    p_f = np.zeros(n)
+    r_f = np.zeros(n)
+    beta_f = np.zeros(n)
+    order_prev = trim_deg.copy()
     pitch_clipped = np.zeros(n, dtype=np.bool_)
     da_prev = np.zeros(n)
     order = np.empty(S)
@@ -314,21 +326,28 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             nz_c = nz_c_in[i, k] + (1.0 / math.cos(clip(mphi, -bank_max, bank_max)) - 1.0)
             p_c = p_c_in[i, k]
             dnz_p = mdnz - gains[6, i] * de_meas
-            de = -gains[0, i] * dnz_p - gains[1, i] * mq - gains[2, i] * z_pitch[i]
+            nz_f[i] = nz_f[i] + c_pitch * (dnz_p - nz_f[i])
+            q_f[i] = q_f[i] + c_pitch * (mq - q_f[i])
+            de = -gains[0, i] * nz_f[i] - gains[1, i] * q_f[i] - gains[2, i] * z_pitch[i]
             z_pitch[i] = z_pitch[i] + (0.0 if pitch_clipped[i] else ts * (mdnz - nz_c))
             phi_ref[i] = phi_ref[i] + ts * p_c
             p_dem = p_c + bank_gain * (phi_ref[i] - mphi)
-            da = (roll_bw * (p_dem - mp) - gains[3, i] * mp) / gains[4, i]
+            p_f[i] = p_f[i] + c_roll * (mp - p_f[i])
+            da = (roll_bw * (p_dem - p_f[i]) - gains[3, i] * p_f[i]) / gains[4, i]
             r_turn = g0 * math.sin(clip(mphi, -bank_max, bank_max)) / gains[7, i]
-            e_beta = mbeta - beta_c_in[i, k]
-            dr = (-yaw_damp * (mr - r_turn) + beta_gain * e_beta
+            r_f[i] = r_f[i] + c_yaw * (mr - r_f[i])
+            beta_f[i] = beta_f[i] + c_yaw * (mbeta - beta_f[i])
+            e_beta = beta_f[i] - beta_c_in[i, k]
+            dr = (-yaw_damp * (r_f[i] - r_turn) + beta_gain * e_beta
                   + beta_int * z_beta[i]) / gains[5, i]
             z_beta[i] = z_beta[i] + ts * e_beta
             clipped = False
             for s in range(S):
                 raw = trim_deg[s, i] + (pitch[s] * de + roll[s] * da + yaw[s] * dr) * (
                     180.0 / math.pi)
-                o = clip(raw, lo_deg[s, i], hi_deg[s, i])
+                o = clip(raw, lo_deg[s, i], hi_deg[s, i])      # authority, then rate limit
+                o = order_prev[s, i] + clip(o - order_prev[s, i], -step_deg[s], step_deg[s])
+                order_prev[s, i] = o
                 if elevators[s] and o != raw:
                     clipped = True
                 order[s] = o
@@ -351,7 +370,9 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
             meas_rec[7, i, k] = mbeta
             meas_rec[8, i, k] = theta0[i] + row[IA] + gust_alpha[i, k] + nse[8, i, k]
             sp_rec[i, k] = da_prev[i]
-            da_prev[i] = clip(da, -roll_lim, roll_lim)   # the spoilers' order of the next period
+            # the spoilers' order of the next period (rate-limited as the ailerons')
+            da_prev[i] = da_prev[i] + clip(clip(da, -roll_lim, roll_lim) - da_prev[i],
+                                           -sp_step, sp_step)
         # servo-loops: currents
         for j in range(N):
             p = plant[j]

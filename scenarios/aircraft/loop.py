@@ -253,8 +253,10 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
     g, lp = p.gains, p.law_params
     gains = c(np.stack([np.broadcast_to(np.asarray(getattr(g, f.name), float), (n,))
                         for f in fields(laws.Gains)]))
+    steps, step_spoiler = laws.order_steps(p.ts, lp)
     law = np.array([np.radians(lp.bank_max_deg), lp.bank_gain, lp.roll_bandwidth,
-                    lp.yaw_damping, lp.sideslip_gain, lp.sideslip_integral, G0_MS2])
+                    lp.yaw_damping, lp.sideslip_gain, lp.sideslip_integral, G0_MS2,
+                    *laws.filter_coefficients(p.ts, lp), step_spoiler])
     scal = np.array([p.ts, sensors.rod_quant_mm, act_m.r_mm, act_m.stop_min_deg - run_margin,
                      act_m.stop_max_deg + run_margin, np.radians(act_m.stop_min_deg),
                      np.radians(act_m.stop_max_deg),
@@ -269,7 +271,7 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
     kernel.integrate_block(
         kernel.LOOPS, m, x, delta, c(trim_rad), c(p.trim_deg), c(p.lo_deg), c(p.hi_deg),
         kernels.plant_matrix(pl), c(_PITCH), c(_ROLL), c(_YAW), c(_ELEVATORS, np.bool_),
-        c(p.step_matrix), c(p.load_matrix), gains, law,
+        c(steps), c(p.step_matrix), c(p.load_matrix), gains, law,
         c(np.radians(p.flight_true["alpha_deg"])), c(p.nz_c), c(p.p_c), c(p.beta_c),
         c(p.gust_alpha), c(p.gust_beta), c(p.ac_noise), c(p.com_scale), c(p.com_bias),
         c(p.com_noise), opt(fa.com_add), opt(fa.com_osc), c(fa.k_osc, np.int64),
@@ -312,6 +314,9 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
     d_surf = xu[:, nx_u:, 0]
     state = laws.LawState.zeros(n)
     pitch_clipped = np.zeros(n, dtype=bool)
+    steps, step_spoiler = laws.order_steps(ts, p.law_params)
+    step_deg = steps[:, None]
+    order_prev = p.trim_deg.copy()          # (7, n) orders of the previous period [deg]
     da_prev = np.zeros(n)
     loaded = np.ones(n * n_s, dtype=bool)
     any_jam = bool((fa.k_jam < NEVER).any())
@@ -349,7 +354,8 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
                                pitch_clipped, p.law_params)
         raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
                                       + _YAW[:, None] * dr)
-        order = np.clip(raw, p.lo_deg, p.hi_deg)
+        order = laws.rate_limit(order_prev, np.clip(raw, p.lo_deg, p.hi_deg), step_deg)
+        order_prev = order.copy()
         pitch_clipped = (order[_ELEVATORS] != raw[_ELEVATORS]).any(axis=0)
         u_free_m = act_m.deg_to_mm(order[m])
         order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
@@ -382,7 +388,7 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         d_surf[:] = (delta_next - delta).reshape(n_s, n).T
         xa[:] = (p.step_matrix @ xu)[:, :, 0]
         x, delta, i_prev = x_next, delta_next, i_new
-        da_prev = np.clip(da, -roll_lim, roll_lim)
+        da_prev = laws.rate_limit(da_prev, np.clip(da, -roll_lim, roll_lim), step_spoiler)
     return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
                               u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
                               spoiler=sp_rec)

@@ -97,9 +97,11 @@ def test_turns_barely_touch_the_monitored_aileron_current_limit(envelope_batch):
     """docs/physics.md §7: the turn's aileron transients are moderate. At every realistic case and
     uncertainty level the monitored inboard aileron's servo-valve current stays inside its
     ±i_max limit through the turn but for brief turbulence peaks: at most 5 of the 159 turns
-    touch it, each for at most 50 ms (measured: 3 turns, 10–20 ms, all at 160 kt and
-    120 t, where a sideslip gust is largest and the yaw law closes on the air-relative β).
-    At 15 °/s with 0.5 s edges it saturated in every turn, for seconds."""
+    touch it, each for at most 50 ms (measured: none since the laws filter p, r and β and
+    rate-limit the orders, docs/aircraft.md §4; 3 turns, 10–20 ms, all at 160 kt and 120 t
+    under the laws of model servo-4, where a sideslip gust is largest and the yaw law closes
+    on the air-relative β). At 15 °/s with 0.5 s edges it saturated in every turn, for
+    seconds, under those laws."""
     runs, sig, _ = envelope_batch
     turn = (runs["manoeuvre"] == "turn_coordination").to_numpy()
     i_max = AIRCRAFT_ACTUATORS["aileron"].i_max_mA

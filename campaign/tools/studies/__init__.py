@@ -1,7 +1,11 @@
-"""Studies: fixed comparisons reproduced from a paper, outside a campaign, run by
-``fdd-campaign study NAME`` (:mod:`campaign.tools.studies.vanek`: ``fdd-campaign study vanek``).
+"""Studies: fixed comparisons and censuses outside a campaign, run by
+``fdd-campaign study NAME``, each printing one table.
 
-A study simulates a handful of named scenarios and prints one table; it goes through the
-evaluation pipeline of :mod:`campaign.evaluate` (detection and scoring by
-:mod:`reports.metrics`) like a campaign does.
+- :mod:`campaign.tools.studies.vanek` (``fdd-campaign study vanek``) reproduces a comparison
+  of [VANEK] on a handful of named scenarios through the evaluation pipeline of
+  :mod:`campaign.evaluate` (detection and scoring by :mod:`reports.metrics`), as a campaign
+  does;
+- :mod:`campaign.tools.studies.saturation` (``fdd-campaign study saturation``) counts the
+  aircraft laws' servo saturation and surface activity on fault-free runs sampled as a
+  campaign samples them (simulation only, no detector).
 """
