@@ -30,8 +30,8 @@ from .gate import GateResult
 from .metrics import FAULT_FREE, clopper_pearson
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["ReportFigure", "anchor", "count_figures", "hazard_section", "render_report",
-           "show_command"]
+__all__ = ["ReportFigure", "anchor", "count_figures", "drilldown_section", "hazard_section",
+           "render_report", "show_command"]
 
 #: Sections of the page that hold figures, in page order: key → heading.
 SECTIONS = {
@@ -395,7 +395,10 @@ def _cell_table(cell: pd.DataFrame, detectors: list[str]) -> str:
                   cls="runlist")
 
 
-def _drilldown(runs: pd.DataFrame, detectors: list[str]) -> str:
+def drilldown_section(runs: pd.DataFrame, detectors: list[str]) -> str:
+    """``<section id="runs">``: every run of *runs* (one row per run × detector, with the
+    flight point) in a table per fault type × manoeuvre, a column per detector in the order
+    of *detectors*."""
     out = ['<section id="runs"><h2>Runs behind each row (drill-down)</h2>',
            "<p>Every run of the campaign, a row per run and a column per detector, most "
            "worrying first (errors, false alarms, misses, then the largest DTP or margin). "
@@ -464,7 +467,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                   certificate: pd.DataFrame | None = None,
                   all_requirements: GateResult | None = None,
                   detectors: list[str] | None = None,
-                  hazard: tuple | None = None) -> str:
+                  hazard: tuple | None = None, drilldown: str | None = None) -> str:
     """The report page.
 
     Parameters
@@ -487,6 +490,9 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
         ``certify`` has not made one
     certificate : ``certificate.parquet`` of ``fdd-campaign certify`` (None: no such
         section unless it has figures)
+    drilldown : the drill-down section as :func:`drilldown_section` renders it for *runs*
+        and the same detectors (given: made beforehand, e.g. while the figures are drawn;
+        None: rendered here)
     """
     unknown = sorted({f.section for f in figures} - set(SECTIONS))
     if unknown:
@@ -537,7 +543,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                      + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></section>")
     if hazard is not None:
         parts.append(hazard_section(*hazard))
-    parts.append(_drilldown(runs, detectors))
+    parts.append(drilldown_section(runs, detectors) if drilldown is None else drilldown)
     parts.append("</body></html>")
     return "\n".join(parts)
 
