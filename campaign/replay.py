@@ -414,8 +414,8 @@ def _process_pool(jobs: int, initializer, preload=None):
     then starts with every module this process has loaded, and *preload* is called here
     first, instead of importing them again in each: about a second of CPU a worker), else
     loky's (a fresh interpreter each, as ``run`` starts its workers). The workers are
-    forked at the first task; the standard streams are flushed before, so that no
-    buffered line is written again by a worker."""
+    forked here and now (at a first, empty task), while no other thread runs; the standard
+    streams are flushed before, so that no buffered line is written again by a worker."""
     import multiprocessing
     import threading
 
@@ -427,8 +427,10 @@ def _process_pool(jobs: int, initializer, preload=None):
             preload()
         for stream in (sys.stdout, sys.stderr):
             stream.flush()
-        return ProcessPoolExecutor(max_workers=jobs, initializer=initializer,
+        pool = ProcessPoolExecutor(max_workers=jobs, initializer=initializer,
                                    mp_context=multiprocessing.get_context("fork"))
+        pool.submit(int)               # forks every worker now (they start at a first task)
+        return pool
     from joblib.externals.loky import ProcessPoolExecutor
 
     return ProcessPoolExecutor(max_workers=jobs, initializer=initializer)
@@ -460,9 +462,15 @@ class _FigureDrawer:
     def count(self) -> int:
         return sum(len(v) for v in self.specs.values())
 
+    @property
+    def done(self) -> int:
+        """Figures drawn so far (none before :meth:`collect` without workers)."""
+        return sum(f.done() for fs in self.futures.values() for f in fs)
+
     def collect(self, groups: list[str], progress) -> list[ReportFigure]:
         """Every figure of *groups* (in that order, each in its specs' order); *progress*
-        (a :class:`campaign.runner.Progress`) counts them as they are done."""
+        (a :class:`campaign.runner.Progress`, started at :attr:`done`) counts them as they
+        are done."""
         pngs: dict[str, list] = {}
         if self.executor is None:
             for g in groups:
@@ -471,13 +479,10 @@ class _FigureDrawer:
                     pngs[g].append(render_png(kind, args, kwargs))
                     progress.update(1)
         else:
-            where = {f: (g, i) for g in groups for i, f in enumerate(self.futures[g])}
-            for g in groups:
-                pngs[g] = [None] * len(self.futures[g])
-            for future in as_completed(where):
-                g, i = where[future]
-                pngs[g][i] = future.result()
+            pending = [f for g in groups for f in self.futures[g] if not f.done()]
+            for _ in as_completed(pending):
                 progress.update(1)
+            pngs = {g: [f.result() for f in self.futures[g]] for g in groups}
         return [ReportFigure(section, group, title, png, caption)
                 for g in groups
                 for (section, group, title, caption, *_), png in zip(self.specs[g], pngs[g])]
@@ -503,8 +508,8 @@ class _StageLog:
             print(f"report: {text} [{time.perf_counter() - self.t0:.1f} s]", file=self.stream,
                   flush=True)
 
-    def bar(self, total: int, unit: str) -> Progress:
-        return Progress(total, enabled=self.enabled and total > 0, stream=self.stream,
+    def bar(self, total: int, unit: str, done: int = 0) -> Progress:
+        return Progress(total, done, enabled=self.enabled and total > 0, stream=self.stream,
                         label="report: ", unit=unit)
 
 
@@ -572,9 +577,11 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
         t1 = time.perf_counter()
         # the page's largest part, made while the workers draw
         drilldown = drilldown_section(data.runs, data.detectors)
-        say(f"drawing {drawer.count} figures"
-            + (f" on {jobs} processes" if drawer.executor is not None else ""))
-        bar = say.bar(drawer.count, "figures")
+        done = drawer.done
+        say(f"drawing {drawer.count - done} figures"
+            + (f" on {jobs} processes ({done} of {drawer.count} drawn already)"
+               if drawer.executor is not None else ""))
+        bar = say.bar(drawer.count, "figures", done=done)
         figures = drawer.collect(list(FIGURE_GROUPS), bar)
         bar.close()
     finally:

@@ -603,3 +603,28 @@ def test_a_passing_value_beside_a_failure_names_the_failure():
     # MD: 3 of 6 runs missed overall, all of them liquid jams
     assert cells[3].startswith('<span class="unmet">50.00')
     assert cells[3].endswith('<small class="why">liquid_jam: MD 100.00 % &gt; 0.00 %</small>')
+
+
+def test_workers_and_threads_make_the_page_one_process_makes(campaign_dir, report, tmp_path,
+                                                             monkeypatch):
+    import campaign.replay as replay
+
+    # batches of 5 runs: the 16 fault-free runs and the example runs re-simulated in 4
+    # batches on 2 threads; the figures drawn in 2 worker processes
+    monkeypatch.setattr(replay, "MAX_CHUNK", 5)
+    parallel = build_report(campaign_dir, jobs=2, out=tmp_path / "p.html",
+                            log=lambda _: None).read_text()
+    alone = report[1]
+
+    def figures(page):
+        return re.findall(r'<figure>.*?</figure>', page, re.S)
+
+    def text(page):
+        page = re.sub(r"<figure>.*?</figure>", "", page, flags=re.S)
+        page = re.sub(r"<td>report written \(UTC\)</td><td[^>]*>[^<]*</td>", "", page)
+        return re.sub(r"<li>Report made with .*?</li>", "", page)
+
+    # the same figures, bit for bit, in the same order, and the same page around them
+    assert len(figures(parallel)) == 19 and figures(parallel) == figures(alone)
+    assert text(parallel) == text(alone)
+    assert "Report made with 2 job(s)" in parallel
