@@ -437,10 +437,11 @@ def _process_pool(jobs: int, initializer, preload=None):
 
 
 class _FigureDrawer:
-    """Draws figure specs (the form noted above :func:`_envelope_specs`) in *jobs* worker processes (loky,
-    started at once: their start-up overlaps the reading and the re-simulation), or here
-    when *jobs* is 1, at :meth:`collect`. Specs are handed over in groups as they become
-    known; :meth:`collect` returns the figures group by group in the order asked."""
+    """Draws figure specs (the form noted above :func:`_envelope_specs`) in *jobs* worker
+    processes (:func:`_process_pool`, started at once: their start-up overlaps the reading
+    and the re-simulation), or here when *jobs* is 1, at :meth:`collect`. Specs are handed
+    over in groups as they become known; :meth:`collect` returns the figures group by group
+    in the order asked."""
 
     def __init__(self, jobs: int):
         self.jobs = jobs
