@@ -19,22 +19,24 @@ RUN_ID``; ``compare DIR_A DIR_B`` is :mod:`campaign.compare`.
 
 from __future__ import annotations
 
+import copy
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
 
 from reports.figures import bin_max, figure_png, render_png, run_figure
 from reports.gate import requirements_gate
-from reports.html import ReportFigure, render_report, show_command
+from reports.html import ReportFigure, drilldown_section, render_report, show_command
 from reports.metrics import FAULT_FREE
 from reports.summary import detector_order
 from reports.table import error_lines
+from scenarios import compiled as kernels
 from scenarios.envelope import FLIGHT_COLUMNS
 
 from .cli.common import UsageError
@@ -45,7 +47,7 @@ from .isolation import roles_of
 from .evidence.figures import evidence_figure_specs
 from .plant_setup import replay_plant
 from .result import Campaign, load
-from .runner import CampaignSetupError, settings_of
+from .runner import CampaignSetupError, Progress, settings_of
 from .store.directory import CampaignDir
 from .tradeoff import report_figures as tradeoff_figures
 
@@ -55,12 +57,13 @@ __all__ = ["ReportSettings", "build_report", "replay_settings", "show_run"]
 POINT_COLUMNS = (*FLIGHT_COLUMNS, "onset_s", "magnitude")
 
 
-#: Largest number of runs re-simulated together by one worker (about 30 arrays of
-#: MAX_CHUNK × n_steps floats: 0.9 GB for 60 s runs at 10 ms).
+#: Largest number of runs re-simulated together (about 30 arrays of MAX_CHUNK × n_steps
+#: floats: 0.9 GB for 60 s runs at 10 ms). The runs are re-simulated in batches of the
+#: campaign's own ``[runner] chunk_size`` (default 100) up to this: on addsafe-mc's 1200
+#: fault-free runs, batches of 100 took 3.7 CPU-s and batches of 600 5.4 CPU-s (memory
+#: traffic of the larger arrays).
 MAX_CHUNK = 600
-#: Smallest batch worth a worker process of its own.
-MIN_CHUNK = 100
-#: Fewest figures worth drawing in worker processes.
+#: Fewest figures worth drawing in worker processes (starting one costs about a second).
 MIN_PARALLEL_FIGURES = 8
 
 
@@ -136,14 +139,6 @@ def _trace_chunk(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors:
     return env_rows["run_id"].to_numpy(), starts, env, examples, failures
 
 
-def _run_tasks(tasks: list, jobs: int, min_tasks: int = 2) -> list:
-    """Results of joblib ``delayed`` tasks, in order: in-process for one job or fewer than
-    *min_tasks* tasks (starting worker processes costs seconds), else in loky processes."""
-    if jobs == 1 or len(tasks) < max(2, min_tasks):
-        return [f(*a, **k) for f, a, k in tasks]
-    return Parallel(n_jobs=min(jobs, len(tasks)), backend="loky")(tasks)
-
-
 def _envelope_subset(free: pd.DataFrame, results: pd.DataFrame, cfg: ReportSettings):
     """The fault-free plan rows to re-simulate (see :class:`ReportSettings`)."""
     if cfg.envelope_runs is None:
@@ -182,18 +177,61 @@ def _envelope_runs(plan: pd.DataFrame, cfg: ReportSettings, runs: pd.DataFrame):
     return _envelope_subset(free, runs, cfg), len(free)
 
 
-def _chunks(free: pd.DataFrame, extra: pd.DataFrame, jobs: int) -> list:
-    """(fault-free rows, example rows) per task.
-
-    The time loops are vectorised over runs: a batch costs nearly the same for 50 or 600
-    runs, so the runs are split evenly over the jobs in batches of at least MIN_CHUNK runs
-    (smaller ones are not worth a process) and at most MAX_CHUNK runs (which bounds a
-    worker's memory); the example rows are dealt over the batches.
-    """
-    n_tasks = max(1, -(-len(free) // MAX_CHUNK), min(jobs, len(free) // MIN_CHUNK))
-    size = max(1, -(-len(free) // n_tasks))
+def _chunks(free: pd.DataFrame, extra: pd.DataFrame, size: int) -> list:
+    """(fault-free rows, example rows) per batch of at most *size* fault-free runs; the
+    example rows are dealt over the batches (they ride along: a run simulated in any batch
+    is the same run)."""
+    size = max(1, min(int(size), MAX_CHUNK))
     env = [free.iloc[s:s + size] for s in range(0, len(free), size)] or [free.iloc[:0]]
     return [(e, extra.iloc[i::len(env)]) for i, e in enumerate(env)]
+
+
+def _trace_chunk_copy(env_rows: pd.DataFrame, extra_rows: pd.DataFrame, *, detectors: dict,
+                      **kwargs):
+    """:func:`_trace_chunk` on private copies of the detectors (batches run in threads, as
+    the runner's ``_evaluate_copy``)."""
+    return _trace_chunk(env_rows, extra_rows, detectors=copy.deepcopy(detectors), **kwargs)
+
+
+def _resimulate(chunks: list, *, detectors: dict, settings: ChunkSettings, n_bins: int,
+                example_ids: frozenset, jobs: int, processes, progress) -> list:
+    """The parts of :func:`_trace_chunk` of every batch of *chunks*, in order: on *jobs*
+    threads of this process (the compiled kernels release the GIL; each batch with its
+    own copy of the detectors, as ``run`` does), in the worker processes *processes* (a
+    ``concurrent.futures`` executor) when the plant must not be shared between threads
+    (an FMU), or here one after the other for one job. *progress* (a
+    :class:`campaign.runner.Progress`) counts the runs as their batch ends."""
+    kwargs = {"detectors": detectors, "settings": settings, "n_bins": n_bins,
+              "example_ids": example_ids}
+    if jobs == 1 or len(chunks) == 1:
+        parts = []
+        for e, x in chunks:
+            parts.append(_trace_chunk(e, x, **kwargs))
+            progress.update(len(e) + len(x))
+        return parts
+    if settings.plant.needs_processes:
+        executor, own = processes, None
+        if executor is None:
+            from joblib.externals.loky import ProcessPoolExecutor
+
+            executor = own = ProcessPoolExecutor(max_workers=jobs)
+        call = _trace_chunk
+    else:
+        if settings.engine == "compiled":
+            kernels.warm_up()          # compiled or loaded once, before the threads start
+        executor = own = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="fdd-report")
+        call = _trace_chunk_copy
+    try:
+        futures = {executor.submit(call, e, x, **kwargs): i for i, (e, x) in enumerate(chunks)}
+        parts: list = [None] * len(chunks)
+        for future in as_completed(futures):
+            i = futures[future]
+            parts[i] = future.result()
+            progress.update(len(chunks[i][0]) + len(chunks[i][1]))
+        return parts
+    finally:
+        if own is not None:
+            own.shutdown(wait=True)
 
 
 def _gather_envelopes(parts: list, free: pd.DataFrame, settings: ChunkSettings):
@@ -334,42 +372,178 @@ def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
 
 @dataclass
 class _ReportData:
-    """What the report shows, gathered from the directory and the re-simulation."""
+    """What the report shows, gathered from the directory (:func:`_read_report_data`) and
+    the re-simulation (:func:`_resimulate_report_runs`)."""
 
     camp: Campaign
     cfg: ReportSettings
     requirements: dict
-    gate: object                   # reports.gate.GateResult of `fdd-campaign gate DIR`, and
-    all_requirements: object       # of `fdd-campaign gate DIR --all-requirements`
     detectors: list                # detector names in the summary's order (the page's)
     runs: pd.DataFrame             # runs_table(camp)
-    plan: pd.DataFrame             # the plan rows of the runs re-simulated, by run id
-    n_free: int                    # fault-free runs scored ok
-    env: dict | None               # re-simulated envelopes (_gather_envelopes)
-    examples: list                 # (fault, run_id, why)
-    traces: dict                   # run_id → (frame, residuals, onset) of the examples
-    t_sim: float                   # seconds from the start to the end of the re-simulation
+    settings: ChunkSettings | None  # to re-simulate with (None: an FMU plant, no --fmu)
+    gate: object = None            # reports.gate.GateResult of `fdd-campaign gate DIR`, and
+    all_requirements: object = None  # of `fdd-campaign gate DIR --all-requirements`
+    plan: pd.DataFrame | None = None  # the plan rows of the runs re-simulated, by run id
+    n_free: int = 0                # fault-free runs scored ok
+    env: dict | None = None        # re-simulated envelopes (_gather_envelopes)
+    examples: list = field(default_factory=list)     # (fault, run_id, why)
+    traces: dict = field(default_factory=dict)       # run_id → (frame, residuals, onset)
+    t_sim: float = 0.0             # seconds the re-simulation took
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
 
 
+def _figure_worker_init() -> None:
+    """Start-up of a figure worker process: matplotlib (Agg) and the figure module loaded,
+    then every object made so far out of the cyclic collector's scans (``gc.freeze``; they
+    live as long as the worker) and the collector run less often (after 20000 new objects
+    instead of 700): matplotlib's figures make many short-lived objects, and the
+    collector's passes took 12–15 % of the drawing over the loaded modules, and 10 % more
+    over the figures' own objects (measured on addsafe-mc's figures; a worker then holds
+    about 100 MB more)."""
+    import gc
+
+    from reports import figures
+
+    figures.new_figure()
+    gc.freeze()
+    gc.set_threshold(20000, 20, 100)
+
+
+def _process_pool(jobs: int, initializer, preload=None):
+    """A ``concurrent.futures`` pool of *jobs* worker processes, each started with
+    *initializer*: forked from this one on Linux while it runs no other thread (a worker
+    then starts with every module this process has loaded, and *preload* is called here
+    first, instead of importing them again in each: about a second of CPU a worker), else
+    loky's (a fresh interpreter each, as ``run`` starts its workers). The workers are
+    forked here and now (at a first, empty task), while no other thread runs; the standard
+    streams are flushed before, so that no buffered line is written again by a worker."""
+    import multiprocessing
+    import threading
+
+    if sys.platform.startswith("linux") and threading.active_count() == 1 \
+            and "fork" in multiprocessing.get_all_start_methods():
+        from concurrent.futures import ProcessPoolExecutor
+
+        if preload is not None:
+            preload()
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        pool = ProcessPoolExecutor(max_workers=jobs, initializer=initializer,
+                                   mp_context=multiprocessing.get_context("fork"))
+        pool.submit(int)               # forks every worker now (they start at a first task)
+        return pool
+    from joblib.externals.loky import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(max_workers=jobs, initializer=initializer)
+
+
+class _FigureDrawer:
+    """Draws figure specs (the form noted above :func:`_envelope_specs`) in *jobs* worker
+    processes (:func:`_process_pool`, started at once: their start-up overlaps the reading
+    and the re-simulation), or here when *jobs* is 1, at :meth:`collect`. Specs are handed
+    over in groups as they become known; :meth:`collect` returns the figures group by group
+    in the order asked."""
+
+    def __init__(self, jobs: int):
+        self.jobs = jobs
+        self.executor = None
+        if jobs > 1:
+            from reports.figures import new_figure
+
+            self.executor = _process_pool(jobs, _figure_worker_init, preload=new_figure)
+        self.specs: dict[str, list] = {}
+        self.futures: dict[str, list] = {}
+
+    def submit(self, group: str, specs: list) -> None:
+        self.specs[group] = specs
+        if self.executor is not None:
+            self.futures[group] = [self.executor.submit(render_png, kind, args, kwargs)
+                                   for *_, kind, args, kwargs in specs]
+
+    @property
+    def count(self) -> int:
+        return sum(len(v) for v in self.specs.values())
+
+    @property
+    def done(self) -> int:
+        """Figures drawn so far (none before :meth:`collect` without workers)."""
+        return sum(f.done() for fs in self.futures.values() for f in fs)
+
+    def collect(self, groups: list[str], progress) -> list[ReportFigure]:
+        """Every figure of *groups* (in that order, each in its specs' order); *progress*
+        (a :class:`campaign.runner.Progress`, started at :attr:`done`) counts them as they
+        are done."""
+        pngs: dict[str, list] = {}
+        if self.executor is None:
+            for g in groups:
+                pngs[g] = []
+                for *_, kind, args, kwargs in self.specs[g]:
+                    pngs[g].append(render_png(kind, args, kwargs))
+                    progress.update(1)
+        else:
+            pending = [f for g in groups for f in self.futures[g] if not f.done()]
+            for _ in as_completed(pending):
+                progress.update(1)
+            pngs = {g: [f.result() for f in self.futures[g]] for g in groups}
+        return [ReportFigure(section, group, title, png, caption)
+                for g in groups
+                for (section, group, title, caption, *_), png in zip(self.specs[g], pngs[g])]
+
+    def close(self) -> None:
+        if self.executor is not None:
+            self.executor.shutdown(wait=True)
+            self.executor = None
+
+
+class _StageLog:
+    """The report's progress on stderr, as ``run`` shows its own: a line per stage with the
+    seconds since the start, and a :class:`campaign.runner.Progress` bar for the runs
+    re-simulated and for the figures drawn; nothing when *enabled* is False
+    (``--quiet``)."""
+
+    def __init__(self, enabled: bool, t0: float, stream=None):
+        self.enabled, self.t0 = enabled, t0
+        self.stream = stream or sys.stderr
+
+    def __call__(self, text: str) -> None:
+        if self.enabled:
+            print(f"report: {text} [{time.perf_counter() - self.t0:.1f} s]", file=self.stream,
+                  flush=True)
+
+    def bar(self, total: int, unit: str, done: int = 0) -> Progress:
+        return Progress(total, done, enabled=self.enabled and total > 0, stream=self.stream,
+                        label="report: ", unit=unit)
+
+
+#: Figure groups in page order (each a list of figure specs).
+FIGURE_GROUPS = ("envelope", "fault", "example", "map", "evidence")
+
+
 def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings | None = None,
-                 log=None, requirements: dict | None = None, fmu=None) -> Path:
+                 log=None, requirements: dict | None = None, fmu=None,
+                 progress: bool = True) -> Path:
     """Write the HTML report of a campaign directory; returns its path.
 
-    Two parallel phases over *jobs* processes: (1) re-simulate the fault-free runs (for the
-    envelopes) with the example runs riding along, (2) draw every figure.
+    With *jobs* > 1, worker processes start at once and draw the figures that need no
+    simulation (detection per fault type, envelope maps, survival and certificate curves)
+    while this process evaluates the gate and re-simulates the fault-free runs (for the
+    envelopes) with the example runs riding along, on *jobs* threads as ``run`` simulates
+    them (processes for an FMU plant); then the envelope and example figures are drawn too.
 
     Parameters
     ----------
-    directory : a campaign directory (``fdd-campaign run --out``)
+    directory : a campaign directory (``fdd-campaign run --out``), or its
+        :class:`campaign.result.Campaign` already loaded (checked against its manifest)
     out : HTML file (default ``DIR/report.html``)
-    jobs : worker processes
+    jobs : worker processes (figures) and threads (re-simulation)
     settings : :class:`ReportSettings`
     requirements : the ``[requirements]`` to report against, in their JSON form, in place of
         the campaign's (``report --requirements FILE``; :func:`campaign.config.load_requirements`)
     fmu : for a campaign on an FMU plant, the FMU to re-simulate on (``--fmu``; checked
         against the digest recorded at run time); without it nothing is re-simulated
+    log : where notes go, one line each (default: stderr)
+    progress : a line per stage and progress bars on stderr (``--quiet``: none)
     """
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
@@ -379,34 +553,64 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
         raise UsageError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
                          f"{cfg.envelope_runs}")
     t0 = time.perf_counter()
-    data = _gather_report_data(directory, cfg, jobs, t0, requirements, fmu, log)
-    specs = _figure_specs(data) + evidence_figure_specs(data.camp, data.runs)
-    t1 = time.perf_counter()
-    pngs = _run_tasks([delayed(render_png)(kind, args, kwargs)
-                       for *_, kind, args, kwargs in specs], jobs,
-                      min_tasks=MIN_PARALLEL_FIGURES)
-    figures = [ReportFigure(section, group, title, png, caption)
-               for (section, group, title, caption, *_), png in zip(specs, pngs)]
-    figures += tradeoff_figures(data.camp, data.requirements, data.notes)
-    del specs, pngs             # the maps' copies of the runs, not needed for the page
+    say = _StageLog(progress, t0)
+    data = _read_report_data(directory, cfg, requirements, fmu, log)
+    say(f"read {data.camp.root}: {data.runs['run_id'].nunique()} runs × "
+        f"{len(data.detectors)} detectors")
+    ok = data.runs[data.runs["status"] == "ok"]
+    early = {"fault": _fault_specs(ok, data.requirements, data.detectors),
+             "map": _map_specs(ok, data.requirements, data.detectors),
+             "evidence": evidence_figure_specs(data.camp, data.runs)}
+    n_early = sum(len(v) for v in early.values())
+    parallel = jobs > 1 and n_early + len(data.detectors) >= MIN_PARALLEL_FIGURES
+    drawer = _FigureDrawer(jobs if parallel else 1)
+    try:
+        for group, specs in early.items():
+            drawer.submit(group, specs)
+        del early, ok
+        if parallel:
+            say(f"drawing {n_early} figures on {jobs} processes (detection, maps, "
+                "survival, certificate) while the runs are re-simulated")
+        data.gate = campaign_gate(data.camp, data.requirements)
+        data.all_requirements = campaign_gate(data.camp, data.requirements,
+                                              all_requirements=True)
+        _resimulate_report_runs(data, jobs, say, drawer.executor)
+        drawer.submit("envelope", _envelope_specs(data))
+        drawer.submit("example", _example_specs(data))
+        t1 = time.perf_counter()
+        # the page's largest part, made while the workers draw
+        drilldown = drilldown_section(data.runs, data.detectors)
+        done = drawer.done
+        say(f"drawing {drawer.count - done} figures"
+            + (f" on {jobs} processes ({done} of {drawer.count} drawn already)"
+               if drawer.executor is not None else ""))
+        bar = say.bar(drawer.count, "figures", done=done)
+        figures = drawer.collect(list(FIGURE_GROUPS), bar)
+        bar.close()
+        figures += tradeoff_figures(data.camp, data.requirements, data.notes)
+    finally:
+        drawer.close()
     t_fig = time.perf_counter() - t1
-    data.notes.append(f"Report made with {jobs} job(s): re-simulation {data.t_sim:.1f} s, "
-                      f"{len(figures)} figures {t_fig:.1f} s.")
-    page = _assemble_page(data, figures)
+    data.notes.append(f"Report made with {jobs} job(s) in {time.perf_counter() - t0:.1f} s: "
+                      f"re-simulation {data.t_sim:.1f} s, then {t_fig:.1f} s until the last "
+                      f"of the {len(figures)} figures was drawn"
+                      + (" (the figures that need no simulation drawn meanwhile)"
+                         if parallel else "") + ".")
+    page = _assemble_page(data, figures, drilldown)
+    del figures, drilldown
     path = CampaignDir(data.camp.root).write_report(page, out)
-    log(f"report: {len(figures)} figures, {len(page) / 1e6:.1f} MB in "
-        f"{time.perf_counter() - t0:.1f} s (re-simulation {data.t_sim:.1f} s, figures "
-        f"{t_fig:.1f} s, {jobs} job(s))")
+    if progress:
+        log(f"report: {drawer.count} figures, {len(page) / 1e6:.1f} MB in "
+            f"{time.perf_counter() - t0:.1f} s (re-simulation {data.t_sim:.1f} s, last "
+            f"figures {t_fig:.1f} s, {jobs} job(s))")
     return path
 
 
-def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
-                        requirements: dict | None = None, fmu=None,
-                        log=print) -> _ReportData:
-    """Read the directory and re-simulate, on *jobs* processes, the fault-free runs (for
-    the envelopes) with the example runs riding along (phase 1); none on an FMU plant
-    without *fmu* (:func:`replay_settings`)."""
-    camp = load(directory)
+def _read_report_data(directory, cfg: ReportSettings, requirements: dict | None = None,
+                      fmu=None, log=print) -> _ReportData:
+    """What the report reads from the directory: the runs, the requirements, the warnings,
+    how to re-simulate (none on an FMU plant without *fmu*: :func:`replay_settings`)."""
+    camp = directory if isinstance(directory, Campaign) else load(directory)
     runs = runs_table(camp)
     if runs.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
@@ -422,32 +626,48 @@ def _gather_report_data(directory, cfg: ReportSettings, jobs: int, t0: float,
         log(note)
         warnings.append(f"{note} (the residual envelopes and example runs need it; the "
                         "tables and maps need no simulation).")
-    keys = camp.plan_columns(PLAN_KEY_COLUMNS)
-    chosen, n_free = _envelope_runs(keys, cfg, runs)
     order = list(dict.fromkeys(camp.summary["detector"].astype(str)))
-    examples = _example_ids(runs, cfg.examples_per_fault, order) if settings else []
-    example_ids = frozenset(rid for _, rid, _ in examples)
+    return _ReportData(camp=camp, cfg=cfg, requirements=req, detectors=order, runs=runs,
+                       settings=settings, warnings=warnings)
+
+
+def _resimulate_report_runs(data: _ReportData, jobs: int, say: _StageLog,
+                            processes=None) -> None:
+    """Re-simulate the fault-free runs (for the envelopes) with the example runs riding
+    along, on *jobs* threads (:func:`_resimulate`; in *processes* for an FMU plant), and
+    fill *data*'s envelopes, examples and traces."""
+    t0 = time.perf_counter()
+    cfg, camp, runs, settings = data.cfg, data.camp, data.runs, data.settings
+    keys = camp.plan_columns(PLAN_KEY_COLUMNS)
+    chosen, data.n_free = _envelope_runs(keys, cfg, runs)
+    data.examples = (_example_ids(runs, cfg.examples_per_fault, data.detectors)
+                     if settings else [])
+    example_ids = frozenset(rid for _, rid, _ in data.examples)
     # whole plan rows only of the runs re-simulated (about 0.6 KB each)
     wanted = chosen.index.union(keys.index[keys["run_id"].isin(example_ids)])
     del keys
     rows = camp.plan_rows(wanted)
     free = rows.loc[chosen.index]
-    plan = rows.set_index("run_id", drop=False)
-    extra = plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
-    parts = [] if settings is None else _run_tasks(
-        [delayed(_trace_chunk)(e, x, detectors=detectors, settings=settings,
-                               n_bins=cfg.envelope_bins, example_ids=example_ids)
-         for e, x in _chunks(free, extra, jobs)], jobs)
-    t_sim = time.perf_counter() - t0
-    warnings += error_lines(runs)
-    warnings += _resimulation_warnings([p[4] for p in parts])
-    return _ReportData(
-        camp=camp, cfg=cfg, requirements=req, gate=campaign_gate(camp, req),
-        all_requirements=campaign_gate(camp, req, all_requirements=True),
-        detectors=order, runs=runs, plan=plan,
-        n_free=n_free, env=_gather_envelopes(parts, free, settings), examples=examples,
-        traces={rid: tr for p in parts for rid, tr in p[3].items()}, t_sim=t_sim,
-        warnings=warnings)
+    data.plan = rows.set_index("run_id", drop=False)
+    extra = data.plan.loc[sorted(example_ids - set(free["run_id"]))].reset_index(drop=True)
+    parts = []
+    if settings is not None:
+        n = len(free) + len(extra)
+        how = (f"on {jobs} processes" if settings.plant.needs_processes else
+               f"on {jobs} threads") if jobs > 1 else "here"
+        say(f"re-simulating {n} runs ({len(free)} fault-free for the envelopes, "
+            f"{len(extra)} more example runs) {how}")
+        bar = say.bar(n, "runs")
+        parts = _resimulate(_chunks(free, extra, camp.config.runner.chunk_size),
+                            detectors=camp.evaluated, settings=settings,
+                            n_bins=cfg.envelope_bins, example_ids=example_ids, jobs=jobs,
+                            processes=processes, progress=bar)
+        bar.close()
+    data.t_sim = time.perf_counter() - t0
+    data.warnings += error_lines(runs)
+    data.warnings += _resimulation_warnings([p[4] for p in parts])
+    data.env = _gather_envelopes(parts, free, settings)
+    data.traces = {rid: tr for p in parts for rid, tr in p[3].items()}
 
 
 def _resimulation_warnings(parts: list[dict]) -> list[str]:
@@ -461,16 +681,11 @@ def _resimulation_warnings(parts: list[dict]) -> list[str]:
             for label, runs in sorted(merged.items()) if runs]
 
 
-# A figure to draw: (section, group, title, caption, kind, args, kwargs) for
-# reports.figures.render_png(kind, args, kwargs).
-def _figure_specs(data: _ReportData) -> list[tuple]:
-    """Every figure of the report, in page order (phase 2 draws them); adds the notes and
-    warnings that go with them."""
-    ok = data.runs[data.runs["status"] == "ok"]
-    return (_envelope_specs(data) + _fault_specs(ok, data.requirements, data.detectors)
-            + _example_specs(data) + _map_specs(ok, data.requirements, data.detectors))
-
-
+# A figure to draw (a "spec"): (section, group, title, caption, kind, args, kwargs) for
+# reports.figures.render_png(kind, args, kwargs). The page shows them in FIGURE_GROUPS
+# order: envelopes, detection per fault type, example runs, maps, then the evidence
+# (campaign.evidence.figures). _envelope_specs and _example_specs add the notes and
+# warnings that go with their figures.
 def _envelope_specs(data: _ReportData) -> list[tuple]:
     env, cfg = data.env, data.cfg
     if env is None:
@@ -573,7 +788,7 @@ def _map_specs(ok: pd.DataFrame, req: dict, detectors: list[str]) -> list[tuple]
     return specs
 
 
-def _assemble_page(data: _ReportData, figures: list) -> str:
+def _assemble_page(data: _ReportData, figures: list, drilldown: str | None = None) -> str:
     """The HTML page: campaign facts, summary, verdict, run list, figures, notes."""
     camp = data.camp
     c = camp.config.campaign
@@ -592,7 +807,8 @@ def _assemble_page(data: _ReportData, figures: list) -> str:
                          notes=data.notes, warnings=data.warnings,
                          certificate=None if cert is None else cert.table,
                          all_requirements=data.all_requirements, detectors=data.detectors,
-                         hazard=report_section(None if cert is None else cert.hazard))
+                         hazard=report_section(None if cert is None else cert.hazard),
+                         drilldown=drilldown)
 
 
 # ---- show ----------------------------------------------------------------------------------

@@ -69,15 +69,15 @@ class Progress:
     those done before, *done*, nor those read back, ``update(n, computed=False)``).
 
     With *log* (a callable taking one line), every update is one line, after *label* and
-    before the update's *note*. Otherwise the line goes to *stream* (default stderr): on a
-    terminal one line with a bar, rewritten in place; elsewhere a line every 5 s and at
-    the end."""
+    before the update's *note*. Otherwise the line goes to *stream* (default stderr), after
+    *label*: on a terminal one line with a bar, rewritten in place; elsewhere a line every
+    5 s and at the end. *unit* names what is counted (``report`` counts figures too)."""
 
     def __init__(self, total: int, done: int = 0, enabled: bool = True, stream=None, *,
-                 log=None, label: str = ""):
+                 log=None, label: str = "", unit: str = "runs"):
         self.total, self.done, self.enabled = total, done, enabled
         self.stream = stream or sys.stderr
-        self.log, self.label = log, label
+        self.log, self.label, self.unit = log, label, unit
         self.start = time.perf_counter()
         self.start_done = done
         self.last_print = -1.0
@@ -95,13 +95,13 @@ class Progress:
         rate = new / elapsed if elapsed > 0 else 0.0
         eta = (self.total - self.done) / rate if rate > 0 else float("nan")
         frac = self.done / self.total if self.total else 1.0
-        line = (f"{self.done}/{self.total} runs {100 * frac:5.1f} %  "
-                f"{rate:7.1f} runs/s  ETA {eta:5.1f} s")
+        line = (f"{self.done}/{self.total} {self.unit} {100 * frac:5.1f} %  "
+                f"{rate:7.1f} {self.unit}/s  ETA {eta:5.1f} s")
         if self.log is not None:
             self.log(f"{self.label}{line}{note}")
             return
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
-        line = f"[{bar}] {line}"
+        line = f"{self.label}[{bar}] {line}"
         if self.tty:
             print("\r" + line, end="", file=self.stream, flush=True)
         elif elapsed - self.last_print >= 5.0 or self.done >= self.total:

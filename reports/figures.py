@@ -39,12 +39,21 @@ REPORT_DPI = 100
 SMALL_PT = 9
 #: Size of axis and figure titles [pt].
 TITLE_PT = 11
+#: Height of an axes title [axes fraction]: at the top, where matplotlib puts it unless tick
+#: labels are above the axes (never in these figures). Given, it spares matplotlib that
+#: check at every drawing (the extents of every axes' ticks of the row: a quarter of an
+#: envelope figure's drawing).
+TITLE_Y = 1.0
 #: Colours kept by the palette compression of :func:`figure_png` (the most a PNG palette
 #: holds): the figures use about a dozen line colours, their anti-aliased blends and the
 #: colour maps of the envelope maps; fewer (64) were seen to merge tab:orange into tab:red
 #: and to band the maps' colour scales. The palette PNG is
 #: 36 % of the full-colour one (measured on addsafe-mc's report).
 PALETTE_COLOURS = 256
+#: zlib level of the palette PNGs: 6 (zlib's default) encodes 5–8× faster than 9 (or
+#: PIL's ``optimize``) for files 4–9 % larger (measured on addsafe-mc's envelope, run and
+#: map figures: 0.03 s instead of 0.11–0.21 s a figure).
+PNG_COMPRESS_LEVEL = 6
 #: Colour classes of the envelope maps' scale.
 MAP_LEVELS = 10
 
@@ -59,22 +68,75 @@ def pyplot():
     return plt
 
 
-def figure_png(fig, dpi: int = REPORT_DPI) -> bytes:
-    """PNG bytes of *fig*, trimmed to its drawn content (``bbox_inches="tight"``: a title or
-    legend that reaches past the canvas is kept whole, never cut) and reduced to an
-    adaptive palette of :data:`PALETTE_COLOURS` colours; the figure is closed."""
+def new_figure(**kwargs):
+    """A matplotlib Figure on its own Agg canvas, outside pyplot (no figure manager, nothing
+    to close; ``pyplot().close`` of it does nothing), at :data:`REPORT_DPI` unless *kwargs*
+    say otherwise; the keywords of :class:`matplotlib.figure.Figure`."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(**{"dpi": REPORT_DPI, **kwargs})
+    FigureCanvasAgg(fig)
+    return fig
+
+
+#: Blank margin kept around a figure's drawn content when it is trimmed [in].
+PAD_IN = 0.06
+
+
+def figure_pixels(fig, dpi: int = REPORT_DPI):
+    """RGB pixels (PIL image) of *fig* at *dpi*, trimmed to its drawn content plus
+    :data:`PAD_IN` of white (as ``savefig(bbox_inches="tight")``: a title or legend that
+    reaches past the canvas is kept whole, never cut).
+
+    Drawn once on a white canvas; the content is the box of its pixels that are not white.
+    ``savefig(bbox_inches="tight")`` lays the figure out once to find the box and draws it
+    again, and encodes a PNG that would be decoded here; that path is taken only when the
+    drawing touches the canvas's edge, i.e. may reach past it (the report's figures are
+    laid out with room to spare, so that it does not).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
 
-    plt = pyplot()
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    fig.set_dpi(dpi)
+    fig.set_facecolor("white")
+    canvas.draw()
+    rgba = np.asarray(canvas.buffer_rgba())                  # rows top to bottom
+    rgb = rgba[:, :, :3]
+    # not white: one 32-bit comparison a pixel (the canvas is opaque: alpha 255 everywhere)
+    drawn = rgba.view(np.uint32)[:, :, 0] != np.frombuffer(b"\xff" * 4, np.uint32)[0]
+    rows, cols = np.flatnonzero(drawn.any(axis=1)), np.flatnonzero(drawn.any(axis=0))
+    height, width = drawn.shape
+    if rows.size and rows[0] > 0 and cols[0] > 0 and rows[-1] < height - 1 \
+            and cols[-1] < width - 1:
+        pad = int(round(PAD_IN * dpi))
+        r0, r1 = max(0, rows[0] - pad), min(height, rows[-1] + 1 + pad)
+        c0, c1 = max(0, cols[0] - pad), min(width, cols[-1] + 1 + pad)
+        out = np.full((rows[-1] + 1 - rows[0] + 2 * pad, cols[-1] + 1 - cols[0] + 2 * pad, 3),
+                      255, np.uint8)              # white where the pad is past the canvas
+        top, left = r0 - (rows[0] - pad), c0 - (cols[0] - pad)
+        out[top:top + r1 - r0, left:left + c1 - c0] = rgb[r0:r1, c0:c1]
+        return Image.fromarray(out)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight", pad_inches=0.06,
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight", pad_inches=PAD_IN,
                 facecolor="white")
-    plt.close(fig)
     buf.seek(0)
-    image = Image.open(buf).convert("RGB").quantize(
-        colors=PALETTE_COLOURS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    return Image.open(buf).convert("RGB")
+
+
+def figure_png(fig, dpi: int = REPORT_DPI) -> bytes:
+    """PNG bytes of *fig*, trimmed to its drawn content (:func:`figure_pixels`) and reduced
+    to an adaptive palette of :data:`PALETTE_COLOURS` colours; the figure is closed."""
+    from PIL import Image
+
+    image = figure_pixels(fig, dpi)
+    if getattr(fig.canvas, "manager", None) is not None:      # a figure made with pyplot
+        pyplot().close(fig)
+    image = image.quantize(colors=PALETTE_COLOURS, method=Image.Quantize.MEDIANCUT,
+                           dither=Image.Dither.NONE)
     out = io.BytesIO()
-    image.save(out, format="PNG", optimize=True)
+    image.save(out, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
     return out.getvalue()
 
 
@@ -112,16 +174,30 @@ def envelope_figure(t_s: np.ndarray, panels: list, *, title: str):
         [-] per-run max of |r|/τ in each bin (:func:`bin_max`), ``worst`` the index of the
         run to highlight (the largest margin), ``worst_label`` its legend text
     """
-    plt = pyplot()
     ncols = min(3, len(panels))
     nrows = -(-len(panels) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.0 * ncols, 2.5 * nrows + 0.5),
-                             sharex=True, sharey=True, squeeze=False)
-    top = 1.15
+    # the layout in inches (text at SMALL_PT/TITLE_PT): a two-line panel title above each
+    # panel, tick labels and axis labels left and below, the suptitle on top and the legend
+    # in a strip along the bottom, all inside the canvas (figure_pixels draws it once)
+    left, right, top, bottom, legend = 0.62, 0.12, 0.72, 0.48, 0.34
+    title_h, wgap = 0.42, 0.2
+    # a panel above an empty slot of an incomplete last row shows its time axis
+    hgap = title_h + (0.46 if len(panels) % ncols else 0.12)
+    width, height = 4.0 * ncols, 2.5 * nrows + 0.5
+    ax_h = (height - top - bottom - legend - (nrows - 1) * hgap) / nrows
+    if ax_h < 1.2:                               # never squeeze a panel below 1.2 in
+        height += (1.2 - ax_h) * nrows
+        ax_h = 1.2
+    ax_w = (width - left - right - (ncols - 1) * wgap) / ncols
+    fig = new_figure(figsize=(width, height))
+    axes = fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False,
+                        gridspec_kw={"left": left / width, "right": 1 - right / width,
+                                     "top": 1 - top / height,
+                                     "bottom": (bottom + legend) / height,
+                                     "wspace": wgap / ax_w, "hspace": hgap / ax_h})
+    top_value = 1.15
     for ax, (heading, binned, worst, worst_label) in zip(axes.flat, panels):
-        with np.errstate(all="ignore"), _quiet():
-            lo, hi = np.nanmin(binned, axis=0), np.nanmax(binned, axis=0)
-            p05, p50, p95 = np.nanpercentile(binned, [5, 50, 95], axis=0)
+        lo, hi, p05, p50, p95 = _band(binned)
         ax.fill_between(t_s, lo, hi, step="post", color="tab:blue", alpha=0.18, lw=0,
                         label="all runs (min–max)")
         ax.fill_between(t_s, p05, p95, step="post", color="tab:blue", alpha=0.35, lw=0,
@@ -131,13 +207,14 @@ def envelope_figure(t_s: np.ndarray, panels: list, *, title: str):
                 label="worst run (largest margin)")
         ax.axhline(1.0, color=THRESHOLD_COLOUR, lw=1.5, ls="--", label="threshold |r|/τ = 1")
         if np.isfinite(binned).any():
-            top = max(top, 1.08 * float(np.nanmax(binned)))
-        ax.set_title(f"{heading}: {binned.shape[0]} runs\n{worst_label}", fontsize=SMALL_PT)
+            top_value = max(top_value, 1.08 * float(np.nanmax(binned)))
+        ax.set_title(f"{heading}: {binned.shape[0]} runs\n{worst_label}", fontsize=SMALL_PT,
+                     y=TITLE_Y)
         ax.grid(alpha=0.3)
         ax.tick_params(labelsize=SMALL_PT)
     for ax in axes.flat[len(panels):]:
         ax.remove()                     # no empty panel
-    axes[0, 0].set_ylim(0.0, top)
+    axes[0, 0].set_ylim(0.0, top_value)
     axes[0, 0].set_xlim(t_s[0], t_s[-1] + (t_s[1] - t_s[0] if len(t_s) > 1 else 1.0))
     for ax in axes[:, 0]:
         ax.set_ylabel("|r|/τ [-]", fontsize=SMALL_PT)
@@ -145,11 +222,24 @@ def envelope_figure(t_s: np.ndarray, panels: list, *, title: str):
         ax.set_xlabel("time [s]", fontsize=SMALL_PT)
         ax.xaxis.set_tick_params(labelbottom=True)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.suptitle(title, fontsize=TITLE_PT)
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+    fig.suptitle(title, fontsize=TITLE_PT, y=1 - 0.08 / height, va="top")
+    fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.02 / height),
                ncol=len(labels), fontsize=SMALL_PT, frameon=False)
     return fig
+
+
+def _band(binned: np.ndarray):
+    """(min, max, 5th, 50th, 95th percentile) over the runs (axis 0) of each time bin, NaN
+    ignored (a bin where every run is NaN gives NaN). Without NaN: one vectorised
+    ``np.percentile`` (``np.nanpercentile`` treats each bin on its own: 15× slower);
+    the same values (linear interpolation in both)."""
+    with np.errstate(all="ignore"), _quiet():
+        lo, hi = np.nanmin(binned, axis=0), np.nanmax(binned, axis=0)
+        if np.isnan(binned).any():
+            p05, p50, p95 = np.nanpercentile(binned, [5, 50, 95], axis=0)
+        else:
+            p05, p50, p95 = np.percentile(binned, [5, 50, 95], axis=0)
+    return lo, hi, p05, p50, p95
 
 
 class _quiet:
@@ -192,7 +282,6 @@ def fault_figure(rows: list, *, title: str, max_dtp: float | None = None):
     max_dtp : required DTP limit drawn as a line (1 = the required detection time); runs
         above it are "late" (None: late is DTP > 1)
     """
-    plt = pyplot()
     horizontal = _horizontal()
     limit = 1.0 if max_dtp is None else float(max_dtp)
     names = [r[0] for r in rows]
@@ -200,8 +289,8 @@ def fault_figure(rows: list, *, title: str, max_dtp: float | None = None):
     any_detected = any(len(r[1]) for r in rows)
     height = 0.42 * len(rows) + 1.5
     if any_detected:
-        fig, (ax, axc) = plt.subplots(1, 2, figsize=(11.0, height), sharey=True,
-                                      gridspec_kw={"width_ratios": [3, 2]})
+        fig = new_figure(figsize=(11.0, height))
+        ax, axc = fig.subplots(1, 2, sharey=True, gridspec_kw={"width_ratios": [3, 2]})
         data = [np.asarray(r[1], float) for r in rows]
         have = [i for i, d in enumerate(data) if len(d)]
         ax.boxplot([data[i] for i in have], positions=y[have], **horizontal, whis=(0, 100),
@@ -223,7 +312,8 @@ def fault_figure(rows: list, *, title: str, max_dtp: float | None = None):
                   frameon=False)                 # above the panel: covers no box
         ax.grid(alpha=0.3, axis="x")
     else:
-        fig, axc = plt.subplots(figsize=(6.0, height))
+        fig = new_figure(figsize=(6.0, height))
+        axc = fig.subplots()
         ax = axc
     ax.set_yticks(y, names, fontsize=SMALL_PT)
     ax.set_ylim(-0.6, len(rows) - 0.4)
@@ -259,12 +349,21 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
     residuals : {detector: (residual (n_steps,) [-], alarm (n_steps,) bool)}
     onset_s : fault onset [s] (NaN for a fault-free run)
     """
-    plt = pyplot()
     t = frame.index.to_numpy()
     ratios = [3, 2, 2, 3] if residuals else [3, 2, 2]
-    fig, axes = plt.subplots(len(ratios), 1, figsize=(9.0, 1.85 * sum(ratios) / 2.5),
-                             sharex=True, gridspec_kw={"height_ratios": ratios})
-    fig.subplots_adjust(left=0.08, right=0.70, top=0.94, bottom=0.07 if residuals else 0.1,
+    # the panels' box [in]: 0.72 in from the left, 6.3 in wide; the canvas has room right
+    # of it for the legends (up to 3.9 in: long detector names) and above for a title of
+    # two lines, so that everything drawn is inside it (figure_pixels trims the rest)
+    base = 1.85 * sum(ratios) / 2.5
+    # canvas beyond that box: left for long tick labels, below for a legend taller than
+    # its panel (six detectors: 13 entries), above for the title
+    extra_left, extra_below = 0.4, 1.6
+    width, height = 11.4, base + 0.45 + extra_below
+    fig = new_figure(figsize=(width, height))
+    axes = fig.subplots(len(ratios), 1, sharex=True, gridspec_kw={"height_ratios": ratios})
+    fig.subplots_adjust(left=(extra_left + 0.72) / width, right=(extra_left + 6.3) / width,
+                        top=(extra_below + 0.94 * base) / height,
+                        bottom=(extra_below + (0.07 if residuals else 0.1) * base) / height,
                         hspace=0.12)
     ax = axes[0]
     ax.plot(t, frame["command [mm]"], label="order u", lw=1.1)
@@ -294,8 +393,9 @@ def run_figure(frame: pd.DataFrame, residuals: dict, *, onset_s: float, title: s
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=SMALL_PT, frameon=False)
     text = title + (f"  (onset {onset_s:.2f} s, red dotted)" if np.isfinite(onset_s) else "")
     # above the top panel, wrapped to the figure's width (never cut at its right edge)
-    fig.suptitle(textwrap.fill(text, 100, break_on_hyphens=False), x=0.01, y=0.955, ha="left", va="bottom",
-                 fontsize=TITLE_PT)
+    fig.suptitle(textwrap.fill(text, 100, break_on_hyphens=False),
+                 x=(extra_left + 0.09) / width, y=(extra_below + 0.955 * base) / height,
+                 ha="left", va="bottom", fontsize=TITLE_PT)
     return fig
 
 
@@ -341,8 +441,10 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
         labelled *flagged_label* with their count, instead of those above
         *highlight_above* (so the count is the one of the summary table)
     """
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(9.6, 3.6))
+    import matplotlib
+
+    fig = new_figure(figsize=(9.6, 3.6))
+    axes = fig.subplots(1, 2)
     fig.subplots_adjust(left=0.08, right=0.9, top=0.82, bottom=0.14, wspace=0.25)
     v = points[value].to_numpy(dtype=float)
     finite = np.isfinite(v)
@@ -356,7 +458,7 @@ def envelope_map_figure(points: pd.DataFrame, value: str, *, title: str, label: 
     sc = None
     # MAP_LEVELS colour classes, drawn as such (the palette of figure_png would otherwise
     # merge nearby shades of a continuous scale unevenly)
-    cmap = plt.get_cmap("YlOrRd", MAP_LEVELS)
+    cmap = matplotlib.colormaps["YlOrRd"].resampled(MAP_LEVELS)
     for ax, (x, y, xl, yl) in zip(axes, [("vcas_kt", "alt_ft", "VCAS [kt]", "altitude [ft]"),
                                          ("cg_pct", "mass_t", "CG [% MAC]", "mass [t]")]):
         sc = ax.scatter(pts[x], pts[y], c=vv, cmap=cmap, vmin=vmin, vmax=vmax, s=16,
@@ -399,66 +501,105 @@ def mean_excess_figure(values: np.ndarray, u: float, *, title: str):
     up to the 10th-largest value, with the tail threshold *u* of the fit marked. A
     generalised Pareto tail makes e(v) linear above u (slope ξ/(1 − ξ); Coles 2001 §4.3.1),
     so the plot shows whether u is high enough."""
-    plt = pyplot()
     x = np.sort(np.asarray(values, float)[np.isfinite(values)])
     grid = x[: max(len(x) - 10, 1)]
     excess = [float(np.mean(x[x > v] - v)) for v in grid]
-    fig, ax = plt.subplots(figsize=(4.6, 3.0))
-    fig.subplots_adjust(left=0.15, right=0.97, top=0.86, bottom=0.17)
-    ax.plot(grid, excess, color="tab:blue", lw=1.2)
+    fig, ax = _small_figure(legend_in=1.6)
+    ax.plot(grid, excess, color="tab:blue", lw=1.2, label="mean excess")
     ax.axvline(u, color=WORST_COLOUR, ls="--", lw=1.0, label=f"u = {u:.3g}")
     ax.set_xlabel("margin threshold v [-]")
     ax.set_ylabel("mean excess over v [-]")
-    ax.legend(fontsize=SMALL_PT)
+    _legend_beside(ax)
     ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=TITLE_PT)
+    ax.set_title(title, fontsize=TITLE_PT, y=TITLE_Y)
     return fig
 
 
-def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: str):
+def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: str,
+                   quantiles: np.ndarray | None = None):
     """Tail QQ plot: the k sorted excesses over u against the quantiles of the fitted
     generalised Pareto distribution at plotting positions i/(k + 1); on the diagonal when
-    the model fits."""
-    from scipy.stats import genpareto
-
-    plt = pyplot()
+    the model fits. *quantiles*: those k quantiles when the caller has them
+    (:func:`gpd_plotting_quantiles`; a worker process that draws the figure then needs no
+    SciPy)."""
     y = np.sort(np.asarray(excesses, float))
     k = len(y)
-    model = genpareto.ppf(np.arange(1, k + 1) / (k + 1.0), shape, scale=scale)
-    fig, ax = plt.subplots(figsize=(4.6, 3.0))
-    fig.subplots_adjust(left=0.15, right=0.97, top=0.86, bottom=0.17)
+    model = (gpd_plotting_quantiles(k, shape, scale) if quantiles is None
+             else np.asarray(quantiles, float))
+    fig, ax = _small_figure()
     ax.plot(model, y, ".", color="tab:purple", ms=3)
     top = float(max(np.max(model), np.max(y))) if k else 1.0
     ax.plot([0, top], [0, top], color="0.4", lw=0.8, ls=":")
     ax.set_xlabel("fitted GPD quantile of the excess [-]")
     ax.set_ylabel("observed excess over u [-]")
     ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=TITLE_PT)
+    ax.set_title(title, fontsize=TITLE_PT, y=TITLE_Y)
     return fig
 
 
-def survival_figure(curves: dict, *, title: str):
+def gpd_plotting_quantiles(k: int, shape: float, scale: float) -> np.ndarray:
+    """The quantiles of the generalised Pareto distribution (*shape* ξ, *scale* σ) at the
+    plotting positions i/(k + 1), i = 1…k: the model axis of :func:`tail_qq_figure`."""
+    from scipy.stats import genpareto
+
+    return genpareto.ppf(np.arange(1, k + 1) / (k + 1.0), shape, scale=scale)
+
+
+def survival_figure(curves: dict, *, title: str, required: dict | None = None):
     """Kaplan–Meier distribution of the detection delay per fault type: *curves* maps a
     label to (t [s], F̂, F_lo, F_hi) (:func:`reports.survival.kaplan_meier`); the curve
-    stops below 1 by the share of missed runs (right-censored at the window's end)."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(5.6, 3.2))
-    fig.subplots_adjust(left=0.12, right=0.97, top=0.88, bottom=0.16)
+    stops below 1 by the share of missed runs (right-censored at the window's end).
+
+    *required* maps a curve's label to (fault type, its required detection time [s]: the
+    DTP denominator): a dotted vertical line at that time, in the curve's colour, labelled
+    in the legend (one grey line for fault types that share a time), so the share of runs
+    detected in time is read where the curve crosses it."""
+    fig, ax = _small_figure(width_in=5.6, height_in=3.2, legend_in=4.0)
+    colours = {}
     for label, (t, f, f_lo, f_hi) in curves.items():
         if len(t) == 0:
-            ax.plot([], [], label=f"{label}: no detection")
+            line, = ax.plot([], [], label=f"{label}: no detection")
+            colours[label] = line.get_color()
             continue
         line, = ax.step(np.r_[0.0, t], np.r_[0.0, f], where="post", lw=1.2, label=label)
+        colours[label] = line.get_color()
         ax.fill_between(np.r_[0.0, t], np.r_[0.0, f_lo], np.r_[0.0, f_hi], step="post",
                         color=line.get_color(), alpha=0.15, lw=0)
+    at: dict = {}
+    for label, (fault, seconds) in (required or {}).items():
+        at.setdefault(float(seconds), []).append((label, fault))
+    for seconds, shared in sorted(at.items()):
+        colour = colours.get(shared[0][0], "0.3") if len(shared) == 1 else "0.3"
+        names = ", ".join(fault for _, fault in shared)
+        ax.axvline(seconds, color=colour, ls=(0, (1.5, 1.5)), lw=1.3,
+                   label=f"required time of {names}: {seconds:g} s")
     ax.set_xlabel("detection delay [s]")
     ax.set_ylabel("share of runs detected")
     ax.set_ylim(0, 1.02)
-    ax.legend(fontsize=SMALL_PT, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-              frameon=False)                     # beside the axes: covers no curve
+    _legend_beside(ax)
     ax.grid(alpha=0.3)
-    ax.set_title(title, fontsize=TITLE_PT)
+    ax.set_title(title, fontsize=TITLE_PT, y=TITLE_Y)
     return fig
+
+
+def _small_figure(width_in: float = 4.6, height_in: float = 3.0, legend_in: float = 0.0):
+    """(figure, axes) of one panel *width_in* × *height_in* [in] as laid out before, with
+    *legend_in* more inches of canvas to its right for a legend beside the axes, and 0.5 in
+    right and 0.4 in left for tick labels past the axes' ends (what is not drawn on is
+    trimmed by :func:`figure_pixels`)."""
+    width = 0.4 + width_in + legend_in + 0.5
+    fig = new_figure(figsize=(width, height_in))
+    ax = fig.subplots()
+    fig.subplots_adjust(left=1.1 / width, right=(0.4 + width_in - 0.15) / width,
+                        top=1 - 0.42 / height_in, bottom=0.51 / height_in)
+    return fig, ax
+
+
+def _legend_beside(ax) -> None:
+    """The legend right of the axes, top-aligned, without a frame: it covers no curve and
+    no marker."""
+    ax.legend(fontsize=SMALL_PT, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              frameon=False)
 
 
 def exceedance_figure(levels: np.ndarray, estimate: np.ndarray, upper: np.ndarray,
@@ -467,11 +608,9 @@ def exceedance_figure(levels: np.ndarray, estimate: np.ndarray, upper: np.ndarra
     the bound P(margin ≥ x) ≤ p_upper95 and the estimate (where given) at each level x,
     against the runs' own exceedance frequencies (the share of the campaign's fault-free
     runs with margin ≥ x, down to one run), log scale."""
-    plt = pyplot()
     m = np.sort(np.asarray(margins, float)[np.isfinite(margins)])[::-1]
     n = len(m)
-    fig, ax = plt.subplots(figsize=(4.6, 3.0))
-    fig.subplots_adjust(left=0.16, right=0.97, top=0.86, bottom=0.17)
+    fig, ax = _small_figure(legend_in=2.3)
     if n:
         ax.step(m, np.arange(1, n + 1) / n, where="post", color="0.35", lw=1.0,
                 label=f"runs' own share ({n} runs)")
@@ -483,9 +622,9 @@ def exceedance_figure(levels: np.ndarray, estimate: np.ndarray, upper: np.ndarra
     ax.set_yscale("log")
     ax.set_xlabel("margin level x [-]")
     ax.set_ylabel("P(margin ≥ x) per run [-]")
-    ax.legend(fontsize=SMALL_PT, loc="lower left")
+    _legend_beside(ax)
     ax.grid(alpha=0.3, which="both")
-    ax.set_title(title, fontsize=TITLE_PT)
+    ax.set_title(title, fontsize=TITLE_PT, y=TITLE_Y)
     return fig
 
 

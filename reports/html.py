@@ -30,8 +30,8 @@ from .gate import GateResult
 from .metrics import FAULT_FREE, clopper_pearson
 from .summary import ALL_FAULTS, ALL_MANOEUVRES
 
-__all__ = ["ReportFigure", "anchor", "count_figures", "hazard_section", "render_report",
-           "show_command"]
+__all__ = ["ReportFigure", "anchor", "count_figures", "drilldown_section", "hazard_section",
+           "render_report", "show_command"]
 
 #: Sections of the page that hold figures, in page order: key → heading.
 SECTIONS = {
@@ -99,11 +99,20 @@ def _badge(passed: bool | None) -> str:
             else '<span class="badge fail">FAIL</span>')
 
 
-def _table(header: list[str], rows: list[list[str]], cls: str = "", tid: str = "") -> str:
+def _table(header: list[str], rows: list[list[str]], cls: str = "", tid: str = "",
+           text_columns=(), wrap: bool = True) -> str:
+    """A table; the cells of *text_columns* (indices) hold prose that wraps, the others
+    stay on one line. With *wrap* the table sits in a box as wide as the page at most,
+    scrolled sideways inside it if it must (``div.tablewrap``): the page never gets wider
+    than its window. The drill-down's tables have their own scroll box (*wrap* False)."""
     head = "".join(f"<th>{h}</th>" for h in header)
-    body = "\n".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    text = set(text_columns)
+    body = "\n".join("<tr>" + "".join(f'<td class="text">{c}</td>' if i in text
+                                       else f"<td>{c}</td>" for i, c in enumerate(r))
+                     + "</tr>" for r in rows)
     attrs = (f' class="{cls}"' if cls else "") + (f' id="{tid}"' if tid else "")
-    return f"<table{attrs}><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>"
+    table = f"<table{attrs}><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>"
+    return f'<div class="tablewrap">{table}</div>' if wrap else table
 
 
 def _img(fig: ReportFigure) -> str:
@@ -181,12 +190,37 @@ def _gate_section(gate: GateResult | None, requirements: dict) -> str:
     return "\n".join(out)
 
 
-def _mark(text: str, passed: bool | None) -> str:
-    """A value with its requirement met (✓), not met (✗) or not required."""
-    if passed is None:
+def _mark(text: str, checks) -> str:
+    """A value with its requirement met (✓), not met (✗, followed by the reason: which
+    check fails and by how much, as the value shown may be the one that passes, e.g. the
+    largest DTP of the detected runs beside a fault type with none detected) or not
+    required (no check)."""
+    checks = list(checks)
+    if not checks:
         return text
-    return (f'<span class="met">{text} ✓</span>' if passed
-            else f'<span class="unmet">{text} ✗</span>')
+    failed = [c for c in checks if not c.passed]
+    if not failed:
+        return f'<span class="met">{text} ✓</span>'
+    why = "; ".join(_e(_reason(c)) for c in failed)
+    return f'<span class="unmet">{text} ✗</span><br><small class="why">{why}</small>'
+
+
+def _reason(check) -> str:
+    """Why a failed requirement check fails, in a few words: where and the value against
+    the limit (:class:`reports.gate.Check`; rates as fractions, shown in %)."""
+    where = "fault-free" if check.fault == FAULT_FREE else check.fault
+    if check.manoeuvre not in (ALL_MANOEUVRES, "all"):
+        where = f"{where} {check.manoeuvre}"
+    value, limit = float(check.value), float(check.limit)
+    if check.name == "dtp":
+        if math.isnan(value):
+            return f"{where}: no detected run"
+        return f"{where}: DTP {value:.3g} > {limit:g}"
+    if check.name == "missed_detection":
+        return f"{where}: MD {_pct(value)} % > {_pct(limit)} %"
+    if check.name == "false_alarm":
+        return f"{where}: FA {_pct(value)} % > {_pct(limit)} %"
+    return re.sub(r"^FAIL\s+", "", check.message)
 
 
 def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult | None,
@@ -211,21 +245,21 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
         if len(free):
             r = free.iloc[0]
             fa = f"{int(r.fa_count)}/{int(r.n_runs)} (≤ {_pct(r.fa_upper95)} %)"
-            cells.append(_mark(fa, _passed(c for c in fa_checks if c.fault == FAULT_FREE)))
+            cells.append(_mark(fa, (c for c in fa_checks if c.fault == FAULT_FREE)))
         else:
             cells.append("–")
         if len(faulty):
             r = faulty.iloc[0]
             cells.append(_mark(f"{int(r.fa_count)}/{int(r.n_runs)}",
-                               _passed(c for c in fa_checks if c.fault != FAULT_FREE)))
+                               (c for c in fa_checks if c.fault != FAULT_FREE)))
             worst = per_fault.sort_values("md_rate", ascending=False, kind="stable").iloc[0] \
                 if len(per_fault) > 1 else None
             md = _pct(r.md_rate) + (f'<br><small>worst: {_e(worst.fault)} '
                                     f"{_pct(worst.md_rate)}</small>" if worst is not None
                                     else "")
-            cells.append(_mark(md, _passed(checks(det, "missed_detection"))))
+            cells.append(_mark(md, checks(det, "missed_detection")))
             cells.append(_pct(getattr(r, "md_req_rate", math.nan)))
-            cells.append(_mark(_num(r.dtp_max, ".4g"), _passed(checks(det, "dtp"))))
+            cells.append(_mark(_num(r.dtp_max, ".4g"), checks(det, "dtp")))
         else:
             cells += ["–"] * 4
         # runs in error: the fault-free aggregate and the all-faults one (no run twice)
@@ -250,7 +284,8 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
                   f"{len(full.checks)} checks fail") + "</p>")
     return ('<section id="requirements"><h2>Overview across detectors</h2>' + verdict
             + _table(head, rows, cls="overview", tid="overview")
-            + '<p class="note">✓ requirement of the campaign file met, ✗ not met; a value '
+            + '<p class="note">✓ requirement of the campaign file met, ✗ not met, with the '
+            "fault type (or manoeuvre) that fails it and its value against the limit; a value "
             "without a mark has no requirement. FA fault-free: false alarms / fault-free "
             "runs with the exact one-sided 95 % bound; FA before onset: faulty runs alarmed "
             "before the fault; MD: never detected (over every faulty run; the requirement "
@@ -392,10 +427,13 @@ def _cell_table(cell: pd.DataFrame, detectors: list[str]) -> str:
                        for d in dets])
     # a long detector name may break before its parameters
     return _table(_POINT_HEADER + [_e(d).replace("[", "<wbr>[") for d in dets], rows,
-                  cls="runlist")
+                  cls="runlist", wrap=False)
 
 
-def _drilldown(runs: pd.DataFrame, detectors: list[str]) -> str:
+def drilldown_section(runs: pd.DataFrame, detectors: list[str]) -> str:
+    """``<section id="runs">``: every run of *runs* (one row per run × detector, with the
+    flight point) in a table per fault type × manoeuvre, a column per detector in the order
+    of *detectors*."""
     out = ['<section id="runs"><h2>Runs behind each row (drill-down)</h2>',
            "<p>Every run of the campaign, a row per run and a column per detector, most "
            "worrying first (errors, false alarms, misses, then the largest DTP or margin). "
@@ -437,24 +475,32 @@ body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.5em
 max-width:1300px;padding:0 1em;color:#222;line-height:1.35}
 h1{margin-bottom:.2em}h2{border-bottom:2px solid #ccd;padding-bottom:.2em;margin-top:1.6em}
 table{border-collapse:collapse;margin:.5em 0 1em 0;font-size:13px}
+.tablewrap{max-width:100%;overflow-x:auto}.tablewrap table{margin-bottom:.4em}
 th,td{border:1px solid #ccd;padding:3px 7px;text-align:right;white-space:nowrap}
 th{background:#eef;position:sticky;top:0}td:first-child,th:first-child{text-align:left}
+td.text{white-space:normal;overflow-wrap:anywhere;text-align:left;min-width:14em;
+max-width:40em}
 table.runlist th{white-space:normal;vertical-align:bottom}
 .badge{display:inline-block;padding:1px 8px;border-radius:4px;font-weight:bold;color:#fff;
 font-size:12px}.pass{background:#2a8a3a}.fail{background:#c62828}.na{background:#999}
 .bad{color:#c62828;font-weight:bold}.note,.req{font-size:13px;color:#444}
 .bound{font-weight:bold}
-.scroll{max-height:360px;overflow:auto;border:1px solid #ddd;margin-bottom:1em}
-figure{display:inline-block;width:min-content;margin:.4em .8em .8em 0;vertical-align:top}
-figure img{border:1px solid #ddd}figcaption{font-size:12px}
-nav a{margin-right:1em}code{font-size:12px}.meta td{text-align:left}
-.warn{background:#fff3cd;border:1px solid #e0c060;padding:.4em .8em}
+.scroll{max-height:360px;max-width:100%;overflow:auto;border:1px solid #ddd;margin-bottom:1em}
+figure{display:inline-block;width:min-content;max-width:100%;margin:.4em .8em .8em 0;
+vertical-align:top}
+figure img{border:1px solid #ddd;max-width:100%;height:auto}figcaption{font-size:12px}
+nav a{margin-right:1em}code{font-size:12px;overflow-wrap:anywhere}
+.warn{background:#fff3cd;border:1px solid #e0c060;padding:.4em .8em;overflow-wrap:anywhere}
 .late{color:#b35900;font-weight:bold}.met{color:#1e6b2b}.unmet{color:#c62828;font-weight:bold}
+.why{display:inline-block;white-space:normal;max-width:18em;color:#a51d1d}
 table.overview th{white-space:normal;vertical-align:bottom}
 table.overview td{vertical-align:top}small{font-size:11px;font-weight:normal}
-.gateline{font-size:17px;font-weight:bold;padding:.3em .6em;border-radius:4px}
+.gateline{font-size:17px;font-weight:bold;padding:.3em .6em;border-radius:4px;
+overflow-wrap:anywhere}
 .gateline.pass{background:#e3f3e6;color:#1e6b2b}.gateline.fail{background:#fbe3e3;color:#a51d1d}
-pre.gatelines{font-size:12px;max-height:360px;overflow:auto;background:#f7f7fa;padding:.5em}
+pre.gatelines{font-size:12px;max-height:360px;overflow:auto;background:#f7f7fa;padding:.5em;
+white-space:pre-wrap;overflow-wrap:anywhere}
+li{overflow-wrap:anywhere}
 """
 
 
@@ -464,7 +510,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                   certificate: pd.DataFrame | None = None,
                   all_requirements: GateResult | None = None,
                   detectors: list[str] | None = None,
-                  hazard: tuple | None = None) -> str:
+                  hazard: tuple | None = None, drilldown: str | None = None) -> str:
     """The report page.
 
     Parameters
@@ -487,6 +533,9 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
         ``certify`` has not made one
     certificate : ``certificate.parquet`` of ``fdd-campaign certify`` (None: no such
         section unless it has figures)
+    drilldown : the drill-down section as :func:`drilldown_section` renders it for *runs*
+        and the same detectors (given: made beforehand, e.g. while the figures are drawn;
+        None: rendered here)
     """
     unknown = sorted({f.section for f in figures} - set(SECTIONS))
     if unknown:
@@ -515,7 +564,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     parts.append(_overview(summary, gate, all_requirements, requirements, detectors))
     facts = [[_e(k), _e(v)] for k, v in meta.items() if k not in ("name", "description")]
     parts.append('<section id="campaign"><h2>Campaign</h2>'
-                 + _table(["", ""], facts, cls="meta") + "</section>")
+                 + _table(["", ""], facts, cls="meta", text_columns=(1,)) + "</section>")
     parts.append(_details(summary, gate, all_requirements, requirements, detectors))
     rank = {d: i for i, d in enumerate(detectors)}
     for key, title in SECTIONS.items():
@@ -537,7 +586,7 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
                      + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></section>")
     if hazard is not None:
         parts.append(hazard_section(*hazard))
-    parts.append(_drilldown(runs, detectors))
+    parts.append(drilldown_section(runs, detectors) if drilldown is None else drilldown)
     parts.append("</body></html>")
     return "\n".join(parts)
 
@@ -617,7 +666,8 @@ def _certificate_table(cert: pd.DataFrame) -> str:
             f"tail of the fault-free margins with its profile-likelihood bound, and, when "
             f"run, subset simulation over the run variables; bounds one-sided at {level}. "
             f"Per hour: from the counting bound, a run of duration d being d hours of "
-            f"exposure (Poisson model).</p>" + _table(head, rows, tid="certificate-table"))
+            f"exposure (Poisson model).</p>"
+            + _table(head, rows, tid="certificate-table", text_columns=(len(head) - 1,)))
 
 
 def count_figures(page: str) -> int:

@@ -362,7 +362,7 @@ def _report_one(args) -> None:
     if unfinished:          # again below the tables, which are long
         print(unfinished)
     if not args.no_html:
-        write_html_report(args)
+        write_html_report(args, camp)
 
 
 def _unfinished_text(camp, directory) -> str | None:
@@ -397,13 +397,16 @@ def _resume_command(camp, directory) -> str:
     return f"fdd-campaign run CAMPAIGN.toml --out {directory} (the file it was started with)"
 
 
-def write_html_report(args) -> None:
-    """The HTML part of ``fdd-campaign report`` (after the table is printed)."""
+def write_html_report(args, camp=None) -> None:
+    """The HTML part of ``fdd-campaign report`` (after the table is printed), from *camp*
+    when the command has loaded it already."""
     from ..replay import ReportSettings, build_report
 
-    path = build_report(args.dir, out=args.html, jobs=args.jobs, fmu=args.fmu,
+    path = build_report(camp if camp is not None else args.dir, out=args.html,
+                        jobs=args.jobs, fmu=args.fmu,
                         settings=ReportSettings(envelope_runs=args.envelope_runs),
-                        requirements=getattr(args, "requirements_values", None))
+                        requirements=getattr(args, "requirements_values", None),
+                        progress=not getattr(args, "quiet", False))
     print(f"HTML report written to {path}")
 
 
@@ -694,7 +697,10 @@ def _add_result_parsers(subs) -> None:
     p.add_argument("--no-html", action="store_true", help="only print the table")
     p.add_argument("--html", help="HTML file to write (default DIR/report.html)")
     p.add_argument("--jobs", type=int, default=2,
-                   help="processes re-simulating runs and drawing figures (default 2)")
+                   help="threads re-simulating runs and processes drawing figures (default 2)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress lines on stderr (the stages, the runs re-simulated, "
+                        "the figures drawn)")
     p.add_argument("--envelope-runs", type=int,
                    help="re-simulate at most this many fault-free runs per manoeuvre for the "
                         "envelopes (default all; the worst-margin runs are always kept)")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
+from reports.figures import gpd_plotting_quantiles
 from reports.metrics import FAULT_FREE
 from reports.survival import kaplan_meier
 
@@ -71,7 +72,9 @@ def _tail_specs(name: str, g, curve) -> list[tuple]:
          "the fitted generalised Pareto quantiles (ξ ≥ 0, as the certificate's curve): on "
          "the diagonal when the tail model fits.", "tail_qq",
          (fit.tail_values(), fit.shape, fit.scale),
-         {"title": f"{name} ({worst}): tail QQ (ξ = {fit.shape:.2f})"}),
+         {"title": f"{name} ({worst}): tail QQ (ξ = {fit.shape:.2f})",
+          "quantiles": gpd_plotting_quantiles(len(fit.tail_values()), fit.shape,
+                                              fit.scale)}),
     ]
 
 
@@ -92,16 +95,22 @@ def evidence_figure_specs(camp, results=None) -> list[tuple]:
             specs += _curve_specs(name, g, curve)
             specs += _tail_specs(name, g, curve)
     faulty = ok[ok["fault"].astype(str) != FAULT_FREE]
+    required_s = dict(camp.config.requirements.detection_time_s)
     for name, g in faulty.groupby("detector", sort=False):
-        curves = {}
+        curves, required = {}, {}
         for fault, h in g.groupby("fault", sort=True):
             hit = h["detected"].astype(bool).to_numpy()
-            curves[f"{fault} ({int((~hit).sum())} of {len(h)} missed)"] = kaplan_meier(
-                h["delay_s"].to_numpy(float)[hit], int((~hit).sum()))
+            label = f"{fault} ({int((~hit).sum())} of {len(h)} missed)"
+            curves[label] = kaplan_meier(h["delay_s"].to_numpy(float)[hit],
+                                         int((~hit).sum()))
+            if fault in required_s:
+                required[label] = (fault, float(required_s[fault]))
         specs.append((
             "survival", name, f"Detection delay (Kaplan–Meier) — {name}",
             "Share of the faulty runs detected by each delay, misses right-censored at the "
             "end of the window (the curve stops below 1 by their share); band: pointwise "
-            "95 % confidence (log-log).", "survival", (curves,),
-            {"title": f"{name}: detection delay per fault type"}))
+            "95 % confidence (log-log); dotted: each fault type's required detection time "
+            "(the DTP denominator of the campaign file's [requirements]): the curve's "
+            "height there is the share detected in time.", "survival", (curves,),
+            {"title": f"{name}: detection delay per fault type", "required": required}))
     return specs

@@ -551,3 +551,120 @@ def test_overview_counts_each_run_in_error_once():
                     _section(page, "requirements")).group(1)
     cells = re.findall(r"<td>(.*?)</td>", row)
     assert cells[6] == "3"                          # the "errors" column
+
+
+# ---- a page that fits a laptop window --------------------------------------------------------
+#: Longest line of text a cell that does not wrap may hold [characters]: about 420 px of
+#: 13 px table text; longer prose goes in cells that wrap.
+NOWRAP_CHARS = 60
+
+
+def _visible(cell: str) -> list[str]:
+    """The lines of text of a table cell (tags dropped, a line per <br>)."""
+    return [html.unescape(re.sub(r"<[^>]+>", "", line)).strip()
+            for line in re.split(r"<br\s*/?>", cell)]
+
+
+def test_the_page_fits_a_laptop_window_and_every_unmet_mark_says_why(campaign_dir,
+                                                                      tmp_path, capsys):
+    copy = tmp_path / "certified"
+    shutil.copytree(campaign_dir, copy)
+    assert main(["certify", str(copy), "--jobs", "1"]) == 0
+    capsys.readouterr()
+    page = build_report(copy, jobs=1, log=lambda _: None,
+                        settings=ReportSettings(examples_per_fault=0)).read_text()
+    assert 'id="certificate-table"' in page
+    style = re.search(r"<style>(.*?)</style>", page, re.S).group(1).replace("\n", "")
+    # every table sits in a box no wider than the page, scrolled inside it if it must be:
+    # its own (div.tablewrap) or the drill-down's (div.scroll)
+    assert ".tablewrap{max-width:100%;overflow-x:auto}" in style
+    assert re.search(r"\.scroll\{[^}]*max-width:100%[^}]*overflow:auto", style)
+    body = page[page.index("<body>"):]
+    tables = [m.start() for m in re.finditer(r"<table", body)]
+    assert len(tables) > 10
+    for at in tables:
+        assert body[:at].endswith(('<div class="tablewrap">', '<div class="scroll">')), \
+            body[max(0, at - 80):at + 40]
+    # figures scale down to their box, never wider than the page
+    assert re.search(r"figure img\{[^}]*max-width:100%", style)
+    assert re.search(r"figure\{[^}]*max-width:100%", style)
+    # prose wraps: the cells of text columns (the certificate's notes) and the gate's lines
+    assert re.search(r"td\.text\{white-space:normal;overflow-wrap:anywhere", style)
+    assert re.search(r"pre\.gatelines\{[^}]*white-space:pre-wrap", style)
+    notes = re.findall(r'<table id="certificate-table">.*?</table>', body, re.S)[0]
+    assert re.search(r'<td class="text">[^<]{30,}', notes)    # the notes column wraps
+    # a cell that does not wrap holds short lines only (a reason beside a ✗ wraps itself)
+    cells = re.findall(r"<td>(.*?)</td>", body, re.S)
+    assert cells
+    for cell in cells:
+        cell = re.sub(r'<small class="why">.*?</small>', "", cell, flags=re.S)
+        for line in _visible(cell):
+            assert len(line) <= NOWRAP_CHARS, line
+    # every ✗ is followed by its reason: the fault type or manoeuvre that fails the
+    # requirement and its value against the limit
+    marks = re.findall(r'<span class="unmet">(?:(?!</span>).)*?✗</span>(<br><small '
+                       r'class="why">([^<]*)</small>)?', body, re.S)
+    assert marks and body.count("✗") == len(marks) + body.count("✗ not met")
+    faults = ["fault-free", *FAULTS, *FF_MANOEUVRES]
+    for whole, reason in marks:
+        assert whole, "a ✗ without its reason"
+        for part in html.unescape(reason).split("; "):
+            assert any(part.startswith(f) for f in faults), part
+            assert " > " in part or part.endswith("no detected run"), part
+
+
+def test_a_passing_value_beside_a_failure_names_the_failure():
+    from reports.gate import requirements_gate
+    from reports.html import render_report
+    from reports.summary import summarize
+
+    # detector d detects every runaway in time (DTP 0.5) and no liquid jam: its largest
+    # DTP, 0.5, passes the limit 1 while the DTP requirement fails for the liquid jams
+    rows = [{"run_id": f"{fault}{i}", "detector": "d", "fault": fault, "manoeuvre": "cruise",
+             "status": "ok", "error": "", "false_alarm": False, "pre_onset_alarm": False,
+             "detected": fault == "runaway", "first_alarm_s": np.nan,
+             "delay_s": 0.25 if fault == "runaway" else np.nan,
+             "dtp": 0.5 if fault == "runaway" else np.nan, "margin": 0.4}
+            for fault in ("runaway", "liquid_jam") for i in range(3)]
+    results = pd.DataFrame(rows)
+    summary = summarize(results)
+    req = {"max_fa_rate": 0.0, "max_md_rate": 0.0, "max_dtp": 1.0}
+    page = render_report(meta={"name": "x"}, summary=summary,
+                         gate=requirements_gate(summary, results, req), requirements=req,
+                         all_requirements=requirements_gate(summary, results, req,
+                                                            all_requirements=True),
+                         runs=results.assign(alt_ft=1e4, vcas_kt=250.0, mass_t=60.0,
+                                             cg_pct=30.0, onset_s=5.0), figures=[])
+    row = re.search(r'<tr><td><a href="#runs-detector-d">d</a></td>(.*?)</tr>',
+                    _section(page, "requirements")).group(1)
+    cells = re.findall(r"<td>(.*?)</td>", row)
+    assert cells[5] == ('<span class="unmet">0.5 ✗</span><br>'
+                        '<small class="why">liquid_jam: no detected run</small>')
+    # MD: 3 of 6 runs missed overall, all of them liquid jams
+    assert cells[3].startswith('<span class="unmet">50.00')
+    assert cells[3].endswith('<small class="why">liquid_jam: MD 100.00 % &gt; 0.00 %</small>')
+
+
+def test_workers_and_threads_make_the_page_one_process_makes(campaign_dir, report, tmp_path,
+                                                             monkeypatch):
+    import campaign.replay as replay
+
+    # batches of 5 runs: the 16 fault-free runs and the example runs re-simulated in 4
+    # batches on 2 threads; the figures drawn in 2 worker processes
+    monkeypatch.setattr(replay, "MAX_CHUNK", 5)
+    parallel = build_report(campaign_dir, jobs=2, out=tmp_path / "p.html",
+                            log=lambda _: None).read_text()
+    alone = report[1]
+
+    def figures(page):
+        return re.findall(r'<figure>.*?</figure>', page, re.S)
+
+    def text(page):
+        page = re.sub(r"<figure>.*?</figure>", "", page, flags=re.S)
+        page = re.sub(r"<td>report written \(UTC\)</td><td[^>]*>[^<]*</td>", "", page)
+        return re.sub(r"<li>Report made with .*?</li>", "", page)
+
+    # the same figures, bit for bit, in the same order, and the same page around them
+    assert len(figures(parallel)) == 19 and figures(parallel) == figures(alone)
+    assert text(parallel) == text(alone)
+    assert "Report made with 2 job(s)" in parallel
