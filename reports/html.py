@@ -257,6 +257,8 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
             md = _pct(r.md_rate) + (f'<br><small>worst: {_e(worst.fault)} '
                                     f"{_pct(worst.md_rate)}</small>" if worst is not None
                                     else "")
+            md += _informative_note([c for c in full_checks if c.detector == det
+                                     and c.informative])
             cells.append(_mark(md, checks(det, "missed_detection")))
             cells.append(_pct(getattr(r, "md_req_rate", math.nan)))
             cells.append(_mark(_num(r.dtp_max, ".4g"), checks(det, "dtp")))
@@ -281,7 +283,7 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
                f'<p class="gateline {"pass" if full.passed else "fail"}">All requirements '
                f"of the campaign file (<code>fdd-campaign gate --all-requirements</code>): "
                + ("met" if full.passed else f"not met, {len(full.failures)} of "
-                  f"{len(full.checks)} checks fail") + "</p>")
+                  f"{sum(not c.informative for c in full.checks)} checks fail") + "</p>")
     return ('<section id="requirements"><h2>Overview across detectors</h2>' + verdict
             + _table(head, rows, cls="overview", tid="overview")
             + '<p class="note">✓ requirement of the campaign file met, ✗ not met, with the '
@@ -293,7 +295,27 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
             "or late (no limit of its own: a late run fails the DTP requirement); max DTP: "
             "the largest detection delay / required time. “gate” is the verdict of "
             "<code>fdd-campaign gate</code> above (false alarms, run errors, isolation); “all "
-            "requirements” adds the MD and DTP limits.</p></section>")
+            "requirements” adds the MD and DTP limits, which hold a detector on the fault "
+            "types it is designed for and a detection system's members not at all (the "
+            "system holds them): the MD cell names the fault types reported for information "
+            "only (docs/design.md §5, Declared coverage, Detection systems).</p></section>")
+
+
+def _informative_note(checks: list) -> str:
+    """The MD cell's note of the fault types a detector is not held to: not designed for
+    them (with what it detected), or a detection system's member."""
+    if not checks:
+        return ""
+    member = [c for c in checks if c.name == "member"]
+    if member:
+        system = member[0].message.split("member of ", 1)[1].split(":", 1)[0]
+        return (f"<br><small>member of {_e(system)}: its MD and DTP are the system's "
+                "requirement, reported for information</small>")
+    parts = []
+    for c in checks:
+        detected = c.message.split(": ", 2)[-1].split(" detected", 1)[0]
+        parts.append(f"{_e(c.fault)} ({_e(detected)} detected)")
+    return "<br><small>not designed for: " + ", ".join(parts) + "</small>"
 
 
 def _details(summary: pd.DataFrame, gate: GateResult | None, full: GateResult | None,
@@ -641,7 +663,8 @@ def hazard_section(hazard: pd.DataFrame, budgets: Mapping[str, float],
                "cited source): set [requirements] fault_rate_per_fh from your safety "
                "assessment; a category resting on it is a placeholder too.</p>"
                if placeholder else "")
-            + _table([_e(h) for h in head], rows, tid="hazard-table")
+            + _table([_e(h) for h in head], rows, tid="hazard-table",
+                     text_columns=(head.index("claim"),))
             + "<p>Assumptions:</p><ul>" + "".join(f"<li>{_e(a)}</li>" for a in assumptions)
             + "</ul></section>")
 

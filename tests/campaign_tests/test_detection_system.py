@@ -118,6 +118,11 @@ def test_one_detector_order_in_run_gate_certify_and_report(system_dir, tmp_path,
     outputs["report"] = (tmp_path / "report.html").read_text()
     for what, text in outputs.items():
         assert _first_positions(text, ORDER) == ORDER, what
+    # the overview's MD cells say which faults a detector is not held to, and why
+    page = outputs["report"]
+    assert re.search(r"not designed for: disconnection \([0-2]/2 detected\)", page)
+    assert "member of fdd-system: its MD and DTP are the system&#x27;s requirement" in page \
+        or "member of fdd-system: its MD and DTP are the system's requirement" in page
 
 
 def test_detector_order_puts_numbers_by_value():
