@@ -267,6 +267,13 @@ class Detector:
         covers = tuple(getattr(caps, "covers", ()) or ())
         return Coverage(covers or None, getattr(caps, "coverage_reason", "") or "")
 
+    def variant_names(self) -> tuple[str, ...] | None:
+        """The variant names (inside the brackets of ``label[variant]``) that :meth:`detect`
+        gives, when its parameters fix them before it runs (a campaign file's ``[[system]]``
+        members are checked against them before any work); None (the default): not known
+        until it runs, or a single Detection."""
+        return None
+
     # ---- learning and detection --------------------------------------------------------
     @property
     def is_fitted(self) -> bool:

@@ -644,12 +644,36 @@ def check_systems(systems: list, dets: list, errors: list[str]) -> None:
             continue
         for j, member in enumerate(members):
             base = member.split("[", 1)[0]
-            if base in labels and (member == base or member.endswith("]")):
+            if base in labels and member == base:
+                continue
+            if base in labels and member.endswith("]"):
+                _check_member_variant(member, dets[labels.index(base)], f"{p}.members[{j}]",
+                                      errors)
                 continue
             errors.append(f"{p}.members[{j}]: {member!r} names no detector of this "
                           f"campaign{suggest(base, labels)}; its detectors ([[detector]] "
                           f"labels): {', '.join(labels)} (or one of their variants: "
                           "LABEL[VARIANT])")
+
+
+def _check_member_variant(member: str, det: Mapping, p: str, errors: list[str]) -> None:
+    """A member ``LABEL[VARIANT]`` must be a variant its detector gives, when its parameters
+    fix its variants (:meth:`detectors.base.Detector.variant_names`)."""
+    from detectors.registry import make_detector
+
+    if not is_ok(det["name"], det["params"]):
+        return
+    try:
+        names = make_detector(det["name"], thaw(det["params"], "table")).variant_names()
+    except Exception:  # noqa: BLE001 - the detector's own problems are reported by its table
+        return
+    variant = member.split("[", 1)[1][:-1]
+    if names is not None and variant not in names:
+        label = member.split("[", 1)[0]
+        errors.append(f"{p}: {member!r} is no variant of detector {label!r}, whose results "
+                      f"are {', '.join(f'{label}[{n}]' for n in names) or '(none)'}"
+                      f"{suggest(variant, list(names))}; fix: name one of those, or the bare "
+                      f"label {label!r} for all of them")
 
 
 # ---- [requirements] -----------------------------------------------------------------------

@@ -346,6 +346,10 @@ class ChenLocalEstimator(Detector):
         both = [Coverage(*c) for c in self.VARIANT_COVERAGE.values()]
         return both[0].union(both[1])
 
+    def variant_names(self) -> tuple[str, ...]:
+        """The liquid-jam and the solid-jam statistics (:data:`VARIANTS`)."""
+        return VARIANTS
+
     def check_signals(self, signals: Signals) -> None:
         super().check_signals(signals)
         if signals.actuator is None:

@@ -489,6 +489,10 @@ class IntervalDetector(Detector):
             return (float(self.poles),)
         return tuple(float(a) for a in self.poles)
 
+    def variant_names(self) -> tuple[str, ...]:
+        """One variant per pole, ``"a=<pole>"``, in the order of ``poles``."""
+        return tuple(self.variant_name(a) for a in self._poles())
+
     @staticmethod
     def variant_name(a: float) -> str:
         """Name of the variant of pole *a* (``"a=0.9"``)."""

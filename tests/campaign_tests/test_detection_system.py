@@ -5,6 +5,8 @@ none of the MD/DTP limits, and every output lists detectors in one order."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import re
 import xml.etree.ElementTree as ET
 
@@ -41,13 +43,22 @@ def _config(seed: int) -> dict:
 
 
 @pytest.fixture(scope="module")
-def system_dir(tmp_path_factory):
+def system_run(tmp_path_factory):
+    """The campaign directory and what ``run`` printed."""
     root = tmp_path_factory.mktemp("system")
     path = root / "system.toml"
     path.write_text(campaign_toml(_config(seed=808)))
     out = root / "out"
-    assert main(["run", str(path), "--out", str(out), "--quiet", "--jobs", "1"]) in (0, 1)
-    return out
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        code = main(["run", str(path), "--out", str(out), "--quiet", "--jobs", "1"])
+    assert code in (0, 1)
+    return out, printed.getvalue()
+
+
+@pytest.fixture(scope="module")
+def system_dir(system_run):
+    return system_run[0]
 
 
 def test_system_rows_are_the_first_alarm_of_its_members(system_dir):
@@ -103,16 +114,13 @@ def _first_positions(text: str, names) -> list[str]:
     return sorted(found, key=found.get)
 
 
-def test_one_detector_order_in_run_gate_certify_and_report(system_dir, tmp_path, capsys):
-    outputs = {}
+def test_one_detector_order_in_run_gate_certify_and_report(system_run, tmp_path, capsys):
+    system_dir, printed = system_run
+    outputs = {"run": printed}
     main(["gate", str(system_dir)])
     outputs["gate"] = capsys.readouterr().out
     main(["certify", str(system_dir), "--jobs", "1"])
     outputs["certify"] = capsys.readouterr().out
-    path = tmp_path / "system.toml"
-    path.write_text(campaign_toml(_config(seed=809)))
-    main(["run", str(path), "--out", str(tmp_path / "run"), "--quiet", "--jobs", "1"])
-    outputs["run"] = capsys.readouterr().out
     main(["report", str(system_dir), "--html", str(tmp_path / "report.html"), "--jobs", "1"])
     capsys.readouterr()
     outputs["report"] = (tmp_path / "report.html").read_text()
@@ -228,3 +236,15 @@ def test_a_fault_outside_the_declared_coverage_never_fails_the_gate():
                                          "params": {"sensor": "surface"}}])
     roles = roles_of(CampaignConfig.from_dict(surface))
     assert not evaluate_gate(summary, results=results, max_md=0.0, roles=roles).passed
+
+
+def test_a_member_variant_the_detector_does_not_give_is_refused_before_any_run():
+    cfg = _config(seed=1)
+    cfg["system"] = [{"name": "s", "members": ["pm", "comb-interval[a=0.85]"]}]
+    with pytest.raises(ConfigError) as err:
+        CampaignConfig.from_dict(cfg)
+    assert ("system[0].members[1]: 'comb-interval[a=0.85]' is no variant of detector "
+            "'comb-interval', whose results are comb-interval[a=0.6], comb-interval[a=0.95], "
+            "comb-interval[a=0.9]") in str(err.value)
+    cfg["system"] = [{"name": "s", "members": ["pm", "comb-interval[a=0.95]"]}]
+    assert CampaignConfig.from_dict(cfg).systems[0].members[1] == "comb-interval[a=0.95]"
