@@ -276,15 +276,17 @@ def scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
 
 
 def check_label(config: CampaignConfig, label: str) -> None:
-    """*label* must name one of the campaign's detectors, or a variant ``LABEL[…]`` of one
-    (the variant itself is checked on the fitted detector); :class:`FalsifyError` lists
-    the labels."""
+    """*label* must name one of the campaign's detectors, a variant ``LABEL[…]`` of one
+    (the variant itself is checked on the fitted detector) or one of its detection systems
+    (``[[system]]``); :class:`FalsifyError` lists the labels and the systems."""
     base = label.split("[", 1)[0] if label.endswith("]") else label
-    if base not in config.detector_labels:
+    systems = tuple(getattr(config, "system_names", ()))
+    if base not in config.detector_labels and label not in systems:
+        also = f"; its detection systems: {', '.join(systems)}" if systems else ""
         raise FalsifyError(f"--detector {label}: not a detector of campaign "
                            f"{config.campaign.name!r}; its labels: "
-                           f"{', '.join(config.detector_labels)} (a detector with variants "
-                           "is named LABEL[variant] as in the results, e.g. "
+                           f"{', '.join(config.detector_labels)}{also} (a detector with "
+                           "variants is named LABEL[variant] as in the results, e.g. "
                            "comb-interval[a=0.9])")
 
 

@@ -248,3 +248,15 @@ def test_a_member_variant_the_detector_does_not_give_is_refused_before_any_run()
             "comb-interval[a=0.9]") in str(err.value)
     cfg["system"] = [{"name": "s", "members": ["pm", "comb-interval[a=0.95]"]}]
     assert CampaignConfig.from_dict(cfg).systems[0].members[1] == "comb-interval[a=0.95]"
+
+
+def test_a_worst_case_search_may_name_a_detection_system():
+    """``falsify --detector`` and ``gate --worst-case`` search a system as a detector (its
+    margin is the largest of its members'); an unknown name lists the systems too."""
+    from campaign.evidence.falsify import FalsifyError, check_label
+
+    config = CampaignConfig.from_dict(_config(seed=1))
+    check_label(config, "fdd-system")
+    check_label(config, "comb-interval[a=0.9]")
+    with pytest.raises(FalsifyError, match="its detection systems: fdd-system"):
+        check_label(config, "fdd-systen")
