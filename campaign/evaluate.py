@@ -184,8 +184,7 @@ def _checked(label: str, det, signals: Signals, known: dict | None = None) -> di
     """The variants of *det* on read-only *signals*, each checked against the output
     contract; a detection system's from the members' detections in *known* when they are
     all there (:func:`detect`)."""
-    if isinstance(det, DetectionSystem) and known and all(
-            any(n == m or n.startswith(m + "[") for n in known) for m in det.member_labels):
+    if isinstance(det, DetectionSystem) and known and det.has_members_in(known):
         variants = {label: det.combine(known)}
     else:
         variants = as_variants(label, det.detect(read_only(signals)))

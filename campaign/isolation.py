@@ -88,11 +88,11 @@ class Roles:
         """The fault types result name *name* is designed to detect (every fault type for a
         detector that declares none, or whose class is not installed here)."""
         if name in self.systems:
-            total = None
-            for member in self.systems[name]:
-                cov = self.coverage(member)
-                total = cov if total is None else total.union(cov)
-            return total or Coverage()
+            from detectors.system import DetectionSystem
+            try:
+                return DetectionSystem(self.systems[name], self.detectors).coverage()
+            except ValueError:      # a member whose class is not installed here
+                return Coverage()
         label, _, rest = name.partition("[")
         det = self.detectors.get(label)
         return Coverage() if det is None else det.coverage(rest[:-1] if rest else None)

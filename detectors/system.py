@@ -69,6 +69,12 @@ class DetectionSystem(Detector):
         """label → fitted detector of each member label."""
         return {label: self.detectors[label] for label in self.member_labels}
 
+    def has_members_in(self, names: Iterable[str]) -> bool:
+        """Whether *names* (result names) hold a detection of every member detector, so that
+        :meth:`combine` can be made from them without running the members again."""
+        names = list(names)
+        return all(any(_of_label(n, label) for n in names) for label in self.member_labels)
+
     def member_names(self, names: Iterable[str]) -> list[str]:
         """The result names of *names* (the variants the member detectors gave) that are
         members: a bare label stands for the label itself and every ``label[…]``. Raises
@@ -86,7 +92,7 @@ class DetectionSystem(Detector):
                         "[[system]] members, or the bare label for all of them")
                 out.append(member)
             else:
-                out += [n for n in names if n == member or n.startswith(member + "[")]
+                out += [n for n in names if _of_label(n, member)]
         return list(dict.fromkeys(out))
 
     def coverage(self, variant: str | None = None) -> Coverage:
@@ -123,6 +129,11 @@ class DetectionSystem(Detector):
                 raise RuntimeError(f"member {label!r} failed: {type(exc).__name__}: "
                                    f"{exc}") from exc
         return self.combine(detections)
+
+
+def _of_label(name: str, label: str) -> bool:
+    """Whether result name *name* is detector *label*'s (the label itself or a variant)."""
+    return name == label or name.startswith(label + "[")
 
 
 def _fmax(arrays) -> np.ndarray:
