@@ -33,8 +33,9 @@ times the size of a result shard, where the grid costs a few bytes per faulty ru
 (docs/thresholds.md gives the measurements).
 
 A **detection system** alarms at the first alarm of any member, all members at the same
-scale: its first alarm at s is the earliest of its members' (:func:`combine_breakpoints`),
-the upper envelope of their running maxima.
+scale: its decision is the largest member decision (:mod:`detectors.system`), so its column
+is made from that decision as any detector's, and its first alarm at s is the earliest of its
+members' (the upper envelope of their running maxima).
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ import pandas as pd
 from .metrics import FAULT_FREE, ONSET_TOL_S
 
 __all__ = ["ALARM_SCALES", "ALARM_STEPS_COLUMN", "alarm_offsets", "alarm_steps",
-           "combine_breakpoints", "decode_steps", "encode_steps", "onset_steps",
+           "decode_steps", "encode_steps", "onset_steps",
            "scaled_columns"]
 
 #: Name of the result column (:data:`reports.metrics.RESULT_COLUMNS`).
@@ -100,7 +101,9 @@ def alarm_offsets(decision_row: np.ndarray, k_on: int, k_end: int,
                   scales: Sequence[float] = ALARM_SCALES) -> list[int]:
     """The first alarm of one faulty run in its window [*k_on*, *k_end*) at each of *scales*
     (ascending) that detects it, as a step offset from *k_on*: the first k ≥ k_on where the
-    running maximum of *decision_row* from step 0 reaches the scale (NaN: no decision there)."""
+    running maximum of *decision_row* from step 0 reaches the scale (NaN: no decision there).
+    One run, by a search in its running maximum: the reference :func:`alarm_steps`' batch
+    form is tested against."""
     if k_on >= k_end:
         return []
     row = np.asarray(decision_row, dtype=float)
@@ -144,8 +147,21 @@ def alarm_steps(decision, *, fault, onset_s, ts: float, window_s=None,
         return out
     decision = np.asarray(decision, dtype=float)
     faulty, k_on, k_end = _window_steps(fault, onset_s, ts, window_s, n, decision.shape[1])
-    for i in np.flatnonzero(faulty):
-        out[i] = encode_steps(alarm_offsets(decision[i], int(k_on[i]), int(k_end[i]), scales))
+    rows = np.flatnonzero(faulty)
+    if rows.size == 0:
+        return out
+    # the running maximum from step 0 of every faulty run at once (NaN: no decision yet),
+    # and the steps of each run's window; per scale, the window's first step it reaches
+    running = np.fmax.accumulate(decision[rows], axis=1)
+    k = np.arange(decision.shape[1])
+    on, end = k_on[rows, None], k_end[rows, None]
+    inside = (k >= on) & (k < end)
+    firsts = []
+    for s in np.asarray(scales, dtype=float):
+        reached = inside & (running >= s)
+        firsts.append(np.where(reached.any(axis=1), reached.argmax(axis=1) - on[:, 0], -1))
+    for j, i in enumerate(rows):      # the detecting scales form a prefix of the grid
+        out[i] = encode_steps([int(f[j]) for f in firsts if f[j] >= 0])
     return out
 
 
@@ -220,31 +236,3 @@ def scaled_columns(*, scale: float, fault, onset_s, margin, steps, ts: float,
     return {"false_alarm": alarm & known, "pre_onset_alarm": alarm & known,
             "detected": detected, "first_alarm_s": first, "delay_s": delay, "dtp": dtp,
             "margin": np.where(known, margin / scale, np.nan), "known": known}
-
-
-# ---- detection systems -------------------------------------------------------------------
-def combine_breakpoints(members) -> np.ndarray:
-    """The ``alarm_steps`` of a detection system (first alarm of any member, every member at
-    the same threshold scale) from its members' on the same runs: *members* is a sequence of
-    columns, one per member, each a sequence of bytes or None, run by run. At each scale the
-    system detects a run when a member does, at the earliest member's step (the upper
-    envelope of the members' running maxima reaches s at the first of their times). A run
-    where a member's steps are not stored, or a fault-free run (None for all), gets None.
-    The system's margin is the largest member margin (its false alarm: any member's)."""
-    columns = [np.asarray(m, dtype=object) for m in members]
-    if not columns:
-        return np.zeros(0, dtype=object)
-    n = len(columns[0])
-    if any(len(c) != n for c in columns):
-        raise ValueError(f"combine_breakpoints: members of different lengths "
-                         f"{[len(c) for c in columns]} (one value per run each)")
-    out = np.full(n, None, dtype=object)
-    for i in range(n):
-        values = [c[i] for c in columns]
-        if any(pd.isna(v) for v in values):
-            continue
-        decoded = [decode_steps(v) for v in values]
-        length = max(len(d) for d in decoded)
-        out[i] = encode_steps([min(d[j] for d in decoded if j < len(d))
-                               for j in range(length)])
-    return out

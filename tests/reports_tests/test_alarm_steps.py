@@ -11,8 +11,9 @@ import pytest
 
 from detectors.base import Detection, at_threshold_scale, decide, first_steps
 from reports.alarm_steps import (ALARM_SCALES, ALARM_STEPS_COLUMN, alarm_offsets,
-                                 alarm_steps, combine_breakpoints, decode_steps,
+                                 alarm_steps, decode_steps,
                                  encode_steps, onset_steps, scaled_columns)
+from reports.alarm_steps import _window_steps
 from reports.metrics import RESULT_COLUMNS, score_columns
 
 SCORED = ("false_alarm", "pre_onset_alarm", "detected", "first_alarm_s", "delay_s", "dtp",
@@ -139,29 +140,46 @@ def test_runs_without_stored_steps_are_unknown_except_fault_free():
     assert got["first_alarm_s"][2] == 103 * 0.01
 
 
+def test_the_batch_column_is_the_one_run_search_of_every_run():
+    """alarm_steps (every faulty run at once) against alarm_offsets (one run, a search in its
+    running maximum) on random decisions with NaN gaps, onsets and windows."""
+    rng = np.random.default_rng(11)
+    ts, n, n_steps = 0.01, 150, 300
+    fault, onset, decision = _random_decisions(rng, n, n_steps, ts)
+    decision[rng.random(decision.shape) < 0.05] = np.nan
+    got = alarm_steps(decision, fault=fault, onset_s=onset, ts=ts, window_s=0.8)
+    # each run's window as the column finds it (the steps score_columns scores in)
+    _, k_on, k_end = _window_steps(fault, onset, ts, 0.8, n, n_steps)
+    for i in range(n):
+        if fault[i] == "none":
+            assert got[i] is None
+        else:
+            want = alarm_offsets(decision[i], int(k_on[i]), int(k_end[i]))
+            assert decode_steps(got[i]) == want, i
+    assert sum(len(decode_steps(g)) for g in got if g is not None) > n   # runs detected
+
+
 def test_a_system_s_steps_are_the_earliest_of_its_members():
-    """combine_breakpoints of the members' columns is the column of the system's decision,
-    the largest member decision at each step (its first time ≥ s is the earliest member's)."""
+    """The column of a system's decision (the largest member decision at each step) holds,
+    at each scale, the earliest of its members' first alarms (a miss where every member
+    misses), recomputed here from the members' own columns."""
     rng = np.random.default_rng(5)
     ts, n, n_steps = 0.01, 120, 300
     fault, onset, a = _random_decisions(rng, n, n_steps, ts)
     b = _random_decisions(rng, n, n_steps, ts)[2]
     c = _random_decisions(rng, n, n_steps, ts)[2]
     kw = dict(fault=fault, onset_s=onset, ts=ts, window_s=0.8)
-    members = [alarm_steps(d, **kw) for d in (a, b, c)]
+    members = [[None if m is None else decode_steps(m) for m in alarm_steps(d, **kw)]
+               for d in (a, b, c)]
     system = alarm_steps(np.fmax(np.fmax(a, b), c), **kw)
-    combined = combine_breakpoints(members)
-    assert list(combined) == list(system)
-    # the members differ, and the system is earlier than some of them somewhere
-    earlier = sum(decode_steps(s) != decode_steps(m)
-                  for s, m in zip(system, members[0]) if s is not None)
+    for i, got in enumerate(system):
+        if fault[i] == "none":
+            assert got is None
+            continue
+        runs = [m[i] for m in members]
+        length = max(len(r) for r in runs)
+        assert decode_steps(got) == [min(r[j] for r in runs if j < len(r))
+                                     for j in range(length)], i
+    # the members differ, and the system is earlier than the first member somewhere
+    earlier = sum(decode_steps(s) != m for s, m in zip(system, members[0]) if s is not None)
     assert earlier > 10
-
-
-def test_a_system_with_a_member_without_stored_steps_has_none():
-    one = [encode_steps([1, 2]), None, encode_steps([])]
-    two = [encode_steps([0, 5, 6]), encode_steps([4]), encode_steps([7])]
-    assert list(combine_breakpoints([one, two])) == [encode_steps([0, 2, 6]), None,
-                                                     encode_steps([7])]
-    with pytest.raises(ValueError, match="different lengths"):
-        combine_breakpoints([one, two[:2]])
