@@ -258,7 +258,7 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
                                     f"{_pct(worst.md_rate)}</small>" if worst is not None
                                     else "")
             md += _informative_note([c for c in full_checks if c.detector == det
-                                     and c.informative])
+                                     and c.informative], per_fault)
             cells.append(_mark(md, checks(det, "missed_detection")))
             cells.append(_pct(getattr(r, "md_req_rate", math.nan)))
             cells.append(_mark(_num(r.dtp_max, ".4g"), checks(det, "dtp")))
@@ -301,20 +301,23 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
             "only (docs/design.md §5, Declared coverage, Detection systems).</p></section>")
 
 
-def _informative_note(checks: list) -> str:
-    """The MD cell's note of the fault types a detector is not held to: not designed for
-    them (with what it detected), or a detection system's member."""
+def _informative_note(checks: list, per_fault: pd.DataFrame) -> str:
+    """The MD cell's note of the fault types a detector is not held to (its informative
+    checks, :func:`reports.gate.evaluate_gate`): not designed for them, with what it
+    detected of each (its per-fault summary rows *per_fault*), or a detection system's
+    member (the system named by the check's message, ``INFO member of SYSTEM: …``)."""
     if not checks:
         return ""
     member = [c for c in checks if c.name == "member"]
     if member:
-        system = member[0].message.split("member of ", 1)[1].split(":", 1)[0]
+        system = member[0].message.removeprefix("INFO member of ").split(":", 1)[0]
         return (f"<br><small>member of {_e(system)}: its MD and DTP are the system's "
                 "requirement, reported for information</small>")
+    rows = per_fault.set_index("fault")
     parts = []
     for c in checks:
-        detected = c.message.split(": ", 2)[-1].split(" detected", 1)[0]
-        parts.append(f"{_e(c.fault)} ({_e(detected)} detected)")
+        n = int(rows.loc[c.fault, "n_runs"])
+        parts.append(f"{_e(c.fault)} ({n - int(rows.loc[c.fault, 'md_count'])}/{n} detected)")
     return "<br><small>not designed for: " + ", ".join(parts) + "</small>"
 
 
