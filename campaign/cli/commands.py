@@ -874,7 +874,7 @@ def _add_study_parsers(subs) -> None:
                    help="factor on the σ of every aircraft sensor (default 1)")
     p.add_argument("--seed", type=int, default=0, help="seed of the scenarios (default 0)")
     p = add_command(ssubs, "chen-flight-data", "the global [CHEN] estimators (chen-global, "
-                    "chen-global-paper with its calibrated and its max threshold) on chen-mc's "
+                    "chen-global-paper with [CHEN]'s constant threshold and with our calibrated one) on chen-mc's "
                     "fault-free and disconnection runs at several sizes of the [CHEN] Table-2 "
                     "flight-data errors (VCAS, altitude, mass, CG): false alarms, misses and "
                     "delays per size (docs/chen-estimator.md §5.2)",

@@ -21,7 +21,8 @@ def test_each_level_is_chen_mc_with_its_flight_data_errors():
     assert c.campaign.seed == 5 and c.plant.turbulence == "none"
     assert {g.fault: g.count for g in c.groups} == {"none": 200, "disconnection": 334}
     assert [(d.name, d.label) for d in c.detectors] == [(n, lab) for n, lab, _ in DETECTORS]
-    assert dict(c.detectors[2].params) == {"threshold_method": "max"}
+    assert dict(c.detectors[1].params) == {}           # [CHEN]'s rule, the default
+    assert dict(c.detectors[2].params) == {"threshold_method": "evt"}
     names = {campaign_for(w).campaign.name for w in (0.1, 0.05, 0.02, 0.0)}
     assert len(names) == 4                    # one directory per level
     small = campaign_for(0.1, fault_free=3, disconnections=4, learning_runs=5,

@@ -59,6 +59,8 @@ def test_the_paper_variant_is_registered_with_the_papers_choices():
     # direction for the perturbation: E along φ (ours)
     assert (det.gust_channel, det.adaptive, det.h_output, det.h_rate_weight,
             det.uncertainty, det.h_perturbation) == (False, False, "phi", 0.0, "table2", 0.03)
+    # §6.1: a constant threshold above the largest fault-free residual, our margin 1.5
+    assert (det.threshold_method, det.safety) == ("max", 1.5)
     assert set(det.get_params()) == set(ChenGlobalEstimator().get_params())
     det.validate_params()
     # the direction before this version stays available (campaign files that set it)
