@@ -13,6 +13,7 @@ metadata are read at once (a few kB). Everything is read through
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -291,7 +292,9 @@ class Campaign:
     # ---- read at once ----------------------------------------------------------------------
     @property
     def out(self) -> Path:
-        """The former name of :attr:`root` (of the object ``campaign.run`` returned)."""
+        """Deprecated former name of :attr:`root` (of the object ``campaign.run`` returned)."""
+        warnings.warn("Campaign.out is deprecated: use Campaign.root", DeprecationWarning,
+                      stacklevel=2)
         return self.root
 
     @property

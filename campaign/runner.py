@@ -378,10 +378,6 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
             "it with detectors.testing.check_detector")
 
 
-#: The former name of the object :func:`run` returns (:class:`campaign.result.Campaign`).
-CampaignResult = Campaign
-
-
 def settings_of(config) -> ChunkSettings:
     """What the workers need of *config*, with its plant built once (:func:`plant_of`)."""
     return ChunkSettings(

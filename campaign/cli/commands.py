@@ -27,7 +27,7 @@ from .common import (  # noqa: F401  (part of this module's interface)
     report_internal_error,
 )
 from ..isolation import roles_of_stored
-from ..startup import defer_collection, start_up_done
+from ..startup import start_up_done
 
 
 # ---- the command line's overrides ---------------------------------------------------------
@@ -1061,12 +1061,11 @@ def _main(argv=None) -> int:
 
 
 def console_main() -> None:
-    """:func:`campaign.cli.console_main` once this module is imported (NumPy with it, so BLAS
-    keeps the threads it started: :func:`campaign.execute.one_blas_thread` limits them): the
-    executable of an installation made before it moved there, and ``python -m
-    campaign.cli.commands``."""
-    defer_collection()
-    leave(main())
+    """Deprecated: the executable of an installation made before it moved to
+    :func:`campaign.cli.console_main` (reinstall to use that)."""
+    from . import console_main as executable
+
+    executable()
 
 
 def leave(code: int) -> None:
@@ -1100,4 +1099,6 @@ def leave(code: int) -> None:
 
 
 if __name__ == "__main__":
-    console_main()
+    from campaign.cli import console_main as _executable
+
+    _executable()
