@@ -38,8 +38,8 @@ from reports.summary import detector_order
 from reports.table import error_lines
 from scenarios import compiled as kernels
 from scenarios.envelope import FLIGHT_COLUMNS
+from scenarios.errors import ArgumentError
 
-from .cli.common import UsageError
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .evidence.hazard import report_section
@@ -548,10 +548,10 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
     if jobs < 1:
-        raise UsageError(f"--jobs must be ≥ 1, got {jobs}")
+        raise ArgumentError.of("jobs", jobs, "must be ≥ 1 (local workers)", 2)
     if cfg.envelope_runs is not None and cfg.envelope_runs < 1:
-        raise UsageError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
-                         f"{cfg.envelope_runs}")
+        raise ArgumentError.of("envelope_runs", cfg.envelope_runs,
+                               "must be ≥ 1 (or left out for all runs)", 50)
     t0 = time.perf_counter()
     say = _StageLog(progress, t0)
     data = _read_report_data(directory, cfg, requirements, fmu, log)

@@ -33,7 +33,7 @@ from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import SummaryAccumulator
 from scenarios import compiled as kernels
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
@@ -54,6 +54,11 @@ from .store.directory import CampaignDir, DirLock
 
 class CampaignSetupError(InputError, ValueError):
     """The campaign cannot start (incompatible detector, bad directory, …)."""
+
+
+class RunOptionError(CampaignSetupError, ArgumentError):
+    """An argument of :func:`run` out of its range (*jobs*, *chunk_size*), named as Python
+    names it; ``fdd-campaign`` names its option (:class:`scenarios.errors.ArgumentError`)."""
 
 
 def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
@@ -372,7 +377,8 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
         label, det, failure = found
         raise CampaignSetupError(
             f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-            f"{failure}. Its results would depend on --chunk-size and on which runs "
+            f"{failure}. Its results would depend on the chunk size (chunk_size, "
+            "--chunk-size) and on which runs "
             "share a chunk, which [runner] must never change; fix: compute every "
             "run on its own (docs/write-a-detector.md, Signals and output) and check "
             "it with detectors.testing.check_detector")
@@ -578,7 +584,7 @@ class _Setup:
 def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
     """The chunk size a run uses (*chunk_size*, or ``[runner] chunk_size``), after checking
     it against the range of the schema's ``[runner] chunk_size`` (and *jobs* ≥ 1);
-    :class:`CampaignSetupError` (exit 2) names the option, its range and the fix."""
+    :class:`RunOptionError` (exit 2) names the argument, its range and the fix."""
     from dataclasses import fields
 
     from .config.sections import RunnerSection
@@ -587,14 +593,13 @@ def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
     size = config.runner.chunk_size if chunk_size is None else chunk_size
     if (isinstance(size, bool) or not isinstance(size, (int, np.integer))
             or spec.out_of_range(size)):
-        raise CampaignSetupError(
-            f"--chunk-size {size!r}: out of range; allowed: an integer, "
+        raise RunOptionError.of(
+            "chunk_size", size, f"out of range; allowed: an integer, "
             f"{spec.range_text('chunk size')} runs ([runner] chunk_size, "
-            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lower) * 100}, or leave it "
-            "out to use the campaign file's value")
+            "docs/campaign-file.md)", int(spec.lower) * 100,
+            "or leave it out to use the campaign file's value")
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
-        raise CampaignSetupError(f"--jobs {jobs!r}: must be an integer ≥ 1 (local workers); "
-                                 "fix: e.g. --jobs 2")
+        raise RunOptionError.of("jobs", jobs, "must be an integer ≥ 1 (local workers)", 2)
     return int(size)
 
 

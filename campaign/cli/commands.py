@@ -23,6 +23,7 @@ from .common import (  # noqa: F401  (part of this module's interface)
     UsageError,
     add_command,
     check_writable,
+    input_message,
     print_error,
     report_internal_error,
 )
@@ -1045,7 +1046,7 @@ def _main(argv=None) -> int:
     # a directory, an FMU, a detector's name or parameters, a plugin that fails at the
     # start), or a file that is missing; the message names the field and the fix
     except (InputError, FileNotFoundError) as exc:
-        print_error(str(exc))
+        print_error(input_message(exc) if isinstance(exc, InputError) else str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
         where = f" {exc.filename}" if exc.filename else ""
@@ -1062,10 +1063,11 @@ def _main(argv=None) -> int:
 
 def console_main() -> None:
     """Deprecated: the executable of an installation made before it moved to
-    :func:`campaign.cli.console_main` (reinstall to use that)."""
-    from . import console_main as executable
+    :func:`campaign.cli.console_main` (reinstall to use that), once this module is imported."""
+    from ..startup import defer_collection
 
-    executable()
+    defer_collection()
+    leave(main())
 
 
 def leave(code: int) -> None:
@@ -1099,6 +1101,4 @@ def leave(code: int) -> None:
 
 
 if __name__ == "__main__":
-    from campaign.cli import console_main as _executable
-
-    _executable()
+    console_main()
