@@ -31,7 +31,6 @@ import numpy as np
 import pandas as pd
 
 from reports.figures import bin_max, figure_png, render_png, run_figure
-from reports.gate import requirements_gate
 from reports.html import ReportFigure, drilldown_section, render_report, show_command
 from reports.metrics import FAULT_FREE
 from reports.summary import detector_order
@@ -43,7 +42,6 @@ from scenarios.errors import ArgumentError
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .evidence.hazard import report_section
-from .isolation import roles_of
 from .evidence.figures import evidence_figure_specs
 from .plant_setup import replay_plant
 from .result import Campaign, load
@@ -363,11 +361,9 @@ def runs_table(camp: Campaign) -> pd.DataFrame:
 
 
 def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
-    """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
-    (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
-    return requirements_gate(camp.summary, camp.gate_results, req,
-                             roles=roles_of(camp.config), coverage=camp.coverage,
-                             all_requirements=all_requirements)
+    """:meth:`Campaign.gate <campaign.result.Campaign.gate>` as ``fdd-campaign gate DIR``
+    asks it (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
+    return camp.gate(req, all_requirements=all_requirements)
 
 
 @dataclass

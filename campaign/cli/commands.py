@@ -27,7 +27,6 @@ from .common import (  # noqa: F401  (part of this module's interface)
     print_error,
     report_internal_error,
 )
-from ..isolation import roles_of_stored
 from ..startup import start_up_done
 
 
@@ -266,8 +265,6 @@ def cmd_gate(args) -> int:
 
 
 def _gate_one(directory, args):
-    from reports.gate import requirements_gate
-
     from ..result import load
 
     camp = load(directory)
@@ -282,10 +279,8 @@ def _gate_one(directory, args):
         # the campaign file's MD and DTP limits with --all-requirements (as the report)
         limits[key] = given if given is not None else (
             limits.get(key) if args.all_requirements else None)
-    result = requirements_gate(camp.summary, camp.gate_results, limits, all_requirements=True,
-                               roles=roles_of_stored(meta.get("config")),
-                               coverage=camp.coverage, allow_errors=args.allow_errors,
-                               allow_incomplete=args.allow_incomplete)
+    result = camp.gate(limits, all_requirements=True, allow_errors=args.allow_errors,
+                       allow_incomplete=args.allow_incomplete)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .evidence import fa_probability_checks
 

@@ -388,7 +388,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
         bar = Progress(budget, enabled=progress, log=log)
         while batch := strategy.ask():
             phase = strategy.phase
-            rows = explicit_plan(config, space.decode(space.vectors(batch)))
+            # on the campaign prepare resolved: its plant is not built again per batch
+            rows = explicit_plan(setup.campaign, space.decode(space.vectors(batch)))
             results = evaluate_rows(setup, rows, detectors, log=log)
             if not state["done"]:
                 _check_variant(results, label, config)

@@ -163,10 +163,12 @@ def _corpus_rows(config, paths) -> tuple[pd.DataFrame, list[Path]]:
     by several once, at its first file) and, per row, the file that holds it."""
     from ..config import load_config
     from ..design import explicit_plan
+    from ..plant_setup import as_resolved
 
+    campaign = as_resolved(config)       # resolved once for every file of the corpus
     frames, files = [], []
     for path in paths:
-        rows = explicit_plan(config, load_config(Path(path)).runs)
+        rows = explicit_plan(campaign, load_config(Path(path)).runs)
         frames.append(rows)
         files += [path] * len(rows)
     rows = pd.concat(frames, ignore_index=True)
