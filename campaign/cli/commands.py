@@ -207,9 +207,11 @@ def _plan_one(config, out: Path) -> None:
     from ..design import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
     from ..store.directory import CampaignDir
 
+    from ..plant_setup import resolve
     from ..runner import remove_created, start_state
 
-    blocks = PlanBlocks(config)
+    campaign = resolve(config)          # once, for the run table and the learning set
+    blocks = PlanBlocks(campaign)
     cdir = CampaignDir(out)
     existed, fresh = start_state(out)
     with cdir.locked():
@@ -224,7 +226,7 @@ def _plan_one(config, out: Path) -> None:
             if fresh:
                 remove_created(out, existed)
             raise
-    learning = build_learning_plan(config)
+    learning = build_learning_plan(campaign)
     counts = plan_counts(cdir.plan_batches(columns=["group", "fault", "manoeuvre"]))
     free = int(counts.loc[counts["fault"] == "none", "runs"].sum())
     total = int(counts["runs"].sum())
