@@ -56,7 +56,7 @@ from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_le
 from .certify_rows import CertifyRows
 from ..design import run_id, variable_ranges
 from ..execute import one_blas_thread
-from ..store.directory import SAMPLING_DIR, CampaignDir  # noqa: F401  (SAMPLING_DIR: interface)
+from ..store.directory import SAMPLING_DIR, CampaignDir
 from .hazard import per_hour
 from .rare import P0
 
