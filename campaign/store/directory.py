@@ -76,6 +76,7 @@ from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of
                     write_parquet, write_parquet_blocks, write_text)
 
 __all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
+           "SearchDir",
            "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
            "write_text"]
 
@@ -362,6 +363,35 @@ def _plan_ordered(rows: pd.DataFrame, stored_order: bool = False,
     rows = rows.sort_values(["_pos"] if stored_order else ["_pos", "detector"], kind="stable")
     rows = rows.rename(columns={"_pos": "plan_pos"}) if positions else rows.drop(columns="_pos")
     return rows.reset_index(drop=True)
+
+
+class SearchDir:
+    """One worst-case search directory (``fdd-campaign falsify --out DIR``, and each search
+    of ``gate --worst-case`` under a campaign directory's ``worst-case/``,
+    :meth:`CampaignDir.worst_case_search_dir`): the only code that names and writes its
+    files — every evaluated run (``search.parquet``), the plain Monte Carlo it is compared
+    with (``monte-carlo.parquet``), the fitted detectors' runner directory (``learned/``)
+    and, written last, the campaign file replaying the worst runs (``worst.toml``)."""
+
+    def __init__(self, root):
+        self.root = Path(root)
+        self.search_path = self.root / SEARCH_FILE
+        self.worst_path = self.root / WORST_FILE
+        self.monte_carlo_path = self.root / "monte-carlo.parquet"
+        self.learned = self.root / "learned"
+
+    def write_search(self, search: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``search.parquet`` (*extra* into its metadata)."""
+        write_parquet(search, self.search_path, config_json, kind="falsify-search", **extra)
+
+    def write_monte_carlo(self, runs: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``monte-carlo.parquet`` (*extra* into its metadata)."""
+        write_parquet(runs, self.monte_carlo_path, config_json, kind="falsify-mc", **extra)
+
+    def write_worst(self, text: str) -> None:
+        """Write ``worst.toml``, atomically: a directory holding it holds a finished
+        search."""
+        write_text(self.worst_path, text)
 
 
 class CampaignDir:

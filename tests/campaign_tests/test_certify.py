@@ -353,67 +353,16 @@ def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsy
 
 
 # ---- one writer of a campaign directory ------------------------------------------------------
-#: The directory whose writes the audit hook records (None: it records nothing), and what it
-#: found: (path, the project frame that wrote it) of each write made outside CampaignDir.
-_AUDITED: dict = {"root": None, "outside": []}
-#: Modules of campaign.store through which a write into a campaign directory may pass.
-_WRITERS = ("campaign/store/directory.py", "campaign/store/lock.py")
-
-
-def _written_path(event: str, args) -> str | None:
-    """The path a file event writes (os.replace/rename: its destination; open: a file opened
-    for writing), else None."""
-    import os
-
-    if event == "os.rename":
-        return os.fspath(args[1])
-    if event == "open" and isinstance(args[0], (str, bytes, os.PathLike)):
-        mode, flags = args[1], args[2]
-        writes = (any(c in mode for c in "wax+") if isinstance(mode, str)
-                  else bool(flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT)))
-        return os.fspath(args[0]) if writes else None
-    return None
-
-
-def _audit(event: str, args) -> None:
-    import os
-    import sys
-
-    root = _AUDITED["root"]
-    if root is None or event not in ("open", "os.rename"):
-        return
-    path = _written_path(event, args)
-    if path is None or isinstance(path, bytes):
-        return
-    path = os.path.abspath(path)
-    if not path.startswith(root):
-        return
-    frame, names = sys._getframe(1), []
-    while frame is not None:
-        names.append(frame.f_code.co_filename.replace(os.sep, "/"))
-        frame = frame.f_back
-    if not any(name.endswith(_WRITERS) for name in names):
-        project = next((n for n in names if "/campaign/" in n or "/reports/" in n), names[0])
-        _AUDITED["outside"].append((os.path.relpath(path, root), project))
-
-
 def test_only_the_campaign_directory_writes_into_it(constructed, capsys):
     # certify --sampling (the subset simulation's batches and levels) and --validate (a
     # campaign of its own under validation/ and its coverage table) write through
     # CampaignDir; an audit hook records any file written into the directory otherwise
-    import os
-    import sys
+    from directory_audit import writes_outside_the_store
 
     out, _, _ = constructed
-    if not getattr(sys, "_fdd_directory_audit", False):
-        sys.addaudithook(_audit)          # a hook cannot be removed: it stays idle after
-        sys._fdd_directory_audit = True
-    _AUDITED.update(root=os.path.abspath(out) + os.sep, outside=[])
-    try:
+    with writes_outside_the_store(out) as found:
         assert main(["certify", str(out), "--sampling", "100", "--jobs", "1", "--levels",
                      "0.95,0.9", "--validate", "100", "--validate-seed", "12"]) == 0
-    finally:
-        found, _AUDITED["root"] = list(_AUDITED["outside"]), None
     written = {p.relative_to(out).parts[0] for p in out.rglob("*.parquet")}
-    assert {"sampling", "validation"} <= written     # the audit saw those writes happen
+    assert {"sampling", "validation"} <= written     # those writes did happen
     assert found == []
