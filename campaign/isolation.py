@@ -4,10 +4,11 @@ than detection, the fault types it covers, the detection system it belongs to (:
 A detector that declares the plant surfaces whose faults it detects
 (:attr:`detectors.base.Capabilities.fault_surfaces`, e.g. ``vanek-geometric``: the left inboard
 aileron) must raise no alarm on a fault of any other surface: in a campaign whose runs fault
-another surface (the run rows' ``surface``, :attr:`campaign.plant_setup.ResolvedCampaign.surface`), its alarms
-after onset are isolation failures, which the gate reports as such
-(:func:`reports.gate.evaluate_gate`, ``isolation``), and its missed-detection and DTP limits
-do not apply there. Fault-free runs and alarms before onset are scored as for any detector.
+another surface (the run rows' ``surface``,
+:attr:`campaign.plant_setup.ResolvedCampaign.surface`), its alarms after onset are isolation
+failures, which the gate reports as such (:func:`reports.gate.evaluate_gate`,
+``isolation``), and its missed-detection and DTP limits do not apply there. Fault-free runs
+and alarms before onset are scored as for any detector.
 """
 
 from __future__ import annotations
@@ -40,10 +41,10 @@ def _stored_config(config_dict: Mapping | None):
 @dataclass(frozen=True)
 class Roles:
     """What each detector of a campaign is held to, beyond false alarms: the surface it must
-    stay silent on (:attr:`isolation`, :func:`campaign.plant_setup.isolation_map`), the fault types it is designed
-    to detect (:meth:`coverage`) and the detection system whose member it is
-    (:meth:`system_of`), by result name (``label`` or ``label[variant]``, a system's name).
-    Built from a campaign's configuration by :func:`roles_of`."""
+    stay silent on (:attr:`isolation`, :func:`campaign.plant_setup.isolation_map`), the
+    fault types it is designed to detect (:meth:`coverage`) and the detection system whose
+    member it is (:meth:`system_of`), by result name (``label`` or ``label[variant]``, a
+    system's name). Built by :func:`roles_of`."""
 
     isolation: dict = field(default_factory=dict)
     #: label → the detector built from the campaign file (unfitted: coverage reads its

@@ -634,8 +634,8 @@ def print_floor(floor: dict, echo=print) -> None:
 # ---- back to back with a yardstick -------------------------------------------------------------
 def _yardstick_command(yardstick: str | None, cwd: str | None, pairs: int,
                        campaigns: list[str]) -> list[str] | None:
-    """The yardstick's argument list, checked before any work (:class:`ArgumentError` naming the fix;
-    *pairs* is checked with the other counts by :func:`bench`)."""
+    """The yardstick's argument list, checked before any work (:class:`ArgumentError`
+    naming the fix; *pairs* is checked with the other counts by :func:`bench`)."""
     if yardstick is None:
         if cwd is not None:
             raise ArgumentError.of("yardstick_dir", None, "without {yardstick}: name the "

@@ -43,7 +43,8 @@ def test_other_arguments_in_the_text_follow_the_caller():
     exc = ArgumentError.of("yardstick_dir", None, "without {yardstick}", None,
                            "name {yardstick} too")
     assert str(exc) == "yardstick_dir without yardstick; fix: name yardstick too"
-    assert exc.for_command_line() == "--yardstick-dir without --yardstick; fix: name --yardstick too"
+    assert exc.for_command_line() == ("--yardstick-dir without --yardstick; fix: name "
+                                      "--yardstick too")
     value = ArgumentError.of("duration_s", 5.0, "too short", 60.0)
     assert str(value) == "duration_s=5.0: too short; fix: e.g. duration_s=60.0"
     assert value.for_command_line({"duration_s": "--duration"}) == (
