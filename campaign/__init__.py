@@ -10,9 +10,9 @@ from __future__ import annotations
 __all__ = ["Campaign", "Certificate", "load", "run"]
 
 
-def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
-        backend: str | None = None, scheduler: str | None = None, tls=None,
-        engine: str | None = None, fitted_from=None, log=None):
+def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, seed: int | None = None,
+        progress: bool = True, backend: str | None = None, scheduler: str | None = None,
+        tls=None, engine: str | None = None, fitted_from=None, log=None):
     """Run *config* (a :class:`campaign.config.CampaignConfig`) into directory *out*,
     resuming what it already holds; returns its :class:`Campaign`.
 
@@ -21,6 +21,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     jobs : local workers (1 runs in-process)
     chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``;
         results do not depend on it)
+    seed : the campaign seed (default: the campaign file's ``[campaign] seed``)
     progress : print a progress line with rate and ETA on stderr
     backend : ``"threading"`` or ``"loky"`` local workers (default: threading, or loky for
         ``[runner] run_timeout_s`` or an FMU plant)
@@ -36,7 +37,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     """
     from .runner import run as _run
 
-    return _run(config, out, jobs=jobs, chunk_size=chunk_size, progress=progress,
+    return _run(config, out, jobs=jobs, chunk_size=chunk_size, seed=seed, progress=progress,
                 backend=backend, scheduler=scheduler, tls=tls, engine=engine,
                 fitted_from=fitted_from, log=log)
 

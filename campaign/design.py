@@ -38,7 +38,7 @@ from scenarios.memory import release_freed_memory
 from scenarios.runs import DEFAULT_MANOEUVRE_SET
 
 from .config import ConfigError
-from .plant_setup import run_actuator, run_surface
+from .plant_setup import as_resolved
 
 #: Version of the simulated models: part of every run id, so a model change never reuses
 #: results computed with the previous model (a directory planned with another version is
@@ -183,10 +183,11 @@ def variable_ranges(config) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray,
+def _fill_runs(campaign, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray,
                duration: float, manoeuvre_set: str) -> pd.DataFrame:
-    """Add fault, onset and fixed-point columns to the flight-point rows of one cell."""
-    act = run_actuator(config)
+    """Add fault, onset and fixed-point columns to the flight-point rows of one cell
+    (*campaign*: the :class:`campaign.plant_setup.ResolvedCampaign`)."""
+    config, act = campaign.config, campaign.actuator
     ts = config.campaign.ts_s
     n = len(frame)
     fl = config.faults
@@ -211,7 +212,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
     start = getattr(group, "manoeuvre_start_s", None)
     out = frame.copy()
     out.insert(0, "group", group.name)
-    out["surface"] = run_surface(config)
+    out["surface"] = campaign.surface
     out["manoeuvre"] = manoeuvre
     out["fault"] = group.fault
     out["onset_s"] = onset
@@ -232,7 +233,7 @@ def _fill_runs(config, group, manoeuvre, frame: pd.DataFrame, u_rest: np.ndarray
 MC_SEARCH_DOUBLINGS = 6
 
 
-def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
+def _mc_cell(campaign, group, manoeuvre, n: int, cell_key: int, duration: float,
              manoeuvre_set: str, block_rows: int | None = None) -> Iterator[pd.DataFrame]:
     """The runs (without ids, seeds or streams) of one ``mc`` cell, consecutive frames of at
     most *block_rows* rows: the first *n* points of the cell's sequence that the
@@ -241,6 +242,7 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
     of any size holds one block of draws at once.
     The frames do not depend on *block_rows*: each point's values, verdict and run are its
     own (elementwise arithmetic)."""
+    config = campaign.config
     ranges = variable_ranges(config)
     n_flight = len(envelope.FLIGHT_COLUMNS)
     cap = max(4 * n, 16) << MC_SEARCH_DOUBLINGS
@@ -268,11 +270,13 @@ def _mc_cell(config, group, manoeuvre, n: int, cell_key: int, duration: float,
         pts["level"] = "mc"
         pts["point"] = -1
         found += idx.size
-        yield _fill_runs(config, group, manoeuvre, pts, u[idx][:, -4:], duration, manoeuvre_set)
+        yield _fill_runs(campaign, group, manoeuvre, pts, u[idx][:, -4:], duration,
+                         manoeuvre_set)
 
 
-def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float,
+def _grid_cell(campaign, group, manoeuvre, cell_key: int, duration: float,
                manoeuvre_set: str) -> pd.DataFrame:
+    config = campaign.config
     env = config.envelope
     table = envelope.GridTable(**{c: tuple(getattr(env, c)) for c in envelope.FLIGHT_COLUMNS})
     pts = envelope.realistic_rule(envelope.grid_points(table), config.uncertainty)
@@ -288,10 +292,10 @@ def _grid_cell(config, group, manoeuvre, cell_key: int, duration: float,
         rows.append(block)
     frame = pd.concat(rows, ignore_index=True)
     u = _unit_samples(len(frame), config, cell_key)
-    return _fill_runs(config, group, manoeuvre, frame, u[:, -4:], duration, manoeuvre_set)
+    return _fill_runs(campaign, group, manoeuvre, frame, u[:, -4:], duration, manoeuvre_set)
 
 
-def explicit_rows(config, runs) -> pd.DataFrame:
+def explicit_rows(campaign, runs) -> pd.DataFrame:
     """Run-table rows (no ``run_id``, ``seed`` or ``stream`` yet, but the run's own stream
     under ``explicit_stream``) of explicit runs: the ``[[run]]`` entries of a campaign
     file, or any objects or dicts with their keys (``fdd-campaign falsify`` builds its
@@ -300,7 +304,12 @@ def explicit_rows(config, runs) -> pd.DataFrame:
 
     Every value is taken as given; draw columns left out are 0, ``level`` is ``"run"``,
     ``point`` −1, ``realistic`` the verdict of the realistic-envelope rule
-    (:func:`scenarios.envelope.realistic_rule`) and ``duration_s`` the campaign's."""
+    (:func:`scenarios.envelope.realistic_rule`) and ``duration_s`` the campaign's.
+    *campaign*: a :class:`campaign.plant_setup.ResolvedCampaign` or a configuration (resolved
+    here)."""
+    campaign = as_resolved(campaign)
+    config = campaign.config
+
     def get(run, name):
         return run.get(name) if isinstance(run, dict) else getattr(run, name)
 
@@ -310,7 +319,7 @@ def explicit_rows(config, runs) -> pd.DataFrame:
     rows = []
     for run in runs:
         draws = dict(get(run, "draws") or ())
-        row = {"group": get(run, "group"), "surface": run_surface(config),
+        row = {"group": get(run, "group"), "surface": campaign.surface,
                "manoeuvre": get(run, "manoeuvre"), "fault": get(run, "fault"),
                "onset_s": number(get(run, "onset_s")),
                "magnitude": number(get(run, "magnitude")),
@@ -329,10 +338,12 @@ def explicit_rows(config, runs) -> pd.DataFrame:
     return frame
 
 
-def explicit_plan(config, runs) -> pd.DataFrame:
+def explicit_plan(campaign, runs) -> pd.DataFrame:
     """The run table (columns :data:`PLAN_COLUMNS`, run ids filled) of the explicit runs
-    *runs* alone (:func:`explicit_rows`); two equal runs keep the same run id."""
-    return _finish_block(explicit_rows(config, runs), config.campaign.seed, 0)
+    *runs* alone (:func:`explicit_rows`; *campaign* resolved or a configuration); two equal
+    runs keep the same run id."""
+    campaign = as_resolved(campaign)
+    return _finish_block(explicit_rows(campaign, runs), campaign.seed, 0)
 
 
 #: Rows whose run ids are computed from one list of row dicts [rows]: the dicts (about 3 KB
@@ -423,25 +434,29 @@ class PlanBlocks:
     a plan of any size is written (:meth:`campaign.store.directory.CampaignDir.write_plan`)
     with one block in memory. ``rows``, the number of rows, is known before the first block.
     The rows do not depend on *block_rows* (:func:`_mc_cell`). Once every block is read,
-    :meth:`check` refuses two rows that describe the same run (:class:`DuplicateRuns`)."""
+    :meth:`check` refuses two rows that describe the same run (:class:`DuplicateRuns`).
+    *campaign*: a :class:`campaign.plant_setup.ResolvedCampaign` or a configuration
+    (resolved here, once)."""
 
-    def __init__(self, config, block_rows: int = PLAN_BLOCK_ROWS):
-        self.config, self.block_rows = config, int(block_rows)
+    def __init__(self, campaign, block_rows: int = PLAN_BLOCK_ROWS):
+        self.campaign = campaign = as_resolved(campaign)
+        self.config = config = campaign.config
+        self.block_rows = int(block_rows)
         self._cells: list[tuple[int, Callable[[], Iterator[pd.DataFrame]]]] = []
         duration, mset = config.campaign.duration_s, config.manoeuvres.set
         cell = 0
         for group in config.groups:
             for manoeuvre in _manoeuvres(group.manoeuvres):
                 if config.campaign.design == "grid":       # a few hundred rows: made now
-                    frame = _grid_cell(config, group, manoeuvre, cell, duration, mset)
+                    frame = _grid_cell(campaign, group, manoeuvre, cell, duration, mset)
                     self._cells.append((len(frame), lambda frame=frame: iter([frame])))
                 else:
                     self._cells.append((group.count, lambda a=(group, manoeuvre, group.count,
                                                              cell, duration, mset):
-                                        _mc_cell(config, *a, block_rows=self.block_rows)))
+                                        _mc_cell(campaign, *a, block_rows=self.block_rows)))
                 cell += 1
         if config.runs:         # explicit runs after the groups' (whose streams stay 0…n−1)
-            frame = explicit_rows(config, config.runs)
+            frame = explicit_rows(campaign, config.runs)
             self._cells.append((len(frame), lambda frame=frame: iter([frame])))
         self.rows = sum(rows for rows, _ in self._cells)
         self._duplicates: DuplicateRuns | None = None    # the ids of the last iteration
@@ -473,19 +488,23 @@ class PlanBlocks:
             yield _finish_block(empty, self.config.campaign.seed, 0)
 
 
-def build_plan(config) -> pd.DataFrame:
-    """The evaluation run table of *config* (columns :data:`PLAN_COLUMNS`), in memory; a
-    campaign writes it block by block (:class:`PlanBlocks`)."""
-    plan = PlanBlocks(config)
+def build_plan(campaign) -> pd.DataFrame:
+    """The evaluation run table of *campaign* (columns :data:`PLAN_COLUMNS`; a
+    :class:`campaign.plant_setup.ResolvedCampaign` or a configuration), in memory; a campaign
+    writes it block by block (:class:`PlanBlocks`)."""
+    plan = PlanBlocks(campaign)
     blocks = list(plan)
     plan.check()
     return pd.concat(blocks, ignore_index=True)
 
 
-def build_learning_plan(config) -> pd.DataFrame:
-    """The fault-free learning set (its own design streams and simulation streams)."""
+def build_learning_plan(campaign) -> pd.DataFrame:
+    """The fault-free learning set (its own design streams and simulation streams) of
+    *campaign* (resolved, or a configuration)."""
     from types import SimpleNamespace
 
+    campaign = as_resolved(campaign)
+    config = campaign.config
     learn = config.learning
     duration = learn.duration_s or config.campaign.duration_s
     group = SimpleNamespace(name="learning", fault="none", onset_s=None, magnitude=None,
@@ -493,7 +512,7 @@ def build_learning_plan(config) -> pd.DataFrame:
     mset = config.manoeuvres.learning_set or config.manoeuvres.set
     frames = []
     for j, manoeuvre in enumerate(_manoeuvres(learn.manoeuvres)):
-        frames.extend(_mc_cell(config, group, manoeuvre, learn.runs_per_manoeuvre,
+        frames.extend(_mc_cell(campaign, group, manoeuvre, learn.runs_per_manoeuvre,
                                _LEARNING_KEY + j, duration, mset))
     plan = _finish_block(pd.concat(frames, ignore_index=True), config.campaign.seed,
                          LEARNING_STREAM_BASE)

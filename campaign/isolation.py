@@ -4,10 +4,11 @@ than detection, the fault types it covers, the detection system it belongs to (:
 A detector that declares the plant surfaces whose faults it detects
 (:attr:`detectors.base.Capabilities.fault_surfaces`, e.g. ``vanek-geometric``: the left inboard
 aileron) must raise no alarm on a fault of any other surface: in a campaign whose runs fault
-another surface (the run rows' ``surface``, :func:`campaign.plant_setup.run_surface`), its alarms
-after onset are isolation failures, which the gate reports as such
-(:func:`reports.gate.evaluate_gate`, ``isolation``), and its missed-detection and DTP limits
-do not apply there. Fault-free runs and alarms before onset are scored as for any detector.
+another surface (the run rows' ``surface``,
+:attr:`campaign.plant_setup.ResolvedCampaign.surface`), its alarms after onset are isolation
+failures, which the gate reports as such (:func:`reports.gate.evaluate_gate`,
+``isolation``), and its missed-detection and DTP limits do not apply there. Fault-free runs
+and alarms before onset are scored as for any detector.
 """
 
 from __future__ import annotations
@@ -18,39 +19,7 @@ from dataclasses import dataclass, field
 
 from detectors.base import Coverage
 
-__all__ = ["Roles", "isolation_of", "isolation_of_stored", "roles_of", "roles_of_stored"]
-
-
-def isolation_of(config) -> dict[str, str]:
-    """Detector label → the surface whose faults it must not alarm on, for each detector of
-    *config* whose declared fault surfaces do not include the campaign's faulty surface
-    (empty: every detector is scored for detection). A detector whose class cannot be
-    imported here (a plugin no longer installed when a finished campaign is gated) declares
-    nothing and is scored for detection."""
-    from detectors.registry import DetectorSpecError, load_detector_class
-
-    from .plant_setup import run_surface
-
-    surface = run_surface(config)
-    out = {}
-    for d in config.detectors:
-        try:
-            capabilities = load_detector_class(d.name).capabilities
-        except DetectorSpecError:
-            continue
-        declared = tuple(getattr(capabilities, "fault_surfaces", ()) or ())
-        if declared and surface not in declared:
-            out[d.label] = surface
-    return out
-
-
-def isolation_of_stored(config_dict: Mapping | None) -> dict[str, str]:
-    """:func:`isolation_of` for the configuration stored with a campaign's results (its
-    JSON form); empty when there is none. The stored file was validated when it ran; the
-    one-line notes a reload may give (old spellings) are not repeated here. A stored
-    configuration this version cannot read (an older directory) gives none either."""
-    config = _stored_config(config_dict)
-    return {} if config is None else isolation_of(config)
+__all__ = ["Roles", "roles_of"]
 
 
 def _stored_config(config_dict: Mapping | None):
@@ -72,10 +41,10 @@ def _stored_config(config_dict: Mapping | None):
 @dataclass(frozen=True)
 class Roles:
     """What each detector of a campaign is held to, beyond false alarms: the surface it must
-    stay silent on (:attr:`isolation`, :func:`isolation_of`), the fault types it is designed
-    to detect (:meth:`coverage`) and the detection system whose member it is
-    (:meth:`system_of`), by result name (``label`` or ``label[variant]``, a system's name).
-    Built from a campaign's configuration by :func:`roles_of`."""
+    stay silent on (:attr:`isolation`, :func:`campaign.plant_setup.isolation_map`), the
+    fault types it is designed to detect (:meth:`coverage`) and the detection system whose
+    member it is (:meth:`system_of`), by result name (``label`` or ``label[variant]``, a
+    system's name). Built by :func:`roles_of`."""
 
     isolation: dict = field(default_factory=dict)
     #: label → the detector built from the campaign file (unfitted: coverage reads its
@@ -107,22 +76,31 @@ class Roles:
         return None
 
 
-def roles_of(config) -> Roles:
-    """The :class:`Roles` of the detectors and systems of *config*."""
+def roles_of(source) -> Roles:
+    """The :class:`Roles` of the detectors and systems of a campaign, the one way to them:
+    *source* is its :class:`campaign.plant_setup.ResolvedCampaign` (its isolation map as
+    resolved), its configuration (resolved here), or the configuration stored with its
+    results in JSON form (``campaign.json``, ``meta["config"]``; none, or one this version
+    cannot read — an older directory —, gives no roles; the one-line notes a reload may give,
+    old spellings, are not repeated: the stored file was validated when it ran). A detector
+    whose class cannot be imported here (a plugin no longer installed when a finished
+    campaign is gated) declares nothing: scored for detection, every fault type."""
     from detectors.registry import DetectorSpecError, make_detector
 
+    from .plant_setup import ResolvedCampaign, as_resolved
+
+    if source is None or (isinstance(source, Mapping)
+                          and not isinstance(source, ResolvedCampaign)):
+        source = _stored_config(source)
+        if source is None:
+            return Roles()
+    campaign = as_resolved(source)
+    config = campaign.config
     built = {}
     for d in config.detectors:
         try:
             built[d.label] = make_detector(d.name, d.params_dict())
         except (DetectorSpecError, ValueError, TypeError):
             continue
-    return Roles(isolation=isolation_of(config), detectors=built,
+    return Roles(isolation=dict(campaign.isolation), detectors=built,
                  systems={s.name: tuple(s.members) for s in config.systems})
-
-
-def roles_of_stored(config_dict: Mapping | None) -> Roles:
-    """:func:`roles_of` for the configuration stored with a campaign's results (its JSON
-    form), as :func:`isolation_of_stored` reads it; no roles when there is none."""
-    config = _stored_config(config_dict)
-    return Roles() if config is None else roles_of(config)

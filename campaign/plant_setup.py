@@ -1,9 +1,14 @@
-"""The campaign's plant, built once from its configuration (docs/design.md §4, Contracts).
+"""The campaign resolved once: its configuration with its plant and what follows from them
+(docs/design.md §4, Contracts).
 
-:func:`plant_of` turns the campaign file's ``[plant]`` section into a
-:class:`scenarios.plants.Plant`; :func:`run_surface` and :func:`run_actuator` give the run
-rows' surface and its nominal actuator table; :func:`detector_problems` is the compatibility
-check of the configured detectors against that plant (:func:`detectors.compat.incompatibilities`).
+:func:`resolve` turns a configuration into a :class:`ResolvedCampaign` — the plant its
+``[plant]`` section names (:func:`plant_of`, built here and nowhere else), the run rows'
+surface and its nominal actuator table, the detector classes and the isolation map — built
+once when a campaign is set up and handed down to the run table, the learning set, the
+workers and the gate; :func:`as_resolved` lets a function that takes either resolve a raw
+configuration once at its entry. :func:`run_surface` and :func:`run_actuator` give the surface
+and actuator of a built plant; :func:`detector_problems` is the compatibility check of the
+configured detectors against that plant (:func:`detectors.compat.incompatibilities`).
 :func:`fmu_sha256` is the digest of an FMU plant's file, recorded with the results, and
 :func:`replay_plant` the plant that the readers of a campaign directory (``report``,
 ``show``) re-simulate on: never an FMU the directory names, only one named on the command
@@ -12,7 +17,7 @@ line whose digest matches (docs/security.md).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from detectors.compat import incompatibilities, offline_problems
@@ -38,26 +43,108 @@ def plant_of(config) -> Plant:
     return plant
 
 
-def run_surface(config, plant: Plant | None = None) -> str:
-    """The ``surface`` column of the campaign's run rows."""
-    plant = plant or plant_of(config)
+def run_surface(config, plant: Plant) -> str:
+    """The ``surface`` column of the campaign's run rows, on its built *plant*."""
     return plant.run_surface(config.campaign.surface, config.plant.monitored_surface)
 
 
-def run_actuator(config, plant: Plant | None = None) -> ActuatorParams:
-    """Nominal actuator table of the simulated (monitored) surface."""
-    plant = plant or plant_of(config)
+def run_actuator(config, plant: Plant) -> ActuatorParams:
+    """Nominal actuator table of the simulated (monitored) surface of the built *plant*."""
     return plant.actuator(run_surface(config, plant))
 
 
-def detector_problems(config, capabilities: dict, plant: Plant | None = None) -> list[str]:
+def detector_problems(config, capabilities: dict, plant: Plant) -> list[str]:
     """What keeps the detectors of *capabilities* (label → Capabilities) from running on the
-    campaign's plant, one message each (empty: all can run); a non-causal detector is
-    refused too (:func:`detectors.compat.offline_problems`)."""
-    plant = plant or plant_of(config)
+    campaign's built *plant*, one message each (empty: all can run); a non-causal detector
+    is refused too (:func:`detectors.compat.offline_problems`)."""
     return (incompatibilities(capabilities, plant, run_surface(config, plant),
                               pressure_sensor=config.campaign.pressure_sensor)
             + offline_problems(capabilities))
+
+
+def detector_classes(config) -> dict[str, type]:
+    """Label → the class of each ``[[detector]]`` entry of *config*; a label whose class
+    cannot be imported here (a plugin no longer installed when a finished campaign is gated)
+    is left out."""
+    from detectors.registry import DetectorSpecError, load_detector_class
+
+    out = {}
+    for d in config.detectors:
+        try:
+            out[d.label] = load_detector_class(d.name)
+        except DetectorSpecError:
+            continue
+    return out
+
+
+def isolation_map(surface: str, classes: dict[str, type]) -> dict[str, str]:
+    """Detector label → the surface whose faults it must not alarm on, for each class of
+    *classes* (label → class) whose declared fault surfaces
+    (:attr:`detectors.base.Capabilities.fault_surfaces`) do not include *surface*, the
+    campaign's faulty surface (empty: every detector is scored for detection;
+    :mod:`campaign.isolation`)."""
+    out = {}
+    for label, cls in classes.items():
+        declared = tuple(getattr(cls.capabilities, "fault_surfaces", ()) or ())
+        if declared and surface not in declared:
+            out[label] = surface
+    return out
+
+
+@dataclass(frozen=True)
+class ResolvedCampaign:
+    """A campaign's configuration and what follows from it, built once (:func:`resolve`)
+    and handed down: nothing downstream builds the plant or re-derives these again.
+
+    config : the :class:`campaign.config.CampaignConfig` (its seed the one the runs use)
+    plant : the built :class:`scenarios.plants.Plant` (:func:`plant_of`)
+    surface : the run rows' ``surface`` (:func:`run_surface`)
+    actuator : the nominal actuator table of that surface (:func:`run_actuator`)
+    detector_classes : label → detector class (:func:`detector_classes`)
+    isolation : label → the surface it must stay silent on (:func:`isolation_map`)
+    chunk_size : runs per chunk [runs] (the run's argument or ``[runner] chunk_size``)
+    """
+
+    config: object
+    plant: Plant
+    surface: str
+    actuator: ActuatorParams
+    detector_classes: dict = field(default_factory=dict)
+    isolation: dict = field(default_factory=dict)
+    chunk_size: int | None = None
+
+    @property
+    def seed(self) -> int:
+        """The campaign seed (``[campaign] seed``, or the one :func:`resolve` was given)."""
+        return int(self.config.campaign.seed)
+
+
+def resolve(config, *, seed: int | None = None, chunk_size: int | None = None,
+            plant: Plant | None = None) -> ResolvedCampaign:
+    """The :class:`ResolvedCampaign` of *config*: its plant built once (:func:`plant_of`,
+    unless the built *plant* is given) and everything that follows from it. *seed* replaces
+    ``[campaign] seed`` (:func:`campaign.config.with_overrides`: part of the campaign, so of
+    its run ids); *chunk_size* (default ``[runner] chunk_size``; checked by the runner,
+    :func:`campaign.runner.check_run_options`) is how the runs are cut, never part of
+    them."""
+    if seed is not None and int(seed) != int(config.campaign.seed):
+        from .config import with_overrides
+
+        config = with_overrides(config, seed=seed)
+    plant = plant or plant_of(config)
+    surface = run_surface(config, plant)
+    classes = detector_classes(config)
+    return ResolvedCampaign(
+        config=config, plant=plant, surface=surface, actuator=plant.actuator(surface),
+        detector_classes=classes, isolation=isolation_map(surface, classes),
+        chunk_size=config.runner.chunk_size if chunk_size is None else chunk_size)
+
+
+def as_resolved(campaign) -> ResolvedCampaign:
+    """*campaign* itself when it is a :class:`ResolvedCampaign`, else the configuration
+    *campaign* resolved (:func:`resolve`): what a function that takes either does once at
+    its entry."""
+    return campaign if isinstance(campaign, ResolvedCampaign) else resolve(campaign)
 
 
 def fmu_sha256(plant: Plant) -> str | None:

@@ -31,19 +31,17 @@ import numpy as np
 import pandas as pd
 
 from reports.figures import bin_max, figure_png, render_png, run_figure
-from reports.gate import requirements_gate
 from reports.html import ReportFigure, drilldown_section, render_report, show_command
 from reports.metrics import FAULT_FREE
 from reports.summary import detector_order
 from reports.table import error_lines
 from scenarios import compiled as kernels
 from scenarios.envelope import FLIGHT_COLUMNS
+from scenarios.errors import ArgumentError
 
-from .cli.common import UsageError
 from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .evidence.hazard import report_section
-from .isolation import roles_of
 from .evidence.figures import evidence_figure_specs
 from .plant_setup import replay_plant
 from .result import Campaign, load
@@ -363,11 +361,9 @@ def runs_table(camp: Campaign) -> pd.DataFrame:
 
 
 def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
-    """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
-    (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
-    return requirements_gate(camp.summary, camp.gate_results, req,
-                             roles=roles_of(camp.config), coverage=camp.coverage,
-                             all_requirements=all_requirements)
+    """:meth:`Campaign.gate <campaign.result.Campaign.gate>` as ``fdd-campaign gate DIR``
+    asks it (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
+    return camp.gate(req, all_requirements=all_requirements)
 
 
 @dataclass
@@ -548,10 +544,10 @@ def build_report(directory, *, out=None, jobs: int = 2, settings: ReportSettings
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     cfg = settings or ReportSettings()
     if jobs < 1:
-        raise UsageError(f"--jobs must be ≥ 1, got {jobs}")
+        raise ArgumentError.of("jobs", jobs, "must be ≥ 1 (local workers)", 2)
     if cfg.envelope_runs is not None and cfg.envelope_runs < 1:
-        raise UsageError(f"--envelope-runs must be ≥ 1 (or omitted for all runs), got "
-                         f"{cfg.envelope_runs}")
+        raise ArgumentError.of("envelope_runs", cfg.envelope_runs,
+                               "must be ≥ 1 (or left out for all runs)", 50)
     t0 = time.perf_counter()
     say = _StageLog(progress, t0)
     data = _read_report_data(directory, cfg, requirements, fmu, log)

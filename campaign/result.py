@@ -13,6 +13,7 @@ metadata are read at once (a few kB). Everything is read through
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -186,7 +187,7 @@ class Campaign:
                 raise TypeError(f"Campaign: unknown part {name!r}")
             self.__dict__[name] = value
 
-    _LAZY = ("config", "plan", "results", "gate_results", "detection_times")
+    _LAZY = ("config", "plan", "results", "gate_results", "detection_times", "roles")
 
     @classmethod
     def of_dir(cls, cdir: CampaignDir, **known) -> Campaign:
@@ -258,6 +259,37 @@ class Campaign:
         return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
 
     @cached_property
+    def roles(self):
+        """What each detector is held to besides false alarms (:class:`campaign.isolation.Roles`:
+        isolation, coverage, systems), from the configuration stored with the results
+        (:func:`campaign.isolation.roles_of`); a run that just finished hands over those of
+        the campaign it resolved."""
+        from .isolation import roles_of
+
+        return roles_of(self.meta.get("config"))
+
+    def gate(self, requirements=None, *, all_requirements: bool = False,
+             allow_errors: bool = False, allow_incomplete: bool = False):
+        """The gate of this campaign (:func:`reports.gate.requirements_gate`), the one way
+        to gate: ``fdd-campaign gate``, ``run``'s verdict and the report all ask it.
+
+        *requirements*: the ``[requirements]`` to gate against in their JSON form (default:
+        the campaign's own); *all_requirements*: also the MD and DTP limits (``gate
+        --all-requirements``); *allow_errors*, *allow_incomplete*: as ``gate
+        --allow-errors``, ``--allow-incomplete``. Reads :attr:`summary`,
+        :attr:`gate_results`, :attr:`roles` and :attr:`coverage` of *self* (also of an
+        object that stands for a campaign with other rows, e.g. at other threshold
+        scales)."""
+        from reports.gate import requirements_gate
+
+        if requirements is None:
+            requirements = self.config.to_dict()["requirements"]
+        return requirements_gate(self.summary, self.gate_results, requirements,
+                                 roles=self.roles, coverage=self.coverage,
+                                 all_requirements=all_requirements, allow_errors=allow_errors,
+                                 allow_incomplete=allow_incomplete)
+
+    @cached_property
     def detection_times(self) -> pd.DataFrame | None:
         """First alarm per group × detector variant (``detection-times.parquet``,
         :mod:`reports.detection_times`) of a fixed-onset campaign; None for others."""
@@ -291,7 +323,9 @@ class Campaign:
     # ---- read at once ----------------------------------------------------------------------
     @property
     def out(self) -> Path:
-        """The former name of :attr:`root` (of the object ``campaign.run`` returned)."""
+        """Deprecated former name of :attr:`root` (of the object ``campaign.run`` returned)."""
+        warnings.warn("Campaign.out is deprecated: use Campaign.root", DeprecationWarning,
+                      stacklevel=2)
         return self.root
 
     @property

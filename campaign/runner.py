@@ -33,7 +33,7 @@ from detectors.registry import load_detector_class
 from reports.detection_times import detection_time_table, fixed_onset_campaign
 from reports.summary import SummaryAccumulator
 from scenarios import compiled as kernels
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
@@ -45,8 +45,15 @@ from .plugins import (
     third_party,
 )
 from .evaluate import ChunkSettings, evaluate, failure_rows, simulate_signals
+from .isolation import roles_of
 from .execute import one_blas_thread
-from .plant_setup import detector_problems, fmu_sha256, plant_of
+from .plant_setup import (
+    ResolvedCampaign,
+    as_resolved,
+    detector_problems,
+    fmu_sha256,
+    resolve,
+)
 from .result import Campaign
 from .startup import start_up_done
 from .store.directory import CampaignDir, DirLock
@@ -54,6 +61,11 @@ from .store.directory import CampaignDir, DirLock
 
 class CampaignSetupError(InputError, ValueError):
     """The campaign cannot start (incompatible detector, bad directory, …)."""
+
+
+class RunOptionError(CampaignSetupError, ArgumentError):
+    """An argument of :func:`run` out of its range (*jobs*, *chunk_size*), named as Python
+    names it; ``fdd-campaign`` names its option (:class:`scenarios.errors.ArgumentError`)."""
 
 
 def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
@@ -186,10 +198,12 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
     return replace(signals, classes=learning["manoeuvre"].to_numpy(dtype=str))
 
 
-def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
+def fit_detectors(campaign, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
                   log=print, submit=None, workers: int = 1,
                   run_timeout_s: float | None = None, fit_submit=None) -> dict:
-    """Fit each detector on the learning set, or reload it when this directory has it.
+    """Fit each detector of *campaign* (its :class:`campaign.plant_setup.ResolvedCampaign`,
+    or its configuration, resolved here) on the learning set, or reload it when this
+    directory has it.
 
     Every detector fits on the same learning signals, read-only
     (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``;
@@ -205,10 +219,12 @@ def fit_detectors(config, cdir: CampaignDir, settings: ChunkSettings, chunk_size
     :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
     detector is then checked for batch invariance (:func:`check_batch_invariance`, under
     *run_timeout_s* when set)."""
+    campaign = as_resolved(campaign)
+    config = campaign.config
     detectors = build_detectors(config)
     _check_compatibility(config, detectors, settings.plant)
     names = {d.label: d.name for d in config.detectors}
-    learning = build_learning_plan(config)
+    learning = build_learning_plan(campaign)
     cdir.write_learning(learning, config.to_json())
     learning_signals = None
     outcomes: dict = {}     # label → Future of its fit, or a fitted (or reloaded) detector
@@ -372,24 +388,25 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
         label, det, failure = found
         raise CampaignSetupError(
             f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-            f"{failure}. Its results would depend on --chunk-size and on which runs "
+            f"{failure}. Its results would depend on the chunk size (chunk_size, "
+            "--chunk-size) and on which runs "
             "share a chunk, which [runner] must never change; fix: compute every "
             "run on its own (docs/write-a-detector.md, Signals and output) and check "
             "it with detectors.testing.check_detector")
 
 
-#: The former name of the object :func:`run` returns (:class:`campaign.result.Campaign`).
-CampaignResult = Campaign
-
-
-def settings_of(config) -> ChunkSettings:
-    """What the workers need of *config*, with its plant built once (:func:`plant_of`)."""
+def settings_of(campaign) -> ChunkSettings:
+    """What the workers need of *campaign* (its
+    :class:`campaign.plant_setup.ResolvedCampaign`, or its configuration, resolved here):
+    its built plant among them."""
+    campaign = as_resolved(campaign)
+    config = campaign.config
     return ChunkSettings(
         ts=config.campaign.ts_s,
         pressure_sensor=config.campaign.pressure_sensor,
         required_time_s=dict(config.requirements.detection_time_s),
         window_s=config.requirements.detection_window_s,
-        plant=plant_of(config),
+        plant=campaign.plant,
         engine=config.runner.engine,
     )
 
@@ -400,9 +417,10 @@ def check_plant(config, plant) -> None:
 
 
 @one_blas_thread()
-def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: bool = True,
-        backend: str | None = None, log=None, scheduler: str | None = None,
-        engine: str | None = None, tls=None, fitted_from=None) -> Campaign:
+def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, seed: int | None = None,
+        progress: bool = True, backend: str | None = None, log=None,
+        scheduler: str | None = None, engine: str | None = None, tls=None,
+        fitted_from=None) -> Campaign:
     """Run *config* into directory *out* (resuming what it already holds).
 
     Parameters
@@ -411,6 +429,8 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     out : output directory (created; must be empty or hold this same campaign)
     jobs : local workers (1 runs in-process)
     chunk_size : runs per chunk (default: the campaign file's ``[runner] chunk_size``)
+    seed : the campaign seed (default: the campaign file's ``[campaign] seed``); like
+        *chunk_size*, resolved with the campaign once (:func:`campaign.plant_setup.resolve`)
     progress : print a progress line with rate and ETA on stderr
     backend : local workers: ``"threading"`` (threads in this process; the compiled kernels
         release the GIL) or ``"loky"`` (worker processes: a dying worker or a run over
@@ -447,13 +467,14 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
     existed, fresh = start_state(root)
     setup = None
     try:
-        setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, backend=backend,
-                       scheduler=scheduler, engine=engine, log=log, tls=tls)
+        setup = _setup(config, out, jobs=jobs, chunk_size=chunk_size, seed=seed,
+                       backend=backend, scheduler=scheduler, engine=engine, log=log, tls=tls)
+        config = setup.campaign.config
         setup.cdir.check_model_version(MODEL_VERSION)
         # written as it is made, one block at a time; the chunks are read back from
         # plan.parquet: the plan is never held whole
         if not setup.cdir.has_plan():
-            n_planned = setup.cdir.write_plan(PlanBlocks(config), config.to_json(),
+            n_planned = setup.cdir.write_plan(PlanBlocks(setup.campaign), config.to_json(),
                                               MODEL_VERSION)
         else:
             n_planned = setup.cdir.planned_runs()
@@ -469,7 +490,7 @@ def run(config, out, *, jobs: int = 2, chunk_size: int | None = None, progress: 
         complete = _execute(config, setup, n_planned, detectors, progress=progress, log=log)
         release_freed_memory()     # what the chunks' signals took, before the summary
         return finalize(setup.cdir, config, None, complete, time.perf_counter() - t_start,
-                        fmu_sha256=setup.fmu_sha256)
+                        fmu_sha256=setup.fmu_sha256, roles=roles_of(setup.campaign))
     finally:
         setup.close()
 
@@ -558,8 +579,8 @@ class _Setup:
 
     cdir: CampaignDir
     resumed: bool
+    campaign: ResolvedCampaign   # the campaign resolved once (its chunk size among it)
     settings: ChunkSettings
-    chunk_size: int
     jobs: int
     backend: str
     client: object = None   # a distributed.Client, or None
@@ -567,6 +588,11 @@ class _Setup:
     lock: object = None     # the directory's held campaign.store.directory.DirLock
     run_timeout_s: float | None = None   # [runner] run_timeout_s, enforced on the pool
     fmu_sha256: str | None = None        # SHA-256 of an FMU plant's file (plant.fmu_sha256)
+
+    @property
+    def chunk_size(self) -> int:
+        """Runs per chunk [runs] (:attr:`ResolvedCampaign.chunk_size`)."""
+        return self.campaign.chunk_size
 
     def close(self) -> None:
         try:
@@ -582,7 +608,7 @@ class _Setup:
 def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
     """The chunk size a run uses (*chunk_size*, or ``[runner] chunk_size``), after checking
     it against the range of the schema's ``[runner] chunk_size`` (and *jobs* ≥ 1);
-    :class:`CampaignSetupError` (exit 2) names the option, its range and the fix."""
+    :class:`RunOptionError` (exit 2) names the argument, its range and the fix."""
     from dataclasses import fields
 
     from .config.sections import RunnerSection
@@ -591,29 +617,32 @@ def check_run_options(config, *, jobs: int, chunk_size: int | None) -> int:
     size = config.runner.chunk_size if chunk_size is None else chunk_size
     if (isinstance(size, bool) or not isinstance(size, (int, np.integer))
             or spec.out_of_range(size)):
-        raise CampaignSetupError(
-            f"--chunk-size {size!r}: out of range; allowed: an integer, "
+        raise RunOptionError.of(
+            "chunk_size", size, f"out of range; allowed: an integer, "
             f"{spec.range_text('chunk size')} runs ([runner] chunk_size, "
-            f"docs/campaign-file.md); fix: e.g. --chunk-size {int(spec.lower) * 100}, or leave it "
-            "out to use the campaign file's value")
+            "docs/campaign-file.md)", int(spec.lower) * 100,
+            "or leave it out to use the campaign file's value")
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
-        raise CampaignSetupError(f"--jobs {jobs!r}: must be an integer ≥ 1 (local workers); "
-                                 "fix: e.g. --jobs 2")
+        raise RunOptionError.of("jobs", jobs, "must be an integer ≥ 1 (local workers)", 2)
     return int(size)
 
 
 def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
-           tls=None) -> _Setup:
-    """Check the plant and the options, open the directory, warm the kernels and start the
-    local workers (they start while the learning set is simulated here)."""
+           tls=None, seed=None) -> _Setup:
+    """Check the options, resolve the campaign once (:func:`campaign.plant_setup.resolve`:
+    its plant built here, its seed and chunk size with it), check the plant, open the
+    directory, warm the kernels and start the local workers (they start while the learning
+    set is simulated here)."""
     from .execute import LocalPool, connect, time_limit_refusal
 
     size = check_run_options(config, jobs=jobs, chunk_size=chunk_size)
+    campaign = resolve(config, seed=seed, chunk_size=size)
+    config = campaign.config
     limit = config.runner.run_timeout_s
     refusal = time_limit_refusal(limit, backend=backend, scheduler=scheduler)
     if refusal:       # a limit is enforced or refused, never ignored
         raise CampaignSetupError(refusal)
-    settings = settings_of(config)
+    settings = settings_of(campaign)
     check_plant(config, settings.plant)
     if engine is not None:
         settings = replace(settings, engine=kernels.check_engine(engine))
@@ -627,8 +656,7 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
             "threads: use --backend loky (the default with an FMU plant) or --jobs 1")
     client = connect(scheduler, tls=tls, log=log) if scheduler else None   # fail fast
     cdir = CampaignDir(out)
-    setup = _Setup(cdir=cdir, resumed=False, settings=settings,
-                   chunk_size=size, jobs=jobs,
+    setup = _Setup(cdir=cdir, resumed=False, campaign=campaign, settings=settings, jobs=jobs,
                    backend=backend, client=client, run_timeout_s=limit,
                    fmu_sha256=fmu_sha256(settings.plant))
     try:
@@ -691,7 +719,7 @@ def _fitted(config, setup: _Setup, log, fitted_from=None) -> dict:
         threads = pool is not None and setup.backend == "threading"
         simulate_on_threads = threads and settings.plant.kind == "actuator"
         # the detectors that say so fit on the worker threads too, beside the others
-        return fit_detectors(config, setup.cdir, settings, setup.chunk_size, log=log,
+        return fit_detectors(setup.campaign, setup.cdir, settings, setup.chunk_size, log=log,
                              submit=pool.submit if simulate_on_threads else None,
                              workers=setup.jobs, run_timeout_s=setup.run_timeout_s,
                              fit_submit=pool.submit if threads else None)
@@ -767,7 +795,7 @@ def _execute(config, setup: _Setup, n_planned: int, detectors: dict, *, progress
 
 
 def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: bool,
-             wall_s: float, fmu_sha256: str | None = None) -> Campaign:
+             wall_s: float, fmu_sha256: str | None = None, roles=None) -> Campaign:
     """Read the shards in plan order, a batch of runs at a time, and write
     ``summary.parquet`` (its metadata also holds ``fitted_sha256``,
     :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and ``fitted_from``, the
@@ -814,5 +842,7 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
         times = detection_time_table(plan, pd.concat(alarm_parts, ignore_index=True))
         cdir.write_detection_times(times, config.to_json())
     known = {"plan": full} if full is not None else {}
+    if roles is not None:       # the resolved campaign's (campaign.isolation.roles_of)
+        known["roles"] = roles
     return Campaign.of_dir(cdir, wall_s=wall_s, detection_times=times,
                            gate_results=gate_results, **known)

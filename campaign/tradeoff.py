@@ -449,6 +449,12 @@ class _AtScales:
     def __getattr__(self, name):
         return getattr(self._camp, name)
 
+    def gate(self, *args, **kwargs):
+        """:meth:`campaign.result.Campaign.gate` on these summary and gate rows."""
+        from .result import Campaign
+
+        return Campaign.gate(self, *args, **kwargs)
+
 
 def at_threshold_scales(camp, scales: dict):
     """*camp* (a loaded :class:`campaign.result.Campaign`) with the detectors of *scales*

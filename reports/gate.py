@@ -192,7 +192,7 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
         detector of the summary is an error (GateInputError).
     isolation : dict or None
         Detector (result-row name or base label) → the surface of the campaign's faults,
-        which it must not alarm on (:func:`campaign.isolation.isolation_of`): its faulty
+        which it must not alarm on (:attr:`campaign.isolation.Roles.isolation`): its faulty
         runs are checked by :func:`_isolation_checks` instead of the missed-detection and
         DTP limits.
     roles : object or None

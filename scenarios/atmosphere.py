@@ -73,14 +73,7 @@ ISA_CONSTANTS = IsaConstants(
     alt_max_ft=65_000.0,
 )
 
-#: Convenience aliases of :data:`ISA_CONSTANTS` (same values, not stored twice).
-P0_PA: float = ISA_CONSTANTS.p0_Pa
-T0_K: float = ISA_CONSTANTS.T0_K
-RHO0_KGM3: float = ISA_CONSTANTS.rho0_kgm3
-LAPSE_K_PER_M: float = ISA_CONSTANTS.lapse_K_per_m
-TROPOPAUSE_M: float = ISA_CONSTANTS.tropopause_m
-KT_TO_MS: float = ISA_CONSTANTS.kt_ms
-FT_TO_M: float = ISA_CONSTANTS.ft_m
+#: Standard acceleration of gravity [m/s²] (:data:`ISA_CONSTANTS`, not stored twice).
 G0_MS2: float = ISA_CONSTANTS.g0_ms2
 
 

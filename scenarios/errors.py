@@ -13,7 +13,9 @@ caller's ``except ValueError`` still catches it.
 
 from __future__ import annotations
 
-__all__ = ["InputError"]
+import shlex
+
+__all__ = ["ArgumentError", "InputError"]
 
 
 class InputError(Exception):
@@ -21,3 +23,88 @@ class InputError(Exception):
 
     Not raised itself: each module raises its own subclass (``ConfigError``, ``FmuError``,
     ``UsageError`` …), which also derives from the builtin its callers catch."""
+
+
+class _Names(dict):
+    """The names ``{name}`` fields of an :class:`ArgumentError`'s texts stand for: the
+    Python argument (``chunk_size``) or, for the command line, its option (``--chunk-size``,
+    or the one *flags* gives)."""
+
+    def __init__(self, flags: dict | None):
+        super().__init__()
+        self.flags = flags
+
+    def __missing__(self, name: str) -> str:
+        if self.flags is None:
+            return name
+        return self.flags.get(name) or "--" + name.replace("_", "-")
+
+
+def _word(value) -> str:
+    """*value* as the command line writes it (a float without a trailing .0, quoted as a
+    shell would need)."""
+    if isinstance(value, float):
+        return f"{value:g}"
+    return shlex.quote(str(value))
+
+
+def _named(text: str, names: _Names) -> str:
+    """*text* with its ``{name}`` fields written as *names* says (as it is when it holds
+    other braces, e.g. a path's)."""
+    try:
+        return text.format_map(names)
+    except (KeyError, ValueError, IndexError, AttributeError):
+        return text
+
+
+class ArgumentError(InputError, ValueError):
+    """Arguments of a library function that it cannot take, named as Python names them.
+
+    *problems*: one ``(argument, value, problem, example)`` each: *argument* the parameter's
+    name, *value* what was given (None: the problem is that it is given), *problem* what is
+    wrong (other arguments written
+    ``{name}``), *example* a value that works, or None; *fix* (same ``{name}`` fields) ends
+    the message. ``str()`` is the Python caller's message (``chunk_size=0: out of range …;
+    fix: e.g. chunk_size=100``); :meth:`for_command_line` the same with each argument
+    written as its command-line option (``--chunk-size 0: …; fix: e.g. --chunk-size 100``),
+    which ``fdd-campaign`` prints (exit 2)."""
+
+    def __init__(self, problems, fix: str = ""):
+        self.problems = [tuple(p) for p in problems]
+        self.fix = fix
+        super().__init__(self.render(None))
+
+    @classmethod
+    def of(cls, argument: str, value, problem: str, example=None, fix: str = ""):
+        """The error of one argument."""
+        return cls([(argument, value, problem, example)], fix)
+
+    def render(self, flags: dict | None) -> str:
+        """The message, arguments as Python names them (*flags* None) or as the options of
+        *flags* (argument → option; any other ``--`` + its name with dashes)."""
+        names = _Names(flags)
+        parts = []
+        for argument, value, problem, example in self.problems:
+            name = names[argument]
+            if flags is None:
+                given, fix = f"{name}={value!r}", f"{name}={example!r}"
+            else:
+                given, fix = f"{name} {_word(value)}", f"{name} {_word(example)}"
+            # no value: the problem is about the argument being given at all
+            text = (f"{name} {_named(problem, names)}" if value is None
+                    else f"{given}: {_named(problem, names)}")
+            if example is not None:
+                text += f"; fix: e.g. {fix}"
+            parts.append(text)
+        message = "; ".join(parts)
+        if self.fix:
+            message += (", " if self.problems[-1][3] is not None else "; fix: ") + \
+                _named(self.fix, names)
+        return message
+
+    def for_command_line(self, flags: dict | None = None) -> str:
+        """The message with every argument written as its option (:meth:`render`)."""
+        return self.render(flags or {})
+
+    def __reduce__(self):
+        return (type(self), (self.problems, self.fix))

@@ -70,13 +70,6 @@ RUN_COLUMNS: dict[str, Declared] = {
     "duration_s": _column("s", "run duration", ge=1.0, le=3600.0),
 }
 
-#: Optional columns of a run row (absent or NaN: the default behaviour).
-OPTIONAL_RUN_COLUMNS: dict[str, Declared] = {
-    "manoeuvre_start_s": _column("s", "fixed start of the manoeuvre (NaN: sampled per run)"),
-    "manoeuvre_set": _column("-", "manoeuvre set the run flies: " + ", ".join(MANOEUVRE_SETS)
-                             + " (absent: normal; docs/physics.md §7)"),
-}
-
 #: Manoeuvre set of a run row without a ``manoeuvre_set`` column.
 DEFAULT_MANOEUVRE_SET = MANOEUVRE_SETS[0]
 

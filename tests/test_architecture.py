@@ -125,6 +125,15 @@ def test_imports_flow_one_way_between_packages():
     assert upward == []
 
 
+def test_only_the_command_line_speaks_of_options():
+    # the library raises errors named by Python argument (scenarios.errors.ArgumentError);
+    # the command line's UsageError is for the command line alone, which names the options
+    outside = [f"{name}:{line}" for name, edges in GRAPH.items()
+               if not name.startswith("campaign.cli") for target, attr, line in edges
+               if attr == "UsageError" or target.endswith(".UsageError")]
+    assert outside == []
+
+
 def test_the_shared_modules_import_nothing_of_the_project():
     # every package may import them, so they must sit below all of them
     assert {name: GRAPH[name] for name in SHARED} == {name: [] for name in SHARED}

@@ -23,11 +23,11 @@ from .common import (  # noqa: F401  (part of this module's interface)
     UsageError,
     add_command,
     check_writable,
+    input_message,
     print_error,
     report_internal_error,
 )
-from ..isolation import roles_of_stored
-from ..startup import defer_collection, start_up_done
+from ..startup import start_up_done
 
 
 # ---- the command line's overrides ---------------------------------------------------------
@@ -207,9 +207,11 @@ def _plan_one(config, out: Path) -> None:
     from ..design import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
     from ..store.directory import CampaignDir
 
+    from ..plant_setup import resolve
     from ..runner import remove_created, start_state
 
-    blocks = PlanBlocks(config)
+    campaign = resolve(config)          # once, for the run table and the learning set
+    blocks = PlanBlocks(campaign)
     cdir = CampaignDir(out)
     existed, fresh = start_state(out)
     with cdir.locked():
@@ -224,7 +226,7 @@ def _plan_one(config, out: Path) -> None:
             if fresh:
                 remove_created(out, existed)
             raise
-    learning = build_learning_plan(config)
+    learning = build_learning_plan(campaign)
     counts = plan_counts(cdir.plan_batches(columns=["group", "fault", "manoeuvre"]))
     free = int(counts.loc[counts["fault"] == "none", "runs"].sum())
     total = int(counts["runs"].sum())
@@ -265,8 +267,6 @@ def cmd_gate(args) -> int:
 
 
 def _gate_one(directory, args):
-    from reports.gate import requirements_gate
-
     from ..result import load
 
     camp = load(directory)
@@ -281,10 +281,8 @@ def _gate_one(directory, args):
         # the campaign file's MD and DTP limits with --all-requirements (as the report)
         limits[key] = given if given is not None else (
             limits.get(key) if args.all_requirements else None)
-    result = requirements_gate(camp.summary, camp.gate_results, limits, all_requirements=True,
-                               roles=roles_of_stored(meta.get("config")),
-                               coverage=camp.coverage, allow_errors=args.allow_errors,
-                               allow_incomplete=args.allow_incomplete)
+    result = camp.gate(limits, all_requirements=True, allow_errors=args.allow_errors,
+                       allow_incomplete=args.allow_incomplete)
     if args.max_fa_prob is not None:      # the certificate's bounds (fdd-campaign certify)
         from .evidence import fa_probability_checks
 
@@ -1045,7 +1043,7 @@ def _main(argv=None) -> int:
     # a directory, an FMU, a detector's name or parameters, a plugin that fails at the
     # start), or a file that is missing; the message names the field and the fix
     except (InputError, FileNotFoundError) as exc:
-        print_error(str(exc))
+        print_error(input_message(exc) if isinstance(exc, InputError) else str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
         where = f" {exc.filename}" if exc.filename else ""
@@ -1061,10 +1059,10 @@ def _main(argv=None) -> int:
 
 
 def console_main() -> None:
-    """:func:`campaign.cli.console_main` once this module is imported (NumPy with it, so BLAS
-    keeps the threads it started: :func:`campaign.execute.one_blas_thread` limits them): the
-    executable of an installation made before it moved there, and ``python -m
-    campaign.cli.commands``."""
+    """Deprecated: the executable of an installation made before it moved to
+    :func:`campaign.cli.console_main` (reinstall to use that), once this module is imported."""
+    from ..startup import defer_collection
+
     defer_collection()
     leave(main())
 

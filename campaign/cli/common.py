@@ -1,5 +1,6 @@
 """What every ``fdd-campaign`` command shares (docs/design.md §7, Command line): the exit
-codes, :class:`UsageError`, the registration of a sub-command (:func:`add_command`) and the
+codes, :class:`UsageError`, the options the library's argument errors are named by
+(:func:`input_message`), the registration of a sub-command (:func:`add_command`) and the
 check that an output path can be written. Kept apart from :mod:`campaign.cli.commands` so that
 commands defined in their own modules (:mod:`campaign.cli.falsify`) use them without
 importing the command line itself."""
@@ -10,13 +11,27 @@ import os
 import sys
 from pathlib import Path
 
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 
 EXIT_OK, EXIT_GATE, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 class UsageError(InputError, ValueError):
     """Bad command-line input (exit code 2)."""
+
+
+#: Options whose name is not the library argument's with dashes (``chunk_size`` →
+#: ``--chunk-size``): argument → option (``fdd-campaign bench``).
+ARGUMENT_FLAGS = {"n_runs": "--runs", "duration_s": "--duration"}
+
+
+def input_message(exc: InputError) -> str:
+    """The message of the user's mistake *exc* as the command line says it: a library
+    function's :class:`scenarios.errors.ArgumentError` names its command-line options
+    (``--chunk-size 0`` for ``chunk_size=0``), any other as it is."""
+    if isinstance(exc, ArgumentError):
+        return exc.for_command_line(ARGUMENT_FLAGS)
+    return str(exc)
 
 
 def add_command(subs, name: str, help_: str, example: str, func):

@@ -62,17 +62,10 @@ def print_verdict(config, result) -> bool:
 
 
 def gate_of(config, result, *, all_requirements: bool = False):
-    """The gate of *config*'s requirements on a run's *result*: its false-alarm limits and
-    coverage (``fdd-campaign gate``), and with *all_requirements* its MD and DTP limits."""
-    from reports.gate import requirements_gate
-
-    from ..isolation import roles_of
-
-    return requirements_gate(result.summary, result.gate_results,
-                             config.to_dict()["requirements"],
-                             roles=roles_of(config),
-                             coverage=result.coverage,
-                             all_requirements=all_requirements)
+    """The gate of *config*'s requirements on a run's *result* (:meth:`Campaign.gate
+    <campaign.result.Campaign.gate>`): its false-alarm limits and coverage (``fdd-campaign
+    gate``), and with *all_requirements* its MD and DTP limits."""
+    return result.gate(config.to_dict()["requirements"], all_requirements=all_requirements)
 
 
 def verdict(config, result, *, full=None) -> str:

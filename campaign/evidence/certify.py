@@ -56,6 +56,7 @@ from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_le
 from .certify_rows import CertifyRows
 from ..design import run_id, variable_ranges
 from ..execute import one_blas_thread
+from ..store.directory import SAMPLING_DIR, CampaignDir
 from .hazard import per_hour
 from .rare import P0
 
@@ -178,35 +179,26 @@ def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
 
 
 class _BatchStore:
-    """The evaluated batches of one subset simulation under *root* (``DIR/sampling/…``):
-    batch b's run ids and margins in ``batch-<b>.parquet``, written atomically as each
-    batch finishes. The simulation is deterministic for its seed, so a rerun asks for the
-    same batches in the same order: a stored batch whose run ids are the ones asked for is
-    read back instead of simulated (resume after a kill), any other is simulated again."""
+    """The evaluated batches of one subset simulation *work* of the campaign directory
+    *cdir* (``DIR/sampling/WORK/``, written and read by
+    :class:`campaign.store.directory.CampaignDir`): batch b's run ids and margins, written
+    atomically as each batch finishes. The simulation is deterministic for its seed, so a
+    rerun asks for the same batches in the same order: a stored batch whose run ids are the
+    ones asked for is read back instead of simulated (resume after a kill), any other is
+    simulated again."""
 
-    def __init__(self, root, config_json: str):
-        from pathlib import Path
-
-        self.root, self.config_json, self.reused = Path(root), config_json, 0
-
-    def path(self, b: int):
-        return self.root / f"batch-{b:05d}.parquet"
+    def __init__(self, cdir, work: str, config_json: str):
+        self.cdir, self.work, self.config_json, self.reused = cdir, work, config_json, 0
 
     def get(self, b: int, run_ids: list[str]):
-        path = self.path(b)
-        if not path.exists():
-            return None
-        stored = pd.read_parquet(path)
-        if stored["run_id"].tolist() != run_ids:
+        stored = self.cdir.read_sampling_batch(self.work, b)
+        if stored is None or stored["run_id"].tolist() != run_ids:
             return None
         self.reused += len(run_ids)
         return stored["margin"].to_numpy(float)
 
     def put(self, b: int, run_ids: list[str], margin: np.ndarray) -> None:
-        from ..store.files import write_parquet
-
-        write_parquet(pd.DataFrame({"run_id": run_ids, "margin": margin}), self.path(b),
-                      self.config_json, kind="certify-sampling-batch", batch=b)
+        self.cdir.write_sampling_batch(self.work, b, run_ids, margin, self.config_json)
 
 
 def _work_name(name: str, n: int, seed: int, level: float) -> str:
@@ -223,9 +215,6 @@ def _work_name(name: str, n: int, seed: int, level: float) -> str:
     return f"{safe}-{key[:12]}"
 
 
-#: Sub-directory of a campaign directory holding the subset simulation's work (its
-#: worker setup, the fitted detectors it evaluates, and every evaluated batch).
-SAMPLING_DIR: str = "sampling"
 
 
 def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: int = 500,
@@ -253,7 +242,6 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
     most the simulation can take and the time left if it needs them all. Returns
     {name: :class:`campaign.evidence.rare.SubsetResult`}."""
     import sys
-    from pathlib import Path
 
     from scipy.stats import norm
 
@@ -307,9 +295,10 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
         out[:] = [(j, next(counter)) for j, _ in nu]
         return out
 
-    work = Path(directory) / SAMPLING_DIR
-    setup, detectors = prepare(config, work / "runner", jobs=jobs, scheduler=scheduler,
-                               tls=tls, fitted_from=directory, log=progress)
+    cdir = CampaignDir(directory)
+    setup, detectors = prepare(config, cdir.sampling_runner_dir(), jobs=jobs,
+                               scheduler=scheduler, tls=tls, fitted_from=directory,
+                               log=progress)
     out = {}
     try:
         for name in names:
@@ -318,8 +307,7 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
             if label is None:
                 continue
             owned = {label: detectors[label]}
-            store = _BatchStore(work / _work_name(name, n, seed, level),
-                                config.to_json())
+            store = _BatchStore(cdir, _work_name(name, n, seed, level), config.to_json())
             most = n * (max_levels + 1)
             state = {"batch": 0}
             bar = Progress(most, log=progress, label=f"sampling {name}: ")
@@ -404,25 +392,16 @@ def sampling_note(r, *, seed: int, n: int) -> str:
                if r.stalled else "; more levels (--max-levels) would go further"))
 
 
-#: File under :data:`SAMPLING_DIR` with the levels of every sampled detector.
-SAMPLING_LEVELS_FILE = "levels.parquet"
-
-
 def write_sampling_levels(directory, found: dict, config_json: str) -> None:
     """``DIR/sampling/levels.parquet``: one row per sampled detector × level with its
     threshold, conditional probability, probability, γ, δ, effective sample size,
     acceptance rates, proposal scale and seeds (:meth:`campaign.evidence.rare.SubsetResult.to_pandas`)."""
-    from pathlib import Path
-
-    from ..store.files import write_parquet
-
     frames = [r.to_pandas().assign(detector=name) for name, r in found.items()]
     if not frames:
         return
     out = pd.concat(frames, ignore_index=True)
     out = out[["detector", *[c for c in out.columns if c != "detector"]]]
-    write_parquet(out, Path(directory) / SAMPLING_DIR / SAMPLING_LEVELS_FILE, config_json,
-                  kind="certify-sampling-levels")
+    CampaignDir(directory).write_sampling_levels(out, config_json)
 
 
 # ---- the command -----------------------------------------------------------------------------
@@ -449,7 +428,6 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     ``jobs`` below 1 or an unknown detector name."""
     from .hazard import hazard_table
     from ..result import Certificate, load
-    from ..store.directory import CampaignDir
 
     problems = []
     if not (isinstance(level, float | int) and 0.5 < float(level) < 1.0):

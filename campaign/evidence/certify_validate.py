@@ -20,19 +20,17 @@ twenty). Written to ``DIR/validation/seed-S-nN.parquet`` (:data:`VALIDATION_COLU
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from reports.metrics import lower_bound
 
+from ..store.directory import VALIDATION_DIR
+
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
            "check_validation", "coverage_table", "summarise", "validate", "validate_levels",
            "validation_config"]
-
-#: Sub-directory of a campaign directory holding its validations.
-VALIDATION_DIR = "validation"
 
 #: Fewest brute-force exceedances at a level for it to be tested.
 MIN_VALIDATION_EXCEEDANCES = 5
@@ -97,17 +95,15 @@ def validate_levels(directory, config, levels: pd.DataFrame, n: int, *, seed: in
     *levels*) with *n* runs at campaign seed *seed* (module docstring) and return its
     :func:`coverage_table`, also written to ``DIR/validation/seed-S-nN.parquet``."""
     from .certify_rows import CertifyRows
-    from ..store.files import write_parquet
     from ..runner import run
+    from ..store.directory import CampaignDir
 
-    root = Path(directory) / VALIDATION_DIR
-    out = root / f"seed-{int(seed)}-n{int(n)}"
+    cdir = CampaignDir(directory)
     vconfig = validation_config(config, n, seed)
-    done = run(vconfig, out, jobs=int(jobs), scheduler=scheduler, tls=tls,
-               fitted_from=directory, log=log)
+    done = run(vconfig, cdir.validation_dir(seed, n), jobs=int(jobs), scheduler=scheduler,
+               tls=tls, fitted_from=directory, log=log)
     table = coverage_table(levels, CertifyRows.of_campaign(done), seed)
-    write_parquet(table, root / f"seed-{int(seed)}-n{int(n)}.parquet", vconfig.to_json(),
-                  kind="certify-validation", validation_seed=int(seed))
+    cdir.write_validation(table, seed, n, vconfig.to_json())
     return table
 
 

@@ -58,7 +58,7 @@ from ..config import CampaignConfig
 from ..config.text import toml_value
 from ..design import build_plan, explicit_plan, variable_ranges
 from ..execute import one_blas_thread
-from ..store.directory import SEARCH_FILE, WORST_FILE, write_parquet, write_text
+from ..store.directory import SearchDir
 
 __all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
            "drawn_start_s", "monte_carlo_config", "scores", "search_space", "worst_toml"]
@@ -379,7 +379,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     strategy = _strategy(space, config, budget, seed, warm_rows)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    setup, detectors = prepare(config, out / "learned", jobs=jobs, scheduler=scheduler,
+    written = SearchDir(out)
+    setup, detectors = prepare(config, written.learned, jobs=jobs, scheduler=scheduler,
                                tls=tls, fitted_from=fitted_from, log=log)
     try:
         records: list[pd.DataFrame] = []
@@ -388,7 +389,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
         bar = Progress(budget, enabled=progress, log=log)
         while batch := strategy.ask():
             phase = strategy.phase
-            rows = explicit_plan(config, space.decode(space.vectors(batch)))
+            # on the campaign prepare resolved: its plant is not built again per batch
+            rows = explicit_plan(setup.campaign, space.decode(space.vectors(batch)))
             results = evaluate_rows(setup, rows, detectors, log=log)
             if not state["done"]:
                 _check_variant(results, label, config)
@@ -408,16 +410,15 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
             log(f"plain Monte Carlo of about the same budget: {_mc_size_text(mc, budget)}")
             results = evaluate_rows(setup, mc, detectors, log=log)
             mc = mc.assign(margin=scores(results, mc, label)[0])
-            write_parquet(mc, out / "monte-carlo.parquet", config.to_json(), kind="falsify-mc",
-                          detector=label)
+            written.write_monte_carlo(mc, config.to_json(), detector=label)
             baseline = (float(np.nanmax(mc["margin"])), len(mc),
                         f"a plain Monte Carlo of about the same budget "
                         f"({_mc_size_text(mc, budget)})")
     finally:
         setup.close()
-    write_parquet(search, out / SEARCH_FILE, config.to_json(), kind="falsify-search",
-                  detector=label, budget=budget, seed=seed, dimensions=space.names,
-                  strategy="sobol screening, CMA-ES on the worst cells, stream sweep")
+    written.write_search(search, config.to_json(), detector=label, budget=budget, seed=seed,
+                         dimensions=space.names,
+                         strategy="sobol screening, CMA-ES on the worst cells, stream sweep")
     worst = _write_worst(config, search, label, keep, out, fitted_from, seed, budget)
     return FalsifyResult(label=label, search=search, worst=worst, baseline_margin=baseline[0],
                          baseline_runs=baseline[1], baseline_source=baseline[2],
@@ -529,7 +530,8 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
     corpus = ranked.sort_values("false_alarm", ascending=False, kind="stable")
     if ranked.empty:
         raise FalsifyError(f"every run of the search failed for {label!r}; see "
-                           f"{out / 'search.parquet'} and replay one with fdd-campaign show")
+                           f"{SearchDir(out).search_path} and replay one with fdd-campaign "
+                           "show")
     top = corpus.head(keep)
     runs = [{"group": SEARCH_GROUP, "manoeuvre": r["manoeuvre"], "fault": "none",
              **{c: float(r[c]) for c in FLIGHT_COLUMNS},
@@ -538,7 +540,7 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
              "manoeuvre_start_s": (None if math.isnan(r["manoeuvre_start_s"])
                                    else float(r["manoeuvre_start_s"]))}
             for _, r in top.iterrows()]
-    learned = out / "learned"
+    learned = SearchDir(out).learned
     replay = (f"fdd-campaign run worst.toml --out DIR fits the detectors again on the same\n"
               f"learning set; --fitted-from {learned} takes the ones the search used"
               if fitted_from is None else
@@ -550,5 +552,5 @@ def _write_worst(config, search, label, keep, out, fitted_from, seed, budget) ->
             f"{', '.join(f'{m:.6g}' for m in top['margin'])}.\n"
             f"Replay (same margins): {replay}.")
     # atomic, and written last: a search directory with worst.toml holds a finished search
-    write_text(out / WORST_FILE, worst_toml(config, runs, label=label, note=note))
+    SearchDir(out).write_worst(worst_toml(config, runs, label=label, note=note))
     return ranked.iloc[0]

@@ -163,10 +163,12 @@ def _corpus_rows(config, paths) -> tuple[pd.DataFrame, list[Path]]:
     by several once, at its first file) and, per row, the file that holds it."""
     from ..config import load_config
     from ..design import explicit_plan
+    from ..plant_setup import as_resolved
 
+    campaign = as_resolved(config)       # resolved once for every file of the corpus
     frames, files = [], []
     for path in paths:
-        rows = explicit_plan(config, load_config(Path(path)).runs)
+        rows = explicit_plan(campaign, load_config(Path(path)).runs)
         frames.append(rows)
         files += [path] * len(rows)
     rows = pd.concat(frames, ignore_index=True)
@@ -209,15 +211,15 @@ def search_detector(camp, found: WorstCase, *, jobs: int, scheduler=None, tls=No
     """The search of *found* (its name, budget and seed) on campaign *camp*: read back when
     a finished one is stored, else run and stored (module docstring); fills its search
     fields and adds its false alarms that the corpus replay did not name."""
-    from ..store.directory import SEARCH_FILE, WORST_FILE, CampaignDir
+    from ..store.directory import CampaignDir, SearchDir
 
-    cdir = CampaignDir(camp.root)
+    cdir, stored = CampaignDir(camp.root), SearchDir(found.search_dir)
     config = camp.config
     found.reused = cdir.finished_search(found.name, found.budget, found.seed, config.to_json())
     if found.reused:
         log(f"worst case {found.name}: the search of {found.budget} runs at seed {found.seed} "
             f"is stored in {found.search_dir}: reused, not run again")
-        search = pd.read_parquet(found.search_dir / SEARCH_FILE)
+        search = pd.read_parquet(stored.search_path)
     else:
         log(f"worst case {found.name}: searching {found.budget} fault-free runs (seed "
             f"{found.seed}) -> {found.search_dir}")
@@ -240,7 +242,7 @@ def search_detector(camp, found: WorstCase, *, jobs: int, scheduler=None, tls=No
     # worst runs are in the corpus: replayed there; the rest as the search stored them)
     known = {a.run_id for a in found.alarms}
     new = flags & ~search["run_id"].isin(known).to_numpy()
-    found.alarms += _alarms(search, new, margin, [found.search_dir / WORST_FILE] * len(search),
+    found.alarms += _alarms(search, new, margin, [stored.worst_path] * len(search),
                             "stored search" if found.reused else "search")
 
 

@@ -76,6 +76,7 @@ from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of
                     write_parquet, write_parquet_blocks, write_text)
 
 __all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
+           "SearchDir",
            "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
            "write_text"]
 
@@ -88,6 +89,14 @@ SEARCH_FILE = "search.parquet"
 WORST_FILE = "worst.toml"
 #: Sub-directory of a campaign directory holding the searches of ``gate --worst-case``.
 WORST_CASE_DIR = "worst-case"
+#: Sub-directory of the subset simulations of ``certify --sampling``: the runner's work
+#: directory, one directory of evaluated batches per detector, and the levels file.
+SAMPLING_DIR = "sampling"
+#: File under :data:`SAMPLING_DIR` with the levels of every sampled detector.
+SAMPLING_LEVELS_FILE = "levels.parquet"
+#: Sub-directory of ``certify --validate``: a campaign directory per validation and its
+#: coverage table beside it.
+VALIDATION_DIR = "validation"
 MANIFEST_NAME = "manifest.json"
 #: ``format`` of manifest.json and of fitted/LABEL.json: a reader refuses any other.
 MANIFEST_FORMAT = "fdd-campaign manifest 1"
@@ -354,6 +363,35 @@ def _plan_ordered(rows: pd.DataFrame, stored_order: bool = False,
     rows = rows.sort_values(["_pos"] if stored_order else ["_pos", "detector"], kind="stable")
     rows = rows.rename(columns={"_pos": "plan_pos"}) if positions else rows.drop(columns="_pos")
     return rows.reset_index(drop=True)
+
+
+class SearchDir:
+    """One worst-case search directory (``fdd-campaign falsify --out DIR``, and each search
+    of ``gate --worst-case`` under a campaign directory's ``worst-case/``,
+    :meth:`CampaignDir.worst_case_search_dir`): the only code that names and writes its
+    files — every evaluated run (``search.parquet``), the plain Monte Carlo it is compared
+    with (``monte-carlo.parquet``), the fitted detectors' runner directory (``learned/``)
+    and, written last, the campaign file replaying the worst runs (``worst.toml``)."""
+
+    def __init__(self, root):
+        self.root = Path(root)
+        self.search_path = self.root / SEARCH_FILE
+        self.worst_path = self.root / WORST_FILE
+        self.monte_carlo_path = self.root / "monte-carlo.parquet"
+        self.learned = self.root / "learned"
+
+    def write_search(self, search: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``search.parquet`` (*extra* into its metadata)."""
+        write_parquet(search, self.search_path, config_json, kind="falsify-search", **extra)
+
+    def write_monte_carlo(self, runs: pd.DataFrame, config_json: str, **extra) -> None:
+        """Write ``monte-carlo.parquet`` (*extra* into its metadata)."""
+        write_parquet(runs, self.monte_carlo_path, config_json, kind="falsify-mc", **extra)
+
+    def write_worst(self, text: str) -> None:
+        """Write ``worst.toml``, atomically: a directory holding it holds a finished
+        search."""
+        write_text(self.worst_path, text)
 
 
 class CampaignDir:
@@ -957,6 +995,54 @@ class CampaignDir:
             if scales not in seen:
                 seen.append(scales)
         return held, seen
+
+    # ---- evidence: certify's subset simulations and validations -----------------------
+    # (not covered by the manifest: work that ``certify`` reads back or makes again)
+    @property
+    def sampling_root(self) -> Path:
+        """``DIR/sampling``: the subset simulations of ``certify --sampling``."""
+        return self.root / SAMPLING_DIR
+
+    def sampling_runner_dir(self) -> Path:
+        """The runner's work directory of the subset simulations (its setup and the fitted
+        detectors taken from here)."""
+        return self.sampling_root / "runner"
+
+    def _sampling_batch_path(self, work: str, batch: int) -> Path:
+        return self.sampling_root / work / f"batch-{int(batch):05d}.parquet"
+
+    def read_sampling_batch(self, work: str, batch: int) -> pd.DataFrame | None:
+        """Batch *batch* of the subset simulation *work* (its run ids and margins), or None
+        when it is not stored."""
+        return _read_optional(self._sampling_batch_path(work, batch))
+
+    def write_sampling_batch(self, work: str, batch: int, run_ids, margin,
+                             config_json: str) -> None:
+        """Write batch *batch* of the subset simulation *work*
+        (``sampling/WORK/batch-NNNNN.parquet``: ``run_id``, ``margin``), atomically."""
+        write_parquet(pd.DataFrame({"run_id": run_ids, "margin": margin}),
+                      self._sampling_batch_path(work, batch), config_json,
+                      kind="certify-sampling-batch", batch=int(batch))
+
+    def write_sampling_levels(self, levels: pd.DataFrame, config_json: str) -> None:
+        """Write ``sampling/levels.parquet``, the levels of every sampled detector
+        (:func:`campaign.evidence.certify.write_sampling_levels`)."""
+        write_parquet(levels, self.sampling_root / SAMPLING_LEVELS_FILE, config_json,
+                      kind="certify-sampling-levels")
+
+    def validation_dir(self, seed: int, n: int) -> Path:
+        """The campaign directory of the validation of *n* runs at campaign seed *seed*:
+        ``validation/seed-S-nN``."""
+        return self.root / VALIDATION_DIR / f"seed-{int(seed)}-n{int(n)}"
+
+    def write_validation(self, table: pd.DataFrame, seed: int, n: int,
+                         config_json: str) -> Path:
+        """Write the coverage table of that validation, ``validation/seed-S-nN.parquet``
+        (:func:`campaign.evidence.certify_validate.validate_levels`); returns its path."""
+        path = self.validation_dir(seed, n).with_suffix(".parquet")
+        write_parquet(table, path, config_json, kind="certify-validation",
+                      validation_seed=int(seed))
+        return path
 
     # ---- worst-case searches (gate --worst-case) ----------------------------------------
     @property

@@ -44,12 +44,12 @@ from joblib import Parallel, delayed
 
 from scenarios.catalog import MANOEUVRES
 from scenarios.envelope import DRAW_COLUMNS
+from scenarios.errors import ArgumentError
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
 from scenarios.reference import integrate_reference
 from scenarios.runs import RUN_RANGES
 from scenarios.simulate import RUN_COLUMNS, prepare
 
-from ..cli.common import UsageError
 from ..evaluate import detect, simulate_signals
 from ..startup import user_environment
 from .plant_bench import bench_settings
@@ -112,22 +112,22 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     *floor*: each campaign's arithmetic floor and its ratio to it (:func:`arithmetic_floor`);
     *yardstick*: a command (split as a shell would, run without one, in *yardstick_dir*)
     timed back to back with each campaign, *pairs* rounds (:func:`yardstick_pairs`)."""
-    counts = {"--runs": (n_runs, "runs simulated", 2200), "--jobs": (jobs, "local workers", 2),
-              "--chunk-size": (chunk_size, "runs per chunk", 275),
-              "--reference-runs": (reference_runs, "runs timed with the solve_ivp reference", 2),
-              "--plant-runs": (plant_runs, "runs timed on the FMU plant", 40),
-              "--stage-runs": (stage_runs, "runs timed stage by stage", 200),
-              "--pairs": (pairs, "rounds of the yardstick and the campaign", 3)}
-    problems = [f"{option} {value}: must be an integer ≥ 1 ({what}); fix: e.g. {option} {eg}"
-                for option, (value, what, eg) in counts.items()
+    counts = {"n_runs": (n_runs, "runs simulated", 2200), "jobs": (jobs, "local workers", 2),
+              "chunk_size": (chunk_size, "runs per chunk", 275),
+              "reference_runs": (reference_runs, "runs timed with the solve_ivp reference", 2),
+              "plant_runs": (plant_runs, "runs timed on the FMU plant", 40),
+              "stage_runs": (stage_runs, "runs timed stage by stage", 200),
+              "pairs": (pairs, "rounds of the yardstick and the campaign", 3)}
+    problems = [(argument, value, f"must be an integer ≥ 1 ({what})", eg)
+                for argument, (value, what, eg) in counts.items()
                 if isinstance(value, bool) or int(value) != value or value < 1]
     shortest, longest = MANOEUVRE_PARAMS.min_duration_s, RUN_RANGES["duration_s"][1]
     if not shortest <= duration_s <= longest:
-        problems.append(f"--duration {duration_s:g}: a run lasts {shortest:g} to {longest:g} s "
-                        "(the manoeuvres' shortest record, the run table's longest); fix: e.g. "
-                        "--duration 60")
+        problems.append(("duration_s", duration_s,
+                         f"a run lasts {shortest:g} to {longest:g} s (the manoeuvres' shortest "
+                         "record, the run table's longest)", 60))
     if problems:
-        raise UsageError("; ".join(problems))
+        raise ArgumentError(problems)
     names = [c.strip() for c in (campaign or "").split(",") if c.strip()]
     yard_cmd = _yardstick_command(yardstick, yardstick_dir, pairs, names)
     from ..config import load_config
@@ -634,25 +634,26 @@ def print_floor(floor: dict, echo=print) -> None:
 # ---- back to back with a yardstick -------------------------------------------------------------
 def _yardstick_command(yardstick: str | None, cwd: str | None, pairs: int,
                        campaigns: list[str]) -> list[str] | None:
-    """The yardstick's argument list, checked before any work (UsageError naming the fix;
-    *pairs* is checked with the other counts by :func:`bench`)."""
+    """The yardstick's argument list, checked before any work (:class:`ArgumentError`
+    naming the fix; *pairs* is checked with the other counts by :func:`bench`)."""
     if yardstick is None:
         if cwd is not None:
-            raise UsageError("--yardstick-dir without --yardstick: name the command to time, "
-                             "e.g. --yardstick 'python campaign.py vec'")
+            raise ArgumentError.of("yardstick_dir", None, "without {yardstick}: name the "
+                                   "command to time, e.g. {yardstick} 'python campaign.py vec'")
         return None
     cmd = shlex.split(yardstick)
     if not cmd:
-        raise UsageError("--yardstick is empty; fix: e.g. --yardstick 'python campaign.py vec'")
+        raise ArgumentError.of("yardstick", yardstick, "is empty", "python campaign.py vec")
     if cwd is not None and not Path(cwd).is_dir():
-        raise UsageError(f"--yardstick-dir {cwd}: not a directory; fix: the directory the "
-                         "yardstick command runs in")
+        raise ArgumentError.of("yardstick_dir", cwd, "not a directory", None,
+                               "the directory the yardstick command runs in")
     if shutil.which(cmd[0], path=None if os.sep not in cmd[0] else "") is None and not (
             os.sep in cmd[0] and os.access(Path(cwd or ".") / cmd[0], os.X_OK)):
-        raise UsageError(f"--yardstick: {cmd[0]!r} is not an executable on the PATH; fix: "
-                         "a command such as 'python campaign.py vec'")
+        raise ArgumentError.of("yardstick", yardstick, f"{cmd[0]!r} is not an executable on "
+                               "the PATH", "python campaign.py vec")
     if not campaigns:
-        raise UsageError("--yardstick with --campaign none: name the campaign to compare")
+        raise ArgumentError.of("yardstick", None, "with {campaign} none: name the campaign "
+                               "to compare")
     return cmd
 
 

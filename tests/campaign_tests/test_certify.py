@@ -350,3 +350,19 @@ def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsy
     for r in table.to_dict(orient="records"):
         assert r["validation_count"] == int((margins >= r["level"]).sum())
         assert r["tested"] == (r["validation_count"] >= 5)
+
+
+# ---- one writer of a campaign directory ------------------------------------------------------
+def test_only_the_campaign_directory_writes_into_it(constructed, capsys):
+    # certify --sampling (the subset simulation's batches and levels) and --validate (a
+    # campaign of its own under validation/ and its coverage table) write through
+    # CampaignDir; an audit hook records any file written into the directory otherwise
+    from directory_audit import writes_outside_the_store
+
+    out, _, _ = constructed
+    with writes_outside_the_store(out) as found:
+        assert main(["certify", str(out), "--sampling", "100", "--jobs", "1", "--levels",
+                     "0.95,0.9", "--validate", "100", "--validate-seed", "12"]) == 0
+    written = {p.relative_to(out).parts[0] for p in out.rglob("*.parquet")}
+    assert {"sampling", "validation"} <= written     # those writes did happen
+    assert found == []

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from campaign.config import load_config
-from campaign.isolation import isolation_of, isolation_of_stored
+from campaign.isolation import roles_of
+from campaign.plant_setup import resolve
 from reports.gate import evaluate_gate
 from reports.metrics import ESTIMATE_COLUMNS
 from reports.summary import summarize
@@ -64,12 +65,19 @@ def test_silence_on_another_surfaces_fault_passes_isolation():
 
 def test_the_presets_say_which_detector_is_checked_for_isolation():
     # vanek-geometric detects faults of the left inboard aileron only
+    def isolation_of(source):
+        return roles_of(source).isolation
+
     assert isolation_of(load_config("vanek-isolation")) == {"vanek-geometric": "left_elevator"}
     assert isolation_of(load_config("vanek-isolation-rudder")) == {"vanek-geometric": "rudder"}
     config = load_config("vanek-scenarios")
     assert isolation_of(config) == {}                # its own surface: detection
     assert isolation_of(load_config("smoke")) == {}  # detectors that declare no surface
-    # the configuration stored with the results gives the same answer
+    # the resolved campaign and the configuration stored with the results give the same
+    # answer, through the same entry
+    resolved = resolve(load_config("vanek-isolation"))
+    assert resolved.isolation == {"vanek-geometric": "left_elevator"}
+    assert isolation_of(resolved) == resolved.isolation
     stored = load_config("vanek-isolation").to_dict()
-    assert isolation_of_stored(stored) == {"vanek-geometric": "left_elevator"}
-    assert isolation_of_stored(None) == {}
+    assert isolation_of(stored) == {"vanek-geometric": "left_elevator"}
+    assert isolation_of(None) == {} and roles_of({}).detectors == {}

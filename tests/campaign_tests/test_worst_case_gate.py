@@ -201,3 +201,19 @@ def test_bad_options_exit_2_before_any_work(quiet_dir, tmp_path, capsys, argv, n
     assert main(["gate", str(copy), *argv]) == 2
     assert needle in capsys.readouterr().err
     assert not (copy / "worst-case").exists()
+
+
+def test_only_the_directory_classes_write_into_a_campaign_directory(quiet_dir, tmp_path,
+                                                                    capsys):
+    # the search of a worst-case gate (its runs, Monte Carlo, worst.toml and runner
+    # directory under worst-case/) and the corpus replay write through campaign.store
+    from directory_audit import writes_outside_the_store
+
+    directory = tmp_path / "dir"
+    shutil.copytree(quiet_dir, directory)
+    with writes_outside_the_store(directory) as found:
+        code, _, _ = _gate(directory, "--worst-case-seed", "5", capsys=capsys)
+    assert code == 0
+    assert (_search_dir(directory, 5) / "worst.toml").is_file()   # the search was written
+    assert found == []
+

@@ -10,9 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from scenarios.atmosphere import (
-    FT_TO_M,
     ISA_CONSTANTS,
-    KT_TO_MS,
     Atmosphere,
     cas_to_mach,
     dynamic_pressure_pa,
@@ -20,6 +18,8 @@ from scenarios.atmosphere import (
     mach_to_cas,
     tas_ms,
 )
+
+KT_TO_MS, FT_TO_M = ISA_CONSTANTS.kt_ms, ISA_CONSTANTS.ft_m
 
 M_PER_FT = 0.3048
 FT_11KM = 11_000.0 / M_PER_FT  # 36 089.24 ft

@@ -31,6 +31,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from scenarios.errors import ArgumentError, InputError
+
 __all__ = ["SETTLE_S", "campaign_dir", "jam_limit", "format_table", "run_study"]
 
 #: Time after onset from which a run is taken to be steady [s] (est.: the filter's slowest
@@ -38,6 +40,11 @@ __all__ = ["SETTLE_S", "campaign_dir", "jam_limit", "format_table", "run_study"]
 SETTLE_S = 10.0
 #: Registry name of the detector studied and its variant.
 DETECTOR, VARIANT = "vanek-geometric", "lpv"
+
+
+class JamLimitInputError(InputError, ValueError):
+    """A campaign directory this study cannot read (no vanek-geometric detector, runs that
+    cannot be re-simulated here): exit 2."""
 
 
 def _load(directory):
@@ -58,9 +65,7 @@ def _load(directory):
 def _label(camp) -> str:
     labels = [d.label for d in camp.config.detectors if d.name == DETECTOR]
     if not labels:
-        from ...cli.common import UsageError
-
-        raise UsageError(f"{camp.root}: the campaign has no {DETECTOR} detector; give the "
+        raise JamLimitInputError(f"{camp.root}: the campaign has no {DETECTOR} detector; give the "
                          "directory of a vanek-scenarios campaign (fdd-campaign run "
                          "vanek-scenarios --out DIR)")
     return labels[0]
@@ -70,7 +75,6 @@ def jam_limit(directory, group: str = "liquid-jam-default", bias_deg: float = 0.
               ) -> pd.DataFrame:
     """One row per jam run of *group* of the finished campaign *directory* (module
     docstring); angles in degrees, means over the steady window."""
-    from ...cli.common import UsageError
     from ...evaluate import simulate_signals
     from ...replay import replay_settings
 
@@ -80,11 +84,11 @@ def jam_limit(directory, group: str = "liquid-jam-default", bias_deg: float = 0.
     rows = plan[plan["group"] == group]
     if rows.empty or (rows["fault"] == "none").any():
         groups = sorted(plan.loc[plan["fault"] != "none", "group"].unique())
-        raise UsageError(f"--group {group!r}: no faulty group of that name in {directory}; "
-                         f"its faulty groups: {', '.join(groups)}")
+        raise ArgumentError.of("group", group, f"no faulty group of that name in {directory}; "
+                               f"its faulty groups: {', '.join(groups)}")
     settings, why = replay_settings(camp)
     if settings is None:
-        raise UsageError(f"{directory}: its runs cannot be re-simulated here ({why})")
+        raise JamLimitInputError(f"{directory}: its runs cannot be re-simulated here ({why})")
     twins = rows.assign(fault="none", onset_s=np.nan, magnitude=np.nan,
                         run_id=rows["run_id"] + "-twin")
     det = camp.fitted[label]
@@ -155,7 +159,6 @@ def campaign_dir(directory, seed: int | None = None, jobs: int = 2,
     was interrupted (rerunning resumes it)."""
     from pathlib import Path
 
-    from ...cli.common import UsageError
     from ...config.load import load_config, with_overrides
     from ...runner import run
     from ...store.directory import CampaignDir
@@ -167,8 +170,9 @@ def campaign_dir(directory, seed: int | None = None, jobs: int = 2,
     if CampaignDir(directory).is_campaign():
         stored = _load(directory).config.campaign.seed
         if seed is not None and int(seed) != int(stored):
-            raise UsageError(f"--seed {seed}: {directory} holds the campaign of seed {stored}; "
-                             "leave --seed out to read it, or give another directory")
+            raise ArgumentError.of("seed", seed, f"{directory} holds the campaign of seed "
+                                   f"{stored}", None, "leave {seed} out to read it, or give "
+                                   "another directory")
         return directory
     values = ({} if learning_runs is None else
               {"learning.runs_per_manoeuvre": int(learning_runs)})

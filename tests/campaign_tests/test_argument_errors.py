@@ -1,0 +1,54 @@
+"""A library function names its bad arguments as Python names them; the command line
+names its options (scenarios.errors.ArgumentError), exit 2 either way."""
+
+from __future__ import annotations
+
+import pickle
+
+import pytest
+
+from campaign.cli.commands import main
+from campaign.config import load_config
+from campaign.runner import CampaignSetupError, RunOptionError, check_run_options
+from campaign.tools.bench import bench
+from scenarios.errors import ArgumentError
+
+
+def test_run_options_are_named_as_python_arguments():
+    config = load_config("smoke")
+    with pytest.raises(RunOptionError) as caught:
+        check_run_options(config, jobs=1, chunk_size=0)
+    message = str(caught.value)
+    assert message.startswith("chunk_size=0: out of range") and "--" not in message
+    assert "fix: e.g. chunk_size=100" in message
+    # still the setup error a caller of campaign.run catches
+    assert isinstance(caught.value, CampaignSetupError)
+    assert caught.value.for_command_line().startswith("--chunk-size 0: out of range")
+    with pytest.raises(RunOptionError, match=r"^jobs=0: must be an integer ≥ 1"):
+        check_run_options(config, jobs=0, chunk_size=None)
+
+
+def test_bench_names_every_bad_argument_and_the_command_line_its_options(capsys):
+    with pytest.raises(ArgumentError) as caught:
+        bench(n_runs=0, duration_s=0.5, jobs=1)
+    assert [p[0] for p in caught.value.problems] == ["n_runs", "duration_s"]
+    assert str(caught.value).startswith("n_runs=0: must be an integer ≥ 1")
+    assert main(["bench", "--runs", "0", "--duration", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "--runs 0: must be an integer ≥ 1" in err and "--duration 0.5: a run lasts" in err
+    assert "n_runs" not in err and "duration_s" not in err
+
+
+def test_other_arguments_in_the_text_follow_the_caller():
+    exc = ArgumentError.of("yardstick_dir", None, "without {yardstick}", None,
+                           "name {yardstick} too")
+    assert str(exc) == "yardstick_dir without yardstick; fix: name yardstick too"
+    assert exc.for_command_line() == ("--yardstick-dir without --yardstick; fix: name "
+                                      "--yardstick too")
+    value = ArgumentError.of("duration_s", 5.0, "too short", 60.0)
+    assert str(value) == "duration_s=5.0: too short; fix: e.g. duration_s=60.0"
+    assert value.for_command_line({"duration_s": "--duration"}) == (
+        "--duration 5: too short; fix: e.g. --duration 60")
+    # crosses process boundaries (loky workers) whole
+    again = pickle.loads(pickle.dumps(exc))
+    assert type(again) is ArgumentError and str(again) == str(exc)
