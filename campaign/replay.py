@@ -47,7 +47,8 @@ from .isolation import roles_of
 from .evidence.figures import evidence_figure_specs
 from .plant_setup import replay_plant
 from .result import Campaign, load
-from .runner import CampaignSetupError, Progress, settings_of
+from .progress import Progress
+from .runner import CampaignSetupError, settings_of
 from .store.directory import CampaignDir
 from .tradeoff import report_figures as tradeoff_figures
 
@@ -200,7 +201,7 @@ def _resimulate(chunks: list, *, detectors: dict, settings: ChunkSettings, n_bin
     own copy of the detectors, as ``run`` does), in the worker processes *processes* (a
     ``concurrent.futures`` executor) when the plant must not be shared between threads
     (an FMU), or here one after the other for one job. *progress* (a
-    :class:`campaign.runner.Progress`) counts the runs as their batch ends."""
+    :class:`campaign.progress.Progress`) counts the runs as their batch ends."""
     kwargs = {"detectors": detectors, "settings": settings, "n_bins": n_bins,
               "example_ids": example_ids}
     if jobs == 1 or len(chunks) == 1:
@@ -472,7 +473,7 @@ class _FigureDrawer:
 
     def collect(self, groups: list[str], progress) -> list[ReportFigure]:
         """Every figure of *groups* (in that order, each in its specs' order); *progress*
-        (a :class:`campaign.runner.Progress`, started at :attr:`done`) counts them as they
+        (a :class:`campaign.progress.Progress`, started at :attr:`done`) counts them as they
         are done."""
         pngs: dict[str, list] = {}
         if self.executor is None:
@@ -498,7 +499,7 @@ class _FigureDrawer:
 
 class _StageLog:
     """The report's progress on stderr, as ``run`` shows its own: a line per stage with the
-    seconds since the start, and a :class:`campaign.runner.Progress` bar for the runs
+    seconds since the start, and a :class:`campaign.progress.Progress` bar for the runs
     re-simulated and for the figures drawn; nothing when *enabled* is False
     (``--quiet``)."""
 

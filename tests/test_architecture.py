@@ -167,7 +167,7 @@ ONE_DEFINITION = {
     "range_text": "scenarios.declare", "num": "scenarios.declare",
     "toml_value": "scenarios.declare", "FLIGHT_COLUMNS": "scenarios.envelope",
     "upper_bound": "reports.metrics", "natural_key": "reports.summary",
-    "Progress": "campaign.runner", "engine_version": "campaign.store.files",
+    "Progress": "campaign.progress", "engine_version": "campaign.store.files",
 }
 
 

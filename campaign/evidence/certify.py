@@ -258,7 +258,8 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
     from scipy.stats import norm
 
     from .rare import subset_simulation
-    from ..runner import Progress, evaluate_rows, prepare
+    from ..progress import Progress
+    from ..runner import evaluate_rows, prepare
 
     if config.campaign.design != "mc":
         raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "

@@ -359,7 +359,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     ``out/monte-carlo.parquet``), or with the worst fault-free margin of the campaign
     directory *against*.
     """
-    from ..runner import Progress, evaluate_rows, prepare
+    from ..progress import Progress
+    from ..runner import evaluate_rows, prepare
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     check_label(config, label)

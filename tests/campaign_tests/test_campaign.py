@@ -535,10 +535,10 @@ def test_the_rod_fault_is_computed_only_when_an_estimate_is_scored(monkeypatch):
 
 
 def test_the_progress_reporter_rates_only_the_runs_computed_now():
-    """One reporter for run, falsify and certify (campaign.runner.Progress): runs done
+    """One reporter for run, falsify and certify (campaign.progress.Progress): runs done
     before it started or read back count as done, never in the rate, so the ETA is not
     made short by a resume."""
-    from campaign.runner import Progress
+    from campaign.progress import Progress
 
     lines: list[str] = []
     bar = Progress(100, done=40, log=lines.append, label="sampling x: ")
