@@ -67,7 +67,7 @@ class Certificate:
         (:data:`campaign.evidence.certify.CERTIFICATE_COLUMNS`): counting bound, tail estimate and
         bound, per-hour bounds, subset simulation when sampled
     levels : ``certificate-levels.parquet``, the exceedance curve P(margin ≥ x) at every
-        level (:func:`campaign.evidence.certify_levels.level_table`), or None
+        level (:func:`campaign.evidence.certify.levels.level_table`), or None
     hazard : ``certificate-hazard.parquet``, the hazard per flight hour of both sides
         (:func:`campaign.evidence.hazard.hazard_table`), or None
     level : confidence of the one-sided bounds (e.g. 0.95)

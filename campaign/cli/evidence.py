@@ -18,7 +18,7 @@ def cmd_certify(args) -> int:
     from ..store.directory import CampaignDir
 
     if args.validate is not None:               # bad validation options: before any work
-        from ..evidence.certify_validate import check_validation
+        from ..evidence.certify.validate import check_validation
         from ..config import CampaignConfig
 
         cdir = CampaignDir(args.dir)
@@ -47,7 +47,7 @@ def cmd_certify(args) -> int:
           f"{Path(args.dir) / 'certificate-levels.parquet'}; the report shows it: "
           f"fdd-campaign report {args.dir}")
     if args.validate is not None:
-        from ..evidence.certify_validate import summarise, validate
+        from ..evidence.certify.validate import summarise, validate
 
         try:
             table = validate(args.dir, int(args.validate), seed=args.validate_seed,
@@ -167,7 +167,7 @@ def fa_probability_checks(camp, limit: float) -> list:
 
 def add_evidence_parsers(subs) -> None:
     """Sub-command ``certify``."""
-    from ..evidence.certify_levels import DEFAULT_LEVELS
+    from ..evidence.certify.levels import DEFAULT_LEVELS
     from .common import add_command
 
     p = add_command(subs, "certify", "per-run false-alarm probability of each detector beyond "

@@ -14,7 +14,7 @@ from reports.figures import gpd_plotting_quantiles
 from reports.metrics import FAULT_FREE
 from reports.survival import kaplan_meier
 
-from .certify_levels import EXTRAPOLATION_DECADES
+from .certify.levels import EXTRAPOLATION_DECADES
 
 __all__ = ["evidence_figure_specs"]
 

@@ -209,12 +209,12 @@ def hazard_table(results, plan: pd.DataFrame | None, rates: dict[str, float],
                  level: float = 0.95) -> pd.DataFrame:
     """The hazard table (:data:`HAZARD_COLUMNS`, module docstring) from a campaign's result
     rows and its run table *plan* (``run_id``, ``duration_s``), or from the
-    :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them a batch at a time
+    :class:`campaign.evidence.certify.rows.CertifyRows` gathered from them a batch at a time
     (*plan* then unused), and the fault modes' rates *rates* [1/FH] (fault type → rate; a
     fault type of the campaign without a rate raises ValueError)."""
     from reports.metrics import FAULT_FREE, upper_bound
 
-    from .certify_rows import CertifyRows
+    from .certify.rows import CertifyRows
 
     if not 0.5 < float(level) < 1.0:
         raise ValueError(f"level {level!r} must be a confidence in (0.5, 1), e.g. 0.95")

@@ -309,7 +309,7 @@ def test_summary_appends_the_survival_columns_only():
 
 
 def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsys):
-    from campaign.evidence.certify_levels import LEVEL_COLUMNS
+    from campaign.evidence.certify.levels import LEVEL_COLUMNS
     import campaign
     from campaign.store.directory import CampaignDir
 

@@ -12,8 +12,8 @@ from campaign.cli.commands import main
 from campaign.compare import compare_dirs
 from campaign.config import CampaignConfig
 from campaign.evidence.certify import certificate
-from campaign.evidence.certify_levels import DEFAULT_LEVELS, level_table
-from campaign.evidence.certify_rows import CertifyRows
+from campaign.evidence.certify.levels import DEFAULT_LEVELS, level_table
+from campaign.evidence.certify.rows import CertifyRows
 from campaign.evidence.hazard import hazard_table
 from campaign.replay import POINT_COLUMNS, runs_table
 from campaign.store.directory import CampaignDir

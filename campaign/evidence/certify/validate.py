@@ -48,8 +48,8 @@ VALIDATION_COLUMNS: tuple[str, ...] = (
 def validation_config(config, n: int, seed: int):
     """*config*'s fault-free groups as a Monte Carlo design of about *n* runs with campaign
     seed *seed* (the campaign's own distribution, other draws)."""
-    from ..config import CampaignConfig
-    from .falsify import monte_carlo_config
+    from ...config import CampaignConfig
+    from ..falsify import monte_carlo_config
 
     data = monte_carlo_config(config, int(n)).to_dict()
     data["campaign"]["seed"] = int(seed)
@@ -60,9 +60,9 @@ def validation_config(config, n: int, seed: int):
 def coverage_table(levels: pd.DataFrame, results, seed: int) -> pd.DataFrame:
     """:data:`VALIDATION_COLUMNS` of an exceedance curve *levels* (rows of
     ``certificate-levels.parquet``) against the result rows of a brute-force campaign (a
-    DataFrame, or the :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them
+    DataFrame, or the :class:`campaign.evidence.certify.rows.CertifyRows` gathered from them
     a batch at a time: one margin per fault-free run and detector is kept)."""
-    from .certify_rows import CertifyRows
+    from .rows import CertifyRows
 
     if isinstance(results, pd.DataFrame):
         results = CertifyRows.of_table(results)
@@ -96,9 +96,9 @@ def validate_levels(directory, config, levels: pd.DataFrame, n: int, *, seed: in
     """Run the validation of the campaign in *directory* (its *config*, its exceedance curve
     *levels*) with *n* runs at campaign seed *seed* (module docstring) and return its
     :func:`coverage_table`, also written to ``DIR/validation/seed-S-nN.parquet``."""
-    from .certify_rows import CertifyRows
-    from ..store.files import write_parquet
-    from ..runner import run
+    from .rows import CertifyRows
+    from ...store.files import write_parquet
+    from ...runner import run
 
     root = Path(directory) / VALIDATION_DIR
     out = root / f"seed-{int(seed)}-n{int(n)}"
@@ -136,7 +136,7 @@ def check_validation(config, n: int, seed: int | None) -> int:
     """The validation seed for campaign *config* (default its seed + 1), or
     :class:`campaign.evidence.certify.CertifyError` (exit 2) for fewer than 100 runs, a grid campaign
     (no distribution to draw from) or the campaign's own seed — checked before any work."""
-    from .certify import CertifyError
+    from .estimate import CertifyError
 
     if int(n) < 100:
         raise CertifyError(f"--validate {n!r}: the brute-force runs must be ≥ 100 (a level is "
@@ -161,8 +161,8 @@ def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
     *n* brute-force runs (:func:`validate_levels`) at campaign seed *seed*
     (:func:`check_validation`). :class:`campaign.evidence.certify.CertifyError` (exit 2) also for a
     directory without ``certificate-levels.parquet``."""
-    from .certify import CertifyError
-    from ..result import load
+    from .estimate import CertifyError
+    from ...result import load
 
     loaded = load(directory)
     seed = check_validation(loaded.config, n, seed)
