@@ -48,7 +48,7 @@ from scipy import stats
 
 from .metrics import FAULT_FREE
 from .summary import ALL_MANOEUVRES, natural_key
-from .table import number_text
+from .text import number_text
 
 __all__ = ["COMPARE_COLUMNS", "TOO_FEW", "ScoredRows", "compare_results", "compare_scored",
            "differing_keys", "format_compare", "p_floor", "runs_needed", "threshold_changes",

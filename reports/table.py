@@ -14,19 +14,10 @@ import pandas as pd
 from .metrics import FAULT_FREE
 from .paper import CHEN_ESTIMATOR, PAPER_TABLES
 from .summary import ALL_FAULTS, ALL_MANOEUVRES, detector_order
+from .text import number_text
 
 __all__ = ["error_lines", "format_paper_table", "format_table", "late_text", "number_text",
            "percent_text"]
-
-
-def number_text(x, fmt: str, missing: str = "-") -> str:
-    """*x* formatted with *fmt*, or *missing* for None, NaN, inf or a non-number (every
-    table, the HTML report and the comparison write their numbers with it)."""
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return missing
-    return missing if not math.isfinite(x) else format(x, fmt)
 
 
 def percent_text(x, missing: str = "-") -> str:

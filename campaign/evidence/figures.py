@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
-from reports.figures import gpd_plotting_quantiles
 from reports.metrics import FAULT_FREE
+from reports.quantiles import gpd_plotting_quantiles
 from reports.survival import kaplan_meier
 
 from .certify.levels import EXTRAPOLATION_DECADES
