@@ -30,12 +30,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.figures import bin_max, figure_png, render_png, run_figure
-from reports.gate import requirements_gate
-from reports.html import ReportFigure, drilldown_section, render_report, show_command
-from reports.metrics import FAULT_FREE
-from reports.summary import detector_order
-from reports.table import error_lines
+from reports.render.figures.report import bin_max, figure_png, render_png, run_figure
+from reports.scoring.gate import requirements_gate
+from reports.render.html import ReportFigure, drilldown_section, render_report, show_command
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.summary import detector_order
+from reports.render.table import error_lines
 from scenarios import compiled as kernels
 from scenarios.envelope import FLIGHT_COLUMNS
 
@@ -102,7 +102,7 @@ def replay_settings(camp: Campaign, fmu=None) -> tuple[ChunkSettings | None, str
 def _run_margin(residual: np.ndarray) -> np.ndarray:
     """The largest value of a margin statistic over a whole run (the decision, else |r|/τ:
     :attr:`detectors.base.Detection.margin_statistic`), NaN samples ignored: the margin
-    of a fault-free run (reports.metrics.score_runs)."""
+    of a fault-free run (reports.scoring.metrics.score_runs)."""
     finite = ~np.isnan(residual)
     peak = np.where(finite, residual, -np.inf).max(axis=1)
     return np.where(finite.any(axis=1), peak, np.nan)
@@ -364,7 +364,7 @@ def runs_table(camp: Campaign) -> pd.DataFrame:
 
 
 def campaign_gate(camp: Campaign, req: dict, *, all_requirements: bool = False):
-    """:func:`reports.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
+    """:func:`reports.scoring.gate.requirements_gate` with the arguments of ``fdd-campaign gate DIR``
     (*all_requirements*: ``… --all-requirements``): same checks, words and run ids."""
     return requirements_gate(camp.summary, camp.gate_results, req,
                              roles=roles_of(camp.config), coverage=camp.coverage,
@@ -382,7 +382,7 @@ class _ReportData:
     detectors: list                # detector names in the summary's order (the page's)
     runs: pd.DataFrame             # runs_table(camp)
     settings: ChunkSettings | None  # to re-simulate with (None: an FMU plant, no --fmu)
-    gate: object = None            # reports.gate.GateResult of `fdd-campaign gate DIR`, and
+    gate: object = None            # reports.scoring.gate.GateResult of `fdd-campaign gate DIR`, and
     all_requirements: object = None  # of `fdd-campaign gate DIR --all-requirements`
     plan: pd.DataFrame | None = None  # the plan rows of the runs re-simulated, by run id
     n_free: int = 0                # fault-free runs scored ok
@@ -404,7 +404,7 @@ def _figure_worker_init() -> None:
     about 100 MB more)."""
     import gc
 
-    from reports import figures
+    from reports.render.figures import report as figures
 
     figures.new_figure()
     gc.freeze()
@@ -450,7 +450,7 @@ class _FigureDrawer:
         self.jobs = jobs
         self.executor = None
         if jobs > 1:
-            from reports.figures import new_figure
+            from reports.render.figures.report import new_figure
 
             self.executor = _process_pool(jobs, _figure_worker_init, preload=new_figure)
         self.specs: dict[str, list] = {}
@@ -683,7 +683,7 @@ def _resimulation_warnings(parts: list[dict]) -> list[str]:
 
 
 # A figure to draw (a "spec"): (section, group, title, caption, kind, args, kwargs) for
-# reports.figures.render_png(kind, args, kwargs). The page shows them in FIGURE_GROUPS
+# reports.render.figures.report.render_png(kind, args, kwargs). The page shows them in FIGURE_GROUPS
 # order: envelopes, detection per fault type, example runs, maps, then the evidence
 # (campaign.evidence.figures). _envelope_specs and _example_specs add the notes and
 # warnings that go with their figures.

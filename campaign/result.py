@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.metrics import FAULT_FREE
-from reports.summary import ALL_FAULTS, ALL_MANOEUVRES
-from reports.table import format_table
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.summary import ALL_FAULTS, ALL_MANOEUVRES
+from reports.render.table import format_table
 
 from .store.directory import RESULT_BATCH_RUNS, CampaignDir, CampaignDirError, read_metadata
 
@@ -248,11 +248,11 @@ class Campaign:
 
     @cached_property
     def gate_results(self) -> pd.DataFrame:
-        """The result rows the gate reads (:func:`reports.gate.gate_rows`: false alarms,
+        """The result rows the gate reads (:func:`reports.scoring.gate.gate_rows`: false alarms,
         misses and failed runs), in plan order, read a batch of runs at a time: what ``gate``
         and the report's error lines need, in memory that does not grow with the runs of a
         fault-free campaign."""
-        from reports.gate import gate_rows
+        from reports.scoring.gate import gate_rows
 
         parts = [gate_rows(batch) for batch in self._cdir.result_batches()]
         return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
@@ -260,7 +260,7 @@ class Campaign:
     @cached_property
     def detection_times(self) -> pd.DataFrame | None:
         """First alarm per group × detector variant (``detection-times.parquet``,
-        :mod:`reports.detection_times`) of a fixed-onset campaign; None for others."""
+        :mod:`reports.scoring.detection_times`) of a fixed-onset campaign; None for others."""
         return self._cdir.read_detection_times()
 
     @cached_property

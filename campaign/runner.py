@@ -30,8 +30,8 @@ from detectors import make_detector, writes_input
 from detectors.base import set_threshold_scales
 from detectors.system import with_systems
 from detectors.registry import load_detector_class
-from reports.detection_times import detection_time_table, fixed_onset_campaign
-from reports.summary import SummaryAccumulator
+from reports.scoring.detection_times import detection_time_table, fixed_onset_campaign
+from reports.scoring.summary import SummaryAccumulator
 from scenarios import compiled as kernels
 from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
@@ -253,7 +253,7 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     resumed directory must hold the same fitted files (same
     :meth:`CampaignDir.fitted_sha256`).
     """
-    from reports.compare import differing_keys
+    from reports.scoring.compare import differing_keys
 
     from .config import CampaignConfig
 
@@ -723,13 +723,13 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
     :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and ``fitted_from``, the
     directory they were taken from or None, and ``fmu_sha256``, the SHA-256 of an FMU plant's
     file, :func:`campaign.plant_setup.replay_plant`) and, for a campaign of fixed onsets
-    (:func:`reports.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
+    (:func:`reports.scoring.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
 
     No batch is kept: the summary is aggregated as the batches come
-    (:class:`reports.summary.SummaryAccumulator`), and of the rows only those the gate reads
-    (:func:`reports.gate.gate_rows`: in a fault-free campaign, its false alarms and failed
+    (:class:`reports.scoring.summary.SummaryAccumulator`), and of the rows only those the gate reads
+    (:func:`reports.scoring.gate.gate_rows`: in a fault-free campaign, its false alarms and failed
     runs) and, for a fixed-onset campaign, the first alarms of its runs are kept."""
-    from reports.gate import gate_rows
+    from reports.scoring.gate import gate_rows
 
     full = plan
     columns = ["run_id", "group", "fault", "onset_s"]

@@ -49,7 +49,7 @@ FAULT_TYPES: tuple[str, ...] = FAULTS[1:]
 
 #: Required detection times [s], the DTP denominators (docs/physics.md §5: est. defaults, the
 #: ADDSAFE values are not published; [CHEN]'s printed DTPs imply a 120 s denominator,
-#: inferred in :mod:`reports.paper`, twice a 60 s run, so it is not used here and its
+#: inferred in :mod:`reports.render.paper`, twice a 60 s run, so it is not used here and its
 #: tables are compared in seconds). OFC: 3 oscillation periods of the default 1 Hz
 #: oscillation, a fixed 3 s for every OFC run (not resolved from each run's frequency).
 REQUIRED_DETECTION_TIME_S: dict[str, float] = {

@@ -125,10 +125,22 @@ def test_imports_flow_one_way_between_packages():
     assert upward == []
 
 
+def test_the_scoring_layer_sits_below_the_rendering_layer():
+    # reports/ is two layers (docs/design.md §2): scoring never imports rendering, and the
+    # detectors and the evidence import only scoring
+    below = [f"{name}:{line} imports {target}"
+             for name, edges in GRAPH.items() for target, _, line in edges
+             if (name.startswith(("reports.scoring", "detectors", "campaign.evidence"))
+                 and target.startswith("reports.") and not target.startswith("reports.scoring"))]
+    assert below == []
+    assert any(t.startswith("reports.scoring") for t, _, _ in GRAPH["detectors.tail"])
+    assert any(t.startswith("reports.scoring") for t, _, _ in GRAPH["reports.render.html"])
+
+
 def test_the_shared_modules_import_nothing_of_the_project():
     # every package may import them, so they must sit below all of them
     assert {name: GRAPH[name] for name in SHARED} == {name: [] for name in SHARED}
-    assert any(t in SHARED for t, _, _ in GRAPH["reports.gate"])   # the rule is exercised
+    assert any(t in SHARED for t, _, _ in GRAPH["reports.scoring.gate"])   # the rule is exercised
 
 
 def _sections(doc: str) -> set[str]:
@@ -166,7 +178,7 @@ def test_no_citation_points_outside_the_repository():
 ONE_DEFINITION = {
     "range_text": "scenarios.declare", "num": "scenarios.declare",
     "toml_value": "scenarios.declare", "FLIGHT_COLUMNS": "scenarios.envelope",
-    "upper_bound": "reports.metrics", "natural_key": "reports.summary",
+    "upper_bound": "reports.scoring.metrics", "natural_key": "reports.scoring.summary",
     "Progress": "campaign.progress", "engine_version": "campaign.store.files",
 }
 

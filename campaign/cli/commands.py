@@ -84,7 +84,7 @@ def _run_campaign(config, out, args):
     if not result.summary.empty:
         print(result.table())
     if result.detection_times is not None:   # fixed-scenario campaigns, e.g. comb-table1
-        from reports.detection_times import format_detection_times
+        from reports.scoring.detection_times import format_detection_times
 
         print(format_detection_times(result.detection_times))
     return result, creq.print_verdict(config, result)
@@ -235,7 +235,7 @@ def _plan_one(config, out: Path) -> None:
 
 
 def cmd_gate(args) -> int:
-    from reports.gate import write_junit, write_junit_suite
+    from reports.scoring.gate import write_junit, write_junit_suite
 
     from .worst_case import check_worst_case_options
 
@@ -265,7 +265,7 @@ def cmd_gate(args) -> int:
 
 
 def _gate_one(directory, args):
-    from reports.gate import requirements_gate
+    from reports.scoring.gate import requirements_gate
 
     from ..result import load
 
@@ -345,7 +345,7 @@ def cmd_report(args) -> int:
 
 
 def _report_one(args) -> None:
-    from reports.table import error_lines
+    from reports.render.table import error_lines
 
     from ..result import load
 
@@ -501,13 +501,13 @@ def cmd_simulate(args) -> int:
         pq.write_table(table, args.out)
         print(f"signals and truth written to {args.out}")
     if args.plot and plant.kind == "aircraft":
-        from reports.aircraft_plot import plot_aircraft_run
+        from reports.render.figures.aircraft import plot_aircraft_run
 
         plot_aircraft_run(frame, onset_s=onset, path=args.plot, monitored=str(runs["surface"].iloc[0]),
                           title=f"{runs['surface'].iloc[0]} — {args.manoeuvre} — {args.fault}")
         print(f"plot written to {args.plot}")
     elif args.plot:
-        from reports.plots import plot_run
+        from reports.render.figures.run import plot_run
 
         plot_run(frame, onset_s=onset, title=f"{args.surface} — {args.manoeuvre} — {args.fault}",
                  path=args.plot)

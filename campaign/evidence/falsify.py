@@ -3,7 +3,7 @@
 docs/evidence.md, "Worst-case search (falsify)"; docs/design.md §8. A Monte Carlo campaign
 can say "0 false alarms in n runs" and nothing stronger; validation practice for monitoring
 functions adds a global search for the fault-free run that comes closest to an alarm. Every
-run's margin m = max |r|/τ over its fault-free part (:func:`reports.metrics.score_runs`;
+run's margin m = max |r|/τ over its fault-free part (:func:`reports.scoring.metrics.score_runs`;
 m ≥ 1: the threshold is exceeded, a false alarm when the detector's confirmation holds it,
 scored as ``false_alarm``) is the objective: the search maximises the margin of one
 detector (variant) over
@@ -262,7 +262,7 @@ class FalsifyResult:
 
 def scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
     """Margin of *label* per row of *rows* (NaN for a run in error) and whether the
-    detector raised a false alarm in it (scored, :func:`reports.metrics.score_runs`;
+    detector raised a false alarm in it (scored, :func:`reports.scoring.metrics.score_runs`;
     False for a run in error)."""
     mine = results[results["detector"] == label].drop_duplicates("run_id")
     # plain arrays: a Series given to pd.Series(..., index=...) is reindexed by label

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
-from reports.metrics import FAULT_FREE
-from reports.quantiles import gpd_plotting_quantiles
-from reports.survival import kaplan_meier
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.quantiles import gpd_plotting_quantiles
+from reports.scoring.survival import kaplan_meier
 
 from .certify.levels import EXTRAPOLATION_DECADES
 

@@ -16,7 +16,7 @@ Layout (docs/design.md §6, Outputs)::
     DIR/runs/part-NNNNNN.parquet  result rows, one shard per finished chunk
     DIR/summary.parquet       rates, bounds, DTP statistics
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
-                              campaigns only, :mod:`reports.detection_times`)
+                              campaigns only, :mod:`reports.scoring.detection_times`)
     DIR/tradeoff.parquet      the results at other threshold scales (``fdd-campaign tradeoff``,
                               :mod:`campaign.tradeoff`)
     DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
@@ -68,7 +68,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from reports.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN
+from reports.scoring.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN
 from scenarios.errors import InputError
 
 from .lock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
@@ -106,7 +106,7 @@ ALARM_SCALES_KEY = "alarm_scales"
 
 def _stored_alarm_steps(results: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
     """(*results* as a shard stores them, the shard's extra metadata): the ``alarm_steps``
-    column (:mod:`reports.alarm_steps`) left out when every value is null (a chunk of
+    column (:mod:`reports.scoring.alarm_steps`) left out when every value is null (a chunk of
     fault-free runs: about 500 bytes of schema a shard), else kept, packed
     (:func:`campaign.store.files.write_parquet`), with the scales it holds in the metadata."""
     if ALARM_STEPS_COLUMN not in results.columns:
@@ -888,7 +888,7 @@ class CampaignDir:
 
     def write_detection_times(self, times: pd.DataFrame, config_json: str) -> None:
         """Write ``detection-times.parquet``
-        (:func:`reports.detection_times.detection_time_table`)."""
+        (:func:`reports.scoring.detection_times.detection_time_table`)."""
         self._write_recorded(self.detection_times_path, lambda: write_parquet(
             times, self.detection_times_path, config_json, kind="detection_times"))
 

@@ -106,7 +106,7 @@ def test_faults_are_detected_and_fault_free_runs_are_quiet(tmp_path):
 
 
 #: A small campaign whose faulty groups have fixed onsets: ``run`` stores its detection
-#: times (reports.detection_times) beside the summary.
+#: times (reports.scoring.detection_times) beside the summary.
 FIXED_ONSETS = """
 [campaign]
 name = "fixed-onsets"

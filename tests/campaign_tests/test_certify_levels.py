@@ -15,7 +15,7 @@ from campaign.evidence.certify.levels import (EXTRAPOLATION_DECADES, LEVEL_COLUM
                                      parse_levels, runs_to_carry, sampling_levels_to_reach)
 from campaign.evidence.certify.validate import coverage_table
 from detectors.tail import exceedance_curve
-from reports.metrics import upper_bound
+from reports.scoring.metrics import upper_bound
 
 
 def _two_class_sample(seed, n_per=400):

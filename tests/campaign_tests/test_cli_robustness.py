@@ -302,7 +302,7 @@ INPUT_ERRORS = [   # (module, class, the builtin its callers catch)
     ("scenarios.fmu", "FmuRunError", RuntimeError),
     ("scenarios.fmu_build", "FmuBuildError", RuntimeError),
     ("scenarios.fmu_build", "FmuOptionError", ValueError),
-    ("reports.gate", "GateInputError", ValueError),
+    ("reports.scoring.gate", "GateInputError", ValueError),
 ]
 
 

@@ -159,7 +159,7 @@ def test_run_ids_are_read_as_bytes_from_the_arrow_buffer_when_they_have_one_leng
 def test_whether_onsets_are_fixed_is_decided_alike_from_parts_of_the_plan():
     # finalize decides it from plan.parquet batch by batch: the verdict of the whole plan
     from campaign.config import load_config
-    from reports.detection_times import fixed_onset_campaign
+    from reports.scoring.detection_times import fixed_onset_campaign
 
     for preset, fixed in (("comb-table1", True), ("addsafe-mc", False), ("smoke", False)):
         plan = build_plan(load_config(preset))

@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from campaign.store.directory import CampaignDir
-from reports.gate import evaluate_gate, gate_rows
-from reports.summary import SummaryAccumulator, summarize
+from reports.scoring.gate import evaluate_gate, gate_rows
+from reports.scoring.summary import SummaryAccumulator, summarize
 
 FAULTS = ("none", "runaway", "liquid_jam")
 MANOEUVRES = ("cruise", "nose_up", "pitch_protection")

@@ -30,7 +30,7 @@ from detectors.builtin.comb_interval import (
     threshold_schedule,
     variability,
 )
-from reports.detection_times import (detection_time_table, fixed_onset_campaign,
+from reports.scoring.detection_times import (detection_time_table, fixed_onset_campaign,
                                      format_detection_times)
 from scenarios.params import ELEVATOR, TS_S
 from scenarios.servo import plant_arrays

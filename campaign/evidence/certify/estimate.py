@@ -6,7 +6,7 @@ From a finished campaign's fault-free runs (``fault = "none"``, ``status = "ok"`
 detector (result-row name, variants apart):
 
 * ``fa_count``/``n_runs`` and ``fa_upper95_cp``, the exact one-sided Clopper–Pearson upper
-  bound of the per-run false-alarm probability (:func:`reports.metrics.upper_bound`,
+  bound of the per-run false-alarm probability (:func:`reports.scoring.metrics.upper_bound`,
   Beta⁻¹(level; k + 1, n − k), the summary's ``fa_upper95`` at 95 %); assumes independent
   runs of one probability;
 * ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) and its one-sided bound, the
@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
-from reports.metrics import FAULT_FREE, upper_bound
+from reports.scoring.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
 from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.errors import InputError

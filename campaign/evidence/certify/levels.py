@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from detectors.tail import exceedance_curve
-from reports.metrics import upper_bound
+from reports.scoring.metrics import upper_bound
 
 from ..rare import P0
 

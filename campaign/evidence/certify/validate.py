@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.metrics import lower_bound
+from reports.scoring.metrics import lower_bound
 
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
            "check_validation", "coverage_table", "summarise", "validate", "validate_levels",
