@@ -370,7 +370,7 @@ def test_simulate_refuses_the_magnitudes_a_campaign_file_refuses(fault, capsys):
     # the bound itself is accepted by both
     assert _group_errors(fault, spec.upper, extra) == []
     from campaign.config.rules import single_fault_problems
-    from campaign.cli.commands import _SIMULATE_NAMES
+    from campaign.cli.tool_commands import _SIMULATE_NAMES
 
     assert single_fault_problems(fault, magnitude=spec.upper, variant=extra.get("variant"),
                                  sign=None, onset_s=10.0, duration_s=30.0,
