@@ -23,10 +23,20 @@ from .common import (  # noqa: F401  (part of this module's interface)
     report_internal_error,
 )
 from ..startup import defer_collection, start_up_done
+from .evidence import add_evidence_parsers
+from .falsify import add_falsify_parser
 from .result_commands import add_result_parsers
 from .run_commands import add_run_parsers, cmd_run
 from .study_commands import add_study_parsers
 from .tool_commands import add_simulate_parser, add_tool_parsers
+from .tradeoff import add_tradeoff_parser
+
+#: The command table: one entry per command group, in the order ``--help`` lists them; each
+#: registers its commands with :func:`campaign.cli.common.add_command` (and a group of
+#: commands, ``fmu`` and ``study``, with :func:`campaign.cli.common.add_group`).
+COMMAND_GROUPS = (add_run_parsers, add_result_parsers, add_simulate_parser, add_tool_parsers,
+                  add_study_parsers, add_falsify_parser, add_evidence_parsers,
+                  add_tradeoff_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -47,13 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     v += " (not installed)" if v == UNKNOWN_VERSION else ""
     parser.add_argument("--version", action="version", version=f"fdd-campaign {v}")
     subs = parser.add_subparsers(dest="command", metavar="COMMAND")
-    from .evidence import add_evidence_parsers
-    from .falsify import add_falsify_parser
-    from .tradeoff import add_tradeoff_parser
-
-    for add in (add_run_parsers, add_result_parsers, add_simulate_parser, add_tool_parsers,
-                add_study_parsers, add_falsify_parser, add_evidence_parsers,
-                add_tradeoff_parser):
+    for add in COMMAND_GROUPS:
         add(subs)
     return parser
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import sys
 from functools import partial
 
-from .common import EXIT_INTERRUPTED, EXIT_OK, UsageError, add_command, check_writable
+from .common import (EXIT_INTERRUPTED, EXIT_OK, UsageError, add_command, add_group,
+                     check_writable)
 
 
 def cmd_study_vanek(args) -> int:
@@ -66,12 +67,10 @@ def cmd_study_saturation(args) -> int:
 
 def add_study_parsers(subs) -> None:
     """Sub-commands: the studies (``fdd-campaign study NAME``, :mod:`campaign.tools.studies`)."""
-    study = subs.add_parser("study", help="reproduce a published comparison or count the "
-                            "aircraft laws' surface activity (one table)",
-                            description="studies: fixed comparisons reproduced from a paper and "
-                                        "censuses of the model, one table each "
-                                        "(campaign.tools.studies)")
-    ssubs = study.add_subparsers(dest="study", metavar="STUDY", required=True)
+    ssubs = add_group(subs, "study", "reproduce a published comparison or count the aircraft "
+                      "laws' surface activity (one table)",
+                      "studies: fixed comparisons reproduced from a paper and censuses of the "
+                      "model, one table each (campaign.tools.studies)", "study", "STUDY")
     p = add_command(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
              "residual peaks, thresholds, detection delays and DTP (docs/vanek-geometric.md)",
              "fdd-campaign study vanek --noise-scale 0.1", cmd_study_vanek)

@@ -7,7 +7,7 @@ import sys
 from functools import partial
 from pathlib import Path
 
-from .common import EXIT_OK, UsageError, add_command, check_writable
+from .common import EXIT_OK, UsageError, add_command, add_group, check_writable
 
 
 def cmd_presets(args) -> int:
@@ -241,9 +241,8 @@ def add_tool_parsers(subs) -> None:
                    help="runs timed on the FMU plant (default 40)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
-    fmu = subs.add_parser("fmu", help="build the built-in servo-loop as an FMU",
-                          description="FMU tools")
-    fsubs = fmu.add_subparsers(dest="fmu_command", metavar="FMU_COMMAND", required=True)
+    fsubs = add_group(subs, "fmu", "build the built-in servo-loop as an FMU", "FMU tools",
+                      "fmu_command", "FMU_COMMAND")
     p = add_command(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
              "FMU and validate it with fmpy", "fdd-campaign fmu build --out servo.fmu", cmd_fmu)
     p.add_argument("--out", default="servo.fmu", help="FMU file to write (default servo.fmu)")
