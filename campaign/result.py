@@ -118,7 +118,7 @@ class Provenance:
     engine_version : the fdd-campaign version that wrote ``summary.parquet``
     engine_versions : every version that wrote into the directory (``manifest.json``)
     model_version : the simulated models' version the plan was made with
-        (:data:`campaign.design.MODEL_VERSION`; ``servo-1`` when a plan recorded none)
+        (:data:`campaign.plan.MODEL_VERSION`; ``servo-1`` when a plan recorded none)
     seed : the campaign's seed (``[campaign] seed``)
     identity_sha256 : SHA-256 of the campaign's identity, the part of its configuration
         that decides its results (:func:`campaign.store.directory.identity_sha256`)

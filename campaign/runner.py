@@ -37,7 +37,7 @@ from scenarios.errors import InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
-from .design import MODEL_VERSION, PlanBlocks, build_learning_plan
+from .plan import MODEL_VERSION, PlanBlocks, build_learning_plan
 from .plugins import (
     batch_check_runs,
     batch_dependence,

@@ -65,7 +65,7 @@ REQUIRED_DETECTION_TIME_S: dict[str, float] = {
 
 #: Detection budget of a fault [s]: the time a drawn onset leaves before the end of the run
 #: (docs/physics.md §5, "Onsets that leave time to detect"; applied by
-#: campaign.design where onsets are drawn). The latest drawn onset is
+#: campaign.plan where onsets are drawn). The latest drawn onset is
 #: duration_s − max(``[faults] onset_before_end_s``, budget): a fault that starts too late
 #: to be detected is a miss of the campaign design, not of the detector. disconnection:
 #: twice the slowest delay [CHEN] prints for it, 7.01 s (Table 3: DTP 0.0584167 =

@@ -222,7 +222,7 @@ def test_the_changelog_tells_every_model_version_and_the_current_engine():
     # run ids have hashed, newest (the current MODEL_VERSION) first, and the package's version
     import tomllib
 
-    from campaign.design import MODEL_VERSION
+    from campaign.plan import MODEL_VERSION
 
     text = (REPO / "CHANGELOG.md").read_text(encoding="utf-8")
     models = re.findall(r"^- \*\*(servo-\d+)\*\*", text, flags=re.M)

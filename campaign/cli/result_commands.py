@@ -204,7 +204,7 @@ def _resume_command(camp, directory) -> str:
 def write_html_report(args, camp=None) -> None:
     """The HTML part of ``fdd-campaign report`` (after the table is printed), from *camp*
     when the command has loaded it already."""
-    from ..replay import ReportSettings, build_report
+    from ..report_build import ReportSettings, build_report
 
     path = build_report(camp if camp is not None else args.dir, out=args.html,
                         jobs=args.jobs, fmu=args.fmu,
@@ -215,7 +215,7 @@ def write_html_report(args, camp=None) -> None:
 
 
 def cmd_show(args) -> int:
-    from ..replay import show_run
+    from ..report_build import show_run
 
     for option in ("plot", "out"):
         if getattr(args, option):

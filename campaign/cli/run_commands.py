@@ -161,7 +161,7 @@ def cmd_plan(args) -> int:
 
 
 def _plan_one(config, out: Path) -> None:
-    from ..design import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
+    from ..plan import MODEL_VERSION, PlanBlocks, build_learning_plan, plan_counts
     from ..store.directory import CampaignDir
 
     from ..runner import remove_created, start_state

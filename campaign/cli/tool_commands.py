@@ -106,13 +106,13 @@ def _simulate_magnitude(args, act) -> float | None:
     follow the rules of a campaign file's ``[[group]]`` keys of the same names
     (:func:`campaign.config.rules.single_fault_problems`: the unit and bounds of the fault's
     ``[faults.*]`` range, a jam's % of the deflection range; exit 2 naming the option), and
-    become a run-table magnitude as a group's do (:func:`campaign.design.fixed_magnitude`)."""
+    become a run-table magnitude as a group's do (:func:`campaign.plan.fixed_magnitude`)."""
     import numpy as np
 
     from scenarios.faults import FAULT_DEFAULTS, default_magnitude, solid_jam_offset_mm
 
     from ..config.rules import single_fault_problems
-    from ..design import fixed_magnitude
+    from ..plan import fixed_magnitude
 
     problems = single_fault_problems(args.fault, magnitude=args.magnitude,
                                      variant=args.variant, sign=args.sign, onset_s=args.onset,

@@ -56,7 +56,7 @@ from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from ..config import CampaignConfig
 from ..config.text import toml_value
-from ..design import build_plan, explicit_plan, variable_ranges
+from ..plan import build_plan, explicit_plan, variable_ranges
 from ..execute import one_blas_thread
 from ..store.directory import SEARCH_FILE, WORST_FILE, write_parquet, write_text
 
@@ -132,7 +132,7 @@ class SearchSpace:
         return np.array(out)
 
     def decode(self, x: np.ndarray) -> list[dict]:
-        """The runs (dicts of :func:`campaign.design.explicit_rows`) of the search vectors
+        """The runs (dicts of :func:`campaign.plan.explicit_rows`) of the search vectors
         *x*, shape (n_dims, n) — repaired into the realistic envelope when asked."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         n = x.shape[1]

@@ -2,7 +2,7 @@
 mean-excess and tail QQ plots of the tail fit of the manoeuvre holding the largest fault-free
 margin, as the certificate's exceedance curve fits it (when the directory holds
 a certificate, ``fdd-campaign certify``), and the Kaplan–Meier detection-delay curves per
-fault type. Figure specs in the form of :func:`campaign.replay.build_report`:
+fault type. Figure specs in the form of :func:`campaign.report_build.build_report`:
 (section, group, title, caption, kind, args, kwargs)."""
 
 from __future__ import annotations

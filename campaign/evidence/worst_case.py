@@ -162,7 +162,7 @@ def _corpus_rows(config, paths) -> tuple[pd.DataFrame, list[Path]]:
     """The run-table rows of the ``[[run]]`` entries of the corpus files *paths* (a run held
     by several once, at its first file) and, per row, the file that holds it."""
     from ..config import load_config
-    from ..design import explicit_plan
+    from ..plan import explicit_plan
 
     frames, files = [], []
     for path in paths:

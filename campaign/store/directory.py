@@ -640,9 +640,9 @@ class CampaignDir:
 
     def write_plan(self, plan, config_json: str, model_version: str) -> int:
         """Write the run table ``plan.parquet`` with the version of the simulated models it
-        is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`);
+        is planned with (:data:`campaign.plan.MODEL_VERSION`; :meth:`check_model_version`);
         returns its number of rows. *plan*: a DataFrame, or the blocks of one as they are
-        made (:class:`campaign.design.PlanBlocks`: iterable, with ``rows`` and ``check()``),
+        made (:class:`campaign.plan.PlanBlocks`: iterable, with ``rows`` and ``check()``),
         written as they come, so the memory holds one block whatever the size of the plan;
         the same file. Their ``check()`` may refuse the plan once every block is read, before
         the file takes its name."""

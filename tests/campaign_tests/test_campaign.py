@@ -15,7 +15,7 @@ import pytest
 from campaign import run
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, load_config
-from campaign.design import LEARNING_STREAM_BASE, build_learning_plan, build_plan
+from campaign.plan import LEARNING_STREAM_BASE, build_learning_plan, build_plan
 from campaign.evaluate import ChunkSettings, evaluate
 from campaign.store.directory import CampaignDirError
 
@@ -168,7 +168,7 @@ def test_load_reads_back_the_campaign_that_run_returned(tmp_path):
 
     import campaign
     from campaign.evidence.certify import certify
-    from campaign.design import MODEL_VERSION
+    from campaign.plan import MODEL_VERSION
     from campaign.store.directory import CampaignDir
 
     cfg_file = tmp_path / "fixed.toml"

@@ -20,7 +20,7 @@ import pytest
 from campaign import load, run
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig
-from campaign.replay import ReportSettings, build_report
+from campaign.report_build import ReportSettings, build_report
 from detectors import registry
 from reports.scoring.compare import compare_results
 from reports.render.figures.report import SMALL_PT, bin_max, envelope_figure, fault_figure, pyplot
@@ -647,7 +647,7 @@ def test_a_passing_value_beside_a_failure_names_the_failure():
 
 def test_workers_and_threads_make_the_page_one_process_makes(campaign_dir, report, tmp_path,
                                                              monkeypatch):
-    import campaign.replay as replay
+    import campaign.report_build as replay
 
     # batches of 5 runs: the 16 fault-free runs and the example runs re-simulated in 4
     # batches on 2 threads; the figures drawn in 2 worker processes

@@ -15,7 +15,7 @@ from campaign.evidence.certify import certificate
 from campaign.evidence.certify.levels import DEFAULT_LEVELS, level_table
 from campaign.evidence.certify.rows import CertifyRows
 from campaign.evidence.hazard import hazard_table
-from campaign.replay import POINT_COLUMNS, runs_table
+from campaign.report_build import POINT_COLUMNS, runs_table
 from campaign.store.directory import CampaignDir
 from reports.scoring.compare import compare_results
 from reports.scoring.summary import detector_order

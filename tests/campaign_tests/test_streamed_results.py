@@ -179,7 +179,7 @@ def test_chunks_read_from_the_plan_file_are_the_plan_chunks(tmp_path, size):
     chunks it cut from the plan in memory (rows, dtypes, index), with and without runs
     already done."""
     from campaign.config import load_config
-    from campaign.design import MODEL_VERSION, build_plan
+    from campaign.plan import MODEL_VERSION, build_plan
     from campaign.runner import _plan_chunks
 
     config = load_config("smoke")

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from campaign.config import ConfigError, load_config, with_overrides
-from campaign.design import build_learning_plan, build_plan, run_id
+from campaign.plan import build_learning_plan, build_plan, run_id
 from detectors import make_detector
 from detectors.builtin.comb_interval import (
     IntervalDetector,

@@ -76,7 +76,7 @@ TESTS: dict[str, tuple[str, ...]] = {
                             "tests/campaign_tests/test_run_table_properties.py"),
     "scenarios/runs.py": ("tests/scenarios_tests/test_run_validation.py", "tests/campaign_tests/test_run_table_properties.py",
                           "tests/scenarios_tests/test_manoeuvre_sets.py"),
-    "campaign/design.py": ("tests/campaign_tests/test_design_values.py", "tests/campaign_tests/test_run_table_properties.py",
+    "campaign/plan.py": ("tests/campaign_tests/test_design_values.py", "tests/campaign_tests/test_run_table_properties.py",
                            "tests/campaign_tests/test_config.py"),
     "detectors/calibrate.py": ("tests/detectors_tests/test_calibrate_values.py", "tests/detectors_tests/test_calibrate.py"),
     "detectors/builtin/position_monitor.py": ("tests/detectors_tests/test_position_monitor_values.py",

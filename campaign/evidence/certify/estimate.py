@@ -54,7 +54,7 @@ from scenarios.errors import InputError
 
 from .levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .rows import CertifyRows
-from ...design import run_id, variable_ranges
+from ...plan import run_id, variable_ranges
 from ...execute import one_blas_thread
 from ..hazard import per_hour
 from ..rare import P0
@@ -169,7 +169,7 @@ def certificate(results, plan: pd.DataFrame | None = None, level: float = 0.95,
 # ---- the sampled estimate --------------------------------------------------------------------
 def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
     """The run variables of the campaign's fault-free population and their ranges
-    (uniform priors, as the ``mc`` design draws them; :func:`campaign.design.variable_ranges`):
+    (uniform priors, as the ``mc`` design draws them; :func:`campaign.plan.variable_ranges`):
     each flight-point column that varies among the fault-free runs, and each draw column
     with a non-zero half-width."""
     ff = plan[plan["fault"] == FAULT_FREE]

@@ -7,7 +7,7 @@
 the scheduling data of the LPV estimators; it prints no distribution (the Monte Carlo
 campaign samples "according to a suitable probability distribution", §5.2). Our ``mc``
 design draws each of them per run, uniformly over ±w and independently of the others (one
-dimension of a scrambled Sobol sequence each, :mod:`campaign.design`); the ±5 % on the six
+dimension of a scrambled Sobol sequence each, :mod:`campaign.plan`); the ±5 % on the six
 aerodynamic coefficients are drawn alike.
 
 For each half-width w of *levels* the study runs the preset ``chen-mc`` with
