@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reports.compare import ScoredRows, compare_scored, differing_keys, format_compare
-from reports.table import error_lines
+from reports.scoring.compare import ScoredRows, compare_scored, differing_keys, format_compare
+from reports.render.table import error_lines
 
 from .store.directory import CampaignDir
 from .store.fitted import compare_fitted
@@ -42,9 +42,9 @@ def _read_side(camp, index, outside: dict) -> tuple[int, list, ScoredRows]:
 
 
 def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
-    """Compare two campaign directories cell by cell (:func:`reports.compare.compare_results`)
+    """Compare two campaign directories cell by cell (:func:`reports.scoring.compare.compare_results`)
     and print the table; returns it. The result rows are read a batch of runs at a time and
-    only what the tests need is kept of each run (:class:`reports.compare.ScoredRows`)."""
+    only what the tests need is kept of each run (:class:`reports.scoring.compare.ScoredRows`)."""
     from .result import load
 
     a, b = load(dir_a), load(dir_b)

@@ -5,7 +5,7 @@ into detections or result rows goes through here: the runner's chunks
 (:func:`evaluate`), the report's and ``show``'s re-simulation (:func:`simulate_and_detect`),
 the learning set (:func:`simulate_signals`), ``bench`` and the studies. The plant is
 called in one place (:func:`_simulate`); the scoring rules are those of
-:func:`reports.metrics.score_columns` (behind :func:`reports.metrics.score_runs`) and
+:func:`reports.scoring.metrics.score_columns` (behind :func:`reports.scoring.metrics.score_runs`) and
 nowhere else.
 
 :func:`evaluate` never raises for a bad run or a failing detector: those runs get result
@@ -28,8 +28,8 @@ import pandas as pd
 from detectors import Detection, as_variants, detection_problems
 from detectors.base import at_threshold_scale, read_only, threshold_scale_of, writes_input
 from detectors.system import DetectionSystem
-from reports.alarm_steps import ALARM_STEPS_COLUMN, alarm_steps
-from reports.metrics import RESULT_COLUMNS, estimation_errors, score_columns
+from reports.scoring.alarm_steps import ALARM_STEPS_COLUMN, alarm_steps
+from reports.scoring.metrics import RESULT_COLUMNS, estimation_errors, score_columns
 from scenarios import compiled as kernels
 from scenarios.faults import estimation_range_mm
 from scenarios.signals import Signals
@@ -228,7 +228,7 @@ def _required(fault, settings: ChunkSettings) -> np.ndarray:
 
 
 def _estimate_columns(detection, truth, range_mm: float) -> dict:
-    """The fault-estimation error columns (:data:`reports.metrics.ESTIMATE_COLUMNS`) of
+    """The fault-estimation error columns (:data:`reports.scoring.metrics.ESTIMATE_COLUMNS`) of
     *detection* on its runs: over the post-onset samples where the truth defines the fault
     (``Truth.rod_fault_mm``) and the detector gives an estimate; 0 samples otherwise."""
     n = len(truth.fault)
@@ -272,9 +272,9 @@ def _scored(rows: pd.DataFrame, truth, detections: dict, required: np.ndarray,
 
 def score(rows: pd.DataFrame, truth, detections: dict, settings: ChunkSettings,
           actuator=None) -> pd.DataFrame:
-    """Result rows (:data:`reports.metrics.RESULT_COLUMNS`, ``status="ok"``) of *detections*
+    """Result rows (:data:`reports.scoring.metrics.RESULT_COLUMNS`, ``status="ok"``) of *detections*
     ({variant name → Detection}) on the runs *rows* whose truth is *truth*: one row per
-    run × variant, scored by :func:`reports.metrics.score_runs` with the required detection
+    run × variant, scored by :func:`reports.scoring.metrics.score_runs` with the required detection
     times and window of *settings*. *actuator* (``Signals.actuator``) normalises the
     fault-estimation error (``est_range_mm``; NaN without it)."""
     range_mm = np.nan if actuator is None else estimation_range_mm(actuator)

@@ -6,7 +6,7 @@ A detector that declares the plant surfaces whose faults it detects
 aileron) must raise no alarm on a fault of any other surface: in a campaign whose runs fault
 another surface (the run rows' ``surface``,
 :attr:`campaign.plant_setup.ResolvedCampaign.surface`), its alarms after onset are isolation
-failures, which the gate reports as such (:func:`reports.gate.evaluate_gate`,
+failures, which the gate reports as such (:func:`reports.scoring.gate.evaluate_gate`,
 ``isolation``), and its missed-detection and DTP limits do not apply there. Fault-free runs
 and alarms before onset are scored as for any detector.
 """

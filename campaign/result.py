@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.metrics import FAULT_FREE
-from reports.summary import ALL_FAULTS, ALL_MANOEUVRES
-from reports.table import format_table
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.summary import ALL_FAULTS, ALL_MANOEUVRES
+from reports.render.table import format_table
 
 from .store.directory import RESULT_BATCH_RUNS, CampaignDir, CampaignDirError, read_metadata
 
@@ -68,7 +68,7 @@ class Certificate:
         (:data:`campaign.evidence.certify.CERTIFICATE_COLUMNS`): counting bound, tail estimate and
         bound, per-hour bounds, subset simulation when sampled
     levels : ``certificate-levels.parquet``, the exceedance curve P(margin ≥ x) at every
-        level (:func:`campaign.evidence.certify_levels.level_table`), or None
+        level (:func:`campaign.evidence.certify.levels.level_table`), or None
     hazard : ``certificate-hazard.parquet``, the hazard per flight hour of both sides
         (:func:`campaign.evidence.hazard.hazard_table`), or None
     level : confidence of the one-sided bounds (e.g. 0.95)
@@ -119,7 +119,7 @@ class Provenance:
     engine_version : the fdd-campaign version that wrote ``summary.parquet``
     engine_versions : every version that wrote into the directory (``manifest.json``)
     model_version : the simulated models' version the plan was made with
-        (:data:`campaign.design.MODEL_VERSION`; ``servo-1`` when a plan recorded none)
+        (:data:`campaign.plan.MODEL_VERSION`; ``servo-1`` when a plan recorded none)
     seed : the campaign's seed (``[campaign] seed``)
     identity_sha256 : SHA-256 of the campaign's identity, the part of its configuration
         that decides its results (:func:`campaign.store.directory.identity_sha256`)
@@ -249,11 +249,11 @@ class Campaign:
 
     @cached_property
     def gate_results(self) -> pd.DataFrame:
-        """The result rows the gate reads (:func:`reports.gate.gate_rows`: false alarms,
+        """The result rows the gate reads (:func:`reports.scoring.gate.gate_rows`: false alarms,
         misses and failed runs), in plan order, read a batch of runs at a time: what ``gate``
         and the report's error lines need, in memory that does not grow with the runs of a
         fault-free campaign."""
-        from reports.gate import gate_rows
+        from reports.scoring.gate import gate_rows
 
         parts = [gate_rows(batch) for batch in self._cdir.result_batches()]
         return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
@@ -270,7 +270,7 @@ class Campaign:
 
     def gate(self, requirements=None, *, all_requirements: bool = False,
              allow_errors: bool = False, allow_incomplete: bool = False):
-        """The gate of this campaign (:func:`reports.gate.requirements_gate`), the one way
+        """The gate of this campaign (:func:`reports.scoring.gate.requirements_gate`), the one way
         to gate: ``fdd-campaign gate``, ``run``'s verdict and the report all ask it.
 
         *requirements*: the ``[requirements]`` to gate against in their JSON form (default:
@@ -280,7 +280,7 @@ class Campaign:
         :attr:`gate_results`, :attr:`roles` and :attr:`coverage` of *self* (also of an
         object that stands for a campaign with other rows, e.g. at other threshold
         scales)."""
-        from reports.gate import requirements_gate
+        from reports.scoring.gate import requirements_gate
 
         if requirements is None:
             requirements = self.config.to_dict()["requirements"]
@@ -292,7 +292,7 @@ class Campaign:
     @cached_property
     def detection_times(self) -> pd.DataFrame | None:
         """First alarm per group × detector variant (``detection-times.parquet``,
-        :mod:`reports.detection_times`) of a fixed-onset campaign; None for others."""
+        :mod:`reports.scoring.detection_times`) of a fixed-onset campaign; None for others."""
         return self._cdir.read_detection_times()
 
     @cached_property

@@ -30,14 +30,14 @@ from detectors import make_detector, writes_input
 from detectors.base import set_threshold_scales
 from detectors.system import with_systems
 from detectors.registry import load_detector_class
-from reports.detection_times import detection_time_table, fixed_onset_campaign
-from reports.summary import SummaryAccumulator
+from reports.scoring.detection_times import detection_time_table, fixed_onset_campaign
+from reports.scoring.summary import SummaryAccumulator
 from scenarios import compiled as kernels
 from scenarios.errors import ArgumentError, InputError
 from scenarios.memory import release_freed_memory
 from scenarios.signals import Signals
 
-from .design import MODEL_VERSION, PlanBlocks, build_learning_plan
+from .plan import MODEL_VERSION, PlanBlocks, build_learning_plan
 from .plugins import (
     batch_check_runs,
     batch_dependence,
@@ -54,6 +54,7 @@ from .plant_setup import (
     fmu_sha256,
     resolve,
 )
+from .progress import Progress
 from .result import Campaign
 from .startup import start_up_done
 from .store.directory import CampaignDir, DirLock
@@ -72,57 +73,6 @@ def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings)
     """:func:`campaign.evaluate.evaluate` on private copies of the detectors (chunks run in
     threads)."""
     return evaluate(rows, copy.deepcopy(detectors), settings)
-
-
-class Progress:
-    """The one progress reporter of the commands that simulate runs (``run``, ``falsify``,
-    ``certify --sampling``), driven by the runs as they finish: runs done of *total*, share,
-    rate and ETA. The rate counts only the runs computed since the reporter started (not
-    those done before, *done*, nor those read back, ``update(n, computed=False)``).
-
-    With *log* (a callable taking one line), every update is one line, after *label* and
-    before the update's *note*. Otherwise the line goes to *stream* (default stderr), after
-    *label*: on a terminal one line with a bar, rewritten in place; elsewhere a line every
-    5 s and at the end. *unit* names what is counted (``report`` counts figures too)."""
-
-    def __init__(self, total: int, done: int = 0, enabled: bool = True, stream=None, *,
-                 log=None, label: str = "", unit: str = "runs"):
-        self.total, self.done, self.enabled = total, done, enabled
-        self.stream = stream or sys.stderr
-        self.log, self.label, self.unit = log, label, unit
-        self.start = time.perf_counter()
-        self.start_done = done
-        self.last_print = -1.0
-        self.tty = log is None and hasattr(self.stream, "isatty") and self.stream.isatty()
-
-    def update(self, n: int, *, computed: bool = True, note: str = "") -> None:
-        """*n* more runs done (*computed*: simulated now, else read back)."""
-        self.done += n
-        if not computed:
-            self.start_done += n
-        if not self.enabled:
-            return
-        elapsed = time.perf_counter() - self.start
-        new = self.done - self.start_done
-        rate = new / elapsed if elapsed > 0 else 0.0
-        eta = (self.total - self.done) / rate if rate > 0 else float("nan")
-        frac = self.done / self.total if self.total else 1.0
-        line = (f"{self.done}/{self.total} {self.unit} {100 * frac:5.1f} %  "
-                f"{rate:7.1f} {self.unit}/s  ETA {eta:5.1f} s")
-        if self.log is not None:
-            self.log(f"{self.label}{line}{note}")
-            return
-        bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
-        line = f"{self.label}[{bar}] {line}"
-        if self.tty:
-            print("\r" + line, end="", file=self.stream, flush=True)
-        elif elapsed - self.last_print >= 5.0 or self.done >= self.total:
-            print(line, file=self.stream, flush=True)
-            self.last_print = elapsed
-
-    def close(self) -> None:
-        if self.enabled and self.tty:
-            print(file=self.stream, flush=True)
 
 
 def _check_compatibility(config, detectors: dict, plant) -> None:
@@ -319,7 +269,7 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     resumed directory must hold the same fitted files (same
     :meth:`CampaignDir.fitted_sha256`).
     """
-    from reports.compare import differing_keys
+    from reports.scoring.compare import differing_keys
 
     from .config import CampaignConfig
 
@@ -801,13 +751,13 @@ def finalize(cdir: CampaignDir, config, plan: pd.DataFrame | None, complete: boo
     :meth:`CampaignDir.fitted_sha256` of the fitted detectors, and ``fitted_from``, the
     directory they were taken from or None, and ``fmu_sha256``, the SHA-256 of an FMU plant's
     file, :func:`campaign.plant_setup.replay_plant`) and, for a campaign of fixed onsets
-    (:func:`reports.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
+    (:func:`reports.scoring.detection_times.fixed_onset_campaign`), ``detection-times.parquet``.
 
     No batch is kept: the summary is aggregated as the batches come
-    (:class:`reports.summary.SummaryAccumulator`), and of the rows only those the gate reads
-    (:func:`reports.gate.gate_rows`: in a fault-free campaign, its false alarms and failed
+    (:class:`reports.scoring.summary.SummaryAccumulator`), and of the rows only those the gate reads
+    (:func:`reports.scoring.gate.gate_rows`: in a fault-free campaign, its false alarms and failed
     runs) and, for a fixed-onset campaign, the first alarms of its runs are kept."""
-    from reports.gate import gate_rows
+    from reports.scoring.gate import gate_rows
 
     full = plan
     columns = ["run_id", "group", "fault", "onset_s"]

@@ -34,7 +34,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from reports.paper import PAPER_TABLES
+from reports.render.paper import PAPER_TABLES
 from scenarios.catalog import suggest
 
 from .config import CampaignConfig, ConfigError, load_config, looks_like_path, read_toml
@@ -59,7 +59,7 @@ class Member:
     spec: str                 # as written in the suite file
     title: str
     config: CampaignConfig
-    #: a published table to print beside the member's (reports.paper.PAPER_TABLES), or None
+    #: a published table to print beside the member's (reports.render.paper.PAPER_TABLES), or None
     reference: str | None = None
 
     @property
@@ -277,10 +277,10 @@ def suite_references(directory) -> dict[str, str]:
 
 def reference_text(directory, summary) -> str:
     """The published table a suite member names (``reference``) beside *summary*
-    (:func:`reports.table.format_paper_table`), after a blank line, when *directory* is
+    (:func:`reports.render.table.format_paper_table`), after a blank line, when *directory* is
     that member's directory inside a suite directory; '' otherwise (a campaign run alone,
     a member without ``reference``, no results yet)."""
-    from reports.table import format_paper_table
+    from reports.render.table import format_paper_table
 
     path = Path(directory)
     reference = suite_references(path.parent).get(path.name) if is_suite_dir(path.parent) \

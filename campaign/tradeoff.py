@@ -3,7 +3,7 @@
 
 Every threshold of a detector multiplied by s (``[[detector]] threshold_scale = s``) moves
 its first alarm to the first step where its decision statistic reaches s. A campaign stores
-of each run what fixes it at the scales of :data:`reports.alarm_steps.ALARM_SCALES`: the
+of each run what fixes it at the scales of :data:`reports.scoring.alarm_steps.ALARM_SCALES`: the
 margin (false alarms, exact at every s) and the ``alarm_steps`` column (the first alarm of
 each faulty run at each scale of the grid). From them this module computes, without
 simulating anything:
@@ -20,7 +20,7 @@ simulating anything:
   ``gate --threshold-scale D=s``.
 
 The results at scale 1 are the stored rows themselves (the campaign's own summary); at
-another scale, those :func:`reports.alarm_steps.scaled_columns` computes, which are the rows
+another scale, those :func:`reports.scoring.alarm_steps.scaled_columns` computes, which are the rows
 the campaign run with ``threshold_scale = s`` (and ``--fitted-from`` this directory) gives.
 Result rows are read a batch of runs at a time: memory holds a batch, the plan's onsets and
 durations, and the DTP and delay of each detected run at each scale.
@@ -35,9 +35,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN, scaled_columns
-from reports.metrics import FAULT_FREE, upper_bound
-from reports.summary import ALL_FAULTS, SummaryAccumulator
+from reports.scoring.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN, scaled_columns
+from reports.scoring.metrics import FAULT_FREE, upper_bound
+from reports.scoring.summary import ALL_FAULTS, SummaryAccumulator
 from scenarios.errors import InputError
 
 from .evidence.hazard import per_hour
@@ -460,11 +460,11 @@ def at_threshold_scales(camp, scales: dict):
     """*camp* (a loaded :class:`campaign.result.Campaign`) with the detectors of *scales*
     (result name or [[detector]] label → scale of :data:`SCALES`) at those threshold scales:
     its summary and gate rows recomputed from the stored rows, a batch of runs at a time
-    (:class:`reports.summary.SummaryAccumulator`, :func:`reports.gate.gate_rows`), as the
+    (:class:`reports.scoring.summary.SummaryAccumulator`, :func:`reports.scoring.gate.gate_rows`), as the
     campaign run at those scales would have them. :class:`TradeoffError` for a name that is
     no detector of the campaign, one without a threshold scale, or faulty runs whose first
     alarms at other scales are not stored."""
-    from reports.gate import gate_rows
+    from reports.scoring.gate import gate_rows
 
     if not scales:
         return camp
@@ -509,13 +509,13 @@ def at_threshold_scales(camp, scales: dict):
 # ---- the report's figures --------------------------------------------------------------------
 def report_figures(camp, requirements: dict | None = None, notes: list | None = None) -> list:
     """The report's trade-off figures of *camp* (a loaded Campaign): one per fault type in
-    the section "Detection per fault type" (:class:`reports.html.ReportFigure`), from the
+    the section "Detection per fault type" (:class:`reports.render.html.ReportFigure`), from the
     stored runs at every scale of :data:`SCALES`; *notes* receives the sentences that go
     with them (a directory that predates the stored first alarms). None for a campaign
     without faulty runs or without a detector with a threshold scale."""
-    from reports.figures import figure_png
-    from reports.html import ReportFigure
-    from reports.tradeoff_figure import tradeoff_figure, tradeoff_points
+    from reports.render.figures.report import figure_png
+    from reports.render.html import ReportFigure
+    from reports.render.figures.tradeoff import tradeoff_figure, tradeoff_points
 
     result = tradeoff(camp.root)
     table = result.table

@@ -114,7 +114,7 @@ class Capabilities:
     #: the plant surfaces (names of the run rows' ``surface``) whose faults this detector
     #: detects and isolates from every other surface's: in a campaign whose faults are on
     #: another surface, an alarm after onset is an isolation failure, not a detection
-    #: (campaign.isolation, reports.gate). Empty: whatever surface the campaign monitors.
+    #: (campaign.isolation, reports.scoring.gate). Empty: whatever surface the campaign monitors.
     fault_surfaces: tuple[str, ...] = ()
     #: its ``fit`` touches nothing but the detector itself and its read-only learning signals
     #: (no module-level cache, no solver state shared between instances), so the engine may
@@ -149,7 +149,7 @@ class Coverage:
     """What a detector (variant) is designed to detect: the fault types *faults* (None: every
     fault type) and *reason*, the source of that design or what it cannot see. The gate
     holds a detector to its missed-detection and detection-time requirements on the faults
-    it covers only (:func:`reports.gate.evaluate_gate`); the rest are reported, never
+    it covers only (:func:`reports.scoring.gate.evaluate_gate`); the rest are reported, never
     failed."""
 
     faults: tuple[str, ...] | None = None
@@ -188,7 +188,7 @@ class Detection:
         steps, the least normalised residual of the last n, :func:`windowed_min`), and
         would be raised at the first step where decision ≥ s at threshold × s. NaN: no
         decision possible at that step (no alarm at any scale). The run's margin is its
-        largest value before onset (:func:`reports.metrics.score_columns`), so margin ≥ 1
+        largest value before onset (:func:`reports.scoring.metrics.score_columns`), so margin ≥ 1
         exactly when the run alarms before onset; the engine checks that the first alarm
         is the first step with decision ≥ 1 (:func:`detection_problems`). None: the
         decision has no threshold scale (``Capabilities.threshold_scale`` False) and the
@@ -340,7 +340,7 @@ def detection_problems(detection: Detection, n_runs: int, n_steps: int) -> list[
       (n_runs, n_steps), the shape of the signals (and ``estimate``, when given);
     * ``residual`` is finite, except NaN samples at the start of a run (a filter warming
       up: "no residual yet"), which scoring ignores (the margin of
-      :func:`reports.metrics.score_runs` skips NaN); a NaN after the first non-NaN sample
+      :func:`reports.scoring.metrics.score_runs` skips NaN); a NaN after the first non-NaN sample
       of a run, or ±inf anywhere, is a breach.
     """
     alarm, residual = np.asarray(detection.alarm), np.asarray(detection.residual)

@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from reports.metrics import upper_bound
+from reports.scoring.metrics import upper_bound
 
 __all__ = ["CURVE_SHAPES", "EXPONENTIAL_SHAPES", "Exceedance", "LIGHT_SHAPES",
            "MIN_DISTINCT_EXCESSES", "MIN_EXCEEDANCES", "MIN_TAIL_FIT_RUNS",

@@ -49,7 +49,7 @@ FAULT_TYPES: tuple[str, ...] = FAULTS[1:]
 
 #: Required detection times [s], the DTP denominators (docs/physics.md §5: est. defaults, the
 #: ADDSAFE values are not published; [CHEN]'s printed DTPs imply a 120 s denominator,
-#: inferred in :mod:`reports.paper`, twice a 60 s run, so it is not used here and its
+#: inferred in :mod:`reports.render.paper`, twice a 60 s run, so it is not used here and its
 #: tables are compared in seconds). OFC: 3 oscillation periods of the default 1 Hz
 #: oscillation, a fixed 3 s for every OFC run (not resolved from each run's frequency).
 REQUIRED_DETECTION_TIME_S: dict[str, float] = {
@@ -65,7 +65,7 @@ REQUIRED_DETECTION_TIME_S: dict[str, float] = {
 
 #: Detection budget of a fault [s]: the time a drawn onset leaves before the end of the run
 #: (docs/physics.md §5, "Onsets that leave time to detect"; applied by
-#: campaign.design where onsets are drawn). The latest drawn onset is
+#: campaign.plan where onsets are drawn). The latest drawn onset is
 #: duration_s − max(``[faults] onset_before_end_s``, budget): a fault that starts too late
 #: to be detected is a miss of the campaign design, not of the detector. disconnection:
 #: twice the slowest delay [CHEN] prints for it, 7.01 s (Table 3: DTP 0.0584167 =

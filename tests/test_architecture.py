@@ -134,10 +134,22 @@ def test_only_the_command_line_speaks_of_options():
     assert outside == []
 
 
+def test_the_scoring_layer_sits_below_the_rendering_layer():
+    # reports/ is two layers (docs/design.md §2): scoring never imports rendering, and the
+    # detectors and the evidence import only scoring
+    below = [f"{name}:{line} imports {target}"
+             for name, edges in GRAPH.items() for target, _, line in edges
+             if (name.startswith(("reports.scoring", "detectors", "campaign.evidence"))
+                 and target.startswith("reports.") and not target.startswith("reports.scoring"))]
+    assert below == []
+    assert any(t.startswith("reports.scoring") for t, _, _ in GRAPH["detectors.tail"])
+    assert any(t.startswith("reports.scoring") for t, _, _ in GRAPH["reports.render.html"])
+
+
 def test_the_shared_modules_import_nothing_of_the_project():
     # every package may import them, so they must sit below all of them
     assert {name: GRAPH[name] for name in SHARED} == {name: [] for name in SHARED}
-    assert any(t in SHARED for t, _, _ in GRAPH["reports.gate"])   # the rule is exercised
+    assert any(t in SHARED for t, _, _ in GRAPH["reports.scoring.gate"])   # the rule is exercised
 
 
 def _sections(doc: str) -> set[str]:
@@ -175,8 +187,8 @@ def test_no_citation_points_outside_the_repository():
 ONE_DEFINITION = {
     "range_text": "scenarios.declare", "num": "scenarios.declare",
     "toml_value": "scenarios.declare", "FLIGHT_COLUMNS": "scenarios.envelope",
-    "upper_bound": "reports.metrics", "natural_key": "reports.summary",
-    "Progress": "campaign.runner", "engine_version": "campaign.store.files",
+    "upper_bound": "reports.scoring.metrics", "natural_key": "reports.scoring.summary",
+    "Progress": "campaign.progress", "engine_version": "campaign.store.files",
 }
 
 
@@ -219,7 +231,7 @@ def test_the_changelog_tells_every_model_version_and_the_current_engine():
     # run ids have hashed, newest (the current MODEL_VERSION) first, and the package's version
     import tomllib
 
-    from campaign.design import MODEL_VERSION
+    from campaign.plan import MODEL_VERSION
 
     text = (REPO / "CHANGELOG.md").read_text(encoding="utf-8")
     models = re.findall(r"^- \*\*(servo-\d+)\*\*", text, flags=re.M)

@@ -1,7 +1,8 @@
 """What every ``fdd-campaign`` command shares (docs/design.md §7, Command line): the exit
 codes, :class:`UsageError`, the options the library's argument errors are named by
-(:func:`input_message`), the registration of a sub-command (:func:`add_command`) and the
-check that an output path can be written. Kept apart from :mod:`campaign.cli.commands` so that
+(:func:`input_message`), the registration of a sub-command (:func:`add_command`) and of a
+group of them (:func:`add_group`), and the check that an output path can be written. Kept
+apart from :mod:`campaign.cli.commands` so that
 commands defined in their own modules (:mod:`campaign.cli.falsify`) use them without
 importing the command line itself."""
 
@@ -45,6 +46,15 @@ def add_command(subs, name: str, help_: str, example: str, func):
                         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.set_defaults(func=func)
     return p
+
+
+def add_group(subs, name: str, help_: str, description: str, dest: str, metavar: str):
+    """Register the command group *name* of *subs* (``fdd-campaign NAME COMMAND``): *help_*
+    is its line in the command list, *description* heads its ``--help``, and the chosen
+    command is stored as *dest*, listed as *metavar*. Returns the group's ``add_subparsers``
+    action, to which :func:`add_command` adds its commands."""
+    group = subs.add_parser(name, help=help_, description=description)
+    return group.add_subparsers(dest=dest, metavar=metavar, required=True)
 
 
 def print_error(msg: str) -> None:

@@ -18,7 +18,7 @@ def cmd_certify(args) -> int:
     from ..store.directory import CampaignDir
 
     if args.validate is not None:               # bad validation options: before any work
-        from ..evidence.certify_validate import check_validation
+        from ..evidence.certify.validate import check_validation
         from ..config import CampaignConfig
 
         cdir = CampaignDir(args.dir)
@@ -47,7 +47,7 @@ def cmd_certify(args) -> int:
           f"{Path(args.dir) / 'certificate-levels.parquet'}; the report shows it: "
           f"fdd-campaign report {args.dir}")
     if args.validate is not None:
-        from ..evidence.certify_validate import summarise, validate
+        from ..evidence.certify.validate import summarise, validate
 
         try:
             table = validate(args.dir, int(args.validate), seed=args.validate_seed,
@@ -70,8 +70,8 @@ def format_certificate(cert) -> str:
     estimate below the limit of the runs is printed as "< limit", never as a number; a
     detector that was not sampled shows "—" in the sampled columns. Each bound is named:
     "count ≤" the counting bound, "tail ≤" the curve's at margin 1 marked by what it is
-    (:func:`reports.gate.curve_method`), "sampled" subset simulation."""
-    from reports.gate import curve_method
+    (:func:`reports.scoring.gate.curve_method`), "sampled" subset simulation."""
+    from reports.scoring.gate import curve_method
 
     lines = [f"{'detector':24s} {'runs':>6s} {'FA':>4s} {'count ≤':>9s} {'tail est':>10s} "
              f"{'tail ≤':>10s} {'sampled':>9s} {'sampled bounds':>19s} {'per hour':>9s}"]
@@ -152,9 +152,9 @@ def format_levels(curve) -> str:
 
 def fa_probability_checks(camp, limit: float) -> list:
     """The ``gate --max-fa-prob`` checks of campaign *camp* (:class:`campaign.result.Campaign`)
-    from its certificate (:func:`reports.gate.fa_probability_checks`); a CertifyError (exit
+    from its certificate (:func:`reports.scoring.gate.fa_probability_checks`); a CertifyError (exit
     2) naming the command that makes it when the directory has none."""
-    from reports.gate import fa_probability_checks as checks
+    from reports.scoring.gate import fa_probability_checks as checks
 
     from ..evidence.certify import CertifyError
 
@@ -167,7 +167,7 @@ def fa_probability_checks(camp, limit: float) -> list:
 
 def add_evidence_parsers(subs) -> None:
     """Sub-command ``certify``."""
-    from ..evidence.certify_levels import DEFAULT_LEVELS
+    from ..evidence.certify.levels import DEFAULT_LEVELS
     from .common import add_command
 
     p = add_command(subs, "certify", "per-run false-alarm probability of each detector beyond "

@@ -44,7 +44,7 @@ def print_verdict(config, result) -> bool:
     ``fdd-campaign gate``) and, on the next line, what the file's other requirements (MD,
     DTP) say, as ``gate --all-requirements``; False when the requirements cannot be
     evaluated on these results (a detector variant they name is not among them)."""
-    from reports.gate import GateInputError
+    from reports.scoring.gate import GateInputError
 
     try:       # one evaluation serves both lines (the gate's checks are a part of it)
         full = gate_of(config, result, all_requirements=True)
@@ -73,7 +73,7 @@ def verdict(config, result, *, full=None) -> str:
     this result, and the command to run next. *full*: the gate of all the requirements
     (``gate_of(..., all_requirements=True)``) when already evaluated; the gate's own checks
     are its checks other than :data:`MD_DTP_CHECKS`, in the same order."""
-    from reports.gate import GateResult
+    from reports.scoring.gate import GateResult
 
     gate = (gate_of(config, result) if full is None else
             GateResult([c for c in full.checks if c.name not in MD_DTP_CHECKS]))
@@ -92,7 +92,7 @@ def verdict(config, result, *, full=None) -> str:
 def false_alarm_count(result) -> str:
     """``N false alarms in M runs``: every alarm the gate counts (fault-free runs, and faulty
     runs before their onset), over the runs scored."""
-    from reports.summary import ALL_FAULTS, ALL_MANOEUVRES
+    from reports.scoring.summary import ALL_FAULTS, ALL_MANOEUVRES
 
     s = result.summary
     fine = s[(s["fault"] != ALL_FAULTS) & (s["manoeuvre"] != ALL_MANOEUVRES)]
@@ -104,7 +104,7 @@ def false_alarm_count(result) -> str:
 
 #: Requirement checks that only ``gate --all-requirements`` (and report.html) apply.
 #: (with the informative checks of the faults a detector is not designed for and of a
-#: detection system's members, :func:`reports.gate.evaluate_gate`)
+#: detection system's members, :func:`reports.scoring.gate.evaluate_gate`)
 MD_DTP_CHECKS = ("missed_detection", "dtp", "not_designed_for", "member")
 
 

@@ -69,8 +69,8 @@ def format_tradeoff(result) -> str:
     of the fault-free runs (count, Clopper–Pearson bound, certified bound and its level),
     then per fault type misses · late · largest DTP (``?`` where the detections at that
     scale are not stored)."""
-    from reports.metrics import FAULT_FREE
-    from reports.summary import ALL_FAULTS
+    from reports.scoring.metrics import FAULT_FREE
+    from reports.scoring.summary import ALL_FAULTS
 
     table = result.table
     lines = []

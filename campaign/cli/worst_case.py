@@ -65,7 +65,7 @@ def replay_command(root, alarm, name: str) -> str:
 
 def _check(camp, found):
     """The gate's ``worst_case`` check of one :class:`campaign.evidence.worst_case.WorstCase`."""
-    from reports.gate import Check
+    from reports.scoring.gate import Check
 
     search = (f"a {found.budget}-run search at seed {found.seed}"
               + (" (stored, reused)" if found.reused else ""))
@@ -116,7 +116,7 @@ def worst_case_checks(camp, limits: dict, args) -> list:
     """The ``gate --worst-case`` checks of campaign *camp* (:class:`campaign.result.Campaign`)
     under the gate's false-alarm *limits* (the requirements' JSON form), one per gated
     detector; what each found is printed first."""
-    from reports.gate import fa_limits
+    from reports.scoring.gate import fa_limits
 
     from ..evidence.worst_case import gated_names, worst_case
 

@@ -681,7 +681,7 @@ def requirement_name_problems(names, labels) -> list[str]:
     """The problems of the detector names *names* of ``[requirements] detector_max_fa_rate``
     against the campaign's detector *labels*: each must be a label, or a label followed by
     a variant (``label[variant]``; which variants a detector has is known from its results,
-    where :func:`reports.gate.evaluate_gate` checks them)."""
+    where :func:`reports.scoring.gate.evaluate_gate` checks them)."""
     known = ", ".join(labels) or "(none)"
     problems = []
     for name in names:

@@ -295,7 +295,7 @@ class GroupSpec:
 
 
 #: Streams an explicit [[run]] may use: below 2³², the first stream of the learning set
-#: (campaign/design.py LEARNING_STREAM_BASE), so a run never shares the noise of a
+#: (campaign/plan.py LEARNING_STREAM_BASE), so a run never shares the noise of a
 #: learning run.
 RUN_STREAM_LIMIT: int = 2 ** 32 - 1
 

@@ -3,7 +3,7 @@
 docs/evidence.md, "Worst-case search (falsify)"; docs/design.md §8. A Monte Carlo campaign
 can say "0 false alarms in n runs" and nothing stronger; validation practice for monitoring
 functions adds a global search for the fault-free run that comes closest to an alarm. Every
-run's margin m = max |r|/τ over its fault-free part (:func:`reports.metrics.score_runs`;
+run's margin m = max |r|/τ over its fault-free part (:func:`reports.scoring.metrics.score_runs`;
 m ≥ 1: the threshold is exceeded, a false alarm when the detector's confirmation holds it,
 scored as ``false_alarm``) is the objective: the search maximises the margin of one
 detector (variant) over
@@ -56,7 +56,7 @@ from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from ..config import CampaignConfig
 from ..config.text import toml_value
-from ..design import build_plan, explicit_plan, variable_ranges
+from ..plan import build_plan, explicit_plan, variable_ranges
 from ..execute import one_blas_thread
 from ..store.directory import SearchDir
 
@@ -132,7 +132,7 @@ class SearchSpace:
         return np.array(out)
 
     def decode(self, x: np.ndarray) -> list[dict]:
-        """The runs (dicts of :func:`campaign.design.explicit_rows`) of the search vectors
+        """The runs (dicts of :func:`campaign.plan.explicit_rows`) of the search vectors
         *x*, shape (n_dims, n) — repaired into the realistic envelope when asked."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         n = x.shape[1]
@@ -262,7 +262,7 @@ class FalsifyResult:
 
 def scores(results: pd.DataFrame, rows: pd.DataFrame, label: str):
     """Margin of *label* per row of *rows* (NaN for a run in error) and whether the
-    detector raised a false alarm in it (scored, :func:`reports.metrics.score_runs`;
+    detector raised a false alarm in it (scored, :func:`reports.scoring.metrics.score_runs`;
     False for a run in error)."""
     mine = results[results["detector"] == label].drop_duplicates("run_id")
     # plain arrays: a Series given to pd.Series(..., index=...) is reindexed by label
@@ -359,7 +359,8 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     ``out/monte-carlo.parquet``), or with the worst fault-free margin of the campaign
     directory *against*.
     """
-    from ..runner import Progress, evaluate_rows, prepare
+    from ..progress import Progress
+    from ..runner import evaluate_rows, prepare
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     check_label(config, label)

@@ -2,7 +2,7 @@
 mean-excess and tail QQ plots of the tail fit of the manoeuvre holding the largest fault-free
 margin, as the certificate's exceedance curve fits it (when the directory holds
 a certificate, ``fdd-campaign certify``), and the Kaplan–Meier detection-delay curves per
-fault type. Figure specs in the form of :func:`campaign.replay.build_report`:
+fault type. Figure specs in the form of :func:`campaign.report_build.build_report`:
 (section, group, title, caption, kind, args, kwargs)."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
-from reports.figures import gpd_plotting_quantiles
-from reports.metrics import FAULT_FREE
-from reports.survival import kaplan_meier
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.quantiles import gpd_plotting_quantiles
+from reports.scoring.survival import kaplan_meier
 
-from .certify_levels import EXTRAPOLATION_DECADES
+from .certify.levels import EXTRAPOLATION_DECADES
 
 __all__ = ["evidence_figure_specs"]
 

@@ -12,7 +12,7 @@ For each detector (result-row name) and each fault type f the campaign ran:
 
 * P_MD,f = missed/n over the faulty runs of type f (``status = "ok"``; missed: never
   detected within the detection window, the campaign's missed detection), with its exact
-  one-sided Clopper–Pearson upper bound at *level* (:func:`reports.metrics.upper_bound`);
+  one-sided Clopper–Pearson upper bound at *level* (:func:`reports.scoring.metrics.upper_bound`);
 * λ_f [1/FH], the occurrence rate of fault mode f per flight hour
   (``[requirements] fault_rate_per_fh``; defaults :data:`DEFAULT_FAULT_RATES_PER_FH`);
 * λ_u,f = λ_f · P_MD,f [1/FH], the rate of undetected faults of mode f, and its bound
@@ -209,12 +209,12 @@ def hazard_table(results, plan: pd.DataFrame | None, rates: dict[str, float],
                  level: float = 0.95) -> pd.DataFrame:
     """The hazard table (:data:`HAZARD_COLUMNS`, module docstring) from a campaign's result
     rows and its run table *plan* (``run_id``, ``duration_s``), or from the
-    :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them a batch at a time
+    :class:`campaign.evidence.certify.rows.CertifyRows` gathered from them a batch at a time
     (*plan* then unused), and the fault modes' rates *rates* [1/FH] (fault type → rate; a
     fault type of the campaign without a rate raises ValueError)."""
-    from reports.metrics import FAULT_FREE, upper_bound
+    from reports.scoring.metrics import FAULT_FREE, upper_bound
 
-    from .certify_rows import CertifyRows
+    from .certify.rows import CertifyRows
 
     if not 0.5 < float(level) < 1.0:
         raise ValueError(f"level {level!r} must be a confidence in (0.5, 1), e.g. 0.95")
@@ -262,7 +262,7 @@ def hazard_table(results, plan: pd.DataFrame | None, rates: dict[str, float],
 def _total(per_fault: list[dict], detector: str, level: float) -> dict:
     """The ``"all"`` row: Σ λ_f P_MD,f and its Bonferroni bound over the fault types with a
     positive rate (module docstring)."""
-    from reports.metrics import upper_bound
+    from reports.scoring.metrics import upper_bound
 
     counted = [r for r in per_fault if r["rate_per_fh"] > 0.0]
     joint = 1.0 - (1.0 - level) / max(len(counted), 1)
@@ -286,7 +286,7 @@ def with_claims(hazard: pd.DataFrame) -> pd.DataFrame:
     detector, the categories with and without it and what is credited to the detector
     (:func:`credit`), on both readings of "undetected". A table stored before these columns
     existed gets them here, so that it is shown with them."""
-    from reports.metrics import FAULT_FREE
+    from reports.scoring.metrics import FAULT_FREE
 
     missing = [c for c in _COUNTED if c not in hazard.columns]
     if missing:
@@ -342,7 +342,7 @@ def with_claims(hazard: pd.DataFrame) -> pd.DataFrame:
 
 
 def report_section(hazard: pd.DataFrame | None) -> tuple | None:
-    """What the report shows of a hazard table (:func:`reports.html.hazard_section`'s
+    """What the report shows of a hazard table (:func:`reports.render.html.hazard_section`'s
     arguments: the table with its claims (:func:`with_claims`), the AMC 25.1309 budgets,
     :data:`ASSUMPTIONS`); None for None (``certify`` has not run)."""
     if hazard is None:

@@ -116,7 +116,7 @@ def check_budget(value) -> int:
 def gated_names(summary: pd.DataFrame, limits: dict, only=None) -> tuple[list[str], list[str]]:
     """(names searched, names left out with the reason) of the detectors of *summary*: every
     result-row name with fault-free runs whose accepted false-alarm rate (*limits*, name →
-    rate, :func:`reports.gate.fa_limits`) is 0; *only*: the names asked for
+    rate, :func:`reports.scoring.gate.fa_limits`) is 0; *only*: the names asked for
     (``--worst-case-detector``), each of which must be one of them."""
     free = summary[(summary["fault"] == "none") & (summary["n_runs"] > 0)]
     with_runs = list(dict.fromkeys(free["detector"].astype(str)))
@@ -162,7 +162,7 @@ def _corpus_rows(config, paths) -> tuple[pd.DataFrame, list[Path]]:
     """The run-table rows of the ``[[run]]`` entries of the corpus files *paths* (a run held
     by several once, at its first file) and, per row, the file that holds it."""
     from ..config import load_config
-    from ..design import explicit_plan
+    from ..plan import explicit_plan
     from ..plant_setup import as_resolved
 
     campaign = as_resolved(config)       # resolved once for every file of the corpus

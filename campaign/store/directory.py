@@ -16,7 +16,7 @@ Layout (docs/design.md §6, Outputs)::
     DIR/runs/part-NNNNNN.parquet  result rows, one shard per finished chunk
     DIR/summary.parquet       rates, bounds, DTP statistics
     DIR/detection-times.parquet  first alarm per group × detector variant (fixed-onset
-                              campaigns only, :mod:`reports.detection_times`)
+                              campaigns only, :mod:`reports.scoring.detection_times`)
     DIR/tradeoff.parquet      the results at other threshold scales (``fdd-campaign tradeoff``,
                               :mod:`campaign.tradeoff`)
     DIR/report.html           the HTML report (``fdd-campaign report``; not in the manifest)
@@ -68,7 +68,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from reports.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN
+from reports.scoring.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN
 from scenarios.errors import InputError
 
 from .lock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
@@ -115,7 +115,7 @@ ALARM_SCALES_KEY = "alarm_scales"
 
 def _stored_alarm_steps(results: pd.DataFrame) -> tuple[pd.DataFrame, dict]:
     """(*results* as a shard stores them, the shard's extra metadata): the ``alarm_steps``
-    column (:mod:`reports.alarm_steps`) left out when every value is null (a chunk of
+    column (:mod:`reports.scoring.alarm_steps`) left out when every value is null (a chunk of
     fault-free runs: about 500 bytes of schema a shard), else kept, packed
     (:func:`campaign.store.files.write_parquet`), with the scales it holds in the metadata."""
     if ALARM_STEPS_COLUMN not in results.columns:
@@ -678,9 +678,9 @@ class CampaignDir:
 
     def write_plan(self, plan, config_json: str, model_version: str) -> int:
         """Write the run table ``plan.parquet`` with the version of the simulated models it
-        is planned with (:data:`campaign.design.MODEL_VERSION`; :meth:`check_model_version`);
+        is planned with (:data:`campaign.plan.MODEL_VERSION`; :meth:`check_model_version`);
         returns its number of rows. *plan*: a DataFrame, or the blocks of one as they are
-        made (:class:`campaign.design.PlanBlocks`: iterable, with ``rows`` and ``check()``),
+        made (:class:`campaign.plan.PlanBlocks`: iterable, with ``rows`` and ``check()``),
         written as they come, so the memory holds one block whatever the size of the plan;
         the same file. Their ``check()`` may refuse the plan once every block is read, before
         the file takes its name."""
@@ -926,7 +926,7 @@ class CampaignDir:
 
     def write_detection_times(self, times: pd.DataFrame, config_json: str) -> None:
         """Write ``detection-times.parquet``
-        (:func:`reports.detection_times.detection_time_table`)."""
+        (:func:`reports.scoring.detection_times.detection_time_table`)."""
         self._write_recorded(self.detection_times_path, lambda: write_parquet(
             times, self.detection_times_path, config_json, kind="detection_times"))
 
@@ -955,7 +955,7 @@ class CampaignDir:
         return _read_optional(self.hazard_path)
 
     def write_certificate_levels(self, levels: pd.DataFrame, config_json: str, **extra) -> None:
-        """Write ``certificate-levels.parquet`` (:func:`campaign.evidence.certify_levels.level_table`);
+        """Write ``certificate-levels.parquet`` (:func:`campaign.evidence.certify.levels.level_table`);
         *extra* goes into its metadata."""
         self._write_recorded(self.certificate_levels_path, lambda: write_parquet(
             levels, self.certificate_levels_path, config_json, kind="certificate-levels",
@@ -1038,7 +1038,7 @@ class CampaignDir:
     def write_validation(self, table: pd.DataFrame, seed: int, n: int,
                          config_json: str) -> Path:
         """Write the coverage table of that validation, ``validation/seed-S-nN.parquet``
-        (:func:`campaign.evidence.certify_validate.validate_levels`); returns its path."""
+        (:func:`campaign.evidence.certify.validate.validate_levels`); returns its path."""
         path = self.validation_dir(seed, n).with_suffix(".parquet")
         write_parquet(table, path, config_json, kind="certify-validation",
                       validation_seed=int(seed))

@@ -76,7 +76,7 @@ def write_parquet(df: pd.DataFrame, path: Path, config_json: str, *,
 
 
 #: Compression of the columns a writer names *packed* (bytes packed by the engine itself,
-#: e.g. :data:`reports.alarm_steps.ALARM_STEPS_COLUMN`): zstd takes them to 0.77 of snappy's
+#: e.g. :data:`reports.scoring.alarm_steps.ALARM_STEPS_COLUMN`): zstd takes them to 0.77 of snappy's
 #: size (21.3 against 27.6 kB on addsafe-mc's shards, seed 4242); the other columns keep
 #: pyarrow's default, snappy.
 PACKED_COMPRESSION = "zstd"

@@ -6,7 +6,7 @@ re-learned. Taking the detectors of another campaign (``run --fitted-from DIR``)
 
 from __future__ import annotations
 
-from reports.compare import threshold_changes, threshold_text
+from reports.scoring.compare import threshold_changes, threshold_text
 
 from .directory import CampaignDir
 

@@ -362,7 +362,7 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
     (:class:`_Steps`)."""
     step = step or _Steps()
     from ..config import load_config
-    from ..design import build_plan
+    from ..plan import build_plan
 
     plan = build_plan(load_config(campaign))
     figures = {"campaign": campaign, "campaign_runs": len(plan)}
@@ -442,7 +442,7 @@ def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
     from scenarios.simulate import ActuatorPlant, simulate
 
     from ..config import load_config
-    from ..design import build_learning_plan, build_plan
+    from ..plan import build_learning_plan, build_plan
     from ..evaluate import score
     from ..store.files import write_parquet
     from ..runner import build_detectors, settings_of
@@ -525,7 +525,7 @@ def rate_evaluations(campaign: str) -> dict:
     from scenarios.faults import ROD_MEASUREMENT_FAULTS
 
     from ..config import load_config
-    from ..design import build_learning_plan, build_plan
+    from ..plan import build_learning_plan, build_plan
     from ..runner import build_detectors, settings_of
 
     config = load_config(campaign)

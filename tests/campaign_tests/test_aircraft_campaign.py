@@ -8,7 +8,7 @@ import pytest
 from campaign import run
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, ConfigError
-from campaign.design import build_plan
+from campaign.plan import build_plan
 
 
 def _tiny(plant_section=None, **campaign):
@@ -121,7 +121,7 @@ def test_simulate_command_aircraft_plant(tmp_path, capsys):
 def test_report_resimulates_an_aircraft_campaign_on_its_plant(tmp_path):
     """The report re-simulates runs on the campaign's plant level: on the actuator level
     instead, an aircraft campaign's margins would differ (other orders, other noise draws)."""
-    from campaign.replay import build_report
+    from campaign.report_build import build_report
 
     out = tmp_path / "out"
     run(_tiny(AIRCRAFT), out, jobs=1, progress=False)

@@ -15,7 +15,7 @@ from campaign.tools.bench import (RUN_IMPORTS, arithmetic_floor, bench_runs, imp
                             yardstick_pairs)
 from campaign.cli.commands import main
 from campaign.config import load_config
-from campaign.design import build_learning_plan, build_plan
+from campaign.plan import build_learning_plan, build_plan
 from detectors.builtin.position_monitor import PositionMonitor
 from scenarios.simulate import simulate, single_run
 

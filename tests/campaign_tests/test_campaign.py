@@ -15,7 +15,7 @@ import pytest
 from campaign import run
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, load_config
-from campaign.design import LEARNING_STREAM_BASE, build_learning_plan, build_plan
+from campaign.plan import LEARNING_STREAM_BASE, build_learning_plan, build_plan
 from campaign.evaluate import ChunkSettings, evaluate
 from campaign.store.directory import CampaignDirError
 
@@ -106,7 +106,7 @@ def test_faults_are_detected_and_fault_free_runs_are_quiet(tmp_path):
 
 
 #: A small campaign whose faulty groups have fixed onsets: ``run`` stores its detection
-#: times (reports.detection_times) beside the summary.
+#: times (reports.scoring.detection_times) beside the summary.
 FIXED_ONSETS = """
 [campaign]
 name = "fixed-onsets"
@@ -168,7 +168,7 @@ def test_load_reads_back_the_campaign_that_run_returned(tmp_path):
 
     import campaign
     from campaign.evidence.certify import certify
-    from campaign.design import MODEL_VERSION
+    from campaign.plan import MODEL_VERSION
     from campaign.store.directory import CampaignDir
 
     cfg_file = tmp_path / "fixed.toml"
@@ -535,10 +535,10 @@ def test_the_rod_fault_is_computed_only_when_an_estimate_is_scored(monkeypatch):
 
 
 def test_the_progress_reporter_rates_only_the_runs_computed_now():
-    """One reporter for run, falsify and certify (campaign.runner.Progress): runs done
+    """One reporter for run, falsify and certify (campaign.progress.Progress): runs done
     before it started or read back count as done, never in the rate, so the ETA is not
     made short by a resume."""
-    from campaign.runner import Progress
+    from campaign.progress import Progress
 
     lines: list[str] = []
     bar = Progress(100, done=40, log=lines.append, label="sampling x: ")

@@ -20,7 +20,7 @@ from campaign.evidence.rare import subset_simulation
 from detectors import registry
 from detectors.calibrate import calibrate_threshold
 from detectors.tail import TailFitError, fit_tail
-from reports.gate import GateInputError, fa_probability_checks
+from reports.scoring.gate import GateInputError, fa_probability_checks
 
 
 # ---- the tail fit ------------------------------------------------------------------------------
@@ -205,7 +205,7 @@ def test_certify_refuses_an_unfinished_campaign_and_bad_options(constructed, cap
 
 
 def test_certificate_counting_bound_equals_the_summary_bound():
-    from reports.summary import summarize
+    from reports.scoring.summary import summarize
 
     rng = np.random.default_rng(0)
     n = 300
@@ -268,7 +268,7 @@ def test_gate_names_a_counted_curve_bound_counting_not_tail_fit():
 
 # ---- detection time as survival data -------------------------------------------------------------
 def test_kaplan_meier_keeps_the_misses_at_risk():
-    from reports.survival import kaplan_meier, survival_stats
+    from reports.scoring.survival import kaplan_meier, survival_stats
 
     delays = np.arange(1.0, 9.0)            # 8 runs detected after 1 … 8 s, 2 missed
     t, f, f_lo, f_hi = kaplan_meier(delays, 2)
@@ -282,7 +282,7 @@ def test_kaplan_meier_keeps_the_misses_at_risk():
 
 
 def test_tolerance_bound_rule():
-    from reports.survival import survival_stats, tolerance_rank
+    from reports.scoring.survival import survival_stats, tolerance_rank
 
     assert tolerance_rank(298) is None and tolerance_rank(299) == 299
     r = tolerance_rank(1000)
@@ -293,8 +293,8 @@ def test_tolerance_bound_rule():
 
 
 def test_summary_appends_the_survival_columns_only():
-    from reports.summary import SUMMARY_COLUMNS, summarize
-    from reports.survival import SURVIVAL_COLUMNS
+    from reports.scoring.summary import SUMMARY_COLUMNS, summarize
+    from reports.scoring.survival import SURVIVAL_COLUMNS
 
     assert SUMMARY_COLUMNS[-len(SURVIVAL_COLUMNS):] == SURVIVAL_COLUMNS
     n = 20
@@ -309,7 +309,7 @@ def test_summary_appends_the_survival_columns_only():
 
 
 def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsys):
-    from campaign.evidence.certify_levels import LEVEL_COLUMNS
+    from campaign.evidence.certify.levels import LEVEL_COLUMNS
     import campaign
     from campaign.store.directory import CampaignDir
 
@@ -330,7 +330,7 @@ def test_certify_writes_the_exceedance_curve_and_validates_it(constructed, capsy
     assert "P(margin ≥ level)" in capsys.readouterr().out
     # the report draws the curve from the file, against the runs' own margins
     from campaign.evidence.figures import evidence_figure_specs
-    from reports.figures import render_png
+    from reports.render.figures.report import render_png
 
     spec = next(s for s in evidence_figure_specs(campaign.load(out)) if s[4] == "exceedance")
     assert spec[1] == "sm" and list(spec[5][0]) == [0.9, 0.95, 1.0]

@@ -1,6 +1,6 @@
-"""The certificate's exceedance curve (campaign.evidence.certify_levels, detectors.tail
+"""The certificate's exceedance curve (campaign.evidence.certify.levels, detectors.tail
 .exceedance_curve): the mixture of class tails, the limit of the runs, the levels file and
-its validation by brute force (campaign.evidence.certify_validate; docs/evidence.md)."""
+its validation by brute force (campaign.evidence.certify.validate; docs/evidence.md)."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from campaign.evidence.certify_levels import (EXTRAPOLATION_DECADES, LEVEL_COLUMNS, detector_rows,
+from campaign.evidence.certify.levels import (EXTRAPOLATION_DECADES, LEVEL_COLUMNS, detector_rows,
                                      parse_levels, runs_to_carry, sampling_levels_to_reach)
-from campaign.evidence.certify_validate import coverage_table
+from campaign.evidence.certify.validate import coverage_table
 from detectors.tail import exceedance_curve
-from reports.metrics import upper_bound
+from reports.scoring.metrics import upper_bound
 
 
 def _two_class_sample(seed, n_per=400):
@@ -122,7 +122,7 @@ def test_a_class_too_small_to_fit_is_counted_in_the_mixture():
 
 def test_printed_certificate_never_shows_an_estimate_below_the_limit():
     from campaign.cli.evidence import format_certificate, format_levels
-    from campaign.evidence.certify_levels import level_table
+    from campaign.evidence.certify.levels import level_table
 
     rng = np.random.default_rng(5)
     results = pd.DataFrame({"detector": "d", "fault": "none", "status": "ok",

@@ -14,7 +14,7 @@ import pytest
 from campaign import run
 from campaign.cli.commands import build_parser, main
 from campaign.config import CampaignConfig
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from detectors import registry
 
 
@@ -302,7 +302,7 @@ INPUT_ERRORS = [   # (module, class, the builtin its callers catch)
     ("scenarios.fmu", "FmuRunError", RuntimeError),
     ("scenarios.fmu_build", "FmuBuildError", RuntimeError),
     ("scenarios.fmu_build", "FmuOptionError", ValueError),
-    ("reports.gate", "GateInputError", ValueError),
+    ("reports.scoring.gate", "GateInputError", ValueError),
 ]
 
 
@@ -370,7 +370,7 @@ def test_simulate_refuses_the_magnitudes_a_campaign_file_refuses(fault, capsys):
     # the bound itself is accepted by both
     assert _group_errors(fault, spec.upper, extra) == []
     from campaign.config.rules import single_fault_problems
-    from campaign.cli.commands import _SIMULATE_NAMES
+    from campaign.cli.tool_commands import _SIMULATE_NAMES
 
     assert single_fault_problems(fault, magnitude=spec.upper, variant=extra.get("variant"),
                                  sign=None, onset_s=10.0, duration_s=30.0,

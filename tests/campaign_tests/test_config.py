@@ -668,7 +668,7 @@ count = 4
 
 
 def test_solid_jam_variant_offset_samples_signed_offsets_and_names_the_group(tmp_path):
-    from campaign.design import build_plan
+    from campaign.plan import build_plan
     from scenarios.faults import solid_jam_offset_mm
     from scenarios.params import AILERON
 
@@ -694,7 +694,7 @@ def test_solid_jam_variant_offset_samples_signed_offsets_and_names_the_group(tmp
 
 
 def test_solid_jam_offset_fixed_magnitude_in_percent_and_sign(tmp_path):
-    from campaign.design import build_plan
+    from campaign.plan import build_plan
     from scenarios.faults import solid_jam_offset_mm
     from scenarios.params import AILERON
 

@@ -20,7 +20,7 @@ import distributed  # noqa: F401  (the [dask] extra, part of the [test] extra)
 from campaign import run
 from campaign.cli.commands import main  # noqa: E402
 from campaign.config import CampaignConfig, load_config  # noqa: E402
-from campaign.design import build_plan  # noqa: E402
+from campaign.plan import build_plan  # noqa: E402
 from detectors import registry  # noqa: E402
 
 TESTS = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""The values ``campaign.design`` writes into a run table, pinned one by one.
+"""The values ``campaign.plan`` writes into a run table, pinned one by one.
 
 docs/design.md §3 step 2 and §9: every sampled value is a column of the run table, the
 table is fixed before any run, and the same campaign file gives the same table on every
@@ -21,7 +21,7 @@ import pandas as pd
 import pytest
 
 from campaign.config import CampaignConfig
-from campaign.design import (LEARNING_STREAM_BASE, MODEL_VERSION, PLAN_COLUMNS,
+from campaign.plan import (LEARNING_STREAM_BASE, MODEL_VERSION, PLAN_COLUMNS,
                              build_learning_plan, build_plan, explicit_plan, explicit_rows,
                              plan_counts, run_id)
 from scenarios.catalog import MANOEUVRES
@@ -155,7 +155,7 @@ def test_design_falsify_and_certify_share_one_run_variable_space():
     vary among the fault-free runs there: one space, so a run any of them makes is one the
     design could have drawn."""
     from campaign.evidence.certify import run_variables
-    from campaign.design import RUN_VARIABLES, variable_ranges
+    from campaign.plan import RUN_VARIABLES, variable_ranges
     from campaign.evidence.falsify import search_space
 
     cfg = config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"], "count": 64}],
@@ -434,7 +434,7 @@ def test_the_drawn_direction_splits_the_unit_interval_at_one_half():
     the interval, so both directions are equally likely; exactly 0.5 belongs to +1."""
     from types import SimpleNamespace
 
-    from campaign import design
+    from campaign import plan as design
 
     below = np.nextafter(0.5, 0.0)
     sign, freq = design._fault_values("hardover", np.zeros(4), np.array([0.0, below, 0.5, 0.75]),

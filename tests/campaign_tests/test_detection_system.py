@@ -20,8 +20,8 @@ from campaign.isolation import roles_of
 from campaign.store.directory import CampaignDir
 from detectors import Detection, make_detector
 from detectors.system import DetectionSystem
-from reports.gate import evaluate_gate
-from reports.summary import detector_order, summarize
+from reports.scoring.gate import evaluate_gate
+from reports.scoring.summary import detector_order, summarize
 
 from small_campaigns import campaign_toml, small_campaign
 

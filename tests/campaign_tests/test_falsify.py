@@ -16,7 +16,7 @@ import pytest
 from campaign.cli.commands import main
 from campaign.config import ConfigError, load_config
 from campaign.config.schema import CampaignConfig
-from campaign.design import build_plan, explicit_plan
+from campaign.plan import build_plan, explicit_plan
 from campaign.evidence.falsify import (
     STREAM_SPAN,
     FalsifyError,

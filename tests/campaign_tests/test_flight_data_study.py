@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from campaign.config import ConfigError
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from campaign.tools.studies.chen_flight_data import DETECTORS, campaign_for
 
 FLIGHT_DATA = ("d_vcas", "d_alt", "d_mass", "d_cg")

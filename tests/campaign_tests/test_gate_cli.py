@@ -136,7 +136,7 @@ def test_the_command_that_finishes_a_campaign_keeps_its_seed_or_names_its_file(t
                                                                                 capsys):
     from types import SimpleNamespace
 
-    from campaign.cli.commands import _resume_command
+    from campaign.cli.result_commands import _resume_command
     from campaign.config import with_overrides
 
     seeded = SimpleNamespace(name="smoke", config=with_overrides(load_config("smoke"), seed=3))

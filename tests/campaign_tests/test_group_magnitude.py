@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from campaign.config import CampaignConfig
-from campaign.design import build_plan
+from campaign.plan import build_plan
 
 #: The elevator actuator: r = 120 mm, electrical limits −30 … +15° = 45° (docs/physics.md §3)
 R_MM, RANGE_DEG = 120.0, 45.0

@@ -281,8 +281,8 @@ def test_the_report_section_lists_every_row_and_assumption():
     false alarms), the budgets and every assumption, before the runs, with a link to it;
     without a hazard table there is no such section."""
     from campaign.evidence.hazard import ASSUMPTIONS, report_section
-    from reports.html import hazard_section, render_report
-    from reports.summary import summarize
+    from reports.render.html import hazard_section, render_report
+    from reports.scoring.summary import summarize
 
     results, plan = _results()
     table = hazard_table(results, plan, {"runaway": 1e-6, "solid_jam": 2e-6})

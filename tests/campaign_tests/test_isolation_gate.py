@@ -1,7 +1,7 @@
 """Isolation in the gate: a detector that declares the surface whose faults it detects
 (``Capabilities.fault_surfaces``, e.g. vanek-geometric) must stay silent on another surface's
 faults; an alarm there is an isolation failure the gate names, not a detection
-(campaign/isolation.py, reports/gate.py)."""
+(campaign/isolation.py, reports/scoring/gate.py)."""
 
 import numpy as np
 import pandas as pd
@@ -10,9 +10,9 @@ import pytest
 from campaign.config import load_config
 from campaign.isolation import roles_of
 from campaign.plant_setup import resolve
-from reports.gate import evaluate_gate
-from reports.metrics import ESTIMATE_COLUMNS
-from reports.summary import summarize
+from reports.scoring.gate import evaluate_gate
+from reports.scoring.metrics import ESTIMATE_COLUMNS
+from reports.scoring.summary import summarize
 
 DET = "vanek-geometric[lpv]"
 

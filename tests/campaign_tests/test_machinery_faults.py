@@ -11,7 +11,7 @@ import pytest
 
 from campaign import run
 from campaign.config import CampaignConfig
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from detectors import registry
 
 

@@ -1,4 +1,4 @@
-"""The run table made and written block by block (campaign.design.PlanBlocks,
+"""The run table made and written block by block (campaign.plan.PlanBlocks,
 CampaignDir.write_plan): the same rows, run ids, streams and file as the table made whole,
 whatever the block size, so that a plan of 10⁶ runs is written with one block in memory
 (docs/execution.md, "Memory independent of the number of runs")."""
@@ -12,7 +12,7 @@ import pytest
 
 from campaign.cli.commands import main
 from campaign.config import ConfigError
-from campaign.design import (PLAN_COLUMNS, PlanBlocks, _unit_sample_stream, _unit_samples,
+from campaign.plan import (PLAN_COLUMNS, PlanBlocks, _unit_sample_stream, _unit_samples,
                              build_plan)
 from campaign.store.directory import PLAN_ROW_GROUP_ROWS, CampaignDir
 
@@ -56,7 +56,7 @@ def test_a_cell_sequence_drawn_piece_by_piece_is_its_prefix(sampler):
     # points of one draw of a power of two (what a cell drew before it drew in blocks)
     from scipy.stats import qmc
 
-    from campaign.design import _DESIGN_KEY, _DIMS
+    from campaign.plan import _DESIGN_KEY, _DIMS
 
     cfg = config(ALL_FAULTS[:1], campaign={"sampler": sampler})
     draw = _unit_sample_stream(cfg, 3)
@@ -123,7 +123,7 @@ def test_the_plan_command_leaves_nothing_when_the_plan_is_refused(tmp_path, caps
 def test_plan_counts_of_the_plan_read_in_batches_are_those_of_the_whole_plan(tmp_path):
     # fdd-campaign plan counts the written plan batch by batch: the same table, in the
     # order of the groups' first rows, whatever the batch cuts
-    from campaign.design import plan_counts
+    from campaign.plan import plan_counts
 
     cfg = config(ALL_FAULTS, run=[RUNS[0]])
     whole = build_plan(cfg)
@@ -159,7 +159,7 @@ def test_run_ids_are_read_as_bytes_from_the_arrow_buffer_when_they_have_one_leng
 def test_whether_onsets_are_fixed_is_decided_alike_from_parts_of_the_plan():
     # finalize decides it from plan.parquet batch by batch: the verdict of the whole plan
     from campaign.config import load_config
-    from reports.detection_times import fixed_onset_campaign
+    from reports.scoring.detection_times import fixed_onset_campaign
 
     for preset, fixed in (("comb-table1", True), ("addsafe-mc", False), ("smoke", False)):
         plan = build_plan(load_config(preset))
@@ -187,7 +187,7 @@ def test_duplicate_runs_name_the_group_of_the_first_repeated_row_across_blocks()
 
 
 def test_run_ids_differing_in_their_last_character_are_two_runs():
-    from campaign.design import RUN_ID_CHARS, DuplicateRuns
+    from campaign.plan import RUN_ID_CHARS, DuplicateRuns
 
     ids = ["a" * (RUN_ID_CHARS - 1) + c for c in "xy"]
     runs = DuplicateRuns(2)

@@ -14,7 +14,7 @@ import pytest
 from campaign import run
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, ConfigError
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from campaign.runner import CampaignSetupError
 from campaign.store.directory import CampaignDir
 from detectors import Detection, detection_problems, registry

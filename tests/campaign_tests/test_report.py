@@ -20,11 +20,11 @@ import pytest
 from campaign import load, run
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig
-from campaign.replay import ReportSettings, build_report
+from campaign.report_build import ReportSettings, build_report
 from detectors import registry
-from reports.compare import compare_results
-from reports.figures import SMALL_PT, bin_max, envelope_figure, fault_figure, pyplot
-from reports.html import anchor, count_figures, show_command
+from reports.scoring.compare import compare_results
+from reports.render.figures.report import SMALL_PT, bin_max, envelope_figure, fault_figure, pyplot
+from reports.render.html import anchor, count_figures, show_command
 
 FF_MANOEUVRES = ["cruise", "nose_up"]
 FAULTS = ["liquid_jam", "runaway", "solid_jam"]
@@ -341,7 +341,7 @@ def test_compare_pairs_the_runs_of_a_shared_plan():
 
 def test_compare_says_a_cell_of_too_few_runs_cannot_tell():
     # the largest difference a cell can show: every run of B misses where A detected
-    from reports.compare import format_compare, p_floor
+    from reports.scoring.compare import format_compare, p_floor
 
     rows = _compare_rows
     dtp = np.full(2, 0.3)
@@ -504,7 +504,7 @@ def test_no_figure_has_an_empty_panel_and_text_is_legible():
 
 
 def test_the_aircraft_plot_keeps_its_legends_off_the_curves():
-    from reports.aircraft_plot import aircraft_run_figure
+    from reports.render.figures.aircraft import aircraft_run_figure
 
     t = np.arange(0, 10, 0.01)
     frame = pd.DataFrame({"command [mm]": np.sin(t), "rod_com [mm]": np.sin(t),
@@ -525,9 +525,9 @@ def test_the_aircraft_plot_keeps_its_legends_off_the_curves():
 
 
 def test_overview_counts_each_run_in_error_once():
-    from reports.gate import evaluate_gate
-    from reports.html import render_report
-    from reports.summary import summarize
+    from reports.scoring.gate import evaluate_gate
+    from reports.render.html import render_report
+    from reports.scoring.summary import summarize
 
     # detector d: 4 fault-free runs (1 in error) and 3 + 3 faulty runs of two fault types
     # (1 in error in each): 3 runs in error, whatever the aggregates over faults
@@ -614,9 +614,9 @@ def test_the_page_fits_a_laptop_window_and_every_unmet_mark_says_why(campaign_di
 
 
 def test_a_passing_value_beside_a_failure_names_the_failure():
-    from reports.gate import requirements_gate
-    from reports.html import render_report
-    from reports.summary import summarize
+    from reports.scoring.gate import requirements_gate
+    from reports.render.html import render_report
+    from reports.scoring.summary import summarize
 
     # detector d detects every runaway in time (DTP 0.5) and no liquid jam: its largest
     # DTP, 0.5, passes the limit 1 while the DTP requirement fails for the liquid jams
@@ -647,7 +647,7 @@ def test_a_passing_value_beside_a_failure_names_the_failure():
 
 def test_workers_and_threads_make_the_page_one_process_makes(campaign_dir, report, tmp_path,
                                                              monkeypatch):
-    import campaign.replay as replay
+    import campaign.report_build as replay
 
     # batches of 5 runs: the 16 fault-free runs and the example runs re-simulated in 4
     # batches on 2 threads; the figures drawn in 2 worker processes

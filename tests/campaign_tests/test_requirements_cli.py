@@ -93,7 +93,7 @@ def test_the_verdict_lines_from_one_gate_evaluation_are_those_of_two(tmp_path, r
     verdict from its checks other than MD and DTP: the same checks, in the same order, and
     the same two lines as two evaluations (MD and DTP limits met and not met)."""
     import campaign
-    from reports.gate import GateResult
+    from reports.scoring.gate import GateResult
 
     from campaign.cli.requirements import (MD_DTP_CHECKS, gate_of, other_requirements,
                                            verdict)

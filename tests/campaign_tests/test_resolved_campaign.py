@@ -9,7 +9,7 @@ import pytest
 
 import campaign.plant_setup as plant_setup
 from campaign.config import CampaignConfig, with_overrides
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from campaign.plant_setup import resolve
 from campaign.runner import run
 

@@ -1,6 +1,6 @@
 """Properties of the run table and its seeding (docs/design.md §9, docs/physics.md §5–6).
 
-What the documents promise of ``campaign.design.build_plan`` / ``build_learning_plan`` and
+What the documents promise of ``campaign.plan.build_plan`` / ``build_learning_plan`` and
 ``scenarios.runs.run_streams``: learning and evaluation runs share neither a simulation
 stream nor a flight point; the uncertainty draws are symmetric around 0 with the documented
 half-widths; a fault with a direction comes in both directions; and a run id is the hash of
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from campaign.config import CampaignConfig
-from campaign.design import LEARNING_STREAM_BASE, build_learning_plan, build_plan, run_id
+from campaign.plan import LEARNING_STREAM_BASE, build_learning_plan, build_plan, run_id
 from scenarios.faults import liquid_jam_bias_mm
 from scenarios.params import ELEVATOR
 from scenarios.runs import run_streams
@@ -197,7 +197,7 @@ def test_onsets_are_on_the_time_grid_inside_the_documented_interval(plans):
 #: (servo-2: one draw per aerodynamic and per hinge-moment coefficient, in place of d_aero
 #: and d_hinge; surface coupling; aft-loaded aileron hinge moment, docs/physics.md) and 3
 #: (servo-3: the aircraft laws' gains of a run independent of its block at round-off) and 4
-#: (servo-4: drawn onsets leave the fault's detection budget, campaign.design; the aircraft
+#: (servo-4: drawn onsets leave the fault's detection budget, campaign.plan; the aircraft
 #: plant's angle-of-attack sensor) and 5 (servo-5: the aircraft laws' scheduled short period,
 #: filters and rate limits, docs/aircraft.md §4).
 GOLDEN_ROW = {"group": "g", "surface": "elevator", "manoeuvre": "cruise", "fault": "runaway",

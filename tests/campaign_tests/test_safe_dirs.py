@@ -25,7 +25,7 @@ import pytest
 
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, load_config
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from campaign.evaluate import simulate_and_detect
 from campaign.runner import fit_detectors, settings_of
 from campaign.store.directory import (

@@ -12,13 +12,13 @@ from campaign.cli.commands import main
 from campaign.compare import compare_dirs
 from campaign.config import CampaignConfig
 from campaign.evidence.certify import certificate
-from campaign.evidence.certify_levels import DEFAULT_LEVELS, level_table
-from campaign.evidence.certify_rows import CertifyRows
+from campaign.evidence.certify.levels import DEFAULT_LEVELS, level_table
+from campaign.evidence.certify.rows import CertifyRows
 from campaign.evidence.hazard import hazard_table
-from campaign.replay import POINT_COLUMNS, runs_table
+from campaign.report_build import POINT_COLUMNS, runs_table
 from campaign.store.directory import CampaignDir
-from reports.compare import compare_results
-from reports.summary import detector_order
+from reports.scoring.compare import compare_results
+from reports.scoring.summary import detector_order
 from small_campaigns import small_campaign
 
 #: Runs per batch in these tests: the campaign's 12 runs come in 6 batches, and its

@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from campaign.store.directory import CampaignDir
-from reports.gate import evaluate_gate, gate_rows
-from reports.summary import SummaryAccumulator, summarize
+from reports.scoring.gate import evaluate_gate, gate_rows
+from reports.scoring.summary import SummaryAccumulator, summarize
 
 FAULTS = ("none", "runaway", "liquid_jam")
 MANOEUVRES = ("cruise", "nose_up", "pitch_protection")
@@ -179,7 +179,7 @@ def test_chunks_read_from_the_plan_file_are_the_plan_chunks(tmp_path, size):
     chunks it cut from the plan in memory (rows, dtypes, index), with and without runs
     already done."""
     from campaign.config import load_config
-    from campaign.design import MODEL_VERSION, build_plan
+    from campaign.plan import MODEL_VERSION, build_plan
     from campaign.runner import _plan_chunks
 
     config = load_config("smoke")

@@ -287,7 +287,7 @@ def test_a_member_with_a_reference_prints_the_published_table_in_run_and_report(
 
 
 def test_paper_table_puts_our_estimator_row_beside_the_papers():
-    from reports.table import format_paper_table
+    from reports.render.table import format_paper_table
 
     def srow(detector, fault, **kw):
         base = {"detector": detector, "fault": fault, "manoeuvre": "all", "n_runs": 10,
@@ -331,8 +331,8 @@ def test_chen_delays_are_the_dtp_times_the_inferred_120_s():
     """[CHEN] prints DTP, not delays: every DTP extreme of Tables 3–4 is a whole multiple of
     1/12000 within the rounding of its six printed digits (a relative error ≤ 5e-6 of the
     printed value), and not of 1/6000; at the 10 ms step that is 12000 steps = 120 s
-    (reports.paper's docstring), so the delays are the whole steps below."""
-    from reports.paper import CHEN_DTP_DENOMINATOR_S, PAPER_TABLES
+    (reports.render.paper's docstring), so the delays are the whole steps below."""
+    from reports.render.paper import CHEN_DTP_DENOMINATOR_S, PAPER_TABLES
 
     assert CHEN_DTP_DENOMINATOR_S == pytest.approx(120.0, rel=1e-15)
     steps = {}

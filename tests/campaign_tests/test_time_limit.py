@@ -16,7 +16,7 @@ import pytest
 
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig
-from campaign.design import build_learning_plan, build_plan
+from campaign.plan import build_learning_plan, build_plan
 from campaign.store.directory import CampaignDir
 from small_campaigns import campaign_toml, small_campaign
 

@@ -20,7 +20,7 @@ from campaign.store.directory import CampaignDir
 from campaign.tradeoff import (TRADEOFF_COLUMNS, TradeoffError, _at_scale, _plan_runs,
                                at_threshold_scales, operating_points, tradeoff)
 from detectors import registry
-from reports.alarm_steps import ALARM_STEPS_COLUMN
+from reports.scoring.alarm_steps import ALARM_STEPS_COLUMN
 from small_campaigns import campaign_toml, small_campaign
 
 SCALES = (0.8, 1.25)

@@ -230,7 +230,7 @@ def test_both_variants_carry_the_estimate_and_it_tracks_an_offset_jam(fitted):
     # [CHEN] eq. 4 and §6.2: an "offset" solid jam of 1.8 % of the range (docs/physics.md
     # §5); f̂ − f = x − x̂ is the model error alone (scenarios.simulate.rod_measurement_fault),
     # far below the 1.3 mm offset, and the liquid statistic sees the offset at once
-    from reports.metrics import estimation_errors
+    from reports.scoring.metrics import estimation_errors
     from scenarios.faults import solid_jam_offset_mm
 
     off = solid_jam_offset_mm(ELEVATOR, 1.8)

@@ -20,7 +20,7 @@ from detectors.base import first_steps
 from detectors.builtin.chen_local import ChenLocalEstimator
 from detectors.builtin.comb_interval import IntervalDetector
 from detectors.builtin.position_monitor import PositionMonitor
-from reports.metrics import score_columns
+from reports.scoring.metrics import score_columns
 from scenarios.compiled import use_engine
 from scenarios.simulate import simulate, single_run
 
@@ -112,7 +112,7 @@ DETECTORS = {
 def test_threshold_times_s_alarms_where_the_decision_first_reaches_s(runs, name, engine):
     """For each run and variant: the first alarm of the detector re-run with its thresholds
     times s is the first step where the unscaled decision reaches s; so the margin of
-    reports.metrics.score_columns is ≥ s exactly when that run alarms before onset."""
+    reports.scoring.metrics.score_columns is ≥ s exactly when that run alarms before onset."""
     learn, signals, truth = runs
     with use_engine(engine):
         det = DETECTORS[name]().fit(learn)

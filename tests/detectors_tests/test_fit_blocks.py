@@ -84,7 +84,7 @@ def test_the_learning_set_is_simulated_in_the_plants_parts_with_the_same_signals
         sizes, largest, monkeypatch):
     from campaign import runner
     from campaign.config import load_config
-    from campaign.design import build_learning_plan
+    from campaign.plan import build_learning_plan
 
     monkeypatch.setattr(runner, "LEARNING_PART_RUNS", 8)
     config = load_config("smoke")

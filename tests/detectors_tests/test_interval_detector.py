@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from campaign.config import ConfigError, load_config, with_overrides
-from campaign.design import build_learning_plan, build_plan, run_id
+from campaign.plan import build_learning_plan, build_plan, run_id
 from detectors import make_detector
 from detectors.builtin.comb_interval import (
     IntervalDetector,
@@ -30,7 +30,7 @@ from detectors.builtin.comb_interval import (
     threshold_schedule,
     variability,
 )
-from reports.detection_times import (detection_time_table, fixed_onset_campaign,
+from reports.scoring.detection_times import (detection_time_table, fixed_onset_campaign,
                                      format_detection_times)
 from scenarios.params import ELEVATOR, TS_S
 from scenarios.servo import plant_arrays

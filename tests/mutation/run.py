@@ -4,7 +4,7 @@ Usage, from the repository root, with the ``mutation`` extra installed
 (``pip install -e ".[test,mutation]"``)::
 
     python tests/mutation/run.py                      # every core module, cheapest first
-    python tests/mutation/run.py reports/metrics.py   # one or more modules
+    python tests/mutation/run.py reports/scoring/metrics.py   # one or more modules
     python tests/mutation/run.py --report             # scores of the stored sessions, no run
 
 Each module is mutated in a scratch copy of the repository, never in the checkout, so the
@@ -69,14 +69,14 @@ EQUIVALENT_FILE = HERE / "equivalent.toml"
 #: Module (path from the repository root) -> the test files that cover it, cheapest module
 #: first. A mutant of the module is run against these files only.
 TESTS: dict[str, tuple[str, ...]] = {
-    "reports/metrics.py": ("tests/reports_tests/test_metrics.py", "tests/reports_tests/test_decision_boundaries.py"),
-    "reports/gate.py": ("tests/reports_tests/test_summary_gate.py", "tests/reports_tests/test_decision_boundaries.py"),
-    "reports/summary.py": ("tests/reports_tests/test_summary_gate.py", "tests/reports_tests/test_decision_boundaries.py"),
+    "reports/scoring/metrics.py": ("tests/reports_tests/test_metrics.py", "tests/reports_tests/test_decision_boundaries.py"),
+    "reports/scoring/gate.py": ("tests/reports_tests/test_summary_gate.py", "tests/reports_tests/test_decision_boundaries.py"),
+    "reports/scoring/summary.py": ("tests/reports_tests/test_summary_gate.py", "tests/reports_tests/test_decision_boundaries.py"),
     "scenarios/faults.py": ("tests/scenarios_tests/test_fault_injection_values.py",
                             "tests/campaign_tests/test_run_table_properties.py"),
     "scenarios/runs.py": ("tests/scenarios_tests/test_run_validation.py", "tests/campaign_tests/test_run_table_properties.py",
                           "tests/scenarios_tests/test_manoeuvre_sets.py"),
-    "campaign/design.py": ("tests/campaign_tests/test_design_values.py", "tests/campaign_tests/test_run_table_properties.py",
+    "campaign/plan.py": ("tests/campaign_tests/test_design_values.py", "tests/campaign_tests/test_run_table_properties.py",
                            "tests/campaign_tests/test_config.py"),
     "detectors/calibrate.py": ("tests/detectors_tests/test_calibrate_values.py", "tests/detectors_tests/test_calibrate.py"),
     "detectors/builtin/position_monitor.py": ("tests/detectors_tests/test_position_monitor_values.py",

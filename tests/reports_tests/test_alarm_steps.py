@@ -1,7 +1,7 @@
-"""The first alarms at other thresholds stored with each run (reports/alarm_steps.py): the
+"""The first alarms at other thresholds stored with each run (reports/scoring/alarm_steps.py): the
 packed column round-trips, the onset step is the scoring's, and the result row at a stored
 scale computed from the column is, bit for bit, the row that scoring the detection at that
-scale gives (detectors.base.at_threshold_scale, then reports.metrics.score_columns); a
+scale gives (detectors.base.at_threshold_scale, then reports.scoring.metrics.score_columns); a
 detection system's steps are the earliest of its members'."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from detectors.base import Detection, at_threshold_scale, decide, first_steps
-from reports.alarm_steps import (ALARM_SCALES, ALARM_STEPS_COLUMN, alarm_offsets,
+from reports.scoring.alarm_steps import (ALARM_SCALES, ALARM_STEPS_COLUMN, alarm_offsets,
                                  alarm_steps, decode_steps,
                                  encode_steps, onset_steps, scaled_columns)
-from reports.alarm_steps import _window_steps
-from reports.metrics import RESULT_COLUMNS, score_columns
+from reports.scoring.alarm_steps import _window_steps
+from reports.scoring.metrics import RESULT_COLUMNS, score_columns
 
 SCORED = ("false_alarm", "pre_onset_alarm", "detected", "first_alarm_s", "delay_s", "dtp",
           "margin")

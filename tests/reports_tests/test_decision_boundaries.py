@@ -1,7 +1,7 @@
 """Decision boundaries pinned by hand-built inputs: the position monitor's learned threshold
 and confirmation (detectors/builtin/position_monitor.py, docs/detectors.md), the run scoring
-(docs/design.md §5, reports/metrics.py) and the summary and gate counting rules
-(reports/summary.py, reports/gate.py).
+(docs/design.md §5, reports/scoring/metrics.py) and the summary and gate counting rules
+(reports/scoring/summary.py, reports/scoring/gate.py).
 
 Every input is constructed so the expected value is known without running the code under
 test: a residual exactly at the threshold, n − 1 and n confirmation steps, an alarm exactly
@@ -17,9 +17,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from detectors.builtin.position_monitor import PositionMonitor
-from reports.gate import evaluate_gate
-from reports.metrics import score_runs
-from reports.summary import summarize
+from reports.scoring.gate import evaluate_gate
+from reports.scoring.metrics import score_runs
+from reports.scoring.summary import summarize
 from scenarios.compiled import use_engine
 from scenarios.params import ELEVATOR
 from scenarios.signals import Signals

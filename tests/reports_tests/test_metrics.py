@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from reports.metrics import (RESULT_COLUMNS, SCORE_COLUMNS, clopper_pearson, lower_bound,
+from reports.scoring.metrics import (RESULT_COLUMNS, SCORE_COLUMNS, clopper_pearson, lower_bound,
                              score_runs, upper_bound)
 
 TS = 0.1          # [s] sampling period of the constructed runs
@@ -322,7 +322,7 @@ def test_lower_bound_closed_forms():
 
 # ---- fault-estimation error ([CHEN] §6.2) ----------------------------------------------------
 def test_estimation_errors_over_the_post_onset_window_by_hand():
-    from reports.metrics import estimation_errors
+    from reports.scoring.metrics import estimation_errors
 
     nan = np.nan
     f = np.array([[nan, nan, 1.0, 1.0, 1.0],       # fault from step 2

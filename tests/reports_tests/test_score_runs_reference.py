@@ -1,4 +1,4 @@
-"""``reports.metrics.score_runs`` finds the onset and the detection window as step indices
+"""``reports.scoring.metrics.score_runs`` finds the onset and the detection window as step indices
 (``np.searchsorted`` on the step times) and the margin row by row, instead of building
 (runs × steps) masks; the scores must be those of the masks, bit for bit. The reference
 below is the mask form written out from docs/design.md §5 (Metrics): before onset means
@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reports.metrics import FAULT_FREE, ONSET_TOL_S, SCORE_COLUMNS, score_runs
+from reports.scoring.metrics import FAULT_FREE, ONSET_TOL_S, SCORE_COLUMNS, score_runs
 
 
 def masks_reference(*, run_id, fault, onset_s, alarm, residual, ts, required_time_s,
@@ -120,8 +120,8 @@ def test_a_chunk_s_result_table_is_the_variants_scored_one_by_one():
 
     from campaign.evaluate import ChunkSettings, _estimate_columns, _scored
     from detectors.base import Detection
-    from reports.alarm_steps import alarm_steps
-    from reports.metrics import RESULT_COLUMNS
+    from reports.scoring.alarm_steps import alarm_steps
+    from reports.scoring.metrics import RESULT_COLUMNS
 
     rng = np.random.default_rng(7)
     batch = random_batch(rng, n=30)

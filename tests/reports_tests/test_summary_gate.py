@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reports.gate import Check, GateInputError, GateResult, evaluate_gate, write_junit
-from reports.metrics import ESTIMATE_COLUMNS, RESULT_COLUMNS, upper_bound
-from reports.summary import SUMMARY_COLUMNS, summarize
-from reports.table import format_table
+from reports.scoring.gate import Check, GateInputError, GateResult, evaluate_gate, write_junit
+from reports.scoring.metrics import ESTIMATE_COLUMNS, RESULT_COLUMNS, upper_bound
+from reports.scoring.summary import SUMMARY_COLUMNS, summarize
+from reports.render.table import format_table
 
 DET = "position-monitor"
 MANOEUVRES = ("cruise", "nose_up", "aoa_protection", "pitch_protection", "yaw_angle_mode",
@@ -507,7 +507,7 @@ def _certificate(**bounds):
 
 
 def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
-    from reports.gate import fa_probability_checks
+    from reports.scoring.gate import fa_probability_checks
 
     cert = _certificate(a=(2.5e-3, 1e-6, np.nan), b=(2.5e-3, np.nan, np.nan),
                         c=(2.5e-3, 1e-6, 3e-6), d=(2.5e-3, None, 4e-7))
@@ -530,7 +530,7 @@ def test_fa_probability_check_holds_each_detector_to_its_largest_bound():
 
 @pytest.mark.parametrize("limit", [-1e-9, 1.5, "often", None])
 def test_fa_probability_check_refuses_a_limit_that_is_no_probability(limit):
-    from reports.gate import fa_probability_checks
+    from reports.scoring.gate import fa_probability_checks
 
     with pytest.raises(GateInputError, match="max_fa_prob"):
         fa_probability_checks(_certificate(a=(1e-3, 1e-6, np.nan)), limit)
@@ -661,7 +661,7 @@ def test_checks_come_per_detector_in_name_order_and_one_scored_run_is_enough():
 
 
 def test_checks_come_with_variant_numbers_by_value():
-    """The one detector order (reports.summary.detector_order): a=0.9 before a=0.95, which
+    """The one detector order (reports.scoring.summary.detector_order): a=0.9 before a=0.95, which
     the text order reverses (']' sorts after '5')."""
     names = ["d[a=0.95]", "d[a=0.9]", "d[a=0.6]"]
     s = summarize(pd.concat([fault_free("cruise", 1, detector=n) for n in names],
@@ -708,7 +708,7 @@ def test_one_faulty_run_is_a_rate_and_one_sample_is_a_pooled_error():
 
 
 def test_survival_columns_are_nan_for_fault_free_rows_only():
-    from reports.survival import SURVIVAL_COLUMNS
+    from reports.scoring.survival import SURVIVAL_COLUMNS
 
     s = summarize(campaign())
     assert s.loc[s.fault == "none", list(SURVIVAL_COLUMNS)].isna().all().all()

@@ -14,7 +14,7 @@ import pytest
 
 from campaign.cli.commands import main
 from campaign.config import load_config
-from campaign.design import build_plan
+from campaign.plan import build_plan
 from campaign.evaluate import evaluate
 from campaign.runner import build_detectors, settings_of
 from scenarios.fmu import FmuError, FmuPlant, FmuRunError

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from campaign.config import ConfigError, load_config, with_overrides
-from campaign.design import build_learning_plan, build_plan, run_id
+from campaign.plan import build_learning_plan, build_plan, run_id
 from scenarios.aircraft.data import PILOT
 from scenarios.aircraft.pilot import PILOT_STRESS, set_params
 from scenarios.plants import simulate

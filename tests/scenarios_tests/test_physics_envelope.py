@@ -171,7 +171,7 @@ def test_a_directory_planned_with_another_model_is_refused_on_resume(tmp_path, c
     import pyarrow.parquet as pq
 
     from campaign.cli.commands import main
-    from campaign.design import MODEL_VERSION
+    from campaign.plan import MODEL_VERSION
     from campaign.store.files import METADATA_KEY
 
     out = tmp_path / "camp"

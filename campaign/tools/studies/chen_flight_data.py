@@ -7,7 +7,7 @@
 the scheduling data of the LPV estimators; it prints no distribution (the Monte Carlo
 campaign samples "according to a suitable probability distribution", §5.2). Our ``mc``
 design draws each of them per run, uniformly over ±w and independently of the others (one
-dimension of a scrambled Sobol sequence each, :mod:`campaign.design`); the ±5 % on the six
+dimension of a scrambled Sobol sequence each, :mod:`campaign.plan`); the ±5 % on the six
 aerodynamic coefficients are drawn alike.
 
 For each half-width w of *levels* the study runs the preset ``chen-mc`` with
@@ -56,7 +56,7 @@ DETECTORS: tuple[tuple[str, str, dict], ...] = (
     ("chen-global-paper", "chen-global-paper-evt", {"threshold_method": "evt"}),
 )
 #: [CHEN]'s disconnection delays [s]: its printed min/max DTP × 120 s (the denominator
-#: inferred from its printed DTPs, docs/chen-estimator.md §6; reports.paper).
+#: inferred from its printed DTPs, docs/chen-estimator.md §6; reports.render.paper).
 CHEN_DELAYS_S = {"Table 3 (sweep)": (0.91, 7.01), "Table 4 (Monte Carlo)": (0.96, 4.52)}
 #: The delay the table counts beyond [s]: twice [CHEN]'s largest Monte Carlo delay.
 DELAY_LIMIT_S = 2.0 * CHEN_DELAYS_S["Table 4 (Monte Carlo)"][1]

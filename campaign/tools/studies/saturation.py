@@ -3,7 +3,7 @@
 
 Per monitored surface, manoeuvre and seed: fault-free runs of the six ADDSAFE manoeuvres
 (of the ``normal`` manoeuvre set, or ``stress``) sampled as a campaign samples them (``mc`` design, scrambled Sobol sequence over the realistic
-envelope and the uncertainty box, :func:`campaign.design.build_plan`), flown through the laws
+envelope and the uncertainty box, :func:`campaign.plan.build_plan`), flown through the laws
 in the chosen turbulence, and counted:
 
 * ``sat_any``: the fraction of runs whose monitored servo-valve current order reaches its
@@ -51,7 +51,7 @@ def census_plan(surface: str, seed: int, runs: int = DEFAULT_RUNS,
     manoeuvre of *manoeuvre_set* (docs/physics.md §7), sampled as a campaign with seed *seed*
     samples them."""
     from ...config.schema import CampaignConfig
-    from ...design import build_plan
+    from ...plan import build_plan
 
     if surface not in AIRCRAFT_SURFACES:
         raise ValueError(f"unknown aircraft surface {surface!r}; allowed: "

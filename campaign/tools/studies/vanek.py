@@ -18,7 +18,7 @@ Each scenario is fitted on its own fault-free cruise learning set (same monitore
 moderate turbulence, :data:`LEARNING_POINTS`). ``noise_scale`` multiplies the σ of every
 aircraft sensor (:class:`scenarios.aircraft.data.AircraftSensorParams`). Detection and
 scoring are those of a campaign (:func:`campaign.evaluate.detect`,
-:func:`campaign.evaluate.score`, i.e. :func:`reports.metrics.score_runs`: the delay is
+:func:`campaign.evaluate.score`, i.e. :func:`reports.scoring.metrics.score_runs`: the delay is
 counted from the first alarm at or after onset, the DTP over the campaign's default
 required detection time, no detection window).
 """

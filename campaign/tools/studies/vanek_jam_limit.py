@@ -76,7 +76,7 @@ def jam_limit(directory, group: str = "liquid-jam-default", bias_deg: float = 0.
     """One row per jam run of *group* of the finished campaign *directory* (module
     docstring); angles in degrees, means over the steady window."""
     from ...evaluate import simulate_signals
-    from ...replay import replay_settings
+    from ...report_build import replay_settings
 
     camp = _load(directory)
     label = _label(camp)

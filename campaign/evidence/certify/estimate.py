@@ -6,11 +6,11 @@ From a finished campaign's fault-free runs (``fault = "none"``, ``status = "ok"`
 detector (result-row name, variants apart):
 
 * ``fa_count``/``n_runs`` and ``fa_upper95_cp``, the exact one-sided Clopper–Pearson upper
-  bound of the per-run false-alarm probability (:func:`reports.metrics.upper_bound`,
+  bound of the per-run false-alarm probability (:func:`reports.scoring.metrics.upper_bound`,
   Beta⁻¹(level; k + 1, n − k), the summary's ``fa_upper95`` at 95 %); assumes independent
   runs of one probability;
 * ``fa_prob_evt`` and ``fa_prob_evt_upper95``: P(margin ≥ 1) and its one-sided bound, the
-  level-1 row of the exceedance curve (:mod:`campaign.evidence.certify_levels`): each manoeuvre's
+  level-1 row of the exceedance curve (:mod:`campaign.evidence.certify.levels`): each manoeuvre's
   margins counted where they reach 1, else its own generalised Pareto tail
   (:func:`detectors.tail.exceedance_curve`), combined by the manoeuvres' shares of the runs,
   the pooled count's bound when smaller, and never more than two decades below the counting
@@ -47,18 +47,18 @@ import numpy as np
 import pandas as pd
 
 from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
-from reports.metrics import FAULT_FREE, upper_bound
+from reports.scoring.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
 from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.errors import InputError
 
-from .certify_levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
-from .certify_rows import CertifyRows
-from ..design import run_id, variable_ranges
-from ..execute import one_blas_thread
-from ..store.directory import SAMPLING_DIR, CampaignDir
-from .hazard import per_hour
-from .rare import P0
+from .levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
+from .rows import CertifyRows
+from ...plan import run_id, variable_ranges
+from ...execute import one_blas_thread
+from ...store.directory import SAMPLING_DIR, CampaignDir
+from ..hazard import per_hour
+from ..rare import P0
 
 __all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
@@ -89,7 +89,7 @@ def evt_estimate(margins, manoeuvres=None, level: float = 0.95, at_one: dict | N
     """P(margin ≥ 1) with its bound (``fa_prob_evt``, ``fa_prob_evt_upper95``) and the
     ``evt_*`` diagnostics of one detector's fault-free *margins* (one *manoeuvres* label
     each; None: one class): the level-1 row of the exceedance curve
-    (:func:`campaign.evidence.certify_levels.detector_rows`, or *at_one* when already computed)
+    (:func:`campaign.evidence.certify.levels.detector_rows`, or *at_one* when already computed)
     with the method that gave its bound (``evt_method``), and the tail fit of the manoeuvre
     whose term dominates its bound (k, u, ξ, σ, KS p-value; NaN when that term is
     counted)."""
@@ -124,9 +124,9 @@ def certificate(results, plan: pd.DataFrame | None = None, level: float = 0.95,
                 levels: pd.DataFrame | None = None) -> pd.DataFrame:
     """The counting and tail-fit columns of :data:`CERTIFICATE_COLUMNS` (sampling columns
     NaN) from the result rows and the run table *plan* of a campaign, or from the
-    :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them a batch at a
+    :class:`campaign.evidence.certify.rows.CertifyRows` gathered from them a batch at a
     time (*plan* then unused: the durations are in it); *levels*: its exceedance curve
-    (:func:`campaign.evidence.certify_levels.level_table`) when already computed (its
+    (:func:`campaign.evidence.certify.levels.level_table`) when already computed (its
     level-1 rows are used), else the level 1 is computed here."""
     if isinstance(results, pd.DataFrame):
         results = CertifyRows.of_table(results, plan)
@@ -170,7 +170,7 @@ def certificate(results, plan: pd.DataFrame | None = None, level: float = 0.95,
 # ---- the sampled estimate --------------------------------------------------------------------
 def run_variables(config, plan: pd.DataFrame) -> dict[str, tuple[float, float]]:
     """The run variables of the campaign's fault-free population and their ranges
-    (uniform priors, as the ``mc`` design draws them; :func:`campaign.design.variable_ranges`):
+    (uniform priors, as the ``mc`` design draws them; :func:`campaign.plan.variable_ranges`):
     each flight-point column that varies among the fault-free runs, and each draw column
     with a non-zero half-width."""
     ff = plan[plan["fault"] == FAULT_FREE]
@@ -208,7 +208,7 @@ def _work_name(name: str, n: int, seed: int, level: float) -> str:
     lower cap, so raising it goes on from the stored batches."""
     import hashlib
 
-    from .rare import SAMPLER_VERSION
+    from ..rare import SAMPLER_VERSION
 
     safe = "".join(ch if ch.isalnum() or ch in "-_.=" else "_" for ch in name)
     key = hashlib.sha256(f"{name}|{n}|{seed}|{level!r}|{SAMPLER_VERSION}".encode()).hexdigest()
@@ -245,8 +245,9 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
 
     from scipy.stats import norm
 
-    from .rare import subset_simulation
-    from ..runner import Progress, evaluate_rows, prepare
+    from ..rare import subset_simulation
+    from ...progress import Progress
+    from ...runner import evaluate_rows, prepare
 
     if config.campaign.design != "mc":
         raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "
@@ -412,7 +413,7 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
             levels=DEFAULT_LEVELS):
     """Certificate of a finished campaign directory (module docstring); writes
     ``DIR/certificate.parquet``, its exceedance curve at *levels* (1.0 always among them)
-    to ``DIR/certificate-levels.parquet`` (:func:`campaign.evidence.certify_levels.level_table`) and
+    to ``DIR/certificate-levels.parquet`` (:func:`campaign.evidence.certify.levels.level_table`) and
     the hazard table to ``DIR/certificate-hazard.parquet``, and returns them as a
     :class:`campaign.result.Certificate` (with the assumptions the bounds rest on), the
     ``certificate`` of ``campaign.load(DIR)`` from then on.
@@ -426,8 +427,8 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     (:func:`sample_fa_probability`). Raises :class:`CertifyError` (exit 2) for an unfinished
     campaign, a level outside (0.5, 1), ``sampling`` below 20 or not a multiple of 1/P0 (10),
     ``jobs`` below 1 or an unknown detector name."""
-    from .hazard import hazard_table
-    from ..result import Certificate, load
+    from ..hazard import hazard_table
+    from ...result import Certificate, load
 
     problems = []
     if not (isinstance(level, float | int) and 0.5 < float(level) < 1.0):

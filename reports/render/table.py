@@ -11,22 +11,13 @@ import math
 
 import pandas as pd
 
-from .metrics import FAULT_FREE
+from ..scoring.metrics import FAULT_FREE
 from .paper import CHEN_ESTIMATOR, PAPER_TABLES
-from .summary import ALL_FAULTS, ALL_MANOEUVRES, detector_order
+from ..scoring.summary import ALL_FAULTS, ALL_MANOEUVRES, detector_order
+from ..scoring.text import number_text
 
 __all__ = ["error_lines", "format_paper_table", "format_table", "late_text", "number_text",
            "percent_text"]
-
-
-def number_text(x, fmt: str, missing: str = "-") -> str:
-    """*x* formatted with *fmt*, or *missing* for None, NaN, inf or a non-number (every
-    table, the HTML report and the comparison write their numbers with it)."""
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return missing
-    return missing if not math.isfinite(x) else format(x, fmt)
 
 
 def percent_text(x, missing: str = "-") -> str:
@@ -71,7 +62,7 @@ def _render(header: list[str], rows: list[list[str]], align: str) -> list[str]:
 
 
 def format_table(summary: pd.DataFrame) -> str:
-    """Render a summary (:func:`reports.summary.summarize`) as fixed-width text.
+    """Render a summary (:func:`reports.scoring.summary.summarize`) as fixed-width text.
 
     Rates are in %; ``≤95`` columns are exact one-sided 95 % upper bounds; for faulty runs FA
     counts alarms before onset. ``DTP≤1`` is the share of faulty runs detected within the
@@ -142,18 +133,18 @@ def _sci(x) -> str:
 
 def format_paper_table(summary: pd.DataFrame, reference: str,
                        required_time_s: dict | None = None) -> str:
-    """The campaign's figures beside a published table (:data:`reports.paper.PAPER_TABLES`),
+    """The campaign's figures beside a published table (:data:`reports.render.paper.PAPER_TABLES`),
     two rows per fault: ``ours`` (the fault read on its estimator's row,
-    :data:`reports.paper.CHEN_ESTIMATOR`) then the paper's.
+    :data:`reports.render.paper.CHEN_ESTIMATOR`) then the paper's.
 
     Columns: FA (%) — ours over the estimator's fault-free runs of every manoeuvre (their
     count given) and, after ``/``, before onset in the fault's runs; MD (%) — never detected
     in the run; MD in T (%) — not detected within our required time (missed or late);
     Min/Mean/Max delay [s] after onset — ours measured, the paper's its DTP × its inferred
-    denominator (:meth:`reports.paper.PaperTable.delays_s`); Min/Mean/Max DTP, each over its
+    denominator (:meth:`reports.render.paper.PaperTable.delays_s`); Min/Mean/Max DTP, each over its
     own required time; the mean and variance of the fault-estimation error f̂ − f
     normalised by the deflection range (pooled over the post-onset samples,
-    ``reports.summary``). *required_time_s*: fault → our required time [s] (the campaign's
+    ``reports.scoring.summary``). *required_time_s*: fault → our required time [s] (the campaign's
     ``[requirements] detection_time_s``), named in the notes when given.
     """
     table = PAPER_TABLES[reference]

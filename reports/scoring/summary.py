@@ -27,10 +27,10 @@ Counting rules
 * ``worst_margin`` is the largest margin (max |r|/τ before onset) of the group.
 * Appended: the detection delay as survival data, misses right-censored at the end of the
   window — Kaplan–Meier median and p95 delay with 95 % confidence intervals and an
-  order-statistic tolerance bound on the p99 DTP (:mod:`reports.survival`); NaN for
+  order-statistic tolerance bound on the p99 DTP (:mod:`reports.scoring.survival`); NaN for
   fault-free rows.
 * ``est_err_*``: the fault-estimation error f̂ − f of detectors that estimate the fault
-  ([CHEN] §6.2; result columns :data:`reports.metrics.ESTIMATE_COLUMNS`), pooled over every
+  ([CHEN] §6.2; result columns :data:`reports.scoring.metrics.ESTIMATE_COLUMNS`), pooled over every
   post-onset sample of the group's scored runs that have one (``est_err_runs`` of them):
   mean [mm] and population variance [mm²] of all those samples (the per-run means and
   variances combined exactly: N = Σnᵢ, mean = Σnᵢmᵢ/N, var = Σnᵢ(vᵢ + mᵢ²)/N − mean²), and
@@ -212,7 +212,7 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     results : DataFrame
-        Result rows (:data:`reports.metrics.RESULT_COLUMNS`); needs at least ``detector,
+        Result rows (:data:`reports.scoring.metrics.RESULT_COLUMNS`); needs at least ``detector,
         fault, manoeuvre, status, false_alarm, detected, delay_s, dtp, margin``.
 
     Returns

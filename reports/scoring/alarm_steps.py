@@ -14,7 +14,7 @@ the other scales of :data:`ALARM_SCALES`:
   value before onset) is ≥ s, and its first alarm in the detection window [onset, onset +
   window] is the first step k ≥ k_on where the running maximum M_k = max(decision[0..k]) is
   ≥ s (an alarm before onset is latched, so the window's first alarm is then the onset step
-  itself, as :func:`reports.metrics.score_columns` scores it). The column holds, for each
+  itself, as :func:`reports.scoring.metrics.score_columns` scores it). The column holds, for each
   scale of the grid in ascending order, that step minus the onset step k_on, for the scales
   that detect the run (a prefix of the grid: a higher threshold never alarms earlier), packed
   as unsigned LEB128 varints, the first value then the increments. ``b""``: no scale of the
@@ -23,7 +23,7 @@ the other scales of :data:`ALARM_SCALES`:
 
 From these, the result row at any scale s of the grid (:func:`scaled_columns`) is the one the
 campaign run with ``threshold_scale = s`` gives, to the bit: the step, the time k·Ts, the delay
-and the DTP are computed with the operations of :func:`reports.metrics.score_columns`.
+and the DTP are computed with the operations of :func:`reports.scoring.metrics.score_columns`.
 
 **Exactness.** The false alarms are exact at every s > 0 (margins); detection, misses, DTP and
 delays are exact at the scales of :data:`ALARM_SCALES` (and at 1, the row itself) and only
@@ -51,7 +51,7 @@ __all__ = ["ALARM_SCALES", "ALARM_STEPS_COLUMN", "alarm_offsets", "alarm_steps",
            "decode_steps", "encode_steps", "onset_steps",
            "scaled_columns"]
 
-#: Name of the result column (:data:`reports.metrics.RESULT_COLUMNS`).
+#: Name of the result column (:data:`reports.scoring.metrics.RESULT_COLUMNS`).
 ALARM_STEPS_COLUMN = "alarm_steps"
 
 #: Threshold scales whose first alarm each faulty run stores, ascending: the R10 preferred
@@ -117,7 +117,7 @@ def alarm_offsets(decision_row: np.ndarray, k_on: int, k_end: int,
 
 
 def _window_steps(fault, onset_s, ts: float, window_s, n: int, n_steps: int):
-    """(faulty, k_on, k_end) of each run as :func:`reports.metrics.score_columns` finds
+    """(faulty, k_on, k_end) of each run as :func:`reports.scoring.metrics.score_columns` finds
     them: steps k with k·Ts ≥ onset − tol, and k·Ts ≤ onset + window + tol."""
     fault = np.asarray(fault).astype(str)
     faulty = fault != FAULT_FREE
@@ -138,7 +138,7 @@ def alarm_steps(decision, *, fault, onset_s, ts: float, window_s=None,
     detection's *decision* (n_runs, n_steps; None: no threshold scale, every value None) on
     runs of fault types *fault* and onsets *onset_s* [s], sampled every *ts* [s], scored in
     the detection window *window_s* [s] (None: the rest of the run) — the arguments of
-    :func:`reports.metrics.score_columns`. Fault-free runs get None. Memory: one run's
+    :func:`reports.scoring.metrics.score_columns`. Fault-free runs get None. Memory: one run's
     series at a time besides *decision*."""
     fault = np.asarray(fault)
     n = len(fault)
@@ -167,7 +167,7 @@ def alarm_steps(decision, *, fault, onset_s, ts: float, window_s=None,
 
 def onset_steps(onset_s, ts: float) -> np.ndarray:
     """k_on of each onset [s]: the least k ≥ 0 with k·Ts ≥ onset − tol, the step
-    :func:`reports.metrics.score_columns` finds with ``searchsorted`` on the run's times
+    :func:`reports.scoring.metrics.score_columns` finds with ``searchsorted`` on the run's times
     (k·Ts computed as there, so the same step, without the run's length); NaN onsets give 0."""
     onset = np.nan_to_num(np.asarray(onset_s, dtype=float), nan=0.0)
     ts = float(ts)

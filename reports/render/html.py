@@ -2,7 +2,7 @@
 network).
 
 Layout: the gate's verdict first — the checks of ``fdd-campaign gate DIR``, in its words,
-with the run ids it names (:mod:`reports.gate`, evaluated by the caller with the command's
+with the run ids it names (:mod:`reports.scoring.gate`, evaluated by the caller with the command's
 arguments) — then one overview table across detectors (FA, MD, MD in T, DTP, each
 requirement of the campaign file met or not: the verdict of ``gate --all-requirements``),
 then the detail: per detector FA / MD with exact 95 % Clopper–Pearson intervals and DTP
@@ -26,9 +26,9 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from . import table
-from .gate import GateResult
-from .metrics import FAULT_FREE, clopper_pearson
-from .summary import ALL_FAULTS, ALL_MANOEUVRES
+from ..scoring.gate import GateResult
+from ..scoring.metrics import FAULT_FREE, clopper_pearson
+from ..scoring.summary import ALL_FAULTS, ALL_MANOEUVRES
 
 __all__ = ["ReportFigure", "anchor", "count_figures", "drilldown_section", "hazard_section",
            "render_report", "show_command"]
@@ -207,7 +207,7 @@ def _mark(text: str, checks) -> str:
 
 def _reason(check) -> str:
     """Why a failed requirement check fails, in a few words: where and the value against
-    the limit (:class:`reports.gate.Check`; rates as fractions, shown in %)."""
+    the limit (:class:`reports.scoring.gate.Check`; rates as fractions, shown in %)."""
     where = "fault-free" if check.fault == FAULT_FREE else check.fault
     if check.manoeuvre not in (ALL_MANOEUVRES, "all"):
         where = f"{where} {check.manoeuvre}"
@@ -303,7 +303,7 @@ def _overview(summary: pd.DataFrame, gate: GateResult | None, full: GateResult |
 
 def _informative_note(checks: list, per_fault: pd.DataFrame) -> str:
     """The MD cell's note of the fault types a detector is not held to (its informative
-    checks, :func:`reports.gate.evaluate_gate`): not designed for them, with what it
+    checks, :func:`reports.scoring.gate.evaluate_gate`): not designed for them, with what it
     detected of each (its per-fault summary rows *per_fault*), or a detection system's
     member (the system named by the check's message, ``INFO member of SYSTEM: …``)."""
     if not checks:
@@ -541,14 +541,14 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     Parameters
     ----------
     meta : campaign facts shown in the header (name, description, directory, counts, …)
-    summary : :func:`reports.summary.summarize` output
-    gate : the checks of ``fdd-campaign gate DIR`` (:func:`reports.gate.evaluate_gate` with
+    summary : :func:`reports.scoring.summary.summarize` output
+    gate : the checks of ``fdd-campaign gate DIR`` (:func:`reports.scoring.gate.evaluate_gate` with
         that command's arguments), shown first, line for line
     requirements : the limits of the campaign file, shown with the verdicts
     all_requirements : the checks of ``fdd-campaign gate DIR --all-requirements`` (every
         limit of the campaign file); the overview's and the detail's marks (None: none)
     detectors : the order of the detectors on the whole page (default: the summary's)
-    runs : one row per run × detector: result columns (:data:`reports.metrics.RESULT_COLUMNS`)
+    runs : one row per run × detector: result columns (:data:`reports.scoring.metrics.RESULT_COLUMNS`)
         and the flight point ``alt_ft, vcas_kt, mass_t, cg_pct, onset_s``
     figures : embedded figures, shown in :data:`SECTIONS` order, grouped by ``group``
     notes : sentences on how the figures were made (sampling rules, re-simulation checks)

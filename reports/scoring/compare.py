@@ -48,7 +48,7 @@ from scipy import stats
 
 from .metrics import FAULT_FREE
 from .summary import ALL_MANOEUVRES, natural_key
-from .table import number_text
+from .text import number_text
 
 __all__ = ["COMPARE_COLUMNS", "TOO_FEW", "ScoredRows", "compare_results", "compare_scored",
            "differing_keys", "format_compare", "p_floor", "runs_needed", "threshold_changes",
@@ -77,7 +77,7 @@ def _scored(results: pd.DataFrame) -> pd.DataFrame:
     missing = [c for c in need if c not in results.columns]
     if missing:
         raise ValueError(f"results lack column(s) {', '.join(missing)}; pass the result rows "
-                         "of a campaign (reports.metrics.RESULT_COLUMNS)")
+                         "of a campaign (reports.scoring.metrics.RESULT_COLUMNS)")
     ok = results[results["status"].astype(str) == "ok"]
     return pd.DataFrame({
         "run_id": ok["run_id"].astype(str), "detector": ok["detector"].astype(str),
@@ -260,7 +260,7 @@ def compare_results(results_a: pd.DataFrame, results_b: pd.DataFrame, *,
 
     Parameters
     ----------
-    results_a, results_b : result rows (:data:`reports.metrics.RESULT_COLUMNS`)
+    results_a, results_b : result rows (:data:`reports.scoring.metrics.RESULT_COLUMNS`)
     alpha : significance level of the flags, in (0, 1)
 
     Returns
@@ -282,7 +282,7 @@ def compare_scored(rows_a: pd.DataFrame, rows_b: pd.DataFrame, *,
     aggregate = _several(rows_a) | _several(rows_b)
     cells_a, cells_b = _Cells(rows_a, aggregate), _Cells(rows_b, aggregate)
     rows = []
-    # detectors in the one order of every output (reports.summary.detector_order)
+    # detectors in the one order of every output (reports.scoring.summary.detector_order)
     for key in sorted(cells_a.keys | cells_b.keys,
                       key=lambda k: (natural_key(str(k[0])), *map(str, k[1:]))):
         ga, gb = cells_a.get(key), cells_b.get(key)

@@ -30,11 +30,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from reports.figures import bin_max, figure_png, render_png, run_figure
-from reports.html import ReportFigure, drilldown_section, render_report, show_command
-from reports.metrics import FAULT_FREE
-from reports.summary import detector_order
-from reports.table import error_lines
+from reports.render.figures.report import bin_max, figure_png, render_png, run_figure
+from reports.render.html import ReportFigure, drilldown_section, render_report, show_command
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.summary import detector_order
+from reports.render.table import error_lines
 from scenarios import compiled as kernels
 from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.errors import ArgumentError
@@ -45,7 +45,8 @@ from .evidence.hazard import report_section
 from .evidence.figures import evidence_figure_specs
 from .plant_setup import replay_plant
 from .result import Campaign, load
-from .runner import CampaignSetupError, Progress, settings_of
+from .progress import Progress
+from .runner import CampaignSetupError, settings_of
 from .store.directory import CampaignDir
 from .tradeoff import report_figures as tradeoff_figures
 
@@ -99,7 +100,7 @@ def replay_settings(camp: Campaign, fmu=None) -> tuple[ChunkSettings | None, str
 def _run_margin(residual: np.ndarray) -> np.ndarray:
     """The largest value of a margin statistic over a whole run (the decision, else |r|/τ:
     :attr:`detectors.base.Detection.margin_statistic`), NaN samples ignored: the margin
-    of a fault-free run (reports.metrics.score_runs)."""
+    of a fault-free run (reports.scoring.metrics.score_runs)."""
     finite = ~np.isnan(residual)
     peak = np.where(finite, residual, -np.inf).max(axis=1)
     return np.where(finite.any(axis=1), peak, np.nan)
@@ -198,7 +199,7 @@ def _resimulate(chunks: list, *, detectors: dict, settings: ChunkSettings, n_bin
     own copy of the detectors, as ``run`` does), in the worker processes *processes* (a
     ``concurrent.futures`` executor) when the plant must not be shared between threads
     (an FMU), or here one after the other for one job. *progress* (a
-    :class:`campaign.runner.Progress`) counts the runs as their batch ends."""
+    :class:`campaign.progress.Progress`) counts the runs as their batch ends."""
     kwargs = {"detectors": detectors, "settings": settings, "n_bins": n_bins,
               "example_ids": example_ids}
     if jobs == 1 or len(chunks) == 1:
@@ -377,7 +378,7 @@ class _ReportData:
     detectors: list                # detector names in the summary's order (the page's)
     runs: pd.DataFrame             # runs_table(camp)
     settings: ChunkSettings | None  # to re-simulate with (None: an FMU plant, no --fmu)
-    gate: object = None            # reports.gate.GateResult of `fdd-campaign gate DIR`, and
+    gate: object = None            # reports.scoring.gate.GateResult of `fdd-campaign gate DIR`, and
     all_requirements: object = None  # of `fdd-campaign gate DIR --all-requirements`
     plan: pd.DataFrame | None = None  # the plan rows of the runs re-simulated, by run id
     n_free: int = 0                # fault-free runs scored ok
@@ -399,7 +400,7 @@ def _figure_worker_init() -> None:
     about 100 MB more)."""
     import gc
 
-    from reports import figures
+    from reports.render.figures import report as figures
 
     figures.new_figure()
     gc.freeze()
@@ -445,7 +446,7 @@ class _FigureDrawer:
         self.jobs = jobs
         self.executor = None
         if jobs > 1:
-            from reports.figures import new_figure
+            from reports.render.figures.report import new_figure
 
             self.executor = _process_pool(jobs, _figure_worker_init, preload=new_figure)
         self.specs: dict[str, list] = {}
@@ -468,7 +469,7 @@ class _FigureDrawer:
 
     def collect(self, groups: list[str], progress) -> list[ReportFigure]:
         """Every figure of *groups* (in that order, each in its specs' order); *progress*
-        (a :class:`campaign.runner.Progress`, started at :attr:`done`) counts them as they
+        (a :class:`campaign.progress.Progress`, started at :attr:`done`) counts them as they
         are done."""
         pngs: dict[str, list] = {}
         if self.executor is None:
@@ -494,7 +495,7 @@ class _FigureDrawer:
 
 class _StageLog:
     """The report's progress on stderr, as ``run`` shows its own: a line per stage with the
-    seconds since the start, and a :class:`campaign.runner.Progress` bar for the runs
+    seconds since the start, and a :class:`campaign.progress.Progress` bar for the runs
     re-simulated and for the figures drawn; nothing when *enabled* is False
     (``--quiet``)."""
 
@@ -678,7 +679,7 @@ def _resimulation_warnings(parts: list[dict]) -> list[str]:
 
 
 # A figure to draw (a "spec"): (section, group, title, caption, kind, args, kwargs) for
-# reports.figures.render_png(kind, args, kwargs). The page shows them in FIGURE_GROUPS
+# reports.render.figures.report.render_png(kind, args, kwargs). The page shows them in FIGURE_GROUPS
 # order: envelopes, detection per fault type, example runs, maps, then the evidence
 # (campaign.evidence.figures). _envelope_specs and _example_specs add the notes and
 # warnings that go with their figures.

@@ -28,9 +28,9 @@ import numpy as np
 import pandas as pd
 
 from detectors.tail import exceedance_curve
-from reports.metrics import upper_bound
+from reports.scoring.metrics import upper_bound
 
-from .rare import P0
+from ..rare import P0
 
 __all__ = ["DEFAULT_LEVELS", "EXTRAPOLATION_DECADES", "LEVEL_COLUMNS", "detector_rows",
            "level_table", "parse_levels", "runs_to_carry", "sampling_levels_to_reach"]
@@ -154,11 +154,11 @@ def detector_rows(name: str, margins, manoeuvres, levels, confidence: float = 0.
 def level_table(results, levels=DEFAULT_LEVELS, confidence: float = 0.95,
                 jobs: int = 1) -> pd.DataFrame:
     """``certificate-levels.parquet`` (:data:`LEVEL_COLUMNS`) of a campaign's result rows
-    (a DataFrame, or :class:`campaign.evidence.certify_rows.CertifyRows` gathered a batch at
+    (a DataFrame, or :class:`campaign.evidence.certify.rows.CertifyRows` gathered a batch at
     a time): one row per detector (result-row name) × level, detectors in the order of the
     results. *jobs*: threads for each detector's tail fits, one manoeuvre each at a time;
     the table does not depend on it."""
-    from .certify_rows import CertifyRows
+    from .rows import CertifyRows
 
     if isinstance(results, pd.DataFrame):
         results = CertifyRows.of_table(results)

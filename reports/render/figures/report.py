@@ -25,6 +25,8 @@ import textwrap
 import numpy as np
 import pandas as pd
 
+from ...scoring.quantiles import gpd_plotting_quantiles
+
 __all__ = ["bin_max", "envelope_figure", "envelope_map_figure", "fault_figure",
            "figure_png", "render_png", "run_figure"]
 
@@ -520,7 +522,7 @@ def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: s
     """Tail QQ plot: the k sorted excesses over u against the quantiles of the fitted
     generalised Pareto distribution at plotting positions i/(k + 1); on the diagonal when
     the model fits. *quantiles*: those k quantiles when the caller has them
-    (:func:`gpd_plotting_quantiles`; a worker process that draws the figure then needs no
+    (:func:`reports.scoring.quantiles.gpd_plotting_quantiles`; a worker process that draws the figure then needs no
     SciPy)."""
     y = np.sort(np.asarray(excesses, float))
     k = len(y)
@@ -537,17 +539,9 @@ def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: s
     return fig
 
 
-def gpd_plotting_quantiles(k: int, shape: float, scale: float) -> np.ndarray:
-    """The quantiles of the generalised Pareto distribution (*shape* ξ, *scale* σ) at the
-    plotting positions i/(k + 1), i = 1…k: the model axis of :func:`tail_qq_figure`."""
-    from scipy.stats import genpareto
-
-    return genpareto.ppf(np.arange(1, k + 1) / (k + 1.0), shape, scale=scale)
-
-
 def survival_figure(curves: dict, *, title: str, required: dict | None = None):
     """Kaplan–Meier distribution of the detection delay per fault type: *curves* maps a
-    label to (t [s], F̂, F_lo, F_hi) (:func:`reports.survival.kaplan_meier`); the curve
+    label to (t [s], F̂, F_lo, F_hi) (:func:`reports.scoring.survival.kaplan_meier`); the curve
     stops below 1 by the share of missed runs (right-censored at the window's end).
 
     *required* maps a curve's label to (fault type, its required detection time [s]: the

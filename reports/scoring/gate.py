@@ -167,7 +167,7 @@ def evaluate_gate(summary: pd.DataFrame, *, max_fa: float = 0.0, max_md: float |
     Parameters
     ----------
     summary : DataFrame
-        Output of :func:`reports.summary.summarize`.
+        Output of :func:`reports.scoring.summary.summarize`.
     max_fa : float
         Largest accepted false-alarm rate (fraction) in any fault-free manoeuvre and, for
         pre-onset alarms, in any fault × manoeuvre. Default 0: no false alarm at all.

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .figures import SMALL_PT, TITLE_PT, pyplot
-from .metrics import FAULT_FREE
+from .report import SMALL_PT, TITLE_PT, pyplot
+from ...scoring.metrics import FAULT_FREE
 
 __all__ = ["tradeoff_figure", "tradeoff_points"]
 

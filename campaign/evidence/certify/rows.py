@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from reports.metrics import FAULT_FREE
-from reports.summary import detector_order
+from reports.scoring.metrics import FAULT_FREE
+from reports.scoring.summary import detector_order
 
 __all__ = ["CERTIFY_COLUMNS", "CertifyRows", "FreeRuns"]
 
@@ -136,12 +136,12 @@ class CertifyRows:
 
     def free_names(self) -> list[str]:
         """Detectors with fault-free ``ok`` runs, in the one order of every output
-        (:func:`reports.summary.detector_order`)."""
+        (:func:`reports.scoring.summary.detector_order`)."""
         return detector_order(self._free)
 
     def ok_names(self) -> list[str]:
         """Detectors with ``ok`` runs, in the one order of every output
-        (:func:`reports.summary.detector_order`)."""
+        (:func:`reports.scoring.summary.detector_order`)."""
         return detector_order(self._faulty)
 
     def free(self, name: str) -> FreeRuns:

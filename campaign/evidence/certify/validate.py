@@ -24,9 +24,9 @@ import math
 import numpy as np
 import pandas as pd
 
-from reports.metrics import lower_bound
+from reports.scoring.metrics import lower_bound
 
-from ..store.directory import VALIDATION_DIR
+from ...store.directory import VALIDATION_DIR
 
 __all__ = ["MIN_VALIDATION_EXCEEDANCES", "VALIDATION_COLUMNS", "VALIDATION_DIR",
            "check_validation", "coverage_table", "summarise", "validate", "validate_levels",
@@ -46,8 +46,8 @@ VALIDATION_COLUMNS: tuple[str, ...] = (
 def validation_config(config, n: int, seed: int):
     """*config*'s fault-free groups as a Monte Carlo design of about *n* runs with campaign
     seed *seed* (the campaign's own distribution, other draws)."""
-    from ..config import CampaignConfig
-    from .falsify import monte_carlo_config
+    from ...config import CampaignConfig
+    from ..falsify import monte_carlo_config
 
     data = monte_carlo_config(config, int(n)).to_dict()
     data["campaign"]["seed"] = int(seed)
@@ -58,9 +58,9 @@ def validation_config(config, n: int, seed: int):
 def coverage_table(levels: pd.DataFrame, results, seed: int) -> pd.DataFrame:
     """:data:`VALIDATION_COLUMNS` of an exceedance curve *levels* (rows of
     ``certificate-levels.parquet``) against the result rows of a brute-force campaign (a
-    DataFrame, or the :class:`campaign.evidence.certify_rows.CertifyRows` gathered from them
+    DataFrame, or the :class:`campaign.evidence.certify.rows.CertifyRows` gathered from them
     a batch at a time: one margin per fault-free run and detector is kept)."""
-    from .certify_rows import CertifyRows
+    from .rows import CertifyRows
 
     if isinstance(results, pd.DataFrame):
         results = CertifyRows.of_table(results)
@@ -94,9 +94,9 @@ def validate_levels(directory, config, levels: pd.DataFrame, n: int, *, seed: in
     """Run the validation of the campaign in *directory* (its *config*, its exceedance curve
     *levels*) with *n* runs at campaign seed *seed* (module docstring) and return its
     :func:`coverage_table`, also written to ``DIR/validation/seed-S-nN.parquet``."""
-    from .certify_rows import CertifyRows
-    from ..runner import run
-    from ..store.directory import CampaignDir
+    from .rows import CertifyRows
+    from ...runner import run
+    from ...store.directory import CampaignDir
 
     cdir = CampaignDir(directory)
     vconfig = validation_config(config, n, seed)
@@ -132,7 +132,7 @@ def check_validation(config, n: int, seed: int | None) -> int:
     """The validation seed for campaign *config* (default its seed + 1), or
     :class:`campaign.evidence.certify.CertifyError` (exit 2) for fewer than 100 runs, a grid campaign
     (no distribution to draw from) or the campaign's own seed — checked before any work."""
-    from .certify import CertifyError
+    from .estimate import CertifyError
 
     if int(n) < 100:
         raise CertifyError(f"--validate {n!r}: the brute-force runs must be ≥ 100 (a level is "
@@ -157,8 +157,8 @@ def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
     *n* brute-force runs (:func:`validate_levels`) at campaign seed *seed*
     (:func:`check_validation`). :class:`campaign.evidence.certify.CertifyError` (exit 2) also for a
     directory without ``certificate-levels.parquet``."""
-    from .certify import CertifyError
-    from ..result import load
+    from .estimate import CertifyError
+    from ...result import load
 
     loaded = load(directory)
     seed = check_validation(loaded.config, n, seed)
