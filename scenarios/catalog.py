@@ -13,7 +13,7 @@ SURFACES: tuple[str, ...] = ("elevator", "aileron")
 
 #: The plant kinds a campaign names in ``[plant] kind`` (:mod:`scenarios.plants`; an FMU
 #: plant is the actuator kind with ``[plant] fmu`` set: the FMU replaces the servo-loop).
-PLANT_KINDS: tuple[str, ...] = ("actuator", "aircraft")
+PLANT_KINDS: tuple[str, ...] = ("actuator", "aircraft", "jsbsim")
 
 #: The six ADDSAFE fault-free manoeuvres ([CHEN] §6.1, docs/physics.md §7).
 MANOEUVRES: tuple[str, ...] = (
