@@ -122,6 +122,7 @@ class Fdm:
         jsbsim = jsbsim_module()
         self.model = model
         self.jsbsim = jsbsim
+        jsbsim.FGJSBBase().debug_lvl = 0        # no start-up banner on stdout
         exec_ = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
         exec_.set_debug_level(0)
         if not exec_.load_model(model.name):
