@@ -72,6 +72,7 @@ class AircraftModel:
     name: str
     beta: bool                    # its authors mark the model as beta (warned)
     alt_ft: tuple[float, float]   # altitude range [ft] our grid's 8 000–38 000 ft maps to
+    vcas_kt: tuple[float, float]  # VCAS range [kt] our grid's 160–300 kt maps to
     mass_t: tuple[float, float]   # mass range [t] our 120–233 t maps to
     cg_pct: tuple[float, float]   # CG range [% MAC] our 17–41 % maps to
     empty_lbs: float              # its empty weight in its file [lb]
@@ -85,13 +86,15 @@ class AircraftModel:
 #: the 737's certified range is about 6–33 % MAC; 10–30 % (est.). Altitude: its ceiling
 #: 37 000 ft (type data; est.).
 AIRCRAFT: dict[str, AircraftModel] = {
-    "737": AircraftModel(name="737", beta=False, alt_ft=(8000.0, 37000.0), mass_t=(41.0, 53.0),
+    "737": AircraftModel(name="737", beta=False, alt_ft=(8000.0, 33000.0),
+                         vcas_kt=(205.0, 290.0), mass_t=(41.0, 53.0),
                          cg_pct=(10.0, 30.0), empty_lbs=83000.0, tanks=3,
                          ranges_rad=(0.3, 0.35, 0.35), yaw_damper=True),
 }
 
 #: Our grid's ranges ([CHEN] Table 1) that :func:`flight_point` maps from.
-_GRID = {"alt_ft": (8000.0, 38000.0), "mass_t": (120.0, 233.0), "cg_pct": (17.0, 41.0)}
+_GRID = {"alt_ft": (8000.0, 38000.0), "vcas_kt": (160.0, 300.0), "mass_t": (120.0, 233.0),
+         "cg_pct": (17.0, 41.0)}
 
 
 def aircraft_model(name: str) -> AircraftModel:
@@ -104,15 +107,50 @@ def aircraft_model(name: str) -> AircraftModel:
 
 
 def flight_point(alt_ft, vcas_kt, mass_t, cg_pct, model: AircraftModel) -> dict:
-    """The run's flight point on the JSBSim aircraft: altitude, mass and CG mapped linearly
-    from our grid's ranges to the aircraft's (:data:`AIRCRAFT`), VCAS kept."""
+    """The run's flight point on the JSBSim aircraft: altitude, VCAS, mass and CG each mapped
+    linearly from our grid's range ([CHEN] Table 1) to the aircraft's (:data:`AIRCRAFT`), so
+    that a point's place in our envelope is its place in the 737's."""
     def lin(v, key, to):
         lo, hi = _GRID[key]
         return to[0] + (np.asarray(v, float) - lo) / (hi - lo) * (to[1] - to[0])
 
-    return {"alt_ft": lin(alt_ft, "alt_ft", model.alt_ft), "vcas_kt": np.asarray(vcas_kt, float),
+    return {"alt_ft": lin(alt_ft, "alt_ft", model.alt_ft),
+            "vcas_kt": lin(vcas_kt, "vcas_kt", model.vcas_kt),
             "mass_t": lin(mass_t, "mass_t", model.mass_t),
             "cg_pct": lin(cg_pct, "cg_pct", model.cg_pct)}
+
+
+#: Per process: the folder holding the sanitised copy of each aircraft's file.
+_SANITISED: dict[str, str] = {}
+
+
+def sanitised_aircraft_dir(model: AircraftModel, root: str) -> str:
+    """A folder (per process, under the system's temporary folder) holding the JSBSim
+    aircraft file of *model* without its top-level ``<input>`` and ``<output>`` elements.
+    JSBSim's 737.xml declares ``<input port="5137"/>`` and a QTJSBSIM input on port 5139:
+    loaded as shipped, every FDM would open listening TCP and UDP sockets through which
+    anyone who reaches them could set the model's properties (docs/security.md). Only
+    those elements are removed; the aerodynamics, FCS, mass, engines are JSBSim's file
+    (its engines are still read from JSBSim's own engine folder)."""
+    if model.name in _SANITISED:
+        return _SANITISED[model.name]
+    import atexit
+    import shutil
+    import tempfile
+    import xml.etree.ElementTree as ET
+    from pathlib import Path
+
+    src = Path(root) / "aircraft" / model.name / f"{model.name}.xml"
+    tree = ET.parse(src)
+    top = tree.getroot()
+    for child in [c for c in top if c.tag in ("input", "output")]:
+        top.remove(child)
+    folder = Path(tempfile.mkdtemp(prefix="fdd-jsbsim-"))
+    atexit.register(shutil.rmtree, folder, True)
+    (folder / model.name).mkdir()
+    tree.write(folder / model.name / f"{model.name}.xml", encoding="utf-8", xml_declaration=True)
+    _SANITISED[model.name] = str(folder)
+    return str(folder)
 
 
 class Fdm:
@@ -123,8 +161,10 @@ class Fdm:
         self.model = model
         self.jsbsim = jsbsim
         jsbsim.FGJSBBase().debug_lvl = 0        # no start-up banner on stdout
-        exec_ = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
+        root = jsbsim.get_default_root_dir()
+        exec_ = jsbsim.FGFDMExec(root)
         exec_.set_debug_level(0)
+        exec_.set_aircraft_path(sanitised_aircraft_dir(model, root))
         if not exec_.load_model(model.name):
             raise JsbsimRunError(f"JSBSim could not load aircraft {model.name!r}")
         exec_.set_dt(dt)
