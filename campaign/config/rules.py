@@ -188,9 +188,9 @@ def _check_turbulence(plant: Mapping, errors: list[str]) -> None:
     """The turbulence level belongs to the aircraft plant (the actuator plant's orders carry
     the control law's reaction to moderate turbulence, docs/physics.md §7)."""
     if plant["kind"] not in AIRCRAFT_KINDS and plant.get("turbulence", "moderate") != "moderate":
-        errors.append("plant.turbulence: only used with kind = \"aircraft\" or \"jsbsim\"; fix: "
-                      "remove it or set [plant] kind = \"aircraft\"")
-    if plant["kind"] != "jsbsim" and plant.get("aircraft", "737") != "737":
+        errors.append("plant.turbulence: only used with kind = \"aircraft\"; fix: remove it "
+                      "or set [plant] kind = \"aircraft\" (or \"jsbsim\")")
+    if plant["kind"] != "jsbsim" and "aircraft" in plant.get("__present__", ()):
         errors.append("plant.aircraft: only used with kind = \"jsbsim\"; fix: remove it or set "
                       "[plant] kind = \"jsbsim\"")
 

@@ -48,6 +48,10 @@ class JsbsimMissingError(InputError, ImportError):
     """JSBSim is not installed (exit code 2, naming the extra)."""
 
 
+class JsbsimAircraftError(InputError, ValueError):
+    """An aircraft name the JSBSim plant does not know (exit code 2, with the known ones)."""
+
+
 class JsbsimRunError(RuntimeError):
     """A run JSBSim cannot fly: its trim fails, or the aircraft diverges or returns NaN. The
     engine records it as the run's ``error`` (status ``error``), never a crash."""
@@ -101,7 +105,7 @@ def aircraft_model(name: str) -> AircraftModel:
     if name not in AIRCRAFT:
         from ..catalog import suggest
 
-        raise InputError(f"unknown JSBSim aircraft {name!r}{suggest(name, list(AIRCRAFT))}; "
+        raise JsbsimAircraftError(f"unknown JSBSim aircraft {name!r}{suggest(name, list(AIRCRAFT))}; "
                          f"allowed: {', '.join(AIRCRAFT)}")
     return AIRCRAFT[name]
 
@@ -238,13 +242,11 @@ class Fdm:
         yd = self._r_aero.get_double_value() if (self.model.yaw_damper and self.mach > 0.11) else 0.0
         self._cmd[2].set_double_value(rudder / rr - yd)
 
-    def set_gust_body(self, ug: float, vg: float, wg: float) -> None:
-        """Gust velocities along the body axes [m/s] as JSBSim's NED gust [ft/s], rotated
-        with the aircraft's current attitude."""
-        phi, theta, psi = self.values[READ_PHI], self.values[READ_THETA], self.values[READ_PSI]
-        ned = body_to_ned(phi, theta, psi) @ np.array([ug, vg, wg]) / FT_M
-        for node, v in zip(self._gust, ned):
-            node.set_double_value(float(v))
+    def set_gust_ned(self, north: float, east: float, down: float) -> None:
+        """JSBSim's gust [ft/s] along the local NED axes (:func:`body_to_ned`)."""
+        self._gust[0].set_double_value(north)
+        self._gust[1].set_double_value(east)
+        self._gust[2].set_double_value(down)
 
     def read(self) -> np.ndarray:
         """The properties of :data:`READ`, now."""
@@ -264,13 +266,15 @@ READ = ("aero/alpha-rad", "velocities/q-rad_sec", "attitude/theta-rad", "aero/be
  READ_PSI, READ_H, READ_VT) = range(len(READ))
 
 
-def body_to_ned(phi: float, theta: float, psi: float) -> np.ndarray:
-    """Rotation from body to local NED axes (Etkin & Reid eq. 4.4,4, 3-2-1 Euler angles)."""
+def body_to_ned(phi, theta, psi, body) -> np.ndarray:
+    """Body-axis vectors *body* (3, n) in local NED axes (3, n), each run with its Euler
+    angles (arrays (n,), rad): the 3-2-1 rotation (Etkin & Reid eq. 4.5,4)."""
     cf, sf, ct, st, cp, sp = (np.cos(phi), np.sin(phi), np.cos(theta), np.sin(theta),
                               np.cos(psi), np.sin(psi))
-    return np.array([[ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp],
-                     [ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp],
-                     [-st, sf * ct, cf * ct]])
+    x, y, z = body
+    return np.array([ct * cp * x + (sf * st * cp - cf * sp) * y + (cf * st * cp + sf * sp) * z,
+                     ct * sp * x + (sf * st * sp + cf * cp) * y + (cf * st * sp - sf * cp) * z,
+                     -st * x + sf * ct * y + cf * ct * z])
 
 
 #: Our states (lpv.STATES: α, q, θ, β, p, r, φ) among FGLinearization's

@@ -175,6 +175,7 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     alpha0 = np.radians(p.flight_true["alpha_deg"])
     theta0 = np.array([f.theta0 for f in fdms])
     vals = np.array([f.read() for f in fdms]).T          # (len(READ), n) at t_0
+    gusty = bool(jp.gusts.any())
     for k in range(T):
         _check(vals, jp.run_ids, k * ts)
         if any_jam:
@@ -227,12 +228,14 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
                 floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
             delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
         # JSBSim over [t_k, t_k+1): each surface at the midpoint of its motion
-        jsb = W @ (0.5 * (delta + delta_next)).reshape(n_s, n)          # (3, n)
+        jsb = _to_jsbsim(W, (0.5 * (delta + delta_next)).reshape(n_s, n))   # (3, n)
+        if gusty:
+            ned = F.body_to_ned(vals[F.READ_PHI], vals[F.READ_THETA], vals[F.READ_PSI],
+                                jp.gusts[:, :, k].T) / F.FT_M
         for i, f in enumerate(fdms):
             f.set_surfaces(jsb[0, i], jsb[1, i], jsb[2, i])
-            g = jp.gusts[i, :, k]
-            if g.any():
-                f.set_gust_body(g[0], g[1], g[2])
+            if gusty:
+                f.set_gust_ned(ned[0, i], ned[1, i], ned[2, i])
             try:
                 f.step()
             except F.JsbsimRunError as exc:
@@ -242,6 +245,17 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
                               u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
                               spoiler=np.zeros((n, T)))
+
+
+def _to_jsbsim(weights: np.ndarray, surfaces: np.ndarray) -> np.ndarray:
+    """JSBSim's three positions (3, n) from our seven surfaces (7, n), summed surface by
+    surface in a fixed order: a matrix product's BLAS blocking depends on n, and a run's
+    series must not depend on the runs of its block (docs/design.md §9, Determinism)."""
+    out = np.zeros((weights.shape[0], surfaces.shape[1]))
+    for row in range(weights.shape[0]):
+        for j in np.flatnonzero(weights[row]):
+            out[row] = out[row] + weights[row, j] * surfaces[j]
+    return out
 
 
 def _check(vals: np.ndarray, ids, t: float) -> None:
