@@ -491,7 +491,7 @@ class PlantSection:
                     "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
                     "control laws and every primary surface with its own servo-loop; "
                     "docs/physics.md §7) or jsbsim (a JSBSim aircraft flown by the same laws and "
-                    "servo-loops; the [jsbsim] extra; docs/aircraft.md §10)", "actuator",
+                    "servo-loops; the [jsbsim] extra; docs/aircraft.md §9)", "actuator",
                     choices=PLANT_KINDS)
     aircraft: str = key("choice", "jsbsim plant only: the JSBSim aircraft (JSBSim's own data)",
                         "737", choices=JSBSIM_AIRCRAFT)

@@ -1,4 +1,4 @@
-"""JSBSim as a third-party nonlinear aircraft plant (docs/aircraft.md §10).
+"""JSBSim as a third-party nonlinear aircraft plant (docs/aircraft.md §9).
 
 - :mod:`.fdm` — one JSBSim ``FGFDMExec`` per run: its aircraft (the 737 of JSBSim's own
   data by default), the run's flight point mapped onto that aircraft, the trim, the surface

@@ -213,6 +213,8 @@ class Fdm:
         self.mach = f["velocities/mach"]
         self.qbar_pa = f["aero/qbar-psf"] * 47.880258
         self.tas_ms = f["velocities/vt-fps"] * FT_M
+        self.vc0_kt = f["velocities/vc-kts"]
+        self.throttle0 = f["fcs/throttle-cmd-norm[0]"]
         self._linearise()
         # trim and FGLinearization leave the integration suspended (dt 0): resume it
         f.resume_integration()
@@ -226,6 +228,12 @@ class Fdm:
         self._r_aero = self._node("velocities/r-aero-rad_sec")
         self._gust = [self._node(f"atmosphere/gust-{d}-fps") for d in ("north", "east", "down")]
         self._read = [self._node(n) for n in READ]
+        self._throttle = [self._node(f"fcs/throttle-cmd-norm[{i}]") for i in range(2)]
+
+    def set_throttle(self, value: float) -> None:
+        """Both engines' throttle command (0–1)."""
+        for node in self._throttle:
+            node.set_double_value(value)
 
     def _linearise(self) -> None:
         lin = self.jsbsim.FGLinearization(self.fdm)
@@ -261,9 +269,10 @@ class Fdm:
 #: Properties read every period, in this order.
 READ = ("aero/alpha-rad", "velocities/q-rad_sec", "attitude/theta-rad", "aero/beta-rad",
         "velocities/p-rad_sec", "velocities/r-rad_sec", "attitude/phi-rad", "accelerations/Nz",
-        "accelerations/Ny", "attitude/psi-rad", "position/h-sl-ft", "velocities/vt-fps")
+        "accelerations/Ny", "attitude/psi-rad", "position/h-sl-ft", "velocities/vt-fps",
+        "velocities/vc-kts")
 (READ_ALPHA, READ_Q, READ_THETA, READ_BETA, READ_P, READ_R, READ_PHI, READ_NZ, READ_NY,
- READ_PSI, READ_H, READ_VT) = range(len(READ))
+ READ_PSI, READ_H, READ_VT, READ_VC) = range(len(READ))
 
 
 def body_to_ned(phi, theta, psi, body) -> np.ndarray:

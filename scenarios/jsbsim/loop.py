@@ -46,6 +46,7 @@ from ..aircraft.data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURF
                              DEFAULT_MONITORED, AircraftSensorParams, surface_actuator)
 from ..aircraft.loop import (_ELEVATORS, _PITCH, _ROLL, _TO_UNITS, _YAW, AircraftPrepared,
                              AircraftTrajectory, prepare_aircraft)
+from ..atmosphere import G0_MS2
 from ..faults import FAULT_DEFAULTS, NEVER, jam_onset_position
 from ..params import SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import manoeuvre_sets, run_streams
@@ -55,6 +56,27 @@ from ..simulate import rod_measurement_fault, servo_provides
 from ..turbulence import DrydenParams, dryden_gusts
 from ..turbulence import level as turbulence_level
 from . import fdm as F
+
+@dataclass(frozen=True)
+class JsbsimLoopParams:
+    """What the JSBSim plant adds to the laws of :mod:`scenarios.aircraft.laws`: our aircraft
+    holds its speed (lpv.py), JSBSim's does not. Without these a 0.3 g pull held 10 s at
+    160 kt / 233 t on our grid (205 kt / 53 t on the 737) leaves it in a 15° climb that its
+    thrust cannot hold, and it stalls 20 s later (measured: nose_up and aoa_protection at
+    18 000 ft, α 30° at 33 s)."""
+
+    #: autothrottle: throttle = throttle_trim + kp·(VCAS_trim − VCAS) + ki·∫(VCAS_trim − VCAS)
+    #: (est.: the 737's two CFM56 give about 2 m/s² per unit throttle at 50 t and FL180,
+    #: so kp closes the speed loop in about 5 s; ki = kp/10 s)
+    at_kp_per_kt: float = 0.05
+    at_ki_per_kt_s: float = 0.005
+    #: the pilot brings the flight path back to level after a manoeuvre: the load-factor
+    #: order gets −V/(g·τ)·γ with γ ≈ θ − α·cos φ from the measured angles (est. τ = 15 s,
+    #: slow against the manoeuvres' 2–10 s holds)
+    path_tau_s: float = 15.0
+
+
+LOOP = JsbsimLoopParams()
 
 #: Divergence limits (est.: far outside any of the six manoeuvres, docs/physics.md §7).
 PHI_MAX_RAD = np.radians(80.0)
@@ -176,6 +198,9 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     theta0 = np.array([f.theta0 for f in fdms])
     vals = np.array([f.read() for f in fdms]).T          # (len(READ), n) at t_0
     gusty = bool(jp.gusts.any())
+    vc0 = np.array([f.vc0_kt for f in fdms]); thr0 = np.array([f.throttle0 for f in fdms])
+    speed_int = np.zeros(n)
+    path_gain = np.array([f.tas_ms for f in fdms]) / (G0_MS2 * LOOP.path_tau_s)
     for k in range(T):
         _check(vals, jp.run_ids, k * ts)
         if any_jam:
@@ -195,7 +220,13 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
         y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
         meas["de"] = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[_ELEVATORS]
                       - trim_rad[_ELEVATORS]).mean(axis=0)
-        nz_c = p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
+        gamma = meas["theta"] - meas["alpha"] * np.cos(meas["phi"])
+        nz_c = (p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
+                - path_gain * gamma)
+        speed_err = vc0 - vals[F.READ_VC]
+        speed_int = speed_int + speed_err * ts
+        throttle = np.clip(thr0 + LOOP.at_kp_per_kt * speed_err
+                           + LOOP.at_ki_per_kt_s * speed_int, 0.0, 1.0)
         de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
                                pitch_clipped, p.law_params)
         raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
@@ -234,6 +265,7 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
                                 jp.gusts[:, :, k].T) / F.FT_M
         for i, f in enumerate(fdms):
             f.set_surfaces(jsb[0, i], jsb[1, i], jsb[2, i])
+            f.set_throttle(throttle[i])
             if gusty:
                 f.set_gust_ned(ned[0, i], ned[1, i], ned[2, i])
             try:
@@ -309,7 +341,7 @@ def simulate_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS
 
 @dataclass(frozen=True)
 class JsbsimPlant:
-    """A JSBSim aircraft in the loop (docs/aircraft.md §10): our servo-loops, sensors and
+    """A JSBSim aircraft in the loop (docs/aircraft.md §9): our servo-loops, sensors and
     laws flying JSBSim's nonlinear 6-DOF model; the run rows name the monitored surface, as
     for :class:`scenarios.aircraft.loop.AircraftPlant`. A :class:`scenarios.plants.Plant`.
 
