@@ -16,7 +16,7 @@ def _tiny(plant=None, **campaign):
         "group": [
             {"name": "ff", "fault": "none", "manoeuvres": ["cruise", "turn_coordination"],
              "count": 1},
-            {"name": "dc", "fault": "disconnection", "manoeuvres": ["cruise"], "count": 2},
+            {"name": "ra", "fault": "runaway", "manoeuvres": ["cruise"], "count": 2},
         ],
         "detector": [{"name": "position-monitor"}],
         "learning": {"runs_per_manoeuvre": 1},
@@ -25,7 +25,7 @@ def _tiny(plant=None, **campaign):
 
 
 @pytest.mark.parametrize("plant, needle", [
-    ({"aircraft": "A380"}, "plant.aircraft: invalid value 'A380'"),
+    ({"aircraft": "A380"}, "plant.aircraft: unknown aircraft 'A380'; allowed: 737"),
     ({"kind": "aircraft", "aircraft": "737"}, 'plant.aircraft: only used with kind = "jsbsim"'),
     ({"fmu": "servo.fmu"}, "an FMU replaces the single actuator servo-loop, but [plant] kind "
                            "= \"jsbsim\""),
@@ -60,4 +60,5 @@ def test_jsbsim_campaign_rows_are_the_same_at_one_and_two_workers(tmp_path):
     key = ["run_id", "detector"]
     pd.testing.assert_frame_equal(one.sort_values(key).reset_index(drop=True),
                                   two.sort_values(key).reset_index(drop=True))
-    assert one.loc[one.fault == "disconnection", "detected"].any()
+    assert one.loc[one.fault == "runaway", "detected"].all()
+    assert not one.loc[one.fault == "none", "false_alarm"].any()
