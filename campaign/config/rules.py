@@ -190,9 +190,6 @@ def _check_turbulence(plant: Mapping, errors: list[str]) -> None:
     if plant["kind"] not in AIRCRAFT_KINDS and plant.get("turbulence", "moderate") != "moderate":
         errors.append("plant.turbulence: only used with kind = \"aircraft\"; fix: remove it "
                       "or set [plant] kind = \"aircraft\" (or \"jsbsim\")")
-    if plant["kind"] != "jsbsim" and "aircraft" in plant.get("__present__", ()):
-        errors.append("plant.aircraft: only used with kind = \"jsbsim\"; fix: remove it or set "
-                      "[plant] kind = \"jsbsim\"")
 
 
 def _check_monitored_surface(plant: Mapping, errors: list[str]) -> None:

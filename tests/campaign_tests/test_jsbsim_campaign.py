@@ -26,7 +26,7 @@ def _tiny(plant=None, **campaign):
 
 @pytest.mark.parametrize("plant, needle", [
     ({"aircraft": "A380"}, "plant.aircraft: unknown aircraft 'A380'; allowed: 737"),
-    ({"kind": "aircraft", "aircraft": "737"}, 'plant.aircraft: only used with kind = "jsbsim"'),
+    ({"kind": "aircraft", "aircraft": "B747"}, "plant.aircraft: unknown aircraft 'B747'"),
     ({"fmu": "servo.fmu"}, "an FMU replaces the single actuator servo-loop, but [plant] kind "
                            "= \"jsbsim\""),
 ])
