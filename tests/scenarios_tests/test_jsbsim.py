@@ -121,8 +121,8 @@ def test_the_design_model_is_not_the_plant():
     predicts one step of a fault-free cruise better than one of a fault-free turn, in every
     state: the 30° bank (θ̇ = q·cos φ − r·sin φ, gravity along the wing), the speed and the
     nonlinear aerodynamics of the turn are outside it. Measured (mdeg, mdeg/s; seeds 0, 5
-    and 11, docs/aircraft.md §9): cruise α 0.02–0.03, θ 0.02, β 0.001, φ 0.002; turn α
-    1.3–1.9, θ 2.8–4.0, β 0.3–0.5, φ 0.10–0.11; r the closest, 0.06 against 0.10–0.13."""
+    and 11, docs/aircraft.md §9): cruise α 0.011, θ 0.020, β 0.0014, φ 0.0016; turn α
+    1.3–1.8, θ 2.8–4.0, β 0.33–0.52, φ 0.11; r the closest, 0.060 against 0.10–0.14."""
     for seed in (0, 5):
         cruise, turn = _one_step_error("cruise", seed), _one_step_error("turn_coordination", seed)
         assert (turn > 1.3 * cruise).all(), (cruise, turn)
