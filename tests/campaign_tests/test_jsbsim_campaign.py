@@ -62,3 +62,11 @@ def test_jsbsim_campaign_rows_are_the_same_at_one_and_two_workers(tmp_path):
                                   two.sort_values(key).reset_index(drop=True))
     assert one.loc[one.fault == "runaway", "detected"].all()
     assert not one.loc[one.fault == "none", "false_alarm"].any()
+
+
+def test_falsify_leaves_the_manoeuvre_start_to_the_pilot_model_on_jsbsim():
+    """As on our aircraft, the pilot model places each manoeuvre: not a search variable."""
+    from campaign.evidence.falsify import search_space
+
+    assert "manoeuvre_start_s" not in search_space(_tiny()).bounds
+    assert "manoeuvre_start_s" in search_space(_tiny({"kind": "actuator"})).bounds
