@@ -70,3 +70,17 @@ def test_falsify_leaves_the_manoeuvre_start_to_the_pilot_model_on_jsbsim():
 
     assert "manoeuvre_start_s" not in search_space(_tiny()).bounds
     assert "manoeuvre_start_s" in search_space(_tiny({"kind": "actuator"})).bounds
+
+
+def test_a_jsbsim_campaign_without_jsbsim_exits_2_naming_the_extra(tmp_path, monkeypatch,
+                                                                    capsys):
+    import sys
+
+    from campaign.cli.commands import main
+
+    monkeypatch.setitem(sys.modules, "jsbsim", None)          # as if not installed
+    out = tmp_path / "out"
+    assert main(["run", "jsbsim-mc", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert 'the jsbsim plant needs the JSBSim package' in err
+    assert 'pip install -e ".[jsbsim]"' in err
