@@ -33,6 +33,7 @@ engine records it as the run's ``error`` (campaign.evaluate, run by run).
 
 from __future__ import annotations
 
+import types
 import warnings
 from dataclasses import dataclass, replace
 
@@ -42,10 +43,20 @@ import pandas as pd
 from .. import envelope
 from ..acquisition import acquire, acquire_com, applied_current, quantize
 from ..aircraft import laws, lpv, pilot
-from ..aircraft.data import (AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, AIRCRAFT_SURFACES,
-                             DEFAULT_MONITORED, AircraftSensorParams, surface_actuator)
-from ..aircraft.loop import (_ELEVATORS, _PITCH, _ROLL, _TO_UNITS, _YAW, AircraftPrepared,
-                             AircraftTrajectory, prepare_aircraft)
+from ..aircraft.data import (
+    AIRCRAFT_SENSORS,
+    AIRCRAFT_SURFACES,
+    DEFAULT_MONITORED,
+    LAYOUT,
+    AircraftSensorParams,
+    surface_actuator,
+)
+from ..aircraft.loop import (
+    TO_UNITS,
+    AircraftPrepared,
+    AircraftTrajectory,
+    prepare_aircraft,
+)
 from ..atmosphere import G0_MS2
 from ..faults import FAULT_DEFAULTS, NEVER, jam_onset_position
 from ..params import SENSORS, TS_S, ActuatorParams, SensorParams
@@ -56,6 +67,7 @@ from ..simulate import rod_measurement_fault, servo_provides
 from ..turbulence import DrydenParams, dryden_gusts
 from ..turbulence import level as turbulence_level
 from . import fdm as F
+
 
 @dataclass(frozen=True)
 class JsbsimLoopParams:
@@ -77,6 +89,12 @@ class JsbsimLoopParams:
 
 
 LOOP = JsbsimLoopParams()
+
+#: Pitch, roll and yaw order of each surface (LAYOUT order), as on our aircraft.
+PITCH = laws.PITCH_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
+ROLL = laws.ROLL_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
+YAW = laws.YAW_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
+ELEVATORS = PITCH > 0
 
 #: Divergence limits (est.: far outside any of the six manoeuvres, docs/physics.md §7).
 PHI_MAX_RAD = np.radians(80.0)
@@ -110,7 +128,7 @@ def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_
     for i in range(n):
         f = F.Fdm(model, ts)
         try:
-            f.trim(*(float(point[c][i]) for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")))
+            f.trim(*(float(point[c][i]) for c in envelope.FLIGHT_COLUMNS))
         except F.JsbsimRunError as exc:
             raise F.JsbsimRunError(f"run {ids[i]}: {exc}") from None
         fdms.append(f)
@@ -119,7 +137,7 @@ def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_
 
     trim = np.zeros_like(base.trim_deg)
     jsb = np.degrees(np.array([f.trim_surfaces for f in fdms]))          # (n, 3)
-    for j, (name, kind) in enumerate(zip(AIRCRAFT_SURFACES, base_kinds())):
+    for j, (name, kind) in enumerate(zip(AIRCRAFT_SURFACES, LAYOUT.actuator)):
         trim[j] = (jsb[:, 0] if kind == "elevator" else jsb[:, 2] if kind == "rudder"
                    else jsb[:, 1] * (1.0 if name.startswith("left") else -1.0))
     trim = np.clip(trim, base.lo_deg, base.hi_deg)
@@ -152,12 +170,6 @@ def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_
     return JsbsimPrepared(base=base, fdms=fdms, gusts=gusts, nz0=nz0, run_ids=ids)
 
 
-def base_kinds() -> tuple[str, ...]:
-    from ..aircraft.data import LAYOUT
-
-    return LAYOUT.actuator
-
-
 def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
     """The closed-loop time loop of :func:`scenarios.aircraft.loop.integrate_reference` with
     JSBSim in place of the linear aircraft step."""
@@ -169,7 +181,6 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     act_m = p.acts[m]
     d_min, d_max = np.radians(act_m.stop_min_deg), np.radians(act_m.stop_max_deg)
     run_margin = FAULT_DEFAULTS.runaway_margin_deg
-    import types
     pm = types.SimpleNamespace(faults=fa, com_scale=p.com_scale[mon], com_bias=p.com_bias[mon],
                                com_noise=p.com_noise[mon])
     trim_rad = np.radians(p.trim_deg)
@@ -218,8 +229,8 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
                 "alpha": vals[F.READ_ALPHA] + nse[8, :, k]}
         y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
         y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
-        meas["de"] = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[_ELEVATORS]
-                      - trim_rad[_ELEVATORS]).mean(axis=0)
+        meas["de"] = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[ELEVATORS]
+                      - trim_rad[ELEVATORS]).mean(axis=0)
         gamma = meas["theta"] - meas["alpha"] * np.cos(meas["phi"])
         nz_c = (p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
                 - path_gain * gamma)
@@ -229,11 +240,11 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
                            + LOOP.at_ki_per_kt_s * speed_int, 0.0, 1.0)
         de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
                                pitch_clipped, p.law_params)
-        raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
-                                      + _YAW[:, None] * dr)
+        raw = p.trim_deg + np.degrees(PITCH[:, None] * de + ROLL[:, None] * da
+                                      + YAW[:, None] * dr)
         order = laws.rate_limit(order_prev, np.clip(raw, p.lo_deg, p.hi_deg), step_deg)
         order_prev = order.copy()
-        pitch_clipped = (order[_ELEVATORS] != raw[_ELEVATORS]).any(axis=0)
+        pitch_clipped = (order[ELEVATORS] != raw[ELEVATORS]).any(axis=0)
         u_free_m = act_m.deg_to_mm(order[m])
         order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
                            act_m.stop_max_deg + run_margin)
@@ -317,7 +328,7 @@ def simulate_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
                                                   plant=p.plant_m)
-    aircraft_sig = {name: _TO_UNITS[unit](series)
+    aircraft_sig = {name: TO_UNITS[unit](series)
                     for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
     aircraft_sig["spoiler"] = np.degrees(traj.spoiler)
     signals = Signals(

@@ -27,8 +27,8 @@ def _tiny(plant=None, **campaign):
 @pytest.mark.parametrize("plant, needle", [
     ({"aircraft": "A380"}, "plant.aircraft: unknown aircraft 'A380'; allowed: 737"),
     ({"kind": "aircraft", "aircraft": "B747"}, "plant.aircraft: unknown aircraft 'B747'"),
-    ({"fmu": "servo.fmu"}, "an FMU replaces the single actuator servo-loop, but [plant] kind "
-                           "= \"jsbsim\""),
+    ({"fmu": "servo.fmu"}, ("an FMU replaces the single actuator servo-loop, but [plant] kind "
+                            "= \"jsbsim\"")),
 ])
 def test_bad_jsbsim_plant_keys_are_reported(plant, needle):
     with pytest.raises(ConfigError) as info:

@@ -10,10 +10,10 @@ import pytest
 
 jsbsim = pytest.importorskip("jsbsim")
 
-from scenarios.aircraft import lpv                                     # noqa: E402
-from scenarios.jsbsim import fdm as F                                  # noqa: E402
-from scenarios.jsbsim.loop import JsbsimPlant, integrate_jsbsim, prepare_jsbsim  # noqa: E402
-from scenarios.simulate import single_run                              # noqa: E402
+from scenarios.aircraft import lpv
+from scenarios.jsbsim import fdm as F
+from scenarios.jsbsim.loop import JsbsimPlant, integrate_jsbsim, prepare_jsbsim
+from scenarios.simulate import single_run
 
 MODEL = F.AIRCRAFT["737"]
 
