@@ -61,7 +61,7 @@ def test_trimmed_point_is_the_one_asked_for():
     assert cg == pytest.approx(28.0, abs=1e-9)
     assert f.fdm["velocities/vc-kts"] == pytest.approx(250.0, abs=0.5)
     assert abs(f.fdm["velocities/h-dot-fps"]) < 0.1
-    # an aft CG needs less nose-down... more nose-up elevator: the moment arm really moved
+    # a forward CG needs more nose-up (trailing edge up, negative) elevator: the arm moved
     fwd = _trimmed(alt=18000.0, vcas=250.0, mass=50.0, cg=12.0)
     assert fwd.trim_surfaces[0] < f.trim_surfaces[0]
 
