@@ -37,6 +37,10 @@ def plant_of(config) -> Plant:
         return FmuPlant.of(Path(section.fmu).expanduser().resolve(), variables,
                            push_parameters=section.push_parameters,
                            parameters=dict(section.parameters))
+    if section.kind == "jsbsim":
+        from scenarios.jsbsim.loop import JsbsimPlant
+
+        return JsbsimPlant(aircraft=section.aircraft, turbulence=section.turbulence)
     plant = get_plant(section.kind)
     if section.kind == "aircraft" and section.turbulence != plant.turbulence:
         plant = replace(plant, turbulence=section.turbulence)

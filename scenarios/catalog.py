@@ -13,7 +13,12 @@ SURFACES: tuple[str, ...] = ("elevator", "aileron")
 
 #: The plant kinds a campaign names in ``[plant] kind`` (:mod:`scenarios.plants`; an FMU
 #: plant is the actuator kind with ``[plant] fmu`` set: the FMU replaces the servo-loop).
-PLANT_KINDS: tuple[str, ...] = ("actuator", "aircraft")
+PLANT_KINDS: tuple[str, ...] = ("actuator", "aircraft", "jsbsim")
+#: The plant kinds that fly an aircraft (its laws and every surface; the run rows name the
+#: monitored aircraft surface).
+AIRCRAFT_KINDS: tuple[str, ...] = ("aircraft", "jsbsim")
+#: The JSBSim aircraft ``[plant] aircraft`` may name (:data:`scenarios.jsbsim.fdm.AIRCRAFT`).
+JSBSIM_AIRCRAFT: tuple[str, ...] = ("737",)
 
 #: The six ADDSAFE fault-free manoeuvres ([CHEN] §6.1, docs/physics.md §7).
 MANOEUVRES: tuple[str, ...] = (

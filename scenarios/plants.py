@@ -8,6 +8,7 @@ kind           what is simulated                           implementation
 ``actuator``   one surface's nonlinear servo-loop alone    :class:`scenarios.simulate.ActuatorPlant`
 ``aircraft``   the aircraft, its laws and every surface    :class:`scenarios.aircraft.loop.AircraftPlant`
 ``fmu``        the servo-loop's physics in an FMI FMU      :class:`scenarios.fmu.FmuPlant`
+``jsbsim``     a JSBSim aircraft, our laws and servo-loops  :class:`scenarios.jsbsim.loop.JsbsimPlant`
 =============  ==========================================  ==================================
 
 The plant says which surfaces it has, the actuator table of a surface, and which signal
@@ -79,7 +80,8 @@ class Plant(Protocol):
 #: laws, LPV models and compiled loop) are imported when an aircraft plant is asked for,
 #: not by a campaign of the actuator alone.
 _BUILT_IN: dict[str, tuple[str, str]] = {"actuator": ("scenarios.simulate", "ActuatorPlant"),
-                                         "aircraft": ("scenarios.aircraft.loop", "AircraftPlant")}
+                                         "aircraft": ("scenarios.aircraft.loop", "AircraftPlant"),
+                                         "jsbsim": ("scenarios.jsbsim.loop", "JsbsimPlant")}
 
 
 def _built_in(kind: str) -> type:
@@ -96,7 +98,7 @@ def __getattr__(name: str):
 
 
 def get_plant(plant: str | Plant = "actuator") -> Plant:
-    """The plant *plant* names (``"actuator"`` or ``"aircraft"``), or *plant* itself when it
+    """The plant *plant* names (``"actuator"``, ``"aircraft"`` or ``"jsbsim"``), or *plant* itself when it
     already is one. An unknown name is answered with the allowed ones (and a close match);
     an FMU plant is built with :meth:`scenarios.fmu.FmuPlant.of`."""
     if isinstance(plant, str):

@@ -163,7 +163,11 @@ def _call(argv: list[str], line: str) -> Ran:
 
 
 def _skipped(argv: list[str], has_fmpy: bool) -> bool:
-    """Whether *argv* needs fmpy where it is not installed."""
+    """Whether *argv* needs fmpy, or the [jsbsim] extra, where it is not installed."""
+    import importlib.util
+
+    if "jsbsim" in argv and importlib.util.find_spec("jsbsim") is None:
+        return True
     return not has_fmpy and ("fmu" in argv[:1] or any(a.endswith(".fmu") for a in argv))
 
 

@@ -224,7 +224,8 @@ def add_run_parsers(subs) -> None:
                         "run_timeout_s is set)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.add_argument("--plant", metavar="LEVEL|FMU",
-                   help="actuator or aircraft (overrides [plant] kind; see docs/aircraft.md), "
+                   help="actuator, aircraft or jsbsim (overrides [plant] kind; see "
+                        "docs/aircraft.md; jsbsim needs the [jsbsim] extra), "
                         "or a co-simulation FMU file to simulate the actuator on (sets [plant] fmu; "
                         "see docs/fmu.md)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",

@@ -40,6 +40,7 @@ def _out_dir(file: Path) -> str:
 
 
 def cmd_simulate(args) -> int:
+    from scenarios.catalog import AIRCRAFT_KINDS
     from scenarios.plants import get_plant
     from scenarios.simulate import single_run
 
@@ -47,9 +48,10 @@ def cmd_simulate(args) -> int:
         if getattr(args, option):
             check_writable(getattr(args, option), f"--{option}")
     plant = get_plant(args.plant)
+    plant.check((args.fault,))          # e.g. JSBSim not installed: exit 2 naming the extra
     if args.surface in plant.surfaces:
         surface = args.surface
-    elif plant.kind == "aircraft":          # elevator/aileron: their left surface
+    elif plant.kind in AIRCRAFT_KINDS:      # elevator/aileron: their left surface
         surface = plant.run_surface(args.surface)
     else:
         raise UsageError(f"invalid choice --surface {args.surface} at the actuator plant "
@@ -80,7 +82,7 @@ def cmd_simulate(args) -> int:
             b"fdd_campaign": runs.to_json(orient="records").encode()})
         pq.write_table(table, args.out)
         print(f"signals and truth written to {args.out}")
-    if args.plot and plant.kind == "aircraft":
+    if args.plot and plant.kind in AIRCRAFT_KINDS:
         from reports.render.figures.aircraft import plot_aircraft_run
 
         plot_aircraft_run(frame, onset_s=onset, path=args.plot, monitored=str(runs["surface"].iloc[0]),
@@ -167,11 +169,12 @@ def add_simulate_parser(subs) -> None:
              "fdd-campaign simulate --surface elevator --manoeuvre turn_coordination "
              "--fault solid_jam --plot run.png --out run.parquet", cmd_simulate)
     p.add_argument("--surface", default="elevator", choices=SURFACES + AIRCRAFT_SURFACES,
-                   help="surface (with --plant aircraft: the monitored one; elevator → "
+                   help="surface (with --plant aircraft or jsbsim: the monitored one; elevator → "
                    "left_elevator, aileron → left_inboard_aileron)")
     p.add_argument("--plant", default="actuator", choices=PLANT_KINDS,
                    help="actuator: the servo-loop alone; aircraft: aircraft, laws and every "
-                   "surface in the loop")
+                   "surface in the loop; jsbsim: JSBSim's 737 flown by the same laws and "
+                   "servo-loops (the [jsbsim] extra)")
     p.add_argument("--manoeuvre", default="cruise", choices=MANOEUVRES,
                    help="manoeuvre (default cruise; docs/physics.md §7)")
     p.add_argument("--fault", default="none", choices=FAULTS,

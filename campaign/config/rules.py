@@ -25,7 +25,8 @@ from types import SimpleNamespace
 from typing import Any, Mapping
 
 from detectors.compat import incompatibilities, offline_problems
-from scenarios.catalog import DETECTION_BUDGET_S, MANOEUVRES, latest_onset_s, suggest
+from scenarios.catalog import (AIRCRAFT_KINDS, DETECTION_BUDGET_S, MANOEUVRES, latest_onset_s,
+                               suggest)
 
 from .convert import is_ok
 from .keys import key_spec, leaf_fields, thaw
@@ -186,9 +187,9 @@ def _check_mc_only_keys(table: Mapping, path: str, cls: type, design: Any,
 def _check_turbulence(plant: Mapping, errors: list[str]) -> None:
     """The turbulence level belongs to the aircraft plant (the actuator plant's orders carry
     the control law's reaction to moderate turbulence, docs/physics.md §7)."""
-    if plant["kind"] != "aircraft" and plant.get("turbulence", "moderate") != "moderate":
+    if plant["kind"] not in AIRCRAFT_KINDS and plant.get("turbulence", "moderate") != "moderate":
         errors.append("plant.turbulence: only used with kind = \"aircraft\"; fix: remove it "
-                      "or set [plant] kind = \"aircraft\"")
+                      "or set [plant] kind = \"aircraft\" (or \"jsbsim\")")
 
 
 def _check_monitored_surface(plant: Mapping, errors: list[str]) -> None:
@@ -724,7 +725,7 @@ def _check_plant(plant: Mapping, camp: Mapping, errors: list[str]) -> None:
         for k in given:
             errors.append(f"plant.{k}: only used with an FMU plant; fix: set [plant] fmu = "
                           "\"servo.fmu\" or remove it")
-    elif plant["kind"] == "aircraft":
+    elif plant["kind"] in AIRCRAFT_KINDS:
         errors.append("plant.fmu: an FMU replaces the single actuator servo-loop, but "
-                      "[plant] kind = \"aircraft\"; fix: set [plant] kind = "
+                      f"[plant] kind = \"{plant['kind']}\"; fix: set [plant] kind = "
                       "\"actuator\" or remove [plant] fmu")

@@ -13,7 +13,7 @@ from typing import Any
 
 from detectors.registry import BUILTIN
 from scenarios.aircraft.data import AIRCRAFT_SURFACES
-from scenarios.catalog import PLANT_KINDS
+from scenarios.catalog import JSBSIM_AIRCRAFT, PLANT_KINDS
 from scenarios.turbulence import LEVELS as TURBULENCE_LEVELS
 from scenarios.catalog import (
     FAULT_TYPES,
@@ -490,13 +490,17 @@ class PlantSection:
     kind: str = key("choice", "plant level: actuator (the servo-loop of `surface` alone, "
                     "orders from manoeuvre profiles) or aircraft (rigid-body aircraft, "
                     "control laws and every primary surface with its own servo-loop; "
-                    "docs/physics.md §7)", "actuator", choices=PLANT_KINDS)
+                    "docs/physics.md §7) or jsbsim (a JSBSim aircraft flown by the same laws and "
+                    "servo-loops; the [jsbsim] extra; docs/aircraft.md §9)", "actuator",
+                    choices=PLANT_KINDS)
+    aircraft: str = key("choice", "jsbsim plant only: the JSBSim aircraft (JSBSim's own data)",
+                        "737", choices=JSBSIM_AIRCRAFT)
     monitored_surface: str | None = key(
         "choice", "aircraft plant only: the surface whose servo-loop signals the detectors "
         "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
         default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
         example="left_inboard_aileron")
-    turbulence: str = key("choice", "aircraft plant only: the Dryden turbulence the aircraft "
+    turbulence: str = key("choice", "aircraft and jsbsim plants only: the Dryden turbulence the aircraft "
                           "flies in (moderate, docs/physics.md §7; none: calm air, as the "
                           "ADDSAFE runs of [CHEN] footnote 1)", "moderate",
                           choices=tuple(TURBULENCE_LEVELS))

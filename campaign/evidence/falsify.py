@@ -50,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from scenarios import envelope
+from scenarios.catalog import AIRCRAFT_KINDS
 from scenarios.envelope import FLIGHT_COLUMNS
 from scenarios.errors import InputError
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
@@ -191,7 +192,7 @@ def search_space(config: CampaignConfig) -> SearchSpace:
                            "(fault = \"none\"): falsify searches its fault-free runs; fix: add "
                            "one, e.g. [[group]] fault = \"none\" count = 10")
     ranges = variable_ranges(config)
-    if config.plant.kind != "aircraft":
+    if config.plant.kind not in AIRCRAFT_KINDS:       # the pilot model places its own start
         p, duration = MANOEUVRE_PARAMS, config.campaign.duration_s
         ranges["manoeuvre_start_s"] = (p.lead_s, min(p.lead_s + p.start_spread_s,
                                                      duration - p.tail_s))

@@ -395,7 +395,7 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
 
 
 #: Conversion of the recorded aircraft sensors (SI) to the units of AIRCRAFT_SIGNAL_UNITS.
-_TO_UNITS = {"deg/s": np.degrees, "deg": np.degrees, "g": lambda v: v}
+TO_UNITS = {"deg/s": np.degrees, "deg": np.degrees, "g": lambda v: v}
 
 
 def simulate_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
@@ -514,7 +514,7 @@ def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbule
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
                                                   plant=p.plant_m)
-    aircraft = {name: _TO_UNITS[unit](series)           # the nine sensors, then the spoilers
+    aircraft = {name: TO_UNITS[unit](series)           # the nine sensors, then the spoilers
                 for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
     aircraft["spoiler"] = np.degrees(traj.spoiler)
     signals = Signals(

@@ -1,0 +1,409 @@
+"""The closed loop on JSBSim: our servo-loops, sensors, faults and laws fly a JSBSim aircraft.
+
+Everything but the aircraft is that of the aircraft plant (:mod:`scenarios.aircraft.loop`,
+docs/physics.md §7): the seven surfaces' nonlinear servo-loops with the A330 actuator and
+hinge-moment tables at the run's sampled point, the fault injection on the monitored
+surface, the COM/MON acquisitions, the aircraft sensor noise, the pilot's manoeuvre orders
+and the laws of :mod:`scenarios.aircraft.laws` — their gains placed on JSBSim's
+linearisation at the run's trim point (:func:`scenarios.jsbsim.fdm.design_model`), never on
+our derivative model. In place of our linear rigid body, one JSBSim FDM per run
+(:class:`scenarios.jsbsim.fdm.Fdm`), trimmed at the run's flight point mapped onto the
+JSBSim aircraft (:func:`scenarios.jsbsim.fdm.flight_point`), advanced one step of Ts per
+FCC period with each surface at the mean of its positions at t_k and t_k+1 (the
+midpoint of the servo's motion over the period) and the gust of t_k.
+
+Gusts: the Dryden velocities of :func:`scenarios.turbulence.dryden_gusts` at the JSBSim
+point's TAS and altitude from the run's manoeuvre stream after its pilot draws (the same
+stream order as the aircraft plant); the v and w components enter JSBSim as a wind in NED
+axes (``atmosphere/gust-*-fps``), u is not applied (as our plant, which holds the speed).
+
+Sensors at t_k, from JSBSim's state: p, q, r (``velocities/*-rad_sec``), φ, θ, the load
+factors (``accelerations/Nz``, ``Ny``: n_z is JSBSim's Nz minus its trimmed value plus 1),
+and the air-relative sideslip and angle of attack (``aero/beta-rad``, ``aero/alpha-rad``),
+each plus its noise. Truth ``aircraft`` holds α − α0, q, θ − θ0, β, p, r, φ (lpv.STATES).
+
+Not applied here: [CHEN] Table 2's aerodynamic-coefficient draws (the 737 model exposes no
+scaling of its coefficients: its aerodynamics are functions of JSBSim's own properties);
+the spoilers (no roll spoilers in the 737's aerodynamics: ``spoiler`` is recorded as 0).
+
+A run that cannot trim, diverges (|φ| > 80°, |α| > 30°, below 500 ft) or returns NaN raises
+:class:`scenarios.jsbsim.fdm.JsbsimRunError` naming the run, the time and the cause; the
+engine records it as the run's ``error`` (campaign.evaluate, run by run).
+"""
+
+from __future__ import annotations
+
+import types
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+
+from .. import envelope
+from ..acquisition import acquire, acquire_com, applied_current, quantize
+from ..aircraft import laws, lpv, pilot
+from ..aircraft.data import (
+    AIRCRAFT_SENSORS,
+    AIRCRAFT_SURFACES,
+    DEFAULT_MONITORED,
+    LAYOUT,
+    AircraftSensorParams,
+    surface_actuator,
+)
+from ..aircraft.loop import (
+    TO_UNITS,
+    AircraftPrepared,
+    AircraftTrajectory,
+    prepare_aircraft,
+)
+from ..atmosphere import G0_MS2
+from ..faults import FAULT_DEFAULTS, NEVER, jam_onset_position
+from ..params import SENSORS, TS_S, ActuatorParams, SensorParams
+from ..runs import manoeuvre_sets, run_streams
+from ..servo import float_step, rk4_step
+from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
+from ..simulate import rod_measurement_fault, servo_provides
+from ..turbulence import DrydenParams, dryden_gusts
+from ..turbulence import level as turbulence_level
+from . import fdm as F
+
+
+@dataclass(frozen=True)
+class JsbsimLoopParams:
+    """What the JSBSim plant adds to the laws of :mod:`scenarios.aircraft.laws`: our aircraft
+    holds its speed (lpv.py), JSBSim's does not. Without these a 0.3 g pull held 10 s at
+    160 kt / 233 t on our grid (205 kt / 53 t on the 737) leaves it in a 15° climb that its
+    thrust cannot hold, and it stalls 20 s later (measured: nose_up and aoa_protection at
+    18 000 ft, α 30° at 33 s)."""
+
+    #: autothrottle: throttle = throttle_trim + kp·(VCAS_trim − VCAS) + ki·∫(VCAS_trim − VCAS)
+    #: (est.: the 737's two CFM56 give about 2 m/s² per unit throttle at 50 t and FL180,
+    #: so kp closes the speed loop in about 5 s; ki = kp/10 s)
+    at_kp_per_kt: float = 0.05
+    at_ki_per_kt_s: float = 0.005
+    #: the pilot brings the flight path back to level after a manoeuvre: the load-factor
+    #: order gets −V/(g·τ)·γ with γ ≈ θ − α·cos φ from the measured angles (est. τ = 15 s,
+    #: slow against the manoeuvres' 2–10 s holds)
+    path_tau_s: float = 15.0
+
+
+LOOP = JsbsimLoopParams()
+
+#: Pitch, roll and yaw order of each surface (LAYOUT order), as on our aircraft.
+PITCH = laws.PITCH_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
+ROLL = laws.ROLL_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
+YAW = laws.YAW_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
+ELEVATORS = PITCH > 0
+
+#: Divergence limits (est.: far outside any of the six manoeuvres, docs/physics.md §7).
+PHI_MAX_RAD = np.radians(80.0)
+ALPHA_MAX_RAD = np.radians(30.0)
+H_MIN_FT = 500.0
+
+
+@dataclass(frozen=True)
+class JsbsimPrepared:
+    base: AircraftPrepared        # servo-loops, sensors, faults, pilot orders, laws
+    fdms: list                    # one trimmed Fdm per run
+    gusts: np.ndarray             # (n, 3, T) body gust velocities [m/s]
+    nz0: np.ndarray               # (n,) JSBSim's trimmed Nz
+    run_ids: np.ndarray
+
+
+def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_S,
+                   sensors: SensorParams = SENSORS,
+                   aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS,
+                   turbulence: DrydenParams | None = None,
+                   law_params: laws.LawParams = laws.LAWS) -> JsbsimPrepared:
+    """Trim one FDM per run and design its laws on JSBSim's linearisation (module docstring)."""
+    model = F.aircraft_model(aircraft)
+    base = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=None,
+                            law_params=law_params, aircraft_sensors=aircraft_sensors)
+    n, T = base.n, base.T
+    ft = base.flight_true
+    point = F.flight_point(ft["alt_ft"], ft["vcas_kt"], ft["mass_t"], ft["cg_pct"], model)
+    ids = runs["run_id"].astype(str).to_numpy()
+    fdms = []
+    for i in range(n):
+        f = F.Fdm(model, ts)
+        try:
+            f.trim(*(float(point[c][i]) for c in envelope.FLIGHT_COLUMNS))
+        except F.JsbsimRunError as exc:
+            raise F.JsbsimRunError(f"run {ids[i]}: {exc}") from None
+        fdms.append(f)
+    design = F.design_model(fdms)
+    gains = laws.gains(design, law_params)
+
+    trim = np.zeros_like(base.trim_deg)
+    jsb = np.degrees(np.array([f.trim_surfaces for f in fdms]))          # (n, 3)
+    for j, (name, kind) in enumerate(zip(AIRCRAFT_SURFACES, LAYOUT.actuator)):
+        trim[j] = (jsb[:, 0] if kind == "elevator" else jsb[:, 2] if kind == "rudder"
+                   else jsb[:, 1] * (1.0 if name.startswith("left") else -1.0))
+    trim = np.clip(trim, base.lo_deg, base.hi_deg)
+
+    tas = np.array([f.tas_ms for f in fdms])
+    gusts = np.zeros((n, 3, T))
+    if turbulence is not None:
+        col = {c: runs[c].to_numpy() for c in ("seed", "stream", "manoeuvre")}
+        t = np.arange(T) * ts
+        sets = manoeuvre_sets(runs)
+        for i in range(n):
+            g = run_streams(col["seed"][i], col["stream"][i])[0]
+            pilot.inputs_for_runs([str(col["manoeuvre"][i])], t, [g],
+                                  [pilot.set_params(sets[i])])      # the same draws first
+            gusts[i] = dryden_gusts(T, ts, tas[i], float(point["alt_ft"][i]), g, turbulence)
+    gusts[:, 0] = 0.0
+    d = {c: runs[c].to_numpy(float) for c in ("d_alt", "d_vcas", "d_mass", "d_cg")}
+    schedule = envelope.measured_schedule(point["alt_ft"], point["vcas_kt"], point["mass_t"],
+                                          point["cg_pct"], d["d_alt"], d["d_vcas"],
+                                          d["d_mass"], d["d_cg"])
+    flight = {**{k: np.asarray(v, float) for k, v in point.items()},
+              "mach": np.array([f.mach for f in fdms]),
+              "qbar_pa": np.array([f.qbar_pa for f in fdms]), "tas_ms": tas,
+              "alpha_deg": np.degrees([f.alpha0 for f in fdms])}
+    base = replace(base, trim_deg=trim, gains=gains,
+                   gust_alpha=-gusts[:, 2] / tas[:, None], gust_beta=-gusts[:, 1] / tas[:, None],
+                   flight_true=flight, schedule={k: np.asarray(v, float)
+                                                 for k, v in schedule.items()})
+    nz0 = np.array([f.read()[F.READ_NZ] for f in fdms])
+    return JsbsimPrepared(base=base, fdms=fdms, gusts=gusts, nz0=nz0, run_ids=ids)
+
+
+def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
+    """The closed-loop time loop of :func:`scenarios.aircraft.loop.integrate_reference` with
+    JSBSim in place of the linear aircraft step."""
+    p = jp.base
+    n, T, ts, m = p.n, p.T, p.ts, p.monitored
+    n_s = len(p.acts)
+    pl, fa = p.plant, p.faults
+    mon = slice(m * n, (m + 1) * n)
+    act_m = p.acts[m]
+    d_min, d_max = np.radians(act_m.stop_min_deg), np.radians(act_m.stop_max_deg)
+    run_margin = FAULT_DEFAULTS.runaway_margin_deg
+    pm = types.SimpleNamespace(faults=fa, com_scale=p.com_scale[mon], com_bias=p.com_bias[mon],
+                               com_noise=p.com_noise[mon])
+    trim_rad = np.radians(p.trim_deg)
+    r_flat = pl.r_mm
+    fdms = jp.fdms
+    W = F.SURFACE_MAP
+
+    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+
+    x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
+    delta = np.arcsin(x / r_flat)
+    i_prev = np.zeros(n * n_s)
+    y_hold = np.zeros(n)
+    state = laws.LawState.zeros(n)
+    pitch_clipped = np.zeros(n, dtype=bool)
+    steps, _ = laws.order_steps(ts, p.law_params)
+    step_deg = steps[:, None]
+    order_prev = p.trim_deg.copy()
+    loaded = np.ones(n * n_s, dtype=bool)
+    any_jam = bool((fa.k_jam < NEVER).any())
+    any_disc = bool((fa.k_disc < NEVER).any())
+    nse = p.ac_noise
+    alpha0 = np.radians(p.flight_true["alpha_deg"])
+    theta0 = np.array([f.theta0 for f in fdms])
+    vals = np.array([f.read() for f in fdms]).T          # (len(READ), n) at t_0
+    gusty = bool(jp.gusts.any())
+    vc0 = np.array([f.vc0_kt for f in fdms]); thr0 = np.array([f.throttle0 for f in fdms])
+    speed_int = np.zeros(n)
+    path_gain = np.array([f.tas_ms for f in fdms]) / (G0_MS2 * LOOP.path_tau_s)
+    for k in range(T):
+        _check(vals, jp.run_ids, k * ts)
+        if any_jam:
+            x_m = x[mon]
+            x_j = jam_onset_position(x_m, k, fa, pl.x_min[mon], pl.x_max[mon])
+            if x_j is not x_m:
+                delta[mon] = np.where(x_j != x_m, np.arcsin(x_j / r_flat[mon]), delta[mon])
+                x[mon] = x_j
+        meas = {"p": vals[F.READ_P] + nse[0, :, k], "q": vals[F.READ_Q] + nse[1, :, k],
+                "r": vals[F.READ_R] + nse[2, :, k], "phi": vals[F.READ_PHI] + nse[3, :, k],
+                "theta": vals[F.READ_THETA] + nse[4, :, k],
+                "dnz": vals[F.READ_NZ] - jp.nz0 + nse[5, :, k],
+                "ny": vals[F.READ_NY] + nse[6, :, k],
+                "beta": vals[F.READ_BETA] + nse[7, :, k],
+                "alpha": vals[F.READ_ALPHA] + nse[8, :, k]}
+        y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
+        y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
+        meas["de"] = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[ELEVATORS]
+                      - trim_rad[ELEVATORS]).mean(axis=0)
+        gamma = meas["theta"] - meas["alpha"] * np.cos(meas["phi"])
+        nz_c = (p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
+                - path_gain * gamma)
+        speed_err = vc0 - vals[F.READ_VC]
+        speed_int = speed_int + speed_err * ts
+        throttle = np.clip(thr0 + LOOP.at_kp_per_kt * speed_err
+                           + LOOP.at_ki_per_kt_s * speed_int, 0.0, 1.0)
+        de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
+                               pitch_clipped, p.law_params)
+        raw = p.trim_deg + np.degrees(PITCH[:, None] * de + ROLL[:, None] * da
+                                      + YAW[:, None] * dr)
+        order = laws.rate_limit(order_prev, np.clip(raw, p.lo_deg, p.hi_deg), step_deg)
+        order_prev = order.copy()
+        pitch_clipped = (order[ELEVATORS] != raw[ELEVATORS]).any(axis=0)
+        u_free_m = act_m.deg_to_mm(order[m])
+        order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
+                           act_m.stop_max_deg + run_margin)
+        u_loop = r_flat * np.sin(np.radians(order.ravel()))
+        i_new = np.clip(pl.K * (u_loop - y), -pl.i_max, pl.i_max)
+        i_app = i_prev.copy()
+        i_app[mon] = applied_current(i_prev[mon], k, pm)
+        rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
+        states[:, :, k] = (vals[F.READ_ALPHA] - alpha0, vals[F.READ_Q],
+                           vals[F.READ_THETA] - theta0, vals[F.READ_BETA], vals[F.READ_P],
+                           vals[F.READ_R], vals[F.READ_PHI])
+        meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
+                             1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
+        xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        if any_disc:
+            loaded[mon] = k < fa.k_disc
+        x_next = rk4_step(x, i_app, pl, loaded, ts)
+        if any_jam:
+            x_next[mon] = np.where(k >= fa.k_jam, x[mon], x_next[mon])
+        delta_next = np.arcsin(x_next / r_flat)
+        if any_disc:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
+            delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
+        # JSBSim over [t_k, t_k+1): each surface at the midpoint of its motion
+        jsb = _to_jsbsim(W, (0.5 * (delta + delta_next)).reshape(n_s, n))   # (3, n)
+        if gusty:
+            ned = F.body_to_ned(vals[F.READ_PHI], vals[F.READ_THETA], vals[F.READ_PSI],
+                                jp.gusts[:, :, k].T) / F.FT_M
+        for i, f in enumerate(fdms):
+            f.set_surfaces(jsb[0, i], jsb[1, i], jsb[2, i])
+            f.set_throttle(throttle[i])
+            if gusty:
+                f.set_gust_ned(ned[0, i], ned[1, i], ned[2, i])
+            try:
+                f.step()
+            except F.JsbsimRunError as exc:
+                raise F.JsbsimRunError(f"run {jp.run_ids[i]} at {k * ts:.2f} s: {exc}") from None
+            vals[:, i] = f.read()
+        x, delta, i_prev = x_next, delta_next, i_new
+    return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
+                              u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
+                              spoiler=np.zeros((n, T)))
+
+
+def _to_jsbsim(weights: np.ndarray, surfaces: np.ndarray) -> np.ndarray:
+    """JSBSim's three positions (3, n) from our seven surfaces (7, n), summed surface by
+    surface in a fixed order: a matrix product's BLAS blocking depends on n, and a run's
+    series must not depend on the runs of its block (docs/design.md §9, Determinism)."""
+    out = np.zeros((weights.shape[0], surfaces.shape[1]))
+    for row in range(weights.shape[0]):
+        for j in np.flatnonzero(weights[row]):
+            out[row] = out[row] + weights[row, j] * surfaces[j]
+    return out
+
+
+def _check(vals: np.ndarray, ids, t: float) -> None:
+    """:class:`JsbsimRunError` for the first run that diverged or returned NaN."""
+    bad = (~np.isfinite(vals).all(axis=0) | (np.abs(vals[F.READ_PHI]) > PHI_MAX_RAD)
+           | (np.abs(vals[F.READ_ALPHA]) > ALPHA_MAX_RAD) | (vals[F.READ_H] < H_MIN_FT))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        v = vals[:, i]
+        raise F.JsbsimRunError(
+            f"run {ids[i]} diverged at {t:.2f} s on JSBSim: φ {np.degrees(v[F.READ_PHI]):.1f}°, "
+            f"α {np.degrees(v[F.READ_ALPHA]):.1f}°, {v[F.READ_H]:.0f} ft (limits |φ| ≤ 80°, "
+            f"|α| ≤ 30°, ≥ 500 ft; NaN: JSBSim returned no number)")
+
+
+def simulate_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_S,
+                    sensors: SensorParams = SENSORS, pressure_sensor: bool = False,
+                    turbulence: DrydenParams | None = None,
+                    aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS,
+                    truth: bool = True) -> tuple[Signals, Truth | None]:
+    """Simulate *runs* (one monitored surface and duration) on JSBSim; (Signals, Truth) as
+    :func:`scenarios.aircraft.loop.simulate_aircraft`."""
+    jp = prepare_jsbsim(runs, aircraft=aircraft, ts=ts, sensors=sensors,
+                        aircraft_sensors=aircraft_sensors, turbulence=turbulence)
+    p = jp.base
+    traj = integrate_jsbsim(jp, sensors)
+    act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
+    mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
+                                                  plant=p.plant_m)
+    aircraft_sig = {name: TO_UNITS[unit](series)
+                    for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
+    aircraft_sig["spoiler"] = np.degrees(traj.spoiler)
+    signals = Signals(
+        ts=ts, command=traj.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
+        surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,
+        run_ids=jp.run_ids, aircraft=aircraft_sig,
+        rods={s: traj.rods[j] for j, s in enumerate(AIRCRAFT_SURFACES)})
+    if not truth:
+        return signals, None
+    return signals, Truth(
+        rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
+        fault=runs["fault"].astype(str).to_numpy(),
+        onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
+        flight=p.flight_true,
+        aircraft={s: np.degrees(traj.states[j]) for j, s in enumerate(lpv.STATES)},
+        surfaces_deg={s: np.degrees(traj.surfaces[j]) for j, s in enumerate(AIRCRAFT_SURFACES)},
+        rod_fault_mm=rod_measurement_fault(runs["fault"].to_numpy(),
+                                           runs["onset_s"].to_numpy(float), traj.y_com,
+                                           traj.u, p.plant_m, ts))
+
+
+@dataclass(frozen=True)
+class JsbsimPlant:
+    """A JSBSim aircraft in the loop (docs/aircraft.md §9): our servo-loops, sensors and
+    laws flying JSBSim's nonlinear 6-DOF model; the run rows name the monitored surface, as
+    for :class:`scenarios.aircraft.loop.AircraftPlant`. A :class:`scenarios.plants.Plant`.
+
+    aircraft : a name of :data:`scenarios.jsbsim.fdm.AIRCRAFT` (default ``"737"``).
+    turbulence : a level of :data:`scenarios.turbulence.LEVELS` (default ``"moderate"``).
+    """
+
+    aircraft: str = "737"
+    turbulence: str = "moderate"
+    aircraft_sensors: AircraftSensorParams = AIRCRAFT_SENSORS
+    kind = "jsbsim"
+    #: an FGFDMExec per run, held by the process that simulates it
+    needs_processes = True
+    #: runs simulated together (their servo-loops and laws vectorised, their FDMs stepped
+    #: one after the other); a run's series never depend on its block
+    batch_runs = 10
+    learning_part_runs = 10
+
+    def __post_init__(self):
+        model = F.aircraft_model(self.aircraft)
+        if model.beta:
+            warnings.warn(f"the JSBSim {self.aircraft} model is marked beta by its authors",
+                          stacklevel=2)
+
+    @property
+    def surfaces(self) -> tuple[str, ...]:
+        return AIRCRAFT_SURFACES
+
+    def run_surface(self, surface: str, monitored: str | None = None) -> str:
+        return monitored or DEFAULT_MONITORED[surface]
+
+    def actuator(self, surface: str) -> ActuatorParams:
+        return surface_actuator(surface)
+
+    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
+        return servo_provides(self.actuator(surface), pressure_sensor) | {"aircraft"}
+
+    def check(self, faults=()) -> None:
+        """JSBSim must be installed (exit 2 naming the extra)."""
+        F.jsbsim_module()
+
+    def simulate(self, runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorParams = SENSORS,
+                 pressure_sensor: bool = False) -> tuple[Signals, Truth]:
+        return simulate_jsbsim(runs, aircraft=self.aircraft, ts=ts, sensors=sensors,
+                               pressure_sensor=pressure_sensor,
+                               turbulence=turbulence_level(self.turbulence),
+                               aircraft_sensors=self.aircraft_sensors)
+
+    def simulate_signals(self, runs: pd.DataFrame, *, ts: float = TS_S,
+                         sensors: SensorParams = SENSORS, pressure_sensor: bool = False) -> Signals:
+        return simulate_jsbsim(runs, aircraft=self.aircraft, ts=ts, sensors=sensors,
+                               pressure_sensor=pressure_sensor,
+                               turbulence=turbulence_level(self.turbulence),
+                               aircraft_sensors=self.aircraft_sensors, truth=False)[0]
