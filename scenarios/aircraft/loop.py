@@ -283,6 +283,96 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
                               spoiler=sp_rec)
 
 
+def monitored_servo(p: AircraftPrepared) -> types.SimpleNamespace:
+    """The monitored servo's faults and COM errors, as the acquisition functions of
+    :mod:`scenarios.acquisition` read them."""
+    mon = slice(p.monitored * p.n, (p.monitored + 1) * p.n)
+    return types.SimpleNamespace(faults=p.faults, com_scale=p.com_scale[mon],
+                                 com_bias=p.com_bias[mon], com_noise=p.com_noise[mon])
+
+
+def com_acquisition(x: np.ndarray, k: int, p: AircraftPrepared, pm, sensors: SensorParams,
+                    y_hold: np.ndarray):
+    """The COM rod acquisitions of every servo at t_k [mm] (docs/physics.md §4: scale, bias,
+    noise, quantisation; the monitored one with its sensor faults), the hold of the
+    monitored one, and the elevator deflection the laws read from them [rad, from trim]."""
+    n_s, n, mon = len(p.acts), p.n, slice(p.monitored * p.n, (p.monitored + 1) * p.n)
+    y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
+    y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
+    trim_rad = np.radians(p.trim_deg)
+    de_meas = (np.arcsin(np.clip(y / p.plant.r_mm, -1.0, 1.0)).reshape(n_s, n)[_ELEVATORS]
+               - trim_rad[_ELEVATORS]).mean(axis=0)
+    return y, y_hold, de_meas
+
+
+def jam_onset(x: np.ndarray, delta: np.ndarray, k: int, fa, pl: PlantArrays, mon: slice) -> None:
+    """An "offset" solid jam: the monitored rod jumps at its onset (docs/physics.md §5);
+    *x* [mm] and *delta* [rad] of step *k* updated in place."""
+    x_m = x[mon]
+    x_j = jam_onset_position(x_m, k, fa, pl.x_min[mon], pl.x_max[mon])
+    if x_j is not x_m:
+        delta[mon] = np.where(x_j != x_m, np.arcsin(x_j / pl.r_mm[mon]), delta[mon])
+        x[mon] = x_j
+
+
+def surface_orders(p: AircraftPrepared, state: laws.LawState, meas: dict, nz_c: np.ndarray,
+                   k: int, pitch_clipped: np.ndarray, order_prev: np.ndarray,
+                   step_deg: np.ndarray):
+    """The flight computer's orders of period *k* (docs/aircraft.md §4): the laws' pitch, roll
+    and yaw demands distributed over the surfaces, clipped to their authority and rate-limited,
+    and the monitored surface's runaway ramp added (docs/physics.md §5). Returns the roll demand
+    [rad], the orders (7, n) [deg], the rate limiter's memory, whether a pitch order was
+    clipped and the monitored servo's fault-free order [mm]."""
+    m, act_m = p.monitored, p.acts[p.monitored]
+    run_margin = FAULT_DEFAULTS.runaway_margin_deg
+    de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, p.ts,
+                           pitch_clipped, p.law_params)
+    raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
+                                  + _YAW[:, None] * dr)
+    order = laws.rate_limit(order_prev, np.clip(raw, p.lo_deg, p.hi_deg), step_deg)
+    order_prev = order.copy()
+    pitch_clipped = (order[_ELEVATORS] != raw[_ELEVATORS]).any(axis=0)
+    u_free_m = act_m.deg_to_mm(order[m])
+    order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
+                       act_m.stop_max_deg + run_margin)
+    return da, order, order_prev, pitch_clipped, u_free_m
+
+
+def servo_currents(order: np.ndarray, y: np.ndarray, i_prev: np.ndarray, k: int,
+                   p: AircraftPrepared, pm) -> tuple[np.ndarray, np.ndarray]:
+    """The servo-valve currents of period *k* [mA] ([COMB] eq. 2): commanded from the orders
+    [deg] and the COM rods *y* [mm], and applied (the monitored one with its current faults,
+    :func:`scenarios.acquisition.applied_current`, from the previous period's command)."""
+    pl, mon = p.plant, slice(p.monitored * p.n, (p.monitored + 1) * p.n)
+    u_loop = pl.r_mm * np.sin(np.radians(order.ravel()))
+    i_new = np.clip(pl.K * (u_loop - y), -pl.i_max, pl.i_max)
+    i_app = i_prev.copy()
+    i_app[mon] = applied_current(i_prev[mon], k, pm)
+    return i_new, i_app
+
+
+def advance_servos(x: np.ndarray, delta: np.ndarray, i_app: np.ndarray, loaded: np.ndarray,
+                   k: int, p: AircraftPrepared, any_jam: bool, any_disc: bool):
+    """Every servo-loop over [t_k, t_k+1) (docs/physics.md §2–§5): the rods by RK4, the
+    monitored one held by a jam from its onset, its surface floating once disconnected.
+    Returns the rods [mm] and surfaces [rad] at t_k+1; *loaded* updated in place."""
+    pl, fa, ts = p.plant, p.faults, p.ts
+    mon = slice(p.monitored * p.n, (p.monitored + 1) * p.n)
+    act_m = p.acts[p.monitored]
+    if any_disc:
+        loaded[mon] = k < fa.k_disc
+    x_next = rk4_step(x, i_app, pl, loaded, ts)
+    if any_jam:
+        x_next[mon] = np.where(k >= fa.k_jam, x[mon], x_next[mon])
+    delta_next = np.arcsin(x_next / pl.r_mm)
+    if any_disc:
+        d_min, d_max = np.radians(act_m.stop_min_deg), np.radians(act_m.stop_max_deg)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
+        delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
+    return x_next, delta_next
+
+
 def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:
     """The closed-loop time loop in NumPy, vectorised over runs and surfaces (the reference
     of the compiled kernel, :mod:`.kernel`)."""
@@ -290,11 +380,7 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
     n_s = len(p.acts)
     pl, fa = p.plant, p.faults
     mon = slice(m * n, (m + 1) * n)
-    act_m = p.acts[m]
-    d_min, d_max = np.radians(act_m.stop_min_deg), np.radians(act_m.stop_max_deg)
-    run_margin = FAULT_DEFAULTS.runaway_margin_deg
-    pm = types.SimpleNamespace(faults=fa, com_scale=p.com_scale[mon], com_bias=p.com_bias[mon],
-                               com_noise=p.com_noise[mon])
+    pm = monitored_servo(p)
     trim_rad = np.radians(p.trim_deg)
     r_flat = pl.r_mm
 
@@ -325,12 +411,8 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
     nse = p.ac_noise
     theta0 = np.radians(p.flight_true["alpha_deg"])     # trimmed level flight: θ0 = α0
     for k in range(T):
-        if any_jam:   # an "offset" solid jam: the rod jumps at its onset (docs/physics.md §5)
-            x_m = x[mon]
-            x_j = jam_onset_position(x_m, k, fa, pl.x_min[mon], pl.x_max[mon])
-            if x_j is not x_m:
-                delta[mon] = np.where(x_j != x_m, np.arcsin(x_j / r_flat[mon]), delta[mon])
-                x[mon] = x_j
+        if any_jam:
+            jam_onset(x, delta, k, fa, pl, mon)
         # aircraft sensors at t_k
         u_air[:, :n_s] = (delta.reshape(n_s, n) - trim_rad).T
         u_air[:, lpv.I_SPOILER] = da_prev
@@ -343,28 +425,13 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
                 "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
                 "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}   # air-relative
         # servo-loops: COM acquisitions at t_k
-        y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
-        y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
-        de_meas = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[_ELEVATORS]
-                   - trim_rad[_ELEVATORS]).mean(axis=0)
-        meas["de"] = de_meas
+        y, y_hold, meas["de"] = com_acquisition(x, k, p, pm, sensors, y_hold)
         # laws and surface orders
         nz_c = p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
-        de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
-                               pitch_clipped, p.law_params)
-        raw = p.trim_deg + np.degrees(_PITCH[:, None] * de + _ROLL[:, None] * da
-                                      + _YAW[:, None] * dr)
-        order = laws.rate_limit(order_prev, np.clip(raw, p.lo_deg, p.hi_deg), step_deg)
-        order_prev = order.copy()
-        pitch_clipped = (order[_ELEVATORS] != raw[_ELEVATORS]).any(axis=0)
-        u_free_m = act_m.deg_to_mm(order[m])
-        order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
-                           act_m.stop_max_deg + run_margin)
-        u_loop = r_flat * np.sin(np.radians(order.ravel()))
+        da, order, order_prev, pitch_clipped, u_free_m = surface_orders(
+            p, state, meas, nz_c, k, pitch_clipped, order_prev, step_deg)
         # servo-loops: currents
-        i_new = np.clip(pl.K * (u_loop - y), -pl.i_max, pl.i_max)
-        i_app = i_prev.copy()
-        i_app[mon] = applied_current(i_prev[mon], k, pm)
+        i_new, i_app = servo_currents(order, y, i_prev, k, p, pm)
         # record t_k
         rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = xa.T
@@ -373,16 +440,7 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
         sp_rec[:, k] = da_prev
         # advance the surfaces over [t_k, t_k+1)
-        if any_disc:
-            loaded[mon] = k < fa.k_disc
-        x_next = rk4_step(x, i_app, pl, loaded, ts)
-        if any_jam:
-            x_next[mon] = np.where(k >= fa.k_jam, x[mon], x_next[mon])
-        delta_next = np.arcsin(x_next / r_flat)
-        if any_disc:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
-            delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
+        x_next, delta_next = advance_servos(x, delta, i_app, loaded, k, p, any_jam, any_disc)
         # advance the aircraft over [t_k, t_k+1): inputs of t_k held, the surfaces' motion to
         # t_k+1 as a ramp (exact, lpv.discretise_ramp)
         d_surf[:] = (delta_next - delta).reshape(n_s, n).T

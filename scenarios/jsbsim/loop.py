@@ -33,7 +33,6 @@ engine records it as the run's ``error`` (campaign.evaluate, run by run).
 
 from __future__ import annotations
 
-import types
 import warnings
 from dataclasses import dataclass, replace
 
@@ -41,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from .. import envelope
-from ..acquisition import acquire, acquire_com, applied_current, quantize
+from ..acquisition import acquire
 from ..aircraft import laws, lpv, pilot
 from ..aircraft.data import (
     AIRCRAFT_SENSORS,
@@ -55,13 +54,18 @@ from ..aircraft.loop import (
     TO_UNITS,
     AircraftPrepared,
     AircraftTrajectory,
+    advance_servos,
+    com_acquisition,
+    jam_onset,
+    monitored_servo,
     prepare_aircraft,
+    servo_currents,
+    surface_orders,
 )
 from ..atmosphere import G0_MS2
-from ..faults import FAULT_DEFAULTS, NEVER, jam_onset_position
+from ..faults import NEVER
 from ..params import SENSORS, TS_S, ActuatorParams, SensorParams
 from ..runs import manoeuvre_sets, run_streams
-from ..servo import float_step, rk4_step
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
 from ..simulate import rod_measurement_fault, servo_provides
 from ..turbulence import DrydenParams, dryden_gusts
@@ -90,11 +94,6 @@ class JsbsimLoopParams:
 
 LOOP = JsbsimLoopParams()
 
-#: Pitch, roll and yaw order of each surface (LAYOUT order), as on our aircraft.
-PITCH = laws.PITCH_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
-ROLL = laws.ROLL_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
-YAW = laws.YAW_DISTRIBUTION[:len(AIRCRAFT_SURFACES)]
-ELEVATORS = PITCH > 0
 
 #: Divergence limits (est.: far outside any of the six manoeuvres, docs/physics.md §7).
 PHI_MAX_RAD = np.radians(80.0)
@@ -178,11 +177,7 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     n_s = len(p.acts)
     pl, fa = p.plant, p.faults
     mon = slice(m * n, (m + 1) * n)
-    act_m = p.acts[m]
-    d_min, d_max = np.radians(act_m.stop_min_deg), np.radians(act_m.stop_max_deg)
-    run_margin = FAULT_DEFAULTS.runaway_margin_deg
-    pm = types.SimpleNamespace(faults=fa, com_scale=p.com_scale[mon], com_bias=p.com_bias[mon],
-                               com_noise=p.com_noise[mon])
+    pm = monitored_servo(p)
     trim_rad = np.radians(p.trim_deg)
     r_flat = pl.r_mm
     fdms = jp.fdms
@@ -215,11 +210,7 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     for k in range(T):
         _check(vals, jp.run_ids, k * ts)
         if any_jam:
-            x_m = x[mon]
-            x_j = jam_onset_position(x_m, k, fa, pl.x_min[mon], pl.x_max[mon])
-            if x_j is not x_m:
-                delta[mon] = np.where(x_j != x_m, np.arcsin(x_j / r_flat[mon]), delta[mon])
-                x[mon] = x_j
+            jam_onset(x, delta, k, fa, pl, mon)
         meas = {"p": vals[F.READ_P] + nse[0, :, k], "q": vals[F.READ_Q] + nse[1, :, k],
                 "r": vals[F.READ_R] + nse[2, :, k], "phi": vals[F.READ_PHI] + nse[3, :, k],
                 "theta": vals[F.READ_THETA] + nse[4, :, k],
@@ -227,10 +218,7 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
                 "ny": vals[F.READ_NY] + nse[6, :, k],
                 "beta": vals[F.READ_BETA] + nse[7, :, k],
                 "alpha": vals[F.READ_ALPHA] + nse[8, :, k]}
-        y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
-        y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)
-        meas["de"] = (np.arcsin(np.clip(y / r_flat, -1.0, 1.0)).reshape(n_s, n)[ELEVATORS]
-                      - trim_rad[ELEVATORS]).mean(axis=0)
+        y, y_hold, meas["de"] = com_acquisition(x, k, p, pm, sensors, y_hold)
         gamma = meas["theta"] - meas["alpha"] * np.cos(meas["phi"])
         nz_c = (p.nz_c[:, k] + laws.turn_load_factor(meas["phi"], p.law_params)
                 - path_gain * gamma)
@@ -238,20 +226,9 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
         speed_int = speed_int + speed_err * ts
         throttle = np.clip(thr0 + LOOP.at_kp_per_kt * speed_err
                            + LOOP.at_ki_per_kt_s * speed_int, 0.0, 1.0)
-        de, da, dr = laws.step(state, meas, nz_c, p.p_c[:, k], p.beta_c[:, k], p.gains, ts,
-                               pitch_clipped, p.law_params)
-        raw = p.trim_deg + np.degrees(PITCH[:, None] * de + ROLL[:, None] * da
-                                      + YAW[:, None] * dr)
-        order = laws.rate_limit(order_prev, np.clip(raw, p.lo_deg, p.hi_deg), step_deg)
-        order_prev = order.copy()
-        pitch_clipped = (order[ELEVATORS] != raw[ELEVATORS]).any(axis=0)
-        u_free_m = act_m.deg_to_mm(order[m])
-        order[m] = np.clip(order[m] + p.ramp_deg[:, k], act_m.stop_min_deg - run_margin,
-                           act_m.stop_max_deg + run_margin)
-        u_loop = r_flat * np.sin(np.radians(order.ravel()))
-        i_new = np.clip(pl.K * (u_loop - y), -pl.i_max, pl.i_max)
-        i_app = i_prev.copy()
-        i_app[mon] = applied_current(i_prev[mon], k, pm)
+        _, order, order_prev, pitch_clipped, u_free_m = surface_orders(
+            p, state, meas, nz_c, k, pitch_clipped, order_prev, step_deg)
+        i_new, i_app = servo_currents(order, y, i_prev, k, p, pm)
         rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = (vals[F.READ_ALPHA] - alpha0, vals[F.READ_Q],
                            vals[F.READ_THETA] - theta0, vals[F.READ_BETA], vals[F.READ_P],
@@ -259,16 +236,7 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
                              1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
         xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
-        if any_disc:
-            loaded[mon] = k < fa.k_disc
-        x_next = rk4_step(x, i_app, pl, loaded, ts)
-        if any_jam:
-            x_next[mon] = np.where(k >= fa.k_jam, x[mon], x_next[mon])
-        delta_next = np.arcsin(x_next / r_flat)
-        if any_disc:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                floating = float_step(delta[mon], p.plant_m, ts, d_min, d_max)
-            delta_next[mon] = np.where(loaded[mon], delta_next[mon], floating)
+        x_next, delta_next = advance_servos(x, delta, i_app, loaded, k, p, any_jam, any_disc)
         # JSBSim over [t_k, t_k+1): each surface at the midpoint of its motion
         jsb = _to_jsbsim(W, (0.5 * (delta + delta_next)).reshape(n_s, n))   # (3, n)
         if gusty:
