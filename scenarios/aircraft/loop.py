@@ -597,8 +597,29 @@ def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbule
     return signals, truth
 
 
+class AircraftSurfaces:
+    """The surfaces, servo-loops and signals of an aircraft plant (ours or another flight model
+    flown by our servo-loops): the part of the :class:`scenarios.plants.Plant` protocol that
+    depends on the surfaces only."""
+
+    @property
+    def surfaces(self) -> tuple[str, ...]:
+        return AIRCRAFT_SURFACES
+
+    def run_surface(self, surface: str, monitored: str | None = None) -> str:
+        """The monitored aircraft surface: *monitored*, or the left surface of *surface*
+        (``elevator`` → ``left_elevator``, ``aileron`` → ``left_inboard_aileron``)."""
+        return monitored or DEFAULT_MONITORED[surface]
+
+    def actuator(self, surface: str) -> ActuatorParams:
+        return surface_actuator(surface)
+
+    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
+        return servo_provides(self.actuator(surface), pressure_sensor) | {"aircraft"}
+
+
 @dataclass(frozen=True)
-class AircraftPlant:
+class AircraftPlant(AircraftSurfaces):
     """The aircraft in the loop (docs/physics.md §7): rigid body, control laws and every
     surface's servo-loop; the run rows name the *monitored* aircraft surface. A
     :class:`scenarios.plants.Plant`.
@@ -625,21 +646,6 @@ class AircraftPlant:
     #: the campaign's peak by ~180 MB; parts of 10 raise it by ~70 MB, for the same CPU time
     #: (the compiled loop runs run after run). A run's series never depend on its block.
     learning_part_runs = 10
-
-    @property
-    def surfaces(self) -> tuple[str, ...]:
-        return AIRCRAFT_SURFACES
-
-    def run_surface(self, surface: str, monitored: str | None = None) -> str:
-        """The monitored aircraft surface: *monitored*, or the left surface of *surface*
-        (``elevator`` → ``left_elevator``, ``aileron`` → ``left_inboard_aileron``)."""
-        return monitored or DEFAULT_MONITORED[surface]
-
-    def actuator(self, surface: str) -> ActuatorParams:
-        return surface_actuator(surface)
-
-    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
-        return servo_provides(self.actuator(surface), pressure_sensor) | {"aircraft"}
 
     def check(self, faults=()) -> None:
         """Nothing to check before work: the aircraft plant simulates every fault."""

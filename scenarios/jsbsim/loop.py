@@ -45,7 +45,6 @@ from ..aircraft import laws, lpv, pilot
 from ..aircraft.data import (
     AIRCRAFT_SENSORS,
     AIRCRAFT_SURFACES,
-    DEFAULT_MONITORED,
     LAYOUT,
     AircraftSensorParams,
     surface_actuator,
@@ -53,6 +52,7 @@ from ..aircraft.data import (
 from ..aircraft.loop import (
     TO_UNITS,
     AircraftPrepared,
+    AircraftSurfaces,
     AircraftTrajectory,
     advance_servos,
     com_acquisition,
@@ -64,10 +64,10 @@ from ..aircraft.loop import (
 )
 from ..atmosphere import G0_MS2
 from ..faults import NEVER
-from ..params import SENSORS, TS_S, ActuatorParams, SensorParams
+from ..params import SENSORS, TS_S, SensorParams
 from ..runs import manoeuvre_sets, run_streams
 from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
-from ..simulate import rod_measurement_fault, servo_provides
+from ..simulate import rod_measurement_fault
 from ..turbulence import DrydenParams, dryden_gusts
 from ..turbulence import level as turbulence_level
 from . import fdm as F
@@ -319,7 +319,7 @@ def simulate_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS
 
 
 @dataclass(frozen=True)
-class JsbsimPlant:
+class JsbsimPlant(AircraftSurfaces):
     """A JSBSim aircraft in the loop (docs/aircraft.md §9): our servo-loops, sensors and
     laws flying JSBSim's nonlinear 6-DOF model; the run rows name the monitored surface, as
     for :class:`scenarios.aircraft.loop.AircraftPlant`. A :class:`scenarios.plants.Plant`.
@@ -344,19 +344,6 @@ class JsbsimPlant:
         if model.beta:
             warnings.warn(f"the JSBSim {self.aircraft} model is marked beta by its authors",
                           stacklevel=2)
-
-    @property
-    def surfaces(self) -> tuple[str, ...]:
-        return AIRCRAFT_SURFACES
-
-    def run_surface(self, surface: str, monitored: str | None = None) -> str:
-        return monitored or DEFAULT_MONITORED[surface]
-
-    def actuator(self, surface: str) -> ActuatorParams:
-        return surface_actuator(surface)
-
-    def provides(self, surface: str, *, pressure_sensor: bool) -> frozenset[str]:
-        return servo_provides(self.actuator(surface), pressure_sensor) | {"aircraft"}
 
     def check(self, faults=()) -> None:
         """JSBSim must be installed (exit 2 naming the extra)."""
