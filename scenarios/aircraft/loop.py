@@ -569,6 +569,15 @@ def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbule
     p = prepare_aircraft(runs, ts=ts, sensors=sensors, turbulence=turbulence,
                          law_params=law_params, aircraft_sensors=aircraft_sensors)
     traj = integrate_aircraft(p, sensors)
+    return trajectory_signals(traj, p, runs, ts=ts, sensors=sensors,
+                              pressure_sensor=pressure_sensor, truth=truth)
+
+
+def trajectory_signals(traj: AircraftTrajectory, p: AircraftPrepared, runs: pd.DataFrame, *,
+                       ts: float, sensors: SensorParams, pressure_sensor: bool,
+                       truth: bool) -> tuple[Signals, Truth | None]:
+    """The :class:`Signals` a detector reads of a simulated block (the monitored servo's
+    acquisitions, the aircraft sensors, every rod) and, with *truth*, its :class:`Truth`."""
     act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
     mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
                                                   plant=p.plant_m)
@@ -583,7 +592,7 @@ def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbule
     )
     if not truth:
         return signals, None
-    truth = Truth(
+    truth_of_block = Truth(
         rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
         fault=runs["fault"].astype(str).to_numpy(),
         onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
@@ -594,7 +603,7 @@ def _simulate_block(runs: pd.DataFrame, *, ts, sensors, pressure_sensor, turbule
                                            runs["onset_s"].to_numpy(float), traj.y_com,
                                            traj.u, p.plant_m, ts),
     )
-    return signals, truth
+    return signals, truth_of_block
 
 
 class AircraftSurfaces:

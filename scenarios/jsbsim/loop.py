@@ -40,17 +40,14 @@ import numpy as np
 import pandas as pd
 
 from .. import envelope
-from ..acquisition import acquire
 from ..aircraft import laws, lpv, pilot
 from ..aircraft.data import (
     AIRCRAFT_SENSORS,
     AIRCRAFT_SURFACES,
     LAYOUT,
     AircraftSensorParams,
-    surface_actuator,
 )
 from ..aircraft.loop import (
-    TO_UNITS,
     AircraftPrepared,
     AircraftSurfaces,
     AircraftTrajectory,
@@ -60,14 +57,14 @@ from ..aircraft.loop import (
     monitored_servo,
     prepare_aircraft,
     servo_currents,
+    trajectory_signals,
     surface_orders,
 )
 from ..atmosphere import G0_MS2
 from ..faults import NEVER
 from ..params import SENSORS, TS_S, SensorParams
 from ..runs import manoeuvre_sets, run_streams
-from ..signals import AIRCRAFT_SIGNAL_UNITS, Signals, Truth
-from ..simulate import rod_measurement_fault
+from ..signals import Signals, Truth
 from ..turbulence import DrydenParams, dryden_gusts
 from ..turbulence import level as turbulence_level
 from . import fdm as F
@@ -291,31 +288,9 @@ def simulate_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS
     :func:`scenarios.aircraft.loop.simulate_aircraft`."""
     jp = prepare_jsbsim(runs, aircraft=aircraft, ts=ts, sensors=sensors,
                         aircraft_sensors=aircraft_sensors, turbulence=turbulence)
-    p = jp.base
     traj = integrate_jsbsim(jp, sensors)
-    act = surface_actuator(AIRCRAFT_SURFACES[p.monitored])
-    mon, surface_deg, surface, pressure = acquire(traj, p, act, sensors, pressure_sensor,
-                                                  plant=p.plant_m)
-    aircraft_sig = {name: TO_UNITS[unit](series)
-                    for (name, unit), series in zip(AIRCRAFT_SIGNAL_UNITS.items(), traj.sensors)}
-    aircraft_sig["spoiler"] = np.degrees(traj.spoiler)
-    signals = Signals(
-        ts=ts, command=traj.u, current=traj.i_cmd, rod_com=traj.y_com, rod_mon=mon,
-        surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,
-        run_ids=jp.run_ids, aircraft=aircraft_sig,
-        rods={s: traj.rods[j] for j, s in enumerate(AIRCRAFT_SURFACES)})
-    if not truth:
-        return signals, None
-    return signals, Truth(
-        rod_mm=traj.x, surface_deg=surface_deg, current_mA=traj.i_app,
-        fault=runs["fault"].astype(str).to_numpy(),
-        onset_s=runs["onset_s"].to_numpy(float), magnitude=runs["magnitude"].to_numpy(float),
-        flight=p.flight_true,
-        aircraft={s: np.degrees(traj.states[j]) for j, s in enumerate(lpv.STATES)},
-        surfaces_deg={s: np.degrees(traj.surfaces[j]) for j, s in enumerate(AIRCRAFT_SURFACES)},
-        rod_fault_mm=rod_measurement_fault(runs["fault"].to_numpy(),
-                                           runs["onset_s"].to_numpy(float), traj.y_com,
-                                           traj.u, p.plant_m, ts))
+    return trajectory_signals(traj, jp.base, runs, ts=ts, sensors=sensors,
+                              pressure_sensor=pressure_sensor, truth=truth)
 
 
 @dataclass(frozen=True)
