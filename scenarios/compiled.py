@@ -366,8 +366,11 @@ def integrate_compiled(p, sensors):
     n, T = p.u.shape
     fa, act = p.faults, p.act
     empty = np.zeros((0, 0))
-    xs = np.empty((n, T)); ds = np.empty((n, T)); icmd = np.empty((n, T))
-    iapp = np.empty((n, T)); ycom = np.empty((n, T))
+    xs = np.empty((n, T))
+    ds = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    ycom = np.empty((n, T))
 
     def arr2(a):
         return empty if a is None else np.ascontiguousarray(a, dtype=float)

@@ -382,7 +382,9 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
     for theta in corners:
         A, B = model(*theta)
         L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
-        As.append(A); L1s.append(L1); L2s.append(L2)
+        As.append(A)
+        L1s.append(L1)
+        L2s.append(L2)
     fam = geo.design_lpv(As, C, L1s, L2s, decay=decay, radius=radius, names1=[FAULT_SURFACE])
 
     def at_common(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
@@ -435,8 +437,10 @@ def one_step_design(point: dict, ts: float, design_model: str = "unison",
     # inputs [u_known; outputs without θ] → [u_known; outputs] (θ column zero)
     cols = list(range(len(known))) + [len(known) + outputs.index(o) for o in outs]
     n_in = len(known) + len(outputs)
-    Bfull = np.zeros((Bd.shape[0], n_in)); Bfull[:, cols] = Bd
-    Dfull = np.zeros((Dd.shape[0], n_in)); Dfull[:, cols] = Dd
+    Bfull = np.zeros((Bd.shape[0], n_in))
+    Bfull[:, cols] = Bd
+    Dfull = np.zeros((Dd.shape[0], n_in))
+    Dfull[:, cols] = Dd
     return f, _Filter(Ad=Ad, Bd=Bfull, Cd=Cd, Dd=Dfull, c=np.ones(1))
 
 
@@ -740,8 +744,10 @@ class VanekGeometric(Detector):
         out = {}
         for variant in self._variant_list():
             fl = self._filters(variant, signals)
-            Ad = np.stack([f.Ad for f in fl]); Bd = np.stack([f.Bd for f in fl])
-            cC = np.stack([f.c @ f.Cd for f in fl]); cD = np.stack([f.c @ f.Dd for f in fl])
+            Ad = np.stack([f.Ad for f in fl])
+            Bd = np.stack([f.Bd for f in fl])
+            cC = np.stack([f.c @ f.Cd for f in fl])
+            cD = np.stack([f.c @ f.Dd for f in fl])
             bv = np.einsum("nij,ntj->nti", Bd, v)             # (n, T, nw)
             w = np.zeros((n, Ad.shape[1]))
             ws = np.empty((n, T, Ad.shape[1]))

@@ -129,7 +129,8 @@ def residualise(A, B, C, D, max_pole: float):
     if n_slow == A.shape[0]:
         return A, B, C, D
     Bt, Ct = Z.T @ B, C @ Z
-    s = slice(0, n_slow); f = slice(n_slow, None)
+    s = slice(0, n_slow)
+    f = slice(n_slow, None)
     T22_Bf = np.linalg.solve(T[f, f], Bt[f])
     return (T[s, s], Bt[s] - T[s, f] @ T22_Bf, Ct[:, s],
             D - Ct[:, f] @ T22_Bf)

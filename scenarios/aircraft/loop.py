@@ -142,7 +142,8 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
                            mach=flight_true["mach"], **plant_draws(f)) for a in acts]
     limits = [authority_limits(pl, a.replace(order_load_limit=law_params.hinge_load_limit))
               for pl, a in zip(plants, acts)]
-    lo = np.array([lim[0] for lim in limits]); hi = np.array([lim[1] for lim in limits])
+    lo = np.array([lim[0] for lim in limits])
+    hi = np.array([lim[1] for lim in limits])
     trim = np.zeros((len(acts), n))
     e_trim = np.array([elevator_trim_deg(a, c, ELEVATOR)
                        for a, c in zip(flight_true["alpha_deg"], f["cg_pct"])])
@@ -172,8 +173,12 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
 
     n_s = len(acts)
     sig = _aircraft_noise_sigmas(aircraft_sensors)
-    com_bias = np.empty((n_s, n)); com_scale = np.empty((n_s, n)); com_noise = np.empty((n_s, n, T))
-    mon = np.empty((3, n)); mon_noise = np.empty((3, n, T)); ac_noise = np.empty((len(sig), n, T))
+    com_bias = np.empty((n_s, n))
+    com_scale = np.empty((n_s, n))
+    com_noise = np.empty((n_s, n, T))
+    mon = np.empty((3, n))
+    mon_noise = np.empty((3, n, T))
+    ac_noise = np.empty((len(sig), n, T))
     others = [j for j in range(n_s) if j != m_idx]
     for i, g in enumerate(gens):
         d = [x[0] for x in sensor_draws([g[1]], T, sensors, act_m.dP_Pa)]   # run i's own stream
@@ -264,10 +269,15 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
     flags = np.array([fa.com_add is not None, fa.com_osc is not None, fa.cur_add is not None,
                       fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
                       bool((fa.k_disc < NEVER).any())])
-    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T))
-    u_rec = np.empty((n, T)); sp_rec = np.empty((n, T))
+    rods = np.empty((n_s, n, T))
+    surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T))
+    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    u_rec = np.empty((n, T))
+    sp_rec = np.empty((n, T))
     kernel.integrate_block(
         kernel.LOOPS, m, x, delta, c(trim_rad), c(p.trim_deg), c(p.lo_deg), c(p.hi_deg),
         kernels.plant_matrix(pl), c(_PITCH), c(_ROLL), c(_YAW), c(_ELEVATORS, np.bool_),
@@ -298,9 +308,14 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
     trim_rad = np.radians(p.trim_deg)
     r_flat = pl.r_mm
 
-    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+    rods = np.empty((n_s, n, T))
+    surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T))
+    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    u_rec = np.empty((n, T))
     sp_rec = np.empty((n, T))
 
     x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
@@ -366,11 +381,15 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         i_app = i_prev.copy()
         i_app[mon] = applied_current(i_prev[mon], k, pm)
         # record t_k
-        rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
+        rods[:, :, k] = y.reshape(n_s, n)
+        surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = xa.T
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
                              1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
-        xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        xs[:, k] = x[mon]
+        icmd[:, k] = i_new[mon]
+        iapp[:, k] = i_app[mon]
+        u_rec[:, k] = u_free_m
         sp_rec[:, k] = da_prev
         # advance the surfaces over [t_k, t_k+1)
         if any_disc:

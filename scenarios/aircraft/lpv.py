@@ -226,7 +226,8 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes, controls:
     hc, hb = c / (2.0 * V), b / (2.0 * V)
     ctl = {k: np.broadcast_to(v, (n, N_INPUTS)) for k, v in controls.items()}
 
-    E = np.zeros((n, N_STATES, N_STATES)); F = np.zeros_like(E)
+    E = np.zeros((n, N_STATES, N_STATES))
+    F = np.zeros_like(E)
     G = np.zeros((n, N_STATES, N_INPUTS))
     # longitudinal
     E[:, IA, IA] = m * V - qS * hc * d["Cz_alphadot"]
@@ -263,7 +264,8 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes, controls:
 
     A = np.linalg.solve(E, F)
     B = np.linalg.solve(E, G)
-    C = np.zeros((n, 2, N_STATES)); D = np.zeros((n, 2, N_INPUTS))
+    C = np.zeros((n, 2, N_STATES))
+    D = np.zeros((n, 2, N_INPUTS))
     k = (V / g)[:, None]
     C[:, 0, :] = -k * A[:, IA, :]
     C[:, 0, IQ] += k[:, 0]

@@ -321,7 +321,8 @@ def design_model(fdms: list[Fdm]) -> lpv.ContinuousModel:
     p, r rows (a gust angle acts on the aerodynamics as the air-relative angle does, est.:
     JSBSim's gust enters as wind), and the load factors of lpv.continuous_model."""
     n = len(fdms)
-    A = np.zeros((n, lpv.N_STATES, lpv.N_STATES)); B = np.zeros((n, lpv.N_STATES, lpv.N_INPUTS))
+    A = np.zeros((n, lpv.N_STATES, lpv.N_STATES))
+    B = np.zeros((n, lpv.N_STATES, lpv.N_INPUTS))
     V = np.empty(n)
     for i, f in enumerate(fdms):
         xi = [f.lin_x.index(s) for s in _LIN_STATES]
@@ -335,7 +336,8 @@ def design_model(fdms: list[Fdm]) -> lpv.ContinuousModel:
         B[i, [lpv.IA, lpv.IQ], lpv.I_GUST_ALPHA] = a[[lpv.IA, lpv.IQ], lpv.IA]
         B[i, [lpv.IB, lpv.IP, lpv.IR], lpv.I_GUST_BETA] = a[[lpv.IB, lpv.IP, lpv.IR], lpv.IB]
         V[i] = f.tas_ms
-    C = np.zeros((n, 2, lpv.N_STATES)); D = np.zeros((n, 2, lpv.N_INPUTS))
+    C = np.zeros((n, 2, lpv.N_STATES))
+    D = np.zeros((n, 2, lpv.N_INPUTS))
     k = (V / G0_MS2)[:, None]
     C[:, 0, :] = -k * A[:, lpv.IA, :]
     C[:, 0, lpv.IQ] += k[:, 0]

@@ -188,9 +188,14 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     fdms = jp.fdms
     W = F.SURFACE_MAP
 
-    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+    rods = np.empty((n_s, n, T))
+    surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T))
+    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    u_rec = np.empty((n, T))
 
     x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
     delta = np.arcsin(x / r_flat)
@@ -209,7 +214,8 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     theta0 = np.array([f.theta0 for f in fdms])
     vals = np.array([f.read() for f in fdms]).T          # (len(READ), n) at t_0
     gusty = bool(jp.gusts.any())
-    vc0 = np.array([f.vc0_kt for f in fdms]); thr0 = np.array([f.throttle0 for f in fdms])
+    vc0 = np.array([f.vc0_kt for f in fdms])
+    thr0 = np.array([f.throttle0 for f in fdms])
     speed_int = np.zeros(n)
     path_gain = np.array([f.tas_ms for f in fdms]) / (G0_MS2 * LOOP.path_tau_s)
     for k in range(T):
@@ -252,13 +258,17 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
         i_new = np.clip(pl.K * (u_loop - y), -pl.i_max, pl.i_max)
         i_app = i_prev.copy()
         i_app[mon] = applied_current(i_prev[mon], k, pm)
-        rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
+        rods[:, :, k] = y.reshape(n_s, n)
+        surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = (vals[F.READ_ALPHA] - alpha0, vals[F.READ_Q],
                            vals[F.READ_THETA] - theta0, vals[F.READ_BETA], vals[F.READ_P],
                            vals[F.READ_R], vals[F.READ_PHI])
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
                              1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
-        xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        xs[:, k] = x[mon]
+        icmd[:, k] = i_new[mon]
+        iapp[:, k] = i_app[mon]
+        u_rec[:, k] = u_free_m
         if any_disc:
             loaded[mon] = k < fa.k_disc
         x_next = rk4_step(x, i_app, pl, loaded, ts)
