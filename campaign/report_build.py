@@ -611,7 +611,6 @@ def _read_report_data(directory, cfg: ReportSettings, requirements: dict | None 
     runs = runs_table(camp)
     if runs.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
-    detectors = camp.evaluated
     req = _requirements(camp.config) if requirements is None else requirements
     warnings: list[str] = []
     if camp.meta.get("complete") is False:

@@ -224,8 +224,8 @@ class ResidualGenerator:
         Acl = np.block([[A, np.zeros((n, nw))], [-self.G @ C, self.N]])
         Bcl = np.vstack([E, -self.G @ D])
         Ccl = np.hstack([-self.H @ C, self.M])
-        I = np.eye(n + nw)
-        return np.array([Ccl @ np.linalg.solve(1j * w * I - Acl, Bcl) - self.H @ D
+        eye = np.eye(n + nw)
+        return np.array([Ccl @ np.linalg.solve(1j * w * eye - Acl, Bcl) - self.H @ D
                          for w in omega])
 
 
