@@ -110,7 +110,8 @@ class AircraftParams:
     cl0: float = param("-", "est.", "wing lift coefficient at zero angle of attack")
 
     def buffet_cl(self, mach) -> np.ndarray:
-        """C_Lb(M): linear interpolation of the table, held constant outside it (docs/physics.md §6)."""
+        """C_Lb(M): linear interpolation of the table, held constant outside it
+        (docs/physics.md §6)."""
         return np.interp(np.asarray(mach, dtype=float), self.clb_mach, self.clb)
 
     def lift_curve_slope(self, mach) -> np.ndarray:

@@ -45,9 +45,9 @@ left so that it ends ``tail_s`` before the end of the record. The longest manoeu
 normal set's turn at the lowest q̄ (two roll pulses of 33°/(7.5 °/s) = 4.4 s, a 7-s turn and
 the elevator's ramp: ≤ 17.7 s), so records of at least 23 s contain the whole manoeuvre; in a
 20–23 s record (``min_duration_s`` = 20 s) the longest turns start at lead_s and their
-roll-out is cut by the end of the record. A fixed start time ``start_s`` (the run-table column ``manoeuvre_start_s``,
-e.g. to place a transient at a given time as in [COMB] §4 D_V2) replaces the sampled one; the
-start uniform is still drawn, so the rest of the run's draws do not change.
+roll-out is cut by the end of the record. A fixed start time ``start_s`` (the run-table column
+``manoeuvre_start_s``, e.g. to place a transient at a given time as in [COMB] §4 D_V2) replaces the
+sampled one; the start uniform is still drawn, so the rest of the run's draws do not change.
 
 Random numbers come from the run's generator in a fixed order, whatever the manoeuvre,
 surface or duration: first :data:`N_SHAPE_DRAWS` uniforms (start time, then the shape

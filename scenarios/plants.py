@@ -98,8 +98,8 @@ def __getattr__(name: str):
 
 
 def get_plant(plant: str | Plant = "actuator") -> Plant:
-    """The plant *plant* names (``"actuator"``, ``"aircraft"`` or ``"jsbsim"``), or *plant* itself when it
-    already is one. An unknown name is answered with the allowed ones (and a close match);
+    """The plant *plant* names (``"actuator"``, ``"aircraft"`` or ``"jsbsim"``), or *plant* itself
+    when it already is one. An unknown name is answered with the allowed ones (and a close match);
     an FMU plant is built with :meth:`scenarios.fmu.FmuPlant.of`."""
     if isinstance(plant, str):
         if plant not in _BUILT_IN:

@@ -604,7 +604,8 @@ def arithmetic_floor(campaign: str, jobs: int, cost_s: float | None = None,
 
 def floor_ratios(floor: dict, whole: dict) -> dict:
     """*floor* (:func:`arithmetic_floor`) with the campaign's wall and CPU times and its ratios
-    to the floor (``ratio_wall``, ``ratio_cpu``) when *whole* (:func:`bench_campaign`'s figures) holds its warm run."""
+    to the floor (``ratio_wall``, ``ratio_cpu``) when *whole* (:func:`bench_campaign`'s figures)
+    holds its warm run."""
     if "wall_s_campaign" not in whole:
         return floor
     wall, cpu = whole["wall_s_campaign"], whole["cpu_s_campaign"]

@@ -204,7 +204,8 @@ def control_derivatives(mach, cg_pct, aero=0.0, layout: SurfaceLayout = LAYOUT,
 
 @dataclass(frozen=True)
 class ContinuousModel:
-    """ẋ = A·x + B·u, Δn_z, n_y = C·x + D·u, batched (A (n,7,7), B (n,7,10), C (n,2,7), D (n,2,10))."""
+    """ẋ = A·x + B·u, Δn_z, n_y = C·x + D·u, batched (A (n,7,7), B (n,7,10), C
+    (n,2,7), D (n,2,10))."""
 
     A: np.ndarray
     B: np.ndarray

@@ -221,7 +221,7 @@ def test_a_shape_at_the_edge_of_its_range_is_noted():
     assert -0.5 < mid.shape < 1.0 and "edge" not in mid.note
 
 
-# ---- classes ----------------------------------------------------------------------------------------
+# ---- classes -------------------------------------------------------------------------------------
 def test_per_class_fields_and_note():
     a = np.linspace(1.0, 2.0, 10)                     # too few: max-factor, unsupported
     b = np.linspace(1.0, 4.0, 80)                     # 80 ≥ 59: order statistic
@@ -248,7 +248,7 @@ def test_usable_classes_need_two_runs_each():
     assert usable_classes(two) is two
 
 
-# ---- learned_threshold ------------------------------------------------------------------------------
+# ---- learned_threshold ---------------------------------------------------------------------------
 def test_learned_threshold_single_run_and_zero():
     tau, cal = learned_threshold(np.array([0.0]), "evt", 2.0, 1e-4, 0.95)
     assert tau == 0.0 and cal.method == "max-factor" and cal.n == 1
@@ -267,7 +267,7 @@ def test_learned_threshold_passes_the_target_confidence_and_tail():
     assert learned_threshold(x, "max", 1.5, 1e-3, 0.9) == (1.5 * x.max(), None)
 
 
-# ---- leave-one-out ratios ---------------------------------------------------------------------------
+# ---- leave-one-out ratios ------------------------------------------------------------------------
 def test_leave_one_out_ratios_with_ties_zeros_and_a_floor():
     # ties: the run holding the largest value is scaled by the tied second
     np.testing.assert_array_equal(leave_one_out_ratios(np.array([[2.0], [2.0], [1.0]])),

@@ -153,8 +153,8 @@ def test_e_along_phi_plus_p_puts_a_pole_far_beyond_the_sampling_rate(polytope):
     vertices), seven hundred times the 100 Hz sampling rate, and an L2 gain of 8.7 on p where
     E along φ has −8.2: a mode the 10 ms step cannot follow, through which the sensors'
     noise reaches f̂ (16–17° standard deviation of the raw f̂ in calm cruise against 0.7°).
-    E along φ keeps every pole within −10² 1/s (fastest −75 to −84 1/s at the vertices). Bounds: an order
-    of magnitude apart from each measured value."""
+    E along φ keeps every pole within −10² 1/s (fastest −75 to −84 1/s at the vertices). Bounds: an
+    order of magnitude apart from each measured value."""
     _, d_old = design(ChenGlobalPaper(h_rate_weight=0.01), polytope)
     verts, d_new = design(ChenGlobalPaper(), polytope)
     assert error_poles(d_old, verts).real.min() < -1e4

@@ -1,5 +1,5 @@
-"""The comb-interval detector (detectors/builtin/comb_interval.py, docs/interval-detector.md) pinned by
-value on hand-built inputs, in both engines: the interval predictor and its residual
+"""The comb-interval detector (detectors/builtin/comb_interval.py, docs/interval-detector.md) pinned
+by value on hand-built inputs, in both engines: the interval predictor and its residual
 ([COMB] eq. 14, 15, 18, 19) against a plain-Python recursion written from the equations, the
 learned λ_q (eq. 6, ``"max"`` and ``"evt"``) and thresholds (eq. 10–13) against their
 documented formulas, and the decision boundary (|ε_k| = τ_k is not an alarm, the alarm

@@ -247,9 +247,10 @@ STALLED_M = np.array([[0.1799498948239988, 0.9187523319982269, 0.351443007898366
 
 
 def test_a_solver_failure_on_the_cached_lmi_is_solved_afresh(monkeypatch):
-    """When the solver fails on the cached parametric LMI (detectors.synthesis.geometric.injection_lmi),
-    the LMI is compiled anew and solved once; its answer passes the same pole check. Forced
-    here by a first _solve that raises, on the Â, M where it happened in a campaign."""
+    """When the solver fails on the cached parametric LMI
+    (detectors.synthesis.geometric.injection_lmi), the LMI is compiled anew and solved once; its
+    answer passes the same pole check. Forced here by a first _solve that raises, on the Â, M where
+    it happened in a campaign."""
     calls = []
     real = geo._solve
 

@@ -612,7 +612,7 @@ def test_only_the_hinf_variants_need_python_control(monkeypatch):
             vg.VanekGeometric(variants=variant).validate_params()
 
 
-# ---- the H∞ variants' wiring (their synthesis: tests/detectors_tests/test_vanek_hinf_values.py) ------------
+# ---- the H∞ variants' wiring (their synthesis: tests/detectors_tests/test_vanek_hinf_values.py) --
 def test_lti_hinf_residual_is_the_cascade_with_the_sampled_noise_and_no_low_pass():
     from detectors.synthesis import vanek_hinf as vh
 

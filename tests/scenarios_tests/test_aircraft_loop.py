@@ -365,7 +365,8 @@ def test_single_run_of_an_aircraft_surface_gets_its_actuators_default_fault_magn
     from scenarios.params import ACTUATORS
     from scenarios.simulate import single_run
 
-    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel, docs/physics.md §5)
+    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel,
+    # docs/physics.md §5)
     row = single_run("left_inboard_aileron", "cruise", "liquid_jam")
     assert row["magnitude"].iloc[0] == default_magnitude("liquid_jam", ACTUATORS["aileron"])
     assert np.isfinite(single_run("rudder", "cruise", "runaway")["magnitude"].iloc[0])
