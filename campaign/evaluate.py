@@ -36,7 +36,8 @@ from scenarios.signals import Signals
 from scenarios.plants import Plant
 from scenarios.simulate import ActuatorPlant
 
-__all__ = ["ChunkSettings", "DetectorContractError", "detect", "detect_runs", "evaluate", "failure_message",
+__all__ = ["ChunkSettings", "DetectorContractError", "detect", "detect_runs", "evaluate",
+           "failure_message",
            "failure_rows", "score", "simulate_and_detect", "simulate_signals"]
 
 

@@ -200,7 +200,8 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
         lo_deg=lo, hi_deg=hi, trim_deg=trim,
         step_matrix=np.concatenate([phi, gam, ramp], axis=2),
         load_matrix=np.concatenate([model.C, model.D], axis=2),
-        gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c, gust_alpha=gust_alpha,
+        gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c,
+        gust_alpha=gust_alpha,
         gust_beta=gust_beta, com_bias=com_bias.ravel(), com_scale=com_scale.ravel(),
         com_noise=com_noise.reshape(n_s * n, T), mon_bias=mon[0], mon_scale=mon[1],
         mon_noise=mon_noise[0], surf_bias=mon[2], surf_noise=mon_noise[1],
@@ -355,7 +356,8 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
                 "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
                 "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
-                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
+                "ny": loads[1] + nse[6, :, k],
+                "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
                 "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}   # air-relative
         # servo-loops: COM acquisitions at t_k
         y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)

@@ -105,7 +105,8 @@ def aircraft_model(name: str) -> AircraftModel:
     if name not in AIRCRAFT:
         from ..catalog import suggest
 
-        raise JsbsimAircraftError(f"unknown JSBSim aircraft {name!r}{suggest(name, list(AIRCRAFT))}; "
+        raise JsbsimAircraftError("unknown JSBSim aircraft "
+                                  f"{name!r}{suggest(name, list(AIRCRAFT))}; "
                          f"allowed: {', '.join(AIRCRAFT)}")
     return AIRCRAFT[name]
 

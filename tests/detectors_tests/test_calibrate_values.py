@@ -53,7 +53,8 @@ def test_the_smallest_accepted_values():
 
 
 def test_bad_values_name_the_first_offender():
-    with pytest.raises(ValueError, match=r"values: 2 non-finite value\(s\) \(first at index 1: nan\)"):
+    with pytest.raises(ValueError, match=r"values: 2 non-finite value\(s\) \(first at index 1: "
+                                         r"nan\)"):
         calibrate_threshold([1.0, np.nan, 2.0, np.inf], 1e-3)
     with pytest.raises(ValueError, match="values: negative value -0.5"):
         calibrate_threshold([0.0, -0.5, 2.0], 1e-3)           # a zero is no offender

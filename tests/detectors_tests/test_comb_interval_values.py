@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 from scipy.stats import binom
 
-from detectors.builtin.comb_interval import (NUMERICS, IntervalDetector, dead_zone, filter_threshold,
+from detectors.builtin.comb_interval import (NUMERICS, IntervalDetector, dead_zone,
+                                             filter_threshold,
                                      g_radius, loop_gain, moving_average_maxima,
                                      power_law_bound, predictor_step, stability_margin)
 from scenarios.compiled import use_engine

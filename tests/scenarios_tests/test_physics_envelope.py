@@ -37,7 +37,8 @@ def points() -> pd.DataFrame:
 
 def _batch(surface, points, fault="none", manoeuvre="cruise", **kw) -> pd.DataFrame:
     rows = [single_run(surface, manoeuvre, fault, seed=5,
-                       **{c: float(getattr(p, c)) for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")},
+                       **{c: float(getattr(p, c))
+                          for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")},
                        **kw).assign(stream=i, run_id=f"r{i}")
             for i, p in enumerate(points.itertuples())]
     return pd.concat(rows, ignore_index=True)

@@ -113,7 +113,8 @@ class Plant:
         for _ in range(sub):
             if s <= 0.0:
                 return self.delta_f
-            mid = s if frozen else max(s - dt / 4 * self.float_rate(self.delta_f + sgn * s * s), 0.0)
+            mid = s if frozen else max(
+                s - dt / 4 * self.float_rate(self.delta_f + sgn * s * s), 0.0)
             s = max(s - dt / 2 * self.float_rate(self.delta_f + sgn * mid * mid), 0.0)
         lo = math.radians(self.act.delta_min_deg - self.act.stop_margin_deg)
         hi = math.radians(self.act.delta_max_deg + self.act.stop_margin_deg)

@@ -151,7 +151,8 @@ def test_the_onset_of_a_faulty_run_lies_in_zero_to_the_duration():
                           "(first: ") and err.endswith(" s)")
     assert first_value(err) == 30.0
     # a fault-free run has no onset: NaN (or any value) is not looked at
-    assert errors_of(table(row(fault="none", onset_s=np.nan), row(fault="none", onset_s=99.0))) == []
+    assert errors_of(table(row(fault="none", onset_s=np.nan),
+                           row(fault="none", onset_s=99.0))) == []
 
 
 @pytest.mark.parametrize("fault", ["runaway", "hardover", "liquid_jam", "ofc_liquid", "ofc_solid"])
