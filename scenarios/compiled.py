@@ -286,11 +286,13 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
         delta[r] = math.asin(x[r] / plant[P_R, r])
     w = np.empty((_PLANT_WORK_ROWS, BLOCK))
     xb, cur, k1, k2, k3, k4, xst = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
-    s_buf, q_buf, a_buf, loaded, dl, i_new, y_b, xn = w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]
+    s_buf, q_buf, a_buf, loaded = w[7], w[8], w[9], w[10]
+    dl, i_new, y_b, xn = w[11], w[12], w[13], w[14]
     for b0 in range(0, n, BLOCK):
         b = min(b0 + BLOCK, n) - b0
         for k in range(T):
-            if any_jam:   # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+            # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+            if any_jam:
                 for t in range(b):
                     r = b0 + t
                     if k == k_jam[r] and jam_offset[r] != 0.0:

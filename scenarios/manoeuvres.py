@@ -26,16 +26,20 @@ The order of one run [deg] is
 
 Shapes (names of :data:`scenarios.catalog.MANOEUVRES`; amplitudes at q_ref, est.):
 
-| manoeuvre | elevator | aileron |
-|---|---|---|
-| cruise | trim + gust reaction | gust reaction |
-| nose_up | step to −(2…5)° held 5–10 s (width at half amplitude) | gust reaction (wings level) |
-| aoa_protection | slow excursion to −(5…15)°: 2–4 s ramps, held 2–5 s | gust reaction |
-| pitch_protection | transient to 85–100 % of the nose-up authority (to the limit), held 0.5–1.5 s; 2–4 s later the same towards the nose-down limit | gust reaction |
-| yaw_angle_mode | gust reaction (a steady sideslip needs no pitch input to first order) | ±(2…5)° held 5–10 s |
-| turn_coordination | small pull −k_g·(1/cos φ − 1) held through the turn (load factor of the bank φ) | ±(5…10)° roll-in pulse lasting φ/p (roll-in rate p: 7.5 °/s in the normal set), turn held 4–7 s, opposite roll-out pulse |
+* ``cruise`` — elevator: trim + gust reaction; aileron: gust reaction
+* ``nose_up`` — elevator: step to −(2…5)° held 5–10 s (width at half amplitude); aileron: gust
+  reaction (wings level)
+* ``aoa_protection`` — elevator: slow excursion to −(5…15)°: 2–4 s ramps, held 2–5 s; aileron: gust
+  reaction
+* ``pitch_protection`` — elevator: transient to 85–100 % of the nose-up authority (to the limit),
+  held 0.5–1.5 s; 2–4 s later the same towards the nose-down limit; aileron: gust reaction
+* ``yaw_angle_mode`` — elevator: gust reaction (a steady sideslip needs no pitch input to first
+  order); aileron: ±(2…5)° held 5–10 s
+* ``turn_coordination`` — elevator: small pull −k_g·(1/cos φ − 1) held through the turn (load factor
+  of the bank φ); aileron: ±(5…10)° roll-in pulse lasting φ/p (roll-in rate p: 7.5 °/s in the normal
+  set), turn held 4–7 s, opposite roll-out pulse
 
-Manoeuvre sets (:data:`scenarios.catalog.MANOEUVRE_SETS`, :func:`set_params`): the table
+Manoeuvre sets (:data:`scenarios.catalog.MANOEUVRE_SETS`, :func:`set_params`): the list
 above is the ``normal`` set (:data:`MANOEUVRE_PARAMS`); the ``stress`` set
 (:data:`STRESS_MANOEUVRE_PARAMS`) rolls into the turn at the normal law's full-stick 15 °/s,
 to a 33° bank, with every amplitude range at its high end (docs/physics.md §7).
@@ -155,8 +159,8 @@ class ManoeuvreParams:
                                               "aileron roll-in/roll-out pulse")
     turn_roll_rate_deg_s: float = param(
         "deg/s", "docs/physics.md §7: normal set 7.5 °/s (est.: half the 15 °/s full-stick "
-        "roll-rate demand of the Airbus normal law, Airbus FCOM DSC-27-20-10-30; flight-guidance roll-rate "
-        "limits are 3.5–5 °/s); stress set 15 °/s (full stick)",
+        "roll-rate demand of the Airbus normal law, Airbus FCOM DSC-27-20-10-30; flight-guidance "
+        "roll-rate limits are 3.5–5 °/s); stress set 15 °/s (full stick)",
         "aircraft roll rate of the roll-in: pulse width = bank/rate")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank angle φ of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the steady turn")
@@ -297,7 +301,8 @@ def _check_flight(flight: Mapping, where: str = "") -> dict[str, float]:
         try:
             value = float(flight[key])
         except (TypeError, ValueError):
-            raise ValueError(f"{where}flight[{key!r}] must be a number, got {flight[key]!r}") from None
+            raise ValueError(f"{where}flight[{key!r}] must be a number, got "
+                             f"{flight[key]!r}") from None
         if not math.isfinite(value):
             raise ValueError(f"{where}flight[{key!r}] must be finite, got {value!r}")
         values[key] = value

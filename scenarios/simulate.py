@@ -319,10 +319,12 @@ def single_run(surface: str = "elevator", manoeuvre: str = "cruise", fault: str 
                freq_hz: float | None = None, duration_s: float = 30.0, **point) -> pd.DataFrame:
     """A one-row run table (defaults: :data:`DEFAULT_POINT`, nominal uncertainties, the
     default fault magnitudes of :mod:`scenarios.faults`)."""
-    unknown = sorted(set(point) - set(DEFAULT_POINT) - {c for c in RUN_COLUMNS if c.startswith("d_")})
+    unknown = sorted(set(point) - set(DEFAULT_POINT)
+                     - {c for c in RUN_COLUMNS if c.startswith("d_")})
     if unknown:
-        raise ValueError(f"unknown run field(s) {unknown}; allowed: "
-                         f"{sorted(DEFAULT_POINT) + [c for c in RUN_COLUMNS if c.startswith('d_')]}")
+        raise ValueError(
+            f"unknown run field(s) {unknown}; allowed: "
+            f"{sorted(DEFAULT_POINT) + [c for c in RUN_COLUMNS if c.startswith('d_')]}")
     act = ACTUATORS.get(surface)
     if act is None and surface in AIRCRAFT_SURFACES:   # an aircraft surface: its own table
         act = surface_actuator(surface)

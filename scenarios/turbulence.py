@@ -60,7 +60,8 @@ class DrydenParams:
         alts = np.asarray(self.alt_table_ft, dtype=float)
         sigmas = np.asarray(self.sigma_table_ms, dtype=float)
         if alts.ndim != 1 or alts.shape != sigmas.shape or alts.size == 0:
-            raise ValueError("alt_table_ft and sigma_table_ms must be non-empty and of equal length")
+            raise ValueError("alt_table_ft and sigma_table_ms must be non-empty and of equal "
+                             "length")
         if not (np.all(np.isfinite(alts)) and np.all(np.diff(alts) > 0)):
             raise ValueError("alt_table_ft must be finite and strictly increasing, got "
                              f"{self.alt_table_ft}")

@@ -56,7 +56,8 @@ def cmd_study_saturation(args) -> int:
         raise UsageError(f"--surfaces: unknown aircraft surface(s) {', '.join(bad)}; allowed: "
                          f"{', '.join(AIRCRAFT_SURFACES)}")
     if args.runs < 1:
-        raise UsageError(f"--runs must be at least 1 (runs per manoeuvre and seed), got {args.runs}")
+        raise UsageError("--runs must be at least 1 (runs per manoeuvre and seed), got "
+                         f"{args.runs}")
     if not args.duration > 0.0:
         raise UsageError(f"--duration must be > 0 s, got {args.duration}")
     run_study(tuple(args.seeds), tuple(args.surfaces), args.runs, args.duration,

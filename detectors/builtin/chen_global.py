@@ -516,7 +516,8 @@ class ChenGlobalEstimator(Detector):
         uncertainty filters of :mod:`detectors.synthesis.chen_global_uncertainty` run beside it."""
         import scipy.linalg
 
-        from ..synthesis.chen_global_uncertainty import signal_columns, signal_matrices, uncertainty_matrix
+        from ..synthesis.chen_global_uncertainty import (signal_columns, signal_matrices,
+                                                         uncertainty_matrix)
 
         lo, hi = self.schedule_box_
         rho = np.clip(scheduling_vector(signals.schedule), lo, hi)

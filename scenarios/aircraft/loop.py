@@ -224,7 +224,8 @@ class AircraftTrajectory:
     rods: np.ndarray          # (7, n, T) COM acquisitions of every surface [mm]
     surfaces: np.ndarray      # (7, n, T) true deflections [rad]
     states: np.ndarray        # (7, n, T) aircraft perturbation state (lpv.STATES)
-    sensors: np.ndarray       # (9, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    # (9, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    sensors: np.ndarray
     spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
 
 
@@ -358,7 +359,8 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
                 "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
                 "ny": loads[1] + nse[6, :, k],
                 "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
-                "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}   # air-relative
+                # air-relative
+                "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}
         # servo-loops: COM acquisitions at t_k
         y = quantize(x * (1.0 + p.com_scale) + p.com_bias + p.com_noise[:, k], sensors.rod_quant_mm)
         y[mon], y_hold = acquire_com(x[mon], k, pm, sensors, y_hold)

@@ -248,7 +248,8 @@ class Fdm:
         re, ra, rr = self.model.ranges_rad
         self._cmd[0].set_double_value(elevator / re)
         self._cmd[1].set_double_value(aileron / ra)
-        yd = self._r_aero.get_double_value() if (self.model.yaw_damper and self.mach > 0.11) else 0.0
+        yd = (self._r_aero.get_double_value() if (self.model.yaw_damper and self.mach > 0.11)
+              else 0.0)
         self._cmd[2].set_double_value(rudder / rr - yd)
 
     def set_gust_ned(self, north: float, east: float, down: float) -> None:

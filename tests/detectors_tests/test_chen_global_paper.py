@@ -14,7 +14,8 @@ import scipy.linalg
 import detectors.builtin.chen_global as cg
 from detectors.builtin.chen_global import ChenGlobalEstimator
 from detectors.builtin.chen_global_paper import ChenGlobalPaper
-from detectors.synthesis.chen_global_uncertainty import design_uncertainty_matrix, uncertainty_matrix
+from detectors.synthesis.chen_global_uncertainty import (design_uncertainty_matrix,
+                                                         uncertainty_matrix)
 from detectors.synthesis.lpv_synthesis import synthesise
 from detectors.registry import make_detector
 

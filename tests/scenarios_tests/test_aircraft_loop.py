@@ -177,7 +177,8 @@ def test_inboard_aileron_disconnection_roll_response_countered():
     assert np.abs(diff["r"][after]).max() > 0.02
     assert np.abs(diff["phi"][t >= 37.0]).max() < 0.6 * peak
     flight = {k: np.asarray(v)[:1] for k, v in truth.flight.items()}
-    B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1] for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
+    B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1]
+                                for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
     late = t >= 30.0
     m = AIRCRAFT_SURFACES.index("left_inboard_aileron")
     moment = {name: B[j] * dsurf[name][late].mean() for j, name in enumerate(AIRCRAFT_SURFACES)}

@@ -447,7 +447,8 @@ def test_fault_onsets_one_step_before_at_and_after(loop):
     for r in hard:
         k0 = int(np.argmax(np.isfinite(fa.cur_force[r])))
         assert got.i_app[r, k0 - 1] == got.i_cmd[r, k0 - 2]
-        assert got.i_app[r, k0] == fa.cur_force[r, k0] and abs(fa.cur_force[r, k0]) == p.plant.i_max[r]
+        assert (got.i_app[r, k0] == fa.cur_force[r, k0]
+                and abs(fa.cur_force[r, k0]) == p.plant.i_max[r])
 
 
 # ---- nominal models of the position monitor ------------------------------------------------

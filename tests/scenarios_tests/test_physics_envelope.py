@@ -188,5 +188,6 @@ def test_a_directory_planned_with_another_model_is_refused_on_resume(tmp_path, c
     capsys.readouterr()
     assert main(["plan", "smoke", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert f"was planned with model servo-1; this fdd-campaign simulates model {MODEL_VERSION}" in err
+    assert ("was planned with model servo-1; this fdd-campaign simulates model "
+            f"{MODEL_VERSION}") in err
     assert "re-plan into a new --out directory" in err

@@ -136,7 +136,8 @@ def reference(plant, order_deg, fault="none", onset_s=np.nan, magnitude=np.nan, 
     delta = math.asin(x / r)
     i_prev, y_hold = 0.0, 0.0
     xs, ds, ic = np.empty(T), np.empty(T), np.empty(T)
-    stop_lo, stop_hi = act.delta_min_deg - act.stop_margin_deg, act.delta_max_deg + act.stop_margin_deg
+    stop_lo = act.delta_min_deg - act.stop_margin_deg
+    stop_hi = act.delta_max_deg + act.stop_margin_deg
     for k in range(T):
         on = k >= k0
         dt_on = (k - k0) * TS

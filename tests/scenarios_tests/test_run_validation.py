@@ -113,7 +113,8 @@ def test_an_unknown_name_is_refused_with_the_allowed_ones(column, bad, hint):
 def test_the_allowed_surfaces_are_the_callers():
     runs = table(row(surface="aileron"))
     assert errors_of(runs) == []
-    with pytest.raises(RunSpecError, match="surface: unknown value 'aileron'.*allowed: left, right"):
+    with pytest.raises(RunSpecError,
+                       match="surface: unknown value 'aileron'.*allowed: left, right"):
         validate_runs(runs, surfaces=("left", "right"))
     validate_runs(table(row(surface="left")), surfaces=("left", "right"))
 
