@@ -42,9 +42,10 @@ def _read_side(camp, index, outside: dict) -> tuple[int, list, ScoredRows]:
 
 
 def compare_dirs(dir_a, dir_b, *, alpha: float = 0.01, log=print) -> pd.DataFrame:
-    """Compare two campaign directories cell by cell (:func:`reports.scoring.compare.compare_results`)
-    and print the table; returns it. The result rows are read a batch of runs at a time and
-    only what the tests need is kept of each run (:class:`reports.scoring.compare.ScoredRows`)."""
+    """Compare two campaign directories cell by cell
+    (:func:`reports.scoring.compare.compare_results`) and print the table; returns it. The result
+    rows are read a batch of runs at a time and only what the tests need is kept of each run
+    (:class:`reports.scoring.compare.ScoredRows`)."""
     from .result import load
 
     a, b = load(dir_a), load(dir_b)

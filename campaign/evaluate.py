@@ -5,8 +5,8 @@ into detections or result rows goes through here: the runner's chunks
 (:func:`evaluate`), the report's and ``show``'s re-simulation (:func:`simulate_and_detect`),
 the learning set (:func:`simulate_signals`), ``bench`` and the studies. The plant is
 called in one place (:func:`_simulate`); the scoring rules are those of
-:func:`reports.scoring.metrics.score_columns` (behind :func:`reports.scoring.metrics.score_runs`) and
-nowhere else.
+:func:`reports.scoring.metrics.score_columns` (behind :func:`reports.scoring.metrics.score_runs`)
+and nowhere else.
 
 :func:`evaluate` never raises for a bad run or a failing detector: those runs get result
 rows with ``status="error"`` and the message (docs/design.md §9, Non-negotiables). Every
@@ -36,7 +36,8 @@ from scenarios.signals import Signals
 from scenarios.plants import Plant
 from scenarios.simulate import ActuatorPlant
 
-__all__ = ["ChunkSettings", "DetectorContractError", "detect", "detect_runs", "evaluate", "failure_message",
+__all__ = ["ChunkSettings", "DetectorContractError", "detect", "detect_runs", "evaluate",
+           "failure_message",
            "failure_rows", "score", "simulate_and_detect", "simulate_signals"]
 
 

@@ -262,7 +262,8 @@ def _mc_cell(campaign, group, manoeuvre, n: int, cell_key: int, duration: float,
             pts[col] = (2.0 * u[:, n_flight + j] - 1.0) * ranges[col][1]
         pts["realistic"] = envelope.realistic_rule(pts[list(envelope.FLIGHT_COLUMNS)],
                                                    config.uncertainty)["realistic"].to_numpy()
-        keep = pts["realistic"].to_numpy() if config.campaign.realistic_only else np.ones(len(pts), bool)
+        keep = (pts["realistic"].to_numpy() if config.campaign.realistic_only
+                else np.ones(len(pts), bool))
         idx = np.flatnonzero(keep)[:n - found]
         if idx.size == 0:
             continue

@@ -4,12 +4,12 @@ Everything here starts from what a campaign directory holds — ``campaign.json`
 ``plan.parquet``, ``runs/part-*.parquet``, ``summary.parquet`` and the fitted detectors of
 ``fitted/`` (stored as data, never unpickled) — and never from the memory of the process that
 ran it, so a directory copied to another machine gives the same report. Each command first
-checks the directory's files against its manifest (exit 2 on any difference). Traces that are not stored (residuals of every fault-free run, the
-signals of example runs) are re-simulated on demand from the plan rows (run id, seed and
-stream fix every random draw, docs/design.md §9, Determinism) and fed to the stored fitted
-detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's own pipeline); the
-margins of the re-simulated runs are checked against the stored ones. A campaign on an FMU
-plant is re-simulated only on an FMU named on the command line (``--fmu``) whose digest is
+checks the directory's files against its manifest (exit 2 on any difference). Traces that are not
+stored (residuals of every fault-free run, the signals of example runs) are re-simulated on demand
+from the plan rows (run id, seed and stream fix every random draw, docs/design.md §9, Determinism)
+and fed to the stored fitted detectors (:func:`campaign.evaluate.simulate_and_detect`, the runner's
+own pipeline); the margins of the re-simulated runs are checked against the stored ones. A campaign
+on an FMU plant is re-simulated only on an FMU named on the command line (``--fmu``) whose digest is
 the one recorded at run time, never on the file the directory names
 (:func:`campaign.plant_setup.replay_plant`); without it, what needs no simulation is shown.
 
@@ -611,7 +611,7 @@ def _read_report_data(directory, cfg: ReportSettings, requirements: dict | None 
     runs = runs_table(camp)
     if runs.empty:
         raise CampaignSetupError(f"{camp.root} holds no result yet; run the campaign first")
-    detectors = camp.evaluated
+    camp.evaluated      # the fitted detectors loaded now: a problem with them is said first
     req = _requirements(camp.config) if requirements is None else requirements
     warnings: list[str] = []
     if camp.meta.get("complete") is False:

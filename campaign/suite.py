@@ -248,8 +248,8 @@ def write_suite_json(suite: Suite, out, complete: dict[str, bool]) -> Path:
 def suite_members(directory) -> list[tuple[str, Path]]:
     """(title, member directory) of a suite's output directory, in the suite's order.
 
-    Raises :class:`campaign.store.directory.CampaignDirError` naming the problem when ``suite.json`` is damaged or a
-    member directory is missing."""
+    Raises :class:`campaign.store.directory.CampaignDirError` naming the problem when ``suite.json``
+    is damaged or a member directory is missing."""
     root = Path(directory)
     try:
         doc = json.loads((root / SUITE_FILE).read_text())

@@ -460,8 +460,8 @@ def at_threshold_scales(camp, scales: dict):
     """*camp* (a loaded :class:`campaign.result.Campaign`) with the detectors of *scales*
     (result name or [[detector]] label → scale of :data:`SCALES`) at those threshold scales:
     its summary and gate rows recomputed from the stored rows, a batch of runs at a time
-    (:class:`reports.scoring.summary.SummaryAccumulator`, :func:`reports.scoring.gate.gate_rows`), as the
-    campaign run at those scales would have them. :class:`TradeoffError` for a name that is
+    (:class:`reports.scoring.summary.SummaryAccumulator`, :func:`reports.scoring.gate.gate_rows`),
+    as the campaign run at those scales would have them. :class:`TradeoffError` for a name that is
     no detector of the campaign, one without a threshold scale, or faulty runs whose first
     alarms at other scales are not stored."""
     from reports.scoring.gate import gate_rows

@@ -29,7 +29,6 @@ A detector that declares nothing still has its unknown parameter names refused (
 from __future__ import annotations
 
 import inspect
-import math
 import numbers
 import re
 from collections.abc import Mapping, Sequence

@@ -253,8 +253,9 @@ class _Decoder:
         fields = v.get("fields")
         names = [f.name for f in dataclasses.fields(cls)]
         if not isinstance(fields, dict) or sorted(fields) != sorted(names):
-            raise StateFormatError(f"{path}: the fields of {name} are {names}, the document "
-                                   f"gives {sorted(fields) if isinstance(fields, dict) else fields}")
+            raise StateFormatError(
+                f"{path}: the fields of {name} are {names}, the document "
+                f"gives {sorted(fields) if isinstance(fields, dict) else fields}")
         obj = cls.__new__(cls)          # the stored field values exactly, as a pickle would
         for f in names:
             object.__setattr__(obj, f, self.value(fields[f], f"{path}.{f}"))

@@ -30,7 +30,8 @@ class IsaConstants:
     p0_Pa: float = param("Pa", "ICAO Doc 7488/3", "sea-level standard pressure")
     T0_K: float = param("K", "ICAO Doc 7488/3", "sea-level standard temperature")
     rho0_kgm3: float = param("kg/m³", "ICAO Doc 7488/3", "sea-level standard density (= p0/(R·T0))")
-    lapse_K_per_m: float = param("K/m", "ICAO Doc 7488/3", "temperature lapse rate of the troposphere")
+    lapse_K_per_m: float = param("K/m", "ICAO Doc 7488/3",
+                                 "temperature lapse rate of the troposphere")
     tropopause_m: float = param("m", "ICAO Doc 7488/3", "geopotential altitude of the tropopause")
     R_J_per_kgK: float = param("J/(kg·K)", "ICAO Doc 7488/3", "specific gas constant of dry air")
     gamma: float = param("-", "ICAO Doc 7488/3", "ratio of specific heats of air")

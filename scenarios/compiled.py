@@ -2,8 +2,8 @@
 
 The closed-loop time loop of :func:`scenarios.simulate.integrate` and the nominal-model
 recursions of the position monitor (one model, or a band of them at several hinge moments
-integrated together: :func:`servo_band_step`) advance every run step by step; in NumPy each step is a
-few dozen array operations on arrays of shape ``(n_runs,)``, so the interpreter overhead
+integrated together: :func:`servo_band_step`) advance every run step by step; in NumPy each step is
+a few dozen array operations on arrays of shape ``(n_runs,)``, so the interpreter overhead
 dominates. The kernels here run the same recursions compiled (``@njit(nogil=True,
 cache=True)``), on a block of runs at once: the outer loop goes over the steps, the inner
 loop over the runs of the block, whose computations are independent (so the processor
@@ -12,9 +12,10 @@ overlaps them); a run computed alone equals the same run inside any block.
 Same equations, same order of floating-point operations as the NumPy reference
 (:mod:`scenarios.servo`, :mod:`scenarios.simulate`): no ``fastmath`` (it would reorder
 sums and contract multiply–adds), ``error_model="numpy"`` (a division by zero gives ±inf or
-NaN as in NumPy instead of raising, and costs no check per division), ``x ** 3`` written as ``x ** 3.0`` so that both call the
-C library ``pow``, and the stops and saturations as ``min(max(·))`` like ``np.clip``. The
-tests check compiled against NumPy bit for bit (tests/scenarios_tests/test_kernels.py).
+NaN as in NumPy instead of raising, and costs no check per division), ``x ** 3`` written as
+``x ** 3.0`` so that both call the C library ``pow``, and the stops and saturations as
+``min(max(·))`` like ``np.clip``. The tests check compiled against NumPy bit for bit
+(tests/scenarios_tests/test_kernels.py).
 
 Engine selection
 ----------------
@@ -25,11 +26,11 @@ campaign file). When numba cannot be imported, ``"compiled"`` falls back to NumP
 
 Adding a detector recursion
 ---------------------------
-A detector with its own recursion writes it as an ``@njit(nogil=True, cache=True, error_model="numpy")`` function
-of plain arrays in its own module, calls the scalar plant functions of this module from it
-(:func:`rod_rate_1`, :func:`rk4_step_1`) with the parameter vector of :func:`plant_matrix`,
-keeps its NumPy version as the reference, dispatches on :func:`current_engine` and lists
-its kernel with :func:`register_warmup` (with ``kernels=`` its compiled functions) so that
+A detector with its own recursion writes it as an ``@njit(nogil=True, cache=True,
+error_model="numpy")`` function of plain arrays in its own module, calls the scalar plant functions
+of this module from it (:func:`rod_rate_1`, :func:`rk4_step_1`) with the parameter vector of
+:func:`plant_matrix`, keeps its NumPy version as the reference, dispatches on :func:`current_engine`
+and lists its kernel with :func:`register_warmup` (with ``kernels=`` its compiled functions) so that
 :func:`warm_up` compiles it before the campaign starts and says so when its cache is cold.
 Importing the detector module registers it (the built-in detectors are imported by the
 registry).
@@ -119,7 +120,7 @@ def plant_matrix(plant) -> np.ndarray:
                                           for f in PLANT_FIELDS], axis=1))
 
 
-# ---- scalar plant functions (docs/physics.md §3; scenarios.servo holds the NumPy reference) --------
+# ---- scalar plant functions (docs/physics.md §3; scenarios.servo holds the NumPy reference) ------
 @njit(nogil=True, cache=True, error_model="numpy")
 def clip(v, lo, hi):
     """v limited to [lo, hi] (a select: no branch)."""
@@ -262,9 +263,9 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
     *x0* (n,) is the initial rod order [mm]; *plant* the :func:`plant_fields` of
     the runs; the other inputs are (n, T) or (n,) as in
     :class:`scenarios.simulate.Prepared`; optional fault arrays are (n, T) when ``flags``
-    says the batch has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add, has cur_force, any jam, any disconnection).
-    *jam_offset* (n,) [mm] is the jump of an "offset" solid jam at its onset step (0: seized
-    where it stands; docs/physics.md §5).
+    says the batch has them, else may be empty. ``flags`` = (has com_add, has com_osc, has cur_add,
+    has cur_force, any jam, any disconnection). *jam_offset* (n,) [mm] is the jump of an "offset"
+    solid jam at its onset step (0: seized where it stands; docs/physics.md §5).
     Writes the outputs *xs*, *ds* [rad], *icmd*, *iapp*, *ycom* (n, T) in place.
 
     SIMD-friendly form: blocks of :data:`BLOCK` runs, steps outer, and every stage of a
@@ -285,11 +286,13 @@ def integrate_block(x0, u_loop, plant, com_scale, com_bias, com_noise, com_add, 
         delta[r] = math.asin(x[r] / plant[P_R, r])
     w = np.empty((_PLANT_WORK_ROWS, BLOCK))
     xb, cur, k1, k2, k3, k4, xst = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
-    s_buf, q_buf, a_buf, loaded, dl, i_new, y_b, xn = w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]
+    s_buf, q_buf, a_buf, loaded = w[7], w[8], w[9], w[10]
+    dl, i_new, y_b, xn = w[11], w[12], w[13], w[14]
     for b0 in range(0, n, BLOCK):
         b = min(b0 + BLOCK, n) - b0
         for k in range(T):
-            if any_jam:   # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+            # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+            if any_jam:
                 for t in range(b):
                     r = b0 + t
                     if k == k_jam[r] and jam_offset[r] != 0.0:
@@ -366,8 +369,11 @@ def integrate_compiled(p, sensors):
     n, T = p.u.shape
     fa, act = p.faults, p.act
     empty = np.zeros((0, 0))
-    xs = np.empty((n, T)); ds = np.empty((n, T)); icmd = np.empty((n, T))
-    iapp = np.empty((n, T)); ycom = np.empty((n, T))
+    xs = np.empty((n, T))
+    ds = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    ycom = np.empty((n, T))
 
     def arr2(a):
         return empty if a is None else np.ascontiguousarray(a, dtype=float)
@@ -503,9 +509,9 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, stages):
     """Advance runs ``r0 … r1 − 1`` (at most :data:`BLOCK`) of every model of a band by
     step *k* of the nominal closed loop (docs/physics.md §2–3, as
     :meth:`detectors.builtin.position_monitor.PositionMonitor.model_output`: x_{k+1} = one RK4,
-    Heun or Euler step of the rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low, high) [mm] of the
-    models' outputs x_k (the rod positions at the start of the step) to ``lo[r − r0]``,
-    ``hi[r − r0]``.
+    Heun or Euler step of the rod with i_{k−1} held, i_k = sat(K·(u_k − x_k))); write the (low,
+    high) [mm] of the models' outputs x_k (the rod positions at the start of the step) to
+    ``lo[r − r0]``, ``hi[r − r0]``.
 
     *u* (n, T): the order [mm]; *plants* (m, :data:`FIELD_ROWS`, n): model j's
     :func:`plant_fields`;
@@ -517,8 +523,8 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, stages):
     k₁ = ẋ(x_k), k₂ = ẋ(x_k + ts·k₁) (the current i_{k−1} held), as
     :func:`detectors.builtin.position_monitor.heun_step`; 1: one explicit Euler step per
     period, x_{k+1} = clip(x_k + ts·ẋ(x_k, i_{k−1})), as
-    :func:`detectors.builtin.position_monitor.euler_step`. low/high are ``np.minimum``/``np.maximum``
-    reduced over the models in order (a NaN output makes both NaN).
+    :func:`detectors.builtin.position_monitor.euler_step`. low/high are
+    ``np.minimum``/``np.maximum`` reduced over the models in order (a NaN output makes both NaN).
     """
     b = r1 - r0
     x0 = work[0]
@@ -586,8 +592,8 @@ def servo_band_step(u, k, r0, r1, plants, x, i_prev, ts, lo, hi, work, stages):
 @njit(nogil=True, cache=True, error_model="numpy")
 def servo_band_block(u, x0, plants, ts, lo, hi, stages):
     """Band of nominal servo models driven by the order *u* (n, T) [mm] from rod position
-    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, :data:`FIELD_ROWS`, n; :func:`plant_fields`) integrated
-    in one time loop per block of :data:`BLOCK` runs (:func:`servo_band_step`; *stages*
+    *x0* (n,) [mm]: every model of *plants* (m ≥ 1, :data:`FIELD_ROWS`, n; :func:`plant_fields`)
+    integrated in one time loop per block of :data:`BLOCK` runs (:func:`servo_band_step`; *stages*
     4: RK4, 2: Heun, 1: Euler, per period). Writes only the element-wise *lo* = min and
     *hi* = max of the m outputs (n, T) [mm]."""
     m = plants.shape[0]
@@ -611,10 +617,11 @@ def servo_band_block(u, x0, plants, ts, lo, hi, stages):
 @njit(nogil=True, cache=True, error_model="numpy")
 def servo_model_block(u, x0, plant, ts, out, stages):
     """Nominal closed loop driven by the order *u* (n, T) [mm] from rod position *x0* (n,)
-    [mm] (docs/physics.md §2–3, as :meth:`detectors.builtin.position_monitor.PositionMonitor.model_output`):
-    out[:, k] = x_k; i_k = sat(K·(u_k − x_k)) applied over the next period. *plant*
-    (n, 11): rows of :func:`plant_matrix`; *stages*: 4 the plant's RK4 step, 2 Heun's, 1
-    one Euler step per period. The band of one model (:func:`servo_band_block`)."""
+    [mm] (docs/physics.md §2–3, as
+    :meth:`detectors.builtin.position_monitor.PositionMonitor.model_output`): out[:, k] = x_k; i_k =
+    sat(K·(u_k − x_k)) applied over the next period. *plant* (n, 11): rows of :func:`plant_matrix`;
+    *stages*: 4 the plant's RK4 step, 2 Heun's, 1 one Euler step per period. The band of one model
+    (:func:`servo_band_block`)."""
     plants = np.empty((1, FIELD_ROWS, plant.shape[0]))
     plants[0, :P_RM] = plant.T
     for r in range(plant.shape[0]):
@@ -647,8 +654,8 @@ def check_stages(stages) -> int:
 
 
 def band_plants(plants) -> np.ndarray:
-    """The (m, :data:`FIELD_ROWS`, n_runs) C-contiguous stack of :func:`plant_fields` of each PlantArrays in
-    *plants* (the models of a band, in order)."""
+    """The (m, :data:`FIELD_ROWS`, n_runs) C-contiguous stack of :func:`plant_fields` of each
+    PlantArrays in *plants* (the models of a band, in order)."""
     return np.ascontiguousarray(np.stack([plant_fields(p) for p in plants]))
 
 

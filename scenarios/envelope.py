@@ -90,7 +90,8 @@ class AircraftParams:
     """
 
     name: str = param("-", "-", "aircraft name")
-    wing_area_m2: float = param("m²", "docs/physics.md §6 (A330 reference wing area)", "wing area S")
+    wing_area_m2: float = param("m²", "docs/physics.md §6 (A330 reference wing area)",
+                                "wing area S")
     mac_m: float = param("m", "docs/physics.md §6 (A330)", "mean aerodynamic chord")
     tail_arm_m: float = param("m", "docs/physics.md §6 (≈ 28 m, est.)",
                               "distance from the wing-body aerodynamic centre to the tail's")
@@ -100,7 +101,8 @@ class AircraftParams:
     vmo_kt: float = param("kt", "docs/physics.md §6 (A330 VMO)", "maximum operating speed (CAS)")
     buffet_margin_g: float = param("g", "docs/physics.md §6 (1.3 g buffet margin)",
                                    "load factor the wing must sustain below buffet onset")
-    clb_mach: tuple[float, ...] = param("-", "docs/physics.md §6 (est.)", "Mach breakpoints of C_Lb(M)")
+    clb_mach: tuple[float, ...] = param("-", "docs/physics.md §6 (est.)",
+                                        "Mach breakpoints of C_Lb(M)")
     clb: tuple[float, ...] = param("-", "docs/physics.md §6 (est.)",
                                    "clean CLmax / buffet-onset lift coefficient C_Lb at clb_mach")
     cl_alpha_per_rad: float = param("1/rad", "est. (swept wing, aspect ratio ≈ 10)",
@@ -110,7 +112,8 @@ class AircraftParams:
     cl0: float = param("-", "est.", "wing lift coefficient at zero angle of attack")
 
     def buffet_cl(self, mach) -> np.ndarray:
-        """C_Lb(M): linear interpolation of the table, held constant outside it (docs/physics.md §6)."""
+        """C_Lb(M): linear interpolation of the table, held constant outside it
+        (docs/physics.md §6)."""
         return np.interp(np.asarray(mach, dtype=float), self.clb_mach, self.clb)
 
     def lift_curve_slope(self, mach) -> np.ndarray:
@@ -173,9 +176,12 @@ class Uncertainty:
     cx: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "drag coefficient δCx")
     cy: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "side-force coefficient δCy")
     cz: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "lift coefficient δCz")
-    cl: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "rolling-moment coefficient δCl")
-    cm: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "pitching-moment coefficient δCm")
-    cn: float | None = _optional("-", "[CHEN] Table 2 (None: aero)", "yawing-moment coefficient δCn")
+    cl: float | None = _optional("-", "[CHEN] Table 2 (None: aero)",
+                                 "rolling-moment coefficient δCl")
+    cm: float | None = _optional("-", "[CHEN] Table 2 (None: aero)",
+                                 "pitching-moment coefficient δCm")
+    cn: float | None = _optional("-", "[CHEN] Table 2 (None: aero)",
+                                 "yawing-moment coefficient δCn")
 
 
 @dataclass(frozen=True)

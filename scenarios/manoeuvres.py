@@ -26,16 +26,20 @@ The order of one run [deg] is
 
 Shapes (names of :data:`scenarios.catalog.MANOEUVRES`; amplitudes at q_ref, est.):
 
-| manoeuvre | elevator | aileron |
-|---|---|---|
-| cruise | trim + gust reaction | gust reaction |
-| nose_up | step to −(2…5)° held 5–10 s (width at half amplitude) | gust reaction (wings level) |
-| aoa_protection | slow excursion to −(5…15)°: 2–4 s ramps, held 2–5 s | gust reaction |
-| pitch_protection | transient to 85–100 % of the nose-up authority (to the limit), held 0.5–1.5 s; 2–4 s later the same towards the nose-down limit | gust reaction |
-| yaw_angle_mode | gust reaction (a steady sideslip needs no pitch input to first order) | ±(2…5)° held 5–10 s |
-| turn_coordination | small pull −k_g·(1/cos φ − 1) held through the turn (load factor of the bank φ) | ±(5…10)° roll-in pulse lasting φ/p (roll-in rate p: 7.5 °/s in the normal set), turn held 4–7 s, opposite roll-out pulse |
+* ``cruise`` — elevator: trim + gust reaction; aileron: gust reaction
+* ``nose_up`` — elevator: step to −(2…5)° held 5–10 s (width at half amplitude); aileron: gust
+  reaction (wings level)
+* ``aoa_protection`` — elevator: slow excursion to −(5…15)°: 2–4 s ramps, held 2–5 s; aileron: gust
+  reaction
+* ``pitch_protection`` — elevator: transient to 85–100 % of the nose-up authority (to the limit),
+  held 0.5–1.5 s; 2–4 s later the same towards the nose-down limit; aileron: gust reaction
+* ``yaw_angle_mode`` — elevator: gust reaction (a steady sideslip needs no pitch input to first
+  order); aileron: ±(2…5)° held 5–10 s
+* ``turn_coordination`` — elevator: small pull −k_g·(1/cos φ − 1) held through the turn (load factor
+  of the bank φ); aileron: ±(5…10)° roll-in pulse lasting φ/p (roll-in rate p: 7.5 °/s in the normal
+  set), turn held 4–7 s, opposite roll-out pulse
 
-Manoeuvre sets (:data:`scenarios.catalog.MANOEUVRE_SETS`, :func:`set_params`): the table
+Manoeuvre sets (:data:`scenarios.catalog.MANOEUVRE_SETS`, :func:`set_params`): the list
 above is the ``normal`` set (:data:`MANOEUVRE_PARAMS`); the ``stress`` set
 (:data:`STRESS_MANOEUVRE_PARAMS`) rolls into the turn at the normal law's full-stick 15 °/s,
 to a 33° bank, with every amplitude range at its high end (docs/physics.md §7).
@@ -45,9 +49,9 @@ left so that it ends ``tail_s`` before the end of the record. The longest manoeu
 normal set's turn at the lowest q̄ (two roll pulses of 33°/(7.5 °/s) = 4.4 s, a 7-s turn and
 the elevator's ramp: ≤ 17.7 s), so records of at least 23 s contain the whole manoeuvre; in a
 20–23 s record (``min_duration_s`` = 20 s) the longest turns start at lead_s and their
-roll-out is cut by the end of the record. A fixed start time ``start_s`` (the run-table column ``manoeuvre_start_s``,
-e.g. to place a transient at a given time as in [COMB] §4 D_V2) replaces the sampled one; the
-start uniform is still drawn, so the rest of the run's draws do not change.
+roll-out is cut by the end of the record. A fixed start time ``start_s`` (the run-table column
+``manoeuvre_start_s``, e.g. to place a transient at a given time as in [COMB] §4 D_V2) replaces the
+sampled one; the start uniform is still drawn, so the rest of the run's draws do not change.
 
 Random numbers come from the run's generator in a fixed order, whatever the manoeuvre,
 surface or duration: first :data:`N_SHAPE_DRAWS` uniforms (start time, then the shape
@@ -95,26 +99,35 @@ class ManoeuvreParams:
                                "reference dynamic pressure of the docs/physics.md §7 amplitudes")
     scale_min: float = param("-", "est. (grid q̄ ≈ 3.4–18 kPa → q_ref/q̄ ≈ 0.56–3.0)",
                              "lower clip of the amplitude factor q_ref/q̄")
-    scale_max: float = param("-", "est. (see scale_min)", "upper clip of the amplitude factor q_ref/q̄")
+    scale_max: float = param("-", "est. (see scale_min)",
+                             "upper clip of the amplitude factor q_ref/q̄")
     # ---- smoothness -----------------------------------------------------------------
-    rate_max_deg_s: float = param("deg/s", "est. (below the 48/57 °/s no-load rates, docs/physics.md §3)",
+    rate_max_deg_s: float = param("deg/s",
+                                  "est. (below the 48/57 °/s no-load rates, docs/physics.md §3)",
                                   "bound on the order rate, manoeuvre + gust reaction")
-    manoeuvre_rate_deg_s: float = param("deg/s", "est. (rate_max minus a margin for the gust reaction)",
+    manoeuvre_rate_deg_s: float = param("deg/s",
+                                        "est. (rate_max minus a margin for the gust reaction)",
                                         "peak rate of a manoeuvre transition")
     transition_min_s: float = param("s", "est.", "shortest transition (bounds the acceleration)")
     # ---- timing -----------------------------------------------------------------------
     lead_s: float = param("s", "est.", "earliest start of a manoeuvre")
     start_spread_s: float = param("s", "est.", "start = lead + U(0, min(spread, room))")
     tail_s: float = param("s", "est.", "a manoeuvre is over this long before the record ends")
-    min_duration_s: float = param("s", "est. (fits the longest manoeuvre)", "shortest record accepted")
+    min_duration_s: float = param("s", "est. (fits the longest manoeuvre)",
+                                  "shortest record accepted")
     # ---- elevator trim: δ_trim = k0 + kα·α + kcg·(cg − cg_ref) -------------------------
-    trim_k0_deg: float = param("deg", "est.", "trim k0 (the trimmable stabiliser takes most of the trim)")
+    trim_k0_deg: float = param("deg", "est.",
+                               "trim k0 (the trimmable stabiliser takes most of the trim)")
     trim_k_alpha: float = param("deg/deg", "est. (sign of −Cmα/Cmδ; share left to the elevator)",
                                 "trim kα: more angle of attack, more nose-up (negative) elevator")
-    trim_k_cg_deg_per_pct: float = param("deg/%MAC", "est.", "trim kcg: an aft CG needs less nose-up elevator")
-    cg_ref_pct: float = param("% MAC", "docs/physics.md §6 (middle of the CG grid)", "reference CG of the trim law")
-    trim_min_deg: float = param("deg", "est.", "lower bound of the trim (then the electrical limit)")
-    trim_max_deg: float = param("deg", "est.", "upper bound of the trim (then the electrical limit)")
+    trim_k_cg_deg_per_pct: float = param("deg/%MAC", "est.",
+                                         "trim kcg: an aft CG needs less nose-up elevator")
+    cg_ref_pct: float = param("% MAC", "docs/physics.md §6 (middle of the CG grid)",
+                              "reference CG of the trim law")
+    trim_min_deg: float = param("deg", "est.",
+                                "lower bound of the trim (then the electrical limit)")
+    trim_max_deg: float = param("deg", "est.",
+                                "upper bound of the trim (then the electrical limit)")
     # ---- gust reaction: δ = k·(gust/V) through 1/(1 + τ·s) ----------------------------
     gust_gain_elevator: float = param("deg/deg", "est. (≈ ½·Cmα/Cmδ of a transport)",
                                       "elevator order per degree of gust angle of attack w_g/V")
@@ -123,22 +136,31 @@ class ManoeuvreParams:
     gust_lag_s: float = param("s", "est. (closed-loop pitch/roll bandwidth ≈ 2 rad/s)",
                               "time constant τ of the gust reaction")
     # ---- shapes (docs/physics.md §7 suggested shapes; all est.) --------------------------------
-    nose_up_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "nose-up step magnitude")
-    nose_up_hold_s: tuple[float, float] = param("s", "docs/physics.md §7 (est.)", "step width at half amplitude")
-    aoa_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "AoA-protection excursion magnitude")
-    aoa_ramp_s: tuple[float, float] = param("s", "est. ('slow', docs/physics.md §7)", "ramp duration into and out of it")
+    nose_up_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)",
+                                                 "nose-up step magnitude")
+    nose_up_hold_s: tuple[float, float] = param("s", "docs/physics.md §7 (est.)",
+                                                "step width at half amplitude")
+    aoa_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)",
+                                             "AoA-protection excursion magnitude")
+    aoa_ramp_s: tuple[float, float] = param("s", "est. ('slow', docs/physics.md §7)",
+                                            "ramp duration into and out of it")
     aoa_hold_s: tuple[float, float] = param("s", "est.", "time held at the excursion")
     pitch_authority_frac: tuple[float, float] = param(
-        "-", "docs/physics.md §7 'transients to the limits' (est.)", "peak as a fraction of the authority to the limit")
-    pitch_hold_s: tuple[float, float] = param("s", "est.", "time held at each pitch-protection peak")
-    pitch_gap_s: tuple[float, float] = param("s", "est.", "pause between the nose-up and nose-down transients")
-    yaw_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "aileron held in yaw-angle mode")
+        "-", "docs/physics.md §7 'transients to the limits' (est.)",
+        "peak as a fraction of the authority to the limit")
+    pitch_hold_s: tuple[float, float] = param("s", "est.",
+                                              "time held at each pitch-protection peak")
+    pitch_gap_s: tuple[float, float] = param("s", "est.",
+                                             "pause between the nose-up and nose-down transients")
+    yaw_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)",
+                                             "aileron held in yaw-angle mode")
     yaw_hold_s: tuple[float, float] = param("s", "est.", "hold width at half amplitude")
-    turn_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)", "aileron roll-in/roll-out pulse")
+    turn_amp_deg: tuple[float, float] = param("deg", "docs/physics.md §7 (est.)",
+                                              "aileron roll-in/roll-out pulse")
     turn_roll_rate_deg_s: float = param(
-        "deg/s", "docs/physics.md §7: normal set 7.5 °/s (est.: half the 15 °/s full-stick roll-rate "
-        "demand of the Airbus normal law, Airbus FCOM DSC-27-20-10-30; flight-guidance roll-rate "
-        "limits are 3.5–5 °/s); stress set 15 °/s (full stick)",
+        "deg/s", "docs/physics.md §7: normal set 7.5 °/s (est.: half the 15 °/s full-stick "
+        "roll-rate demand of the Airbus normal law, Airbus FCOM DSC-27-20-10-30; flight-guidance "
+        "roll-rate limits are 3.5–5 °/s); stress set 15 °/s (full stick)",
         "aircraft roll rate of the roll-in: pulse width = bank/rate")
     turn_bank_deg: tuple[float, float] = param("deg", "est.", "bank angle φ of the turn")
     turn_hold_s: tuple[float, float] = param("s", "est.", "time in the steady turn")
@@ -279,13 +301,15 @@ def _check_flight(flight: Mapping, where: str = "") -> dict[str, float]:
         try:
             value = float(flight[key])
         except (TypeError, ValueError):
-            raise ValueError(f"{where}flight[{key!r}] must be a number, got {flight[key]!r}") from None
+            raise ValueError(f"{where}flight[{key!r}] must be a number, got "
+                             f"{flight[key]!r}") from None
         if not math.isfinite(value):
             raise ValueError(f"{where}flight[{key!r}] must be finite, got {value!r}")
         values[key] = value
     for key in ("qbar_pa", "tas_ms"):
         if values[key] <= 0:
-            raise ValueError(f"{where}flight[{key!r}] must be > 0 [{FLIGHT_KEYS[key]}], got {values[key]!r}")
+            raise ValueError(f"{where}flight[{key!r}] must be > 0 [{FLIGHT_KEYS[key]}], got "
+                             f"{values[key]!r}")
     if values["mach"] < 0:
         raise ValueError(f"{where}flight['mach'] must be ≥ 0, got {values['mach']!r}")
     return values
@@ -348,7 +372,8 @@ def _transitions(manoeuvre: str, surface: str, u: Sequence[float], scale: float,
 
     def duration(size: float, nominal: float = 0.0) -> float:
         # raised cosine: peak rate π·|ΔA|/(2·D) ≤ manoeuvre_rate
-        return max(nominal, p.transition_min_s, math.pi * abs(size) / (2.0 * p.manoeuvre_rate_deg_s))
+        return max(nominal, p.transition_min_s,
+                   math.pi * abs(size) / (2.0 * p.manoeuvre_rate_deg_s))
 
     def signed(size: float, positive: bool) -> float:
         return min(size, up_room) if positive else -min(size, down_room)
@@ -520,7 +545,8 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
                              f"required keys: {', '.join(FLIGHT_KEYS)}")
         columns[key] = np.asarray(flight[key])
         if columns[key].shape != (n_runs,):
-            raise ValueError(f"flight[{key!r}] must have shape ({n_runs},), got {columns[key].shape}")
+            raise ValueError(f"flight[{key!r}] must have shape ({n_runs},), got "
+                             f"{columns[key].shape}")
     orders = np.empty((n_runs, t_rel.size))
     for i in range(n_runs):
         where = f"run {i}: "
@@ -529,7 +555,8 @@ def orders_for_runs(manoeuvres: Sequence[str], surface: str, t, flight: Mapping,
         except ValueError as exc:
             raise ValueError(where + str(exc)) from None
         if not isinstance(rngs[i], np.random.Generator):
-            raise TypeError(f"{where}rng must be a numpy.random.Generator, got {type(rngs[i]).__name__}")
+            raise TypeError(f"{where}rng must be a numpy.random.Generator, got "
+                            f"{type(rngs[i]).__name__}")
         run_flight = _check_flight({k: c[i] for k, c in columns.items()}, where)
         start = None if start_s is None else _check_start(start_s[i], where)
         orders[i] = _order(manoeuvres[i], surface, t_rel, ts, run_flight, rngs[i], actuator,

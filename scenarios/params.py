@@ -47,13 +47,19 @@ class ActuatorParams:
         _check_declared(self, f"{self.surface} actuator")
 
     surface: str = param("-", "docs/physics.md §3", "surface name")
-    delta_min_deg: float = param("deg", "A330-class (docs/physics.md §3)", "electrical deflection limit, lower")
-    delta_max_deg: float = param("deg", "A330-class (docs/physics.md §3)", "electrical deflection limit, upper")
-    stop_margin_deg: float = param("deg", "est. (docs/physics.md §3: 1–2° beyond the electrical limits)",
-                                "mechanical stops lie this far beyond the electrical limits", ge=0.0)
+    delta_min_deg: float = param("deg", "A330-class (docs/physics.md §3)",
+                                 "electrical deflection limit, lower")
+    delta_max_deg: float = param("deg", "A330-class (docs/physics.md §3)",
+                                 "electrical deflection limit, upper")
+    stop_margin_deg: float = param("deg",
+                                   "est. (docs/physics.md §3: 1–2° beyond the electrical limits)",
+                                   "mechanical stops lie this far beyond the electrical limits",
+                                   ge=0.0)
     r_mm: float = param("mm", "est.", "lever arm r between rod and hinge line", gt=0.0)
-    dP_Pa: float = param("Pa", "3000 psi hydraulic system", "supply differential pressure ΔP", gt=0.0)
-    dP_ref_Pa: float = param("Pa", "docs/physics.md §3 (ΔP_ref = ΔP)", "pressure drop of the maximum rod speed",
+    dP_Pa: float = param("Pa", "3000 psi hydraulic system", "supply differential pressure ΔP",
+                         gt=0.0)
+    dP_ref_Pa: float = param("Pa", "docs/physics.md §3 (ΔP_ref = ΔP)",
+                             "pressure drop of the maximum rod speed",
                             gt=0.0)
     S_m2: float = param("m²", "est. (A320 aileron jack 22.7 cm²)", "piston area S", gt=0.0)
     K_mA_per_mm: float = param("mA/mm", "est.", "servo-loop gain K", gt=0.0)
@@ -69,9 +75,11 @@ class ActuatorParams:
                        "hinge-moment coefficient at zero α and δ (negative: trailing edge up)")
     downwash: float = param("-", "est. (elevator: dε/dα; 0 for the aileron)",
                          "local AoA of the surface α_s = α·(1 − dε/dα)", ge=0.0, lt=1.0)
-    mach_compress_cap: float = param("-", "docs/physics.md §3", "Prandtl–Glauert scaling held above this Mach",
+    mach_compress_cap: float = param("-", "docs/physics.md §3",
+                                     "Prandtl–Glauert scaling held above this Mach",
                                       gt=0.0, lt=1.0)
-    has_surface_sensor: bool = param("-", "docs/physics.md §4 ([CHEN]: none on the inboard aileron)",
+    has_surface_sensor: bool = param("-",
+                                     "docs/physics.md §4 ([CHEN]: none on the inboard aileron)",
                                   "whether a surface position sensor is fitted")
     order_load_limit: float = param("-", "est. (docs/physics.md §3: no stall in normal flight)",
                                     "the flight control laws keep manoeuvre orders where the "
@@ -261,13 +269,19 @@ class SensorParams:
     def __post_init__(self):
         _check_declared(self, "sensor parameters")
 
-    rod_noise_mm: float = param("mm", "est. (docs/physics.md §4)", "white-noise σ of each LVDT acquisition", ge=0.0)
-    rod_quant_mm: float = param("mm", "est. (docs/physics.md §4)", "quantisation step of the rod acquisitions", ge=0.0)
+    rod_noise_mm: float = param("mm", "est. (docs/physics.md §4)",
+                                "white-noise σ of each LVDT acquisition", ge=0.0)
+    rod_quant_mm: float = param("mm", "est. (docs/physics.md §4)",
+                                "quantisation step of the rod acquisitions", ge=0.0)
     rod_bias_mm: float = param("mm", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)", ge=0.0)
-    rod_scale: float = param("-", "est. (docs/physics.md §4)", "per-run scale error ~ U(−s, s), relative", ge=0.0)
-    surface_noise_deg: float = param("deg", "est. (docs/physics.md §4)", "white-noise σ of the surface sensor", ge=0.0)
-    surface_quant_deg: float = param("deg", "est. (docs/physics.md §4)", "quantisation of the surface sensor", ge=0.0)
-    surface_bias_deg: float = param("deg", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)", ge=0.0)
+    rod_scale: float = param("-", "est. (docs/physics.md §4)",
+                             "per-run scale error ~ U(−s, s), relative", ge=0.0)
+    surface_noise_deg: float = param("deg", "est. (docs/physics.md §4)",
+                                     "white-noise σ of the surface sensor", ge=0.0)
+    surface_quant_deg: float = param("deg", "est. (docs/physics.md §4)",
+                                     "quantisation of the surface sensor", ge=0.0)
+    surface_bias_deg: float = param("deg", "est. (docs/physics.md §4)", "per-run bias ~ U(−b, b)",
+                                    ge=0.0)
     pressure_noise_frac: float = param("-", "est. (docs/physics.md §4)",
                                     "σ of the chamber ΔP sensor as a fraction of supply", ge=0.0)
 

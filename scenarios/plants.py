@@ -2,14 +2,14 @@
 
 A plant is an object with one interface (:class:`Plant`), whatever is inside it:
 
-=============  ==========================================  ==================================
-kind           what is simulated                           implementation
-=============  ==========================================  ==================================
-``actuator``   one surface's nonlinear servo-loop alone    :class:`scenarios.simulate.ActuatorPlant`
-``aircraft``   the aircraft, its laws and every surface    :class:`scenarios.aircraft.loop.AircraftPlant`
-``fmu``        the servo-loop's physics in an FMI FMU      :class:`scenarios.fmu.FmuPlant`
-``jsbsim``     a JSBSim aircraft, our laws and servo-loops  :class:`scenarios.jsbsim.loop.JsbsimPlant`
-=============  ==========================================  ==================================
+``actuator``
+    one surface's nonlinear servo-loop alone (:class:`scenarios.simulate.ActuatorPlant`)
+``aircraft``
+    the aircraft, its laws and every surface (:class:`scenarios.aircraft.loop.AircraftPlant`)
+``fmu``
+    the servo-loop's physics in an FMI FMU (:class:`scenarios.fmu.FmuPlant`)
+``jsbsim``
+    a JSBSim aircraft, our laws and servo-loops (:class:`scenarios.jsbsim.loop.JsbsimPlant`)
 
 The plant says which surfaces it has, the actuator table of a surface, and which signal
 groups (:data:`scenarios.signals.SIGNAL_GROUPS`) it provides for a surface; a detector's
@@ -98,8 +98,8 @@ def __getattr__(name: str):
 
 
 def get_plant(plant: str | Plant = "actuator") -> Plant:
-    """The plant *plant* names (``"actuator"``, ``"aircraft"`` or ``"jsbsim"``), or *plant* itself when it
-    already is one. An unknown name is answered with the allowed ones (and a close match);
+    """The plant *plant* names (``"actuator"``, ``"aircraft"`` or ``"jsbsim"``), or *plant* itself
+    when it already is one. An unknown name is answered with the allowed ones (and a close match);
     an FMU plant is built with :meth:`scenarios.fmu.FmuPlant.of`."""
     if isinstance(plant, str):
         if plant not in _BUILT_IN:

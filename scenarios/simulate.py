@@ -122,8 +122,11 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
     n, T = p.u.shape
     pl, fa, act, ts = p.plant, p.faults, p.act, p.ts
     d_min, d_max = np.radians(act.stop_min_deg), np.radians(act.stop_max_deg)
-    xs = np.empty((n, T)); ds = np.empty((n, T)); icmd = np.empty((n, T))
-    iapp = np.empty((n, T)); ycom = np.empty((n, T))
+    xs = np.empty((n, T))
+    ds = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    ycom = np.empty((n, T))
 
     x = np.clip(p.u[:, 0].copy(), pl.x_min, pl.x_max)     # trimmed: x(0) = order, i = 0
     delta = np.arcsin(x / pl.r_mm)
@@ -140,7 +143,11 @@ def integrate(p: Prepared, sensors: SensorParams = SENSORS) -> Trajectory:
         y, y_hold = acquire_com(x, k, p, sensors, y_hold)
         i_new = np.clip(pl.K * (fa.u_loop[:, k] - y), -pl.i_max, pl.i_max)
         i_app = applied_current(i_prev, k, p)
-        xs[:, k] = x; ds[:, k] = delta; icmd[:, k] = i_new; iapp[:, k] = i_app; ycom[:, k] = y
+        xs[:, k] = x
+        ds[:, k] = delta
+        icmd[:, k] = i_new
+        iapp[:, k] = i_app
+        ycom[:, k] = y
         if any_disc:
             loaded = k < fa.k_disc
         x_next = rk4_step(x, i_app, pl, loaded, ts)
@@ -312,10 +319,12 @@ def single_run(surface: str = "elevator", manoeuvre: str = "cruise", fault: str 
                freq_hz: float | None = None, duration_s: float = 30.0, **point) -> pd.DataFrame:
     """A one-row run table (defaults: :data:`DEFAULT_POINT`, nominal uncertainties, the
     default fault magnitudes of :mod:`scenarios.faults`)."""
-    unknown = sorted(set(point) - set(DEFAULT_POINT) - {c for c in RUN_COLUMNS if c.startswith("d_")})
+    unknown = sorted(set(point) - set(DEFAULT_POINT)
+                     - {c for c in RUN_COLUMNS if c.startswith("d_")})
     if unknown:
-        raise ValueError(f"unknown run field(s) {unknown}; allowed: "
-                         f"{sorted(DEFAULT_POINT) + [c for c in RUN_COLUMNS if c.startswith('d_')]}")
+        raise ValueError(
+            f"unknown run field(s) {unknown}; allowed: "
+            f"{sorted(DEFAULT_POINT) + [c for c in RUN_COLUMNS if c.startswith('d_')]}")
     act = ACTUATORS.get(surface)
     if act is None and surface in AIRCRAFT_SURFACES:   # an aircraft surface: its own table
         act = surface_actuator(surface)

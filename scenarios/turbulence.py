@@ -48,8 +48,8 @@ class DrydenParams:
     alt_table_ft: tuple[float, ...] = param(
         "ft", "docs/physics.md §7", "altitudes of the σ table (strictly increasing)")
     sigma_table_ms: tuple[float, ...] = param(
-        "m/s", "docs/physics.md §7 (read from the MIL-F-8785C / MIL-HDBK-1797 high-altitude intensity "
-        "chart, 'moderate' = 10⁻³ probability of exceedance)",
+        "m/s", "docs/physics.md §7 (read from the MIL-F-8785C / MIL-HDBK-1797 high-altitude "
+        "intensity chart, 'moderate' = 10⁻³ probability of exceedance)",
         "turbulence intensity σ_u = σ_v = σ_w at the table altitudes")
     scale_length_ft: float = param(
         "ft", "MIL-F-8785C / MIL-HDBK-1797 medium/high altitude (L_u = 2·L_v = 2·L_w = 1750 ft)",
@@ -60,9 +60,11 @@ class DrydenParams:
         alts = np.asarray(self.alt_table_ft, dtype=float)
         sigmas = np.asarray(self.sigma_table_ms, dtype=float)
         if alts.ndim != 1 or alts.shape != sigmas.shape or alts.size == 0:
-            raise ValueError("alt_table_ft and sigma_table_ms must be non-empty and of equal length")
+            raise ValueError("alt_table_ft and sigma_table_ms must be non-empty and of equal "
+                             "length")
         if not (np.all(np.isfinite(alts)) and np.all(np.diff(alts) > 0)):
-            raise ValueError(f"alt_table_ft must be finite and strictly increasing, got {self.alt_table_ft}")
+            raise ValueError("alt_table_ft must be finite and strictly increasing, got "
+                             f"{self.alt_table_ft}")
         if not (np.all(np.isfinite(sigmas)) and np.all(sigmas >= 0)):
             raise ValueError(f"sigma_table_ms must be finite and ≥ 0, got {self.sigma_table_ms}")
         if not (math.isfinite(self.scale_length_ft) and self.scale_length_ft > 0):
@@ -290,7 +292,8 @@ def lagged_gust(n_steps: int, ts: float, tas_ms: float, alt_ft: float,
     else:
         gamma = math.exp(-ts / lag_s)
         beta = 1.0 - gamma
-        zi = sigma * _lagged_initial_state(forming, beta, gamma, rng.standard_normal(forming.a.size))
+        zi = sigma * _lagged_initial_state(forming, beta, gamma,
+                                           rng.standard_normal(forming.a.size))
         m = forming.a.size
         b = np.zeros(m + 1)
         b[1:] = (sigma * beta) * forming.b                   # σ·b·β·z⁻¹

@@ -1,5 +1,6 @@
 """A detector that misbehaves on demand, to test how the engine survives faults in the
-machinery (tests/campaign_tests/test_machinery_faults.py, tests/campaign_tests/test_dask_cluster.py).
+machinery (tests/campaign_tests/test_machinery_faults.py,
+tests/campaign_tests/test_dask_cluster.py).
 
 It raises no alarm, except that on the runs listed in the JSON file *marker* it kills its
 own process (``mode="kill"``), raises (``"raise"``) or sleeps ``sleep_s`` seconds

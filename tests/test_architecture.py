@@ -177,7 +177,8 @@ def test_every_citation_of_the_documents_resolves_to_a_section(doc):
 def test_no_citation_points_outside_the_repository():
     outside = [str(p.relative_to(REPO)) for p in [*REPO.glob("*/**/*.py"), *REPO.glob("docs/*.md")]
                if ".venv" not in p.parts and p != Path(__file__).resolve()
-               and re.search(r"\b(PHYSICS|DESIGN)(\.md)?,? ?§|shared/", p.read_text(encoding="utf-8"))]
+               and re.search(r"\b(PHYSICS|DESIGN)(\.md)?,? ?§|shared/",
+                             p.read_text(encoding="utf-8"))]
     assert outside == []
 
 

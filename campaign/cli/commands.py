@@ -137,8 +137,8 @@ def _main(argv=None) -> int:
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
         where = f" {exc.filename}" if exc.filename else ""
-        print_error(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path exists, "
-             "that you may write there and that the disk has room")
+        print_error(f"cannot access{where}: {exc.strerror or exc}; fix: check that the path "
+                    "exists, that you may write there and that the disk has room")
         return EXIT_INPUT
     except KeyboardInterrupt:
         print_error("interrupted")

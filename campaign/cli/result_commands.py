@@ -258,9 +258,9 @@ def add_result_parsers(subs) -> None:
     p.add_argument("--out", help="Parquet file for the traces")
     p.add_argument("--fmu", metavar="FILE", help="re-simulate on this FMU (docs/security.md)")
 
-    p = add_command(subs, "compare", "what changed between two campaigns: rates with a significance "
-             "test, DTP shifts, per cell", "fdd-campaign compare results-v1/ results-v2/",
-             cmd_compare)
+    p = add_command(subs, "compare", "what changed between two campaigns: rates with a "
+                    "significance test, DTP shifts, per cell",
+                    "fdd-campaign compare results-v1/ results-v2/", cmd_compare)
     p.add_argument("dir_a", help="campaign directory A (the reference)")
     p.add_argument("dir_b", help="campaign directory B (compared with A)")
     p.add_argument("--alpha", type=float, default=0.01,

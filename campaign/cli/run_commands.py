@@ -210,8 +210,9 @@ def _manoeuvres_option(p) -> None:
 
 def add_run_parsers(subs) -> None:
     """Sub-commands: run and plan a campaign."""
-    p = add_command(subs, "run", "run a campaign (a preset name or a campaign file) into a directory",
-             "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
+    p = add_command(subs, "run",
+                    "run a campaign (a preset name or a campaign file) into a directory",
+                    "fdd-campaign run addsafe-mc --jobs 2 --out results/", cmd_run)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--out", required=True, help="output directory (rerun into it to resume)")
     p.add_argument("--jobs", type=int, default=2,
@@ -226,8 +227,8 @@ def add_run_parsers(subs) -> None:
     p.add_argument("--plant", metavar="LEVEL|FMU",
                    help="actuator, aircraft or jsbsim (overrides [plant] kind; see "
                         "docs/aircraft.md; jsbsim needs the [jsbsim] extra), "
-                        "or a co-simulation FMU file to simulate the actuator on (sets [plant] fmu; "
-                        "see docs/fmu.md)")
+                        "or a co-simulation FMU file to simulate the actuator on (sets [plant] "
+                        "fmu; see docs/fmu.md)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run the chunks on this dask.distributed scheduler's workers "
                         "(needs the [dask] extra; tls://HOST:PORT with the --tls-* options or "
@@ -242,8 +243,9 @@ def add_run_parsers(subs) -> None:
                    help="time-loop kernels (default: the campaign file's [runner] engine)")
     _manoeuvres_option(p)
     p.add_argument("--fitted-from", metavar="DIR",
-                   help="evaluate the detectors fitted in campaign directory DIR (same [[detector]] "
-                        "entries) without learning again (copied into --out; docs/thresholds.md)")
+                   help="evaluate the detectors fitted in campaign directory DIR (same "
+                        "[[detector]] entries) without learning again (copied into --out; "
+                        "docs/thresholds.md)")
 
     p = add_command(subs, "plan", "write the run table of a campaign and print its counts",
              "fdd-campaign plan addsafe-grid --out grid/", cmd_plan)

@@ -56,7 +56,8 @@ def cmd_study_saturation(args) -> int:
         raise UsageError(f"--surfaces: unknown aircraft surface(s) {', '.join(bad)}; allowed: "
                          f"{', '.join(AIRCRAFT_SURFACES)}")
     if args.runs < 1:
-        raise UsageError(f"--runs must be at least 1 (runs per manoeuvre and seed), got {args.runs}")
+        raise UsageError("--runs must be at least 1 (runs per manoeuvre and seed), got "
+                         f"{args.runs}")
     if not args.duration > 0.0:
         raise UsageError(f"--duration must be > 0 s, got {args.duration}")
     run_study(tuple(args.seeds), tuple(args.surfaces), args.runs, args.duration,
@@ -71,17 +72,18 @@ def add_study_parsers(subs) -> None:
                       "laws' surface activity (one table)",
                       "studies: fixed comparisons reproduced from a paper and censuses of the "
                       "model, one table each (campaign.tools.studies)", "study", "STUDY")
-    p = add_command(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] §5: "
-             "residual peaks, thresholds, detection delays and DTP (docs/vanek-geometric.md)",
-             "fdd-campaign study vanek --noise-scale 0.1", cmd_study_vanek)
+    p = add_command(ssubs, "vanek", "LTI against LPV geometric filter on the scenarios of [VANEK] "
+                    "§5: residual peaks, thresholds, detection delays and DTP "
+                    "(docs/vanek-geometric.md)",
+                    "fdd-campaign study vanek --noise-scale 0.1", cmd_study_vanek)
     p.add_argument("--noise-scale", type=float, default=1.0,
                    help="factor on the σ of every aircraft sensor (default 1)")
     p.add_argument("--seed", type=int, default=0, help="seed of the scenarios (default 0)")
     p = add_command(ssubs, "chen-flight-data", "the global [CHEN] estimators (chen-global, "
-                    "chen-global-paper with [CHEN]'s constant threshold and with our calibrated one) on chen-mc's "
-                    "fault-free and disconnection runs at several sizes of the [CHEN] Table-2 "
-                    "flight-data errors (VCAS, altitude, mass, CG): false alarms, misses and "
-                    "delays per size (docs/chen-estimator.md §5.2)",
+                    "chen-global-paper with [CHEN]'s constant threshold and with our calibrated "
+                    "one) on chen-mc's fault-free and disconnection runs at several sizes of the "
+                    "[CHEN] Table-2 flight-data errors (VCAS, altitude, mass, CG): false alarms, "
+                    "misses and delays per size (docs/chen-estimator.md §5.2)",
                     "fdd-campaign study chen-flight-data --seed 4711 --jobs 2 --out fd/",
                     cmd_study_chen_flight_data)
     p.add_argument("--out", required=True, help="directory of the campaigns, one per size "
@@ -136,7 +138,8 @@ def add_study_parsers(subs) -> None:
                    help="campaign seeds of the sampled runs (default: "
                         f"{' '.join(map(str, saturation.DEFAULT_SEEDS))})")
     p.add_argument("--runs", type=int, default=saturation.DEFAULT_RUNS,
-                   help=f"fault-free runs per manoeuvre and seed (default {saturation.DEFAULT_RUNS})")
+                   help="fault-free runs per manoeuvre and seed (default "
+                        f"{saturation.DEFAULT_RUNS})")
     p.add_argument("--duration", type=float, default=saturation.DEFAULT_DURATION_S,
                    help=f"run duration [s] (default {saturation.DEFAULT_DURATION_S:g})")
     p.add_argument("--surfaces", nargs="+", default=list(saturation.DEFAULT_SURFACES),

@@ -85,7 +85,8 @@ def cmd_simulate(args) -> int:
     if args.plot and plant.kind in AIRCRAFT_KINDS:
         from reports.render.figures.aircraft import plot_aircraft_run
 
-        plot_aircraft_run(frame, onset_s=onset, path=args.plot, monitored=str(runs["surface"].iloc[0]),
+        plot_aircraft_run(frame, onset_s=onset, path=args.plot,
+                          monitored=str(runs["surface"].iloc[0]),
                           title=f"{runs['surface'].iloc[0]} — {args.manoeuvre} — {args.fault}")
         print(f"plot written to {args.plot}")
     elif args.plot:
@@ -150,8 +151,8 @@ def cmd_fmu(args) -> int:
     check_writable(args.out, "--out")
     out = build_servo_fmu(args.out, surface=args.surface, fmi=args.fmi,     # FmuBuildError: exit 2
                           log=(lambda m: print(m, file=sys.stderr)) if args.verbose else None)
-    print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); run a "
-          f"campaign on it with: fdd-campaign run smoke --plant {out} --out "
+    print(f"built and validated {out} (FMI {args.fmi}.0 co-simulation, {args.surface} defaults); "
+          f"run a campaign on it with: fdd-campaign run smoke --plant {out} --out "
           f"{_out_dir(Path(out))}")
     return EXIT_OK
 
@@ -246,8 +247,9 @@ def add_tool_parsers(subs) -> None:
 
     fsubs = add_group(subs, "fmu", "build the built-in servo-loop as an FMU", "FMU tools",
                       "fmu_command", "FMU_COMMAND")
-    p = add_command(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 co-simulation "
-             "FMU and validate it with fmpy", "fdd-campaign fmu build --out servo.fmu", cmd_fmu)
+    p = add_command(fsubs, "build", "compile the servo-loop C sources into an FMI 2.0 "
+                    "co-simulation FMU and validate it with fmpy",
+                    "fdd-campaign fmu build --out servo.fmu", cmd_fmu)
     p.add_argument("--out", default="servo.fmu", help="FMU file to write (default servo.fmu)")
     p.add_argument("--surface", default="elevator", choices=SURFACES,
                    help="surface whose parameters are the FMU's start values")

@@ -109,4 +109,18 @@ __all__ = [
     "looks_like_path",
     "read_toml",
     "main",
+    # re-exported for callers that build or inspect configurations
+    "KIND_NAMES",
+    "FrozenTable",
+    "PRESET_DIR",
+    "PRESET_PACKAGE",
+    "FLIGHT_POINT_RANGES",
+    "OFC_FAULTS",
+    "SIGNED_FAULT_DIRECTIONS",
+    "SIGNED_FAULTS",
+    "LiquidJamRanges",
+    "OfcLiquidRanges",
+    "OfcSolidRanges",
+    "PlantVariables",
+    "RunawayRanges",
 ]

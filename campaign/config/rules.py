@@ -126,9 +126,9 @@ def derive_group_names(values: Mapping[str, Any]) -> dict[str, Any]:
     """*values* with a name for every ``[[group]]`` that has none (a new dict).
 
     The name is ``fault@manoeuvres`` (``all`` for every manoeuvre, else the manoeuvres
-    joined by ``+``; ``fault[variant]@…`` when the group sets a ``variant``), with ``#2``, ``#3``, … appended when it is already taken by a
-    name given in the file or derived before. Groups whose fault or manoeuvres are
-    invalid keep no name (the file has errors).
+    joined by ``+``; ``fault[variant]@…`` when the group sets a ``variant``), with ``#2``, ``#3``, …
+    appended when it is already taken by a name given in the file or derived before. Groups whose
+    fault or manoeuvres are invalid keep no name (the file has errors).
     """
     groups = values["groups"]
     taken = {g["name"] for g in groups if g["name"] is not None and is_ok(g["name"])}

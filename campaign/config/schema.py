@@ -68,8 +68,8 @@ class CampaignConfig:
     faults: FaultsSection = section(
         FaultsSection, "faults", "Fault sampling: onset uniform in [onset_min_s, duration_s − "
         "max(onset_before_end_s, the fault's detection budget)] (must not be empty; the "
-        "budget is 15 s for a disconnection, docs/physics.md §5); magnitudes uniform in the [low, high] "
-        "ranges of the sub-tables; the sign (direction) is always random.")
+        "budget is 15 s for a disconnection, docs/physics.md §5); magnitudes uniform in the [low, "
+        "high] ranges of the sub-tables; the sign (direction) is always random.")
     groups: tuple[GroupSpec, ...] = section(
         GroupSpec, "group", "Run groups (at least one). design = \"mc\": count runs per "
         "manoeuvre; design = \"grid\": one run per realistic case and manoeuvre, no count. "

@@ -500,8 +500,8 @@ class PlantSection:
         "see (the fault acts on it)", optional=True, choices=AIRCRAFT_SURFACES,
         default_doc="the left surface of `surface`: left_elevator or left_inboard_aileron",
         example="left_inboard_aileron")
-    turbulence: str = key("choice", "aircraft and jsbsim plants only: the Dryden turbulence the aircraft "
-                          "flies in (moderate, docs/physics.md §7; none: calm air, as the "
+    turbulence: str = key("choice", "aircraft and jsbsim plants only: the Dryden turbulence the "
+                          "aircraft flies in (moderate, docs/physics.md §7; none: calm air, as the "
                           "ADDSAFE runs of [CHEN] footnote 1)", "moderate",
                           choices=tuple(TURBULENCE_LEVELS))
     fmu: str | None = key("str", "FMI 2.0/3.0 co-simulation FMU that replaces the built-in "

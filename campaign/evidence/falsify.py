@@ -29,10 +29,11 @@ The strategy (:mod:`campaign.evidence.falsify_search`, chosen from what drives t
 a third of the budget screening (scrambled Sobol over every cell, fresh streams; with
 ``--against`` the campaign's worst runs first, as they ran), then races one CMA-ES on each of
 the two worst cells (the better goes on alone) in the unit cube of the continuous
-dimensions with the stream held at the best screened run's, and ends with a sweep of fresh streams at the best run found. Each batch is
-evaluated through the runner's pipeline (:func:`campaign.runner.evaluate_rows`) on the
-local workers or a dask cluster. Same seed → same runs and margins at any ``--jobs`` (the
-runs' results do not depend on how they are chunked, and the strategy sees margins only).
+dimensions with the stream held at the best screened run's, and ends with a sweep of fresh streams
+at the best run found. Each batch is evaluated through the runner's pipeline
+(:func:`campaign.runner.evaluate_rows`) on the local workers or a dask cluster. Same seed → same
+runs and margins at any ``--jobs`` (the runs' results do not depend on how they are chunked, and the
+strategy sees margins only).
 
 It is a search, not a proof: a search that finds no margin ≥ 1 bounds nothing; what it
 gives is the worst case found with the budget, beside the worst a plain Monte Carlo found.

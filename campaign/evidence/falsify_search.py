@@ -16,10 +16,10 @@ box; the random stream (sensor noise, turbulence, manoeuvre shape) changes a mar
 2. **Concentration** on the :data:`FOCUS_CELLS` cells of largest screened margin: one
    CMA-ES each (Hansen and Ostermeier 2001, the ``cma`` package, ask/tell; after
    :data:`RACE_GENERATIONS` generations only the one whose cell holds the largest margin
-   found goes on) in the unit cube of the continuous dimensions (bounds kept by ``cma``'s bound transform), started at the
-   cell's best screened run with step :data:`CMA_SIGMA0`, the stream held at that run's
-   stream (a fixed stream makes the objective deterministic, so the evolution path follows
-   the variables, not the noise). Each generation of every strategy is one batch of runs.
+   found goes on) in the unit cube of the continuous dimensions (bounds kept by ``cma``'s bound
+   transform), started at the cell's best screened run with step :data:`CMA_SIGMA0`, the stream held
+   at that run's stream (a fixed stream makes the objective deterministic, so the evolution path
+   follows the variables, not the noise). Each generation of every strategy is one batch of runs.
 3. **Stream sweep** (:data:`POLISH_SHARE`, and whatever the generations left): the best run
    found, repeated with fresh streams — the stream is searched where it pays, at the worst
    point, as a discrete draw, never as a continuous dimension.

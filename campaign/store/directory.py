@@ -955,8 +955,8 @@ class CampaignDir:
         return _read_optional(self.hazard_path)
 
     def write_certificate_levels(self, levels: pd.DataFrame, config_json: str, **extra) -> None:
-        """Write ``certificate-levels.parquet`` (:func:`campaign.evidence.certify.levels.level_table`);
-        *extra* goes into its metadata."""
+        """Write ``certificate-levels.parquet``
+        (:func:`campaign.evidence.certify.levels.level_table`); *extra* goes into its metadata."""
         self._write_recorded(self.certificate_levels_path, lambda: write_parquet(
             levels, self.certificate_levels_path, config_json, kind="certificate-levels",
             **extra))

@@ -1,6 +1,6 @@
 """Files written atomically and read back: Parquet with the campaign metadata in its schema,
-text, SHA-256 digests, the engine version (used by :class:`campaign.store.directory.CampaignDir`, which
-alone decides which files a campaign directory holds).
+text, SHA-256 digests, the engine version (used by :class:`campaign.store.directory.CampaignDir`,
+which alone decides which files a campaign directory holds).
 
 Every file is written under a temporary name next to its target and moved into place with
 ``os.replace``, so a crash or a kill leaves either the old file or the new one, never a torn

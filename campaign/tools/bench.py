@@ -64,8 +64,10 @@ def bench_runs(n_runs: int, duration_s: float, seed: int = 1) -> pd.DataFrame:
         "run_id": [f"bench-{i}" for i in range(n_runs)], "surface": "elevator",
         "manoeuvre": np.array(MANOEUVRES)[np.arange(n_runs) % len(MANOEUVRES)],
         "fault": fault,
-        "onset_s": np.where(fault == "none", np.nan, np.round(rng.uniform(5, duration_s - 10, n_runs), 2)),
-        "magnitude": np.where(fault == "runaway", 5.0, np.where(fault == "liquid_jam", 1.2, np.nan)),
+        "onset_s": np.where(fault == "none", np.nan,
+                            np.round(rng.uniform(5, duration_s - 10, n_runs), 2)),
+        "magnitude": np.where(fault == "runaway", 5.0,
+                              np.where(fault == "liquid_jam", 1.2, np.nan)),
         "freq_hz": np.nan,
         "alt_ft": rng.uniform(8000, 38000, n_runs), "vcas_kt": rng.uniform(160, 300, n_runs),
         "mass_t": rng.uniform(120, 233, n_runs), "cg_pct": rng.uniform(17, 41, n_runs),
@@ -398,7 +400,8 @@ def bench_campaign(campaign: str = "addsafe-mc", jobs: int = 2, reference_s_per_
 
 # ---- where the time of a campaign goes, stage by stage --------------------------------------
 #: What ``fdd-campaign run`` imports before its first run (timed in a fresh interpreter).
-RUN_IMPORTS = ("campaign.cli.commands", "campaign.runner", "campaign.evaluate", "campaign.store.directory",
+RUN_IMPORTS = ("campaign.cli.commands", "campaign.runner", "campaign.evaluate",
+               "campaign.store.directory",
                "detectors.registry", "scenarios.simulate", "pyarrow.parquet")
 
 
@@ -604,7 +607,8 @@ def arithmetic_floor(campaign: str, jobs: int, cost_s: float | None = None,
 
 def floor_ratios(floor: dict, whole: dict) -> dict:
     """*floor* (:func:`arithmetic_floor`) with the campaign's wall and CPU times and its ratios
-    to the floor (``ratio_wall``, ``ratio_cpu``) when *whole* (:func:`bench_campaign`'s figures) holds its warm run."""
+    to the floor (``ratio_wall``, ``ratio_cpu``) when *whole* (:func:`bench_campaign`'s figures)
+    holds its warm run."""
     if "wall_s_campaign" not in whole:
         return floor
     wall, cpu = whole["wall_s_campaign"], whole["cpu_s_campaign"]

@@ -19,9 +19,9 @@ aircraft sees u = u_0 + f_dis, with u_0 the deflection of the rod measurement an
 difference between the true (floating) deflection and it [deg]. W selects the monitored
 aileron: F(ρ) = B_b(ρ)·W is its column of B_b. The fault has no feed-through (H = 0), so H
 is perturbed to ε·E (Remark 4.1; ε = ``h_perturbation``, E the unit vector of the output
-``h_output``, or of e_out + c·e_p with c = ``h_rate_weight``) and the design is exact for that perturbed model (G_f̂f = I); on the
-unperturbed model the static gain from f_dis to f̂ is below one and tends to one as ε → 0
-(reported in the fitted state as ``static_gain_``).
+``h_output``, or of e_out + c·e_p with c = ``h_rate_weight``) and the design is exact for that
+perturbed model (G_f̂f = I); on the unperturbed model the static gain from f_dis to f̂ is below one
+and tends to one as ε → 0 (reported in the fitted state as ``static_gain_``).
 
 Scheduling ([CHEN] eq. 8–9): with the derivative scaling of :mod:`scenarios.aircraft.lpv`
 (Prandtl–Glauert factor PG(M), inertias proportional to the mass m), every entry of A_b and
@@ -34,8 +34,8 @@ realistic point of the [CHEN] Table-1 grid seen through the corners of the Table
 measurement errors widened by ``schedule_margin`` (2^r vertices).
 
 Uncertainty ([CHEN] eq. 25, Table 2): δ_g enters through M_g, realised in
-:mod:`detectors.synthesis.chen_global_uncertainty` from the ±5 % coefficient errors (d_cy, d_cl, d_cn
-scale whole rows of aerodynamic terms, docs/physics.md §6) and the ±10 % flight-data errors
+:mod:`detectors.synthesis.chen_global_uncertainty` from the ±5 % coefficient errors (d_cy, d_cl,
+d_cn scale whole rows of aerodynamic terms, docs/physics.md §6) and the ±10 % flight-data errors
 (they reach the model through the measured ρ and scale the same terms): three constant
 columns, the directions in which a side force, a rolling moment and a yawing moment
 accelerate the aircraft ([CHEN] §6: "δ_g mainly affects the channels of the roll rate and
@@ -104,8 +104,8 @@ INPUT_SURFACES = ("left_inboard_aileron", "right_inboard_aileron", "left_outboar
                   "right_outboard_aileron", "rudder")
 #: Signals.aircraft entry of the spoiler input (the last column of u_b) [deg].
 SPOILER = "spoiler"
-#: Uncertainty distributions of the H∞ objective (:func:`detectors.synthesis.chen_global_uncertainty.
-#: design_uncertainty_matrix`).
+#: Uncertainty distributions of the H∞ objective
+#: (:func:`detectors.synthesis.chen_global_uncertainty.design_uncertainty_matrix`).
 UNCERTAINTY_DESIGNS = ("table2", "fault-removed")
 
 
@@ -195,8 +195,8 @@ def envelope_schedules(schedule_margin: float) -> dict:
 
 
 def table2_error_bounds() -> np.ndarray:
-    """k_j of each driving signal of :data:`detectors.synthesis.chen_global_uncertainty.SIGNALS`: the
-    largest relative error of its term between the aircraft and the model scheduled on the
+    """k_j of each driving signal of :data:`detectors.synthesis.chen_global_uncertainty.SIGNALS`:
+    the largest relative error of its term between the aircraft and the model scheduled on the
     measured flight data, over every realistic [CHEN] Table-1 point and every corner of the
     Table-2 measurement errors, with the ±5 % coefficient errors on top ([CHEN] Table 2,
     docs/physics.md §6; :func:`detectors.synthesis.chen_global_uncertainty.error_bounds`)."""
@@ -506,8 +506,9 @@ class ChenGlobalEstimator(Detector):
 
     def uncertainty_response(self, signals: Signals) -> np.ndarray:
         """w_j [deg], shape (5, n_runs, n_steps): the response of f̂ to each driving signal of
-        the Table-2 uncertainty (:data:`detectors.synthesis.chen_global_uncertainty.SIGNALS`) through
-        the estimator's error dynamics; |f̂ − f| ≤ Σ_j k_j |w_j|, k_j = ``error_bounds_``."""
+        the Table-2 uncertainty (:data:`detectors.synthesis.chen_global_uncertainty.SIGNALS`)
+        through the estimator's error dynamics; |f̂ − f| ≤ Σ_j k_j |w_j|,
+        k_j = ``error_bounds_``."""
         return self._recursion(signals, bounds=True)[1]
 
     def _recursion(self, signals: Signals, bounds: bool):
@@ -515,7 +516,8 @@ class ChenGlobalEstimator(Detector):
         uncertainty filters of :mod:`detectors.synthesis.chen_global_uncertainty` run beside it."""
         import scipy.linalg
 
-        from ..synthesis.chen_global_uncertainty import signal_columns, signal_matrices, uncertainty_matrix
+        from ..synthesis.chen_global_uncertainty import (signal_columns, signal_matrices,
+                                                         uncertainty_matrix)
 
         lo, hi = self.schedule_box_
         rho = np.clip(scheduling_vector(signals.schedule), lo, hi)

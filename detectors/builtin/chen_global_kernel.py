@@ -2,10 +2,11 @@
 
 One window of steps [a, b) of the estimator of [CHEN] eq. 16 at the global level and, with
 *bounds*, of the five uncertainty filters of its activity bound
-(:mod:`detectors.synthesis.chen_global_uncertainty`), for a block of runs: the same operations in the
-same order as the NumPy loop of :meth:`detectors.builtin.chen_global.ChenGlobalEstimator._recursion`
-(its reference, selected by :func:`scenarios.compiled.use_engine`), so the two give the same
-bits (``tests/detectors_tests/test_detector_kernels.py``). A sum over a short axis is written out left to
+(:mod:`detectors.synthesis.chen_global_uncertainty`), for a block of runs: the same operations in
+the same order as the NumPy loop of
+:meth:`detectors.builtin.chen_global.ChenGlobalEstimator._recursion` (its reference, selected by
+:func:`scenarios.compiled.use_engine`), so the two give the same bits
+(``tests/detectors_tests/test_detector_kernels.py``). A sum over a short axis is written out left to
 right, as NumPy reduces it; no fused multiply-add (numba's default, no ``fastmath``).
 
 The NumPy loop spends about 30 array operations per step on arrays of a block's runs, and

@@ -24,8 +24,9 @@ empty, so L1(ρ) = −F·H† = 0 and L2 = H† = 1/(1 + ε): the design freedom
 and the LMIs certify the estimator's stability at the vertices and give γ, the H∞ bound from
 δ_l [mm/s] to the estimation error [mm] (γ = 1/K̃_min [s] for ε = 0). The estimator runs
 the model on the order and schedules it on its own state x̂ (sign ẋ = sign(u − x̂), eq. 14,
-and σ, D on u − x̂), discretised at Ts with K̃ frozen over a period by the bilinear transform of the model
-(:func:`detectors.synthesis.chen_local_model.tustin_pole`; stable for every point of the polytope)::
+and σ, D on u − x̂), discretised at Ts with K̃ frozen over a period by the bilinear transform of the
+model (:func:`detectors.synthesis.chen_local_model.tustin_pole`; stable for every point
+of the polytope)::
 
     x̂_{k+1} = x̂*_k + (x̂_k − x̂*_k)·φ(K̃_k − L1),   x̂*_k = (K̃_k·u_{k−d} − L1·y_k)/(K̃_k − L1),
     f̂_k = L2·(y_k − x̂_k),

@@ -18,9 +18,9 @@ directions ([VANEK] §5: "successive input directions from the B matrix"):
   ``decouple_gusts``, the gust sideslip's direction e_β and, with ``aoa_sensor``, the gust
   angle of attack's e_α (the β and α outputs are the air-relative angles of the vanes:
   :func:`gust_sideslip_direction`, :func:`gust_aoa_direction`). With α (C = I), S* is the
-  span of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope (tests/detectors_tests/test_geometric.py).
-  Without α, e_α is decoupled only by the unison model, whose S* holds the
-  short-period directions;
+  span of L2 itself: dimension 4, S* ∩ L1 = 0 over the envelope
+  (tests/detectors_tests/test_geometric.py). Without α, e_α is decoupled only by the unison model,
+  whose S* holds the short-period directions;
   on the aircraft's layout S* (dimension 3) does not hold it, and it cannot be added: S*
   holding the elevator, the rudder, e_β and e_α then has dimension 5 and contains L1
   (docs/vanek-geometric.md).
@@ -382,7 +382,9 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
     for theta in corners:
         A, B = model(*theta)
         L1, L2 = _fault_columns(A, B, decouple_gusts, aoa_sensor)
-        As.append(A); L1s.append(L1); L2s.append(L2)
+        As.append(A)
+        L1s.append(L1)
+        L2s.append(L2)
     fam = geo.design_lpv(As, C, L1s, L2s, decay=decay, radius=radius, names1=[FAULT_SURFACE])
 
     def at_common(*theta) -> tuple[geo.ResidualGenerator, _Filter]:
@@ -396,8 +398,9 @@ def design_affine(ts: float, *, decouple_gusts: bool = True, decay: float = 0.5,
 
 def one_step_design(point: dict, ts: float, design_model: str = "unison",
                     aoa_sensor: bool = False):
-    """The one-step H∞ FDI filter of [VANEK] §3 (:func:`detectors.synthesis.vanek_hinf.one_step_filter`)
-    at *point*, and its discretisation as a :class:`_Filter` on the inputs of
+    """The one-step H∞ FDI filter of [VANEK] §3
+    (:func:`detectors.synthesis.vanek_hinf.one_step_filter`) at *point*, and its discretisation as a
+    :class:`_Filter` on the inputs of
     :meth:`VanekGeometric.filter_inputs`. The design model leaves out the pitch attitude
     (a pure integrator with the speed held, which the filtering problem cannot have); the
     filter ignores the measured θ. The gust sideslip reaches the β output directly (the
@@ -435,8 +438,10 @@ def one_step_design(point: dict, ts: float, design_model: str = "unison",
     # inputs [u_known; outputs without θ] → [u_known; outputs] (θ column zero)
     cols = list(range(len(known))) + [len(known) + outputs.index(o) for o in outs]
     n_in = len(known) + len(outputs)
-    Bfull = np.zeros((Bd.shape[0], n_in)); Bfull[:, cols] = Bd
-    Dfull = np.zeros((Dd.shape[0], n_in)); Dfull[:, cols] = Dd
+    Bfull = np.zeros((Bd.shape[0], n_in))
+    Bfull[:, cols] = Bd
+    Dfull = np.zeros((Dd.shape[0], n_in))
+    Dfull[:, cols] = Dd
     return f, _Filter(Ad=Ad, Bd=Bfull, Cd=Cd, Dd=Dfull, c=np.ones(1))
 
 
@@ -478,8 +483,8 @@ class VanekGeometric(Detector):
         outputs it was fitted with (``aoa_sensor_``).
     adaptive : bool
         With α read, the threshold of the lti and lpv variants is τ0 + b(t), b the model-error
-        allowance of :mod:`detectors.synthesis.vanek_model_error` (default True); False: constant τ0. A
-        fitted detector keeps what it was fitted with (``adaptive_``; absent: constant).
+        allowance of :mod:`detectors.synthesis.vanek_model_error` (default True); False: constant
+        τ0. A fitted detector keeps what it was fitted with (``adaptive_``; absent: constant).
     design_model : str
         Surface layout of the design model (:data:`DESIGN_MODELS`): ``"aircraft"`` (default,
         the simulated aircraft's, elevator arm included) or ``"unison"`` (the elevators in
@@ -740,8 +745,10 @@ class VanekGeometric(Detector):
         out = {}
         for variant in self._variant_list():
             fl = self._filters(variant, signals)
-            Ad = np.stack([f.Ad for f in fl]); Bd = np.stack([f.Bd for f in fl])
-            cC = np.stack([f.c @ f.Cd for f in fl]); cD = np.stack([f.c @ f.Dd for f in fl])
+            Ad = np.stack([f.Ad for f in fl])
+            Bd = np.stack([f.Bd for f in fl])
+            cC = np.stack([f.c @ f.Cd for f in fl])
+            cD = np.stack([f.c @ f.Dd for f in fl])
             bv = np.einsum("nij,ntj->nti", Bd, v)             # (n, T, nw)
             w = np.zeros((n, Ad.shape[1]))
             ws = np.empty((n, T, Ad.shape[1]))
@@ -786,8 +793,8 @@ class VanekGeometric(Detector):
         return np.concatenate([x, np.stack(cols, axis=2)], axis=2)
 
     def _error_matrices(self, variant: str, point: dict, mach=None, qbar_pa=None) -> np.ndarray:
-        """:func:`detectors.synthesis.vanek_model_error.error_matrices` of *variant*'s filter for a run
-        measured at *point* (keywords ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct``; the
+        """:func:`detectors.synthesis.vanek_model_error.error_matrices` of *variant*'s filter for a
+        run measured at *point* (keywords ``vcas_kt``, ``alt_ft``, ``mass_t``, ``cg_pct``; the
         measured Mach and q̄ the ``lpv`` filter is designed at, when given): about the model
         the filter was designed on, the measured point's (``lpv``) or :data:`NOMINAL`'s
         (``lti``). Not cached: every run has its own measured point, so a cache would only

@@ -58,8 +58,8 @@ CHANNELS = ("cy", "cl", "cn")
 #: Driving signals of the bound: (channel, part); part "all", "static" (β and controls, scaled
 #: by q̄·PG/m) or "rate" (p and r, scaled by q̄·PG/(m·V)).
 SIGNALS = (("cy", "all"), ("cl", "static"), ("cl", "rate"), ("cn", "static"), ("cn", "rate"))
-#: Components of the scheduling vector (:func:`detectors.builtin.chen_global.scheduling_vector`) that
-#: scale each part: static terms q̄·PG/m; rate terms q̄·PG/(m·V); the side-force row carries
+#: Components of the scheduling vector (:func:`detectors.builtin.chen_global.scheduling_vector`)
+#: that scale each part: static terms q̄·PG/m; rate terms q̄·PG/(m·V); the side-force row carries
 #: Yβ, Yδ (q̄·PG/(m·V)), Yp, Yr (q̄·PG/(m·V²)) and the gravity term g/V.
 SCHEDULE_COMPONENTS = {"static": (0,), "rate": (1,), "all": (1, 2, 3)}
 

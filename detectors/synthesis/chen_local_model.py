@@ -359,7 +359,8 @@ def fit_local_model(act: ActuatorParams, ts: float,
                         max_nfev=settings.max_nfev, x_scale="jac")
     err = sol.fun
     return LocalModelFit(
-        theta=sol.x.reshape(3, -1), e_sat_mm=e_sat, kappa=kappa, rms_mm=float(np.sqrt(np.mean(err ** 2))),
+        theta=sol.x.reshape(3, -1), e_sat_mm=e_sat, kappa=kappa,
+        rms_mm=float(np.sqrt(np.mean(err ** 2))),
         max_abs_mm=float(np.max(np.abs(err))), rms_initial_mm=float(np.sqrt(np.mean(r0 ** 2))),
         rho_min=rho.min(axis=0), rho_max=rho.max(axis=0),
         x_min_mm=float(x_true.min()), x_max_mm=float(x_true.max()),

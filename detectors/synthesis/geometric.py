@@ -108,7 +108,8 @@ def subspace_sum(*Vs, rtol: float = RTOL) -> np.ndarray:
 
 def intersection(V, W, rtol: float = RTOL) -> np.ndarray:
     """Orthonormal basis of Im V ∩ Im W: the complement of (Im V)⊥ + (Im W)⊥."""
-    V = np.atleast_2d(np.asarray(V, float)); W = np.atleast_2d(np.asarray(W, float))
+    V = np.atleast_2d(np.asarray(V, float))
+    W = np.atleast_2d(np.asarray(W, float))
     n = V.shape[0]
     if V.shape[1] == 0 or W.shape[1] == 0:
         return np.zeros((n, 0))
@@ -168,7 +169,8 @@ def friend(A, C, S, rtol: float = RTOL) -> np.ndarray:
     Ĝ = Sc X with Sc spanning S⊥: solves X (C S) = −Scᵀ A S in the least-squares sense and
     checks the invariance (raises :class:`GeometricDesignError` when S is not
     (C, A)-invariant)."""
-    A = np.atleast_2d(np.asarray(A, float)); C = np.atleast_2d(np.asarray(C, float))
+    A = np.atleast_2d(np.asarray(A, float))
+    C = np.atleast_2d(np.asarray(C, float))
     Sc = complement(S, rtol)
     if S.shape[1] == 0 or Sc.shape[1] == 0:
         return np.zeros((A.shape[0], C.shape[0]))
@@ -222,8 +224,8 @@ class ResidualGenerator:
         Acl = np.block([[A, np.zeros((n, nw))], [-self.G @ C, self.N]])
         Bcl = np.vstack([E, -self.G @ D])
         Ccl = np.hstack([-self.H @ C, self.M])
-        I = np.eye(n + nw)
-        return np.array([Ccl @ np.linalg.solve(1j * w * I - Acl, Bcl) - self.H @ D
+        eye = np.eye(n + nw)
+        return np.array([Ccl @ np.linalg.solve(1j * w * eye - Acl, Bcl) - self.H @ D
                          for w in omega])
 
 
@@ -243,7 +245,8 @@ def _lmi_problem(k: int, q: int, decay: float, radius: float):
     parameters (DPP: compiled once per shape and region, re-solved with new values)."""
     import cvxpy as cp
 
-    A_hat = cp.Parameter((k, k)); M = cp.Parameter((q, k))
+    A_hat = cp.Parameter((k, k))
+    M = cp.Parameter((q, k))
     X = cp.Variable((k, k), symmetric=True)
     K = cp.Variable((k, q))
     cons = [X >> np.eye(k)] + _lmi_region(X, K, A_hat, M, decay, radius)
@@ -259,7 +262,8 @@ def injection_lmi(A_hat, M, decay: float, radius: float, solver: str = "CLARABEL
     |λ| ≤ *radius* [rad/s] (module docstring), minimising ‖K‖_F; N = Â + G̃ M then has its
     eigenvalues in {Re λ ≤ −decay, |λ| ≤ radius}. Raises :class:`GeometricDesignError` when
     infeasible ((M, Â) not detectable, or a region too tight)."""
-    A_hat = np.atleast_2d(np.asarray(A_hat, float)); M = np.atleast_2d(np.asarray(M, float))
+    A_hat = np.atleast_2d(np.asarray(A_hat, float))
+    M = np.atleast_2d(np.asarray(M, float))
     k, q = A_hat.shape[0], M.shape[0]
     if k == 0:
         return np.zeros((0, q))
@@ -393,10 +397,12 @@ def design(A, B, C, L1, L2, *, decay: float = 1.0, radius: float = 20.0, rtol: f
     *names1*: names of the columns of L1 for the error message when S* ∩ L1 ≠ 0.
     Raises :class:`GeometricDesignError` when the problem has no solution.
     """
-    A = np.atleast_2d(np.asarray(A, float)); C = np.atleast_2d(np.asarray(C, float))
+    A = np.atleast_2d(np.asarray(A, float))
+    C = np.atleast_2d(np.asarray(C, float))
     n = A.shape[0]
     B = np.asarray(B, float).reshape(n, -1)
-    L1 = np.asarray(L1, float).reshape(n, -1); L2 = np.asarray(L2, float).reshape(n, -1)
+    L1 = np.asarray(L1, float).reshape(n, -1)
+    L2 = np.asarray(L2, float).reshape(n, -1)
     S, P, H = _subspaces(A, C, L1, L2, rtol, names1)
     A_hat = P @ (A + friend(A, C, S, rtol) @ C) @ P.T
     G_tilde = injection_lmi(A_hat, H @ C @ P.T, decay, radius, solver)

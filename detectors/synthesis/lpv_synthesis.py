@@ -69,7 +69,8 @@ def _mat(a, rows: int | None = None, cols: int | None = None, name: str = "") ->
     m = np.atleast_2d(np.asarray(a, dtype=float))
     if rows is not None and m.shape[0] != rows or cols is not None and m.shape[1] != cols:
         raise ValueError(f"vertex matrix {name} has shape {m.shape}, expected "
-                         f"({rows if rows is not None else '·'}, {cols if cols is not None else '·'})")
+                         f"({rows if rows is not None else '·'}, "
+                         f"{cols if cols is not None else '·'})")
     if not np.isfinite(m).all():
         raise ValueError(f"vertex matrix {name} has non-finite entries")
     return m

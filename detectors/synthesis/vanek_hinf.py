@@ -1,7 +1,7 @@
 """H∞ post-filter of the geometric residual by model matching ([VANEK] §3, Fig. 1).
 
-The geometric filter's residual r (:mod:`detectors.synthesis.geometric`) is decoupled from L2 exactly
-but carries the sensor noise through its direct feed-through and its dynamics. A post-filter
+The geometric filter's residual r (:mod:`detectors.synthesis.geometric`) is decoupled from L2
+exactly but carries the sensor noise through its direct feed-through and its dynamics. A post-filter
 Q (one output, the fault estimate f̂ = Q r) is synthesised so that f̂ tracks the fault
 through an ideal band-limited response T_id = ω_id/(s + ω_id) ([VANEK] §5: "fault tracking
 is achieved only in a limited frequency range described by T_id") while the noise is
@@ -129,7 +129,8 @@ def residualise(A, B, C, D, max_pole: float):
     if n_slow == A.shape[0]:
         return A, B, C, D
     Bt, Ct = Z.T @ B, C @ Z
-    s = slice(0, n_slow); f = slice(n_slow, None)
+    s = slice(0, n_slow)
+    f = slice(n_slow, None)
     T22_Bf = np.linalg.solve(T[f, f], Bt[f])
     return (T[s, s], Bt[s] - T[s, f] @ T22_Bf, Ct[:, s],
             D - Ct[:, f] @ T22_Bf)

@@ -548,7 +548,8 @@ def render_report(*, meta: dict, summary: pd.DataFrame, gate: GateResult | None,
     all_requirements : the checks of ``fdd-campaign gate DIR --all-requirements`` (every
         limit of the campaign file); the overview's and the detail's marks (None: none)
     detectors : the order of the detectors on the whole page (default: the summary's)
-    runs : one row per run × detector: result columns (:data:`reports.scoring.metrics.RESULT_COLUMNS`)
+    runs : one row per run × detector: result columns
+    (:data:`reports.scoring.metrics.RESULT_COLUMNS`)
         and the flight point ``alt_ft, vcas_kt, mass_t, cg_pct, onset_s``
     figures : embedded figures, shown in :data:`SECTIONS` order, grouped by ``group``
     notes : sentences on how the figures were made (sampling rules, re-simulation checks)

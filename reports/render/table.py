@@ -26,7 +26,8 @@ def percent_text(x, missing: str = "-") -> str:
 
 
 def _dtp(row) -> str:
-    parts = [number_text(row.dtp_min, ".4g"), number_text(row.dtp_mean, ".4g"), number_text(row.dtp_max, ".4g")]
+    parts = [number_text(row.dtp_min, ".4g"), number_text(row.dtp_mean, ".4g"),
+             number_text(row.dtp_max, ".4g")]
     return "-" if parts == ["-", "-", "-"] else "/".join(parts)
 
 
@@ -83,7 +84,8 @@ def format_table(summary: pd.DataFrame) -> str:
             header = ["Fault scenario", "n", "err", "FA (%)", "FA ≤95 (%)", "MD (%)",
                       "MD ≤95 (%)", "late", "MD in T (%)", "Min/Mean/Max DTP", "DTP≤1 (%)"]
             body = [[_fault_label(r.fault), str(int(r.n_runs)), str(int(r.n_errors)),
-                     percent_text(r.fa_rate), percent_text(r.fa_upper95), percent_text(r.md_rate), percent_text(r.md_upper95),
+                     percent_text(r.fa_rate), percent_text(r.fa_upper95), percent_text(r.md_rate),
+                     percent_text(r.md_upper95),
                      late_text(r), percent_text(getattr(r, "md_req_rate", math.nan)), _dtp(r),
                      number_text(100 * r.dtp_within, ".1f")]
                     for r in faults.itertuples(index=False)]
@@ -163,7 +165,8 @@ def format_paper_table(summary: pd.DataFrame, reference: str,
             fa_free = (f"{percent_text(free.iloc[0].fa_rate)} (n={int(free.iloc[0].n_runs)})"
                        if len(free) else "-")
             body.append([fault, f"ours: {name}", f"{fa_free} / {percent_text(r.fa_rate)}",
-                         percent_text(r.md_rate), percent_text(r.get("md_req_rate", math.nan)), _delays(r),
+                         percent_text(r.md_rate), percent_text(r.get("md_req_rate", math.nan)),
+                         _delays(r),
                          _dtp(r), _sci(r.get("est_err_mean", math.nan)),
                          _sci(r.get("est_err_var", math.nan))])
         else:

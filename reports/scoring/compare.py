@@ -369,9 +369,11 @@ def format_compare(table: pd.DataFrame, *, alpha: float = ALPHA,
     for r in table.itertuples(index=False):
         n = f"{'-' if pd.isna(r.n_a) else r.n_a}/{'-' if pd.isna(r.n_b) else r.n_b}"
         body.append([r.detector, r.fault, r.manoeuvre, n,
-                     f"{number_text(100 * r.fa_rate_a, '.2f')}→{number_text(100 * r.fa_rate_b, '.2f')}",
+                     f"{number_text(100 * r.fa_rate_a, '.2f')}→"
+                     f"{number_text(100 * r.fa_rate_b, '.2f')}",
                      number_text(r.fa_p, '.2g'),
-                     f"{number_text(100 * r.md_rate_a, '.2f')}→{number_text(100 * r.md_rate_b, '.2f')}"
+                     f"{number_text(100 * r.md_rate_a, '.2f')}→"
+                     f"{number_text(100 * r.md_rate_b, '.2f')}"
                      if r.fault != FAULT_FREE else "",
                      number_text(r.md_p, '.2g'),
                      f"{number_text(r.dtp_median_a, '.4g')}→{number_text(r.dtp_median_b, '.4g')}"

@@ -42,10 +42,12 @@ class StabilityDerivatives:
     Cz_alpha: float = param("1/rad", "Etkin & Reid B747 longitudinal table (40 kft, M 0.8)", "Czα")
     Cz_q: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Czq")
     Cz_alphadot: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Czα̇")
-    Cm_alpha: float = param("1/rad", "Etkin & Reid B747 longitudinal table (CG at cg_ref_pct)", "Cmα")
+    Cm_alpha: float = param("1/rad", "Etkin & Reid B747 longitudinal table (CG at cg_ref_pct)",
+                            "Cmα")
     Cm_q: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Cmq")
     Cm_alphadot: float = param("1/rad", "Etkin & Reid B747 longitudinal table", "Cmα̇")
-    Cz_de: float = param("1/rad", "Etkin & Reid B747 control derivatives (CLδe = 0.3648)", "Czδe = −CLδe")
+    Cz_de: float = param("1/rad", "Etkin & Reid B747 control derivatives (CLδe = 0.3648)",
+                         "Czδe = −CLδe")
     Cm_de: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cmδe")
     Cy_beta: float = param("1/rad", "Etkin & Reid B747 lateral table (40 kft, M 0.8)", "Cyβ")
     Cl_beta: float = param("1/rad", "Etkin & Reid B747 lateral table", "Clβ")
@@ -56,7 +58,8 @@ class StabilityDerivatives:
     Cy_r: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cyr")
     Cl_r: float = param("1/rad", "Etkin & Reid B747 lateral table", "Clr")
     Cn_r: float = param("1/rad", "Etkin & Reid B747 lateral table", "Cnr")
-    Cl_da: float = param("1/rad", "Etkin & Reid B747 control derivatives (δa = antisymmetric aileron angle)", "Clδa")
+    Cl_da: float = param("1/rad", "Etkin & Reid B747 control derivatives (δa = antisymmetric "
+                                  "aileron angle)", "Clδa")
     Cn_da: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cnδa")
     Cy_dr: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Cyδr")
     Cl_dr: float = param("1/rad", "Etkin & Reid B747 control derivatives", "Clδr")
@@ -206,7 +209,8 @@ class SurfaceLayout:
         "-", "est. 0: the first-order drag change of a deflected elevator is the tail's "
         "induced-drag slope 2·C_Lt·C_Lδt/(π·e·A_t), under 4 % of its lift slope at the "
         "small trimmed tail loads of §6 (|C_Lt| ≤ 0.2, A_t ≈ 5, e ≈ 0.85); acting at the "
-        "same arm, its yawing moment is under 4 % of its rolling moment", "elevator yawing moment per unit of its rolling moment")
+        "same arm, its yawing moment is under 4 % of its rolling moment",
+        "elevator yawing moment per unit of its rolling moment")
 
 
 LAYOUT = SurfaceLayout(
@@ -339,12 +343,15 @@ class PilotParams:
     """
 
     start_s: tuple[float, float] = param("s", "est.", "time of the first input")
-    nose_up_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 nose_up)", "load-factor step")
+    nose_up_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 nose_up)",
+                                           "load-factor step")
     nose_up_hold_s: tuple[float, float] = param("s", "docs/physics.md §7", "time held")
-    aoa_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 aoa_protection: slow)", "pull")
+    aoa_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 aoa_protection: slow)",
+                                       "pull")
     aoa_ramp_s: tuple[float, float] = param("s", "est.", "ramp in and out")
     aoa_hold_s: tuple[float, float] = param("s", "est.", "time held")
-    pitch_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 pitch_protection)", "pull/push")
+    pitch_g: tuple[float, float] = param("g", "est. (docs/physics.md §7 pitch_protection)",
+                                         "pull/push")
     pitch_hold_s: tuple[float, float] = param("s", "est.", "time held at each peak")
     pitch_gap_s: float = param("s", "est.", "pause between the pull and the push")
     yaw_beta_deg: tuple[float, float] = param("deg", "est. (docs/physics.md §7 yaw_angle_mode)",

@@ -266,7 +266,8 @@ def integrate_block(loops, mon, x, delta, trim_rad, trim_deg, lo_deg, hi_deg, pl
         rmv[i] = plant[base + i, P_R] / _MM_PER_M
     _pow_scalar(loops, rmv, three, rm3, n, scratch)
     for k in range(T):
-        if any_jam:   # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+        # an "offset" solid jam: the rod jumps at its onset (faults.jam_onset_position)
+        if any_jam:
             for i in range(n):
                 j = base + i
                 if k_jam[i] == k and jam_offset[i] != 0.0:

@@ -142,7 +142,8 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
                            mach=flight_true["mach"], **plant_draws(f)) for a in acts]
     limits = [authority_limits(pl, a.replace(order_load_limit=law_params.hinge_load_limit))
               for pl, a in zip(plants, acts)]
-    lo = np.array([lim[0] for lim in limits]); hi = np.array([lim[1] for lim in limits])
+    lo = np.array([lim[0] for lim in limits])
+    hi = np.array([lim[1] for lim in limits])
     trim = np.zeros((len(acts), n))
     e_trim = np.array([elevator_trim_deg(a, c, ELEVATOR)
                        for a, c in zip(flight_true["alpha_deg"], f["cg_pct"])])
@@ -172,8 +173,12 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
 
     n_s = len(acts)
     sig = _aircraft_noise_sigmas(aircraft_sensors)
-    com_bias = np.empty((n_s, n)); com_scale = np.empty((n_s, n)); com_noise = np.empty((n_s, n, T))
-    mon = np.empty((3, n)); mon_noise = np.empty((3, n, T)); ac_noise = np.empty((len(sig), n, T))
+    com_bias = np.empty((n_s, n))
+    com_scale = np.empty((n_s, n))
+    com_noise = np.empty((n_s, n, T))
+    mon = np.empty((3, n))
+    mon_noise = np.empty((3, n, T))
+    ac_noise = np.empty((len(sig), n, T))
     others = [j for j in range(n_s) if j != m_idx]
     for i, g in enumerate(gens):
         d = [x[0] for x in sensor_draws([g[1]], T, sensors, act_m.dP_Pa)]   # run i's own stream
@@ -195,7 +200,8 @@ def prepare_aircraft(runs: pd.DataFrame, *, ts: float = TS_S, sensors: SensorPar
         lo_deg=lo, hi_deg=hi, trim_deg=trim,
         step_matrix=np.concatenate([phi, gam, ramp], axis=2),
         load_matrix=np.concatenate([model.C, model.D], axis=2),
-        gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c, gust_alpha=gust_alpha,
+        gains=gains, law_params=law_params, nz_c=nz_c, p_c=p_c, beta_c=beta_c,
+        gust_alpha=gust_alpha,
         gust_beta=gust_beta, com_bias=com_bias.ravel(), com_scale=com_scale.ravel(),
         com_noise=com_noise.reshape(n_s * n, T), mon_bias=mon[0], mon_scale=mon[1],
         mon_noise=mon_noise[0], surf_bias=mon[2], surf_noise=mon_noise[1],
@@ -218,7 +224,8 @@ class AircraftTrajectory:
     rods: np.ndarray          # (7, n, T) COM acquisitions of every surface [mm]
     surfaces: np.ndarray      # (7, n, T) true deflections [rad]
     states: np.ndarray        # (7, n, T) aircraft perturbation state (lpv.STATES)
-    sensors: np.ndarray       # (9, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    # (9, n, T) aircraft sensors (AIRCRAFT_SIGNAL_UNITS order; SI: rad, rad/s, g)
+    sensors: np.ndarray
     spoiler: np.ndarray       # (n, T) spoiler input held over [t_k, t_k+1) [rad]
 
 
@@ -264,10 +271,15 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
     flags = np.array([fa.com_add is not None, fa.com_osc is not None, fa.cur_add is not None,
                       fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
                       bool((fa.k_disc < NEVER).any())])
-    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T))
-    u_rec = np.empty((n, T)); sp_rec = np.empty((n, T))
+    rods = np.empty((n_s, n, T))
+    surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T))
+    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    u_rec = np.empty((n, T))
+    sp_rec = np.empty((n, T))
     kernel.integrate_block(
         kernel.LOOPS, m, x, delta, c(trim_rad), c(p.trim_deg), c(p.lo_deg), c(p.hi_deg),
         kernels.plant_matrix(pl), c(_PITCH), c(_ROLL), c(_YAW), c(_ELEVATORS, np.bool_),
@@ -384,9 +396,14 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
     trim_rad = np.radians(p.trim_deg)
     r_flat = pl.r_mm
 
-    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+    rods = np.empty((n_s, n, T))
+    surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T))
+    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    u_rec = np.empty((n, T))
     sp_rec = np.empty((n, T))
 
     x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
@@ -422,8 +439,10 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         meas = {"p": xa[:, lpv.IP] + nse[0, :, k], "q": xa[:, lpv.IQ] + nse[1, :, k],
                 "r": xa[:, lpv.IR] + nse[2, :, k], "phi": xa[:, lpv.IPHI] + nse[3, :, k],
                 "theta": theta0 + xa[:, lpv.ITH] + nse[4, :, k], "dnz": loads[0] + nse[5, :, k],
-                "ny": loads[1] + nse[6, :, k], "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
-                "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}   # air-relative
+                "ny": loads[1] + nse[6, :, k],
+                "beta": xa[:, lpv.IB] + p.gust_beta[:, k] + nse[7, :, k],
+                # air-relative
+                "alpha": theta0 + xa[:, lpv.IA] + p.gust_alpha[:, k] + nse[8, :, k]}
         # servo-loops: COM acquisitions at t_k
         y, y_hold, meas["de"] = com_acquisition(x, k, p, pm, sensors, y_hold)
         # laws and surface orders
@@ -433,11 +452,15 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
         # servo-loops: currents
         i_new, i_app = servo_currents(order, y, i_prev, k, p, pm)
         # record t_k
-        rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
+        rods[:, :, k] = y.reshape(n_s, n)
+        surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = xa.T
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
                              1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
-        xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        xs[:, k] = x[mon]
+        icmd[:, k] = i_new[mon]
+        iapp[:, k] = i_app[mon]
+        u_rec[:, k] = u_free_m
         sp_rec[:, k] = da_prev
         # advance the surfaces over [t_k, t_k+1)
         x_next, delta_next = advance_servos(x, delta, i_app, loaded, k, p, any_jam, any_disc)

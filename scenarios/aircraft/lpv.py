@@ -204,7 +204,8 @@ def control_derivatives(mach, cg_pct, aero=0.0, layout: SurfaceLayout = LAYOUT,
 
 @dataclass(frozen=True)
 class ContinuousModel:
-    """ẋ = A·x + B·u, Δn_z, n_y = C·x + D·u, batched (A (n,7,7), B (n,7,10), C (n,2,7), D (n,2,10))."""
+    """ẋ = A·x + B·u, Δn_z, n_y = C·x + D·u, batched (A (n,7,7), B (n,7,10), C
+    (n,2,7), D (n,2,10))."""
 
     A: np.ndarray
     B: np.ndarray
@@ -226,7 +227,8 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes, controls:
     hc, hb = c / (2.0 * V), b / (2.0 * V)
     ctl = {k: np.broadcast_to(v, (n, N_INPUTS)) for k, v in controls.items()}
 
-    E = np.zeros((n, N_STATES, N_STATES)); F = np.zeros_like(E)
+    E = np.zeros((n, N_STATES, N_STATES))
+    F = np.zeros_like(E)
     G = np.zeros((n, N_STATES, N_INPUTS))
     # longitudinal
     E[:, IA, IA] = m * V - qS * hc * d["Cz_alphadot"]
@@ -263,7 +265,8 @@ def continuous_model(qbar_pa, tas_ms, derivs: dict, frames: Airframes, controls:
 
     A = np.linalg.solve(E, F)
     B = np.linalg.solve(E, G)
-    C = np.zeros((n, 2, N_STATES)); D = np.zeros((n, 2, N_INPUTS))
+    C = np.zeros((n, 2, N_STATES))
+    D = np.zeros((n, 2, N_INPUTS))
     k = (V / g)[:, None]
     C[:, 0, :] = -k * A[:, IA, :]
     C[:, 0, IQ] += k[:, 0]

@@ -105,7 +105,8 @@ def aircraft_model(name: str) -> AircraftModel:
     if name not in AIRCRAFT:
         from ..catalog import suggest
 
-        raise JsbsimAircraftError(f"unknown JSBSim aircraft {name!r}{suggest(name, list(AIRCRAFT))}; "
+        raise JsbsimAircraftError("unknown JSBSim aircraft "
+                                  f"{name!r}{suggest(name, list(AIRCRAFT))}; "
                          f"allowed: {', '.join(AIRCRAFT)}")
     return AIRCRAFT[name]
 
@@ -247,7 +248,8 @@ class Fdm:
         re, ra, rr = self.model.ranges_rad
         self._cmd[0].set_double_value(elevator / re)
         self._cmd[1].set_double_value(aileron / ra)
-        yd = self._r_aero.get_double_value() if (self.model.yaw_damper and self.mach > 0.11) else 0.0
+        yd = (self._r_aero.get_double_value() if (self.model.yaw_damper and self.mach > 0.11)
+              else 0.0)
         self._cmd[2].set_double_value(rudder / rr - yd)
 
     def set_gust_ned(self, north: float, east: float, down: float) -> None:
@@ -321,7 +323,8 @@ def design_model(fdms: list[Fdm]) -> lpv.ContinuousModel:
     p, r rows (a gust angle acts on the aerodynamics as the air-relative angle does, est.:
     JSBSim's gust enters as wind), and the load factors of lpv.continuous_model."""
     n = len(fdms)
-    A = np.zeros((n, lpv.N_STATES, lpv.N_STATES)); B = np.zeros((n, lpv.N_STATES, lpv.N_INPUTS))
+    A = np.zeros((n, lpv.N_STATES, lpv.N_STATES))
+    B = np.zeros((n, lpv.N_STATES, lpv.N_INPUTS))
     V = np.empty(n)
     for i, f in enumerate(fdms):
         xi = [f.lin_x.index(s) for s in _LIN_STATES]
@@ -335,7 +338,8 @@ def design_model(fdms: list[Fdm]) -> lpv.ContinuousModel:
         B[i, [lpv.IA, lpv.IQ], lpv.I_GUST_ALPHA] = a[[lpv.IA, lpv.IQ], lpv.IA]
         B[i, [lpv.IB, lpv.IP, lpv.IR], lpv.I_GUST_BETA] = a[[lpv.IB, lpv.IP, lpv.IR], lpv.IB]
         V[i] = f.tas_ms
-    C = np.zeros((n, 2, lpv.N_STATES)); D = np.zeros((n, 2, lpv.N_INPUTS))
+    C = np.zeros((n, 2, lpv.N_STATES))
+    D = np.zeros((n, 2, lpv.N_INPUTS))
     k = (V / G0_MS2)[:, None]
     C[:, 0, :] = -k * A[:, lpv.IA, :]
     C[:, 0, lpv.IQ] += k[:, 0]

@@ -180,9 +180,14 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     fdms = jp.fdms
     W = F.SURFACE_MAP
 
-    rods = np.empty((n_s, n, T)); surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T)); meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T)); icmd = np.empty((n, T)); iapp = np.empty((n, T)); u_rec = np.empty((n, T))
+    rods = np.empty((n_s, n, T))
+    surf = np.empty((n_s, n, T))
+    states = np.empty((lpv.N_STATES, n, T))
+    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
+    xs = np.empty((n, T))
+    icmd = np.empty((n, T))
+    iapp = np.empty((n, T))
+    u_rec = np.empty((n, T))
 
     x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
     delta = np.arcsin(x / r_flat)
@@ -201,7 +206,8 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     theta0 = np.array([f.theta0 for f in fdms])
     vals = np.array([f.read() for f in fdms]).T          # (len(READ), n) at t_0
     gusty = bool(jp.gusts.any())
-    vc0 = np.array([f.vc0_kt for f in fdms]); thr0 = np.array([f.throttle0 for f in fdms])
+    vc0 = np.array([f.vc0_kt for f in fdms])
+    thr0 = np.array([f.throttle0 for f in fdms])
     speed_int = np.zeros(n)
     path_gain = np.array([f.tas_ms for f in fdms]) / (G0_MS2 * LOOP.path_tau_s)
     for k in range(T):
@@ -226,13 +232,17 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
         _, order, order_prev, pitch_clipped, u_free_m = surface_orders(
             p, state, meas, nz_c, k, pitch_clipped, order_prev, step_deg)
         i_new, i_app = servo_currents(order, y, i_prev, k, p, pm)
-        rods[:, :, k] = y.reshape(n_s, n); surf[:, :, k] = delta.reshape(n_s, n)
+        rods[:, :, k] = y.reshape(n_s, n)
+        surf[:, :, k] = delta.reshape(n_s, n)
         states[:, :, k] = (vals[F.READ_ALPHA] - alpha0, vals[F.READ_Q],
                            vals[F.READ_THETA] - theta0, vals[F.READ_BETA], vals[F.READ_P],
                            vals[F.READ_R], vals[F.READ_PHI])
         meas_rec[:, :, k] = (meas["p"], meas["q"], meas["r"], meas["phi"], meas["theta"],
                              1.0 + meas["dnz"], meas["ny"], meas["beta"], meas["alpha"])
-        xs[:, k] = x[mon]; icmd[:, k] = i_new[mon]; iapp[:, k] = i_app[mon]; u_rec[:, k] = u_free_m
+        xs[:, k] = x[mon]
+        icmd[:, k] = i_new[mon]
+        iapp[:, k] = i_app[mon]
+        u_rec[:, k] = u_free_m
         x_next, delta_next = advance_servos(x, delta, i_app, loaded, k, p, any_jam, any_disc)
         # JSBSim over [t_k, t_k+1): each surface at the midpoint of its motion
         jsb = _to_jsbsim(W, (0.5 * (delta + delta_next)).reshape(n_s, n))   # (3, n)

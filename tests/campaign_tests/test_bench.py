@@ -174,7 +174,8 @@ _PLAIN = {"hinge_scale": (1.0, 1.0), "kci_scale": (1.0, 1.0), "supply_scale": (1
 
 
 @pytest.mark.parametrize("params, count", [
-    ({}, 9), ({"model_step": "heun"}, 18), ({"model_step": "rk4"}, 36), ({"model_step": "euler"}, 9),
+    ({}, 9), ({"model_step": "heun"}, 18), ({"model_step": "rk4"}, 36),
+    ({"model_step": "euler"}, 9),
     ({"band": "paired"}, 5), ({"model_step": "euler", "hinge_scale": (1.0, 1.0)}, 3),
     ({"model_step": "euler", **_PLAIN}, 1),
     ({"checks": ("com_mon", "surface")}, 0),
@@ -281,7 +282,9 @@ def test_the_timed_rate_law_is_the_rate_law():
     np.testing.assert_allclose(out, want, rtol=1e-12, atol=0.0)
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="malloc_trim is a glibc (Linux) function; elsewhere nothing is trimmed to check")
+@pytest.mark.skipif(not sys.platform.startswith("linux"),
+                    reason="malloc_trim is a glibc (Linux) function; elsewhere nothing is trimmed "
+                           "to check")
 def test_returning_freed_memory_starts_no_child_process(monkeypatch):
     """The bench's peak sums the resident memory of the campaign's process tree: a child
     forked from the campaign (ctypes.util.find_library runs ldconfig) would show the

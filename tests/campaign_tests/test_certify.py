@@ -77,7 +77,8 @@ def _true_probability(limit, lo, hi, w):
     """P(V·(1 + D) ≥ limit), V ~ U(lo, hi), D ~ U(−w, w) independent."""
     def inner(v):
         return min(max((w - (limit / v - 1.0)) / (2.0 * w), 0.0), 1.0)
-    return integrate.quad(inner, lo, hi, limit=200, points=[limit / (1 + w), limit / (1 - w)])[0] / (hi - lo)
+    return integrate.quad(inner, lo, hi, limit=200,
+                          points=[limit / (1 + w), limit / (1 - w)])[0] / (hi - lo)
 
 
 @pytest.fixture

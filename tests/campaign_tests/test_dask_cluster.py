@@ -94,9 +94,10 @@ def test_smoke_on_the_cluster_is_bit_identical_to_two_local_jobs(cluster, tmp_pa
     rows_dask = campaign.load(tmp_path / "dask").results
     rows_local = campaign.load(tmp_path / "loky").results
     assert len(rows_dask) == len(build_plan(load_config("smoke")))
-    pd.testing.assert_frame_equal(rows_dask.sort_values(["run_id", "detector"]).reset_index(drop=True),
-                                  rows_local.sort_values(["run_id", "detector"]).reset_index(drop=True),
-                                  check_exact=True)
+    pd.testing.assert_frame_equal(
+        rows_dask.sort_values(["run_id", "detector"]).reset_index(drop=True),
+        rows_local.sort_values(["run_id", "detector"]).reset_index(drop=True),
+        check_exact=True)
 
 
 def test_certify_sampling_on_the_cluster_equals_local_workers(cluster, tmp_path):

@@ -364,7 +364,7 @@ def test_learning_plan_rows():
     assert (build_learning_plan(config(ALL_FAULTS))["duration_s"] == 40.0).all()
 
 
-# ---- explicit runs --------------------------------------------------------------------------------
+# ---- explicit runs -------------------------------------------------------------------------------
 RUNS = [
     {"group": "worst", "manoeuvre": "nose_up", "fault": "runaway", "onset_s": 11.0,
      "magnitude": -3.5, "alt_ft": 30000.0, "vcas_kt": 280.0, "mass_t": 190.0, "cg_pct": 32.0,

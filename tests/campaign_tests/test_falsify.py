@@ -244,7 +244,7 @@ def test_worst_toml_round_trips_every_float():
     assert loaded.detectors == SMOKE.detectors and loaded.learning == SMOKE.learning
 
 
-# ---- the strategy (campaign/evidence/falsify_search.py) ---------------------------------------------
+# ---- the strategy (campaign/evidence/falsify_search.py) ------------------------------------------
 def _drive(strategy, objective):
     """Run *strategy* on *objective*(point) → margin; the batches and their margins."""
     seen = []

@@ -92,7 +92,7 @@ def test_report_and_show_without_fmu_load_nothing_and_say_how(fmu_campaign, caps
     assert "--fmu FILE" in page and "Residual envelope" not in page
     assert "Margin to false alarm" in page               # what needs no simulation is there
     assert "position-monitor: stored margin" in captured.out
-    assert f"--fmu FILE" in captured.out and sha256_of(fmu_campaign["servo"]) in captured.out
+    assert "--fmu FILE" in captured.out and sha256_of(fmu_campaign["servo"]) in captured.out
     # traces cannot be written without re-simulating: refused before any work
     plot = tmp_path / "run.png"
     assert main(["show", str(out), run_id, "--plot", str(plot)]) == 2

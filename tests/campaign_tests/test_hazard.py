@@ -218,7 +218,8 @@ def test_fault_rates_key_defaults_merge_and_validation():
     # entries given replace the defaults', the others keep theirs
     c = CampaignConfig.from_dict(_config(fault_rate_per_fh={"runaway": 3e-5}))
     rates = dict(c.requirements.fault_rate_per_fh)
-    assert rates["runaway"] == 3e-5 and rates["solid_jam"] == DEFAULT_FAULT_RATES_PER_FH["solid_jam"]
+    assert (rates["runaway"] == 3e-5
+            and rates["solid_jam"] == DEFAULT_FAULT_RATES_PER_FH["solid_jam"])
     assert CampaignConfig.from_dict(c.to_dict()) == c
     # a misspelt mode, a negative rate, a rate above 1/FH, a string: one report, every one
     with pytest.raises(ConfigError) as err:

@@ -214,7 +214,7 @@ def test_a_resume_with_other_limits_only_points_to_requirements(tmp_path, capsys
     path.write_text(path.read_text().replace("max_dtp = 1.0", "max_dtp = 0.5"))
     assert main(["run", str(path), "--out", str(out), "--quiet", "--jobs", "1"]) == 2
     err = capsys.readouterr().err
-    assert (f"holds this campaign already run with other [requirements] limits (max_dtp); "
+    assert ("holds this campaign already run with other [requirements] limits (max_dtp); "
             "limits do not change any result") in err
     assert f"fdd-campaign gate {out} --requirements {path}" in err
 

@@ -122,7 +122,8 @@ def test_monte_carlo_draws_each_coefficient_independently(plans):
     dimensions of the design, not one factor: no two are equal, and their sample
     correlations stay within 4/sqrt(n) of 0 (independent uniforms: standard error 1/sqrt(n))."""
     _, plan, _ = plans
-    cols = [c for c in HALF_WIDTHS if c[2:] in ("cx", "cy", "cz", "cl", "cm", "cn", "ch0", "cha", "chd")]
+    cols = [c for c in HALF_WIDTHS
+            if c[2:] in ("cx", "cy", "cz", "cl", "cm", "cn", "ch0", "cha", "chd")]
     assert len(cols) == 9
     corr = np.corrcoef(plan[cols].to_numpy().T)
     off = corr[~np.eye(len(cols), dtype=bool)]

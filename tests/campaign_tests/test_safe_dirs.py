@@ -458,7 +458,7 @@ def test_a_shard_written_but_not_recorded_before_a_crash_is_run_again(smoke_dir,
         results.sort_values(["run_id", "detector"]).reset_index(drop=True), check_exact=True)
 
 
-# ---- modes follow the umask ------------------------------------------------------------------------
+# ---- modes follow the umask ----------------------------------------------------------------------
 @pytest.mark.parametrize("umask, file_mode, dir_mode", [(0o022, 0o644, 0o755),
                                                         (0o027, 0o640, 0o750)])
 def test_files_and_directories_follow_the_umask(tmp_path, umask, file_mode, dir_mode):
@@ -476,7 +476,7 @@ def test_files_and_directories_follow_the_umask(tmp_path, umask, file_mode, dir_
         assert stat.S_IMODE(p.stat().st_mode) == want, (p, oct(p.stat().st_mode))
 
 
-# ---- one run at a time ------------------------------------------------------------------------------
+# ---- one run at a time ---------------------------------------------------------------------------
 SLOW_CAMPAIGN = """\
 [campaign]
 name = "slow"

@@ -53,7 +53,8 @@ def test_the_smallest_accepted_values():
 
 
 def test_bad_values_name_the_first_offender():
-    with pytest.raises(ValueError, match=r"values: 2 non-finite value\(s\) \(first at index 1: nan\)"):
+    with pytest.raises(ValueError, match=r"values: 2 non-finite value\(s\) \(first at index 1: "
+                                         r"nan\)"):
         calibrate_threshold([1.0, np.nan, 2.0, np.inf], 1e-3)
     with pytest.raises(ValueError, match="values: negative value -0.5"):
         calibrate_threshold([0.0, -0.5, 2.0], 1e-3)           # a zero is no offender
@@ -221,7 +222,7 @@ def test_a_shape_at_the_edge_of_its_range_is_noted():
     assert -0.5 < mid.shape < 1.0 and "edge" not in mid.note
 
 
-# ---- classes ----------------------------------------------------------------------------------------
+# ---- classes -------------------------------------------------------------------------------------
 def test_per_class_fields_and_note():
     a = np.linspace(1.0, 2.0, 10)                     # too few: max-factor, unsupported
     b = np.linspace(1.0, 4.0, 80)                     # 80 ≥ 59: order statistic
@@ -248,7 +249,7 @@ def test_usable_classes_need_two_runs_each():
     assert usable_classes(two) is two
 
 
-# ---- learned_threshold ------------------------------------------------------------------------------
+# ---- learned_threshold ---------------------------------------------------------------------------
 def test_learned_threshold_single_run_and_zero():
     tau, cal = learned_threshold(np.array([0.0]), "evt", 2.0, 1e-4, 0.95)
     assert tau == 0.0 and cal.method == "max-factor" and cal.n == 1
@@ -267,7 +268,7 @@ def test_learned_threshold_passes_the_target_confidence_and_tail():
     assert learned_threshold(x, "max", 1.5, 1e-3, 0.9) == (1.5 * x.max(), None)
 
 
-# ---- leave-one-out ratios ---------------------------------------------------------------------------
+# ---- leave-one-out ratios ------------------------------------------------------------------------
 def test_leave_one_out_ratios_with_ties_zeros_and_a_floor():
     # ties: the run holding the largest value is scaled by the tied second
     np.testing.assert_array_equal(leave_one_out_ratios(np.array([[2.0], [2.0], [1.0]])),

@@ -11,7 +11,8 @@ import pytest
 from detectors.builtin.chen_global import (INPUT_SURFACES, OUTPUTS, ChenGlobalEstimator,
                                    lateral_models, output_matrix, scheduling_vector,
                                    table2_error_bounds)
-from detectors.synthesis.chen_global_uncertainty import (CHANNELS, SIGNALS, error_bounds, signal_matrices,
+from detectors.synthesis.chen_global_uncertainty import (CHANNELS, SIGNALS, error_bounds,
+                                                         signal_matrices,
                                                uncertainty_matrix)
 from detectors.synthesis.lpv_synthesis import discretise, hinf_sweep
 from scenarios.signals import Signals

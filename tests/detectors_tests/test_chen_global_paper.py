@@ -14,7 +14,8 @@ import scipy.linalg
 import detectors.builtin.chen_global as cg
 from detectors.builtin.chen_global import ChenGlobalEstimator
 from detectors.builtin.chen_global_paper import ChenGlobalPaper
-from detectors.synthesis.chen_global_uncertainty import design_uncertainty_matrix, uncertainty_matrix
+from detectors.synthesis.chen_global_uncertainty import (design_uncertainty_matrix,
+                                                         uncertainty_matrix)
 from detectors.synthesis.lpv_synthesis import synthesise
 from detectors.registry import make_detector
 
@@ -153,8 +154,8 @@ def test_e_along_phi_plus_p_puts_a_pole_far_beyond_the_sampling_rate(polytope):
     vertices), seven hundred times the 100 Hz sampling rate, and an L2 gain of 8.7 on p where
     E along φ has −8.2: a mode the 10 ms step cannot follow, through which the sensors'
     noise reaches f̂ (16–17° standard deviation of the raw f̂ in calm cruise against 0.7°).
-    E along φ keeps every pole within −10² 1/s (fastest −75 to −84 1/s at the vertices). Bounds: an order
-    of magnitude apart from each measured value."""
+    E along φ keeps every pole within −10² 1/s (fastest −75 to −84 1/s at the vertices). Bounds: an
+    order of magnitude apart from each measured value."""
     _, d_old = design(ChenGlobalPaper(h_rate_weight=0.01), polytope)
     verts, d_new = design(ChenGlobalPaper(), polytope)
     assert error_poles(d_old, verts).real.min() < -1e4

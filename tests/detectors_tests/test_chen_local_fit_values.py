@@ -1,8 +1,8 @@
 """chen-local's fit and decision (detectors/builtin/chen_local.py, docs/chen-estimator.md §2–§3)
 pinned by value on a hand-built actuator model, in a few seconds.
 
-The identified model of :mod:`detectors.synthesis.chen_local_model` is replaced by coefficients chosen
-by hand (:data:`THETA`, with a load term large enough that the direction of motion and the
+The identified model of :mod:`detectors.synthesis.chen_local_model` is replaced by coefficients
+chosen by hand (:data:`THETA`, with a load term large enough that the direction of motion and the
 rod position move K by several 1/s), so the fit runs without the identification and every
 learned quantity can be written out from the documented formulas:
 
@@ -179,7 +179,8 @@ def _polytope(theta, margin):
 
 
 def _pole(a):
-    """φ(a) = (1 − a·Ts/2)/(1 + a·Ts/2), the bilinear step of ẋ = −a·x (docs/chen-estimator.md §2)."""
+    """φ(a) = (1 − a·Ts/2)/(1 + a·Ts/2), the bilinear step of ẋ = −a·x
+    (docs/chen-estimator.md §2)."""
     return (1.0 - 0.5 * TS * a) / (1.0 + 0.5 * TS * a)
 
 

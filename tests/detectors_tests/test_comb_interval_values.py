@@ -1,5 +1,5 @@
-"""The comb-interval detector (detectors/builtin/comb_interval.py, docs/interval-detector.md) pinned by
-value on hand-built inputs, in both engines: the interval predictor and its residual
+"""The comb-interval detector (detectors/builtin/comb_interval.py, docs/interval-detector.md) pinned
+by value on hand-built inputs, in both engines: the interval predictor and its residual
 ([COMB] eq. 14, 15, 18, 19) against a plain-Python recursion written from the equations, the
 learned λ_q (eq. 6, ``"max"`` and ``"evt"``) and thresholds (eq. 10–13) against their
 documented formulas, and the decision boundary (|ε_k| = τ_k is not an alarm, the alarm
@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 from scipy.stats import binom
 
-from detectors.builtin.comb_interval import (NUMERICS, IntervalDetector, dead_zone, filter_threshold,
+from detectors.builtin.comb_interval import (NUMERICS, IntervalDetector, dead_zone,
+                                             filter_threshold,
                                      g_radius, loop_gain, moving_average_maxima,
                                      power_law_bound, predictor_step, stability_margin)
 from scenarios.compiled import use_engine

@@ -35,7 +35,8 @@ C3 = np.array([[1.0, 0.0, 0.0]])
 
 
 def test_subspace_primitives():
-    V = _span(E[0], E[1]); W = _span(E[1], E[2])
+    V = _span(E[0], E[1])
+    W = _span(E[1], E[2])
     assert geo.same_subspace(geo.intersection(V, W), E[:, [1]])
     assert geo.same_subspace(geo.subspace_sum(V, W), E)
     assert geo.same_subspace(geo.kernel(C1), E[:, [1]])
@@ -119,7 +120,9 @@ def test_decoupling_in_simulation_with_the_bilinear_filter():
     f1 = np.where(t > 20.0, 1.0, 0.0)[:, None]
 
     def residual(f1_on: bool):
-        x = np.zeros(6); w = np.zeros(Ad.shape[0]); out = np.empty((T, Cd.shape[0]))
+        x = np.zeros(6)
+        w = np.zeros(Ad.shape[0])
+        out = np.empty((T, Cd.shape[0]))
         for k in range(T):
             y = C @ x
             inp = np.concatenate([u[k], y])
@@ -244,9 +247,10 @@ STALLED_M = np.array([[0.1799498948239988, 0.9187523319982269, 0.351443007898366
 
 
 def test_a_solver_failure_on_the_cached_lmi_is_solved_afresh(monkeypatch):
-    """When the solver fails on the cached parametric LMI (detectors.synthesis.geometric.injection_lmi),
-    the LMI is compiled anew and solved once; its answer passes the same pole check. Forced
-    here by a first _solve that raises, on the Â, M where it happened in a campaign."""
+    """When the solver fails on the cached parametric LMI
+    (detectors.synthesis.geometric.injection_lmi), the LMI is compiled anew and solved once; its
+    answer passes the same pole check. Forced here by a first _solve that raises, on the Â, M where
+    it happened in a campaign."""
     calls = []
     real = geo._solve
 

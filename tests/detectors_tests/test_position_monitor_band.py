@@ -1,8 +1,9 @@
-"""The position monitor's loop check against its band of models (detectors/builtin/position_monitor.py):
-the rod is accepted anywhere between the outputs of the nominal servo model and of its corner
-models — the servo-valve gain and the stall force at ``kci_scale`` / ``supply_scale`` (slow
-and fast valve corners), the hinge offset HM(0) and slope ∂HM/∂δ at the ends of
-``hinge_scale`` (docs/physics.md §6, docs/detectors.md, docs/thresholds.md)."""
+"""The position monitor's loop check against its band of models
+(detectors/builtin/position_monitor.py): the rod is accepted anywhere between the outputs of the
+nominal servo model and of its corner models — the servo-valve gain and the stall force at
+``kci_scale`` / ``supply_scale`` (slow and fast valve corners), the hinge offset HM(0) and slope
+∂HM/∂δ at the ends of ``hinge_scale`` (docs/physics.md §6, docs/detectors.md,
+docs/thresholds.md)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The position monitor (detectors/builtin/position_monitor.py, docs/detectors.md) pinned by value on
-hand-built inputs, in both engines and in a few seconds: the nominal servo model and its
+"""The position monitor (detectors/builtin/position_monitor.py, docs/detectors.md) pinned by value
+on hand-built inputs, in both engines and in a few seconds: the nominal servo model and its
 band of corner models (servo-valve gain, supply pressure, hinge offset and slope) against the
 reference integrator (docs/physics.md §2–3), each check's
 residual and its sign, the learned thresholds (``"max"`` and ``"evt"`` with the target shared

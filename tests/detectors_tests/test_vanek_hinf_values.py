@@ -1,5 +1,5 @@
-"""detectors.synthesis.vanek_hinf pinned by value ([VANEK] §3, docs/vanek-geometric.md): the weighted
-interconnections handed to the H∞ synthesis, written again from the module's documented
+"""detectors.synthesis.vanek_hinf pinned by value ([VANEK] §3, docs/vanek-geometric.md): the
+weighted interconnections handed to the H∞ synthesis, written again from the module's documented
 equations (the post-filter's model matching; the one-step filter's weights, Dryden shaping,
 known inputs and noise σ·√Ts), the singular-perturbation reduction and the cascade against
 hand-built systems whose answers are known in closed form, the sensor σ and the weights'

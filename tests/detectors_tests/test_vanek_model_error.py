@@ -1,5 +1,5 @@
-"""The model-error allowance b(t) of vanek-geometric (detectors/synthesis/vanek_model_error.py): that it
-bounds the residual the Table-2 errors produce through the filter, and how a fitted detector
+"""The model-error allowance b(t) of vanek-geometric (detectors/synthesis/vanek_model_error.py):
+that it bounds the residual the Table-2 errors produce through the filter, and how a fitted detector
 uses it (τ0 + b(t), and constant thresholds for a detector fitted before it existed)."""
 
 from __future__ import annotations

@@ -465,7 +465,9 @@ def test_design_affine_unison_is_the_corner_lmi_family_clipped_to_the_box():
     for c in corners:
         A, B = model(*c)
         L1, L2 = _directions(A, B)
-        As.append(A); L1s.append(L1); L2s.append(L2)
+        As.append(A)
+        L1s.append(L1)
+        L2s.append(L2)
     C = _design_model(_point(*POINTS[0]))[2]
     fam = geo.design_lpv(As, C, L1s, L2s, decay=0.5, radius=20.0)
     at = vg.design_affine(TS, design_model="unison")
@@ -610,7 +612,7 @@ def test_only_the_hinf_variants_need_python_control(monkeypatch):
             vg.VanekGeometric(variants=variant).validate_params()
 
 
-# ---- the H∞ variants' wiring (their synthesis: tests/detectors_tests/test_vanek_hinf_values.py) ------------
+# ---- the H∞ variants' wiring (their synthesis: tests/detectors_tests/test_vanek_hinf_values.py) --
 def test_lti_hinf_residual_is_the_cascade_with_the_sampled_noise_and_no_low_pass():
     from detectors.synthesis import vanek_hinf as vh
 

@@ -69,45 +69,60 @@ EQUIVALENT_FILE = HERE / "equivalent.toml"
 #: Module (path from the repository root) -> the test files that cover it, cheapest module
 #: first. A mutant of the module is run against these files only.
 TESTS: dict[str, tuple[str, ...]] = {
-    "reports/scoring/metrics.py": ("tests/reports_tests/test_metrics.py", "tests/reports_tests/test_decision_boundaries.py"),
-    "reports/scoring/gate.py": ("tests/reports_tests/test_summary_gate.py", "tests/reports_tests/test_decision_boundaries.py"),
-    "reports/scoring/summary.py": ("tests/reports_tests/test_summary_gate.py", "tests/reports_tests/test_decision_boundaries.py"),
+    "reports/scoring/metrics.py": ("tests/reports_tests/test_metrics.py",
+                                   "tests/reports_tests/test_decision_boundaries.py"),
+    "reports/scoring/gate.py": ("tests/reports_tests/test_summary_gate.py",
+                                "tests/reports_tests/test_decision_boundaries.py"),
+    "reports/scoring/summary.py": ("tests/reports_tests/test_summary_gate.py",
+                                   "tests/reports_tests/test_decision_boundaries.py"),
     "scenarios/faults.py": ("tests/scenarios_tests/test_fault_injection_values.py",
                             "tests/campaign_tests/test_run_table_properties.py"),
-    "scenarios/runs.py": ("tests/scenarios_tests/test_run_validation.py", "tests/campaign_tests/test_run_table_properties.py",
+    "scenarios/runs.py": ("tests/scenarios_tests/test_run_validation.py",
+                          "tests/campaign_tests/test_run_table_properties.py",
                           "tests/scenarios_tests/test_manoeuvre_sets.py"),
-    "campaign/plan.py": ("tests/campaign_tests/test_design_values.py", "tests/campaign_tests/test_run_table_properties.py",
+    "campaign/plan.py": ("tests/campaign_tests/test_design_values.py",
+                         "tests/campaign_tests/test_run_table_properties.py",
                            "tests/campaign_tests/test_config.py"),
-    "detectors/calibrate.py": ("tests/detectors_tests/test_calibrate_values.py", "tests/detectors_tests/test_calibrate.py"),
-    "detectors/builtin/position_monitor.py": ("tests/detectors_tests/test_position_monitor_values.py",
-                                      "tests/detectors_tests/test_position_monitor_band.py",
-                                      "tests/reports_tests/test_decision_boundaries.py", "tests/scenarios_tests/test_kernels.py"),
-    "scenarios/servo.py": ("tests/scenarios_tests/test_servo_values.py", "tests/scenarios_tests/test_kernel_values.py",
-                           "tests/scenarios_tests/test_servo_physics.py", "tests/scenarios_tests/test_reference_physics.py"),
-    "scenarios/compiled.py": ("tests/scenarios_tests/test_kernel_values.py", "tests/scenarios_tests/test_kernels.py",
-                             "tests/scenarios_tests/test_kernel_cache.py"),
-    "detectors/base.py": ("tests/detectors_tests/test_detector_base_values.py", "tests/detectors_tests/test_fit_blocks.py",
+    "detectors/calibrate.py": ("tests/detectors_tests/test_calibrate_values.py",
+                               "tests/detectors_tests/test_calibrate.py"),
+    "detectors/builtin/position_monitor.py": (
+        "tests/detectors_tests/test_position_monitor_values.py",
+        "tests/detectors_tests/test_position_monitor_band.py",
+        "tests/reports_tests/test_decision_boundaries.py",
+        "tests/scenarios_tests/test_kernels.py"),
+    "scenarios/servo.py": ("tests/scenarios_tests/test_servo_values.py",
+                           "tests/scenarios_tests/test_kernel_values.py",
+                           "tests/scenarios_tests/test_servo_physics.py",
+                           "tests/scenarios_tests/test_reference_physics.py"),
+    "scenarios/compiled.py": ("tests/scenarios_tests/test_kernel_values.py",
+                              "tests/scenarios_tests/test_kernels.py",
+                              "tests/scenarios_tests/test_kernel_cache.py"),
+    "detectors/base.py": ("tests/detectors_tests/test_detector_base_values.py",
+                          "tests/detectors_tests/test_fit_blocks.py",
                           "tests/reports_tests/test_decision_boundaries.py"),
     "detectors/builtin/comb_interval.py": ("tests/detectors_tests/test_comb_interval_values.py",
                                    "tests/detectors_tests/test_interval_detector.py"),
     "detectors/builtin/chen_local.py": ("tests/detectors_tests/test_chen_local_fit_values.py",
                                 "tests/detectors_tests/test_chen_local_values.py",
                                 "tests/detectors_tests/test_chen_estimator.py"),
-    "detectors/synthesis/chen_local_model.py": ("tests/detectors_tests/test_chen_local_model_values.py",
-                                      "tests/detectors_tests/test_chen_local_fit_values.py",
-                                      "tests/detectors_tests/test_chen_local_values.py",
-                                      "tests/detectors_tests/test_chen_estimator.py"),
+    "detectors/synthesis/chen_local_model.py": (
+        "tests/detectors_tests/test_chen_local_model_values.py",
+        "tests/detectors_tests/test_chen_local_fit_values.py",
+        "tests/detectors_tests/test_chen_local_values.py",
+        "tests/detectors_tests/test_chen_estimator.py"),
     "detectors/builtin/vanek_geometric.py": ("tests/detectors_tests/test_vanek_values.py",
                                      "tests/detectors_tests/test_vanek_geometric.py"),
-    "detectors/synthesis/vanek_hinf.py": ("tests/detectors_tests/test_vanek_hinf_values.py", "tests/detectors_tests/test_vanek_values.py",
-                                "tests/detectors_tests/test_vanek_geometric.py"),
+    "detectors/synthesis/vanek_hinf.py": ("tests/detectors_tests/test_vanek_hinf_values.py",
+                                          "tests/detectors_tests/test_vanek_values.py",
+                                          "tests/detectors_tests/test_vanek_geometric.py"),
     "detectors/synthesis/vanek_model_error.py": ("tests/detectors_tests/test_vanek_model_error.py",
                                        "tests/detectors_tests/test_vanek_values.py"),
     "detectors/builtin/chen_global.py": ("tests/detectors_tests/test_chen_global_values.py",
                                  "tests/detectors_tests/test_chen_global.py"),
-    "detectors/builtin/chen_global_kernel.py": ("tests/detectors_tests/test_chen_global_kernel_values.py",
-                                        "tests/detectors_tests/test_chen_global_values.py",
-                                        "tests/detectors_tests/test_chen_global.py"),
+    "detectors/builtin/chen_global_kernel.py": (
+        "tests/detectors_tests/test_chen_global_kernel_values.py",
+        "tests/detectors_tests/test_chen_global_values.py",
+        "tests/detectors_tests/test_chen_global.py"),
 }
 #: cosmic-ray operators run (see the module docstring); every other operator is skipped.
 OPERATORS: tuple[str, ...] = (
@@ -488,7 +503,8 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("modules", nargs="*", metavar="MODULE",
                         help=f"modules to mutate (default: all, in this order: {', '.join(TESTS)})")
-    parser.add_argument("--report", action="store_true", help="print the stored scores, run nothing")
+    parser.add_argument("--report", action="store_true",
+                        help="print the stored scores, run nothing")
     parser.add_argument("--survivors", action="store_true", help="list the surviving mutants")
     parser.add_argument("--rerun-survivors", action="store_true",
                         help="run the surviving mutants of an unchanged module again")
@@ -510,7 +526,8 @@ def main(argv: list[str] | None = None) -> int:
             scratch = Path(tmp) / "repo"
             shutil.copytree(REPO, scratch, ignore=COPY_IGNORE)
             sock = Path(tmp) / "fork-server.sock"
-            server = subprocess.Popen([sys.executable, __file__, "--serve", str(sock), str(scratch)],
+            server = subprocess.Popen([sys.executable, __file__, "--serve", str(sock),
+                                       str(scratch)],
                                       cwd=scratch, env=_environment(scratch))
             try:
                 while not sock.exists():

@@ -97,7 +97,8 @@ def test_blocks_of_runs_give_the_batch_results(monkeypatch):
     only = loop.AircraftPlant().simulate_signals(runs)
     for got in (sig, only):
         for name in ("command", "current", "rod_com", "rod_mon", "surface", "pressure"):
-            np.testing.assert_array_equal(getattr(got, name), getattr(whole_sig, name), err_msg=name)
+            np.testing.assert_array_equal(getattr(got, name), getattr(whole_sig, name),
+                                          err_msg=name)
         for group in ("aircraft", "rods", "schedule"):
             ref = getattr(whole_sig, group)
             assert list(getattr(got, group)) == list(ref)

@@ -177,7 +177,8 @@ def test_inboard_aileron_disconnection_roll_response_countered():
     assert np.abs(diff["r"][after]).max() > 0.02
     assert np.abs(diff["phi"][t >= 37.0]).max() < 0.6 * peak
     flight = {k: np.asarray(v)[:1] for k, v in truth.flight.items()}
-    B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1] for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
+    B = lpv.run_models(flight, {c: runs[f"d_{c}"].to_numpy()[:1]
+                                for c in AERO_COEFFICIENTS}).B[0, lpv.IP]
     late = t >= 30.0
     m = AIRCRAFT_SURFACES.index("left_inboard_aileron")
     moment = {name: B[j] * dsurf[name][late].mean() for j, name in enumerate(AIRCRAFT_SURFACES)}
@@ -365,7 +366,8 @@ def test_single_run_of_an_aircraft_surface_gets_its_actuators_default_fault_magn
     from scenarios.params import ACTUATORS
     from scenarios.simulate import single_run
 
-    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel, docs/physics.md §5)
+    # the inboard aileron's liquid-jam bias is the aileron's (1.3 % of its travel,
+    # docs/physics.md §5)
     row = single_run("left_inboard_aileron", "cruise", "liquid_jam")
     assert row["magnitude"].iloc[0] == default_magnitude("liquid_jam", ACTUATORS["aileron"])
     assert np.isfinite(single_run("rudder", "cruise", "runaway")["magnitude"].iloc[0])

@@ -34,7 +34,8 @@ def test_reference_modes_reproduced(mode):
 
 
 def test_dutch_roll_frequency_and_damping():
-    """The reference 40 000 ft case (docs/aircraft.md): Dutch roll ≈ 0.95 rad/s, ζ ≈ 0.035 (±3 %)."""
+    """The reference 40 000 ft case (docs/aircraft.md): Dutch roll ≈ 0.95 rad/s, ζ ≈
+    0.035 (±3 %)."""
     lam = lpv.modes(lpv.reference_model())["dutch_roll"][0]
     wn, zeta = abs(lam), -lam.real / abs(lam)
     assert wn == pytest.approx(0.95, rel=0.03)

@@ -302,7 +302,7 @@ def test_disconnected_rod_is_unloaded(engine):
     # high q̄ (FL100, 330 kt) and an order step of −10° after the disconnection: the rod,
     # without aerodynamic load or damping neighbour, moves at exactly Kci·i_max·sqrt(S·ΔP /
     # S·ΔP_ref) = 100 mm/s (docs/physics.md §3); loaded it could not exceed 93 mm/s
-    T, k0 = 300, 100
+    T = 300
     order = np.where(np.arange(T) >= 120, -10.0, 0.0)
     sig, truth = _run("disconnection", engine, order_deg=order, alt_ft=10000.0, vcas_kt=330.0)
     x = truth.rod_mm[0]

@@ -38,7 +38,8 @@ TOL_DEG = 1e-9
 def _runs(surface: str, duration_s: float = 20.0) -> pd.DataFrame:
     """One run of every fault type at two flight points, with their own noise seeds."""
     rows = []
-    points = [dict(alt_ft=8000.0, vcas_kt=300.0, mass_t=230.0, cg_pct=20.0, d_ch0=0.15, d_cha=0.15, d_chd=0.15),
+    points = [dict(alt_ft=8000.0, vcas_kt=300.0, mass_t=230.0, cg_pct=20.0, d_ch0=0.15, d_cha=0.15,
+                   d_chd=0.15),
               dict(alt_ft=36000.0, vcas_kt=200.0, mass_t=130.0, cg_pct=40.0, d_kci=-0.04)]
     for i, fault in enumerate(FAULTS):
         for j, point in enumerate(points):
@@ -68,7 +69,8 @@ def test_built_fmu_validates_and_carries_the_parameter_table(servo_fmu):
     assert names["i_mA"].causality == "input" and names["x_mm"].causality == "output"
     with zipfile.ZipFile(servo_fmu) as z:
         members = set(z.namelist())
-    assert {"modelDescription.xml", f"binaries/{fmpy.platform}/fdd_servo.so", "sources/servo_model.c",
+    assert {"modelDescription.xml", f"binaries/{fmpy.platform}/fdd_servo.so",
+            "sources/servo_model.c",
             "sources/fmi2_servo.c"} <= members
 
 

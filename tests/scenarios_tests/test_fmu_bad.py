@@ -34,7 +34,8 @@ def _to_model_exchange(xml: bytes) -> bytes:
     text = xml.decode()
     text = re.sub(r"<CoSimulation\s", "<ModelExchange ", text)
     text = text.replace("</CoSimulation>", "</ModelExchange>")
-    text = re.sub(r'\s(canHandleVariableCommunicationStepSize|canNotUseMemoryManagementFunctions)="true"', "", text)
+    text = re.sub(r'\s(canHandleVariableCommunicationStepSize'
+                  r'|canNotUseMemoryManagementFunctions)="true"', "", text)
     return text.encode()
 
 

@@ -83,7 +83,8 @@ def test_every_module_with_cached_kernels_calls_the_guard_last():
             text = path.read_text()
             if re.search(r"\bcache=True\b", text):
                 cached[".".join(path.relative_to(ROOT).with_suffix("").parts)] = text
-    assert {"scenarios.compiled", "detectors.builtin.position_monitor", "detectors.builtin.comb_interval",
+    assert {"scenarios.compiled", "detectors.builtin.position_monitor",
+            "detectors.builtin.comb_interval",
             "scenarios.aircraft.kernel"} <= set(cached)
     for name, text in cached.items():
         last = text.rstrip().splitlines()[-1].split("#")[0].strip()

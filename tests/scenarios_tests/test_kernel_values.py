@@ -2,8 +2,8 @@
 value, against a plain-Python transcription of docs/physics.md (§2 time base, §3 rate law,
 hinge moment and stops, §5 faults and the floating surface).
 
-tests/scenarios_tests/test_kernels.py compares the compiled kernels with the NumPy loop bit for bit, which a
-factor dropped the same way in both would pass. Here each kernel is compared with the
+tests/scenarios_tests/test_kernels.py compares the compiled kernels with the NumPy loop bit for bit,
+which a factor dropped the same way in both would pass. Here each kernel is compared with the
 documented formula evaluated in plain Python floats (``math`` functions, the C library's, as
 the kernels call them), on hand-made parameter rows whose every term matters (stall, aiding
 cap, the ±0.999 clip, the stops, the damping neighbour), and on short closed-loop batches of
@@ -447,7 +447,8 @@ def test_fault_onsets_one_step_before_at_and_after(loop):
     for r in hard:
         k0 = int(np.argmax(np.isfinite(fa.cur_force[r])))
         assert got.i_app[r, k0 - 1] == got.i_cmd[r, k0 - 2]
-        assert got.i_app[r, k0] == fa.cur_force[r, k0] and abs(fa.cur_force[r, k0]) == p.plant.i_max[r]
+        assert (got.i_app[r, k0] == fa.cur_force[r, k0]
+                and abs(fa.cur_force[r, k0]) == p.plant.i_max[r])
 
 
 # ---- nominal models of the position monitor ------------------------------------------------

@@ -85,7 +85,8 @@ def test_the_set_is_in_the_run_table_and_the_run_id():
     normal = build_plan(load_config("chen-local"))
     stress = build_plan(with_overrides(load_config("chen-local"),
                                        values={"manoeuvres.set": "stress"}))
-    assert (normal["manoeuvre_set"] == "normal").all() and (stress["manoeuvre_set"] == "stress").all()
+    assert ((normal["manoeuvre_set"] == "normal").all()
+            and (stress["manoeuvre_set"] == "stress").all())
     # normal runs keep the ids they had before the column existed
     row = normal.iloc[0].to_dict()
     assert run_id({k: v for k, v in row.items() if k != "manoeuvre_set"}) == row["run_id"]

@@ -238,7 +238,8 @@ def test_lateral_manoeuvres_give_small_elevator_activity_and_vice_versa():
         # turn: load factor 1/cos φ ≤ 1.19 g → pull ≤ 4 °/g · 0.19 ≈ 0.77° at q_ref
         x = order("turn_coordination", "elevator", seed=seed, params=CALM) - trim("elevator")
         assert -0.8 <= x.min() <= -0.4 and x.max() <= 1e-12
-        assert np.all(order("yaw_angle_mode", "elevator", seed=seed, params=CALM) == trim("elevator"))
+        assert np.all(order("yaw_angle_mode", "elevator", seed=seed, params=CALM)
+                      == trim("elevator"))
         for m in ("nose_up", "aoa_protection", "pitch_protection"):
             assert np.all(order(m, "aileron", seed=seed, params=CALM) == 0.0)
 
@@ -286,7 +287,8 @@ def test_manoeuvre_happens_inside_the_record(manoeuvre, surface, seconds):
     starts, cut = [], 0
     for flight in (SLOW_LOW, REF):
         for seed in range(15):
-            x = order(manoeuvre, surface, flight, seed, seconds, params=CALM) - trim(surface, flight)
+            x = (order(manoeuvre, surface, flight, seed, seconds, params=CALM)
+                 - trim(surface, flight))
             assert np.all(x[:n_lead] == 0.0)
             active = np.flatnonzero(x != 0.0)
             assert active.size > 0
@@ -328,10 +330,12 @@ def test_orders_for_runs_equals_individual_calls():
     t = times(30.0)
     for surface in SURFACES:
         batch = orders_for_runs(manoeuvres, surface, t, flight,
-                                [np.random.default_rng(100 + i) for i in range(n)], ACTUATORS[surface])
+                                [np.random.default_rng(100 + i) for i in range(n)],
+                                ACTUATORS[surface])
         assert batch.shape == (n, t.size)
         for i in range(n):
-            single = surface_order_deg(manoeuvres[i], surface, t, {k: v[i] for k, v in flight.items()},
+            single = surface_order_deg(manoeuvres[i], surface, t,
+                                       {k: v[i] for k, v in flight.items()},
                                        np.random.default_rng(100 + i), ACTUATORS[surface])
             np.testing.assert_array_equal(batch[i], single)
         # a run's order does not depend on the other runs: reverse the batch
@@ -344,7 +348,8 @@ def test_orders_for_runs_equals_individual_calls():
 # ---- errors ------------------------------------------------------------------------------------
 def test_unknown_names_are_clear_errors():
     t = times(20.0)
-    with pytest.raises(ValueError, match=r"unknown manoeuvre 'nose_upp' \(did you mean 'nose_up'\?\); allowed: cruise"):
+    with pytest.raises(ValueError, match=r"unknown manoeuvre 'nose_upp' \(did you mean "
+                                         r"'nose_up'\?\); allowed: cruise"):
         surface_order_deg("nose_upp", "elevator", t, REF, np.random.default_rng(0), ELEVATOR)
     with pytest.raises(ValueError, match="unknown surface 'rudder'.*allowed: elevator, aileron"):
         surface_order_deg("cruise", "rudder", t, REF, np.random.default_rng(0), ELEVATOR)

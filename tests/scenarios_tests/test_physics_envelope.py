@@ -37,7 +37,8 @@ def points() -> pd.DataFrame:
 
 def _batch(surface, points, fault="none", manoeuvre="cruise", **kw) -> pd.DataFrame:
     rows = [single_run(surface, manoeuvre, fault, seed=5,
-                       **{c: float(getattr(p, c)) for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")},
+                       **{c: float(getattr(p, c))
+                          for c in ("alt_ft", "vcas_kt", "mass_t", "cg_pct")},
                        **kw).assign(stream=i, run_id=f"r{i}")
             for i, p in enumerate(points.itertuples())]
     return pd.concat(rows, ignore_index=True)
@@ -187,5 +188,6 @@ def test_a_directory_planned_with_another_model_is_refused_on_resume(tmp_path, c
     capsys.readouterr()
     assert main(["plan", "smoke", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert f"was planned with model servo-1; this fdd-campaign simulates model {MODEL_VERSION}" in err
+    assert ("was planned with model servo-1; this fdd-campaign simulates model "
+            f"{MODEL_VERSION}") in err
     assert "re-plan into a new --out directory" in err

@@ -113,7 +113,8 @@ class Plant:
         for _ in range(sub):
             if s <= 0.0:
                 return self.delta_f
-            mid = s if frozen else max(s - dt / 4 * self.float_rate(self.delta_f + sgn * s * s), 0.0)
+            mid = s if frozen else max(
+                s - dt / 4 * self.float_rate(self.delta_f + sgn * s * s), 0.0)
             s = max(s - dt / 2 * self.float_rate(self.delta_f + sgn * mid * mid), 0.0)
         lo = math.radians(self.act.delta_min_deg - self.act.stop_margin_deg)
         hi = math.radians(self.act.delta_max_deg + self.act.stop_margin_deg)
@@ -135,7 +136,8 @@ def reference(plant, order_deg, fault="none", onset_s=np.nan, magnitude=np.nan, 
     delta = math.asin(x / r)
     i_prev, y_hold = 0.0, 0.0
     xs, ds, ic = np.empty(T), np.empty(T), np.empty(T)
-    stop_lo, stop_hi = act.delta_min_deg - act.stop_margin_deg, act.delta_max_deg + act.stop_margin_deg
+    stop_lo = act.delta_min_deg - act.stop_margin_deg
+    stop_hi = act.delta_max_deg + act.stop_margin_deg
     for k in range(T):
         on = k >= k0
         dt_on = (k - k0) * TS

@@ -113,7 +113,8 @@ def test_an_unknown_name_is_refused_with_the_allowed_ones(column, bad, hint):
 def test_the_allowed_surfaces_are_the_callers():
     runs = table(row(surface="aileron"))
     assert errors_of(runs) == []
-    with pytest.raises(RunSpecError, match="surface: unknown value 'aileron'.*allowed: left, right"):
+    with pytest.raises(RunSpecError,
+                       match="surface: unknown value 'aileron'.*allowed: left, right"):
         validate_runs(runs, surfaces=("left", "right"))
     validate_runs(table(row(surface="left")), surfaces=("left", "right"))
 
@@ -151,7 +152,8 @@ def test_the_onset_of_a_faulty_run_lies_in_zero_to_the_duration():
                           "(first: ") and err.endswith(" s)")
     assert first_value(err) == 30.0
     # a fault-free run has no onset: NaN (or any value) is not looked at
-    assert errors_of(table(row(fault="none", onset_s=np.nan), row(fault="none", onset_s=99.0))) == []
+    assert errors_of(table(row(fault="none", onset_s=np.nan),
+                           row(fault="none", onset_s=99.0))) == []
 
 
 @pytest.mark.parametrize("fault", ["runaway", "hardover", "liquid_jam", "ofc_liquid", "ofc_solid"])

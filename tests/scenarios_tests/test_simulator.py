@@ -1,7 +1,7 @@
 """The batch simulator as a whole: accuracy of the fixed-step scheme against a tight
 ``solve_ivp`` reference (docs/physics.md §2), finite outputs over the whole parametric grid
-(docs/physics.md §8), batch invariance and determinism (docs/design.md §9, Non-negotiables), and clear
-errors for bad run rows."""
+(docs/physics.md §8), batch invariance and determinism (docs/design.md §9, Non-negotiables), and
+clear errors for bad run rows."""
 
 import numpy as np
 import pandas as pd
@@ -23,7 +23,7 @@ def _batch(rows: list[pd.DataFrame]) -> pd.DataFrame:
     return pd.concat(rows, ignore_index=True)
 
 
-# ---- accuracy of the RK4-per-period scheme (docs/physics.md §2) --------------------------------------
+# ---- accuracy of the RK4-per-period scheme (docs/physics.md §2) ----------------------------------
 def _accuracy_batch(surface: str) -> pd.DataFrame:
     """Every manoeuvre fault-free, and every fault type on a manoeuvre (round robin), onset
     mid-record; 20 s is the shortest record that holds every whole manoeuvre."""
@@ -62,7 +62,7 @@ def test_batched_reference_equals_the_per_run_reference():
     np.testing.assert_allclose(batched.delta, per_run.delta, rtol=0, atol=1e-7)
 
 
-# ---- the whole parametric grid (docs/physics.md §8) ----------------------------------------------------
+# ---- the whole parametric grid (docs/physics.md §8) ----------------------------------------------
 def _grid_cases() -> pd.DataFrame:
     points = grid_points()
     frames = []
@@ -105,7 +105,7 @@ def test_all_324_cases_simulate_every_manoeuvre_with_finite_outputs(surface):
     assert truth.surface_deg.max() <= act.stop_max_deg + 1e-9
 
 
-# ---- batch invariance and determinism (docs/design.md §9, Non-negotiables) ----------------------------
+# ---- batch invariance and determinism (docs/design.md §9, Non-negotiables) -----------------------
 def _mixed_batch() -> pd.DataFrame:
     faults = ("none",) + FAULT_TYPES
     rows = []

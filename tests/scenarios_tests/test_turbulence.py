@@ -196,7 +196,10 @@ def test_lagged_gust_variance_matches_the_continuous_spectrum():
     # give ≈ 2 % standard error on the std; 8 % tolerance.
     tas, alt, lag = 250.0, 28000.0, 0.5
     sigma, T = MODERATE.sigma_ms(alt), MODERATE.scale_length_m / tas
-    phi = lambda w: sigma**2 * T * (1 + 3 * (T * w) ** 2) / (1 + (T * w) ** 2) ** 2
+
+    def phi(w):
+        return sigma**2 * T * (1 + 3 * (T * w) ** 2) / (1 + (T * w) ** 2) ** 2
+
     var, _ = quad(lambda w: phi(w) / (1 + (lag * w) ** 2), 0, np.inf)
     rng = np.random.default_rng(3)
     x = np.concatenate([lagged_gust(100_000, TS, tas, alt, rng, component="w", lag_s=lag)

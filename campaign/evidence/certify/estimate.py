@@ -34,8 +34,8 @@ detector (result-row name, variants apart):
 
 Written to ``DIR/certificate.parquet`` (:data:`CERTIFICATE_COLUMNS`), the curve at every
 level to ``DIR/certificate-levels.parquet``, beside ``DIR/certificate-hazard.parquet``, the
-hazard per flight hour of both sides (false alarms, undetected faults; :mod:`campaign.evidence.hazard`),
-and, with ``sampling``, the levels of every subset simulation in
+hazard per flight hour of both sides (false alarms, undetected faults;
+:mod:`campaign.evidence.hazard`), and, with ``sampling``, the levels of every subset simulation in
 ``DIR/sampling/levels.parquet``.
 """
 
@@ -396,7 +396,8 @@ def sampling_note(r, *, seed: int, n: int) -> str:
 def write_sampling_levels(directory, found: dict, config_json: str) -> None:
     """``DIR/sampling/levels.parquet``: one row per sampled detector × level with its
     threshold, conditional probability, probability, γ, δ, effective sample size,
-    acceptance rates, proposal scale and seeds (:meth:`campaign.evidence.rare.SubsetResult.to_pandas`)."""
+    acceptance rates, proposal scale and seeds
+    (:meth:`campaign.evidence.rare.SubsetResult.to_pandas`)."""
     frames = [r.to_pandas().assign(detector=name) for name, r in found.items()]
     if not frames:
         return

@@ -81,8 +81,8 @@ def runs_to_carry(p: float, confidence: float = 0.95) -> int:
 
 
 def sampling_levels_to_reach(p: float) -> int:
-    """The levels subset simulation needs to reach a probability *p* (:data:`campaign.evidence.rare.P0`
-    each):
+    """The levels subset simulation needs to reach a probability *p*
+    (:data:`campaign.evidence.rare.P0` each):
     ⌈log(p)/log(p0)⌉."""
     return max(1, math.ceil(math.log(p) / math.log(P0) - 1e-9))
 

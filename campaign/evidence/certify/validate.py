@@ -130,8 +130,8 @@ def summarise(table: pd.DataFrame) -> str:
 
 def check_validation(config, n: int, seed: int | None) -> int:
     """The validation seed for campaign *config* (default its seed + 1), or
-    :class:`campaign.evidence.certify.CertifyError` (exit 2) for fewer than 100 runs, a grid campaign
-    (no distribution to draw from) or the campaign's own seed — checked before any work."""
+    :class:`campaign.evidence.certify.CertifyError` (exit 2) for fewer than 100 runs, a grid
+    campaign (no distribution to draw from) or the campaign's own seed — checked before any work."""
     from .estimate import CertifyError
 
     if int(n) < 100:

@@ -2,9 +2,9 @@
 ``fdd-campaign study saturation [--seeds S …] [--runs N] [--surfaces …]`` (docs/aircraft.md §5).
 
 Per monitored surface, manoeuvre and seed: fault-free runs of the six ADDSAFE manoeuvres
-(of the ``normal`` manoeuvre set, or ``stress``) sampled as a campaign samples them (``mc`` design, scrambled Sobol sequence over the realistic
-envelope and the uncertainty box, :func:`campaign.plan.build_plan`), flown through the laws
-in the chosen turbulence, and counted:
+(of the ``normal`` manoeuvre set, or ``stress``) sampled as a campaign samples them (``mc`` design,
+scrambled Sobol sequence over the realistic envelope and the uncertainty box,
+:func:`campaign.plan.build_plan`), flown through the laws in the chosen turbulence, and counted:
 
 * ``sat_any``: the fraction of runs whose monitored servo-valve current order reaches its
   saturation ±i_max at least once (the current is clipped there, so saturated samples equal

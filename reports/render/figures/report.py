@@ -522,8 +522,8 @@ def tail_qq_figure(excesses: np.ndarray, shape: float, scale: float, *, title: s
     """Tail QQ plot: the k sorted excesses over u against the quantiles of the fitted
     generalised Pareto distribution at plotting positions i/(k + 1); on the diagonal when
     the model fits. *quantiles*: those k quantiles when the caller has them
-    (:func:`reports.scoring.quantiles.gpd_plotting_quantiles`; a worker process that draws the figure then needs no
-    SciPy)."""
+    (:func:`reports.scoring.quantiles.gpd_plotting_quantiles`; a worker process that draws the
+    figure then needs no SciPy)."""
     y = np.sort(np.asarray(excesses, float))
     k = len(y)
     model = (gpd_plotting_quantiles(k, shape, scale) if quantiles is None
