@@ -27,13 +27,15 @@ def pytest_cmdline_main(config):
     one worker (``--dist loadfile``, so a module's shared campaign is run once). A run of
     test files or tests stays in this process: starting workers would cost more than it
     saves. ``-n``/``--numprocesses`` on the command line (``-n 0``: one process) decides
-    instead; so do ``--pdb`` and ``--collect-only``, which run in one process."""
+    the count instead (still a file per worker unless ``--dist`` says otherwise);
+    ``--pdb`` and ``--collect-only`` run in one process."""
     if not config.pluginmanager.hasplugin("xdist") or hasattr(config, "workerinput"):
         return
-    if config.option.numprocesses is not None or config.getoption("usepdb", False) \
-            or config.getoption("collectonly", False) or not _names_a_folder(config):
-        return
-    config.option.numprocesses = "auto"
+    if config.option.numprocesses is None:
+        if config.getoption("usepdb", False) or config.getoption("collectonly", False) \
+                or not _names_a_folder(config):
+            return
+        config.option.numprocesses = "auto"
     if config.option.dist == "no":
         config.option.dist = "loadfile"
 
