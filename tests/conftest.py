@@ -1,11 +1,43 @@
-"""Shared test helpers."""
+"""Shared test helpers, and how a run of many test files is spread over the CPUs."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from scenarios import servo
+
+
+# ---------------------------------------------------------------------------------------
+# Parallel runs (docs/testing.md, "How long the suite takes")
+# ---------------------------------------------------------------------------------------
+def _names_a_folder(config) -> bool:
+    """Whether the run collects from a folder: no paths given (the ``testpaths``, the whole
+    suite) or a folder among them. Test files and node ids name no folder."""
+    here = config.invocation_params.dir
+    args = [a for a in config.args if not a.startswith("-")] or [str(config.rootpath)]
+    return any((here / a.split("::")[0]).is_dir() for a in args)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config):
+    """With pytest-xdist installed (the ``test`` extra), a run of a folder — ``python -m
+    pytest`` itself — runs on one worker process per CPU (``-n auto``), each test file on
+    one worker (``--dist loadfile``, so a module's shared campaign is run once). A run of
+    test files or tests stays in this process: starting workers would cost more than it
+    saves. ``-n``/``--numprocesses`` on the command line (``-n 0``: one process) decides
+    the count instead (still a file per worker unless ``--dist`` says otherwise);
+    ``--pdb`` and ``--collect-only`` run in one process."""
+    if not config.pluginmanager.hasplugin("xdist") or hasattr(config, "workerinput"):
+        return
+    if config.option.numprocesses is None:
+        if config.getoption("usepdb", False) or config.getoption("collectonly", False) \
+                or not _names_a_folder(config):
+            return
+        config.option.numprocesses = "auto"
+    if config.option.dist == "no":
+        config.option.dist = "loadfile"
 
 
 class LibmNumpy:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import subprocess
 import sys
 from pathlib import Path
@@ -42,6 +43,30 @@ def libm_numpy(libm_numpy, monkeypatch):
     monkeypatch.setattr(sim, "np", LibmNumpy())
 
 
+@pytest.fixture(scope="module")
+def _every_fault_signals():
+    """The signals of :func:`every_fault_batch` simulated once with the NumPy engine on the C
+    library's arcsin/cos (the ``libm_numpy`` fixtures' patches): its time loop in Python is
+    the slow part of the tests below, and their input is the same for every step, band and
+    check."""
+    from conftest import LibmNumpy
+
+    from scenarios import servo
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(servo, "np", LibmNumpy())
+        patch.setattr(sim, "np", LibmNumpy())
+        signals, _ = simulate(every_fault_batch(), engine="numpy")
+    return signals
+
+
+@pytest.fixture
+def libm_signals(_every_fault_signals):
+    """A fresh copy of the shared signals for each test (a test cannot see another's
+    changes)."""
+    return copy.deepcopy(_every_fault_signals)
+
+
 def test_compiled_loop_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
     p = prepare(every_fault_batch())
     ref = sim.integrate(p, SENSORS)
@@ -51,16 +76,18 @@ def test_compiled_loop_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy):
 
 
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
-def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
-    signals, _ = simulate(every_fault_batch(), engine="numpy")
+def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(
+        libm_numpy, libm_signals, step):
+    signals = libm_signals
     ref = PositionMonitor.model_output(signals, engine="numpy", model_step=step)
     fast = PositionMonitor.model_output(signals, engine="compiled", model_step=step)
     np.testing.assert_array_equal(fast, ref)
 
 
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
-def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(libm_numpy, step):
-    signals, _ = simulate(every_fault_batch(), engine="numpy")
+def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(
+        libm_numpy, libm_signals, step):
+    signals = libm_signals
     det = PositionMonitor(hinge_scale=(0.6, 1.6), model_step=step)
     assert len(det.band_corners()) == 9      # the valve and hinge corners (docs/physics.md §6)
     ref = det.model_band(signals, engine="numpy")
@@ -104,8 +131,8 @@ def test_compiled_band_propagates_a_nan_model_like_numpy():
                                    "supply_scale": (1.0, 1.0)}])
 @pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("loop",), ("com_mon",)])
 def test_compiled_monitor_decision_is_bit_identical_to_numpy_with_the_same_libm(
-        libm_numpy, band, checks, step):
-    signals, _ = simulate(every_fault_batch(), engine="numpy")
+        libm_numpy, libm_signals, band, checks, step):
+    signals = libm_signals
     det = PositionMonitor(checks=checks, confirm_s=0.03, model_step=step, **band)
     # thresholds a fraction of the largest residuals, so that alarms are raised and cleared
     det.thresholds_mm_ = {name: 0.3 * float(np.max(np.abs(r)))
