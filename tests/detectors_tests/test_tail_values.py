@@ -1,0 +1,242 @@
+"""detectors.tail by value, on the path the shipped presets take: the generalised-Pareto
+calibration of 50 or more learning runs (target 10⁻⁴ per run, 95 %, ``threshold_tail =
+"exponential"``, the built-in detectors' defaults), the likelihood-ratio test of ξ ≤ 0 at its
+decision boundary, and the exceedance probability of the certificate's curve.
+
+Every expected value is recomputed here from the formulas of the module docstring (Coles
+2001, §4.3 and §2.6.6) by a separate route: the generalised Pareto log-likelihood written out
+(Coles eq. 4.10), maximised over the documented ξ grid (step 0.005, ξ = 0 included) with
+SciPy's bounded scalar search over σ or over the quantity of interest, and the one-sided
+profile-likelihood bound found where the profile falls z²/2 below its maximum (z the standard
+normal quantile of the confidence: the one-sided bound of Wilks' χ²₁, χ²₁(2c − 1) = z_c²).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy import optimize, stats
+
+from detectors.calibrate import calibrate_threshold
+from detectors.tail import CURVE_SHAPES, fit_tail
+
+#: The documented ξ grid: [−0.5, 1] in steps of 0.005 (301 values, ξ = 0 included).
+GRID = np.round(np.arange(-100, 201) * 0.005, 12)
+
+
+def loglik(y, sigma, xi) -> np.ndarray:
+    """Σ_i log GPD(y_i; ξ, σ) for each (σ, ξ) pair (Coles 2001 eq. 4.10), −inf outside the
+    support."""
+    y = np.asarray(y, float)[:, None]
+    sigma = np.atleast_1d(np.asarray(sigma, float))[None, :]
+    xi = np.atleast_1d(np.asarray(xi, float))[None, :]
+    with np.errstate(all="ignore"):
+        z = 1.0 + xi * y / sigma
+        general = -np.log(sigma) - (1.0 + 1.0 / np.where(xi == 0, 1.0, xi)) * np.log(z)
+        exponential = -np.log(sigma) - y / sigma
+        ll = np.where(xi == 0, exponential, np.where(z > 0, general, -np.inf))
+    return np.where(sigma > 0, ll, -np.inf).sum(axis=0)
+
+
+def h(a: float, xi: np.ndarray) -> np.ndarray:
+    """(a^ξ − 1)/ξ, log a at ξ = 0: the quantile's excess over u in units of σ."""
+    safe = np.where(xi == 0, 1.0, xi)
+    return np.where(xi == 0, math.log(a), (a ** safe - 1.0) / safe)
+
+
+def tail_of(values):
+    """(n, k, u, excesses): k = max(20, ⌈n/5⌉), u the (k + 1)-th largest value."""
+    d = np.sort(np.asarray(values, float))[::-1]
+    k = max(20, math.ceil(0.2 * d.size))
+    return d.size, k, float(d[k]), d[:k] - d[k]
+
+
+def quantile_reference(values, p: float, c: float, grid: np.ndarray):
+    """(estimate, upper bound, ξ̂) of the (1 − p)-quantile: the profile over t = τ − u with
+    σ = t/h(a, ξ), a = (k/n)/p, maximised over ξ in *grid*; the bound is the largest t whose
+    profile is within z_c²/2 of the maximum."""
+    n, k, u, y = tail_of(values)
+    a = (k / n) / p
+
+    def profile(s):                               # s = log t
+        t = math.exp(s)
+        return float(loglik(y, t / h(a, grid), grid).max())
+
+    s = math.log(y.mean() * math.log(a)) + np.linspace(-6.0, 10.0, 801)
+    prof = np.array([profile(v) for v in s])
+    i = int(np.argmax(prof))
+    best = optimize.minimize_scalar(lambda v: -profile(v), bounds=(s[i - 1], s[i + 1]),
+                                    method="bounded", options={"xatol": 1e-12})
+    s_hat, top = (best.x, -best.fun) if -best.fun >= prof[i] else (s[i], prof[i])
+    level = top - 0.5 * stats.norm.ppf(c) ** 2
+    j = i + int(np.flatnonzero(prof[i:] < level)[0])
+    s_up = optimize.brentq(lambda v: profile(v) - level, s_hat, s[j], xtol=1e-13)
+    t_hat = math.exp(s_hat)
+    xi_hat = float(grid[np.argmax(loglik(y, t_hat / h(a, grid), grid))])
+    return u + t_hat, u + math.exp(s_up), xi_hat
+
+
+def sf_reference(values, x: float, c: float, grid: np.ndarray):
+    """(estimate, upper bound) of P(X ≥ x), x above u: (k/n)·q with the profile over
+    s = −log q (σ = t/h(e^s, ξ), t = x − u) maximised over ξ in *grid*; the bound is the
+    largest q (smallest s) whose profile is within z_c²/2 of the maximum."""
+    n, k, u, y = tail_of(values)
+    t = x - u
+    safe = np.where(grid == 0, 1.0, grid)
+
+    def profile(v):                               # v = log s
+        s = math.exp(v)
+        with np.errstate(all="ignore"):
+            hh = np.where(grid == 0, s, np.expm1(safe * s) / safe)
+        return float(loglik(y, t / hh, grid).max())
+
+    v = np.linspace(math.log(1e-6), math.log(1e4), 2001)
+    prof = np.array([profile(w) for w in v])
+    i = int(np.argmax(prof))
+    best = optimize.minimize_scalar(lambda w: -profile(w), bounds=(v[i - 1], v[i + 1]),
+                                    method="bounded", options={"xatol": 1e-12})
+    v_hat, top = (best.x, -best.fun) if -best.fun >= prof[i] else (v[i], prof[i])
+    level = top - 0.5 * stats.norm.ppf(c) ** 2
+    j = int(np.flatnonzero((v < v_hat) & (prof < level))[-1])
+    v_up = optimize.brentq(lambda w: profile(w) - level, v[j], v_hat, xtol=1e-13)
+    return k / n * math.exp(-math.exp(v_hat)), k / n * math.exp(-math.exp(v_up))
+
+
+def restricted_maximum(y, grid: np.ndarray) -> float:
+    """max over ξ in *grid* and σ > 0 of the log-likelihood (σ by bounded search per ξ)."""
+    best = -math.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for xi in grid:
+            r = optimize.minimize_scalar(lambda ls: -loglik(y, math.exp(ls), xi)[0],
+                                         bounds=(math.log(y.mean()) - 5, math.log(y.max()) + 5),
+                                         method="bounded", options={"xatol": 1e-12})
+            best = max(best, -r.fun)
+    return best
+
+
+def gaussian_maxima(seed: int, n: int, samples: int = 200) -> np.ndarray:
+    """Per-run maxima of *samples* standard normal values: a residual's sensor-noise maximum."""
+    return np.random.default_rng(seed).standard_normal((n, samples)).max(axis=1)
+
+
+# ---- the calibration every preset takes: ≥ 50 runs, the generalised Pareto route ----------
+@pytest.mark.parametrize("n, seed, tail, grid", [
+    (50, 11, "exponential", GRID[GRID == 0.0]),
+    (60, 12, "exponential", GRID[GRID == 0.0]),
+    (120, 13, "exponential", GRID[GRID == 0.0]),
+    (300, 14, "exponential", GRID[GRID == 0.0]),
+    (100, 15, "light", GRID[GRID <= 0.0]),
+])
+def test_the_default_calibration_is_the_profile_likelihood_bound_value_by_value(n, seed, tail,
+                                                                                 grid):
+    """target 10⁻⁴, 95 %, exponential tail (the built-in detectors' defaults) on 50 to 300
+    learning runs (fewer than the 29 956 the order statistic needs): threshold, estimate,
+    k, u, ξ and σ as recomputed from the formulas. The bound is a root of the profile
+    (1e-8 relative); the estimate is the maximum's position, found to about √ε ≈ 1e-8 in
+    log t by both searches, so t̂ = τ̂ − u agrees to 1e-6 relative (σ̂ = t̂/h) and
+    τ̂ to 1e-7."""
+    x = gaussian_maxima(seed, n)
+    cal = calibrate_threshold(x, 1e-4, 0.95, tail=tail)
+    n_, k, u, _ = tail_of(x)
+    est, up, xi = quantile_reference(x, 1e-4, 0.95, grid)
+    assert cal.method == "gpd" and cal.supported
+    assert (cal.n, cal.k, cal.u) == (n, k, u)
+    assert cal.threshold == pytest.approx(up, rel=1e-8)
+    assert cal.estimate == pytest.approx(est, rel=1e-7)
+    assert cal.shape == xi
+    a = (k / n) / 1e-4                               # σ̂ = t̂/h(a, ξ̂)
+    assert cal.scale == pytest.approx((est - u) / float(h(a, np.array(xi))), rel=1e-6)
+    assert cal.threshold > cal.estimate > u
+
+
+def test_the_bound_is_one_sided_not_two_sided():
+    """The 95 % bound sits where the profile has fallen z_0.95²/2 = 1.353, not
+    z_0.975²/2 = 1.921 (the end of a two-sided 95 % interval): the two bounds differ by
+    more than 1 % here, and the calibration gives the first."""
+    x = gaussian_maxima(21, 80)
+    cal = calibrate_threshold(x, 1e-4, 0.95, tail="exponential")
+    grid = GRID[GRID == 0.0]
+    _, one_sided, _ = quantile_reference(x, 1e-4, 0.95, grid)
+    _, two_sided, _ = quantile_reference(x, 1e-4, 0.975, grid)
+    assert two_sided > 1.01 * one_sided
+    assert cal.threshold == pytest.approx(one_sided, rel=1e-8)
+
+
+# ---- the likelihood-ratio test of ξ ≤ 0, at its decision boundary ---------------------------
+def plotting_position_sample(xi0: float, n: int = 100) -> np.ndarray:
+    """The n quantiles GPD(ξ₀, 1).ppf((i − ½)/n): a deterministic sample of a heavy tail."""
+    return stats.genpareto.ppf((np.arange(1, n + 1) - 0.5) / n, xi0)
+
+
+def lr_statistic(values) -> float:
+    """2·(max log-likelihood, free ξ − max log-likelihood, ξ ≤ 0) of the top k excesses."""
+    _, _, _, y = tail_of(values)
+    return 2.0 * (restricted_maximum(y, GRID) - restricted_maximum(y, GRID[GRID <= 0.0]))
+
+
+@pytest.mark.parametrize("tail", ["auto", "light"])
+def test_the_light_tail_test_flips_between_the_one_sided_and_the_two_sided_critical_value(tail):
+    """ξ ≤ 0 is a boundary hypothesis: 2Δℓ is ½χ²₀ + ½χ²₁ under it (Self & Liang 1987), so
+    the 5 % critical value is z_0.95² = 2.706, not χ²₁(0.95) = z_0.975² = 3.841 (two-sided)
+    nor z_0.95·2 = 3.290. A sample with 2Δℓ = 2.95 is rejected; one with 2.24 is not (it
+    would be under z_0.95 = 1.645, a critical value left unsquared)."""
+    crit = stats.norm.ppf(0.95) ** 2
+    between = plotting_position_sample(0.52)
+    below = plotting_position_sample(0.47)
+    s_between, s_below = lr_statistic(between), lr_statistic(below)
+    assert crit < s_between < 2 * stats.norm.ppf(0.95) < stats.chi2.ppf(0.95, 1)
+    assert stats.norm.ppf(0.95) < s_below < crit
+    rejected = fit_tail(between, tail=tail)
+    kept = fit_tail(below, tail=tail)
+    assert rejected.light_rejected is True and kept.light_rejected is False
+    if tail == "auto":                                 # acted on: the free fit is used
+        assert rejected.tail == "free" and rejected.shape > 0.0
+        assert kept.tail == "light" and kept.shape <= 0.0
+    else:                                              # reported, the light fit kept
+        assert rejected.tail == kept.tail == "light"
+    # at 90 % the critical value is z_0.90² = 1.642: the lower sample is rejected too
+    assert fit_tail(below, tail=tail, confidence=0.90).light_rejected is True
+
+
+def test_the_calibration_passes_its_confidence_to_the_light_tail_test():
+    """calibrate_threshold's confidence is the test's: at 0.95 the 2Δℓ = 2.24 sample keeps
+    ξ ≤ 0, at 0.9 (critical value 1.642) the free shape is used."""
+    x = plotting_position_sample(0.47)
+    assert "ξ ≤ 0 not rejected" in calibrate_threshold(x, 1e-3, 0.95, tail="light").note
+    assert "rejected by the likelihood-ratio test, free shape" in calibrate_threshold(
+        x, 1e-3, 0.90, tail="auto").note
+
+
+@pytest.mark.parametrize("tail, grid", [("free", GRID), ("light", GRID[GRID <= 0.0]),
+                                        ("exponential", GRID[GRID == 0.0])])
+def test_the_fitted_shape_and_scale_are_the_maximum_likelihood_ones(tail, grid):
+    """fit_tail's (ξ, σ) maximise the log-likelihood of the k excesses over the tail's ξ
+    range (checked on the restricted maximum, 1e-9 absolute in log-likelihood)."""
+    x = gaussian_maxima(31, 150)
+    fit = fit_tail(x, tail=tail)
+    _, k, u, y = tail_of(x)
+    assert (fit.k, fit.u, fit.n, fit.largest) == (k, u, 150, x.max())
+    assert fit.shape in grid
+    assert loglik(y, fit.scale, fit.shape)[0] == pytest.approx(restricted_maximum(y, grid),
+                                                                abs=1e-9)
+    np.testing.assert_allclose(fit.tail_values(), y, rtol=1e-12)
+
+
+# ---- the certificate's exceedance probability: P(margin ≥ x) above u, ξ ∈ [0, 1] ----------
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("level", [1.0, 1.1])
+def test_the_exceedance_probability_and_its_bound_value_by_value(seed, level):
+    """fit_tail(…, CURVE_SHAPES).sf: the estimate (k/n)·q̂ and the bound (k/n)·q_up of the
+    profile over s = −log q, as recomputed (1e-7 relative for the estimate, the maximum's
+    search tolerance; 1e-10 for the bound, a root of the profile)."""
+    x = gaussian_maxima(seed, 150, 100) / 3.5             # margins: max |r| / τ
+    fit = fit_tail(x, shapes=CURVE_SHAPES)
+    e = fit.sf(level)
+    est, up = sf_reference(x, level, 0.95, GRID[GRID >= 0.0])
+    assert e.estimate == pytest.approx(est, rel=1e-7)
+    assert e.upper == pytest.approx(up, rel=1e-10)
+    assert e.upper > e.estimate and e.confidence == 0.95
