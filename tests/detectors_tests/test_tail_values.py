@@ -21,7 +21,7 @@ import pytest
 from scipy import optimize, stats
 
 from detectors.calibrate import calibrate_threshold
-from detectors.tail import CURVE_SHAPES, fit_tail
+from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 
 #: The documented ξ grid: [−0.5, 1] in steps of 0.005 (301 values, ξ = 0 included).
 GRID = np.round(np.arange(-100, 201) * 0.005, 12)
@@ -80,9 +80,10 @@ def quantile_reference(values, p: float, c: float, grid: np.ndarray):
 
 
 def sf_reference(values, x: float, c: float, grid: np.ndarray):
-    """(estimate, upper bound) of P(X ≥ x), x above u: (k/n)·q with the profile over
+    """(estimate, upper bound, ξ̂, σ̂) of P(X ≥ x), x above u: (k/n)·q with the profile over
     s = −log q (σ = t/h(e^s, ξ), t = x − u) maximised over ξ in *grid*; the bound is the
-    largest q (smallest s) whose profile is within z_c²/2 of the maximum."""
+    largest q (smallest s) whose profile is within z_c²/2 of the maximum; (ξ̂, σ̂) maximise
+    the likelihood at the estimate."""
     n, k, u, y = tail_of(values)
     t = x - u
     safe = np.where(grid == 0, 1.0, grid)
@@ -102,7 +103,11 @@ def sf_reference(values, x: float, c: float, grid: np.ndarray):
     level = top - 0.5 * stats.norm.ppf(c) ** 2
     j = int(np.flatnonzero((v < v_hat) & (prof < level))[-1])
     v_up = optimize.brentq(lambda w: profile(w) - level, v[j], v_hat, xtol=1e-13)
-    return k / n * math.exp(-math.exp(v_hat)), k / n * math.exp(-math.exp(v_up))
+    s_hat = math.exp(v_hat)
+    hh = np.where(grid == 0, s_hat, np.expm1(safe * s_hat) / safe)
+    j_hat = int(np.argmax(loglik(y, t / hh, grid)))
+    return (k / n * math.exp(-s_hat), k / n * math.exp(-math.exp(v_up)), float(grid[j_hat]),
+            float(t / hh[j_hat]))
 
 
 def restricted_maximum(y, grid: np.ndarray) -> float:
@@ -236,7 +241,29 @@ def test_the_exceedance_probability_and_its_bound_value_by_value(seed, level):
     x = gaussian_maxima(seed, 150, 100) / 3.5             # margins: max |r| / τ
     fit = fit_tail(x, shapes=CURVE_SHAPES)
     e = fit.sf(level)
-    est, up = sf_reference(x, level, 0.95, GRID[GRID >= 0.0])
+    est, up, xi, sigma = sf_reference(x, level, 0.95, GRID[GRID >= 0.0])
     assert e.estimate == pytest.approx(est, rel=1e-7)
     assert e.upper == pytest.approx(up, rel=1e-10)
     assert e.upper > e.estimate and e.confidence == 0.95
+    assert e.shape == xi and e.scale == pytest.approx(sigma, rel=1e-6)
+
+
+def test_k_must_leave_a_value_below_the_tail():
+    """2 ≤ k < n: k = n would leave no (k + 1)-th value for u."""
+    x = gaussian_maxima(41, 60)
+    assert fit_tail(x, k=59).k == 59
+    with pytest.raises(TailFitError, match="k = 60: the exceedances must be 2 ≤ k < n = 60"):
+        fit_tail(x, k=60)
+    with pytest.raises(TailFitError, match="k = 1: the exceedances must be 2 ≤ k < n = 60"):
+        fit_tail(x, k=1)
+
+
+def test_a_fit_is_hashable_by_identity_and_its_repr_leaves_out_the_arrays():
+    """A TailFit holds arrays: it compares and hashes as the object it is (a set or a cache
+    key can hold it), and its repr gives the fitted numbers, not the excesses."""
+    x = gaussian_maxima(42, 60)
+    a, b = fit_tail(x), fit_tail(x)
+    assert a != b and a == a and len({a, b}) == 2
+    text = repr(a)
+    assert text.startswith(f"TailFit(n=60, k=20, u={a.u!r}, shape={a.shape!r}")
+    assert "excesses" not in text and "unit=" not in text and "shapes=" not in text
