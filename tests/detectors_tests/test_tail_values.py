@@ -362,3 +362,18 @@ def test_the_curve_of_a_mixture_is_its_classes_curves_by_their_shares():
             assert e.estimate == pytest.approx(sum(p[2] * p[4] for p in e.parts), rel=1e-12)
             assert e.upper == pytest.approx(sum(p[3] * p[4] for p in e.parts), rel=1e-12)
     assert {e.method for e in curve} == {"mixture"}
+
+
+def test_a_bounded_tail_at_a_tiny_target_is_found_below_a_tenth_of_the_exponential_estimate():
+    """Evenly spread values (a finite end point: ξ = −1, held at −0.5) and p = 10⁻¹⁶: the
+    quantile excess t̂ (2.5 mean excesses) is under a tenth of the exponential one
+    (log a = 35), so the search over t must start lower than that; the light fit's bound and
+    estimate as recomputed (tolerances of the default-route test)."""
+    x = np.linspace(0.0, 1.0, 200)
+    cal = calibrate_threshold(x, 1e-16, 0.95, tail="light")
+    est, up, xi = quantile_reference(x, 1e-16, 0.95, GRID[GRID <= 0.0])
+    n, k, u, y = tail_of(x)
+    assert (est - u) / y.mean() < 0.1 * math.log((k / n) / 1e-16)
+    assert cal.method == "gpd" and cal.shape == -0.5
+    assert cal.threshold == pytest.approx(up, rel=1e-8)
+    assert cal.estimate == pytest.approx(est, rel=1e-7)
