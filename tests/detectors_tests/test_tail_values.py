@@ -377,3 +377,42 @@ def test_a_bounded_tail_at_a_tiny_target_is_found_below_a_tenth_of_the_exponenti
     assert cal.method == "gpd" and cal.shape == -0.5
     assert cal.threshold == pytest.approx(up, rel=1e-8)
     assert cal.estimate == pytest.approx(est, rel=1e-7)
+
+
+def test_the_log_likelihood_a_few_pairs_at_a_time_is_the_written_out_one(monkeypatch):
+    """With LOGLIK_TERMS = 50 and 20 excesses, 2 pairs are taken at a time: 301 × 3 pairs
+    (every ξ of the grid, three σ; some outside the support) give Coles' eq. 4.10."""
+    import detectors.tail as tail
+
+    y = np.sort(gaussian_maxima(6, 20))[::-1] - 2.0
+    y = y[y > 0]
+    sigma = np.repeat([0.05, 0.5, 2.0], GRID.size).reshape(3, GRID.size)
+    xi = np.broadcast_to(GRID, sigma.shape)
+    monkeypatch.setattr(tail, "LOGLIK_TERMS", 50)
+    got = tail._loglik(y, sigma, xi)
+    want = loglik(y, sigma.ravel(), xi.ravel()).reshape(sigma.shape)
+    assert got.shape == (3, GRID.size)
+    np.testing.assert_array_equal(np.isinf(got), np.isinf(want))
+    np.testing.assert_allclose(got[np.isfinite(want)], want[np.isfinite(want)], rtol=1e-12)
+    assert np.isinf(want).any() and np.isfinite(want).any()
+
+
+def test_ten_distinct_excesses_are_enough_and_k_two_is_degenerate():
+    """MIN_DISTINCT_EXCESSES = 10: the top 10 of distinct values are fitted; k = 2 passes the
+    bounds 2 ≤ k < n but holds 2 distinct excesses, a degenerate tail."""
+    x = gaussian_maxima(7, 60)
+    assert fit_tail(x, k=10).k == 10
+    with pytest.raises(TailFitError, match="degenerate: 9 distinct value"):
+        fit_tail(x, k=9)
+    with pytest.raises(TailFitError, match="degenerate: 2 distinct value"):
+        fit_tail(x, k=2)
+
+
+def test_the_models_exceedance_probability_is_nan_at_or_below_u():
+    """model_sf: (k/n)·GPD(ξ̂, σ̂).sf(x − u) above u, NaN at and below u."""
+    x = gaussian_maxima(8, 100)
+    fit = fit_tail(x)
+    got = fit.model_sf([fit.u - 0.1, fit.u, fit.u + 0.3])
+    assert np.isnan(got[:2]).all()
+    assert got[2] == pytest.approx(0.2 * stats.genpareto.sf(0.3, fit.shape, scale=fit.scale),
+                                   rel=1e-14)
