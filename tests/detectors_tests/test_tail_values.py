@@ -292,6 +292,18 @@ def test_a_tie_across_the_cut_moves_it_to_the_nearer_gap_the_larger_on_a_draw():
     assert (fit_tail(x).k, fit_tail(x).u) == (28, x[28])
 
 
+def test_a_tie_cut_may_leave_exactly_the_fewest_exceedances():
+    """n = 150, rule k = 30, 21 equal values at ranks 21-41: the gaps at 20 (10 away) and 41
+    (11 away); k = 20 = MIN_EXCEEDANCES is still a tail."""
+    x = np.linspace(1.0, 2.0, 150)[::-1].copy()
+    x[20:41] = x[20]
+    fit = fit_tail(x)
+    assert (fit.k, fit.u) == (20, x[20])
+    x[19:45] = x[19]                          # gaps at 19 (11 away) and 45: degenerate
+    with pytest.raises(TailFitError, match="19 value"):
+        fit_tail(x)
+
+
 def test_a_tie_holding_the_smallest_value_is_cut_above_never_below():
     """30 distinct values above an atom of 30 zeros, k = 59 asked: the cut cannot go below
     the atom (no value is left there for u), so it goes above it: k = 30, u = 0."""
@@ -313,6 +325,8 @@ def test_a_tail_too_heavy_to_bound_is_an_error_that_says_so():
     assert fit.quantile(1e-3).upper > fit.quantile(1e-3).estimate      # a bounded one
     with pytest.raises(ValueError, match=r"p = 0.4: outside the fitted tail \(0, k/n = 0.4\)"):
         fit.quantile(0.4)
+    with pytest.raises(ValueError, match=r"p = 0.0: outside the fitted tail"):
+        fit.quantile(0.0)
 
 
 def test_an_exceedance_probability_just_above_u_is_bounded_by_k_over_n():
@@ -347,9 +361,13 @@ def test_the_curve_counts_at_or_below_u_and_fits_above_with_the_curve_shapes():
 
 
 def test_the_curve_of_a_mixture_is_its_classes_curves_by_their_shares():
+    """Σ_c w_c·(the class's own curve), or the pooled count (its share, its exact bound) at
+    the levels where that bound is the smaller (here 2.5 and 4.0)."""
+    from reports.metrics import upper_bound
+
     x = np.r_[gaussian_maxima(4, 150, 100), 1.2 * gaussian_maxima(5, 60, 100)]
     cls = np.array(["b"] * 150 + ["a"] * 60)
-    levels = (3.0, 3.6)
+    levels = (2.5, 3.0, 3.6, 4.0)
     curve = exceedance_curve(x, levels, classes=cls)
     alone = {c: exceedance_curve(x[cls == c], levels) for c in ("a", "b")}
     for i, e in enumerate(curve):
@@ -358,10 +376,14 @@ def test_the_curve_of_a_mixture_is_its_classes_curves_by_their_shares():
             assert (how, est, up) == (alone[name][i].method, alone[name][i].estimate,
                                       alone[name][i].upper)
             assert w == (cls == name).mean()
+        assert e.count == int((x >= levels[i]).sum()) and e.n == 210
         if e.method == "mixture":
             assert e.estimate == pytest.approx(sum(p[2] * p[4] for p in e.parts), rel=1e-12)
             assert e.upper == pytest.approx(sum(p[3] * p[4] for p in e.parts), rel=1e-12)
-    assert {e.method for e in curve} == {"mixture"}
+        else:
+            assert (e.estimate, e.upper) == (e.count / 210,
+                                             float(upper_bound(e.count, 210, 0.95)))
+    assert [e.method for e in curve] == ["counted", "mixture", "mixture", "counted"]
 
 
 def test_a_bounded_tail_at_a_tiny_target_is_found_below_a_tenth_of_the_exponential_estimate():
