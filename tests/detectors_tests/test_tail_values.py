@@ -258,6 +258,19 @@ def test_the_exceedance_probability_and_its_bound_value_by_value(seed, level):
     assert e.shape == pytest.approx(xi, abs=1e-12) and e.scale == pytest.approx(sigma, rel=1e-6)
 
 
+def test_the_exceedance_probability_of_a_heavy_tail_value_by_value():
+    """As above on 150 GPD(ξ = 0.3) values at their third largest: ξ̂ = 0.38, inside
+    [0, 1], so the (ξ, σ) reported is the likelihood's maximiser, not the grid's edge."""
+    x = stats.genpareto.rvs(0.3, size=150, random_state=np.random.default_rng(1))
+    level = float(np.sort(x)[-3])
+    e = fit_tail(x, shapes=CURVE_SHAPES).sf(level)
+    est, up, xi, sigma = sf_reference(x, level, 0.95, GRID[GRID >= 0.0])
+    assert 0.0 < xi < 1.0
+    assert e.estimate == pytest.approx(est, rel=1e-7)
+    assert e.upper == pytest.approx(up, rel=1e-10)
+    assert e.shape == pytest.approx(xi, abs=1e-12) and e.scale == pytest.approx(sigma, rel=1e-6)
+
+
 def test_k_must_leave_a_value_below_the_tail():
     """2 ≤ k < n: k = n would leave no (k + 1)-th value for u."""
     x = gaussian_maxima(41, 60)
@@ -274,6 +287,8 @@ def test_a_fit_is_hashable_by_identity_and_its_repr_leaves_out_the_arrays():
     x = gaussian_maxima(42, 60)
     a, b = fit_tail(x), fit_tail(x)
     assert a != b and a == a and len({a, b}) == 2
+    with pytest.raises(AttributeError):                       # frozen
+        a.k = 3
     text = repr(a)
     assert text.startswith(f"TailFit(n=60, k=20, u={a.u!r}, shape={a.shape!r}")
     assert "excesses" not in text and "unit=" not in text and "shapes=" not in text
@@ -300,7 +315,8 @@ def test_a_tie_cut_may_leave_exactly_the_fewest_exceedances():
     fit = fit_tail(x)
     assert (fit.k, fit.u) == (20, x[20])
     x[19:45] = x[19]                          # gaps at 19 (11 away) and 45: degenerate
-    with pytest.raises(TailFitError, match="19 value"):
+    with pytest.raises(TailFitError, match=r"19 value\(s\) above the atom .*; 26 of 150 values "
+                                           "equal u"):
         fit_tail(x)
 
 
