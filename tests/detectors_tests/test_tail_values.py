@@ -454,3 +454,20 @@ def test_the_models_exceedance_probability_is_nan_at_or_below_u():
     assert np.isnan(got[:2]).all()
     assert got[2] == pytest.approx(0.2 * stats.genpareto.sf(0.3, fit.shape, scale=fit.scale),
                                    rel=1e-14)
+
+
+def test_a_sample_too_small_for_a_tail_is_counted_at_every_level():
+    """30 values (fewer than the 50 a tail fit needs): every level is counted, none fails;
+    the points are frozen, and the options after the levels are keyword-only."""
+    from reports.metrics import upper_bound
+
+    x = gaussian_maxima(9, 30)
+    top = float(x.max())
+    curve = exceedance_curve(x, (top, top + 1.0))
+    assert [(c.method, c.count, c.estimate) for c in curve] == [("counted", 1, 1 / 30),
+                                                                 ("counted", 0, 0.0)]
+    assert curve[1].upper == float(upper_bound(0, 30, 0.95))
+    with pytest.raises(AttributeError):
+        curve[0].upper = 0.0
+    with pytest.raises(TypeError):
+        exceedance_curve(x, (top,), np.zeros(30))
