@@ -474,10 +474,11 @@ def test_a_sample_too_small_for_a_tail_is_counted_at_every_level():
 
 
 def test_a_missing_class_label_is_a_class_of_its_own():
-    """Labels None are not dropped nor merged: they form the class "None" with its share."""
+    """Labels None are not dropped nor merged: they form one class (named "nan", as pandas
+    reads a missing label) with its share."""
     x = np.r_[gaussian_maxima(10, 60, 100), gaussian_maxima(11, 40, 100)]
     labels = np.array(["cruise"] * 60 + [None] * 40, dtype=object)
     e = exceedance_curve(x, (2.0,), classes=labels)[0]
-    assert [(p[0], p[4]) for p in e.parts] == [("None", 0.4), ("cruise", 0.6)]
+    assert [(p[0], p[4]) for p in e.parts] == [("cruise", 0.6), ("nan", 0.4)]
     with pytest.raises(AttributeError):                       # estimates are frozen
         fit_tail(x).sf(3.0).upper = 0.0
