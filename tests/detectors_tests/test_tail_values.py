@@ -305,6 +305,9 @@ def test_a_tie_across_the_cut_moves_it_to_the_nearer_gap_the_larger_on_a_draw():
     assert (fit.k, fit.u) == (32, x[32])
     x[28:33] = x[28]                                         # gaps at 28 and 33
     assert (fit_tail(x).k, fit_tail(x).u) == (28, x[28])
+    y = np.linspace(1.0, 2.0, 150)[::-1].copy()
+    y[29:31] = y[29]                                         # a pair tied across the cut
+    assert (fit_tail(y).k, fit_tail(y).u) == (31, y[31])
 
 
 def test_a_tie_cut_may_leave_exactly_the_fewest_exceedances():
