@@ -339,6 +339,11 @@ def test_a_tail_too_heavy_to_bound_is_an_error_that_says_so():
     with pytest.raises(TailFitError, match="does not fall below its 0.95 level within 10⁴ × "
                                            "the estimate"):
         fit.quantile(1e-8)
+    # the search reaches 10⁴ × the exponential estimate log((k/n)/p) mean excesses, no
+    # further: here the bound at p = 10⁻⁶ (1.9e6) is inside, at 10⁻⁷ (1.9e7) beyond it
+    assert fit.quantile(1e-6).upper == pytest.approx(1.907e6, rel=1e-3)
+    with pytest.raises(TailFitError, match="too heavy to bound"):
+        fit.quantile(1e-7)
     cal = calibrate_threshold(x, 1e-8, 0.95)
     assert cal.method == "max-factor" and "too heavy to bound" in cal.note
     assert fit.quantile(1e-3).upper > fit.quantile(1e-3).estimate      # a bounded one
