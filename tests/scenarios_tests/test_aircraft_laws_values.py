@@ -6,6 +6,7 @@ from the equations of the module docstring on hand-chosen numbers."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -33,23 +34,29 @@ def nominal():
     return lpv.run_models(_flight(), 0.0)
 
 
-def test_the_pitch_gains_place_the_documented_poles(nominal):
+@pytest.mark.parametrize("changes", [{}, {"pitch_zeta": 0.6, "pitch_integral": 1.5,
+                                          "pitch_cap": 0.4, "pitch_omega_max": 2.5}])
+def test_the_pitch_gains_place_the_documented_poles(nominal, changes):
     """On α̇ = a11·α + a12·q, q̇ = a21·α + a22·q + b·δe, ż = n_α·α and
     δe = −k_n·n_α·α − k_q·q − k_i·z, the characteristic polynomial is
-    (s² + 2ζω_sp·s + ω_sp²)(s + a) with ζ = 0.7, a = 1 rad/s and ω_sp = sqrt(0.3·n_α)
-    clipped to [1, 2] rad/s (LAWS; 1e-9 relative on each coefficient)."""
-    g = laws.gains(nominal)
+    (s² + 2ζω_sp·s + ω_sp²)(s + a) with ω_sp = sqrt(CAP·n_α) clipped to [ω_min, ω_max]:
+    LAWS (ζ = 0.7, a = 1 rad/s, CAP = 0.3, 1-2 rad/s) and other values (a ≠ 1, so a product
+    and a quotient by a differ); 1e-9 relative on each coefficient."""
+    laws_p = replace(LAWS, **changes)
+    g = laws.gains(nominal, laws_p)
     A, B, C = nominal.A, nominal.B, nominal.C
     b = B[:, lpv.IQ, 0] + B[:, lpv.IQ, 1]                    # both elevators
     n_alpha = C[:, 0, lpv.IA]
-    w = np.clip(np.sqrt(0.3 * n_alpha), 1.0, 2.0)
+    w = np.clip(np.sqrt(laws_p.pitch_cap * n_alpha), laws_p.pitch_omega_min,
+                laws_p.pitch_omega_max)
     np.testing.assert_allclose(g.omega_sp, w, rtol=1e-15)
+    z, a = laws_p.pitch_zeta, laws_p.pitch_integral
     for i in range(len(b)):
         M = np.array([[A[i, lpv.IA, lpv.IA], A[i, lpv.IA, lpv.IQ], 0.0],
                       [A[i, lpv.IQ, lpv.IA] - b[i] * g.k_n[i] * n_alpha[i],
                        A[i, lpv.IQ, lpv.IQ] - b[i] * g.k_q[i], -b[i] * g.k_i[i]],
                       [n_alpha[i], 0.0, 0.0]])
-        want = np.polymul([1.0, 2 * 0.7 * w[i], w[i] ** 2], [1.0, 1.0])
+        want = np.polymul([1.0, 2 * z * w[i], w[i] ** 2], [1.0, a])
         np.testing.assert_allclose(np.poly(M), want, rtol=1e-9, err_msg=str(i))
 
 
@@ -104,9 +111,16 @@ def test_filters_rate_limits_and_turn_load_factor():
     np.testing.assert_allclose(laws.turn_load_factor(phi), want, rtol=1e-15)
 
 
-def test_one_fcc_period_by_hand():
+@pytest.mark.parametrize("changes", [{}, {"yaw_damping": 1.3, "sideslip_gain": 0.8,
+                                          "sideslip_integral": 0.4, "bank_gain": 0.6,
+                                          "roll_bandwidth": 2.5, "pitch_filter_s": 0.12,
+                                          "roll_filter_s": 0.06, "yaw_filter_s": 0.25,
+                                          "bank_max_deg": 30.0}])
+def test_one_fcc_period_by_hand(changes):
     """docs/aircraft.md §4.1-4.3 on one period from a non-zero state, two runs (the second
-    with its elevator order limited: no integration)."""
+    with its elevator order limited: no integration), with LAWS and with other values (no
+    gain of 1, so a product and a quotient by a gain differ)."""
+    L = replace(LAWS, **changes)
     g = laws.Gains(k_n=np.array([0.2, 0.3]), k_q=np.array([0.5, 0.4]),
                    k_i=np.array([0.1, 0.15]), L_p=np.array([-1.2, -0.8]),
                    L_da=np.array([2.0, 3.0]), N_dr=np.array([-1.5, -2.5]),
@@ -123,22 +137,25 @@ def test_one_fcc_period_by_hand():
             "beta": np.array([0.004, 0.001])}
     nz_c, p_c, beta_c, ts = np.array([0.1, 0.0]), np.array([0.02, -0.1]), np.array([0.0, 0.001]), 0.01
     clipped = np.array([False, True])
-    de, da, dr = laws.step(state, meas, nz_c, p_c, beta_c, g, ts, clipped)
-    cp, cr, cy = (1 - math.exp(-ts / 0.1)), (1 - math.exp(-ts / 0.05)), (1 - math.exp(-ts / 0.2))
+    de, da, dr = laws.step(state, meas, nz_c, p_c, beta_c, g, ts, clipped, L)
+    cp, cr, cy = ((1 - math.exp(-ts / L.pitch_filter_s)), (1 - math.exp(-ts / L.roll_filter_s)),
+                  (1 - math.exp(-ts / L.yaw_filter_s)))
     nz_f = s0["nz_f"] + cp * (meas["dnz"] - g.nz_de * meas["de"] - s0["nz_f"])
     q_f = s0["q_f"] + cp * (meas["q"] - s0["q_f"])
     want_de = -g.k_n * nz_f - g.k_q * q_f - g.k_i * s0["z_pitch"]
     z = s0["z_pitch"] + np.array([ts * (0.5 - 0.1), 0.0])
     phi_ref = s0["phi_ref"] + ts * p_c
-    p_dem = p_c + 0.75 * (phi_ref - meas["phi"])
+    p_dem = p_c + L.bank_gain * (phi_ref - meas["phi"])
     p_f = s0["p_f"] + cr * (meas["p"] - s0["p_f"])
-    want_da = (3.0 * (p_dem - p_f) - g.L_p * p_f) / g.L_da
-    phi_c = np.clip(meas["phi"], -math.radians(33.0), math.radians(33.0))   # run 2: 0.7 > 33°
+    want_da = (L.roll_bandwidth * (p_dem - p_f) - g.L_p * p_f) / g.L_da
+    bank = math.radians(L.bank_max_deg)
+    phi_c = np.clip(meas["phi"], -bank, bank)                   # run 2: 0.7 rad, beyond it
     r_turn = 9.80665 * np.sin(phi_c) / g.tas_ms
     r_f = s0["r_f"] + cy * (meas["r"] - s0["r_f"])
     beta_f = s0["beta_f"] + cy * (meas["beta"] - s0["beta_f"])
     e_beta = beta_f - beta_c
-    want_dr = (-1.0 * (r_f - r_turn) + 1.0 * e_beta + 0.5 * s0["z_beta"]) / g.N_dr
+    want_dr = (-L.yaw_damping * (r_f - r_turn) + L.sideslip_gain * e_beta
+               + L.sideslip_integral * s0["z_beta"]) / g.N_dr
     for got, want in ((de, want_de), (da, want_da), (dr, want_dr), (state.nz_f, nz_f),
                       (state.q_f, q_f), (state.z_pitch, z), (state.phi_ref, phi_ref),
                       (state.p_f, p_f), (state.r_f, r_f), (state.beta_f, beta_f),
