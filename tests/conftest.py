@@ -1,7 +1,6 @@
 """Shared test helpers, and how a run of many test files is spread over the CPUs."""
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -68,6 +68,26 @@ def test_the_paper_variant_is_registered_with_the_papers_choices():
     make_detector("chen-global-paper", {"h_rate_weight": 0.01}).validate_params()
 
 
+def test_every_default_of_the_paper_variant_by_value():
+    """docs/chen-estimator.md §5.1: ε = 0.03 along φ, M_g of Table 2, margin 1.5, 0.1 s
+    confirmation, 0.5 s low-pass, schedule widening 0.25, floor 0.2°, no wind channel,
+    constant threshold calibrated to 10⁻⁴ per run at 95 % on an exponential tail; each
+    parameter is the parent's (kind, bounds, choices, unit, doc) with its own source."""
+    assert ChenGlobalPaper().get_params() == {
+        "h_perturbation": 0.03, "h_output": "phi", "h_rate_weight": 0.0,
+        "uncertainty": "table2", "safety": 1.5, "confirm_s": 0.1, "filter_s": 0.5,
+        "schedule_margin": 0.25, "floor_deg": 0.2, "gust_channel": False, "adaptive": False,
+        "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
+        "threshold_tail": "exponential"}
+    parent = {p.name: p for p in ChenGlobalEstimator.parameters}
+    for p in ChenGlobalPaper.parameters:
+        q = parent[p.name]
+        for field in ("kind", "gt", "ge", "lt", "le", "choices", "length", "unique", "scalar",
+                      "unit", "doc"):
+            assert getattr(p, field) == getattr(q, field), (p.name, field)
+        assert p.source != q.source and p.source
+
+
 def test_every_default_says_whether_it_is_chens_or_ours():
     """docs/chen-estimator.md §5.1: each parameter's source cites [CHEN] for what it prints
     and says "ours" for what it does not; the choices [CHEN] prints none of are named."""

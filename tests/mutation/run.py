@@ -84,7 +84,17 @@ TESTS: dict[str, tuple[str, ...]] = {
                          "tests/campaign_tests/test_run_table_properties.py",
                            "tests/campaign_tests/test_config.py"),
     "detectors/calibrate.py": ("tests/detectors_tests/test_calibrate_values.py",
+                               "tests/detectors_tests/test_tail_values.py",
                                "tests/detectors_tests/test_calibrate.py"),
+    "detectors/builtin/chen_global_paper.py": (
+        "tests/detectors_tests/test_chen_global_paper.py",),
+    "detectors/tail.py": ("tests/detectors_tests/test_tail_values.py",
+                          "tests/detectors_tests/test_calibrate_values.py"),
+    "scenarios/aircraft/laws.py": ("tests/scenarios_tests/test_aircraft_laws_values.py",
+                                   "tests/scenarios_tests/test_aircraft_truth_blind.py"),
+    "campaign/evidence/certify/levels.py": (
+        "tests/campaign_tests/test_certify_mixture_values.py",
+        "tests/campaign_tests/test_certify_levels.py"),
     "detectors/builtin/position_monitor.py": (
         "tests/detectors_tests/test_position_monitor_values.py",
         "tests/detectors_tests/test_position_monitor_band.py",
