@@ -71,13 +71,14 @@ def test_the_paper_variant_is_registered_with_the_papers_choices():
 def test_every_default_of_the_paper_variant_by_value():
     """docs/chen-estimator.md §5.1: ε = 0.03 along φ, M_g of Table 2, margin 1.5, 0.1 s
     confirmation, 0.5 s low-pass, schedule widening 0.25, floor 0.2°, no wind channel,
-    constant threshold calibrated to 10⁻⁴ per run at 95 % on an exponential tail; each
+    [CHEN]'s constant threshold (1.5 × the largest learning residual; the calibration
+    settings, 10⁻⁴ per run at 95 % on an exponential tail, used by "evt" only); each
     parameter is the parent's (kind, bounds, choices, unit, doc) with its own source."""
     assert ChenGlobalPaper().get_params() == {
         "h_perturbation": 0.03, "h_output": "phi", "h_rate_weight": 0.0,
         "uncertainty": "table2", "safety": 1.5, "confirm_s": 0.1, "filter_s": 0.5,
         "schedule_margin": 0.25, "floor_deg": 0.2, "gust_channel": False, "adaptive": False,
-        "threshold_method": "evt", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
+        "threshold_method": "max", "target_fa_per_run": 1e-4, "threshold_confidence": 0.95,
         "threshold_tail": "exponential"}
     parent = {p.name: p for p in ChenGlobalEstimator.parameters}
     for p in ChenGlobalPaper.parameters:
