@@ -241,14 +241,12 @@ def integrate_aircraft(p: AircraftPrepared, sensors: SensorParams = SENSORS,
 
 def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftTrajectory:
     """:func:`integrate_reference` through :func:`.kernel.integrate_block` (same numbers)."""
-    n, T, m = p.n, p.T, p.monitored
-    n_s = len(p.acts)
+    n, m = p.n, p.monitored
     pl, fa = p.plant, p.faults
     act_m = p.acts[m]
     run_margin = FAULT_DEFAULTS.runaway_margin_deg
     trim_rad = np.radians(p.trim_deg)
-    x = np.clip(pl.r_mm * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
-    delta = np.arcsin(x / pl.r_mm)
+    x, delta = servo_start(p)
     empty = np.zeros((0, 0))
 
     def c(a, dtype=float):
@@ -271,15 +269,7 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
     flags = np.array([fa.com_add is not None, fa.com_osc is not None, fa.cur_add is not None,
                       fa.cur_force is not None, bool((fa.k_jam < NEVER).any()),
                       bool((fa.k_disc < NEVER).any())])
-    rods = np.empty((n_s, n, T))
-    surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T))
-    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T))
-    icmd = np.empty((n, T))
-    iapp = np.empty((n, T))
-    u_rec = np.empty((n, T))
-    sp_rec = np.empty((n, T))
+    rods, surf, states, meas_rec, xs, icmd, iapp, u_rec, sp_rec = record_arrays(p)
     kernel.integrate_block(
         kernel.LOOPS, m, x, delta, c(trim_rad), c(p.trim_deg), c(p.lo_deg), c(p.hi_deg),
         kernels.plant_matrix(pl), c(_PITCH), c(_ROLL), c(_YAW), c(_ELEVATORS, np.bool_),
@@ -293,6 +283,24 @@ def _integrate_compiled(p: AircraftPrepared, sensors: SensorParams) -> AircraftT
     return AircraftTrajectory(x=xs, delta=surf[m], i_cmd=icmd, i_app=iapp, y_com=rods[m],
                               u=u_rec, rods=rods, surfaces=surf, states=states, sensors=meas_rec,
                               spoiler=sp_rec)
+
+
+def record_arrays(p: AircraftPrepared) -> tuple[np.ndarray, ...]:
+    """The series a block's time loop records, uninitialised: every rod and surface (7, n, T),
+    the aircraft states and sensors, and the monitored servo's rod, commanded and applied
+    current, order and the spoilers' (n, T)."""
+    n, T, n_s = p.n, p.T, len(p.acts)
+    return (np.empty((n_s, n, T)), np.empty((n_s, n, T)), np.empty((lpv.N_STATES, n, T)),
+            np.empty((p.ac_noise.shape[0], n, T)), np.empty((n, T)), np.empty((n, T)),
+            np.empty((n, T)), np.empty((n, T)), np.empty((n, T)))
+
+
+def servo_start(p: AircraftPrepared) -> tuple[np.ndarray, np.ndarray]:
+    """Every rod [mm] and surface [rad] at t_0: the surfaces at their trim, inside the rods'
+    strokes (docs/physics.md §2)."""
+    pl = p.plant
+    x = np.clip(pl.r_mm * np.sin(np.radians(p.trim_deg).ravel()), pl.x_min, pl.x_max)
+    return x, np.arcsin(x / pl.r_mm)
 
 
 def monitored_servo(p: AircraftPrepared) -> types.SimpleNamespace:
@@ -394,20 +402,10 @@ def integrate_reference(p: AircraftPrepared, sensors: SensorParams = SENSORS) ->
     mon = slice(m * n, (m + 1) * n)
     pm = monitored_servo(p)
     trim_rad = np.radians(p.trim_deg)
-    r_flat = pl.r_mm
 
-    rods = np.empty((n_s, n, T))
-    surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T))
-    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T))
-    icmd = np.empty((n, T))
-    iapp = np.empty((n, T))
-    u_rec = np.empty((n, T))
-    sp_rec = np.empty((n, T))
+    rods, surf, states, meas_rec, xs, icmd, iapp, u_rec, sp_rec = record_arrays(p)
 
-    x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
-    delta = np.arcsin(x / r_flat)
+    x, delta = servo_start(p)
     i_prev = np.zeros(n * n_s)
     y_hold = np.zeros(n)
     nx_u = lpv.N_STATES + lpv.N_INPUTS

@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from .. import envelope
-from ..aircraft import laws, lpv, pilot
+from ..aircraft import laws, pilot
 from ..aircraft.data import (
     AIRCRAFT_SENSORS,
     AIRCRAFT_SURFACES,
@@ -56,7 +56,9 @@ from ..aircraft.loop import (
     jam_onset,
     monitored_servo,
     prepare_aircraft,
+    record_arrays,
     servo_currents,
+    servo_start,
     trajectory_signals,
     surface_orders,
 )
@@ -175,22 +177,12 @@ def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> Air
     pl, fa = p.plant, p.faults
     mon = slice(m * n, (m + 1) * n)
     pm = monitored_servo(p)
-    trim_rad = np.radians(p.trim_deg)
-    r_flat = pl.r_mm
     fdms = jp.fdms
     W = F.SURFACE_MAP
 
-    rods = np.empty((n_s, n, T))
-    surf = np.empty((n_s, n, T))
-    states = np.empty((lpv.N_STATES, n, T))
-    meas_rec = np.empty((p.ac_noise.shape[0], n, T))
-    xs = np.empty((n, T))
-    icmd = np.empty((n, T))
-    iapp = np.empty((n, T))
-    u_rec = np.empty((n, T))
+    rods, surf, states, meas_rec, xs, icmd, iapp, u_rec, _ = record_arrays(p)
 
-    x = np.clip(r_flat * np.sin(trim_rad.ravel()), pl.x_min, pl.x_max)
-    delta = np.arcsin(x / r_flat)
+    x, delta = servo_start(p)
     i_prev = np.zeros(n * n_s)
     y_hold = np.zeros(n)
     state = laws.LawState.zeros(n)
