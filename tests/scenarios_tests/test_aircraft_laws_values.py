@@ -184,6 +184,7 @@ def test_the_loop_matrices_by_hand(nominal):
     W[:, 4, 0], W[:, 4, 5] = na, nd
     W[:, 5, [2, 3, 4, 5]] = np.stack([-bw * g.k_n, -bw * g.k_q, -bw * g.k_i,
                                       np.full_like(na, -bw)], 1)
+    assert M.shape == (6, 6, 6)                      # six runs, six states
     np.testing.assert_allclose(M, W, rtol=1e-14, atol=0)
     assert np.abs(nd - g.nz_de).max() > 0
     R = laws.roll_loop_matrix(flown, g, servo_bandwidth_per_s=17.5)
@@ -193,6 +194,7 @@ def test_the_loop_matrices_by_hand(nominal):
     V[:, 0, 0], V[:, 0, 2] = A[:, lpv.IP, lpv.IP], roll
     V[:, 1, 0], V[:, 1, 1] = 1 / tau_r, -1 / tau_r
     V[:, 2, 1], V[:, 2, 2] = -17.5 * (3.0 + g.L_p) / g.L_da, -17.5
+    assert R.shape == (6, 3, 3)                      # six runs, three states
     np.testing.assert_allclose(R, V, rtol=1e-14, atol=0)
 
 
@@ -202,3 +204,35 @@ def test_the_dominant_pair_is_the_lowest_frequency_complex_pair():
     w, z = laws.dominant_pair(ev)
     assert w[0] == pytest.approx(0.5) and z[0] == pytest.approx(0.6)
     assert np.isnan(w[1]) and np.isnan(z[1])
+
+
+def test_the_order_distributions_by_value():
+    """docs/aircraft.md §4: the pitch order drives both elevators, the roll order the
+    ailerons antisymmetrically (right +1, left −1) and the spoilers (+1, one input of the
+    model), the yaw order the rudder; the two gust inputs of the model are not orders. The
+    columns are lpv's inputs: the seven surfaces of LAYOUT, the spoilers, α_g, β_g."""
+    assert list(LAYOUT.names) == ["left_elevator", "right_elevator", "left_inboard_aileron",
+                                  "right_inboard_aileron", "left_outboard_aileron",
+                                  "right_outboard_aileron", "rudder"]
+    assert (lpv.I_SPOILER, lpv.I_GUST_ALPHA, lpv.I_GUST_BETA) == (7, 8, 9)
+    assert laws.PITCH_DISTRIBUTION.tolist() == [1, 1, 0, 0, 0, 0, 0, 0, 0, 0]
+    assert laws.ROLL_DISTRIBUTION.tolist() == [0, 0, -1, 1, -1, 1, 0, 1, 0, 0]
+    assert laws.YAW_DISTRIBUTION.tolist() == [0, 0, 0, 0, 0, 0, 1, 0, 0, 0]
+
+
+def test_the_gains_are_frozen(nominal):
+    """A run's gains are placed once, from the measured point: nothing changes them during
+    the run."""
+    g = laws.gains(nominal)
+    with pytest.raises(AttributeError):
+        g.k_n = g.k_n * 2.0
+
+
+def test_a_pair_is_complex_beyond_a_nanoradian_per_second():
+    """dominant_pair counts an eigenvalue as part of a complex pair when |Im| > 1e-9 rad/s,
+    strictly: a pair at exactly 1e-9 (a real double root split by round-off) is a real
+    mode, and the pair of the row is the next one."""
+    ev = np.array([[-1.0 + 1e-9j, -1.0 - 1e-9j, -2.0 + 3.0j, -2.0 - 3.0j]])
+    w, z = laws.dominant_pair(ev)
+    assert w[0] == pytest.approx(math.sqrt(13.0), rel=1e-15)
+    assert z[0] == pytest.approx(2.0 / math.sqrt(13.0), rel=1e-15)
