@@ -93,6 +93,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "scenarios/aircraft/laws.py": ("tests/scenarios_tests/test_aircraft_laws_values.py",
                                    "tests/scenarios_tests/test_aircraft_truth_blind.py"),
     "campaign/evidence/certify/levels.py": (
+        "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
         "tests/campaign_tests/test_certify_levels.py"),
     "detectors/builtin/position_monitor.py": (
