@@ -27,11 +27,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .atmosphere import ISA_CONSTANTS
 from .compiled import filtered_normals_1, resolve_engine
 from .params import param
 
-#: Metres per foot [m/ft] (international foot, exact by definition).
-FT_TO_M: float = 0.3048
+#: Metres per foot [m/ft] (the atmosphere's, :data:`scenarios.atmosphere.ISA_CONSTANTS`).
+FT_TO_M: float = ISA_CONSTANTS.ft_m
 
 #: Zero of the lateral/vertical Dryden filter, in units of 1/T (MIL-HDBK-1797: 1 + √3·T·s).
 _DRYDEN_VW_ZERO: float = math.sqrt(3.0)

@@ -33,12 +33,16 @@ import numpy as np
 
 from ..aircraft import lpv
 from ..aircraft.data import LAYOUT
-from ..atmosphere import G0_MS2
+from ..atmosphere import G0_MS2, ISA_CONSTANTS
+from ..envelope import TABLE1
 from ..errors import InputError
 
-#: Feet and pounds to SI.
-FT_M = 0.3048
+#: Feet to metres (the atmosphere's, :data:`scenarios.atmosphere.ISA_CONSTANTS`), pounds
+#: to kilograms (the international pound, exact) and pounds-force per square foot to pascals
+#: (NIST SP 811, B.8: 47.880 26 Pa) for JSBSim's English-unit properties.
+FT_M = ISA_CONSTANTS.ft_m
 LB_KG = 0.45359237
+PSF_PA = 47.880258
 
 #: The extra that installs JSBSim.
 EXTRA = 'pip install -e ".[jsbsim]"'
@@ -96,9 +100,9 @@ AIRCRAFT: dict[str, AircraftModel] = {
                          ranges_rad=(0.3, 0.35, 0.35), yaw_damper=True),
 }
 
-#: Our grid's ranges ([CHEN] Table 1) that :func:`flight_point` maps from.
-_GRID = {"alt_ft": (8000.0, 38000.0), "vcas_kt": (160.0, 300.0), "mass_t": (120.0, 233.0),
-         "cg_pct": (17.0, 41.0)}
+#: Our grid's ranges ([CHEN] Table 1, :data:`scenarios.envelope.TABLE1`) that
+#: :func:`flight_point` maps from.
+_GRID = {c: (min(TABLE1[c]), max(TABLE1[c])) for c in TABLE1.columns}
 
 
 def aircraft_model(name: str) -> AircraftModel:
@@ -212,7 +216,7 @@ class Fdm:
         self.alpha0 = f["aero/alpha-rad"]
         self.theta0 = f["attitude/theta-rad"]
         self.mach = f["velocities/mach"]
-        self.qbar_pa = f["aero/qbar-psf"] * 47.880258
+        self.qbar_pa = f["aero/qbar-psf"] * PSF_PA
         self.tas_ms = f["velocities/vt-fps"] * FT_M
         self.vc0_kt = f["velocities/vc-kts"]
         self.throttle0 = f["fcs/throttle-cmd-norm[0]"]
