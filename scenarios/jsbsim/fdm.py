@@ -44,6 +44,10 @@ FT_M = ISA_CONSTANTS.ft_m
 LB_KG = 0.45359237
 PSF_PA = 47.880258
 
+#: Largest |α| a trim is accepted at [deg] (est.: above the stall of a clean airliner wing,
+#: about 12–14°; a trim beyond it is a converged solution no aircraft flies level at).
+TRIM_ALPHA_MAX_DEG = 15.0
+
 #: The extra that installs JSBSim.
 EXTRA = 'pip install -e ".[jsbsim]"'
 
@@ -211,7 +215,8 @@ class Fdm:
             raise JsbsimRunError(f"trim failed at {where}: {exc}") from None
         self.trim_surfaces = np.array([f["fcs/elevator-pos-rad"], f["fcs/left-aileron-pos-rad"],
                                        f["fcs/rudder-pos-rad"]])
-        if not np.isfinite(self.trim_surfaces).all() or abs(f["aero/alpha-deg"]) > 15.0:
+        if (not np.isfinite(self.trim_surfaces).all()
+                or abs(f["aero/alpha-deg"]) > TRIM_ALPHA_MAX_DEG):
             raise JsbsimRunError(f"trim failed at {where}: α {f['aero/alpha-deg']:.1f}°")
         self.alpha0 = f["aero/alpha-rad"]
         self.theta0 = f["attitude/theta-rad"]
