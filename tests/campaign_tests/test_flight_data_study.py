@@ -5,11 +5,17 @@ and what the mc design draws for them (docs/chen-estimator.md §5.2)."""
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from campaign.config import ConfigError
 from campaign.plan import build_plan
-from campaign.tools.studies.chen_flight_data import DETECTORS, campaign_for
+from campaign.tools.studies.chen_flight_data import (
+    DELAY_LIMIT_S,
+    DETECTORS,
+    campaign_for,
+    run_study,
+)
 
 FLIGHT_DATA = ("d_vcas", "d_alt", "d_mass", "d_cg")
 
@@ -53,3 +59,36 @@ def test_the_flight_data_errors_are_drawn_uniformly_and_independently_per_run():
         np.testing.assert_allclose(quarters, 0.25, atol=0.03)
     corr = np.corrcoef(d.T) - np.eye(4)
     assert np.abs(corr).max() < 0.15, corr
+
+
+@pytest.mark.slow
+def test_the_study_table_counts_what_the_stored_runs_say(tmp_path):
+    """The printed table against a recount of the stored rows: a false alarm is a fault-free
+    run whose margin reached 1 (the alarm decision), a miss a disconnection with no alarm,
+    a delay the first alarm minus the plan's onset; the worst margin is the largest one."""
+    from campaign.result import load
+
+    counts = {"fault_free": 2, "disconnections": 4, "learning_runs": 5}
+    table = run_study(tmp_path, seed=1234, levels=(0.02,), jobs=1, progress=False,
+                      echo=lambda *a: None, **counts)
+    camp = load(tmp_path / campaign_for(0.02, 1234, **counts).campaign.name)
+    onset = pd.read_parquet(camp.root / "plan.parquet").set_index("run_id")["onset_s"]
+    assert list(table["detector"]) == [label for _, label, _ in DETECTORS]
+    for row in table.itertuples():
+        r = camp.results[camp.results["detector"] == row.detector]
+        free, disc = r[r["fault"] == "none"], r[r["fault"] == "disconnection"]
+        assert (row.fault_free, row.faulty) == (12, 4)
+        assert row.fa == int((free["margin"] >= 1.0).sum())
+        assert row.worst_margin == free["margin"].max()
+        alarm = disc["first_alarm_s"].to_numpy(float)
+        assert row.pre_onset == int((alarm < onset[disc["run_id"]].to_numpy()).sum())
+        assert row.md == int(np.isnan(alarm).sum())
+        delays = np.sort(alarm - onset[disc["run_id"]].to_numpy())
+        delays = delays[np.isfinite(delays)]
+        if delays.size:
+            assert row.delay_min_s == pytest.approx(delays[0], abs=1e-9)
+            assert row.delay_max_s == pytest.approx(delays[-1], abs=1e-9)
+            assert row.delay_median_s == pytest.approx(float(np.median(delays)), abs=1e-9)
+            assert row.over_limit == int((delays > DELAY_LIMIT_S + 1e-9).sum())
+    # the default chen-global-paper is [CHEN]'s rule: τ0 = 1.5 × the largest learning value
+    assert camp.fitted["chen-global-paper"].threshold_method == "max"
