@@ -43,7 +43,7 @@ from .plant_setup import as_resolved
 #: Version of the simulated models: part of every run id, so a model change never reuses
 #: results computed with the previous model (a directory planned with another version is
 #: refused). What each version changed: CHANGELOG.md, "Model versions".
-MODEL_VERSION = "servo-5"
+MODEL_VERSION = "servo-6"
 
 #: First stream index of the learning set (disjoint from any evaluation index).
 LEARNING_STREAM_BASE = 2 ** 32

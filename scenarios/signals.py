@@ -95,6 +95,12 @@ class Signals:
     rods : dict[str, ndarray (n_runs, n_steps)] or None
         COM rod position [mm] of every primary surface, by surface name; None at the
         actuator plant level.
+    airframe : str or None
+        The aircraft the aircraft sensors come from, named as a source of design models
+        (:data:`scenarios.design_models.AIRFRAMES`: ``"aircraft"`` the project's linear
+        aircraft, ``"jsbsim:737"`` JSBSim's 737); an aircraft-level detector designs on
+        that aircraft's nominal linear models. None at the actuator plant level (or from a
+        plant that names none: the project's aircraft is then assumed).
     classes : ndarray (n_runs,) of str or None
         The fault-free manoeuvre of each run of a *learning set* (what ``fit`` receives), so
         that a detector may calibrate its thresholds per manoeuvre class
@@ -115,6 +121,7 @@ class Signals:
     aircraft: dict | None = None
     rods: dict | None = None
     classes: np.ndarray | None = None
+    airframe: str | None = None
 
     @property
     def n_runs(self) -> int:
@@ -151,6 +158,7 @@ class Signals:
             aircraft=_map(self.aircraft, lambda v: v[index]),
             rods=_map(self.rods, lambda v: v[index]),
             classes=None if self.classes is None else np.asarray(self.classes)[index],
+            airframe=self.airframe,
         )
 
     def truncate(self, n_steps: int) -> "Signals":
@@ -164,6 +172,7 @@ class Signals:
             aircraft=_map(self.aircraft, lambda v: v[:, :n_steps]),
             rods=_map(self.rods, lambda v: v[:, :n_steps]),
             classes=self.classes,
+            airframe=self.airframe,
         )
 
     @classmethod
@@ -221,6 +230,7 @@ class Signals:
             run_ids=None if first.run_ids is None else np.concatenate(run_ids),
             aircraft=aircraft, rods=rods,
             classes=None if any(c is None for c in classes) else np.concatenate(classes),
+            airframe=first.airframe,
         )
 
     def to_pandas(self, run: int = 0):

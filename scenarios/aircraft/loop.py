@@ -107,6 +107,7 @@ class AircraftPrepared:
     ramp_deg: np.ndarray          # (n, T) runaway ramp of the monitored order
     flight_true: dict
     schedule: dict
+    airframe: str = "aircraft"    # Signals.airframe: the aircraft flown (design models)
 
 
 def _stack(plants: list[PlantArrays]) -> PlantArrays:
@@ -557,6 +558,7 @@ def _signals_from(parts: list, series: dict) -> Signals:
         actuator=first.actuator, run_ids=np.concatenate([p.run_ids for p in parts]),
         aircraft={k[1]: v for k, v in series.items() if k[0] == "aircraft"},
         rods={k[1]: v for k, v in series.items() if k[0] == "rods"},
+        airframe=first.airframe,
     )
 
 
@@ -610,6 +612,7 @@ def trajectory_signals(traj: AircraftTrajectory, p: AircraftPrepared, runs: pd.D
         surface=surface, pressure=pressure, schedule=p.schedule, actuator=act,
         run_ids=runs["run_id"].astype(str).to_numpy(),
         aircraft=aircraft, rods={s: traj.rods[j] for j, s in enumerate(AIRCRAFT_SURFACES)},
+        airframe=p.airframe,
     )
     if not truth:
         return signals, None

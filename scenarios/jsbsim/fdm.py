@@ -34,7 +34,7 @@ import numpy as np
 from ..aircraft import lpv
 from ..aircraft.data import LAYOUT
 from ..atmosphere import G0_MS2, ISA_CONSTANTS
-from ..envelope import TABLE1
+from ..envelope import FLIGHT_COLUMNS, TABLE1
 from ..errors import InputError
 
 #: Feet to metres (the atmosphere's, :data:`scenarios.atmosphere.ISA_CONSTANTS`), pounds
@@ -133,18 +133,47 @@ def flight_point(alt_ft, vcas_kt, mass_t, cg_pct, model: AircraftModel) -> dict:
             "cg_pct": lin(cg_pct, "cg_pct", model.cg_pct)}
 
 
+#: The [CHEN] Table 2 coefficient (:data:`scenarios.envelope.AERO_COEFFICIENTS`) of each
+#: of JSBSim's aerodynamic axes. JSBSim's forces are in wind axes (drag, side force, lift),
+#: [CHEN]'s coefficients in body axes; at the trimmed α of 1–6° the two sets of axes are
+#: within 6° of each other, so each force axis takes the draw of its body-axis coefficient
+#: (est.).
+AERO_AXES: dict[str, str] = {"DRAG": "cx", "SIDE": "cy", "LIFT": "cz", "ROLL": "cl",
+                             "PITCH": "cm", "YAW": "cn"}
+#: The property that scales one coefficient (1 + d), by coefficient name.
+AERO_SCALE = "fdd/aero-scale/{}"
+
+def scheduled_point(measured: dict, model: AircraftModel) -> dict:
+    """The point the flight computer places its gains at from the *measured* one (``alt_ft``,
+    ``vcas_kt``, ``mass_t``, ``cg_pct`` arrays on the JSBSim aircraft): each coordinate held
+    within the aircraft's range (:data:`AIRCRAFT`), as a gain schedule's table lookup holds
+    at its end breakpoints (JSBSim's own tables do the same). [CHEN] Table 2's ±10 % mass
+    error puts a 41 t 737 at 36.9 t, below its 37.6 t empty weight: a point no FDM can trim
+    and no mass estimate would give."""
+    return {c: np.clip(np.asarray(measured[c], float), *getattr(model, c))
+            for c in FLIGHT_COLUMNS}
+
+
 #: Per process: the folder holding the sanitised copy of each aircraft's file.
 _SANITISED: dict[str, str] = {}
 
 
 def sanitised_aircraft_dir(model: AircraftModel, root: str) -> str:
     """A folder (per process, under the system's temporary folder) holding the JSBSim
-    aircraft file of *model* without its top-level ``<input>`` and ``<output>`` elements.
-    JSBSim's 737.xml declares ``<input port="5137"/>`` and a QTJSBSIM input on port 5139:
-    loaded as shipped, every FDM would open listening TCP and UDP sockets through which
-    anyone who reaches them could set the model's properties (docs/security.md). Only
-    those elements are removed; the aerodynamics, FCS, mass, engines are JSBSim's file
-    (its engines are still read from JSBSim's own engine folder)."""
+    aircraft file of *model* as the plant loads it: without its top-level ``<input>`` and
+    ``<output>`` elements, and with one scale factor per [CHEN] Table 2 coefficient.
+
+    Sockets: JSBSim's 737.xml declares ``<input port="5137"/>`` and a QTJSBSIM input on
+    port 5139: loaded as shipped, every FDM would open listening TCP and UDP sockets through
+    which anyone who reaches them could set the model's properties (docs/security.md).
+
+    Coefficient errors: every function of an aerodynamic axis is a product (checked here);
+    the property ``fdd/aero-scale/<c>`` (declared with value 1, :data:`AERO_AXES`) is added
+    to each product of its axis, so that axis's whole coefficient is (1 + d) times the
+    file's when the run sets it to 1 + d ([CHEN] Table 2, docs/aircraft.md §9.1). At 1 the
+    products are unchanged bit for bit (x·1 = x). Nothing else of the file changes: the
+    aerodynamic tables, FCS, mass and engines are JSBSim's (its engines are still read from
+    JSBSim's own engine folder)."""
     if model.name in _SANITISED:
         return _SANITISED[model.name]
     import atexit
@@ -158,12 +187,37 @@ def sanitised_aircraft_dir(model: AircraftModel, root: str) -> str:
     top = tree.getroot()
     for child in [c for c in top if c.tag in ("input", "output")]:
         top.remove(child)
+    _add_aero_scales(top.find("aerodynamics"), src)
     folder = Path(tempfile.mkdtemp(prefix="fdd-jsbsim-"))
     atexit.register(shutil.rmtree, folder, True)
     (folder / model.name).mkdir()
     tree.write(folder / model.name / f"{model.name}.xml", encoding="utf-8", xml_declaration=True)
     _SANITISED[model.name] = str(folder)
     return str(folder)
+
+
+def _add_aero_scales(aero, src) -> None:
+    """Declare the scale of each coefficient (value 1) and multiply every function of its
+    axis by it (:func:`sanitised_aircraft_dir`); a function that is not a product, or an
+    axis this plant does not know, is a :class:`JsbsimRunError` naming the file."""
+    import xml.etree.ElementTree as ET
+
+    for i, coefficient in enumerate(AERO_AXES.values()):
+        declared = ET.Element("property", value="1.0")
+        declared.text = AERO_SCALE.format(coefficient)
+        aero.insert(i, declared)
+    for axis in aero.findall("axis"):
+        name = axis.get("name")
+        if name not in AERO_AXES:
+            raise JsbsimRunError(f"{src}: aerodynamic axis {name!r} is not one of "
+                                 f"{list(AERO_AXES)}; its coefficient errors cannot be applied")
+        for function in axis.findall("function"):
+            body = [e for e in function if e.tag != "description"]
+            if len(body) != 1 or body[0].tag != "product":
+                raise JsbsimRunError(f"{src}: function {function.get('name')!r} of axis "
+                                     f"{name} is not a product; its coefficient error cannot "
+                                     "be applied")
+            ET.SubElement(body[0], "property").text = AERO_SCALE.format(AERO_AXES[name])
 
 
 class Fdm:
@@ -188,14 +242,22 @@ class Fdm:
         self.cbar_in = exec_["metrics/cbarw-ft"] * 12.0
         self.rp0_in = exec_["metrics/aero-rp-x-in"]
 
-    def trim(self, alt_ft: float, vcas_kt: float, mass_t: float, cg_pct: float) -> None:
-        """Trim in wings-level flight at the point. Mass: the fuel in equal shares of the
+    def trim(self, alt_ft: float, vcas_kt: float, mass_t: float, cg_pct: float,
+             aero: dict | None = None) -> None:
+        """Trim in wings-level flight at the point, with the coefficient errors *aero*
+        (coefficient → d, [CHEN] Table 2; None or a coefficient left out: 0), which the
+        aircraft keeps for the rest of its flight. Mass: the fuel in equal shares of the
         tanks (``propulsion/tank[i]/contents-lbs``) above the empty weight. CG: the
         aerodynamic reference point (``metrics/aero-rp-x-in``, taken as 25 % MAC, est.)
         placed (cg − 25 %)·c̄ ahead of the model's CG, which moves every aerodynamic moment
         as that CG shift would (the inertia stays the file's). :class:`JsbsimRunError`
         when JSBSim cannot trim."""
         f, m = self.fdm, self.model
+        for coefficient, d in (aero or {}).items():
+            if coefficient not in AERO_AXES.values():
+                raise ValueError(f"unknown aerodynamic coefficient {coefficient!r}; allowed: "
+                                 f"{', '.join(AERO_AXES.values())}")
+            f[AERO_SCALE.format(coefficient)] = 1.0 + float(d)
         fuel = mass_t * 1000.0 / LB_KG - m.empty_lbs
         for i in range(m.tanks):
             f[f"propulsion/tank[{i}]/contents-lbs"] = fuel / m.tanks
@@ -358,3 +420,24 @@ def design_model(fdms: list[Fdm]) -> lpv.ContinuousModel:
     C[:, 1, lpv.IPHI] -= 1.0
     D[:, 1, :] = k * B[:, lpv.IB, :]
     return lpv.ContinuousModel(A=A, B=B, C=C, D=D, tas_ms=V)
+
+
+def airframe_name(model: AircraftModel) -> str:
+    """The JSBSim aircraft as :attr:`scenarios.signals.Signals.airframe` names it."""
+    return f"jsbsim:{model.name}"
+
+
+def nominal_models(model: AircraftModel, points: dict, dt: float) -> lpv.ContinuousModel:
+    """:func:`design_model` of *model* without coefficient errors, trimmed at each point of
+    *points* (``alt_ft``, ``vcas_kt``, ``mass_t``, ``cg_pct`` arrays on the JSBSim aircraft),
+    each on a new FDM (a trim's result must not depend on an earlier one: a re-trimmed FDM
+    differs from a new one by about 1e-9 in its linearisation, measured). About 0.15 CPU-s
+    a point (docs/aircraft.md §9.5); a point that cannot trim raises
+    :class:`JsbsimRunError` naming it."""
+    values = np.broadcast_arrays(*(np.asarray(points[c], float) for c in FLIGHT_COLUMNS))
+    fdms = []
+    for i in range(values[0].size):
+        f = Fdm(model, dt)
+        f.trim(*(float(v.flat[i]) for v in values))
+        fdms.append(f)
+    return design_model(fdms)

@@ -5,10 +5,13 @@ docs/physics.md §7): the seven surfaces' nonlinear servo-loops with the A330 ac
 hinge-moment tables at the run's sampled point, the fault injection on the monitored
 surface, the COM/MON acquisitions, the aircraft sensor noise, the pilot's manoeuvre orders
 and the laws of :mod:`scenarios.aircraft.laws` — their gains placed on JSBSim's
-linearisation at the run's trim point (:func:`scenarios.jsbsim.fdm.design_model`), never on
-our derivative model. In place of our linear rigid body, one JSBSim FDM per run
-(:class:`scenarios.jsbsim.fdm.Fdm`), trimmed at the run's flight point mapped onto the
-JSBSim aircraft (:func:`scenarios.jsbsim.fdm.flight_point`), advanced one step of Ts per
+linearisation (:func:`scenarios.jsbsim.fdm.design_model`), never on our derivative model,
+of the nominal aircraft trimmed at the run's *measured* point: the flight computer knows
+neither the true point nor the coefficient errors (as on the aircraft plant). In place of
+our linear rigid body, one JSBSim FDM per run (:class:`scenarios.jsbsim.fdm.Fdm`), trimmed
+at the run's true flight point mapped onto the JSBSim aircraft
+(:func:`scenarios.jsbsim.fdm.flight_point`) with the run's [CHEN] Table 2 coefficient
+errors on its aerodynamic axes (:data:`scenarios.jsbsim.fdm.AERO_AXES`), advanced one step of Ts per
 FCC period with each surface at the mean of its positions at t_k and t_k+1 (the
 midpoint of the servo's motion over the period) and the gust of t_k.
 
@@ -22,9 +25,8 @@ factors (``accelerations/Nz``, ``Ny``: n_z is JSBSim's Nz minus its trimmed valu
 and the air-relative sideslip and angle of attack (``aero/beta-rad``, ``aero/alpha-rad``),
 each plus its noise. Truth ``aircraft`` holds α − α0, q, θ − θ0, β, p, r, φ (lpv.STATES).
 
-Not applied here: [CHEN] Table 2's aerodynamic-coefficient draws (the 737 model exposes no
-scaling of its coefficients: its aerodynamics are functions of JSBSim's own properties);
-the spoilers (no roll spoilers in the 737's aerodynamics: ``spoiler`` is recorded as 0).
+Not applied here: the spoilers (no roll spoilers in the 737's aerodynamics: ``spoiler`` is
+recorded as 0).
 
 A run that cannot trim, diverges (|φ| > 80°, |α| > 30°, below 500 ft) or returns NaN raises
 :class:`scenarios.jsbsim.fdm.JsbsimRunError` naming the run, the time and the cause; the
@@ -65,7 +67,7 @@ from ..aircraft.loop import (
 from ..atmosphere import G0_MS2
 from ..faults import NEVER
 from ..params import SENSORS, TS_S, SensorParams
-from ..runs import manoeuvre_sets, run_streams
+from ..runs import aero_draws, manoeuvre_sets, run_streams
 from ..signals import Signals, Truth
 from ..turbulence import DrydenParams, dryden_gusts
 from ..turbulence import level as turbulence_level
@@ -122,15 +124,18 @@ def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_
     ft = base.flight_true
     point = F.flight_point(ft["alt_ft"], ft["vcas_kt"], ft["mass_t"], ft["cg_pct"], model)
     ids = runs["run_id"].astype(str).to_numpy()
-    fdms = []
-    for i in range(n):
-        f = F.Fdm(model, ts)
-        try:
-            f.trim(*(float(point[c][i]) for c in envelope.FLIGHT_COLUMNS))
-        except F.JsbsimRunError as exc:
-            raise F.JsbsimRunError(f"run {ids[i]}: {exc}") from None
-        fdms.append(f)
-    design = F.design_model(fdms)
+    d = {c: runs[c].to_numpy(float) for c in ("d_alt", "d_vcas", "d_mass", "d_cg")}
+    schedule = envelope.measured_schedule(point["alt_ft"], point["vcas_kt"], point["mass_t"],
+                                          point["cg_pct"], d["d_alt"], d["d_vcas"],
+                                          d["d_mass"], d["d_cg"])
+    aero = aero_draws({c: runs[c].to_numpy(float) for c in AERO_COLUMNS})
+    fdms = [_trimmed(model, ts, ids[i], point, i, {c: v[i] for c, v in aero.items()})
+            for i in range(n)]
+    # the laws know what the flight computer knows: the nominal aircraft (no coefficient
+    # error) at the measured point, as on the aircraft plant (docs/aircraft.md §9.1), held
+    # within the aircraft's ranges as a gain schedule's lookup is
+    at = F.scheduled_point(schedule, model)
+    design = F.design_model([_trimmed(model, ts, ids[i], at, i, None) for i in range(n)])
     gains = laws.gains(design, law_params)
 
     trim = np.zeros_like(base.trim_deg)
@@ -152,10 +157,6 @@ def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_
                                   [pilot.set_params(sets[i])])      # the same draws first
             gusts[i] = dryden_gusts(T, ts, tas[i], float(point["alt_ft"][i]), g, turbulence)
     gusts[:, 0] = 0.0
-    d = {c: runs[c].to_numpy(float) for c in ("d_alt", "d_vcas", "d_mass", "d_cg")}
-    schedule = envelope.measured_schedule(point["alt_ft"], point["vcas_kt"], point["mass_t"],
-                                          point["cg_pct"], d["d_alt"], d["d_vcas"],
-                                          d["d_mass"], d["d_cg"])
     flight = {**{k: np.asarray(v, float) for k, v in point.items()},
               "mach": np.array([f.mach for f in fdms]),
               "qbar_pa": np.array([f.qbar_pa for f in fdms]), "tas_ms": tas,
@@ -163,9 +164,27 @@ def prepare_jsbsim(runs: pd.DataFrame, *, aircraft: str = "737", ts: float = TS_
     base = replace(base, trim_deg=trim, gains=gains,
                    gust_alpha=-gusts[:, 2] / tas[:, None], gust_beta=-gusts[:, 1] / tas[:, None],
                    flight_true=flight, schedule={k: np.asarray(v, float)
-                                                 for k, v in schedule.items()})
+                                                 for k, v in schedule.items()},
+                   airframe=F.airframe_name(model))
     nz0 = np.array([f.read()[F.READ_NZ] for f in fdms])
     return JsbsimPrepared(base=base, fdms=fdms, gusts=gusts, nz0=nz0, run_ids=ids)
+
+
+#: The run columns of [CHEN] Table 2's coefficient draws (:func:`scenarios.runs.aero_draws`).
+AERO_COLUMNS = tuple(f"d_{c}" for c in envelope.AERO_COEFFICIENTS)
+
+
+def _trimmed(model: F.AircraftModel, ts: float, run_id: str, point: dict, i: int,
+             aero: dict | None) -> F.Fdm:
+    """A new FDM of *model* trimmed at entry *i* of *point* (``alt_ft``, ``vcas_kt``,
+    ``mass_t``, ``cg_pct`` arrays on the JSBSim aircraft) with the coefficient errors *aero*;
+    a trim failure names the run."""
+    f = F.Fdm(model, ts)
+    try:
+        f.trim(*(float(point[c][i]) for c in envelope.FLIGHT_COLUMNS), aero=aero)
+    except F.JsbsimRunError as exc:
+        raise F.JsbsimRunError(f"run {run_id}: {exc}") from None
+    return f
 
 
 def integrate_jsbsim(jp: JsbsimPrepared, sensors: SensorParams = SENSORS) -> AircraftTrajectory:

@@ -192,7 +192,7 @@ def test_onsets_are_on_the_time_grid_inside_the_documented_interval(plans):
     assert plan.loc[plan["fault"] == "none", "onset_s"].isna().all()
 
 
-#: A fixed run row (no run_id) and its id: sha256 of "servo-5|" + canonical JSON, first 20
+#: A fixed run row (no run_id) and its id: sha256 of "servo-6|" + canonical JSON, first 20
 #: hex digits. If the model version or the hashing scheme must change, every stored result
 #: becomes a different run: update this literal knowingly. Changed with model version 2
 #: (servo-2: one draw per aerodynamic and per hinge-moment coefficient, in place of d_aero
@@ -200,7 +200,8 @@ def test_onsets_are_on_the_time_grid_inside_the_documented_interval(plans):
 #: (servo-3: the aircraft laws' gains of a run independent of its block at round-off) and 4
 #: (servo-4: drawn onsets leave the fault's detection budget, campaign.plan; the aircraft
 #: plant's angle-of-attack sensor) and 5 (servo-5: the aircraft laws' scheduled short period,
-#: filters and rate limits, docs/aircraft.md §4).
+#: filters and rate limits, docs/aircraft.md §4) and 6 (servo-6: the JSBSim plant flies the
+#: coefficient errors and places its laws at the measured point, docs/aircraft.md §9.1).
 GOLDEN_ROW = {"group": "g", "surface": "elevator", "manoeuvre": "cruise", "fault": "runaway",
               "onset_s": 12.5, "magnitude": -4.0, "freq_hz": float("nan"), "alt_ft": 28000.0,
               "vcas_kt": 300.0, "mass_t": 180.0, "cg_pct": 30.0, "level": "mc",
@@ -208,18 +209,18 @@ GOLDEN_ROW = {"group": "g", "surface": "elevator", "manoeuvre": "cruise", "fault
               "d_cl": 0.0, "d_cm": -0.03, "d_cn": 0.04, "d_vcas": -0.02, "d_alt": 0.0,
               "d_mass": 0.0, "d_cg": 0.0, "d_supply": 0.0, "d_kci": 0.0, "d_ch0": 0.1,
               "d_cha": -0.1, "d_chd": 0.05, "seed": 7, "stream": 3, "duration_s": 30.0}
-GOLDEN_ID = "a0eb511cab095be3fec3"
+GOLDEN_ID = "52a89b7dd0c7b23a5fe4"
 
 
 def test_golden_run_id():
     assert run_id(dict(GOLDEN_ROW)) == GOLDEN_ID
     # a NaN optional column (manoeuvre_start_s) leaves the id unchanged; its id field too
     assert run_id({**GOLDEN_ROW, "manoeuvre_start_s": float("nan"), "run_id": "x"}) == GOLDEN_ID
-    # the scheme, by hand: NaN → null, sorted keys, compact separators, "servo-5|" prefix
+    # the scheme, by hand: NaN → null, sorted keys, compact separators, "servo-6|" prefix
     payload = {k: (None if isinstance(v, float) and math.isnan(v) else v)
                for k, v in GOLDEN_ROW.items()}
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    assert hashlib.sha256(("servo-5|" + text).encode()).hexdigest()[:20] == GOLDEN_ID
+    assert hashlib.sha256(("servo-6|" + text).encode()).hexdigest()[:20] == GOLDEN_ID
 
 
 @pytest.mark.parametrize("field, value", [("stream", 4), ("seed", 8), ("magnitude", 4.0),

@@ -141,3 +141,88 @@ def test_a_run_is_a_function_of_its_row():
     np.testing.assert_array_equal(block.rod_com[1], alone.rod_com[0])
     np.testing.assert_array_equal(block.aircraft["phi"][1], alone.aircraft["phi"][0])
     assert not np.array_equal(block.aircraft["phi"][0], block.aircraft["phi"][1])
+
+
+def _moments(f):
+    """Rolling and yawing moment derivatives of an FDM's linearisation, rows (L, N), columns
+    (β, δa, δr) [ft·lbf per rad or per command unit]: its (ṗ, ṙ) rows times the inertia
+    matrix [[Ixx, Ixz], [Ixz, Izz]] (JSBSim's sign of Ixz)."""
+    x, u = f.lin_x, f.lin_u
+    rows = [x.index("P"), x.index("R")]
+    acc = np.column_stack([f.lin_A[rows, x.index("Beta")], f.lin_B[rows, u.index("DaCmd")],
+                           f.lin_B[rows, u.index("DrCmd")]])
+    ix, iz, ixz = (f.fdm[f"inertia/{k}-slugs_ft2"] for k in ("ixx", "izz", "ixz"))
+    return np.array([[ix, ixz], [ixz, iz]]) @ acc
+
+
+def test_a_coefficient_error_scales_its_axis_and_no_other():
+    """[CHEN] Table 2's error d on the rolling moment multiplies every function of JSBSim's
+    ROLL axis by 1 + d: the rolling moment per aileron and per rudder by 1.05 for d = +0.05,
+    the yawing moment per sideslip and per rudder not at all. (L_β moves by 3 % only: part
+    of it is the side force acting below the CG, which belongs to the SIDE axis.) The lateral
+    errors do not move the wings-level trim, so both linearisations are taken at the same
+    state; tolerance 1e-6, that of FGLinearization's finite differences (the two trims agree
+    to 1e-9, measured). d = 0 gives the file's aircraft bit for bit."""
+    nominal, zero, rolled = _trimmed(), F.Fdm(MODEL, 0.01), F.Fdm(MODEL, 0.01)
+    zero.trim(28000.0, 280.0, 47.0, 20.0, aero={c: 0.0 for c in F.AERO_AXES.values()})
+    rolled.trim(28000.0, 280.0, 47.0, 20.0, aero={"cl": 0.05})
+    np.testing.assert_array_equal(zero.lin_A, nominal.lin_A)
+    np.testing.assert_array_equal(zero.lin_B, nominal.lin_B)
+    ratio = _moments(rolled) / _moments(nominal)
+    np.testing.assert_allclose(ratio[0, 1:], [1.05, 1.05], rtol=1e-6)
+    np.testing.assert_allclose(ratio[1, [0, 2]], [1.0, 1.0], rtol=1e-6)
+    assert 1.01 < ratio[0, 0] < 1.05
+    assert rolled.alpha0 == pytest.approx(nominal.alpha0, abs=1e-9)
+
+
+def test_a_lift_error_is_trimmed_at_a_lower_angle_of_attack():
+    """+5 % on the lift coefficient: the same weight is carried at about 1/1.05 of the
+    angle of attack measured from zero lift (the 737's lift is nearly linear in α there;
+    measured 2.37° → 2.13°, the zero-lift α about −2.4°, est. from the two)."""
+    nominal, lifted = _trimmed(), F.Fdm(MODEL, 0.01)
+    lifted.trim(28000.0, 280.0, 47.0, 20.0, aero={"cz": 0.05})
+    a0, a1 = np.degrees(nominal.alpha0), np.degrees(lifted.alpha0)
+    assert a1 < a0 - 0.15
+    zero_lift = (a1 * 1.05 - a0) / 0.05            # α_0L from (a0 − α_0L) = 1.05 (a1 − α_0L)
+    assert -6.0 < zero_lift < 0.0
+
+
+def test_an_unknown_coefficient_is_refused():
+    with pytest.raises(ValueError, match="unknown aerodynamic coefficient 'cq'"):
+        F.Fdm(MODEL, 0.01).trim(28000.0, 280.0, 47.0, 20.0, aero={"cq": 0.05})
+
+
+def test_the_laws_know_the_measured_point_not_the_truth():
+    """The laws' gains are placed on the nominal 737 trimmed at the run's measured point: a
+    run whose aerodynamic errors alone differ gets the same gains, bit for bit, and so does a
+    run whose true point differs under the same measurements; a measurement error changes
+    them (docs/aircraft.md §9.1, as on the aircraft plant)."""
+    base = _runs("cruise", duration_s=1.0)
+    aero = base.copy()
+    for c in ("d_cz", "d_cm", "d_cl", "d_cn"):
+        aero[c] = 0.04
+    measured = base.copy()
+    measured["d_vcas"] = -0.02         # the default point is the 737's fastest: not above
+    g = {name: prepare_jsbsim(r, turbulence=None).base.gains
+         for name, r in (("base", base), ("aero", aero), ("measured", measured))}
+    for field in ("k_n", "k_q", "L_da", "N_dr"):
+        np.testing.assert_array_equal(getattr(g["aero"], field), getattr(g["base"], field))
+        assert not np.array_equal(getattr(g["measured"], field), getattr(g["base"], field))
+    # the plant itself flies with the errors: its trimmed α is not the nominal one
+    jp_base, jp_aero = prepare_jsbsim(base, turbulence=None), prepare_jsbsim(aero, turbulence=None)
+    assert jp_aero.fdms[0].alpha0 != jp_base.fdms[0].alpha0
+    assert jp_aero.base.airframe == "jsbsim:737"
+
+
+def test_the_gains_are_scheduled_within_the_aircrafts_ranges():
+    """A measured point outside the 737's ranges (a 41 t aircraft measured 10 % light, below
+    its 37.6 t empty weight; 10 % above its highest speed) is held at the range's end, as a
+    gain schedule's lookup holds at its end breakpoints; one inside is kept as measured."""
+    measured = {"alt_ft": np.array([20000.0, 40000.0]), "vcas_kt": np.array([250.0, 319.0]),
+                "mass_t": np.array([36.9, 45.0]), "cg_pct": np.array([20.0, 8.0])}
+    got = F.scheduled_point(measured, MODEL)
+    np.testing.assert_array_equal(got["alt_ft"], [20000.0, MODEL.alt_ft[1]])
+    np.testing.assert_array_equal(got["vcas_kt"], [250.0, MODEL.vcas_kt[1]])
+    np.testing.assert_array_equal(got["mass_t"], [MODEL.mass_t[0], 45.0])
+    np.testing.assert_array_equal(got["cg_pct"], [20.0, MODEL.cg_pct[0]])
+    assert MODEL.mass_t[0] * 1000.0 / F.LB_KG > MODEL.empty_lbs     # the lowest is flyable
