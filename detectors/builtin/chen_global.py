@@ -159,33 +159,39 @@ def scheduling_vector(schedule: dict) -> np.ndarray:
     return np.stack([a, a / V, a / (V * V), G0_MS2 / V], axis=-1)
 
 
-def lateral_models(schedule: dict) -> tuple[np.ndarray, np.ndarray]:
+def lateral_models(schedule: dict, airframe: str | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """(A_b (n, 4, 4), B_b (n, 4, 6)) of the nominal lateral model (every draw 0) at each
-    measured flight point, from :func:`scenarios.aircraft.lpv.run_models` (states
-    :data:`STATES`, inputs :data:`INPUT_SURFACES` then the spoilers; any angle unit)."""
+    measured flight point, from the design models of *airframe*
+    (:func:`scenarios.design_models.nominal_models`: our
+    :func:`scenarios.aircraft.lpv.run_models`, or a JSBSim aircraft's trimmed
+    linearisations) (states :data:`STATES`, inputs :data:`INPUT_SURFACES` then the spoilers;
+    any angle unit)."""
+    from scenarios import design_models
     from scenarios.aircraft import lpv
     from scenarios.aircraft.data import LAYOUT
 
-    n = len(np.asarray(schedule["mach"]))
-    flight = {"mass_t": schedule["mass_t"], "cg_pct": schedule["cg_pct"],
-              "mach": schedule["mach"], "qbar_pa": schedule["qbar_pa"], "tas_ms": _tas(schedule)}
-    model = lpv.run_models(flight, np.zeros(n))
+    model = design_models.nominal_models(airframe, schedule)
     idx = {"beta": lpv.IB, "p": lpv.IP, "r": lpv.IR, "phi": lpv.IPHI}
     rows = [idx[s] for s in STATES]
     cols = [LAYOUT.names.index(s) for s in INPUT_SURFACES] + [lpv.I_SPOILER]
     return model.A[:, rows][:, :, rows], model.B[:, rows][:, :, cols]
 
 
-def envelope_schedules(schedule_margin: float) -> dict:
-    """Measured schedules of every realistic [CHEN] Table-1 point seen through each corner
+def envelope_schedules(schedule_margin: float, airframe: str | None = None,
+                       corners: bool = True) -> dict:
+    """Measured schedules of every realistic [CHEN] Table-1 point (as a flight point of
+    *airframe*, :func:`scenarios.design_models.envelope_points`) seen through each corner
     (−w, 0, +w) of the Table-2 errors on VCAS, altitude, mass and CG, widened by
-    *schedule_margin* relative to w (arrays of 53·81 points)."""
-    from scenarios import envelope
+    *schedule_margin* relative to w (arrays of 53·81 points); without *corners*, the
+    points themselves (53)."""
+    from scenarios import design_models, envelope
 
-    pts = envelope.realistic_points()
-    pts = pts[pts["realistic"]]
-    true = {c: pts[c].to_numpy(float) for c in envelope.FLIGHT_COLUMNS}
+    true = design_models.envelope_points(airframe)
     w = envelope.UNCERTAINTY
+    if not corners:
+        return envelope.measured_schedule(true["alt_ft"], true["vcas_kt"], true["mass_t"],
+                                          true["cg_pct"], 0.0, 0.0, 0.0, 0.0)
     s = 1.0 + float(schedule_margin)
     parts = [envelope.measured_schedule(true["alt_ft"], true["vcas_kt"], true["mass_t"],
                                         true["cg_pct"], dh * w.alt * s, dv * w.vcas * s,
@@ -194,7 +200,7 @@ def envelope_schedules(schedule_margin: float) -> dict:
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
-def table2_error_bounds() -> np.ndarray:
+def table2_error_bounds(airframe: str | None = None) -> np.ndarray:
     """k_j of each driving signal of :data:`detectors.synthesis.chen_global_uncertainty.SIGNALS`:
     the largest relative error of its term between the aircraft and the model scheduled on the
     measured flight data, over every realistic [CHEN] Table-1 point and every corner of the
@@ -205,7 +211,7 @@ def table2_error_bounds() -> np.ndarray:
     from ..synthesis.chen_global_uncertainty import CHANNELS, error_bounds
 
     corners = list(itertools.product(*[(-1.0, 0.0, 1.0)] * 4))
-    rho = scheduling_vector(envelope_schedules(0.0)).reshape(len(corners), -1, 4)
+    rho = scheduling_vector(envelope_schedules(0.0, airframe)).reshape(len(corners), -1, 4)
     true = rho[corners.index((0.0, 0.0, 0.0, 0.0))]
     widths = {c: envelope.coefficient_width(envelope.UNCERTAINTY, c, "aero") for c in CHANNELS}
     return error_bounds(true[None], rho, widths)
@@ -229,21 +235,37 @@ class AffineLateralModel:
         return A, B
 
 
-def fit_affine(schedule: dict, numerics: GlobalNumerics = NUMERICS) -> AffineLateralModel:
-    """Least-squares affine coefficients of A_b, B_b in ρ over the points of *schedule*;
-    raises ValueError when the model is not affine in ρ (the scaling of lpv.py changed)."""
+def fit_affine(schedule: dict, numerics: GlobalNumerics = NUMERICS,
+               airframe: str | None = None, box: tuple | None = None) -> AffineLateralModel:
+    """Least-squares affine coefficients of A_b, B_b in ρ over the points of *schedule*, on
+    the design models of *airframe* (:func:`lateral_models`).
+
+    On the project's aircraft the model is affine in ρ by construction: every ρ component
+    whose coefficients are not negligible is kept, and a residual above
+    ``numerics.affine_tolerance`` raises ValueError (the scaling of lpv.py changed).
+
+    A JSBSim aircraft's linearisations are not affine in ρ: the fit is a least-squares LPV
+    approximation, as [CHEN] §5 fits its own to the aircraft's, and its largest relative
+    residual is kept (``residual``). Its components are chosen (:func:`_stable_components`)
+    so that the fitted model is a stable aircraft at every vertex of the scheduling box
+    *box* = (lo, hi) the synthesis uses, as every linearisation of the envelope is."""
+    from scenarios import design_models
+
     rho = scheduling_vector(schedule)
-    A, B = lateral_models(schedule)
+    A, B = lateral_models(schedule, airframe)
     Y = np.concatenate([A.reshape(len(A), -1), B.reshape(len(B), -1)], axis=1)
     scale = rho.max(axis=0)
-    X = np.concatenate([np.ones((len(rho), 1)), rho / scale], axis=1)
-    coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
     big = np.abs(Y).max()
-    keep = np.flatnonzero(np.abs(coef[1:]).max(axis=1) > numerics.negligible * big)
-    X = X[:, np.concatenate([[0], 1 + keep])]
-    coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
-    residual = float(np.abs(X @ coef - Y).max() / big)
-    if residual > numerics.affine_tolerance:
+    if design_models.exactly_affine(airframe):
+        coef, _ = _least_squares(rho / scale, Y, np.arange(rho.shape[1]))
+        keep = np.flatnonzero(np.abs(coef[1:]).max(axis=1) > numerics.negligible * big)
+    else:
+        if box is None:
+            raise ValueError(f"the LPV fit on {airframe} needs the scheduling box (lo, hi)")
+        keep = _stable_components(rho / scale, Y, box[0] / scale, box[1] / scale)
+    coef, fitted = _least_squares(rho / scale, Y, keep)
+    residual = float(np.abs(fitted - Y).max() / big)
+    if residual > numerics.affine_tolerance and design_models.exactly_affine(airframe):
         raise ValueError(f"the lateral model is not affine in the scheduling vector of [CHEN] "
                          f"eq. 8 (relative residual {residual:.2g}); the derivative scaling of "
                          "scenarios.aircraft.lpv no longer matches chen_global.scheduling_vector")
@@ -251,6 +273,43 @@ def fit_affine(schedule: dict, numerics: GlobalNumerics = NUMERICS) -> AffineLat
     return AffineLateralModel(coef_A=coef[:, :16].reshape(-1, 4, 4),
                               coef_B=coef[:, 16:].reshape(-1, 4, 6), keep=keep,
                               residual=residual)
+
+
+def _least_squares(x: np.ndarray, Y: np.ndarray, keep) -> tuple[np.ndarray, np.ndarray]:
+    """(coef, fitted values) of Y on [1, x[:, keep]] by least squares."""
+    X = np.concatenate([np.ones((len(x), 1)), x[:, keep]], axis=1)
+    coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
+    return coef, X @ coef
+
+
+def _stable_components(x: np.ndarray, Y: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                       ) -> np.ndarray:
+    """The ρ components (indices) of the LPV fit of a nonlinear aircraft: of every non-empty
+    subset, the one with the smallest largest residual among those whose fitted A_b is
+    stable (every eigenvalue in the open left half-plane) at every vertex of the box
+    [lo, hi] over the subset. The four components of [CHEN] eq. 8 are strongly correlated
+    over the envelope (|r| up to 0.8 on the 737), so a fit on all four extrapolates to box
+    vertices that are no aircraft: measured on JSBSim's 737, open-loop poles up to +5.9 1/s
+    at the vertices of the four-component fit (residual 11 %), while every trimmed
+    linearisation has its poles left of −0.007 1/s. ValueError when no subset is stable."""
+    best, best_residual = None, np.inf
+    for r in range(1, x.shape[1] + 1):
+        for keep in itertools.combinations(range(x.shape[1]), r):
+            keep = np.array(keep)
+            coef, fitted = _least_squares(x, Y, keep)
+            corners = np.array(list(itertools.product(*zip(lo[keep], hi[keep]))))
+            X = np.concatenate([np.ones((len(corners), 1)), corners], axis=1)
+            A = (X @ coef)[:, :16].reshape(-1, 4, 4)
+            if np.linalg.eigvals(A).real.max() >= 0.0:
+                continue
+            residual = np.abs(fitted - Y).max()
+            if residual < best_residual:
+                best, best_residual = keep, residual
+    if best is None:
+        raise ValueError("no affine LPV fit of the aircraft's lateral linearisations in the "
+                         "components of [CHEN] eq. 8 is stable at every vertex of the "
+                         "scheduling box; narrow the box (schedule_margin)")
+    return best
 
 
 def output_matrix() -> np.ndarray:
@@ -368,7 +427,7 @@ class ChenGlobalEstimator(Detector):
         if signals.aircraft is None or signals.rods is None:
             raise ValueError(f"{type(self).__name__} needs the aircraft sensors and every "
                              "surface's rod (Signals.aircraft/rods are None): it needs "
-                             "[plant] kind = \"aircraft\"")
+                             "[plant] kind = \"aircraft\" or \"jsbsim\"")
         missing = [k for k in OUTPUTS + (SPOILER,) if k not in signals.aircraft]
         missing += [k for k in INPUT_SURFACES if k not in signals.rods]
         if missing:
@@ -423,15 +482,22 @@ class ChenGlobalEstimator(Detector):
         return E
 
     def _fit(self, signals: Signals) -> None:
+        from scenarios import design_models
+
         from ..synthesis.lpv_synthesis import discretise, synthesise
 
         ts = float(signals.ts)
         col = monitored_column(signals.actuator.surface)
-        model = fit_affine(envelope_schedules(self.schedule_margin))
-        rho_env = scheduling_vector(envelope_schedules(self.schedule_margin))
+        airframe = design_models.check_airframe(signals.airframe)
+        # on our aircraft, fitted over the whole polytope (exact either way); a JSBSim
+        # aircraft is trimmed at the 53 realistic points only (0.15 CPU-s each)
+        rho_env = scheduling_vector(envelope_schedules(self.schedule_margin, airframe))
         lo, hi = rho_env.min(axis=0), rho_env.max(axis=0)
         widen = NUMERICS.polytope_margin * (hi - lo)
         lo, hi = lo - widen, hi + widen
+        fit_points = envelope_schedules(self.schedule_margin, airframe,
+                                        corners=design_models.exactly_affine(airframe))
+        model = fit_affine(fit_points, airframe=airframe, box=(lo, hi))
         verts, vertex_rho = self._vertices(model, lo, hi, col)
         E = self._h_direction()
         design = synthesise(verts, h_perturbation=float(self.h_perturbation), h_direction=E)
@@ -469,7 +535,8 @@ class ChenGlobalEstimator(Detector):
         self.stability_ = {"vertex_max_real_pole": vert, "grid_max_real_pole": cont,
                            "grid_max_discrete_modulus": disc, "grid_points": int(len(grid))}
         self.static_gain_ = (min(gains), max(gains))
-        self.error_bounds_ = table2_error_bounds()
+        self.error_bounds_ = table2_error_bounds(airframe)
+        self.airframe_ = airframe
         excess = per_run_maxima(signals, lambda block: {"excess": self._excess(block)})
         tau, calibration = learned_threshold(
             np.maximum(excess["excess"], 0.0), self.threshold_method, float(self.safety),

@@ -578,7 +578,19 @@ class VanekGeometric(Detector):
         return [self.variants] if isinstance(self.variants, str) else list(self.variants)
 
     def check_signals(self, signals: Signals) -> None:
+        from scenarios import design_models
+
         super().check_signals(signals)              # needs_aircraft: Signals.aircraft, .rods
+        airframe = design_models.check_airframe(signals.airframe)
+        if airframe != design_models.OWN:
+            # its filters and their Table-2 allowance are designed on lpv.run_models; on
+            # another aircraft that would be a design model that is not the aircraft's
+            raise ValueError(
+                f"{type(self).__name__} is designed on the project's aircraft model only "
+                f"(scenarios.aircraft.lpv); these signals come from {airframe}, whose own "
+                "linearisations it cannot design on yet (its model-error allowance needs about "
+                "20 trimmed models per run, docs/aircraft.md §9.6). Use [plant] kind = "
+                "\"aircraft\", or chen-global, which is designed on the JSBSim aircraft")
         missing = [s for s in design_outputs(self._reads_alpha()) + ("spoiler",)
                    if s not in signals.aircraft]
         if missing:

@@ -381,8 +381,8 @@ def test_the_affine_model_is_the_documented_sum_over_the_kept_components():
 def test_a_model_that_is_not_affine_in_rho_is_refused(monkeypatch):
     real = cg.lateral_models
 
-    def quadratic(schedule):
-        A, B = real(schedule)
+    def quadratic(schedule, airframe=None):
+        A, B = real(schedule, airframe)
         A = A.copy()
         A[:, 0, 0] *= 1.0 + np.asarray(schedule["qbar_pa"], float) / 1e4   # ∝ ρ0², not affine
         return A, B
@@ -399,8 +399,8 @@ def test_a_component_below_the_negligible_share_is_dropped(monkeypatch):
     entry (|Y| ≤ 11.5), leaves a relative residual below 1e-9/11.5."""
     real = cg.lateral_models
 
-    def tiny_rho2(schedule):
-        A, B = real(schedule)
+    def tiny_rho2(schedule, airframe=None):
+        A, B = real(schedule, airframe)
         rho2 = plain_rho(schedule)[:, 2]
         A = A.copy()
         A[:, 1, 1] += 1e-9 * rho2 / rho2.max()
