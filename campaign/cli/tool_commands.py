@@ -239,10 +239,11 @@ def add_tool_parsers(subs) -> None:
                    help="skip the first campaign run with an empty compile cache")
     p.add_argument("--no-detectors", action="store_true",
                    help="skip the per-detector cost per run-step")
-    p.add_argument("--plant", metavar="FMU", help="also time this FMU plant (per-run cost "
-                   "beside the built-in plant)")
+    p.add_argument("--plant", metavar="FMU|jsbsim", help="also time this FMU plant (per-run "
+                   "cost beside the built-in plant), or the JSBSim plant against its flight "
+                   "model alone")
     p.add_argument("--plant-runs", type=int, default=40,
-                   help="runs timed on the FMU plant (default 40)")
+                   help="runs timed on the FMU or JSBSim plant (default 40)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
     fsubs = add_group(subs, "fmu", "build the built-in servo-loop as an FMU", "FMU tools",

@@ -108,7 +108,9 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     campaign run with an empty compile cache; *backend*: joblib backend of the simulation
     part ("threading", like ``fdd-campaign run``, or "loky"); *plant*: an FMU file whose
     first *plant_runs* runs of the same load are also simulated on the FMU back end, its
-    per-run cost reported beside the built-in plant's; *stages*: the share of each stage of
+    per-run cost reported beside the built-in plant's, or ``"jsbsim"``: the first
+    *plant_runs* runs on the JSBSim plant against its flight model alone
+    (:func:`campaign.tools.plant_bench.jsbsim_cost`); *stages*: the share of each stage of
     each campaign (:func:`stage_costs` on *stage_runs* of its runs), under ``"stages"``;
     *progress*: called with a line naming each measurement as it starts (None: silent);
     *floor*: each campaign's arithmetic floor and its ratio to it (:func:`arithmetic_floor`);
@@ -137,7 +139,11 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     for name in names:          # a campaign that cannot load: exit 2 before any measurement
         load_config(name)
     spec = None
-    if plant is not None:
+    if plant == "jsbsim":
+        from scenarios.jsbsim.fdm import jsbsim_module
+
+        jsbsim_module()                         # missing: exit 2 naming the extra
+    elif plant is not None:
         from scenarios.fmu import FmuPlant, probe
 
         spec = FmuPlant.of(str(__import__("pathlib").Path(plant).resolve()))
@@ -176,7 +182,12 @@ def bench(n_runs: int = 2200, duration_s: float = 60.0, jobs: int = 2, chunk_siz
     echo(f"  per-run reference     : {ref_per_run:8.2f} s per run (solve_ivp, {reference_runs} "
          f"runs timed) -> {ref_total:,.0f} s for {n_runs} runs")
     echo(f"  speed-up              : {figures['speedup_vs_reference']:8.0f} x")
-    if spec is not None:
+    if plant == "jsbsim":
+        from .plant_bench import jsbsim_cost
+
+        step("timing the JSBSim plant and its flight model alone")
+        figures.update(jsbsim_cost(runs.iloc[:min(plant_runs, n_runs)], echo=echo))
+    elif spec is not None:
         step(f"timing the FMU plant {plant}")
         figures.update(_fmu_cost(runs.iloc[:min(plant_runs, n_runs)], spec, jobs,
                                  builtin_per_run=wall / n_runs, label=plant, echo=echo))
