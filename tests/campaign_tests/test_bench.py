@@ -306,3 +306,28 @@ def test_returning_freed_memory_starts_no_child_process(monkeypatch):
         assert memory._malloc_trim() is not None and spawned == []
     finally:
         memory._malloc_trim.cache_clear()
+
+
+def test_the_jsbsim_plant_is_timed_against_its_737_alone():
+    """``bench --plant jsbsim``'s load is fault-free at realistic points (each trims), and
+    the figures are the plant's CPU time per run, the same per simulated second, and the
+    floor's; no timing is asserted, only what each figure is."""
+    pytest.importorskip("jsbsim")
+    from campaign.tools.plant_bench import _realistic_fault_free, jsbsim_cost
+    from scenarios import envelope
+
+    runs = bench_runs(2, 20.0, seed=3)
+    load = _realistic_fault_free(runs)
+    assert (load["fault"] == "none").all() and load["onset_s"].isna().all()
+    pts = envelope.realistic_points()
+    realistic = pts[pts["realistic"]][list(envelope.FLIGHT_COLUMNS)].to_numpy()
+    for row in load[list(envelope.FLIGHT_COLUMNS)].to_numpy():
+        assert (realistic == row).all(axis=1).any()
+    lines = []
+    got = jsbsim_cost(runs, echo=lines.append)
+    assert got["jsbsim_runs"] == 2
+    assert got["jsbsim_cpu_s_per_simulated_s"] == pytest.approx(
+        got["jsbsim_cpu_s_per_run"] / 20.0, rel=1e-12)
+    assert got["jsbsim_over_floor"] == pytest.approx(
+        got["jsbsim_cpu_s_per_run"] / got["jsbsim_floor_cpu_s_per_run"], rel=1e-12)
+    assert lines and "plant/floor" in lines[0]
