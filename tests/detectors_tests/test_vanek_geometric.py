@@ -213,6 +213,21 @@ def test_aircraft_signals_without_the_spoiler_angle_are_refused():
         VanekGeometric().check_signals(dataclasses.replace(sig, aircraft=aircraft))
 
 
+def test_signals_of_another_aircraft_are_refused():
+    """Its filters and allowance are designed on our derivative model: on the JSBSim 737's
+    signals it refuses (naming the detector designed on the 737) instead of designing on a
+    model that is not the aircraft's; our aircraft's (airframe named or not) are accepted."""
+    import dataclasses
+
+    rows = _rows("left_inboard_aileron", "none", 1, 240.0, 30000.0, duration_s=20.0)
+    sig, _ = simulate_aircraft(rows)
+    assert sig.airframe == "aircraft"
+    VanekGeometric().check_signals(sig)
+    VanekGeometric().check_signals(dataclasses.replace(sig, airframe=None))
+    with pytest.raises(ValueError, match="come from jsbsim:737.*chen-global"):
+        VanekGeometric().check_signals(dataclasses.replace(sig, airframe="jsbsim:737"))
+
+
 def test_parameters_are_checked():
     with pytest.raises(ValueError, match="safety"):
         VanekGeometric(safety=1.0).validate_params()
