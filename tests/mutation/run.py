@@ -96,6 +96,12 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
         "tests/campaign_tests/test_certify_levels.py"),
+    "campaign/evidence/certify/rows.py": (
+        "tests/campaign_tests/test_certify_rows_values.py",
+        "tests/campaign_tests/test_streamed_commands.py"),
+    "campaign/evidence/certify/validate.py": (
+        "tests/campaign_tests/test_certify_validate_values.py",
+        "tests/campaign_tests/test_certify_levels.py"),
     "detectors/builtin/position_monitor.py": (
         "tests/detectors_tests/test_position_monitor_values.py",
         "tests/detectors_tests/test_position_monitor_band.py",
