@@ -7,6 +7,7 @@ number of runs")."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -52,6 +53,8 @@ def test_the_fault_free_ok_runs_of_each_detector_with_their_plan_durations():
     assert a.manoeuvre.tolist() == ["cruise", "nose_up", "cruise"]
     np.testing.assert_array_equal(a.duration_s, [10.0, 20.0, 30.0])
     assert a.false_alarms == 1
+    with pytest.raises(dataclasses.FrozenInstanceError):     # a detector's runs, read-only
+        a.false_alarms = 0
     b = r.free("b")
     assert (b.margin.tolist(), b.manoeuvre.tolist(), b.duration_s.tolist(), b.false_alarms) \
         == ([2.0], ["cruise"], [50.0], 1)
