@@ -102,6 +102,9 @@ TESTS: dict[str, tuple[str, ...]] = {
     "campaign/evidence/certify/validate.py": (
         "tests/campaign_tests/test_certify_validate_values.py",
         "tests/campaign_tests/test_certify_levels.py"),
+    "campaign/evidence/certify/estimate.py": (
+        "tests/campaign_tests/test_certify_estimate_values.py",
+        "tests/campaign_tests/test_certify_mixture_values.py"),
     "detectors/builtin/position_monitor.py": (
         "tests/detectors_tests/test_position_monitor_values.py",
         "tests/detectors_tests/test_position_monitor_band.py",
