@@ -26,6 +26,7 @@ from campaign.evidence.certify import (
     certify,
     evt_estimate,
     run_variables,
+    sample_fa_probability,
 )
 from campaign.evidence.certify.estimate import (
     _BatchStore,
@@ -380,7 +381,6 @@ def test_certify_refuses_an_unfinished_campaign(fresh, complete, done):
 
 def test_sampling_refuses_a_grid_and_a_plan_without_fault_free_runs(fresh):
     from campaign import load
-    from campaign.evidence.certify import sample_fa_probability
 
     loaded = load(fresh)
     grid = small_campaign("g", 1, [])
@@ -495,3 +495,45 @@ def test_without_realistic_only_every_sampled_point_is_simulated(finished_anywhe
     rows = pd.concat(sampled, ignore_index=True)
     assert len(rows) == cert.table["sampling_runs"].iloc[0] == 38
     assert (rows["mass_t"] == 150.0).all()
+
+
+@pytest.mark.parametrize("function, first", [
+    (certify, "level"), (sample_fa_probability, "n"), (fill_sampling_columns, "seed"),
+    (sampling_note, "seed")])
+def test_the_options_are_named_never_positional(function, first):
+    """A seed, a run count or a level passed by position would be taken for another option:
+    every parameter from the first option on is keyword-only."""
+    import inspect
+
+    params = list(inspect.signature(function).parameters.values())
+    start = [p.name for p in params].index(first)
+    assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in params[start:])
+    assert all(p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD for p in params[:start])
+
+
+def test_the_defaults_of_certify_and_of_its_sampling(fresh, monkeypatch):
+    """docs/evidence.md (the synopsis of certify): a 95 % certificate at the default levels,
+    sampling seed 0 and at most 12 levels after the first; 500 runs a level (the default of
+    sample_fa_probability called alone), p0 = 0.1. The subset simulation's arguments are
+    recorded, then it runs one level of 20."""
+    import campaign.evidence.rare as rare
+    from campaign import load
+    from campaign.evidence.certify.levels import DEFAULT_LEVELS
+
+    real, asked = rare.subset_simulation, []
+
+    def recorded(g, prior, dims, **kw):
+        asked.append(kw)
+        return real(g, prior, dims, **{**kw, "n": 20, "max_levels": 1})
+
+    monkeypatch.setattr(rare, "subset_simulation", recorded)
+    cert = certify(fresh, log=lambda m: None)
+    assert (cert.level, cert.sampling_seed) == (0.95, 0)
+    assert tuple(cert.levels["level"]) == DEFAULT_LEVELS and asked == []
+    certify(fresh, sampling=20, jobs=1, log=lambda m: None, progress=lambda m: None)
+    loaded = load(fresh)
+    sample_fa_probability(fresh, loaded.config, loaded.plan, ["pm", "nobody"], jobs=1,
+                          progress=lambda m: None)
+    keys = ("n", "p0", "max_levels", "confidence", "seed")
+    assert [tuple(kw[k] for k in keys) for kw in asked] == [(20, 0.1, 12, 0.95, 0),
+                                                            (500, 0.1, 12, 0.95, 0)]

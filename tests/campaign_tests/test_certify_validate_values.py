@@ -24,6 +24,7 @@ from campaign.evidence.certify.validate import (
     coverage_table,
     summarise,
     validate,
+    validate_levels,
     validation_config,
 )
 from reports.scoring.metrics import lower_bound
@@ -215,3 +216,15 @@ def test_validate_runs_the_brute_force_and_writes_its_coverage(finished, tmp_pat
         assert r["validation_runs"] == m.size == 100
         assert r["validation_count"] == int((m >= r["level"]).sum())
         assert r["validation_seed"] == 7
+
+
+@pytest.mark.parametrize("function, first", [(validate, "seed"), (validate_levels, "seed")])
+def test_the_validation_options_are_named_never_positional(function, first):
+    """A seed or a worker count passed by position would be taken for another option: every
+    parameter from the seed on is keyword-only."""
+    import inspect
+
+    params = list(inspect.signature(function).parameters.values())
+    start = [p.name for p in params].index(first)
+    assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in params[start:])
+    assert all(p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD for p in params[:start])
