@@ -204,10 +204,13 @@ def test_no_fault_free_run_is_an_empty_certificate_with_its_integer_columns():
 
 
 # ---- what is sampled ---------------------------------------------------------------------
-def config(**campaign) -> CampaignConfig:
-    """The small campaign with the mass held at 150 t and no airspeed uncertainty."""
+def config(manoeuvres=None, **campaign) -> CampaignConfig:
+    """The small campaign with the mass held at 150 t and no airspeed uncertainty; with
+    *manoeuvres*, one fault-free run of each instead of its three of cruise and nose_up."""
     cfg = small_campaign("v", 21, [])
     cfg["campaign"].update(campaign)
+    if manoeuvres:
+        cfg["group"][0].update(manoeuvres=list(manoeuvres), count=1)
     cfg["envelope"] = {"mass_t": [150.0]}
     cfg["uncertainty"] = {"vcas": 0.0, "alt": 0.1}
     return CampaignConfig.from_dict(cfg, source="v.toml")
@@ -312,11 +315,16 @@ def finished(tmp_path_factory):
     return out
 
 
+THREE = ("cruise", "nose_up", "aoa_protection")
+
+
 @pytest.fixture(scope="module")
 def finished_anywhere(tmp_path_factory):
-    """The same campaign with flight points outside the realistic envelope allowed."""
+    """The campaign with flight points outside the realistic envelope allowed and one
+    fault-free run of each of three manoeuvres."""
     out = tmp_path_factory.mktemp("certify") / "c"
-    run(config(realistic_only=False), out, jobs=1, progress=False, log=lambda m: None)
+    run(config(THREE, realistic_only=False), out, jobs=1, progress=False,
+        log=lambda m: None)
     return out
 
 
@@ -495,6 +503,24 @@ def test_without_realistic_only_every_sampled_point_is_simulated(finished_anywhe
     rows = pd.concat(sampled, ignore_index=True)
     assert len(rows) == cert.table["sampling_runs"].iloc[0] == 38
     assert (rows["mass_t"] == 150.0).all()
+    # each manoeuvre drawn, its other columns those of its one fault-free run
+    assert set(rows["manoeuvre"]) == set(THREE)
+    plan = pd.read_parquet(out / "plan.parquet")
+    ff = plan[plan["fault"] == "none"].set_index("manoeuvre")
+    for col in ("duration_s", "manoeuvre_set", "fault", "mass_t"):
+        assert (rows[col].to_numpy() == ff.loc[rows["manoeuvre"], col].to_numpy()).all(), col
+    assert rows["vcas_kt"].nunique() > 10
+
+
+def test_sampling_takes_any_multiple_of_ten_runs_from_20(fresh, monkeypatch):
+    import campaign.evidence.certify.estimate as estimate
+
+    asked = []
+    monkeypatch.setattr(estimate, "sample_fa_probability",
+                        lambda *a, **kw: asked.append(kw["n"]) or {})
+    for n in (20, 30):
+        certify(fresh, sampling=n, log=lambda m: None)
+    assert asked == [20, 30]
 
 
 @pytest.mark.parametrize("function, first", [
