@@ -179,6 +179,10 @@ def test_a_curve_given_supplies_the_level_one_rows_and_the_rate_note_at_its_boun
         assert a["fa_prob_evt_upper95"] == bound
         assert (note in a["evt_note"]) is noted
         assert note.split(" 10/40")[0] not in b["evt_note"]       # b has no alarm
+    # a curve of level 1 alone is used as given too
+    only = curve[at_one].copy()
+    only.loc[only["detector"] == "a", "p_upper95"] = 0.5
+    assert certificate(results, plan, 0.95, only)["fa_prob_evt_upper95"].iloc[0] == 0.5
     # a curve without level 1 is completed with it: the same certificate as none given
     pd.testing.assert_frame_equal(certificate(results, plan, 0.95, curve[~at_one]),
                                   certificate(results, plan))
@@ -563,3 +567,19 @@ def test_the_defaults_of_certify_and_of_its_sampling(fresh, monkeypatch):
     keys = ("n", "p0", "max_levels", "confidence", "seed")
     assert [tuple(kw[k] for k in keys) for kw in asked] == [(20, 0.1, 12, 0.95, 0),
                                                             (500, 0.1, 12, 0.95, 0)]
+
+
+def test_a_sampled_run_without_a_margin_reaches_no_level(fresh, monkeypatch):
+    """A sampled run whose margin is not finite (it could not be evaluated) counts as never
+    reaching a level: with none evaluated there is no estimate."""
+    import campaign.runner as runner
+
+    def no_margin(setup, rows, detectors, log=None):
+        return pd.DataFrame({"run_id": rows["run_id"], "detector": "pm", "margin": np.nan})
+
+    monkeypatch.setattr(runner, "evaluate_rows", no_margin)
+    cert = certify(fresh, sampling=20, max_levels=1, jobs=1, log=lambda m: None,
+                   progress=lambda m: None)
+    row = cert.table.iloc[0]
+    assert math.isnan(row["sampling_prob"]) and row["sampling_levels"] == 0
+    assert row["sampling_note"].endswith("no sampled run could be evaluated: no estimate")
