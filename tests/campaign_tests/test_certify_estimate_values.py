@@ -562,7 +562,8 @@ def test_the_defaults_of_certify_and_of_its_sampling(fresh, monkeypatch):
     assert tuple(cert.levels["level"]) == DEFAULT_LEVELS and asked == []
     certify(fresh, sampling=20, jobs=1, log=lambda m: None, progress=lambda m: None)
     loaded = load(fresh)
-    sample_fa_probability(fresh, loaded.config, loaded.plan, ["pm", "nobody"], jobs=1,
+    # a name no detector owns is passed over, and the names after it still sampled
+    sample_fa_probability(fresh, loaded.config, loaded.plan, ["nobody", "pm"], jobs=1,
                           progress=lambda m: None)
     keys = ("n", "p0", "max_levels", "confidence", "seed")
     assert [tuple(kw[k] for k in keys) for kw in asked] == [(20, 0.1, 12, 0.95, 0),
