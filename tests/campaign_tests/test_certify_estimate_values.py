@@ -584,3 +584,51 @@ def test_a_sampled_run_without_a_margin_reaches_no_level(fresh, monkeypatch):
     row = cert.table.iloc[0]
     assert math.isnan(row["sampling_prob"]) and row["sampling_levels"] == 0
     assert row["sampling_note"].endswith("no sampled run could be evaluated: no estimate")
+
+
+def test_a_sampled_point_outside_the_realistic_envelope_is_not_simulated(fresh, monkeypatch):
+    """The performance function the subset simulation gets: a point of the prior whose
+    flight point is not realistic (the campaign has realistic_only) has margin −∞ without
+    a run; a realistic one is simulated, at the values u = Φ(z) maps it to."""
+    import campaign.evidence.rare as rare
+    import campaign.runner as runner
+    from scipy.stats import norm
+
+    from campaign import load
+
+    loaded = load(fresh)
+    variables = run_variables(loaded.config, loaded.plan)
+    cols = list(variables)
+    lo = np.array([variables[c][0] for c in cols])
+    hi = np.array([variables[c][1] for c in cols])
+    z = np.random.default_rng(5).standard_normal((200, len(cols)))
+    v = lo + (hi - lo) * norm.cdf(z)
+    points = pd.DataFrame({c: v[:, cols.index(c)] if c in cols else 150.0
+                           for c in envelope.FLIGHT_COLUMNS})
+    ok = envelope.realistic_rule(points, loaded.config.uncertainty)["realistic"].to_numpy()
+    pick = np.concatenate([np.flatnonzero(ok)[:2], np.flatnonzero(~ok)[:2]])
+    assert ok[pick].tolist() == [True, True, False, False]
+    real_sim, real_eval, got, simulated = rare.subset_simulation, runner.evaluate_rows, [], []
+
+    def first_call_g(g, prior, dims, **kw):
+        nu = np.empty(4, dtype=object)
+        nu[:] = [(0, SAMPLING_STREAM_BASE + 10 ** 6 + i) for i in range(4)]
+        got.append(g(z[pick], nu))
+        return real_sim(g, prior, dims, **kw)
+
+    def spy(setup, rows, detectors, log=None):
+        simulated.append(rows)
+        return real_eval(setup, rows, detectors, log=log)
+
+    monkeypatch.setattr(rare, "subset_simulation", first_call_g)
+    monkeypatch.setattr(runner, "evaluate_rows", spy)
+    certify(fresh, sampling=20, max_levels=1, jobs=1, log=lambda m: None,
+            progress=lambda m: None)
+    margins = got[0]
+    assert np.isfinite(margins[:2]).all() and (margins[2:] == -np.inf).all()
+    rows = simulated[0]
+    assert len(rows) == 2 and rows["stream"].tolist() == [SAMPLING_STREAM_BASE + 10 ** 6,
+                                                          SAMPLING_STREAM_BASE + 10 ** 6 + 1]
+    for c in cols:
+        np.testing.assert_allclose(rows[c].to_numpy(float), v[pick[:2], cols.index(c)],
+                                   rtol=1e-15, err_msg=c)
