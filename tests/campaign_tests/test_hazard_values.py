@@ -132,3 +132,40 @@ def test_the_credit_at_each_pair_of_neighbouring_categories():
     assert credit(20, 20, 1.0, 1e-3, 1e-3, in_time=True) == (
         "none", "no credit: detected none of its 20 runs in time")
     assert credit(0, 0, math.nan, 1e-6, math.nan) == ("n/a", "no run")
+
+
+def test_the_false_alarm_row_and_the_level_limits():
+    """The fault-free runs' row: k/n and its bound turned into rates per hour (runs of
+    36 s, 0.01 h); the level is a confidence strictly between 1/2 and 1."""
+    free = pd.DataFrame({"run_id": [f"f{i}" for i in range(40)], "detector": "d",
+                         "fault": "none", "status": "ok", "detected": False, "dtp": np.nan,
+                         "false_alarm": np.arange(40) < 3})
+    plan = pd.DataFrame({"run_id": free["run_id"], "duration_s": 36.0})
+    row = hazard_table(free, plan, {}, 0.9).set_index("fault").loc["none"]
+    up = float(upper_bound(3, 40, 0.9))
+    assert (row["n_runs"], row["events"], row["late_or_missed"]) == (40, 3, 3)
+    assert row["p_run"] == 3 / 40 and row["p_run_upper95"] == pytest.approx(up, rel=1e-12)
+    assert row["per_fh"] == pytest.approx(-math.log1p(-3 / 40) / 0.01, rel=1e-12)
+    assert row["per_fh_upper95"] == pytest.approx(-math.log1p(-up) / 0.01, rel=1e-12)
+    assert row["level"] == 0.9
+    for level in (0.5, 1.0):
+        with pytest.raises(ValueError, match=f"level {level!r} must be a confidence in "
+                                             r"\(0.5, 1\)"):
+            hazard_table(free, plan, {}, level)
+    assert hazard_table(free, plan, {}, 0.5 + 1e-9)["level"].tolist() == [0.5 + 1e-9]
+
+
+def test_a_fault_detected_only_late_is_credited_nothing_in_time():
+    h = hazard_table(faulty("runaway", 10, late=10), None,
+                     DEFAULT_FAULT_RATES_PER_FH).set_index("fault")
+    for fault in ("runaway", "all"):
+        assert h.loc[fault, "claim_in_time"] == ("met by the fault rate alone (major), no "
+                                                 "credit; detected none of its 10 runs in "
+                                                 "time")
+        assert "in time" not in h.loc[fault, "claim"]
+
+
+def test_one_run_is_a_row_to_judge():
+    """A single run is judged (its bound, 0.95, shows nothing); no run is "n/a"."""
+    assert credit(1, 0, 0.95, 1e-3, 9.5e-4) == (
+        "none", "no credit: not shown: the undetected-probability bound 0.95 is above 0.5")
