@@ -169,3 +169,20 @@ def test_one_run_is_a_row_to_judge():
     """A single run is judged (its bound, 0.95, shows nothing); no run is "n/a"."""
     assert credit(1, 0, 0.95, 1e-3, 9.5e-4) == (
         "none", "no credit: not shown: the undetected-probability bound 0.95 is above 0.5")
+
+
+def test_an_unknown_bound_credits_nothing():
+    """A bound with the detector that is not a number reaches no category: nothing is
+    credited, whatever the fault rate alone meets."""
+    assert credit(10, 0, 0.1, 1e-3, math.nan) == (
+        "none", "no credit: not shown: with the detector ≤ nan/FH, the category of the fault "
+        "rate alone (none)")
+    assert credit(10, 0, 0.1, 1e-6, math.nan)[0] == "none"
+
+
+def test_a_table_without_ok_runs_is_empty_with_its_integer_columns():
+    table = hazard_table(faulty("runaway", 3).assign(status="error"), None,
+                         DEFAULT_FAULT_RATES_PER_FH)
+    assert table.empty
+    for c in ("n_runs", "events", "late_or_missed"):
+        assert table[c].dtype == np.int64, c
