@@ -107,7 +107,8 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/campaign_tests/test_certify_mixture_values.py"),
     "campaign/evidence/hazard.py": ("tests/campaign_tests/test_hazard_values.py",
                                     "tests/campaign_tests/test_hazard.py"),
-    "campaign/evidence/rare.py": ("tests/campaign_tests/test_rare.py",),
+    "campaign/evidence/rare.py": ("tests/campaign_tests/test_rare_values.py",
+                                  "tests/campaign_tests/test_rare.py"),
     "detectors/builtin/position_monitor.py": (
         "tests/detectors_tests/test_position_monitor_values.py",
         "tests/detectors_tests/test_position_monitor_band.py",
