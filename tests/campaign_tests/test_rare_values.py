@@ -15,9 +15,11 @@ from campaign.evidence.rare import (
     GROUP_SHARE,
     SubsetLevel,
     SubsetResult,
+    _chain_starts,
     _distinct,
     _gamma,
     _groups,
+    _next_threshold,
     subset_simulation,
 )
 
@@ -127,3 +129,102 @@ def test_the_defaults_and_the_smallest_number_of_points():
     assert small.evaluations == 20 + 18
     with pytest.raises(ValueError, match="n = 10 and p0 = 0.1 must make"):
         subset_simulation(g, _normal_prior(1), 1, n=10)
+
+
+def test_a_result_and_its_table_of_levels():
+    r = SubsetResult(0.1, 0.05, 0.2, 0.95, 0.3)
+    assert (r.evaluations, r.reached, r.stalled, r.reached_level) == (0, True, False, 1.0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.reached = False
+    run = subset_simulation(lambda z, nu: z[:, 0] / 3.0, _normal_prior(1), 1, n=40, seed=2)
+    table = run.to_pandas()
+    assert table["level"].tolist() == list(range(1, len(run.diagnostics) + 1))
+    assert table["threshold"].tolist() == [lv.threshold for lv in run.diagnostics]
+
+
+def test_the_next_threshold_and_the_chains_seeds():
+    """The p0-quantile is the n_c-th largest value; on a plateau the smallest value above the
+    previous threshold, None when there is none. n_c seeds: a random n_c of the candidates,
+    or each in turn when there are fewer."""
+    y = np.array([3.0, 9.0, 1.0, 8.0, 5.0, 8.0])
+    assert _next_threshold(y, 2, None) == 8.0 and _next_threshold(y, 3, None) == 8.0
+    assert _next_threshold(y, 4, 2.0) == 5.0
+    assert _next_threshold(y, 2, 8.0) == 9.0 and _next_threshold(y, 1, 9.0) is None
+    rng = np.random.default_rng(0)
+    starts, seeds = _chain_starts(rng, np.array([4, 7, 9]), 5)
+    assert starts.tolist() == [4, 7, 9, 4, 7] and seeds == 3
+    starts, seeds = _chain_starts(rng, np.array([4, 7, 9]), 3)
+    assert sorted(starts.tolist()) == [4, 7, 9] and seeds == 3
+    starts, seeds = _chain_starts(rng, np.arange(10), 4)
+    assert len(set(starts.tolist())) == 4 and seeds == 4
+
+
+def test_the_prior_is_drawn_once_when_every_point_is_admissible_and_the_share_limits():
+    calls = []
+
+    def prior(rng, m):
+        calls.append(m)
+        return rng.standard_normal((m, 1)), np.zeros(m, dtype=object), np.ones(m, bool)
+
+    subset_simulation(lambda z, nu: z[:, 0] / 3.0, prior, 1, n=20, max_levels=1)
+    assert calls == [20]
+    for share in (0.0, 0.5):
+        subset_simulation(lambda z, nu: z[:, 0] / 3.0, prior, 1, n=20, max_levels=1,
+                          nuisance_share=share)
+    for share in (1.0, -0.1):
+        with pytest.raises(ValueError, match=f"nuisance_share = {share} must be in"):
+            subset_simulation(lambda z, nu: z[:, 0] / 3.0, prior, 1, n=20,
+                              nuisance_share=share)
+    with pytest.raises(TypeError):
+        subset_simulation(lambda z, nu: z[:, 0], prior, 1, 20)      # n by name only
+
+
+def test_a_quantile_at_exactly_1_ends_at_the_first_level():
+    """g = 1 on z > 0.5 (P = 0.31), else 0: the p0-quantile of the first points is 1, so
+    P̂ is the share of them with g ≥ 1 and there are no intermediate levels; its one-sided
+    bounds are P̂·exp(∓z₀.₉₅ √ln(1 + δ²)), δ² = (1 − P̂)/(n P̂)."""
+    def g(z, nu):
+        return np.where(z[:, 0] > 0.5, 1.0, 0.0)
+
+    r = subset_simulation(g, _normal_prior(1), 1, n=100, seed=3)
+    z0 = np.random.default_rng(np.random.SeedSequence(3)).standard_normal((100, 1))
+    share = float((z0[:, 0] > 0.5).mean())
+    assert r.reached and r.levels == () and r.probability == share
+    d2 = (1 - share) / (100 * share)
+    s = math.sqrt(math.log1p(d2))
+    z95 = 1.6448536269514722
+    assert r.cov == pytest.approx(math.sqrt(d2), rel=1e-12)
+    assert r.lower == pytest.approx(share * math.exp(-z95 * s), rel=1e-9)
+    assert r.upper == pytest.approx(share * math.exp(z95 * s), rel=1e-9)
+
+
+def test_an_upper_bound_above_1_is_1():
+    """19 of the first 20 points at g = 1 (all but the lowest): P̂ = 0.95, δ² = 0.05/19, and
+    P̂·exp(z₀.₉₅ √ln(1 + δ²)) = 1.03 is reported as 1."""
+    def g(z, nu):
+        return np.where(z[:, 0] > z[:, 0].min(), 1.0, 0.0)
+
+    r = subset_simulation(g, _normal_prior(1), 1, n=20, seed=1)
+    assert r.reached and r.probability == 0.95 and r.levels == ()
+    s = math.sqrt(math.log1p(0.05 / 19))
+    assert 0.95 * math.exp(1.6448536269514722 * s) > 1.0
+    assert r.upper == 1.0
+    assert r.lower == pytest.approx(0.95 * math.exp(-1.6448536269514722 * s), rel=1e-9)
+
+
+def test_a_plateau_stalls_at_the_level_it_reached():
+    """g = min(z/6, 0.5): two levels below the plateau, then the plateau 0.5 as the third
+    threshold; no point of the chains lies above it, so the simulation stalls there with
+    P̂(g ≥ 0.5) of that level."""
+    r = subset_simulation(lambda z, nu: np.minimum(z[:, 0] / 6.0, 0.5), _normal_prior(1), 1,
+                          n=100, seed=5)
+    assert len(r.levels) >= 3 and r.levels[-1] == 0.5 > r.levels[1]
+    assert r.stalled and not r.reached and r.reached_level == 0.5
+    assert len(r.diagnostics) == len(r.levels)
+    assert r.reached_probability == r.diagnostics[-1].probability > 0.0
+
+
+def test_no_point_evaluated_is_no_estimate_and_not_a_stall():
+    r = subset_simulation(lambda z, nu: np.full(len(z), np.nan), _normal_prior(1), 1, n=20)
+    assert not r.reached and not r.stalled and r.reached_level == -math.inf
+    assert math.isnan(r.probability) and math.isnan(r.upper) and r.diagnostics == ()
