@@ -54,6 +54,9 @@ def test_gamma_is_eq_29_of_au_and_beck():
     # no variance (every indicator 0 or every 1) and chains of one state: γ = 0
     assert _gamma(np.zeros((3, 4))) == 0.0 and _gamma(np.ones((3, 4))) == 0.0
     assert _gamma(np.array([[1.0], [0.0]])) == 0.0
+    # chains of two states (the shortest with a lag): γ = 2·(1 − 1/2)·R_1/R_0 = 1
+    pairs = np.array([[1, 1], [0, 0], [1, 1], [0, 0]], float)
+    assert _gamma(pairs) == pytest.approx(gamma_by_hand(pairs), rel=1e-12) == 1.0
 
 
 def test_a_level_runs_its_chains_in_groups_of_a_fifth():
@@ -228,3 +231,41 @@ def test_no_point_evaluated_is_no_estimate_and_not_a_stall():
     r = subset_simulation(lambda z, nu: np.full(len(z), np.nan), _normal_prior(1), 1, n=20)
     assert not r.reached and not r.stalled and r.reached_level == -math.inf
     assert math.isnan(r.probability) and math.isnan(r.upper) and r.diagnostics == ()
+
+
+def test_each_levels_acceptance_and_scale_from_the_chains_moves():
+    """n = 20: 2 chains of 10 states, one adaptation group. Every evaluation after the first
+    20 is a candidate of a chain step (no nuisance moves); level i's acceptance is the share
+    of its 18 candidates with g ≥ b_i (ties at b_i accepted: g takes steps of 1/12), and
+    λ after it is λ·exp(â_i − 0.44), from 0.6."""
+    calls = []
+
+    def g(z, nu):
+        y = np.floor(z[:, 0] * 4.0) / 12.0
+        calls.append(y)
+        return y
+
+    r = subset_simulation(g, _normal_prior(1), 1, n=20, seed=7, max_levels=6)
+    assert len(calls[0]) == 20 and all(len(c) == 2 for c in calls[1:])
+    chains = [np.concatenate(calls[1 + 9 * i:10 + 9 * i]) for i in range(len(r.levels))]
+    scale = 0.6
+    ties = 0
+    for lv, cand in zip(r.diagnostics, chains):
+        assert lv.acceptance == float((cand >= lv.threshold).mean())
+        ties += int((cand == lv.threshold).sum())
+        scale *= math.exp(lv.acceptance - 0.44)
+        assert lv.scale == pytest.approx(scale, rel=1e-12)
+    assert ties > 0                          # candidates on a threshold, accepted
+
+
+def test_the_last_levels_gamma_is_that_of_the_chains_at_the_level_reached():
+    """Not reached within one level: the last threshold b* is the p0-quantile of the chains'
+    states, and its γ is eq. 29 of their indicators g ≥ b* (a state at b* counts)."""
+    r = subset_simulation(lambda z, nu: z[:, 0] / 10.0, _normal_prior(1), 1, n=40, seed=2,
+                          max_levels=1)
+    assert not r.reached and len(r.diagnostics) == 2
+    y = r.samples["g"]
+    chains = y.reshape(10, 4).T                      # state s of chain c at s·n_c + c
+    top = r.reached_level
+    assert (y == top).sum() >= 1
+    assert r.diagnostics[-1].gamma == pytest.approx(gamma_by_hand(chains >= top), rel=1e-12)
