@@ -137,6 +137,7 @@ def test_the_defaults_and_the_smallest_number_of_points():
 def test_a_result_and_its_table_of_levels():
     r = SubsetResult(0.1, 0.05, 0.2, 0.95, 0.3)
     assert (r.evaluations, r.reached, r.stalled, r.reached_level) == (0, True, False, 1.0)
+    assert "samples" not in repr(r)          # the points of the last level: not printed
     with pytest.raises(dataclasses.FrozenInstanceError):
         r.reached = False
     run = subset_simulation(lambda z, nu: z[:, 0] / 3.0, _normal_prior(1), 1, n=40, seed=2)
@@ -156,8 +157,10 @@ def test_the_next_threshold_and_the_chains_seeds():
     rng = np.random.default_rng(0)
     starts, seeds = _chain_starts(rng, np.array([4, 7, 9]), 5)
     assert starts.tolist() == [4, 7, 9, 4, 7] and seeds == 3
-    starts, seeds = _chain_starts(rng, np.array([4, 7, 9]), 3)
-    assert sorted(starts.tolist()) == [4, 7, 9] and seeds == 3
+    # as many candidates as chains: a random order of them, drawn from the generator
+    starts, seeds = _chain_starts(np.random.default_rng(3), np.array([4, 7, 9]), 3)
+    want = np.random.default_rng(3).permutation(np.array([4, 7, 9]))
+    assert starts.tolist() == want.tolist() != [4, 7, 9] and seeds == 3
     starts, seeds = _chain_starts(rng, np.arange(10), 4)
     assert len(set(starts.tolist())) == 4 and seeds == 4
 
