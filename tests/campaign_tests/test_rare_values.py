@@ -264,7 +264,7 @@ def test_each_levels_acceptance_and_scale_from_the_chains_moves():
 def test_the_last_levels_gamma_is_that_of_the_chains_at_the_level_reached():
     """Not reached within one level: the last threshold b* is the p0-quantile of the chains'
     states, and its γ is eq. 29 of their indicators g ≥ b* (a state at b* counts)."""
-    r = subset_simulation(lambda z, nu: z[:, 0] / 10.0, _normal_prior(1), 1, n=40, seed=2,
+    r = subset_simulation(lambda z, nu: z[:, 0] / 10.0, _normal_prior(1), 1, n=40, seed=3,
                           max_levels=1)
     assert not r.reached and len(r.diagnostics) == 2
     y = r.samples["g"]
@@ -272,3 +272,4 @@ def test_the_last_levels_gamma_is_that_of_the_chains_at_the_level_reached():
     top = r.reached_level
     assert (y == top).sum() >= 1
     assert r.diagnostics[-1].gamma == pytest.approx(gamma_by_hand(chains >= top), rel=1e-12)
+    assert gamma_by_hand(chains >= top) > 0.0 == gamma_by_hand(chains > top)
