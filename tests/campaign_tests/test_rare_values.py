@@ -142,6 +142,7 @@ def test_a_result_and_its_table_of_levels():
         r.reached = False
     run = subset_simulation(lambda z, nu: z[:, 0] / 3.0, _normal_prior(1), 1, n=40, seed=2)
     table = run.to_pandas()
+    assert table.columns[0] == "level"
     assert table["level"].tolist() == list(range(1, len(run.diagnostics) + 1))
     assert table["threshold"].tolist() == [lv.threshold for lv in run.diagnostics]
 
@@ -273,3 +274,33 @@ def test_the_last_levels_gamma_is_that_of_the_chains_at_the_level_reached():
     assert (y == top).sum() >= 1
     assert r.diagnostics[-1].gamma == pytest.approx(gamma_by_hand(chains >= top), rel=1e-12)
     assert gamma_by_hand(chains >= top) > 0.0 == gamma_by_hand(chains > top)
+
+
+def test_a_chains_first_step_is_the_conditional_sampling_move():
+    """Papaioannou et al. (2015, §4.2): the first chain of the first level moves its seed z
+    to ρ z + σ ξ, σ = min(λ σ̂, 1), ρ = √(1 − σ²), λ = 0.6 and σ̂ the spread of the level's
+    five distinct seeds (n = 50: five chains, the fewest whose spread is used); the draws
+    are replayed from the generator in the order the simulation makes them (prior, seeds'
+    order, ξ, the nuisance coin)."""
+    d, n = 2, 50
+    seen = []
+
+    def g(z, nu):
+        seen.append(z.copy())
+        return z.sum(axis=1) / 8.0
+
+    subset_simulation(g, _normal_prior(d), d, n=n, seed=11, max_levels=1)
+    rng = np.random.default_rng(np.random.SeedSequence(11))
+    z0 = rng.standard_normal((n, d))
+    np.testing.assert_array_equal(seen[0], z0)
+    y = z0.sum(axis=1) / 8.0
+    b = np.sort(y)[::-1][4]                              # the 5th largest of 50
+    starts = rng.permutation(np.flatnonzero(y >= b))[:5]
+    seeds = z0[starts]
+    assert len(np.unique(seeds, axis=0)) == 5
+    sigma = np.minimum(0.6 * np.std(seeds, axis=0), 1.0)
+    assert (sigma < 1.0).all() and not np.allclose(sigma, 0.6)
+    xi = rng.standard_normal((1, d))
+    rng.random(1)
+    want = np.sqrt(1.0 - sigma ** 2) * seeds[:1] + sigma * xi
+    np.testing.assert_allclose(seen[1], want, rtol=1e-14)
