@@ -304,3 +304,14 @@ def test_a_chains_first_step_is_the_conditional_sampling_move():
     rng.random(1)
     want = np.sqrt(1.0 - sigma ** 2) * seeds[:1] + sigma * xi
     np.testing.assert_allclose(seen[1], want, rtol=1e-14)
+
+
+def test_no_bound_of_a_probability_exceeds_1():
+    """At a confidence below 1/2 the one-sided "lower" bound lies above the estimate; it is
+    still a probability: P̂ = 0.95 (19 of 20 points at g = 1) at confidence 0.01 gives
+    0.95·exp(2.33 √ln(1 + 0.05/19)) = 1.07, reported as 1."""
+    def g(z, nu):
+        return np.where(z[:, 0] > z[:, 0].min(), 1.0, 0.0)
+
+    r = subset_simulation(g, _normal_prior(1), 1, n=20, seed=1, confidence=0.01)
+    assert r.probability == 0.95 and r.lower == 1.0 and r.upper < 0.95
