@@ -96,6 +96,19 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
         "tests/campaign_tests/test_certify_levels.py"),
+    "campaign/evidence/certify/rows.py": (
+        "tests/campaign_tests/test_certify_rows_values.py",
+        "tests/campaign_tests/test_streamed_commands.py"),
+    "campaign/evidence/certify/validate.py": (
+        "tests/campaign_tests/test_certify_validate_values.py",
+        "tests/campaign_tests/test_certify_levels.py"),
+    "campaign/evidence/certify/estimate.py": (
+        "tests/campaign_tests/test_certify_estimate_values.py",
+        "tests/campaign_tests/test_certify_mixture_values.py"),
+    "campaign/evidence/hazard.py": ("tests/campaign_tests/test_hazard_values.py",
+                                    "tests/campaign_tests/test_hazard.py"),
+    "campaign/evidence/rare.py": ("tests/campaign_tests/test_rare_values.py",
+                                  "tests/campaign_tests/test_rare.py"),
     "detectors/builtin/position_monitor.py": (
         "tests/detectors_tests/test_position_monitor_values.py",
         "tests/detectors_tests/test_position_monitor_band.py",

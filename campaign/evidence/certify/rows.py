@@ -99,7 +99,7 @@ class CertifyRows:
             detected = faulty["detected"].astype(bool)
             counts = pd.DataFrame({
                 "detector": faulty["detector"], "fault": faulty["fault"].astype(str),
-                "n": 1, "missed": ~detected, "late": detected & (faulty["dtp"] > 1.0)})
+                "missed": ~detected, "late": detected & (faulty["dtp"] > 1.0)})
             for (name, fault), c in counts.groupby(["detector", "fault"], sort=False):
                 acc = self._faulty[name].setdefault(fault, [0, 0, 0])
                 missed = int(c["missed"].sum())
