@@ -713,3 +713,46 @@ def test_an_estimator_unstable_on_the_polytope_is_refused(learning, monkeypatch)
     monkeypatch.setattr(lpv_synthesis, "synthesise", unstable)
     with pytest.raises(ValueError, match="not stable over the scheduling polytope"):
         ChenGlobalEstimator(threshold_method="max").fit(learning)
+
+
+def _affine_rows(x, A0, A_k, B0):
+    """Y (n, 16 + 24) of models A = A0 + Σ x_k A_k (B = B0) at the rows of x (n, 4)."""
+    A = A0[None] + np.einsum("nk,kij->nij", x, A_k)
+    B = np.broadcast_to(B0, (len(x), 4, 6))
+    return np.concatenate([A.reshape(len(x), -1), B.reshape(len(x), -1)], axis=1)
+
+
+def test_the_stable_components_rule_keeps_every_component_of_a_stable_fit():
+    """A model affine in all four components and stable over the whole box: the full fit
+    has the smallest residual of all subsets (nested least squares) and is stable at every
+    vertex, so it is the one kept."""
+    rng = np.random.default_rng(11)
+    x = rng.uniform(0.0, 1.0, (60, 4))
+    A0 = -2.0 * np.eye(4)
+    A_k = 0.2 * rng.standard_normal((4, 4, 4))            # ‖Σ x_k A_k‖ < 2 on the box
+    Y = _affine_rows(x, A0, A_k, np.ones((4, 6)))
+    keep = cg._stable_components(x, Y, np.zeros(4), np.ones(4))
+    np.testing.assert_array_equal(keep, [0, 1, 2, 3])
+
+
+def test_the_stable_components_rule_drops_a_component_whose_vertices_are_no_aircraft():
+    """The data fit x1 exactly, but x1 only spans [0, 0.3] while the box reaches 1, where
+    the model A0 + x1·A1 has a pole at +2 1/s: every subset with x1 is refused at a vertex,
+    and the rule keeps one without it (x0, whose effect is real, among them). No stable
+    subset at all is a ValueError naming the box."""
+    rng = np.random.default_rng(12)
+    x = rng.uniform(0.0, 1.0, (60, 4))
+    x[:, 1] *= 0.3
+    A0 = -np.eye(4)
+    A_k = np.zeros((4, 4, 4))
+    A_k[0] = -0.5 * np.eye(4)
+    A_k[1][0, 0] = 3.0                                    # a00 = −1 + 3·x1: +2 at x1 = 1
+    Y = _affine_rows(x, A0, A_k, np.ones((4, 6)))
+    keep = cg._stable_components(x, Y, np.zeros(4), np.ones(4))
+    assert 1 not in keep and 0 in keep
+    # within the data's own range of x1 the exact fit is stable and kept whole
+    lo, hi = np.zeros(4), np.array([1.0, 0.3, 1.0, 1.0])
+    np.testing.assert_array_equal(cg._stable_components(x, Y, lo, hi)[:2], [0, 1])
+    with pytest.raises(ValueError, match="no affine LPV fit.*stable at every vertex"):
+        cg._stable_components(x, _affine_rows(x, np.eye(4), A_k, np.ones((4, 6))),
+                              np.zeros(4), np.ones(4))
