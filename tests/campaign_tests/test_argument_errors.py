@@ -52,3 +52,33 @@ def test_other_arguments_in_the_text_follow_the_caller():
     # crosses process boundaries (loky workers) whole
     again = pickle.loads(pickle.dumps(exc))
     assert type(again) is ArgumentError and str(again) == str(exc)
+
+
+def test_falsify_and_certify_name_their_python_arguments_and_the_cli_its_options(
+        capsys, tmp_path):
+    from campaign.evidence.certify import CertifyError, certify
+    from campaign.evidence.falsify import FalsifyError, check_label
+    from campaign.evidence.worst_case import WorstCaseError, check_budget
+
+    with pytest.raises(FalsifyError) as caught:
+        check_label(load_config("smoke"), "nope")
+    assert str(caught.value).startswith("label='nope': not a detector of campaign 'smoke'")
+    assert "--" not in str(caught.value)
+    assert main(["falsify", "smoke", "--detector", "nope", "--budget", "40",
+                 "--out", str(tmp_path / "out")]) == 2
+    assert "--detector nope: not a detector of campaign 'smoke'" in capsys.readouterr().err
+    # every bad option of certify at once, before the directory is read
+    with pytest.raises(CertifyError) as caught:
+        certify(tmp_path / "none", level=1.5, max_levels=0, levels="0.6,x")
+    assert str(caught.value) == (
+        "level=1.5: must be a confidence in (0.5, 1); fix: e.g. level=0.95; "
+        "max_levels=0: levels of the subset simulation after the first, in [1, 30] "
+        "(p0 = 0.1: 12 reach 1e-12); fix: e.g. max_levels=12; "
+        "levels: 'x' is not a number; give margins separated by commas, e.g. levels "
+        "0.6,0.7,0.8,0.9,1.0")
+    # a value with braces is written as given, the argument names still filled in
+    with pytest.raises(WorstCaseError) as caught:
+        check_budget("{x}")
+    assert caught.value.for_command_line({"budget": "--worst-case"}).startswith(
+        "--worst-case '{x}': not a whole number of runs")
+    assert str(caught.value).endswith("e.g. budget 300")
