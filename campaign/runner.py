@@ -142,8 +142,8 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
         raise CampaignSetupError(
             f"{plant_name(settings.plant)} failed while simulating the learning set "
             f"({len(learning)} fault-free runs): {type(exc).__name__}: {exc}; nothing was "
-            "run. Fix: try one run with 'fdd-campaign simulate' (or 'fdd-campaign run smoke "
-            "--plant ...') to see the plant's error") from exc
+            "run. Fix: simulate one run of that plant on its own (fdd-campaign simulate) to "
+            "see its error") from exc
     # the learning runs' manoeuvres, for per-class threshold calibration (docs/thresholds.md)
     return replace(signals, classes=learning["manoeuvre"].to_numpy(dtype=str))
 
@@ -262,7 +262,8 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
 
     *source* is read through its :class:`CampaignDir` only after its files match its
     manifest; its ``[[detector]]`` entries (labels, registry names and parameters) must be
-    this campaign's, else :class:`CampaignSetupError` (exit 2) names the differences. Its
+    this campaign's, else :class:`RunOptionError` (exit 2) names the differences (and
+    *source* as the argument ``fitted_from`` of :func:`run` that gives it). Its
     fitted files and learning-set table are copied into *cdir* byte for byte, with
     ``fitted-origin.json`` saying where they came from, so *cdir* stands on its own; the
     detectors are rebuilt from the copies as data (:meth:`CampaignDir.read_fitted`). A
@@ -274,13 +275,16 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     from .config import CampaignConfig
 
     src = CampaignDir(source)
-    where = f"--fitted-from {source}"
+
+    def refused(problem: str, **values) -> RunOptionError:
+        return RunOptionError.of("fitted_from", str(source), problem, **values)
+
     if not src.root.is_dir() or not src.is_campaign():
-        raise CampaignSetupError(f"{where}: not a campaign directory (no campaign.json); give "
-                                 "the --out directory of an earlier 'fdd-campaign run'")
+        raise refused("not a campaign directory (no campaign.json); give the {out} directory "
+                      "of an earlier run")
     if src.root.resolve() == cdir.root.resolve():
-        raise CampaignSetupError(f"{where}: that is the output directory itself; give the "
-                                 "directory of another campaign")
+        raise refused("that is the {out} directory itself; give the directory of another "
+                      "campaign")
     src.refuse_pickles()
     src.check_manifest()
     theirs = CampaignConfig.from_dict(src.read_config(), source=str(src.config_path))
@@ -289,25 +293,25 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     theirs_d = {"detector": _without_scales(theirs.to_dict().get("detector"))}
     differ = differing_keys(theirs_d, ours_d)
     if differ:
-        raise CampaignSetupError(
-            f"{where}: its detectors are not this campaign's [[detector]] entries (labels, "
-            f"names and parameters must be the same; A = {src.root}, B = this campaign): "
-            f"{'; '.join(differ)}; fix: give the same [[detector]] tables, or run without "
-            "--fitted-from to fit the detectors on this campaign's learning set")
+        raise refused(
+            "its detectors are not this campaign's [[detector]] entries (labels, names and "
+            "parameters must be the same; A = {a}, B = this campaign): {differ}; fix: give "
+            "the same [[detector]] tables, or run without {fitted_from} to fit the detectors "
+            "on this campaign's learning set", a=src.root, differ="; ".join(differ))
     labels = [d.label for d in config.detectors]
     missing = [label for label in labels if not src.has_fitted(label)]
     if missing:
-        raise CampaignSetupError(f"{where}: holds no fitted detector {missing[0]!r} "
-                                 "(fitted/ incomplete); rerun the campaign that wrote it")
+        raise refused("holds no fitted detector {label} (fitted/ incomplete); rerun the "
+                      "campaign that wrote it", label=repr(missing[0]))
     want = src.fitted_sha256(labels)
     held = cdir.fitted_sha256(labels)
     if held is None:
         cdir.adopt_fitted(src, labels)
         log(f"fitted detectors: taken from {src.root} (SHA-256 {want[:12]}…), not re-learned")
     elif held != want:
-        raise CampaignSetupError(
-            f"{where}: {cdir.root} already holds other fitted detectors (SHA-256 "
-            f"{held[:12]}… ≠ {want[:12]}…); choose a new --out directory")
+        raise refused("{root} already holds other fitted detectors (SHA-256 {held}… ≠ "
+                      "{want}…); choose a new {out} directory", root=cdir.root,
+                      held=held[:12], want=want[:12])
     names = {d.label: d.name for d in config.detectors}
     return {label: cdir.read_fitted(label, names[label]) for label in labels}
 
@@ -338,11 +342,10 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
         label, det, failure = found
         raise CampaignSetupError(
             f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-            f"{failure}. Its results would depend on the chunk size (chunk_size, "
-            "--chunk-size) and on which runs "
-            "share a chunk, which [runner] must never change; fix: compute every "
-            "run on its own (docs/write-a-detector.md, Signals and output) and check "
-            "it with detectors.testing.check_detector")
+            f"{failure}. Its results would depend on the chunk size ([runner] chunk_size, "
+            "or run's chunk_size) and on which runs share a chunk, which [runner] must "
+            "never change; fix: compute every run on its own (docs/write-a-detector.md, "
+            "Signals and output) and check it with detectors.testing.check_detector")
 
 
 def settings_of(campaign) -> ChunkSettings:

@@ -48,6 +48,15 @@ class _Kept(dict):
         return "{" + name + "}"
 
 
+def _filled(text: str, values: dict) -> str:
+    """*text* with the fields of *values* filled as they are (their braces doubled, so that
+    the argument names can still be filled in later)."""
+    if not values:
+        return text
+    return text.format_map(_Kept({k: str(v).replace("{", "{{").replace("}", "}}")
+                                  for k, v in values.items()}))
+
+
 def _word(value) -> str:
     """*value* as the command line writes it (a float without a trailing .0, quoted as a
     shell would need)."""
@@ -83,9 +92,10 @@ class ArgumentError(InputError, ValueError):
         super().__init__(self.render(None))
 
     @classmethod
-    def of(cls, argument: str, value, problem: str, example=None, fix: str = ""):
-        """The error of one argument."""
-        return cls([(argument, value, problem, example)], fix)
+    def of(cls, argument: str, value, problem: str, example=None, fix: str = "", **values):
+        """The error of one argument; *values* fill their own fields of *problem* as they
+        are (:meth:`said`)."""
+        return cls([(argument, value, _filled(problem, values), example)], fix)
 
     @classmethod
     def said(cls, text: str, **values):
@@ -93,9 +103,7 @@ class ArgumentError(InputError, ValueError):
         ``{name}`` field (``"{sampling}: the design is {design}; leave {sampling} out"``),
         for a problem that is no value out of range (a combination, a missing file);
         *values* fill their own fields as they are (``design="'grid'"``), braces and all."""
-        given = _Kept({k: str(v).replace("{", "{{").replace("}", "}}")
-                       for k, v in values.items()})
-        return cls([(None, None, text.format_map(given), None)])
+        return cls([(None, None, _filled(text, values), None)])
 
     def render(self, flags: dict | None) -> str:
         """The message, arguments as Python names them (*flags* None) or as the options of

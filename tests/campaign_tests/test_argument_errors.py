@@ -82,3 +82,16 @@ def test_falsify_and_certify_name_their_python_arguments_and_the_cli_its_options
     assert caught.value.for_command_line({"budget": "--worst-case"}).startswith(
         "--worst-case '{x}': not a whole number of runs")
     assert str(caught.value).endswith("e.g. budget 300")
+
+
+def test_fitted_from_is_named_as_the_argument_of_run(tmp_path, capsys):
+    import campaign
+
+    with pytest.raises(RunOptionError) as caught:
+        campaign.run(load_config("smoke"), tmp_path / "out", fitted_from=tmp_path)
+    assert str(caught.value).startswith(f"fitted_from={str(tmp_path)!r}: not a campaign "
+                                        "directory (no campaign.json); give the out directory")
+    assert main(["run", "smoke", "--fitted-from", str(tmp_path), "--out",
+                 str(tmp_path / "out2"), "--quiet"]) == 2
+    assert (f"--fitted-from {tmp_path}: not a campaign directory (no campaign.json); give "
+            "the --out directory") in capsys.readouterr().err
