@@ -5,8 +5,9 @@
 ``[plant]`` section names (:func:`plant_of`, built here and nowhere else), the run rows'
 surface and its nominal actuator table, the detector classes and the isolation map — built
 once when a campaign is set up and handed down to the run table, the learning set, the
-workers and the gate; :func:`as_resolved` lets a function that takes either resolve a raw
-configuration once at its entry. :func:`run_surface` and :func:`run_actuator` give the surface
+workers and the gate, each stage given the resolved campaign alone; :func:`as_resolved` lets
+an entry from Python that takes either (:func:`campaign.plan.build_plan`) resolve a raw
+configuration once. :func:`run_surface` and :func:`run_actuator` give the surface
 and actuator of a built plant; :func:`detector_problems` is the compatibility check of the
 configured detectors against that plant (:func:`detectors.compat.incompatibilities`).
 :func:`fmu_sha256` is the digest of an FMU plant's file, recorded with the results, and

@@ -43,7 +43,7 @@ from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .evidence.hazard import report_section
 from .evidence.figures import evidence_figure_specs
-from .plant_setup import replay_plant
+from .plant_setup import replay_plant, resolve
 from .result import Campaign, load
 from .progress import Progress
 from .runner import CampaignSetupError, settings_of
@@ -91,7 +91,7 @@ def replay_settings(camp: Campaign, fmu=None) -> tuple[ChunkSettings | None, str
     """(settings to re-simulate the runs of *camp* with, or None when they cannot be: an FMU
     plant and no *fmu*, the FMU named on the command line; a note for the user)
     (:func:`campaign.plant_setup.replay_plant`)."""
-    settings = settings_of(camp.config)
+    settings = settings_of(resolve(camp.config))
     plant, note = replay_plant(settings.plant, camp.provenance.fmu_sha256, fmu, camp.root)
     return (None if plant is None else replace(settings, plant=plant)), note
 

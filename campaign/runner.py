@@ -49,7 +49,6 @@ from .isolation import roles_of
 from .execute import one_blas_thread
 from .plant_setup import (
     ResolvedCampaign,
-    as_resolved,
     detector_problems,
     fmu_sha256,
     resolve,
@@ -151,9 +150,8 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
 def fit_detectors(campaign, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
                   log=print, submit=None, workers: int = 1,
                   run_timeout_s: float | None = None, fit_submit=None) -> dict:
-    """Fit each detector of *campaign* (its :class:`campaign.plant_setup.ResolvedCampaign`,
-    or its configuration, resolved here) on the learning set, or reload it when this
-    directory has it.
+    """Fit each detector of *campaign* (its :class:`campaign.plant_setup.ResolvedCampaign`)
+    on the learning set, or reload it when this directory has it.
 
     Every detector fits on the same learning signals, read-only
     (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``;
@@ -169,7 +167,6 @@ def fit_detectors(campaign, cdir: CampaignDir, settings: ChunkSettings, chunk_si
     :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
     detector is then checked for batch invariance (:func:`check_batch_invariance`, under
     *run_timeout_s* when set)."""
-    campaign = as_resolved(campaign)
     config = campaign.config
     detectors = build_detectors(config)
     _check_compatibility(config, detectors, settings.plant)
@@ -350,9 +347,7 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
 
 def settings_of(campaign) -> ChunkSettings:
     """What the workers need of *campaign* (its
-    :class:`campaign.plant_setup.ResolvedCampaign`, or its configuration, resolved here):
-    its built plant among them."""
-    campaign = as_resolved(campaign)
+    :class:`campaign.plant_setup.ResolvedCampaign`): its built plant among them."""
     config = campaign.config
     return ChunkSettings(
         ts=config.campaign.ts_s,
