@@ -68,6 +68,12 @@ class RunOptionError(CampaignSetupError, ArgumentError):
     names it; ``fdd-campaign`` names its option (:class:`scenarios.errors.ArgumentError`)."""
 
 
+class BatchDependenceError(CampaignSetupError, ArgumentError):
+    """A third-party detector whose result for a run depends on the other runs of its chunk
+    (:func:`check_batch_invariance`); its message names :func:`run`'s argument *chunk_size*
+    beside ``[runner] chunk_size``, ``fdd-campaign`` its option."""
+
+
 def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
     """:func:`campaign.evaluate.evaluate` on private copies of the detectors (chunks run in
     threads)."""
@@ -322,9 +328,9 @@ def _without_scales(entries) -> list:
 def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
                            learning_signals: Signals | None = None, *,
                            run_timeout_s: float | None = None, log=print) -> None:
-    """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
-    depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
-    chunk, which ``[runner]`` must never change (:func:`campaign.plugins.batch_dependence`
+    """Refuse (:class:`BatchDependenceError`, exit 2) a fitted detector whose result for a
+    run depends on the other runs of its batch, so on the chunk size and on which runs share
+    a chunk, which ``[runner]`` must never change (:func:`campaign.plugins.batch_dependence`
     on a few learning runs; under *run_timeout_s* when set). The runner applies it to
     third-party detectors only (:func:`third_party`): the test suite runs the full check on
     the built-in ones."""
@@ -337,12 +343,13 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
                              run_timeout_s=run_timeout_s, log=log)
     if found is not None:
         label, det, failure = found
-        raise CampaignSetupError(
-            f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-            f"{failure}. Its results would depend on the chunk size ([runner] chunk_size, "
-            "or run's chunk_size) and on which runs share a chunk, which [runner] must "
-            "never change; fix: compute every run on its own (docs/write-a-detector.md, "
-            "Signals and output) and check it with detectors.testing.check_detector")
+        raise BatchDependenceError.said(
+            "detector {label} ({kind}) is not batch-invariant: {failure}. Its results would "
+            "depend on the chunk size ([runner] chunk_size, {chunk_size}) and on which runs "
+            "share a chunk, which [runner] must never change; fix: compute every run on its "
+            "own (docs/write-a-detector.md, Signals and output) and check it with "
+            "detectors.testing.check_detector", label=repr(label), kind=type(det).__name__,
+            failure=failure)
 
 
 def settings_of(campaign) -> ChunkSettings:
