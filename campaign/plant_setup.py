@@ -7,13 +7,13 @@ surface and its nominal actuator table, the detector classes and the isolation m
 once when a campaign is set up and handed down to the run table, the learning set, the
 workers and the gate, each stage given the resolved campaign alone; :func:`as_resolved` lets
 an entry from Python that takes either (:func:`campaign.plan.build_plan`) resolve a raw
-configuration once. :func:`run_surface` and :func:`run_actuator` give the surface
-and actuator of a built plant; :func:`detector_problems` is the compatibility check of the
-configured detectors against that plant (:func:`detectors.compat.incompatibilities`).
-:func:`fmu_sha256` is the digest of an FMU plant's file, recorded with the results, and
-:func:`replay_plant` the plant that the readers of a campaign directory (``report``,
-``show``) re-simulate on: never an FMU the directory names, only one named on the command
-line whose digest matches (docs/security.md).
+configuration once. :func:`run_surface` and :func:`run_actuator` give the surface and
+actuator of a built plant (the runner checks the built detectors against the resolved plant
+and surface, :func:`campaign.runner.fit_detectors`). :func:`fmu_sha256` is the digest of an
+FMU plant's file, recorded with the results, and :func:`replay_plant` the plant that the
+readers of a campaign directory (``report``, ``show``) re-simulate on: never an FMU the
+directory names, only one named on the command line whose digest matches
+(docs/security.md).
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from detectors.compat import incompatibilities, offline_problems
 from scenarios.fmu import FmuPlant
 from scenarios.errors import ArgumentError
 from scenarios.fmu_files import FmuError
@@ -57,15 +56,6 @@ def run_surface(config, plant: Plant) -> str:
 def run_actuator(config, plant: Plant) -> ActuatorParams:
     """Nominal actuator table of the simulated (monitored) surface of the built *plant*."""
     return plant.actuator(run_surface(config, plant))
-
-
-def detector_problems(config, capabilities: dict, plant: Plant) -> list[str]:
-    """What keeps the detectors of *capabilities* (label → Capabilities) from running on the
-    campaign's built *plant*, one message each (empty: all can run); a non-causal detector
-    is refused too (:func:`detectors.compat.offline_problems`)."""
-    return (incompatibilities(capabilities, plant, run_surface(config, plant),
-                              pressure_sensor=config.campaign.pressure_sensor)
-            + offline_problems(capabilities))
 
 
 def detector_classes(config) -> dict[str, type]:

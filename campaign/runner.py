@@ -28,8 +28,8 @@ import pandas as pd
 
 from detectors import make_detector, writes_input
 from detectors.base import set_threshold_scales
+from detectors.compat import incompatibilities, offline_problems
 from detectors.system import with_systems
-from detectors.registry import load_detector_class
 from reports.scoring.detection_times import detection_time_table, fixed_onset_campaign
 from reports.scoring.summary import SummaryAccumulator
 from scenarios import compiled as kernels
@@ -49,7 +49,6 @@ from .isolation import roles_of
 from .execute import one_blas_thread
 from .plant_setup import (
     ResolvedCampaign,
-    detector_problems,
     fmu_sha256,
     resolve,
 )
@@ -80,11 +79,15 @@ def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings)
     return evaluate(rows, copy.deepcopy(detectors), settings)
 
 
-def _check_compatibility(config, detectors: dict, plant) -> None:
+def _check_compatibility(campaign: ResolvedCampaign, detectors: dict) -> None:
     """The one compatibility rule (:func:`detectors.compat.incompatibilities`) on the built
-    detectors, whose capabilities may be an instance's own."""
-    problems = detector_problems(config, {label: det.capabilities
-                                          for label, det in detectors.items()}, plant)
+    detectors, whose capabilities may be an instance's own, against the resolved campaign's
+    plant and run surface; a non-causal detector is refused too
+    (:func:`detectors.compat.offline_problems`)."""
+    capabilities = {label: det.capabilities for label, det in detectors.items()}
+    problems = (incompatibilities(capabilities, campaign.plant, campaign.surface,
+                                  pressure_sensor=campaign.config.campaign.pressure_sensor)
+                + offline_problems(capabilities))
     if problems:
         raise CampaignSetupError("; ".join(problems))
 
@@ -175,7 +178,7 @@ def fit_detectors(campaign, cdir: CampaignDir, settings: ChunkSettings, chunk_si
     *run_timeout_s* when set)."""
     config = campaign.config
     detectors = build_detectors(config)
-    _check_compatibility(config, detectors, settings.plant)
+    _check_compatibility(campaign, detectors)
     names = {d.label: d.name for d in config.detectors}
     learning = build_learning_plan(campaign)
     cdir.write_learning(learning, config.to_json())
@@ -619,8 +622,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
         setup.lock = DirLock(cdir.lock_path).acquire(log)
         setup.resumed = cdir.open(config.to_json(), log=log)
         if settings.engine == "compiled":
-            for spec in config.detectors:   # import their modules: they register their kernels
-                load_detector_class(spec.name)
+            # the detectors' modules, imported when the campaign was resolved (its
+            # detector_classes), have registered their kernels
             kernels.warm_up(log)
         # the modules and kernels made so far live to the exit: out of the collector's
         # reach, and the collector on again if the command line deferred it (campaign.startup)
