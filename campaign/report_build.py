@@ -819,6 +819,11 @@ def _score_text(r) -> str:
             f"detected {bool(r['detected'])}, DTP {num(r['dtp'], '.4g')}")
 
 
+class ShowOptionError(CampaignSetupError, ArgumentError):
+    """Arguments of :func:`show_run` it cannot serve (*plot*, *out* without the run's traces),
+    named as Python names them; ``fdd-campaign show`` names its options."""
+
+
 def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
              log=print) -> pd.DataFrame:
     """Re-simulate one run of a campaign from its run id and seed.
@@ -845,7 +850,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
                        ignore_index=True).set_index("detector")
     if settings is None:             # an FMU plant and no --fmu: what needs no simulation
         if plot or out:
-            raise CampaignSetupError(f"--plot and --out need the run's traces; {note}")
+            raise ShowOptionError.said("{plot} and {out} need the run's traces; {note}",
+                                       note=note)
         log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)} (seed "
             f"{row['seed']}, stream {row['stream']})")
         for name in detector_order(stored.index):

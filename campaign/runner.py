@@ -63,7 +63,8 @@ class CampaignSetupError(InputError, ValueError):
 
 
 class RunOptionError(CampaignSetupError, ArgumentError):
-    """An argument of :func:`run` out of its range (*jobs*, *chunk_size*), named as Python
+    """An argument of :func:`run` it cannot take (*jobs* or *chunk_size* out of range,
+    *fitted_from*, a *backend* or *scheduler* that cannot serve the campaign), named as Python
     names it; ``fdd-campaign`` names its option (:class:`scenarios.errors.ArgumentError`)."""
 
 
@@ -599,7 +600,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     limit = config.runner.run_timeout_s
     refusal = time_limit_refusal(limit, backend=backend, scheduler=scheduler)
     if refusal:       # a limit is enforced or refused, never ignored
-        raise CampaignSetupError(refusal)
+        text, values = refusal
+        raise RunOptionError.said(text, **values)
     settings = settings_of(campaign)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -609,9 +611,9 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
         backend = ("threading" if config.runner.run_timeout_s is None and not processes
                    else "loky")
     elif backend == "threading" and processes and jobs > 1:
-        raise CampaignSetupError(
+        raise RunOptionError.said(
             "an FMU plant is loaded once per worker process and is not safe to share between "
-            "threads: use --backend loky (the default with an FMU plant) or --jobs 1")
+            "threads: use {backend} loky (the default with an FMU plant) or {jobs} 1")
     client = connect(scheduler, tls=tls, log=log) if scheduler else None   # fail fast
     cdir = CampaignDir(out)
     setup = _Setup(cdir=cdir, resumed=False, campaign=campaign, settings=settings, jobs=jobs,

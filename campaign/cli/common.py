@@ -38,9 +38,10 @@ def input_message(exc: InputError, flags: dict | None = None) -> str:
 
 def argument_flags(parser, flags: dict) -> None:
     """Declare the options of *parser*'s command whose name is not that of the library
-    argument they give (``{"label": "--detector"}``): :func:`input_message` names the
-    command's argument errors by them."""
-    parser.set_defaults(argument_flags=flags)
+    argument they give (``{"label": "--detector"}``; added to those declared before):
+    :func:`input_message` names the command's argument errors by them."""
+    parser.set_defaults(argument_flags={**(parser.get_default("argument_flags") or {}),
+                                        **flags})
 
 
 def add_command(subs, name: str, help_: str, example: str, func):

@@ -95,3 +95,32 @@ def test_fitted_from_is_named_as_the_argument_of_run(tmp_path, capsys):
                  str(tmp_path / "out2"), "--quiet"]) == 2
     assert (f"--fitted-from {tmp_path}: not a campaign directory (no campaign.json); give "
             "the --out directory") in capsys.readouterr().err
+
+
+def test_scales_tls_and_build_options_are_named_as_python_arguments():
+    from campaign.execute import ClusterError, TlsFiles, connect, time_limit_refusal
+    from campaign.tradeoff import TradeoffError, parse_scale_options, parse_scales
+    from scenarios.fmu_build import FmuOptionError, build_servo_fmu
+
+    with pytest.raises(TradeoffError) as caught:
+        parse_scales("0.8,x")
+    assert str(caught.value).startswith("scales: 'x' is not a number")
+    with pytest.raises(TradeoffError) as caught:
+        parse_scale_options(["pm=1.1"])
+    # the gate's option (gate --threshold-scale D=S gives at_threshold_scales its scales)
+    assert caught.value.for_command_line({"scales": "--threshold-scale"}).startswith(
+        "--threshold-scale pm=1.1: 1.1 is not a stored threshold scale")
+    assert "run the campaign with [[detector]] threshold_scale = s and fitted_from this " \
+           "directory" in str(caught.value)
+    with pytest.raises(ClusterError) as caught:
+        connect("tcp://127.0.0.1:1", tls=TlsFiles(cert="c.pem"))
+    assert str(caught.value).startswith("tls_cert apply to a tls:// scheduler")
+    assert caught.value.for_command_line().startswith("--tls-cert apply to a tls:// scheduler")
+    text, values = time_limit_refusal(2.0, backend=None, scheduler="tcp://h:{1}")
+    refusal = RunOptionError.said(text, **values)
+    assert str(refusal).startswith("[runner] run_timeout_s = 2 s cannot be enforced with "
+                                   "scheduler tcp://h:{1}: a task running")
+    assert "leave out --scheduler" in refusal.for_command_line()
+    with pytest.raises(FmuOptionError, match=r"^out='servo\.zip': an FMU file name must end "
+                                             r"in \.fmu; fix: e\.g\. out='servo\.fmu'$"):
+        build_servo_fmu("servo.zip")

@@ -268,7 +268,7 @@ def test_fmu_plant_runs_on_worker_processes_never_shared_threads(servo_fmu, tmp_
     from campaign.runner import CampaignSetupError
 
     fmu_cfg = with_overrides(load_config("smoke"), values={"plant.fmu": str(servo_fmu)})
-    with pytest.raises(CampaignSetupError, match="--backend loky"):
+    with pytest.raises(CampaignSetupError, match="use backend loky .* or jobs 1"):
         run(fmu_cfg, tmp_path / "t", jobs=2, backend="threading", progress=False,
             log=lambda m: None)
     assert not (tmp_path / "t").exists()   # refused before anything was written
