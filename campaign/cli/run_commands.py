@@ -25,7 +25,7 @@ def _overridden(config, args):
         if args.plant in PLANT_KINDS:
             problem = cfg.preset_plant_problem(getattr(args, "campaign", ""), args.plant)
             if problem:
-                raise UsageError(problem)
+                raise UsageError(f"--plant {args.plant}: {problem}")
             values = {"plant.kind": args.plant}
         elif args.plant.lower().endswith(".fmu") or Path(args.plant).exists():
             values = {"plant.fmu": args.plant}

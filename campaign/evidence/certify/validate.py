@@ -114,7 +114,7 @@ def summarise(table: pd.DataFrame) -> str:
     if tested.empty:
         return (f"validation: no detector × level has ≥ {MIN_VALIDATION_EXCEEDANCES} "
                 f"exceedances in the {runs} runs; nothing to test (more runs, or lower "
-                "--levels)")
+                "levels)")
     misses = tested[~tested["covered"]]
     text = (f"validation ({runs} runs, seed {int(table['validation_seed'].iloc[0])}): "
             f"p_upper95 covers the brute-force frequency at {len(tested) - len(misses)} of "
