@@ -53,7 +53,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 
 from .startup import BLAS_THREAD_VARIABLES, blas_variables_at_one
 
@@ -392,24 +392,26 @@ def run_local(chunks, call, fail, on_result, *, jobs: int, backend: str,
 
 
 def time_limit_refusal(limit_s: float | None, *, backend: str | None,
-                       scheduler: str | None) -> str | None:
+                       scheduler: str | None) -> tuple[str, dict] | None:
     """Why ``[runner] run_timeout_s`` = *limit_s* cannot be enforced on *backend* or the dask
-    *scheduler* (None: it can, or no limit is set). A running chunk can be stopped only in a
-    worker process of the local pool (loky), never in a thread nor in a task on a dask
+    *scheduler* (None: it can, or no limit is set), as the sentence and the values that
+    :meth:`scenarios.errors.ArgumentError.said` takes (the arguments *backend* and
+    *scheduler* written ``{backend}``, ``{scheduler}``). A running chunk can be stopped only
+    in a worker process of the local pool (loky), never in a thread nor in a task on a dask
     worker; the runner refuses such a combination before any work (exit 2) rather than run
     without the limit."""
     if limit_s is None or (scheduler is None and backend != "threading"):
         return None
     if scheduler is None:
-        where, fix = ("--backend threading: a thread cannot be stopped",
-                      "--backend loky (worker processes, the default when run_timeout_s is "
+        where, fix = ("{backend} threading: a thread cannot be stopped",
+                      "{backend} loky (worker processes, the default when run_timeout_s is "
                       "set)")
     else:
-        where, fix = (f"--scheduler {scheduler}: a task running on a dask worker cannot be "
-                      "stopped", "leave out --scheduler (local worker processes enforce it)")
-    return (f"[runner] run_timeout_s = {limit_s:g} s cannot be enforced with {where}; nothing "
+        where, fix = ("{scheduler} {address}: a task running on a dask worker cannot be "
+                      "stopped", "leave out {scheduler} (local worker processes enforce it)")
+    return (f"[runner] run_timeout_s = {{limit}} s cannot be enforced with {where}; nothing "
             f"was run. Fix: {fix}, or remove run_timeout_s from the campaign file "
-            "(docs/execution.md)")
+            "(docs/execution.md)", {"limit": f"{limit_s:g}", "address": scheduler})
 
 
 class TimeLimitExceeded(RuntimeError):
@@ -452,6 +454,13 @@ class ClusterError(InputError, ValueError):
     """The dask cluster cannot be used (not installed, unreachable, bad address)."""
 
 
+class ClusterOptionError(ClusterError, ArgumentError):
+    """The files of a TLS connection (*tls*, :class:`TlsFiles`) that cannot serve, named as
+    ``tls_ca_file``, ``tls_cert`` and ``tls_key`` (the fields of *tls*), or the *scheduler*
+    that cannot be reached without them; ``fdd-campaign`` names its options
+    (:class:`scenarios.errors.ArgumentError`)."""
+
+
 @dataclass(frozen=True)
 class TlsFiles:
     """Files of a TLS connection to a dask scheduler (``fdd-campaign run --tls-ca-file
@@ -464,9 +473,10 @@ class TlsFiles:
     key: str | None = None
 
     def given(self) -> list[str]:
-        """The command-line options given (for messages)."""
-        return [opt for opt, v in (("--tls-ca-file", self.ca_file), ("--tls-cert", self.cert),
-                                   ("--tls-key", self.key)) if v]
+        """The fields given, each named ``tls_`` + its name (``tls_ca_file``), as messages name
+        them (:class:`ClusterOptionError`)."""
+        return [name for name, v in (("tls_ca_file", self.ca_file), ("tls_cert", self.cert),
+                                     ("tls_key", self.key)) if v]
 
 
 def _split_address(address) -> tuple[str, str]:
@@ -504,19 +514,20 @@ def _security(tls: TlsFiles | None):
     tls = tls or TlsFiles()
     given = {k: v for k, v in (("tls_ca_file", tls.ca_file), ("tls_client_cert", tls.cert),
                                ("tls_client_key", tls.key)) if v}
-    for option, path in zip(tls.given(), given.values()):
+    for name, path in zip(tls.given(), given.values()):
         if not Path(path).is_file():
-            raise ClusterError(f"{option} {path}: no such file")
+            raise ClusterOptionError.of(name, path, "no such file")
     security = Security(require_encryption=True, **given)
-    missing = [f"{opt} (or dask's {key})" for opt, key, value in (
-        ("--tls-ca-file", "distributed.comm.tls.ca-file", security.tls_ca_file),
-        ("--tls-cert", "distributed.comm.tls.client.cert", security.tls_client_cert))
+    missing = [f"{{{name}}} (or dask's {key})" for name, key, value in (
+        ("tls_ca_file", "distributed.comm.tls.ca-file", security.tls_ca_file),
+        ("tls_cert", "distributed.comm.tls.client.cert", security.tls_client_cert))
         if not value]
     if missing:
-        raise ClusterError("a tls:// scheduler needs the CA certificate that signed the "
-                           "cluster's certificates and a client certificate (with its key, "
-                           "--tls-key, unless the certificate file holds it): give "
-                           + " and ".join(missing) + " (docs/security.md)")
+        raise ClusterOptionError.said(
+            "a tls:// scheduler needs the CA certificate that signed the cluster's "
+            "certificates and a client certificate (with its key, {tls_key}, unless the "
+            "certificate file holds it): give " + " and ".join(missing)
+            + " (docs/security.md)")
     return security
 
 
@@ -532,13 +543,15 @@ def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S, *, tls: TlsFiles
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     scheme, host = _split_address(address)
     if tls is not None and tls.given() and scheme != "tls":
-        raise ClusterError(f"{', '.join(tls.given())} apply to a tls:// scheduler; the "
-                           f"address {address} is {scheme}://: write tls://HOST:PORT")
+        raise ClusterOptionError.said(
+            ", ".join("{" + name + "}" for name in tls.given()) + " apply to a tls:// "
+            "scheduler; the address {address} is {scheme}://: write tls://HOST:PORT",
+            address=address, scheme=scheme)
     try:
         from distributed import Client
     except ImportError as exc:
-        raise ClusterError("--scheduler needs dask.distributed, which is not installed: "
-                           "pip install 'fdd-campaign[dask]'") from exc
+        raise ClusterOptionError.said("{scheduler} needs dask.distributed, which is not "
+                                      "installed: pip install 'fdd-campaign[dask]'") from exc
     security = None
     if scheme == "tls":
         security = _security(tls)

@@ -306,9 +306,7 @@ def explicit_rows(campaign, runs) -> pd.DataFrame:
     Every value is taken as given; draw columns left out are 0, ``level`` is ``"run"``,
     ``point`` −1, ``realistic`` the verdict of the realistic-envelope rule
     (:func:`scenarios.envelope.realistic_rule`) and ``duration_s`` the campaign's.
-    *campaign*: a :class:`campaign.plant_setup.ResolvedCampaign` or a configuration (resolved
-    here)."""
-    campaign = as_resolved(campaign)
+    *campaign*: the :class:`campaign.plant_setup.ResolvedCampaign`."""
     config = campaign.config
 
     def get(run, name):
@@ -436,11 +434,10 @@ class PlanBlocks:
     with one block in memory. ``rows``, the number of rows, is known before the first block.
     The rows do not depend on *block_rows* (:func:`_mc_cell`). Once every block is read,
     :meth:`check` refuses two rows that describe the same run (:class:`DuplicateRuns`).
-    *campaign*: a :class:`campaign.plant_setup.ResolvedCampaign` or a configuration
-    (resolved here, once)."""
+    *campaign*: the :class:`campaign.plant_setup.ResolvedCampaign`."""
 
     def __init__(self, campaign, block_rows: int = PLAN_BLOCK_ROWS):
-        self.campaign = campaign = as_resolved(campaign)
+        self.campaign = campaign
         self.config = config = campaign.config
         self.block_rows = int(block_rows)
         self._cells: list[tuple[int, Callable[[], Iterator[pd.DataFrame]]]] = []
@@ -493,7 +490,7 @@ def build_plan(campaign) -> pd.DataFrame:
     """The evaluation run table of *campaign* (columns :data:`PLAN_COLUMNS`; a
     :class:`campaign.plant_setup.ResolvedCampaign` or a configuration), in memory; a campaign
     writes it block by block (:class:`PlanBlocks`)."""
-    plan = PlanBlocks(campaign)
+    plan = PlanBlocks(as_resolved(campaign))
     blocks = list(plan)
     plan.check()
     return pd.concat(blocks, ignore_index=True)
@@ -501,10 +498,9 @@ def build_plan(campaign) -> pd.DataFrame:
 
 def build_learning_plan(campaign) -> pd.DataFrame:
     """The fault-free learning set (its own design streams and simulation streams) of
-    *campaign* (resolved, or a configuration)."""
+    *campaign*, the :class:`campaign.plant_setup.ResolvedCampaign`."""
     from types import SimpleNamespace
 
-    campaign = as_resolved(campaign)
     config = campaign.config
     learn = config.learning
     duration = learn.duration_s or config.campaign.duration_s

@@ -5,14 +5,15 @@
 ``[plant]`` section names (:func:`plant_of`, built here and nowhere else), the run rows'
 surface and its nominal actuator table, the detector classes and the isolation map — built
 once when a campaign is set up and handed down to the run table, the learning set, the
-workers and the gate; :func:`as_resolved` lets a function that takes either resolve a raw
-configuration once at its entry. :func:`run_surface` and :func:`run_actuator` give the surface
-and actuator of a built plant; :func:`detector_problems` is the compatibility check of the
-configured detectors against that plant (:func:`detectors.compat.incompatibilities`).
-:func:`fmu_sha256` is the digest of an FMU plant's file, recorded with the results, and
-:func:`replay_plant` the plant that the readers of a campaign directory (``report``,
-``show``) re-simulate on: never an FMU the directory names, only one named on the command
-line whose digest matches (docs/security.md).
+workers and the gate, each stage given the resolved campaign alone; :func:`as_resolved` lets
+an entry from Python that takes either (:func:`campaign.plan.build_plan`) resolve a raw
+configuration once. :func:`run_surface` and :func:`run_actuator` give the surface and
+actuator of a built plant (the runner checks the built detectors against the resolved plant
+and surface, :func:`campaign.runner.fit_detectors`). :func:`fmu_sha256` is the digest of an
+FMU plant's file, recorded with the results, and :func:`replay_plant` the plant that the
+readers of a campaign directory (``report``, ``show``) re-simulate on: never an FMU the
+directory names, only one named on the command line whose digest matches
+(docs/security.md).
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from detectors.compat import incompatibilities, offline_problems
 from scenarios.fmu import FmuPlant
+from scenarios.errors import ArgumentError
 from scenarios.fmu_files import FmuError
 from scenarios.params import ActuatorParams
 from scenarios.plants import Plant, get_plant
@@ -57,15 +58,6 @@ def run_actuator(config, plant: Plant) -> ActuatorParams:
     return plant.actuator(run_surface(config, plant))
 
 
-def detector_problems(config, capabilities: dict, plant: Plant) -> list[str]:
-    """What keeps the detectors of *capabilities* (label → Capabilities) from running on the
-    campaign's built *plant*, one message each (empty: all can run); a non-causal detector
-    is refused too (:func:`detectors.compat.offline_problems`)."""
-    return (incompatibilities(capabilities, plant, run_surface(config, plant),
-                              pressure_sensor=config.campaign.pressure_sensor)
-            + offline_problems(capabilities))
-
-
 def detector_classes(config) -> dict[str, type]:
     """Label → the class of each ``[[detector]]`` entry of *config*; a label whose class
     cannot be imported here (a plugin no longer installed when a finished campaign is gated)
@@ -93,6 +85,12 @@ def isolation_map(surface: str, classes: dict[str, type]) -> dict[str, str]:
         if declared and surface not in declared:
             out[label] = surface
     return out
+
+
+class ReplayFmuError(FmuError, ArgumentError):
+    """The FMU named to re-simulate a campaign directory's runs (*fmu* of
+    :func:`replay_plant`) that cannot be used, named as Python names the argument;
+    ``fdd-campaign report`` and ``show`` name their option (``--fmu``)."""
 
 
 @dataclass(frozen=True)
@@ -169,16 +167,17 @@ def replay_plant(plant: Plant, recorded: str | None, fmu=None,
     command line (``--fmu``). A built-in plant is returned as it is. An FMU plant is never
     loaded from the path the directory names (native code chosen by whoever wrote it): the
     plant is *fmu*, once its SHA-256 matches *recorded*, else None (nothing is
-    re-simulated; the note says how to name the FMU). :class:`FmuError` (exit 2): *fmu* on a
-    campaign without an FMU, a missing file, or another FMU than the one the campaign ran on.
+    re-simulated; the note says how to name the FMU). :class:`ReplayFmuError` (exit 2): *fmu*
+    on a campaign without an FMU, a missing file, or another FMU than the one the campaign
+    ran on.
     """
     from .store.files import sha256_of
 
     path = getattr(plant, "path", None)
     if path is None:
         if fmu is not None:
-            raise FmuError(f"--fmu {fmu}: {directory} ran on the built-in {plant.kind} plant, "
-                           "not on an FMU; leave --fmu out")
+            raise ReplayFmuError.of("fmu", str(fmu), f"{directory} ran on the built-in "
+                                    f"{plant.kind} plant, not on an FMU; leave {{fmu}} out")
         return plant, ""
     want = f"SHA-256 {recorded}" if recorded else "the FMU the campaign ran on"
     if fmu is None:
@@ -187,11 +186,13 @@ def replay_plant(plant: Plant, recorded: str | None, fmu=None,
                       f"name the FMU (its {want}) on the command line: --fmu FILE")
     given = Path(fmu).expanduser().resolve()
     if not given.is_file():
-        raise FmuError(f"--fmu {fmu}: file not found; give the FMU {directory} ran on ({want})")
+        raise ReplayFmuError.of("fmu", str(fmu), f"file not found; give the FMU {directory} "
+                                f"ran on ({want})")
     digest = sha256_of(given)
     if recorded and digest != recorded:
-        raise FmuError(f"--fmu {fmu}: its SHA-256 {digest} is not that of the FMU {directory} "
-                       f"ran on ({recorded}; campaign.json names {path}); give that FMU")
+        raise ReplayFmuError.of("fmu", str(fmu), f"its SHA-256 {digest} is not that of the FMU "
+                                f"{directory} ran on ({recorded}; campaign.json names {path}); "
+                                "give that FMU")
     note = "" if recorded else (f"note: {directory} holds no FMU digest (written before "
                                 f"fdd-campaign recorded one): --fmu {fmu} is used unchecked")
     return replace(plant, path=str(given)), note

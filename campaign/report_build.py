@@ -43,7 +43,7 @@ from .config import CampaignConfig
 from .evaluate import ChunkSettings, score, simulate_and_detect
 from .evidence.hazard import report_section
 from .evidence.figures import evidence_figure_specs
-from .plant_setup import replay_plant
+from .plant_setup import replay_plant, resolve
 from .result import Campaign, load
 from .progress import Progress
 from .runner import CampaignSetupError, settings_of
@@ -91,7 +91,7 @@ def replay_settings(camp: Campaign, fmu=None) -> tuple[ChunkSettings | None, str
     """(settings to re-simulate the runs of *camp* with, or None when they cannot be: an FMU
     plant and no *fmu*, the FMU named on the command line; a note for the user)
     (:func:`campaign.plant_setup.replay_plant`)."""
-    settings = settings_of(camp.config)
+    settings = settings_of(resolve(camp.config))
     plant, note = replay_plant(settings.plant, camp.provenance.fmu_sha256, fmu, camp.root)
     return (None if plant is None else replace(settings, plant=plant)), note
 
@@ -819,6 +819,11 @@ def _score_text(r) -> str:
             f"detected {bool(r['detected'])}, DTP {num(r['dtp'], '.4g')}")
 
 
+class ShowOptionError(CampaignSetupError, ArgumentError):
+    """Arguments of :func:`show_run` it cannot serve (*plot*, *out* without the run's traces),
+    named as Python names them; ``fdd-campaign show`` names its options."""
+
+
 def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
              log=print) -> pd.DataFrame:
     """Re-simulate one run of a campaign from its run id and seed.
@@ -845,7 +850,8 @@ def show_run(directory, run_id: str, *, plot=None, out=None, fmu=None,
                        ignore_index=True).set_index("detector")
     if settings is None:             # an FMU plant and no --fmu: what needs no simulation
         if plot or out:
-            raise CampaignSetupError(f"--plot and --out need the run's traces; {note}")
+            raise ShowOptionError.said("{plot} and {out} need the run's traces; {note}",
+                                       note=note)
         log(f"{run_id}: {row['fault']} in {row['manoeuvre']} at {_point_text(row)} (seed "
             f"{row['seed']}, stream {row['stream']})")
         for name in detector_order(stored.index):

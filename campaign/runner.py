@@ -28,8 +28,8 @@ import pandas as pd
 
 from detectors import make_detector, writes_input
 from detectors.base import set_threshold_scales
+from detectors.compat import incompatibilities, offline_problems
 from detectors.system import with_systems
-from detectors.registry import load_detector_class
 from reports.scoring.detection_times import detection_time_table, fixed_onset_campaign
 from reports.scoring.summary import SummaryAccumulator
 from scenarios import compiled as kernels
@@ -49,8 +49,6 @@ from .isolation import roles_of
 from .execute import one_blas_thread
 from .plant_setup import (
     ResolvedCampaign,
-    as_resolved,
-    detector_problems,
     fmu_sha256,
     resolve,
 )
@@ -65,8 +63,15 @@ class CampaignSetupError(InputError, ValueError):
 
 
 class RunOptionError(CampaignSetupError, ArgumentError):
-    """An argument of :func:`run` out of its range (*jobs*, *chunk_size*), named as Python
+    """An argument of :func:`run` it cannot take (*jobs* or *chunk_size* out of range,
+    *fitted_from*, a *backend* or *scheduler* that cannot serve the campaign), named as Python
     names it; ``fdd-campaign`` names its option (:class:`scenarios.errors.ArgumentError`)."""
+
+
+class BatchDependenceError(CampaignSetupError, ArgumentError):
+    """A third-party detector whose result for a run depends on the other runs of its chunk
+    (:func:`check_batch_invariance`); its message names :func:`run`'s argument *chunk_size*
+    beside ``[runner] chunk_size``, ``fdd-campaign`` its option."""
 
 
 def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings):
@@ -75,11 +80,15 @@ def _evaluate_copy(rows: pd.DataFrame, detectors: dict, settings: ChunkSettings)
     return evaluate(rows, copy.deepcopy(detectors), settings)
 
 
-def _check_compatibility(config, detectors: dict, plant) -> None:
+def _check_compatibility(campaign: ResolvedCampaign, detectors: dict) -> None:
     """The one compatibility rule (:func:`detectors.compat.incompatibilities`) on the built
-    detectors, whose capabilities may be an instance's own."""
-    problems = detector_problems(config, {label: det.capabilities
-                                          for label, det in detectors.items()}, plant)
+    detectors, whose capabilities may be an instance's own, against the resolved campaign's
+    plant and run surface; a non-causal detector is refused too
+    (:func:`detectors.compat.offline_problems`)."""
+    capabilities = {label: det.capabilities for label, det in detectors.items()}
+    problems = (incompatibilities(capabilities, campaign.plant, campaign.surface,
+                                  pressure_sensor=campaign.config.campaign.pressure_sensor)
+                + offline_problems(capabilities))
     if problems:
         raise CampaignSetupError("; ".join(problems))
 
@@ -142,8 +151,8 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
         raise CampaignSetupError(
             f"{plant_name(settings.plant)} failed while simulating the learning set "
             f"({len(learning)} fault-free runs): {type(exc).__name__}: {exc}; nothing was "
-            "run. Fix: try one run with 'fdd-campaign simulate' (or 'fdd-campaign run smoke "
-            "--plant ...') to see the plant's error") from exc
+            "run. Fix: simulate one run of that plant on its own (fdd-campaign simulate) to "
+            "see its error") from exc
     # the learning runs' manoeuvres, for per-class threshold calibration (docs/thresholds.md)
     return replace(signals, classes=learning["manoeuvre"].to_numpy(dtype=str))
 
@@ -151,9 +160,8 @@ def _learning_signals(learning: pd.DataFrame, settings: ChunkSettings, chunk_siz
 def fit_detectors(campaign, cdir: CampaignDir, settings: ChunkSettings, chunk_size: int,
                   log=print, submit=None, workers: int = 1,
                   run_timeout_s: float | None = None, fit_submit=None) -> dict:
-    """Fit each detector of *campaign* (its :class:`campaign.plant_setup.ResolvedCampaign`,
-    or its configuration, resolved here) on the learning set, or reload it when this
-    directory has it.
+    """Fit each detector of *campaign* (its :class:`campaign.plant_setup.ResolvedCampaign`)
+    on the learning set, or reload it when this directory has it.
 
     Every detector fits on the same learning signals, read-only
     (:func:`detectors.base.read_only`): one that writes into them raises in its own ``fit``;
@@ -169,10 +177,9 @@ def fit_detectors(campaign, cdir: CampaignDir, settings: ChunkSettings, chunk_si
     :class:`CampaignSetupError` naming the detector and the attribute. Every third-party
     detector is then checked for batch invariance (:func:`check_batch_invariance`, under
     *run_timeout_s* when set)."""
-    campaign = as_resolved(campaign)
     config = campaign.config
     detectors = build_detectors(config)
-    _check_compatibility(config, detectors, settings.plant)
+    _check_compatibility(campaign, detectors)
     names = {d.label: d.name for d in config.detectors}
     learning = build_learning_plan(campaign)
     cdir.write_learning(learning, config.to_json())
@@ -262,7 +269,8 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
 
     *source* is read through its :class:`CampaignDir` only after its files match its
     manifest; its ``[[detector]]`` entries (labels, registry names and parameters) must be
-    this campaign's, else :class:`CampaignSetupError` (exit 2) names the differences. Its
+    this campaign's, else :class:`RunOptionError` (exit 2) names the differences (and
+    *source* as the argument ``fitted_from`` of :func:`run` that gives it). Its
     fitted files and learning-set table are copied into *cdir* byte for byte, with
     ``fitted-origin.json`` saying where they came from, so *cdir* stands on its own; the
     detectors are rebuilt from the copies as data (:meth:`CampaignDir.read_fitted`). A
@@ -274,13 +282,16 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     from .config import CampaignConfig
 
     src = CampaignDir(source)
-    where = f"--fitted-from {source}"
+
+    def refused(problem: str, **values) -> RunOptionError:
+        return RunOptionError.of("fitted_from", str(source), problem, **values)
+
     if not src.root.is_dir() or not src.is_campaign():
-        raise CampaignSetupError(f"{where}: not a campaign directory (no campaign.json); give "
-                                 "the --out directory of an earlier 'fdd-campaign run'")
+        raise refused("not a campaign directory (no campaign.json); give the {out} directory "
+                      "of an earlier run")
     if src.root.resolve() == cdir.root.resolve():
-        raise CampaignSetupError(f"{where}: that is the output directory itself; give the "
-                                 "directory of another campaign")
+        raise refused("that is the {out} directory itself; give the directory of another "
+                      "campaign")
     src.refuse_pickles()
     src.check_manifest()
     theirs = CampaignConfig.from_dict(src.read_config(), source=str(src.config_path))
@@ -289,25 +300,25 @@ def adopt_fitted(config, cdir: CampaignDir, source, log=print) -> dict:
     theirs_d = {"detector": _without_scales(theirs.to_dict().get("detector"))}
     differ = differing_keys(theirs_d, ours_d)
     if differ:
-        raise CampaignSetupError(
-            f"{where}: its detectors are not this campaign's [[detector]] entries (labels, "
-            f"names and parameters must be the same; A = {src.root}, B = this campaign): "
-            f"{'; '.join(differ)}; fix: give the same [[detector]] tables, or run without "
-            "--fitted-from to fit the detectors on this campaign's learning set")
+        raise refused(
+            "its detectors are not this campaign's [[detector]] entries (labels, names and "
+            "parameters must be the same; A = {a}, B = this campaign): {differ}; fix: give "
+            "the same [[detector]] tables, or run without {fitted_from} to fit the detectors "
+            "on this campaign's learning set", a=src.root, differ="; ".join(differ))
     labels = [d.label for d in config.detectors]
     missing = [label for label in labels if not src.has_fitted(label)]
     if missing:
-        raise CampaignSetupError(f"{where}: holds no fitted detector {missing[0]!r} "
-                                 "(fitted/ incomplete); rerun the campaign that wrote it")
+        raise refused("holds no fitted detector {label} (fitted/ incomplete); rerun the "
+                      "campaign that wrote it", label=repr(missing[0]))
     want = src.fitted_sha256(labels)
     held = cdir.fitted_sha256(labels)
     if held is None:
         cdir.adopt_fitted(src, labels)
         log(f"fitted detectors: taken from {src.root} (SHA-256 {want[:12]}…), not re-learned")
     elif held != want:
-        raise CampaignSetupError(
-            f"{where}: {cdir.root} already holds other fitted detectors (SHA-256 "
-            f"{held[:12]}… ≠ {want[:12]}…); choose a new --out directory")
+        raise refused("{root} already holds other fitted detectors (SHA-256 {held}… ≠ "
+                      "{want}…); choose a new {out} directory", root=cdir.root,
+                      held=held[:12], want=want[:12])
     names = {d.label: d.name for d in config.detectors}
     return {label: cdir.read_fitted(label, names[label]) for label in labels}
 
@@ -321,9 +332,9 @@ def _without_scales(entries) -> list:
 def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: ChunkSettings,
                            learning_signals: Signals | None = None, *,
                            run_timeout_s: float | None = None, log=print) -> None:
-    """Refuse (:class:`CampaignSetupError`, exit 2) a fitted detector whose result for a run
-    depends on the other runs of its batch, so on ``--chunk-size`` and on which runs share a
-    chunk, which ``[runner]`` must never change (:func:`campaign.plugins.batch_dependence`
+    """Refuse (:class:`BatchDependenceError`, exit 2) a fitted detector whose result for a
+    run depends on the other runs of its batch, so on the chunk size and on which runs share
+    a chunk, which ``[runner]`` must never change (:func:`campaign.plugins.batch_dependence`
     on a few learning runs; under *run_timeout_s* when set). The runner applies it to
     third-party detectors only (:func:`third_party`): the test suite runs the full check on
     the built-in ones."""
@@ -336,20 +347,18 @@ def check_batch_invariance(detectors: dict, learning: pd.DataFrame, settings: Ch
                              run_timeout_s=run_timeout_s, log=log)
     if found is not None:
         label, det, failure = found
-        raise CampaignSetupError(
-            f"detector {label!r} ({type(det).__name__}) is not batch-invariant: "
-            f"{failure}. Its results would depend on the chunk size (chunk_size, "
-            "--chunk-size) and on which runs "
-            "share a chunk, which [runner] must never change; fix: compute every "
-            "run on its own (docs/write-a-detector.md, Signals and output) and check "
-            "it with detectors.testing.check_detector")
+        raise BatchDependenceError.said(
+            "detector {label} ({kind}) is not batch-invariant: {failure}. Its results would "
+            "depend on the chunk size ([runner] chunk_size, {chunk_size}) and on which runs "
+            "share a chunk, which [runner] must never change; fix: compute every run on its "
+            "own (docs/write-a-detector.md, Signals and output) and check it with "
+            "detectors.testing.check_detector", label=repr(label), kind=type(det).__name__,
+            failure=failure)
 
 
 def settings_of(campaign) -> ChunkSettings:
     """What the workers need of *campaign* (its
-    :class:`campaign.plant_setup.ResolvedCampaign`, or its configuration, resolved here):
-    its built plant among them."""
-    campaign = as_resolved(campaign)
+    :class:`campaign.plant_setup.ResolvedCampaign`): its built plant among them."""
     config = campaign.config
     return ChunkSettings(
         ts=config.campaign.ts_s,
@@ -591,7 +600,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
     limit = config.runner.run_timeout_s
     refusal = time_limit_refusal(limit, backend=backend, scheduler=scheduler)
     if refusal:       # a limit is enforced or refused, never ignored
-        raise CampaignSetupError(refusal)
+        text, values = refusal
+        raise RunOptionError.said(text, **values)
     settings = settings_of(campaign)
     check_plant(config, settings.plant)
     if engine is not None:
@@ -601,9 +611,9 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
         backend = ("threading" if config.runner.run_timeout_s is None and not processes
                    else "loky")
     elif backend == "threading" and processes and jobs > 1:
-        raise CampaignSetupError(
+        raise RunOptionError.said(
             "an FMU plant is loaded once per worker process and is not safe to share between "
-            "threads: use --backend loky (the default with an FMU plant) or --jobs 1")
+            "threads: use {backend} loky (the default with an FMU plant) or {jobs} 1")
     client = connect(scheduler, tls=tls, log=log) if scheduler else None   # fail fast
     cdir = CampaignDir(out)
     setup = _Setup(cdir=cdir, resumed=False, campaign=campaign, settings=settings, jobs=jobs,
@@ -614,8 +624,8 @@ def _setup(config, out, *, jobs, chunk_size, backend, scheduler, engine, log,
         setup.lock = DirLock(cdir.lock_path).acquire(log)
         setup.resumed = cdir.open(config.to_json(), log=log)
         if settings.engine == "compiled":
-            for spec in config.detectors:   # import their modules: they register their kernels
-                load_detector_class(spec.name)
+            # the detectors' modules, imported when the campaign was resolved (its
+            # detector_classes), have registered their kernels
             kernels.warm_up(log)
         # the modules and kernels made so far live to the exit: out of the collector's
         # reach, and the collector on again if the command line deferred it (campaign.startup)

@@ -38,13 +38,14 @@ import pandas as pd
 from reports.scoring.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN, scaled_columns
 from reports.scoring.metrics import FAULT_FREE, upper_bound
 from reports.scoring.summary import ALL_FAULTS, SummaryAccumulator
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 
 from .evidence.hazard import per_hour
 from .store.directory import CampaignDir
 
-__all__ = ["SCALES", "TRADEOFF_COLUMNS", "Tradeoff", "TradeoffError", "at_threshold_scales",
-           "operating_points", "parse_scale_options", "parse_scales", "tradeoff"]
+__all__ = ["SCALES", "TRADEOFF_COLUMNS", "Tradeoff", "TradeoffError", "TradeoffOptionError",
+           "at_threshold_scales", "operating_points", "parse_scale_options", "parse_scales",
+           "tradeoff"]
 
 #: Every scale ``tradeoff`` can give: the stored grid and 1 (the campaign's own).
 SCALES: tuple[float, ...] = tuple(sorted({1.0, *ALARM_SCALES}))
@@ -68,19 +69,29 @@ class TradeoffError(InputError, ValueError):
     message says what and how to fix it (exit 2)."""
 
 
+class TradeoffOptionError(TradeoffError, ArgumentError):
+    """Scales (*scales* of :func:`parse_scales`, :func:`parse_scale_options` and
+    :func:`at_threshold_scales`) or false-alarm targets (*max_fa_prob*, *max_fa_per_hour*
+    of :func:`operating_points`) that cannot be used, named as Python names them;
+    ``fdd-campaign`` names its options (:class:`scenarios.errors.ArgumentError`)."""
+
+
 def parse_scales(text) -> tuple[float, ...]:
-    """Scales from ``"0.8,1,1.25"``: sorted, distinct, each one of :data:`SCALES`."""
+    """Scales from ``"0.8,1,1.25"``: sorted, distinct, each one of :data:`SCALES`;
+    :class:`TradeoffOptionError` naming the argument *scales* otherwise."""
     items = [t.strip() for t in str(text).split(",") if t.strip()]
     if not items:
-        raise TradeoffError(f"--scales: no scale given; choose among {_scales_text()}")
+        raise TradeoffOptionError.said("{scales}: no scale given; choose among {known}",
+                                       known=_scales_text())
     out = []
     for item in items:
         try:
             value = float(item)
         except ValueError:
-            raise TradeoffError(f"--scales: {item!r} is not a number; give scales separated "
-                                f"by commas, e.g. --scales 0.8,1,1.25") from None
-        out.append(_stored_scale(value, "--scales"))
+            raise TradeoffOptionError.said(
+                "{scales}: {item} is not a number; give scales separated by commas, e.g. "
+                "{scales} 0.8,1,1.25", item=repr(item)) from None
+        out.append(_stored_scale(value, "{scales}"))
     return tuple(sorted(set(out)))
 
 
@@ -88,19 +99,24 @@ def _scales_text() -> str:
     return ", ".join(f"{s:g}" for s in SCALES)
 
 
-def _stored_scale(value: float, where: str) -> float:
+def _stored_scale(value: float, where: str, **values) -> float:
+    """*value* as the stored scale it equals; :class:`TradeoffOptionError` otherwise, its
+    message headed by *where* (an argument written ``{name}``, *values* filling the rest)."""
     for s in SCALES:
         if value == s:
             return s
-    raise TradeoffError(
-        f"{where}: {value:g} is not a stored threshold scale; a campaign stores the first "
-        f"alarm of its runs at {_scales_text()} (the R10 preferred numbers between 0.5 and "
-        "2), and only there are its detections known exactly; for another scale run the "
-        "campaign with [[detector]] threshold_scale = s and --fitted-from this directory")
+    raise TradeoffOptionError.said(
+        where + ": {value} is not a stored threshold scale; a campaign stores the first alarm "
+        "of its runs at {known} (the R10 preferred numbers between 0.5 and 2), and only there "
+        "are its detections known exactly; for another scale run the campaign with "
+        "[[detector]] threshold_scale = s and {fitted_from} this directory",
+        value=f"{value:g}", known=_scales_text(), **values)
 
 
 def parse_scale_options(items) -> dict[str, float]:
-    """``D=s`` options (``gate --threshold-scale``, repeatable or comma-separated) → {D: s}."""
+    """``D=s`` items (repeatable or comma-separated) → {D: s}, the *scales* of
+    :func:`at_threshold_scales`; :class:`TradeoffOptionError` naming that argument for an item
+    it cannot read."""
     out: dict[str, float] = {}
     for item in items or ():
         for part in str(item).split(","):
@@ -109,14 +125,15 @@ def parse_scale_options(items) -> dict[str, float]:
                 continue
             name, eq, value = part.rpartition("=")
             if not eq or not name:
-                raise TradeoffError(f"--threshold-scale {part!r}: give DETECTOR=SCALE, e.g. "
-                                    "--threshold-scale position-monitor=1.25")
+                raise TradeoffOptionError.said("{scales} {part}: give DETECTOR=SCALE, e.g. "
+                                               "{scales} position-monitor=1.25",
+                                               part=repr(part))
             try:
                 scale = float(value)
             except ValueError:
-                raise TradeoffError(f"--threshold-scale {part!r}: {value!r} is not a "
-                                    "number") from None
-            out[name.strip()] = _stored_scale(scale, f"--threshold-scale {part}")
+                raise TradeoffOptionError.said("{scales} {part}: {value} is not a number",
+                                               part=repr(part), value=repr(value)) from None
+            out[name.strip()] = _stored_scale(scale, "{scales} {part}", part=part)
     return out
 
 
@@ -399,8 +416,8 @@ def operating_points(table: pd.DataFrame, *, max_fa_prob: float | None = None,
     else the Clopper–Pearson bound of the runs. A detector none of whose scales meets the
     target has ``scale`` NaN."""
     if (max_fa_prob is None) == (max_fa_per_hour is None):
-        raise TradeoffError("give one false-alarm target: --max-fa-prob P (per run) or "
-                            "--max-fa-per-hour R (per flight hour)")
+        raise TradeoffOptionError.said("give one false-alarm target: {max_fa_prob} P (per "
+                                       "run) or {max_fa_per_hour} R (per flight hour)")
     per_run = max_fa_prob is not None
     target = float(max_fa_prob if per_run else max_fa_per_hour)
     out = []
@@ -474,8 +491,10 @@ def at_threshold_scales(camp, scales: dict):
     for key, scale in scales.items():
         hit = [n for n in names if n == key or n.split("[", 1)[0] == key]
         if not hit:
-            raise TradeoffError(f"--threshold-scale {key}={scale:g}: {key!r} is no detector "
-                                f"of {camp.root}; its detectors: {', '.join(names)}")
+            raise TradeoffOptionError.said(
+                "{scales} {item}: {key} is no detector of {root}; its detectors: {names}",
+                item=f"{key}={scale:g}", key=repr(key), root=camp.root,
+                names=", ".join(names))
         chosen.update({n: float(scale) for n in hit})
     labels = _scaled_labels(camp.config)
     ts = float(camp.config.campaign.ts_s)
@@ -490,9 +509,10 @@ def at_threshold_scales(camp, scales: dict):
             if scale != 1.0:
                 stored = set(rows.loc[rows[ALARM_STEPS_COLUMN].notna(), "detector"])
                 if not _has_scale(str(name), labels, stored):
-                    raise TradeoffError(
-                        f"--threshold-scale: {name} has no threshold scale (its decision is "
-                        "not a statistic compared with 1); gate it at its own thresholds")
+                    raise TradeoffOptionError.said(
+                        "{scales}: {name} has no threshold scale (its decision is not a "
+                        "statistic compared with 1); gate it at its own thresholds",
+                        name=name)
                 scored = _at_scale(rows, runs, scale, ts)
                 unknown = (scored["status"] == "ok") & ~scored["known"]
                 if unknown.any():

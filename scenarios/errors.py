@@ -40,6 +40,23 @@ class _Names(dict):
         return self.flags.get(name) or "--" + name.replace("_", "-")
 
 
+class _Kept(dict):
+    """Values that fill some ``{name}`` fields of a text, every other field kept for the
+    argument names (:meth:`ArgumentError.said`)."""
+
+    def __missing__(self, name: str) -> str:
+        return "{" + name + "}"
+
+
+def _filled(text: str, values: dict) -> str:
+    """*text* with the fields of *values* filled as they are (their braces doubled, so that
+    the argument names can still be filled in later)."""
+    if not values:
+        return text
+    return text.format_map(_Kept({k: str(v).replace("{", "{{").replace("}", "}}")
+                                  for k, v in values.items()}))
+
+
 def _word(value) -> str:
     """*value* as the command line writes it (a float without a trailing .0, quoted as a
     shell would need)."""
@@ -61,11 +78,11 @@ class ArgumentError(InputError, ValueError):
     """Arguments of a library function that it cannot take, named as Python names them.
 
     *problems*: one ``(argument, value, problem, example)`` each: *argument* the parameter's
-    name, *value* what was given (None: the problem is that it is given), *problem* what is
-    wrong (other arguments written
+    name (None: *problem* is a whole sentence, :meth:`said`), *value* what was given (None:
+    the problem is that it is given), *problem* what is wrong (other arguments written
     ``{name}``), *example* a value that works, or None; *fix* (same ``{name}`` fields) ends
-    the message. ``str()`` is the Python caller's message (``chunk_size=0: out of range …;
-    fix: e.g. chunk_size=100``); :meth:`for_command_line` the same with each argument
+    the message. ``str()`` is the Python caller's message (``chunk_size=0: out of range
+    …; fix: e.g. chunk_size=100``); :meth:`for_command_line` the same with each argument
     written as its command-line option (``--chunk-size 0: …; fix: e.g. --chunk-size 100``),
     which ``fdd-campaign`` prints (exit 2)."""
 
@@ -75,9 +92,18 @@ class ArgumentError(InputError, ValueError):
         super().__init__(self.render(None))
 
     @classmethod
-    def of(cls, argument: str, value, problem: str, example=None, fix: str = ""):
-        """The error of one argument."""
-        return cls([(argument, value, problem, example)], fix)
+    def of(cls, argument: str, value, problem: str, example=None, fix: str = "", **values):
+        """The error of one argument; *values* fill their own fields of *problem* as they
+        are (:meth:`said`)."""
+        return cls([(argument, value, _filled(problem, values), example)], fix)
+
+    @classmethod
+    def said(cls, text: str, **values):
+        """The error of a whole sentence *text* that writes each argument it names as a
+        ``{name}`` field (``"{sampling}: the design is {design}; leave {sampling} out"``),
+        for a problem that is no value out of range (a combination, a missing file);
+        *values* fill their own fields as they are (``design="'grid'"``), braces and all."""
+        return cls([(None, None, _filled(text, values), None)])
 
     def render(self, flags: dict | None) -> str:
         """The message, arguments as Python names them (*flags* None) or as the options of
@@ -85,6 +111,9 @@ class ArgumentError(InputError, ValueError):
         names = _Names(flags)
         parts = []
         for argument, value, problem, example in self.problems:
+            if argument is None:            # a whole sentence (said)
+                parts.append(_named(problem, names))
+                continue
             name = names[argument]
             if flags is None:
                 given, fix = f"{name}={value!r}", f"{name}={example!r}"

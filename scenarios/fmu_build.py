@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import ArgumentError, InputError
 
 from .params import TS_S
 
@@ -72,8 +72,10 @@ class FmuBuildError(InputError, RuntimeError):
     """The FMU could not be built (no compiler, compiler error, validation failure)."""
 
 
-class FmuOptionError(InputError, ValueError):
-    """An option of the build that cannot be used (surface, file name, FMI version)."""
+class FmuOptionError(ArgumentError):
+    """An argument of the build that cannot be used (*surface*, *out*, *fmi*), named as
+    Python names it; ``fdd-campaign fmu build`` names its option
+    (:class:`scenarios.errors.ArgumentError`)."""
 
 
 def source_dir() -> Path:
@@ -112,7 +114,8 @@ def start_values(surface: str = "elevator") -> dict[str, float]:
     from .simulate import DEFAULT_POINT
 
     if surface not in ACTUATORS:
-        raise FmuOptionError(f"unknown surface {surface!r}; allowed: {', '.join(ACTUATORS)}")
+        raise FmuOptionError.of("surface", surface,
+                                f"unknown surface; allowed: {', '.join(ACTUATORS)}")
     act = ACTUATORS[surface]
     pt = {k: np.array([v]) for k, v in DEFAULT_POINT.items()}
     fc = envelope.flight_condition(pt["alt_ft"], pt["vcas_kt"], pt["mass_t"], pt["cg_pct"])
@@ -165,9 +168,10 @@ def build_servo_fmu(out: str | os.PathLike = "servo.fmu", *, surface: str = "ele
     """
     out = Path(out)
     if out.suffix != ".fmu":
-        raise FmuOptionError(f"--out {out}: an FMU file name must end in .fmu, e.g. servo.fmu")
+        raise FmuOptionError.of("out", str(out), "an FMU file name must end in .fmu",
+                                "servo.fmu")
     if str(fmi) not in VERSIONS:
-        raise FmuOptionError(f"FMI version {fmi!r} is not supported; allowed: 2, 3")
+        raise FmuOptionError.of("fmi", fmi, "FMI version not supported; allowed: 2, 3")
     SOURCE_FILES, TEMPLATE = VERSIONS[str(fmi)]
     src = source_dir()
     values = start_values(surface)

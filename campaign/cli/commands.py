@@ -133,7 +133,8 @@ def _main(argv=None) -> int:
     # a directory, an FMU, a detector's name or parameters, a plugin that fails at the
     # start), or a file that is missing; the message names the field and the fix
     except (InputError, FileNotFoundError) as exc:
-        print_error(input_message(exc) if isinstance(exc, InputError) else str(exc))
+        print_error(input_message(exc, getattr(args, "argument_flags", None))
+                    if isinstance(exc, InputError) else str(exc))
         return EXIT_INPUT
     except OSError as exc:    # a path the checks above could not foresee (disk full, …)
         where = f" {exc.filename}" if exc.filename else ""

@@ -26,13 +26,22 @@ class UsageError(InputError, ValueError):
 ARGUMENT_FLAGS = {"n_runs": "--runs", "duration_s": "--duration"}
 
 
-def input_message(exc: InputError) -> str:
+def input_message(exc: InputError, flags: dict | None = None) -> str:
     """The message of the user's mistake *exc* as the command line says it: a library
     function's :class:`scenarios.errors.ArgumentError` names its command-line options
-    (``--chunk-size 0`` for ``chunk_size=0``), any other as it is."""
+    (``--chunk-size 0`` for ``chunk_size=0``; *flags*, the command's own argument →
+    option, before :data:`ARGUMENT_FLAGS`), any other as it is."""
     if isinstance(exc, ArgumentError):
-        return exc.for_command_line(ARGUMENT_FLAGS)
+        return exc.for_command_line({**ARGUMENT_FLAGS, **(flags or {})})
     return str(exc)
+
+
+def argument_flags(parser, flags: dict) -> None:
+    """Declare the options of *parser*'s command whose name is not that of the library
+    argument they give (``{"label": "--detector"}``; added to those declared before):
+    :func:`input_message` names the command's argument errors by them."""
+    parser.set_defaults(argument_flags={**(parser.get_default("argument_flags") or {}),
+                                        **flags})
 
 
 def add_command(subs, name: str, help_: str, example: str, func):

@@ -5,16 +5,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["add_evidence_parsers", "cmd_certify", "fa_probability_checks", "format_certificate",
-           "format_hazard", "format_levels", "format_sampling"]
+#: The options of ``certify --validate`` by the arguments of
+#: :func:`campaign.evidence.certify.validate.validate` they give (*seed* is certify's own
+#: ``--seed`` elsewhere).
+VALIDATE_FLAGS = {"n": "--validate", "seed": "--validate-seed"}
+
+__all__ = ["VALIDATE_FLAGS", "add_evidence_parsers", "cmd_certify", "fa_probability_checks",
+           "format_certificate", "format_hazard", "format_levels", "format_sampling"]
 
 
 def cmd_certify(args) -> int:
     """``fdd-campaign certify DIR``: write DIR/certificate.parquet and
     DIR/certificate-levels.parquet and print them; with ``--validate N``, run and report
     the brute-force validation of the curve."""
+    from scenarios.errors import ArgumentError
+
     from ..evidence.certify import CertifyError, certify
-    from .common import EXIT_INTERRUPTED
+    from .common import EXIT_INTERRUPTED, UsageError
     from ..store.directory import CampaignDir
 
     if args.validate is not None:               # bad validation options: before any work
@@ -25,8 +32,11 @@ def cmd_certify(args) -> int:
         if not cdir.is_campaign():
             raise CertifyError(f"{args.dir}: not a campaign directory (no campaign.json); give "
                                "the --out directory of a finished 'fdd-campaign run'")
-        check_validation(CampaignConfig.from_dict(cdir.read_config()), args.validate,
-                         args.validate_seed)
+        try:
+            check_validation(CampaignConfig.from_dict(cdir.read_config()), args.validate,
+                             args.validate_seed)
+        except ArgumentError as exc:
+            raise UsageError(exc.for_command_line(VALIDATE_FLAGS)) from None
     try:
         cert = certify(args.dir, level=args.level, sampling=args.sampling, jobs=args.jobs,
                        seed=args.seed, detectors=args.detector, scheduler=args.scheduler,
@@ -53,6 +63,8 @@ def cmd_certify(args) -> int:
             table = validate(args.dir, int(args.validate), seed=args.validate_seed,
                              jobs=args.jobs, scheduler=args.scheduler,
                              log=lambda msg: print(msg, flush=True))
+        except ArgumentError as exc:
+            raise UsageError(exc.for_command_line(VALIDATE_FLAGS)) from None
         except KeyboardInterrupt:
             print(f"fdd-campaign: interrupted; the validation runs done so far are kept under "
                   f"{args.dir}/validation/: the same command goes on from them")
@@ -168,13 +180,14 @@ def fa_probability_checks(camp, limit: float) -> list:
 def add_evidence_parsers(subs) -> None:
     """Sub-command ``certify``."""
     from ..evidence.certify.levels import DEFAULT_LEVELS
-    from .common import add_command
+    from .common import add_command, argument_flags
 
     p = add_command(subs, "certify", "per-run false-alarm probability of each detector beyond "
             "counting: exact binomial bound, generalised Pareto tail of the fault-free margins, "
             "optionally subset simulation (resumable: its batches are kept under DIR/sampling/); "
             "writes DIR/certificate.parquet (docs/evidence.md)",
             "fdd-campaign certify results/ --sampling 500", cmd_certify)
+    argument_flags(p, {"detectors": "--detector"})      # certify(dir, detectors=…)
     p.add_argument("dir", help="finished campaign directory written by 'fdd-campaign run'")
     p.add_argument("--level", type=float, default=0.95,
                    help="confidence of the one-sided bounds (default 0.95)")

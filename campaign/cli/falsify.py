@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from .common import (EXIT_GATE, EXIT_INTERRUPTED, EXIT_OK, UsageError, add_command,
-                         check_writable)
+                     argument_flags, check_writable)
 
 EXAMPLE = ("fdd-campaign falsify addsafe-mc --detector position-monitor --budget 600 "
            "--jobs 2 --against results/ --out falsify-mc/")
@@ -20,6 +20,7 @@ def add_falsify_parser(subs) -> None:
              "detector (Sobol screening, CMA-ES on the worst cells, stream sweep; exit 1 if it "
              "finds a false alarm)")
     p = add_command(subs, "falsify", help_, EXAMPLE, cmd_falsify)
+    argument_flags(p, {"label": "--detector"})        # falsify(config, label, …)
     p.add_argument("campaign", help="preset name (see 'fdd-campaign presets') or a .toml file")
     p.add_argument("--detector", required=True, metavar="LABEL",
                    help="detector label as in the results (e.g. position-monitor, "
@@ -45,7 +46,7 @@ def add_falsify_parser(subs) -> None:
 
 def cmd_falsify(args) -> int:
     from ..config import load_config
-    from ..evidence.falsify import FalsifyError, falsify
+    from ..evidence.falsify import falsify
 
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be ≥ 1 (local workers); fix: e.g. --jobs 2")
@@ -60,8 +61,6 @@ def cmd_falsify(args) -> int:
     except KeyboardInterrupt:
         print("fdd-campaign: interrupted; nothing of the search is kept")
         return EXIT_INTERRUPTED
-    except FalsifyError as exc:
-        raise UsageError(str(exc)) from None
     w = result.worst
     out = Path(args.out)
     print(f"falsify {config.campaign.name!r}, {result.label}: {len(result.search)} runs "

@@ -194,7 +194,8 @@ def requirements_of(meta: dict, args) -> dict:
     from ..config import load_requirements
 
     labels = [d.get("label") or d.get("name") for d in config.get("detector") or []]
-    out = load_requirements(args.requirements, stored, labels)
+    out = load_requirements(args.requirements, stored, labels,
+                            source=f"--requirements {args.requirements}")
     changed = [f"{k} = {out[k]!r} (was {stored.get(k)!r})" for k in out
                if out[k] != stored.get(k)]
     print(f"requirements: those of {args.requirements} in place of the campaign's; "

@@ -25,7 +25,7 @@ def _overridden(config, args):
         if args.plant in PLANT_KINDS:
             problem = cfg.preset_plant_problem(getattr(args, "campaign", ""), args.plant)
             if problem:
-                raise UsageError(problem)
+                raise UsageError(f"--plant {args.plant}: {problem}")
             values = {"plant.kind": args.plant}
         elif args.plant.lower().endswith(".fmu") or Path(args.plant).exists():
             values = {"plant.fmu": args.plant}
@@ -49,8 +49,9 @@ def _tls_files(args):
 
     files = TlsFiles(ca_file=args.tls_ca_file, cert=args.tls_cert, key=args.tls_key)
     if files.given() and not args.scheduler:
-        raise UsageError(f"{', '.join(files.given())} apply to a dask cluster: give "
-                         "--scheduler tls://HOST:PORT too")
+        options = ", ".join("--" + name.replace("_", "-") for name in files.given())
+        raise UsageError(f"{options} apply to a dask cluster: give --scheduler tls://HOST:PORT "
+                         "too")
     return files if files.given() else None
 
 

@@ -159,7 +159,11 @@ def add_tradeoff_parser(subs) -> None:
 
 
 def add_threshold_scale_option(p) -> None:
-    """``gate --threshold-scale D=s``."""
+    """``gate --threshold-scale D=s``: the *scales* of
+    :func:`campaign.tradeoff.at_threshold_scales`."""
+    from .common import argument_flags
+
+    argument_flags(p, {"scales": "--threshold-scale"})
     p.add_argument("--threshold-scale", action="append", metavar="D=S",
                    help="gate detector D (result name or [[detector]] label: all its "
                         "variants) as if every threshold were × S, from the stored runs (a "

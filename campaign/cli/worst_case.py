@@ -9,8 +9,14 @@ __all__ = ["add_worst_case_options", "check_worst_case_options", "replay_command
 
 
 def add_worst_case_options(p) -> None:
-    """The ``--worst-case`` options of the ``gate`` parser."""
+    """The ``--worst-case`` options of the ``gate`` parser, and the worst-case gate's
+    arguments they give (``check_budget(budget)``, ``gated_names(…, only)``,
+    ``worst_case(…, seed=…)``)."""
     from ..evidence.worst_case import DEFAULT_SEED
+    from .common import argument_flags
+
+    argument_flags(p, {"budget": "--worst-case", "only": "--worst-case-detector",
+                       "seed": "--worst-case-seed"})
 
     p.add_argument("--worst-case", metavar="N",
                    help="also search each gated detector's fault-free envelope for a false "

@@ -106,12 +106,12 @@ PRESET_PLANTS: dict[str, tuple[tuple[str, ...], str]] = {
 
 def preset_plant_problem(spec: str, kind: str) -> str | None:
     """Why the shipped preset *spec* cannot run on plant kind *kind* (None: it can, or *spec*
-    is not a preset restricted in :data:`PRESET_PLANTS`)."""
+    is not a preset restricted in :data:`PRESET_PLANTS`), for the caller that names *kind*
+    to head."""
     if str(spec) not in PRESET_PLANTS or kind in PRESET_PLANTS[str(spec)][0]:
         return None
     kinds, why = PRESET_PLANTS[str(spec)]
-    return (f"--plant {kind}: preset {spec!r} is valid on the {' and '.join(kinds)} plant "
-            f"only: {why}")
+    return f"preset {spec!r} is valid on the {' and '.join(kinds)} plant only: {why}"
 
 
 # ----------------------------------------------------------------------------------------
@@ -224,7 +224,8 @@ def with_overrides(config: CampaignConfig, seed: int | None = None, *,
 SCORING_REQUIREMENTS: tuple[str, ...] = ("detection_time_s", "detection_window_s")
 
 
-def load_requirements(path, stored: Mapping[str, Any], labels) -> dict[str, Any]:
+def load_requirements(path, stored: Mapping[str, Any], labels,
+                      source: str | None = None) -> dict[str, Any]:
     """The ``[requirements]`` of TOML file *path* (a campaign file, or a file holding only
     that table), in place of *stored* (those of a finished campaign, in their JSON form), to
     gate and report that campaign again without recomputing it (``--requirements FILE``).
@@ -233,9 +234,9 @@ def load_requirements(path, stored: Mapping[str, Any], labels) -> dict[str, Any]
     :data:`SCORING_REQUIREMENTS` must keep the campaign's value (left out, it does); every
     detector named must be one of *labels* (the campaign's [[detector]] labels) or a variant
     of one. Returns the requirements in their JSON form; raises :class:`ConfigError` listing
-    every problem.
+    every problem, headed by *source* (how the caller names the file; default its path).
     """
-    file, source = Path(path), f"--requirements {path}"
+    file, source = Path(path), str(path) if source is None else source
     if not file.is_file():
         what = "is a directory" if file.is_dir() else "file not found"
         raise ConfigError([f"{path}: {what}; fix: name the campaign file whose [requirements] "

@@ -53,7 +53,7 @@ import pandas as pd
 from scenarios import envelope
 from scenarios.catalog import AIRCRAFT_KINDS
 from scenarios.envelope import FLIGHT_COLUMNS
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 from scenarios.manoeuvres import MANOEUVRE_PARAMS
 
 from ..config import CampaignConfig
@@ -62,8 +62,8 @@ from ..plan import build_plan, explicit_plan, variable_ranges
 from ..execute import one_blas_thread
 from ..store.directory import SearchDir
 
-__all__ = ["FalsifyError", "FalsifyResult", "SearchSpace", "STREAM_SPAN", "falsify",
-           "drawn_start_s", "monte_carlo_config", "scores", "search_space", "worst_toml"]
+__all__ = ["FalsifyError", "FalsifyOptionError", "FalsifyResult", "SearchSpace", "STREAM_SPAN",
+           "falsify", "drawn_start_s", "monte_carlo_config", "scores", "search_space", "worst_toml"]
 
 #: Random streams searched: [0, STREAM_SPAN) (below the learning streams, 2³²).
 STREAM_SPAN: int = 2 ** 31
@@ -78,6 +78,12 @@ MIN_BUDGET: int = 10
 
 class FalsifyError(InputError, ValueError):
     """The search cannot start (no fault-free group, unknown detector, bad budget …)."""
+
+
+class FalsifyOptionError(FalsifyError, ArgumentError):
+    """An argument of :func:`falsify` it cannot take (*label*, *budget*, *keep*, *against*),
+    named as Python names it; ``fdd-campaign falsify`` names its option
+    (:class:`scenarios.errors.ArgumentError`)."""
 
 
 @dataclass(frozen=True)
@@ -285,11 +291,10 @@ def check_label(config: CampaignConfig, label: str) -> None:
     systems = tuple(getattr(config, "system_names", ()))
     if base not in config.detector_labels and label not in systems:
         also = f"; its detection systems: {', '.join(systems)}" if systems else ""
-        raise FalsifyError(f"--detector {label}: not a detector of campaign "
-                           f"{config.campaign.name!r}; its labels: "
-                           f"{', '.join(config.detector_labels)}{also} (a detector with "
-                           "variants is named LABEL[variant] as in the results, e.g. "
-                           "comb-interval[a=0.9])")
+        raise FalsifyOptionError.of(
+            "label", label, f"not a detector of campaign {config.campaign.name!r}; its "
+            f"labels: {', '.join(config.detector_labels)}{also} (a detector with variants is "
+            "named LABEL[variant] as in the results, e.g. comb-interval[a=0.9])")
 
 
 def _mc_size_text(mc: pd.DataFrame, budget: int) -> str:
@@ -367,15 +372,15 @@ def falsify(config: CampaignConfig, label: str, *, budget: int, out, jobs: int =
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     check_label(config, label)
     if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
-        raise FalsifyError(f"--budget {budget!r}: must be a whole number of runs ≥ "
-                           f"{MIN_BUDGET}; fix: e.g. --budget 600")
+        raise FalsifyOptionError.of("budget", budget,
+                                    f"must be a whole number of runs ≥ {MIN_BUDGET}", 600)
     if isinstance(keep, bool) or not isinstance(keep, (int, np.integer)) or keep < 1:
-        raise FalsifyError(f"--keep {keep!r}: must be a whole number ≥ 1 (runs written to "
-                           "worst.toml); fix: e.g. --keep 10")
+        raise FalsifyOptionError.of("keep", keep, "must be a whole number ≥ 1 (runs written to "
+                                    "worst.toml)", 10)
     if budget < MIN_BUDGET:
-        raise FalsifyError(f"--budget {budget}: too small; the search needs at least "
-                           f"{MIN_BUDGET} runs (screening, then the worst cell); fix: "
-                           f"--budget {MIN_BUDGET} or more, e.g. --budget 600")
+        raise FalsifyOptionError.of("budget", budget, f"too small; the search needs at least "
+                                    f"{MIN_BUDGET} runs (screening, then the worst cell)", 600,
+                                    f"or any other ≥ {MIN_BUDGET}")
     space = search_space(config)
     baseline, warm_rows = (_against(against, config, label, keep)
                            if against else (None, None))
@@ -440,9 +445,9 @@ def margin_kind(detectors: dict, label: str) -> str:
 def _check_variant(results: pd.DataFrame, label: str, config) -> None:
     names = list(dict.fromkeys(results["detector"]))
     if label not in names:
-        raise FalsifyError(f"--detector {label}: not a detector of campaign "
-                           f"{config.campaign.name!r}; its results are named: "
-                           f"{', '.join(names)}")
+        raise FalsifyOptionError.of("label", label, f"not a detector of campaign "
+                                    f"{config.campaign.name!r}; its results are named: "
+                                    f"{', '.join(names)}")
 
 
 def _against(directory, config, label, keep) -> tuple:
@@ -468,11 +473,11 @@ def _against(directory, config, label, keep) -> tuple:
         worst.append(free.sort_values("margin", ascending=False, kind="stable").head(keep))
     names = sorted(names)
     if label not in names:
-        raise FalsifyError(f"--against {directory}: its results hold no detector {label!r}; "
-                           f"they hold: {', '.join(names)}")
+        raise FalsifyOptionError.of("against", str(directory), f"its results hold no detector "
+                                    f"{label!r}; they hold: {', '.join(names)}")
     if not n_free:
-        raise FalsifyError(f"--against {directory}: no fault-free run of {label!r} to "
-                           "compare with")
+        raise FalsifyOptionError.of("against", str(directory),
+                                    f"no fault-free run of {label!r} to compare with")
     name = camp.name
     worst = (pd.concat(worst, ignore_index=True)
              .sort_values("margin", ascending=False, kind="stable").head(keep))

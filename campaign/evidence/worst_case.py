@@ -36,12 +36,13 @@ import numpy as np
 import pandas as pd
 
 from scenarios.envelope import FLIGHT_COLUMNS
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 
 from .falsify import MIN_BUDGET, FalsifyError, falsify, scores
 
-__all__ = ["DEFAULT_SEED", "KEEP", "Alarm", "WorstCase", "WorstCaseError", "check_budget",
-           "gated_names", "replay_corpus", "search_detector", "worst_case"]
+__all__ = ["DEFAULT_SEED", "KEEP", "Alarm", "WorstCase", "WorstCaseError",
+           "WorstCaseOptionError", "check_budget", "gated_names", "replay_corpus",
+           "search_detector", "worst_case"]
 
 #: Seed of the searches when the gate is not given one (``--worst-case-seed``).
 DEFAULT_SEED: int = 0
@@ -51,6 +52,12 @@ KEEP: int = 10
 
 class WorstCaseError(InputError, ValueError):
     """The worst-case gate cannot start (a bad budget, an unknown detector …): exit 2."""
+
+
+class WorstCaseOptionError(WorstCaseError, ArgumentError):
+    """An argument of the worst-case gate it cannot take (*budget*, *only*, *seed*), named
+    as Python names it; ``fdd-campaign gate`` names its option
+    (:class:`scenarios.errors.ArgumentError`)."""
 
 
 @dataclass(frozen=True)
@@ -96,20 +103,21 @@ class WorstCase:
         return not self.alarms
 
 
-def check_budget(value) -> int:
-    """The ``--worst-case`` value as a number of runs; :class:`WorstCaseError` naming the flag
-    and the fix when it is not a whole number ≥ :data:`MIN_BUDGET`."""
-    text = str(value).strip()
+def check_budget(budget) -> int:
+    """The runs of each search, *budget* (a number or its text), as a number;
+    :class:`WorstCaseOptionError` naming the argument and the fix when it is not a whole
+    number ≥ :data:`MIN_BUDGET`."""
+    text = str(budget).strip()
     try:
         n = int(text)
     except ValueError:
-        raise WorstCaseError(f"--worst-case {value!r}: not a whole number of runs; fix: the "
-                             "runs each detector's worst-case search spends, e.g. "
-                             "--worst-case 300") from None
+        raise WorstCaseOptionError.said(
+            "{budget} {given}: not a whole number of runs; fix: the runs each detector's "
+            "worst-case search spends, e.g. {budget} 300", given=repr(budget)) from None
     if n < MIN_BUDGET:
-        raise WorstCaseError(f"--worst-case {n}: the search needs at least {MIN_BUDGET} runs "
-                             f"(screening, then the worst cell); fix: --worst-case "
-                             f"{MIN_BUDGET} or more, e.g. --worst-case 300")
+        raise WorstCaseOptionError.of("budget", n, f"the search needs at least {MIN_BUDGET} "
+                                      "runs (screening, then the worst cell)", 300,
+                                      f"or any other ≥ {MIN_BUDGET}")
     return n
 
 
@@ -123,9 +131,9 @@ def gated_names(summary: pd.DataFrame, limits: dict, only=None) -> tuple[list[st
     names = list(dict.fromkeys(summary["detector"].astype(str)))
     unknown = [n for n in (only or ()) if n not in names]
     if unknown:
-        raise WorstCaseError(f"--worst-case-detector {unknown[0]}: not a detector of these "
-                             f"results; choose among {', '.join(names)} (a variant is named "
-                             "as in the results, e.g. comb-interval[a=0.9])")
+        raise WorstCaseOptionError.of("only", unknown[0], f"not a detector of these results; "
+                                      f"choose among {', '.join(names)} (a variant is named "
+                                      "as in the results, e.g. comb-interval[a=0.9])")
     chosen = [n for n in names if not only or n in only]
     searched, left = [], []
     for name in chosen:
@@ -259,12 +267,11 @@ def worst_case(camp, budget, names, *, seed: int = DEFAULT_SEED, jobs: int = 2,
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     budget = check_budget(budget)
     if isinstance(seed, bool) or int(seed) < 0:
-        raise WorstCaseError(f"--worst-case-seed {seed!r}: must be a whole number ≥ 0; fix: "
-                             f"e.g. --worst-case-seed {DEFAULT_SEED}")
+        raise WorstCaseOptionError.of("seed", seed, "must be a whole number ≥ 0", DEFAULT_SEED)
     try:
         search_space(camp.config)          # a campaign the search cannot cover: before work
     except FalsifyError as exc:
-        raise WorstCaseError(f"--worst-case: {exc}") from None
+        raise WorstCaseError(f"worst-case search of {camp.root}: {exc}") from None
     cdir = CampaignDir(camp.root)
     outcomes = {name: WorstCase(name, budget, int(seed),
                                 cdir.worst_case_search_dir(name, budget, seed))

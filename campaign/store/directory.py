@@ -69,14 +69,14 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from reports.scoring.alarm_steps import ALARM_SCALES, ALARM_STEPS_COLUMN
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 
 from .lock import LOCK_NAME, CampaignLockedError, DirLock, holder_text
 from .files import (atomic_write_bytes, engine_version, read_metadata, sha256_of,
                     write_parquet, write_parquet_blocks, write_text)
 
 __all__ = ["CampaignDir", "CampaignDirError", "CampaignLockedError", "DirLock", "ManifestError",
-           "SearchDir",
+           "OutDirError", "SearchDir",
            "campaign_identity", "engine_version", "read_metadata", "sha256_of", "write_parquet",
            "write_text"]
 
@@ -132,6 +132,12 @@ def _read_optional(path: Path) -> pd.DataFrame | None:
 
 class CampaignDirError(InputError, ValueError):
     """The output directory cannot be used for this campaign (message says why and how)."""
+
+
+class OutDirError(CampaignDirError, ArgumentError):
+    """A campaign directory that cannot take this campaign, whose message names the
+    argument *out* that gives it (``campaign.run(config, out)``); ``fdd-campaign`` names
+    its option (:class:`scenarios.errors.ArgumentError`)."""
 
 
 class ManifestError(CampaignDirError):
@@ -464,22 +470,19 @@ class CampaignDir:
             changes = identity_changes(campaign_identity(_current_form(self.read_config())),
                                        campaign_identity(json.loads(config_json)))
             if changes:
-                raise CampaignDirError(
-                    f"{self.root} holds the results of a different campaign: its campaign.json "
-                    f"differs from this configuration in {changes_text(changes)}. A directory "
-                    "holds one campaign: a rerun resumes it only with the same configuration "
-                    "([runner] chunk_size and run_timeout_s may differ; other [requirements] "
-                    f"limits need no rerun: fdd-campaign gate {self.root} --requirements FILE); "
-                    "fix: run the edited campaign into a new --out directory (this one stays as "
-                    f"it is; 'fdd-campaign compare {self.root} NEW' then shows what the edit "
-                    "changed), "
-                    "or delete this one to start again"
-                )
+                raise OutDirError.said(
+                    "{root} holds the results of a different campaign: its campaign.json "
+                    "differs from this configuration in {changes}. A directory holds one "
+                    "campaign: a rerun resumes it only with the same configuration ([runner] "
+                    "chunk_size and run_timeout_s may differ; other [requirements] limits need "
+                    "no rerun: fdd-campaign gate {root} --requirements FILE); fix: run the "
+                    "edited campaign into a new {out} directory (this one stays as it is; "
+                    "'fdd-campaign compare {root} NEW' then shows what the edit changed), or "
+                    "delete this one to start again", root=self.root,
+                    changes=changes_text(changes))
         elif self.root.exists() and any(p.name != LOCK_NAME for p in self.root.iterdir()):
-            raise CampaignDirError(
-                f"{self.root} is not empty and holds no campaign.json; choose an empty or new "
-                "--out directory"
-            )
+            raise OutDirError.said("{root} is not empty and holds no campaign.json; choose an "
+                                   "empty or new {out} directory", root=self.root)
         self.runs.mkdir(parents=True, exist_ok=True)
         self.fitted.mkdir(parents=True, exist_ok=True)
         for leftover in list(self.root.rglob(".*.tmp")):
@@ -754,10 +757,10 @@ class CampaignDir:
             return
         planned = str(read_metadata(self.plan_path).get("model_version", "servo-1"))
         if planned != model_version:
-            raise CampaignDirError(
-                f"{self.root} was planned with model {planned}; this fdd-campaign simulates "
-                f"model {model_version} (docs/physics.md): re-plan into a new --out directory "
-                "(or delete this one to start again)")
+            raise OutDirError.said(
+                "{root} was planned with model {planned}; this fdd-campaign simulates model "
+                "{model} (docs/physics.md): re-plan into a new {out} directory (or delete this "
+                "one to start again)", root=self.root, planned=planned, model=model_version)
 
     def write_learning(self, learning: pd.DataFrame, config_json: str) -> None:
         """Write the learning-set run table ``learning.parquet``."""

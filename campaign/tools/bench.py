@@ -458,14 +458,16 @@ def stage_costs(campaign: str = "addsafe-mc", sample_runs: int = 200,
     from ..config import load_config
     from ..plan import build_learning_plan, build_plan
     from ..evaluate import score
+    from ..plant_setup import resolve
     from ..store.files import write_parquet
     from ..runner import build_detectors, settings_of
 
     config = load_config(campaign)
-    plan, learning = build_plan(config), build_learning_plan(config)
+    resolved = resolve(config)          # its plant built once for the plan, learning, runs
+    plan, learning = build_plan(resolved), build_learning_plan(resolved)
     if learning_runs is not None:
         learning = _spread(learning, learning_runs)
-    settings = settings_of(config)
+    settings = settings_of(resolved)
     detectors = build_detectors(config)
     rows = _spread(plan, sample_runs)
     scale = len(plan) / len(rows)
@@ -540,11 +542,13 @@ def rate_evaluations(campaign: str) -> dict:
 
     from ..config import load_config
     from ..plan import build_learning_plan, build_plan
+    from ..plant_setup import resolve
     from ..runner import build_detectors, settings_of
 
     config = load_config(campaign)
-    plan, learning = build_plan(config), build_learning_plan(config)
-    settings = settings_of(config)
+    resolved = resolve(config)
+    plan, learning = build_plan(resolved), build_learning_plan(resolved)
+    settings = settings_of(resolved)
     detectors = build_detectors(config)
     steps = int(round(float(config.campaign.duration_s) / settings.ts))
     parts, uncounted = {}, []

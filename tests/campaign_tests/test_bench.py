@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.tools import bench as bench_module
 from campaign.tools.bench import (RUN_IMPORTS, arithmetic_floor, bench_runs, import_seconds,
                             floor_ratios, print_floor, print_stages, rate_evaluations, stage_costs,
@@ -146,7 +147,8 @@ def test_rate_evaluations_of_smoke_count_each_part_over_its_runs_and_steps():
     is fitted); no detector estimates the rod fault, so the jam runs' healthy rod model is
     never computed nor counted."""
     config = load_config("smoke")
-    plan, learning = build_plan(config), build_learning_plan(config)
+    resolved = resolve(config)
+    plan, learning = build_plan(resolved), build_learning_plan(resolved)
     steps = round(config.campaign.duration_s / config.campaign.ts_s)
     jams = int(plan["fault"].isin(["liquid_jam", "solid_jam"]).sum())
     counts = rate_evaluations("smoke")

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from campaign import run
+from campaign.plant_setup import resolve
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, load_config
 from campaign.plan import LEARNING_STREAM_BASE, build_learning_plan, build_plan
@@ -68,7 +69,7 @@ def test_plan_is_deterministic_and_learning_streams_are_disjoint():
     cfg = tiny()
     a, b = build_plan(cfg), build_plan(cfg)
     pd.testing.assert_frame_equal(a, b)
-    learn = build_learning_plan(cfg)
+    learn = build_learning_plan(resolve(cfg))
     assert (learn["stream"] >= LEARNING_STREAM_BASE).all()
     assert (learn["fault"] == "none").all()
     assert not set(learn["run_id"]) & set(a["run_id"])
@@ -244,7 +245,7 @@ def test_a_bad_run_is_recorded_and_does_not_stop_the_chunk():
     from scenarios.simulate import simulate
 
     det = make_detector("position-monitor")
-    det.fit(simulate(build_learning_plan(cfg).iloc[:2])[0])
+    det.fit(simulate(build_learning_plan(resolve(cfg)).iloc[:2])[0])
     settings = ChunkSettings(ts=0.01, pressure_sensor=False, required_time_s={}, window_s=None)
     out = evaluate(plan, {"pm": det}, settings)
     assert list(out["status"]) == ["ok", "error", "ok"]

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.config import CampaignConfig
 from campaign.plan import (LEARNING_STREAM_BASE, MODEL_VERSION, PLAN_COLUMNS,
                              build_learning_plan, build_plan, explicit_plan, explicit_rows,
@@ -97,7 +98,7 @@ def test_golden_monte_carlo_plan(plan):
 
 
 def test_golden_learning_plan():
-    assert digest(build_learning_plan(config(ALL_FAULTS))) == GOLDEN["learning"]
+    assert digest(build_learning_plan(resolve(config(ALL_FAULTS)))) == GOLDEN["learning"]
 
 
 def test_golden_random_sampler_plan():
@@ -355,14 +356,14 @@ def test_a_fault_free_group_has_no_onset_nor_magnitude():
 # ---- the learning set ---------------------------------------------------------------------------
 def test_learning_plan_rows():
     cfg = config(ALL_FAULTS, learning={"duration_s": 25.0, "runs_per_manoeuvre": 7})
-    learn = build_learning_plan(cfg)
+    learn = build_learning_plan(resolve(cfg))
     assert len(learn) == 14 and (learn["group"] == "learning").all()
     assert list(learn["stream"]) == list(range(LEARNING_STREAM_BASE, LEARNING_STREAM_BASE + 14))
     assert (learn["duration_s"] == 25.0).all() and (learn["fault"] == "none").all()
     assert learn["onset_s"].isna().all() and learn["magnitude"].isna().all()
     assert list(learn["manoeuvre"]) == ["cruise"] * 7 + ["nose_up"] * 7
     # without its own duration the learning runs last as long as the evaluation runs
-    assert (build_learning_plan(config(ALL_FAULTS))["duration_s"] == 40.0).all()
+    assert (build_learning_plan(resolve(config(ALL_FAULTS)))["duration_s"] == 40.0).all()
 
 
 # ---- explicit runs -------------------------------------------------------------------------------
@@ -399,7 +400,7 @@ def test_explicit_rows_take_dicts_or_objects_and_judge_realism():
     obj = SimpleNamespace(**{**RUNS[1], "onset_s": None, "magnitude": None, "freq_hz": None,
                              "draws": None, "manoeuvre_start_s": None})
     slow_heavy = {**RUNS[1], "alt_ft": 40000.0, "vcas_kt": 180.0, "mass_t": 240.0}
-    rows = explicit_rows(cfg, [RUNS[1], obj, slow_heavy])
+    rows = explicit_rows(resolve(cfg), [RUNS[1], obj, slow_heavy])
     assert list(rows["explicit_stream"]) == [3, 3, 3]
     assert list(rows["realistic"]) == [True, True, False]
     assert "run_id" not in rows and "stream" not in rows

@@ -10,6 +10,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.cli.commands import main
 from campaign.config import ConfigError
 from campaign.plan import (PLAN_COLUMNS, PlanBlocks, _unit_sample_stream, _unit_samples,
@@ -41,7 +42,7 @@ def _cases():
 def test_the_blocks_are_the_plan_whatever_their_size(name, block_rows):
     cfg = _cases()[name]
     whole = build_plan(cfg)
-    blocks = PlanBlocks(cfg, block_rows=block_rows)
+    blocks = PlanBlocks(resolve(cfg), block_rows=block_rows)
     assert blocks.rows == len(whole)                      # known before any block
     parts = list(blocks)
     assert all(0 < len(p) <= block_rows for p in parts)
@@ -73,7 +74,8 @@ def test_a_plan_written_block_by_block_is_the_file_of_the_whole_plan(tmp_path):
     whole = build_plan(cfg)
     a, b = CampaignDir(tmp_path / "a"), CampaignDir(tmp_path / "b")
     assert a.write_plan(whole, cfg.to_json(), "servo-4") == len(whole)
-    assert b.write_plan(PlanBlocks(cfg, block_rows=3), cfg.to_json(), "servo-4") == len(whole)
+    blocks = PlanBlocks(resolve(cfg), block_rows=3)
+    assert b.write_plan(blocks, cfg.to_json(), "servo-4") == len(whole)
     pd.testing.assert_frame_equal(b.read_plan(), a.read_plan(), check_exact=True)
     fa, fb = pq.ParquetFile(a.plan_path), pq.ParquetFile(b.plan_path)
     groups = [fb.metadata.row_group(i).num_rows for i in range(fb.num_row_groups)]
@@ -88,7 +90,7 @@ def test_row_groups_of_a_streamed_plan_keep_their_size_across_blocks(tmp_path):
     # one the remainder, as a whole-table write cuts them
     cfg = config([{"name": "ff", "fault": "none", "manoeuvres": ["cruise"], "count": 5000}])
     cdir = CampaignDir(tmp_path / "c")
-    cdir.write_plan(PlanBlocks(cfg, block_rows=1000), cfg.to_json(), "servo-4")
+    cdir.write_plan(PlanBlocks(resolve(cfg), block_rows=1000), cfg.to_json(), "servo-4")
     f = pq.ParquetFile(cdir.plan_path)
     sizes = [f.metadata.row_group(i).num_rows for i in range(f.num_row_groups)]
     full, rest = divmod(5000, PLAN_ROW_GROUP_ROWS)
@@ -99,7 +101,7 @@ def test_two_equal_runs_refuse_the_streamed_plan_and_leave_no_file(tmp_path):
     cfg = config(ALL_FAULTS[:1], run=[RUNS[1], RUNS[1]])
     cdir = CampaignDir(tmp_path / "d")
     with pytest.raises(ConfigError, match="duplicate runs in group 'worst'"):
-        cdir.write_plan(PlanBlocks(cfg, block_rows=2), cfg.to_json(), "servo-4")
+        cdir.write_plan(PlanBlocks(resolve(cfg), block_rows=2), cfg.to_json(), "servo-4")
     assert not cdir.has_plan()
     assert not any(p.name.startswith("plan") for p in (tmp_path / "d").rglob("*"))
 
@@ -179,7 +181,7 @@ def test_duplicate_runs_name_the_group_of_the_first_repeated_row_across_blocks()
     # the block before (explicit runs of two groups, blocks of two rows)
     first = {**RUNS[0], "group": "first"}
     cfg = config(ALL_FAULTS[:1], run=[first, RUNS[1], RUNS[1]])
-    blocks = PlanBlocks(cfg, block_rows=2)
+    blocks = PlanBlocks(resolve(cfg), block_rows=2)
     parts = list(blocks)
     assert parts[-1]["group"].tolist() == ["worst"] and len(parts[-1]) == 1
     with pytest.raises(ConfigError, match="duplicate runs in group 'worst'"):

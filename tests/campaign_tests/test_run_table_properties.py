@@ -16,6 +16,7 @@ import math
 import numpy as np
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.config import CampaignConfig
 from campaign.plan import LEARNING_STREAM_BASE, build_learning_plan, build_plan, run_id
 from scenarios.faults import liquid_jam_bias_mm
@@ -49,7 +50,8 @@ def config(**over) -> CampaignConfig:
 @pytest.fixture(scope="module")
 def plans():
     cfg = config()
-    return cfg, build_plan(cfg), build_learning_plan(cfg)
+    resolved = resolve(cfg)
+    return cfg, build_plan(resolved), build_learning_plan(resolved)
 
 
 POINT = ["alt_ft", "vcas_kt", "mass_t", "cg_pct"]

@@ -23,6 +23,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig, load_config
 from campaign.plan import build_plan
@@ -167,10 +168,11 @@ def test_the_presets_below_cover_every_builtin_detector():
 def test_fitted_detectors_read_back_from_the_directory_detect_bit_identically(preset,
                                                                               tmp_path):
     config = _small(preset)
-    settings = settings_of(config)
+    campaign = resolve(config)
+    settings = settings_of(campaign)
     cdir = CampaignDir(tmp_path / "c")
     cdir.open(config.to_json())
-    fitted = fit_detectors(config, cdir, settings, 50, log=lambda m: None)
+    fitted = fit_detectors(campaign, cdir, settings, 50, log=lambda m: None)
     assert not list(cdir.fitted.glob("*.pkl"))
     rebuilt = {d.label: cdir.read_fitted(d.label, d.name) for d in config.detectors}
     for label, det in rebuilt.items():

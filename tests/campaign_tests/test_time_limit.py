@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.cli.commands import main
 from campaign.config import CampaignConfig
 from campaign.plan import build_learning_plan, build_plan
@@ -70,7 +71,8 @@ def test_a_hanging_detector_is_stopped_at_the_limit(tmp_path, misbehaving, jobs)
     marker = tmp_path / "marked.json"
     cfg = _config(marker)
     config = CampaignConfig.from_dict(cfg)
-    plan, learning = build_plan(config), build_learning_plan(config)
+    resolved = resolve(config)
+    plan, learning = build_plan(resolved), build_learning_plan(resolved)
     victim = plan["run_id"].iloc[3]
     marker.write_text(json.dumps([victim, learning["run_id"].iloc[0]]))
     path, out = _write(tmp_path, cfg), tmp_path / "out"

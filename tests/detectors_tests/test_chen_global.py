@@ -349,6 +349,7 @@ def test_an_actuator_level_campaign_is_refused_before_it_starts():
     """The campaign file is refused (so 'plan' and 'run' alike), and the runner asks the
     same rule for detectors built outside a campaign file."""
     from campaign.config import CampaignConfig, ConfigError
+    from campaign.plant_setup import resolve
     from campaign.runner import CampaignSetupError, _check_compatibility, build_detectors
     from scenarios.plants import get_plant
 
@@ -361,7 +362,8 @@ def test_an_actuator_level_campaign_is_refused_before_it_starts():
         CampaignConfig.from_dict(data)
     config = CampaignConfig.from_dict({**data, "plant": {"kind": "aircraft"}})
     with pytest.raises(CampaignSetupError, match=r'chen-global.*\[plant\] kind = "aircraft"'):
-        _check_compatibility(config, build_detectors(config), get_plant("actuator"))
+        _check_compatibility(resolve(config, plant=get_plant("actuator")),
+                             build_detectors(config))
 
 
 @pytest.mark.parametrize("params, needle", [

@@ -85,12 +85,13 @@ def test_the_learning_set_is_simulated_in_the_plants_parts_with_the_same_signals
     from campaign import runner
     from campaign.config import load_config
     from campaign.plan import build_learning_plan
+    from campaign.plant_setup import resolve
 
     monkeypatch.setattr(runner, "LEARNING_PART_RUNS", 8)
     config = load_config("smoke")
-    plan = build_learning_plan(config).iloc[:11]
+    plan = build_learning_plan(resolve(config)).iloc[:11]
     plan = plan.assign(duration_s=20.0)
-    settings = replace(runner.settings_of(config), plant=_Recording(**sizes))
+    settings = replace(runner.settings_of(resolve(config)), plant=_Recording(**sizes))
     parts = runner.simulate_chunks(plan, settings, chunk_size=100)
     whole = replace(settings, plant=_Recording(learning_part_runs=100))
     once = runner.simulate_chunks(plan, whole, chunk_size=100)

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from campaign.config import ConfigError, load_config, with_overrides
 from campaign.plan import build_learning_plan, build_plan, run_id
+from campaign.plant_setup import resolve
 from detectors import make_detector
 from detectors.builtin.comb_interval import (
     IntervalDetector,
@@ -244,7 +245,7 @@ def table1_runs():
     learning runs of 60 s take a few seconds); comb-table1-rod has the same runs."""
     config = load_config("comb-table1")
     assert build_plan(config).equals(build_plan(load_config("comb-table1-rod")))
-    learning_plan = build_learning_plan(config)
+    learning_plan = build_learning_plan(resolve(config))
     learning, _ = simulate(learning_plan)
     # as the runner gives it to fit(): with the learning runs' manoeuvres (Signals.classes)
     learning = replace(learning, classes=learning_plan["manoeuvre"].to_numpy(dtype=str))

@@ -350,11 +350,12 @@ def test_comparison_command_refuses_a_bad_noise_scale(capsys):
 
 def test_a_campaign_at_the_actuator_level_is_refused_before_it_starts():
     from campaign.config import CampaignConfig, ConfigError, load_config
+    from campaign.plant_setup import resolve
     from campaign.runner import CampaignSetupError, _check_compatibility, build_detectors
     from scenarios.plants import get_plant
 
     cfg = load_config("vanek-scenarios")
-    _check_compatibility(cfg, build_detectors(cfg), get_plant("aircraft"))   # accepted
+    _check_compatibility(resolve(cfg), build_detectors(cfg))   # accepted
     actuator = cfg.to_dict()
     actuator["plant"]["kind"] = "actuator"
     actuator["plant"].pop("monitored_surface")
@@ -362,7 +363,7 @@ def test_a_campaign_at_the_actuator_level_is_refused_before_it_starts():
         CampaignConfig.from_dict(actuator)
     # the runner asks the same rule (for detectors built outside a campaign file)
     with pytest.raises(CampaignSetupError, match='vanek-geometric.*kind = "aircraft"'):
-        _check_compatibility(cfg, build_detectors(cfg), get_plant("actuator"))
+        _check_compatibility(resolve(cfg, plant=get_plant("actuator")), build_detectors(cfg))
 
 
 def test_hinf_post_filter_tracks_the_fault_and_keeps_the_decoupling():

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.cli.commands import main
 from campaign.config import load_config, with_overrides
 from campaign.evaluate import evaluate
@@ -251,7 +252,7 @@ def test_smoke_campaign_identical_on_both_back_ends(servo_fmu, tmp_path):
     config = load_config("smoke")
     builtin = run(config, tmp_path / "builtin", jobs=1, progress=False, log=lambda m: None)
     fmu_cfg = with_overrides(config, values={"plant.fmu": str(servo_fmu)})
-    assert settings_of(fmu_cfg).plant is not None
+    assert settings_of(resolve(fmu_cfg)).plant is not None
     on_fmu = run(fmu_cfg, tmp_path / "fmu", jobs=2, progress=False, log=lambda m: None)
     assert on_fmu.complete and (on_fmu.results["status"] == "ok").all()
     cols = ["run_id", "detector", "false_alarm", "pre_onset_alarm", "detected",
@@ -267,7 +268,7 @@ def test_fmu_plant_runs_on_worker_processes_never_shared_threads(servo_fmu, tmp_
     from campaign.runner import CampaignSetupError
 
     fmu_cfg = with_overrides(load_config("smoke"), values={"plant.fmu": str(servo_fmu)})
-    with pytest.raises(CampaignSetupError, match="--backend loky"):
+    with pytest.raises(CampaignSetupError, match="use backend loky .* or jobs 1"):
         run(fmu_cfg, tmp_path / "t", jobs=2, backend="threading", progress=False,
             log=lambda m: None)
     assert not (tmp_path / "t").exists()   # refused before anything was written
@@ -354,7 +355,7 @@ name = "position-monitor"
     # a wrong variable in the file is refused before anything is written
     f.write_text(base + f'[plant]\nfmu = "{servo_fmu}"\n[plant.variables]\nrod = "pos"\n')
     config = load_config(f)
-    assert settings_of(config).plant.mapping["rod"] == "pos"
+    assert settings_of(resolve(config)).plant.mapping["rod"] == "pos"
     with pytest.raises(FmuError, match=r"rod = 'pos'.*no variable 'pos'"):
         run(config, tmp_path / "out", jobs=1, progress=False, log=lambda m: None)
     assert not (tmp_path / "out").exists()
@@ -385,7 +386,7 @@ def test_campaign_file_plant_parameters(servo_fmu, tmp_path):
     plant = plant_of(config)
     assert plant.parameters == (("Ka", 2.0), ("h_max_s", 0.005))
     assert config.to_dict()["plant"]["parameters"] == {"Ka": 2.0, "h_max_s": 0.005}
-    assert settings_of(config).plant == plant
+    assert settings_of(resolve(config)).plant == plant
     # and set into the FMU: Ka, a pushed parameter, now holds for every run
     runs = _runs("elevator").iloc[:2]
     moved = simulate(runs, plant=plant)[1].rod_mm

@@ -12,6 +12,7 @@ import fmpy
 import pandas as pd
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.cli.commands import main
 from campaign.config import load_config
 from campaign.plan import build_plan
@@ -184,7 +185,7 @@ def test_diverging_fmu_of_a_campaign_file_gives_error_rows(servo_fmu, tmp_path):
                  f'[plant]\nfmu = "{servo_fmu}"\nparameters = {{ {overrides} }}\n'
                  f'[plant.variables]\nsurface = ""\n')
     config = load_config(f)
-    settings = settings_of(config)
+    settings = settings_of(resolve(config))
     assert dict(settings.plant.parameters) == DIVERGING
     detectors = build_detectors(config)
     learning = pd.concat([single_run("elevator", m, "none", seed=s, duration_s=20.0)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from campaign.plant_setup import resolve
 from campaign.config import ConfigError, load_config, with_overrides
 from campaign.plan import build_learning_plan, build_plan, run_id
 from scenarios.aircraft.data import PILOT
@@ -98,9 +99,9 @@ def test_the_set_is_in_the_run_table_and_the_run_id():
 
 def test_learning_set_follows_the_set_unless_given():
     config = with_overrides(load_config("chen-local"), values={"manoeuvres.set": "stress"})
-    assert (build_learning_plan(config)["manoeuvre_set"] == "stress").all()
+    assert (build_learning_plan(resolve(config))["manoeuvre_set"] == "stress").all()
     config = with_overrides(config, values={"manoeuvres.learning_set": "normal"})
-    assert (build_learning_plan(config)["manoeuvre_set"] == "normal").all()
+    assert (build_learning_plan(resolve(config))["manoeuvre_set"] == "normal").all()
     assert (build_plan(config)["manoeuvre_set"] == "stress").all()
 
 

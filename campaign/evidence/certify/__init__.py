@@ -9,6 +9,7 @@ from .estimate import (
     SAMPLING_DIR,
     SAMPLING_STREAM_BASE,
     CertifyError,
+    CertifyOptionError,
     certificate,
     certify,
     evt_estimate,
@@ -16,6 +17,6 @@ from .estimate import (
     sample_fa_probability,
 )
 
-__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "SAMPLING_DIR",
+__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "CertifyOptionError", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
            "sample_fa_probability"]

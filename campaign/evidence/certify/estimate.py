@@ -50,7 +50,7 @@ from detectors.tail import CURVE_SHAPES, TailFitError, fit_tail
 from reports.scoring.metrics import FAULT_FREE, upper_bound
 from scenarios import envelope
 from scenarios.envelope import FLIGHT_COLUMNS
-from scenarios.errors import InputError
+from scenarios.errors import ArgumentError, InputError
 
 from .levels import DEFAULT_LEVELS, detector_rows, level_table, parse_levels
 from .rows import CertifyRows
@@ -60,7 +60,7 @@ from ...store.directory import SAMPLING_DIR, CampaignDir
 from ..hazard import per_hour
 from ..rare import P0
 
-__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "SAMPLING_DIR",
+__all__ = ["CERTIFICATE_COLUMNS", "CertifyError", "CertifyOptionError", "SAMPLING_DIR",
            "SAMPLING_STREAM_BASE", "certificate", "certify", "evt_estimate", "run_variables",
            "sample_fa_probability"]
 
@@ -81,6 +81,12 @@ SAMPLING_STREAM_BASE = 2 ** 40
 
 class CertifyError(InputError, ValueError):
     """A campaign directory or an option certify cannot work from (exit 2)."""
+
+
+class CertifyOptionError(CertifyError, ArgumentError):
+    """Arguments of :func:`certify` or :func:`campaign.evidence.certify.validate.validate`
+    they cannot take, named as Python names them; ``fdd-campaign certify`` names its
+    options (:class:`scenarios.errors.ArgumentError`)."""
 
 
 # ---- counting and the tail fit -------------------------------------------------------------
@@ -250,12 +256,14 @@ def sample_fa_probability(directory, config, plan: pd.DataFrame, names, *, n: in
     from ...runner import evaluate_rows, prepare
 
     if config.campaign.design != "mc":
-        raise CertifyError(f"--sampling: the campaign's design is {config.campaign.design!r}; "
-                           "sampling re-draws the run variables of an 'mc' design (a grid has "
-                           "no probability distribution over its points): leave --sampling out")
+        raise CertifyOptionError.said(
+            "{sampling}: the campaign's design is {design}; sampling re-draws the run "
+            "variables of an 'mc' design (a grid has no probability distribution over its "
+            "points): leave {sampling} out", design=repr(config.campaign.design))
     ff = plan[plan["fault"] == FAULT_FREE]
     if ff.empty:
-        raise CertifyError("--sampling: the campaign has no fault-free run to sample around")
+        raise CertifyOptionError.said("{sampling}: the campaign has no fault-free run to "
+                                      "sample around")
     log = log or (lambda msg: None)
     progress = progress or (lambda msg: print(msg, file=sys.stderr, flush=True))
     variables = run_variables(config, plan)
@@ -433,23 +441,21 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
 
     problems = []
     if not (isinstance(level, float | int) and 0.5 < float(level) < 1.0):
-        problems.append(f"--level {level!r}: must be a confidence in (0.5, 1), e.g. 0.95")
+        problems.append(("level", level, "must be a confidence in (0.5, 1)", 0.95))
     if sampling is not None and (int(sampling) < 20 or int(sampling) % round(1 / P0)):
-        problems.append(f"--sampling {sampling!r}: runs per level of the subset simulation "
-                        f"must be a multiple of {round(1 / P0)} and ≥ 20 (p0 = {P0:g}), e.g. "
-                        "--sampling 500")
+        problems.append(("sampling", sampling, "runs per level of the subset simulation must "
+                         f"be a multiple of {round(1 / P0)} and ≥ 20 (p0 = {P0:g})", 500))
     if int(jobs) < 1:
-        problems.append(f"--jobs {jobs!r}: must be ≥ 1, e.g. --jobs 2")
+        problems.append(("jobs", jobs, "must be ≥ 1", 2))
     if not 1 <= int(max_levels) <= 30:
-        problems.append(f"--max-levels {max_levels!r}: levels of the subset simulation after "
-                        f"the first, in [1, 30] (p0 = {P0:g}: 12 reach {P0 ** 12:g}), e.g. "
-                        "--max-levels 12")
+        problems.append(("max_levels", max_levels, "levels of the subset simulation after "
+                         f"the first, in [1, 30] (p0 = {P0:g}: 12 reach {P0 ** 12:g})", 12))
     try:
         levels = tuple(sorted(set(parse_levels(levels)) | {1.0}))
-    except ValueError as exc:
-        problems.append(str(exc))
+    except ArgumentError as exc:
+        problems += exc.problems
     if problems:
-        raise CertifyError("; ".join(problems))
+        raise CertifyOptionError(problems)
     loaded = load(directory)
     done, planned = loaded.runs_done, loaded.runs_planned
     if not loaded.complete or (planned is not None and done < planned):
@@ -466,8 +472,8 @@ def certify(directory, *, level: float = 0.95, sampling: int | None = None, jobs
     names = list(cert["detector"])
     unknown = [d for d in (detectors or ()) if d not in names]
     if unknown:
-        raise CertifyError(f"--detector {unknown[0]}: no such detector in {directory}; "
-                           f"choose among {', '.join(names)}")
+        raise CertifyOptionError.of("detectors", unknown[0], f"no such detector in "
+                                    f"{directory}; choose among {', '.join(names)}")
     if sampling:
         found = sample_fa_probability(loaded.root, loaded.config, loaded.plan,
                                       list(detectors or names), n=int(sampling),

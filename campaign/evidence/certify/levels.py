@@ -30,6 +30,8 @@ import pandas as pd
 from detectors.tail import exceedance_curve
 from reports.scoring.metrics import upper_bound
 
+from scenarios.errors import ArgumentError
+
 from ..rare import P0
 
 __all__ = ["DEFAULT_LEVELS", "EXTRAPOLATION_DECADES", "LEVEL_COLUMNS", "detector_rows",
@@ -52,21 +54,25 @@ LEVEL_COLUMNS: tuple[str, ...] = (
 
 def parse_levels(text) -> tuple[float, ...]:
     """Levels from ``"0.6,0.7,1.0"`` (or a sequence of numbers): sorted, distinct, each a
-    positive finite margin; ValueError naming the bad entry otherwise."""
+    positive finite margin; :class:`scenarios.errors.ArgumentError` (a ValueError) naming the
+    argument *levels* of :func:`campaign.evidence.certify.certify` and the bad entry
+    otherwise."""
     items = str(text).split(",") if isinstance(text, str) else list(text)
     out = []
     for item in items:
         try:
             v = float(item)
         except (TypeError, ValueError):
-            raise ValueError(f"--levels: {str(item).strip()!r} is not a number; give margins "
-                             "separated by commas, e.g. --levels 0.6,0.7,0.8,0.9,1.0") from None
+            raise ArgumentError.said("{levels}: {item} is not a number; give margins "
+                                     "separated by commas, e.g. {levels} 0.6,0.7,0.8,0.9,1.0",
+                                     item=repr(str(item).strip())) from None
         if not (math.isfinite(v) and v > 0.0):
-            raise ValueError(f"--levels: {v!r} is not a positive margin; a margin is "
-                             "max |r|/τ ≥ 0 and 1 is the false alarm, e.g. --levels 0.6,1.0")
+            raise ArgumentError.said(f"{{levels}}: {v!r} is not a positive margin; a margin is "
+                                     "max |r|/τ ≥ 0 and 1 is the false alarm, e.g. {levels} "
+                                     "0.6,1.0")
         out.append(v)
     if not out:
-        raise ValueError("--levels: no level given, e.g. --levels 0.6,0.7,0.8,0.9,1.0")
+        raise ArgumentError.said("{levels}: no level given, e.g. {levels} 0.6,0.7,0.8,0.9,1.0")
     return tuple(sorted(set(out)))
 
 

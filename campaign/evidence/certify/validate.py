@@ -114,7 +114,7 @@ def summarise(table: pd.DataFrame) -> str:
     if tested.empty:
         return (f"validation: no detector × level has ≥ {MIN_VALIDATION_EXCEEDANCES} "
                 f"exceedances in the {runs} runs; nothing to test (more runs, or lower "
-                "--levels)")
+                "levels)")
     misses = tested[~tested["covered"]]
     text = (f"validation ({runs} runs, seed {int(table['validation_seed'].iloc[0])}): "
             f"p_upper95 covers the brute-force frequency at {len(tested) - len(misses)} of "
@@ -132,22 +132,22 @@ def check_validation(config, n: int, seed: int | None) -> int:
     """The validation seed for campaign *config* (default its seed + 1), or
     :class:`campaign.evidence.certify.CertifyError` (exit 2) for fewer than 100 runs, a grid
     campaign (no distribution to draw from) or the campaign's own seed — checked before any work."""
-    from .estimate import CertifyError
+    from .estimate import CertifyOptionError
 
     if int(n) < 100:
-        raise CertifyError(f"--validate {n!r}: the brute-force runs must be ≥ 100 (a level is "
-                           f"tested only where they show ≥ {MIN_VALIDATION_EXCEEDANCES} "
-                           "exceedances), e.g. --validate 60000")
+        raise CertifyOptionError.of("n", n, "the brute-force runs must be ≥ 100 (a level is "
+                                    f"tested only where they show ≥ "
+                                    f"{MIN_VALIDATION_EXCEEDANCES} exceedances)", 60000)
     if config.campaign.design != "mc":
-        raise CertifyError(f"--validate: the campaign's design is {config.campaign.design!r}; "
-                           "validation draws new runs of an 'mc' design's distribution (a "
-                           "grid has none): leave --validate out")
+        raise CertifyOptionError.said(
+            "{n}: the campaign's design is {design}; validation draws new runs of an 'mc' "
+            "design's distribution (a grid has none): leave {n} out",
+            design=repr(config.campaign.design))
     own = int(config.campaign.seed)
     seed = own + 1 if seed is None else int(seed)
     if seed == own:
-        raise CertifyError(f"--validate-seed {seed}: the campaign's own seed, whose runs are "
-                           "the ones certified; choose another, e.g. "
-                           f"--validate-seed {own + 1}")
+        raise CertifyOptionError.of("seed", seed, "the campaign's own seed, whose runs are "
+                                    "the ones certified; choose another", own + 1)
     return seed
 
 
@@ -157,7 +157,7 @@ def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
     *n* brute-force runs (:func:`validate_levels`) at campaign seed *seed*
     (:func:`check_validation`). :class:`campaign.evidence.certify.CertifyError` (exit 2) also for a
     directory without ``certificate-levels.parquet``."""
-    from .estimate import CertifyError
+    from .estimate import CertifyOptionError
     from ...result import load
 
     loaded = load(directory)
@@ -165,7 +165,8 @@ def validate(directory, n: int, *, seed: int | None = None, jobs: int = 2,
     cert = loaded.certificate
     levels = None if cert is None else cert.levels
     if levels is None:
-        raise CertifyError(f"--validate: {directory} has no certificate-levels.parquet; run "
-                           f"fdd-campaign certify {directory} first")
+        raise CertifyOptionError.said("{n}: {directory} has no certificate-levels.parquet; "
+                                      "certify it first (fdd-campaign certify {directory})",
+                                      directory=directory)
     return validate_levels(loaded.root, loaded.config, levels, n, seed=seed, jobs=jobs,
                            scheduler=scheduler, tls=tls, log=log)
