@@ -340,17 +340,17 @@ def fresh(finished, tmp_path):
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"level": 0.5}, "--level 0.5: must be a confidence in (0.5, 1)"),
-    ({"level": 1.0}, "--level 1.0: must be a confidence in (0.5, 1)"),
-    ({"level": "0.9"}, "--level '0.9': must be a confidence"),
-    ({"sampling": 10}, "--sampling 10: runs per level of the subset simulation must be a "
+    ({"level": 0.5}, "level=0.5: must be a confidence in (0.5, 1)"),
+    ({"level": 1.0}, "level=1.0: must be a confidence in (0.5, 1)"),
+    ({"level": "0.9"}, "level='0.9': must be a confidence"),
+    ({"sampling": 10}, "sampling=10: runs per level of the subset simulation must be a "
                        "multiple of 10 and ≥ 20 (p0 = 0.1)"),
-    ({"sampling": 25}, "--sampling 25: runs per level"),
-    ({"jobs": 0}, "--jobs 0: must be ≥ 1"),
-    ({"max_levels": 0}, "--max-levels 0: levels of the subset simulation after the first, in "
+    ({"sampling": 25}, "sampling=25: runs per level"),
+    ({"jobs": 0}, "jobs=0: must be ≥ 1"),
+    ({"max_levels": 0}, "max_levels=0: levels of the subset simulation after the first, in "
                         "[1, 30] (p0 = 0.1: 12 reach 1e-12)"),
-    ({"max_levels": 31}, "--max-levels 31:"),
-    ({"levels": "0.6,x"}, "--levels: 'x' is not a number"),
+    ({"max_levels": 31}, "max_levels=31:"),
+    ({"levels": "0.6,x"}, "levels: 'x' is not a number"),
 ])
 def test_certify_refuses_an_option_outside_its_limits_before_any_work(fresh, options,
                                                                       message):
@@ -375,7 +375,7 @@ def test_certify_accepts_the_options_at_their_limits(fresh):
     pd.testing.assert_frame_equal(hazard, cert.hazard, check_exact=True)
     assert hazard.loc[hazard["fault"] == "runaway", "n_runs"].tolist() == [2]
     assert not (fresh / "sampling").exists()
-    with pytest.raises(CertifyError, match="--detector nope: no such detector in .*; choose "
+    with pytest.raises(CertifyError, match="detectors='nope': no such detector in .*; choose "
                                            "among pm"):
         certify(fresh, detectors=["nope"], log=lambda m: None)
 
@@ -399,7 +399,7 @@ def test_sampling_refuses_a_grid_and_a_plan_without_fault_free_runs(fresh):
     grid["campaign"]["design"] = "grid"
     for g in grid["group"]:
         g.pop("count")
-    with pytest.raises(CertifyError, match="--sampling: the campaign's design is 'grid'"):
+    with pytest.raises(CertifyError, match="sampling: the campaign's design is 'grid'"):
         sample_fa_probability(fresh, CampaignConfig.from_dict(grid), loaded.plan, ["pm"])
     faulty = loaded.plan[loaded.plan["fault"] != "none"]
     with pytest.raises(CertifyError, match="no fault-free run to sample around"):

@@ -131,7 +131,7 @@ def test_the_summary_of_nothing_tested_says_so_with_the_runs():
     table = coverage_table(curve(("a", 1.0, 0.5)), brute("a", [1.0] * 4 + [0.0] * 96), 2)
     assert summarise(table) == (
         "validation: no detector × level has ≥ 5 exceedances in the 100 runs; nothing to test "
-        "(more runs, or lower --levels)")
+        "(more runs, or lower levels)")
     one = coverage_table(curve(("a", 1.0, 0.5)), brute("a", [1.0] * 5 + [0.0] * 95), 2)
     assert summarise(one) == (
         "validation (100 runs, seed 2): p_upper95 covers the brute-force frequency at 1 of 1 "
@@ -154,13 +154,13 @@ def test_the_validation_options_are_checked_before_any_work():
     cfg = config()
     assert check_validation(cfg, 100, None) == 22          # the campaign's seed + 1
     assert check_validation(cfg, 100, 5) == 5
-    with pytest.raises(CertifyError, match=r"--validate 99: the brute-force runs must be ≥ "
+    with pytest.raises(CertifyError, match=r"n=99: the brute-force runs must be ≥ "
                                            r"100 \(a level is tested only where they show ≥ 5"):
         check_validation(cfg, 99, 5)
-    with pytest.raises(CertifyError, match="--validate-seed 21: the campaign's own seed.*"
-                                           "--validate-seed 22"):
+    with pytest.raises(CertifyError, match="seed=21: the campaign's own seed.*"
+                                           "seed=22"):
         check_validation(cfg, 100, 21)
-    with pytest.raises(CertifyError, match="--validate: the campaign's design is 'grid'"):
+    with pytest.raises(CertifyError, match="n: the campaign's design is 'grid'"):
         check_validation(config("grid"), 100, 5)
 
 
@@ -182,10 +182,10 @@ def finished(tmp_path_factory):
 
 
 def test_validate_refuses_an_uncertified_directory_and_a_bad_seed(finished):
-    with pytest.raises(CertifyError, match="has no certificate-levels.parquet; run "
-                                           f"fdd-campaign certify {finished} first"):
+    with pytest.raises(CertifyError, match="has no certificate-levels.parquet; certify it "
+                                           f"first \\(fdd-campaign certify {finished}\\)"):
         validate(finished, 100, seed=5)
-    with pytest.raises(CertifyError, match="--validate-seed 21: the campaign's own seed"):
+    with pytest.raises(CertifyError, match="seed=21: the campaign's own seed"):
         validate(finished, 100, seed=21)
     assert not (finished / "validation").exists()
 
