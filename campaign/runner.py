@@ -108,7 +108,7 @@ LEARNING_PART_RUNS = 50
 def simulate_chunks(plan: pd.DataFrame, settings: ChunkSettings, chunk_size: int,
                     submit=None, workers: int = 1) -> Signals:
     """Signals of every run of *plan* (used for the small learning set). *submit*
-    (an executor's ``submit``) runs the parts on *workers* threads. Parts hold at most
+    (an executor's ``submit``) runs the parts on its *workers*. Parts hold at most
     *chunk_size* runs and the plant's ``learning_part_runs`` or ``batch_runs`` (else
     :data:`LEARNING_PART_RUNS`); a run's signals never depend on its part, and each part is
     released once copied into the result (:meth:`Signals.concat`), its memory returned to
@@ -674,13 +674,13 @@ def _fitted(config, setup: _Setup, log, fitted_from=None) -> dict:
     if fitted_from is not None:
         return adopt_fitted(config, setup.cdir, fitted_from, log=log)
     with kernels.use_engine(settings.engine):
-        # the learning set on the worker threads (the built-in plant's kernels release
-        # the GIL; an FMU plant is simulated here, one instance at a time)
+        # the learning set on the workers that will run the chunks: processes for any
+        # plant, threads for a plant that runs on threads (one that needs processes never
+        # gets a thread pool, _setup)
         threads = pool is not None and setup.backend == "threading"
-        simulate_on_threads = threads and settings.plant.kind == "actuator"
         # the detectors that say so fit on the worker threads too, beside the others
         return fit_detectors(setup.campaign, setup.cdir, settings, setup.chunk_size, log=log,
-                             submit=pool.submit if simulate_on_threads else None,
+                             submit=pool.submit if pool is not None else None,
                              workers=setup.jobs, run_timeout_s=setup.run_timeout_s,
                              fit_submit=pool.submit if threads else None)
 
