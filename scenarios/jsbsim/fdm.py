@@ -27,6 +27,10 @@ The 737 has no roll spoilers in its aerodynamics: our spoilers' order is not app
 
 from __future__ import annotations
 
+import io
+import sys
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -220,6 +224,55 @@ def _add_aero_scales(aero, src) -> None:
             ET.SubElement(body[0], "property").text = AERO_SCALE.format(AERO_AXES[name])
 
 
+#: One redirection of ``sys.stdout`` at a time (:func:`jsbsim_console`); nested ones in
+#: one thread within each other.
+_CONSOLE = threading.RLock()
+
+
+class _ThreadRouted:
+    """``sys.stdout`` while a thread keeps JSBSim's console text: that thread's writes go
+    to its buffer, every other thread's to the stream it replaced (a log line printed
+    meanwhile is not swallowed)."""
+
+    def __init__(self, real, thread: int, buffer: io.StringIO):
+        self.real, self.thread, self.buffer = real, thread, buffer
+
+    def write(self, text: str) -> int:
+        if threading.get_ident() == self.thread:
+            return self.buffer.write(text)
+        return self.real.write(text)
+
+    def __getattr__(self, name):
+        return getattr(self.real, name)
+
+
+@contextmanager
+def jsbsim_console():
+    """Keep what JSBSim writes on its console while the block runs, instead of printing it
+    on the user's; yields a list that holds that text (one string) once the block has run.
+    JSBSim's Python module writes its C++ console (``std::cout``) through ``sys.stdout``;
+    its trim writes its search notes there ("Sorry, udot doesn't appear to be trimmable")
+    even when the trim then succeeds, and a trim that fails carries them in its error
+    (:meth:`Fdm.trim`). Only the calling thread's writes are kept."""
+    held: list[str] = []
+    with _CONSOLE:
+        real = sys.stdout
+        buffer = io.StringIO()
+        sys.stdout = _ThreadRouted(real, threading.get_ident(), buffer)
+        try:
+            yield held
+        finally:
+            sys.stdout = real
+            held.append(buffer.getvalue())
+
+
+def _said(held: list[str]) -> str:
+    """JSBSim's console text of a block, as one clause of an error ('' when it said
+    nothing)."""
+    text = " ".join(" ".join(held).split())
+    return f" (JSBSim said: {text})" if text else ""
+
+
 class Fdm:
     """One trimmed JSBSim model (one run)."""
 
@@ -271,15 +324,20 @@ class Fdm:
         f["propulsion/set-running"] = -1
         where = (f"{alt_ft:.0f} ft, {vcas_kt:.0f} kt, {mass_t:.1f} t, CG {cg_pct:.1f} % MAC "
                  f"on the JSBSim {m.name}")
-        try:
-            f["simulation/do_simple_trim"] = 1
-        except Exception as exc:  # noqa: BLE001 - JSBSim's TrimFailureError and kin
-            raise JsbsimRunError(f"trim failed at {where}: {exc}") from None
+        with jsbsim_console() as said:
+            try:
+                f["simulation/do_simple_trim"] = 1
+                failure = None
+            except Exception as exc:  # noqa: BLE001 - JSBSim's TrimFailureError and kin
+                failure = exc
+        if failure is not None:
+            raise JsbsimRunError(f"trim failed at {where}: {failure}{_said(said)}") from None
         self.trim_surfaces = np.array([f["fcs/elevator-pos-rad"], f["fcs/left-aileron-pos-rad"],
                                        f["fcs/rudder-pos-rad"]])
         if (not np.isfinite(self.trim_surfaces).all()
                 or abs(f["aero/alpha-deg"]) > TRIM_ALPHA_MAX_DEG):
-            raise JsbsimRunError(f"trim failed at {where}: α {f['aero/alpha-deg']:.1f}°")
+            raise JsbsimRunError(f"trim failed at {where}: α {f['aero/alpha-deg']:.1f}°"
+                                 f"{_said(said)}")
         self.alpha0 = f["aero/alpha-rad"]
         self.theta0 = f["attitude/theta-rad"]
         self.mach = f["velocities/mach"]
@@ -308,7 +366,8 @@ class Fdm:
             node.set_double_value(value)
 
     def _linearise(self) -> None:
-        lin = self.jsbsim.FGLinearization(self.fdm)
+        with jsbsim_console():
+            lin = self.jsbsim.FGLinearization(self.fdm)
         self.lin_A = np.array(lin.system_matrix)
         self.lin_B = np.array(lin.input_matrix)
         self.lin_x = tuple(lin.x_names)

@@ -86,6 +86,33 @@ def test_a_point_the_aircraft_cannot_trim_is_a_run_error_naming_it():
         _trimmed(alt=8000.0, vcas=150.0, mass=53.0, cg=20.0)
 
 
+def test_jsbsims_console_text_is_kept_off_the_console_and_named_in_a_failed_trim(capsys):
+    # JSBSim's trim writes its search notes on its console (sys.stdout, from C++); at
+    # 35 000 ft, 250 kt, 60 t and 10 % MAC the 737 cannot reach the speed, and says so
+    with pytest.raises(F.JsbsimRunError) as failed:
+        _trimmed(alt=35000.0, vcas=250.0, mass=60.0, cg=10.0)
+    assert "(JSBSim said: Sorry, udot doesn't appear to be trimmable" in str(failed.value)
+    # nothing of it reached the console, and the console works again afterwards
+    print("after the trim")
+    assert capsys.readouterr().out == "after the trim\n"
+
+
+def test_the_console_is_kept_for_the_calling_thread_only(capsys):
+    import threading
+
+    other = threading.Thread(target=print, args=("another thread's line",))
+    with F.jsbsim_console() as outer:
+        print("outer", end=" ")
+        with F.jsbsim_console() as inner:
+            print("inner", end="")
+        other.start()
+        other.join()
+        print("again", end="")
+    print("console")
+    assert (outer, inner) == (["outer again"], ["inner"])
+    assert capsys.readouterr().out == "another thread's line\nconsole\n"
+
+
 def test_a_missing_jsbsim_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "jsbsim", None)
     with pytest.raises(F.JsbsimMissingError, match=r'pip install -e "\.\[jsbsim\]"'):
