@@ -283,3 +283,57 @@ def test_no_points_once_the_budget_is_spent():
     s = Strategy(n_dims=1, n_cells=1, budget=12, seed=0, stream_span=50)
     seen = _drive(s, lambda p: p.unit[0])
     assert sum(len(b) for _, b, _ in seen) == 12 and s.left() == 0 and s.ask() == []
+
+
+def test_a_single_run_left_is_still_spent():
+    # nine cells: nine screening runs of a budget of 10, the sweep's one run last
+    s = Strategy(n_dims=1, n_cells=9, budget=10, seed=0, stream_span=50)
+    seen = _drive(s, lambda p: p.unit[0])
+    assert [(ph, len(b)) for ph, b, _ in seen] == [("screen", 9), ("polish", 1)]
+
+
+def test_a_point_is_frozen():
+    import dataclasses
+
+    p = Point((0.5,), 1, 2)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.cell = 3
+    assert hash(p) == hash(Point((0.5,), 1, 2))
+
+
+def test_each_cma_seed_is_drawn_from_the_search_generator_and_cma_stays_quiet():
+    import warnings
+
+    s = Strategy(n_dims=4, n_cells=3, budget=200, seed=12, stream_span=1000)
+    batch = s.ask()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # a cma warning (e.g. its unused seed) fails
+        s.tell(batch, [0.1 * p.cell for p in batch])
+        s.tell(s.ask(), [0.5] * (2 * s.lam))
+    # the generator's draws written again: screening, then one seed per strategy in [1, 2³¹)
+    rng = np.random.default_rng(np.random.SeedSequence(12))
+    qmc.Sobol(d=4, scramble=True, seed=rng).random_base2(math.ceil(math.log2(s.n_screen)))
+    rng.integers(3)
+    rng.integers(0, 1000, s.n_screen)
+    seeds = [int(rng.integers(1, 2 ** 31)) for _ in range(FOCUS_CELLS)]
+    assert [es.opts["seed"] for es, _, _ in s.strategies] == seeds
+    # and the first generation's samples come from it (cma's randn)
+    again = Strategy(n_dims=4, n_cells=3, budget=200, seed=12, stream_span=1000)
+    again.tell(again.ask(), [0.1 * p.cell for p in batch])
+    assert again.rng.bit_generator.state == rng.bit_generator.state
+
+
+def test_two_strategies_stop_when_both_generations_no_longer_fit():
+    # one dimension, two cells: λ = 4; budget 40: 14 screened, 6 kept for the sweep, room
+    # 20: two generations of both strategies (16), then 4 < 2λ: the sweep takes 4 + 6
+    s = Strategy(n_dims=1, n_cells=2, budget=40, seed=0, stream_span=100)
+    seen = _drive(s, lambda p: p.unit[0] + 0.1 * p.cell)
+    assert [(ph, len(b)) for ph, b, _ in seen] == [("screen", 14), ("focus", 8), ("focus", 8),
+                                                   ("polish", 10)]
+
+
+def test_sweep_streams_start_at_zero():
+    s = Strategy(n_dims=1, n_cells=1, budget=60, seed=0, stream_span=2)
+    seen = _drive(s, lambda p: p.unit[0])
+    sweep = [p.stream for ph, b, _ in seen if ph == "polish" for p in b]
+    assert len(sweep) >= 10 and set(sweep) == {0, 1}
