@@ -30,6 +30,7 @@ from campaign.evidence.worst_case import (
     search_detector,
     worst_case,
 )
+from campaign.plan import explicit_plan
 from campaign.store.directory import CampaignDir, SearchDir
 from scenarios import envelope
 
@@ -177,6 +178,8 @@ def test_corpus_rows_hold_each_run_once_at_its_first_file(tmp_path):
     assert list(rows["stream"]) == [11, 12, 13, 14] and list(rows.index) == [0, 1, 2, 3]
     assert files == [a, a, b, b]
     assert rows["run_id"].is_unique
+    # the run-table's own columns, no index column left behind
+    assert list(rows.columns) == list(explicit_plan(SMOKE, _runs([11])).columns)
 
 
 def test_no_corpus_no_replay(tmp_path):
@@ -242,3 +245,213 @@ def test_a_stored_search_of_every_run_in_error_names_no_worst_run(tmp_path):
                     log=lambda m: None)
     assert found.reused and (found.searched, found.search_alarms) == (2, 0)
     assert np.isnan(found.worst_margin) and found.worst_run == "" and found.passed
+
+
+# ---- the corpus replay and the search, the simulation replaced by a recorder ---------------
+# The orchestration of the gate on its own: the runner's pipeline (campaign.runner.prepare
+# and evaluate_rows) and the search (falsify) are replaced by recorders that answer with
+# result rows chosen here (margin and false alarm per stream); test_worst_case_gate.py runs
+# the real pipeline.
+class _Pipeline:
+    """Recorder of the runner's pipeline: each run's margin and false alarm by its stream."""
+
+    def __init__(self, outcome):
+        self.outcome, self.prepared, self.evaluated, self.closed = outcome, [], [], 0
+
+    def prepare(self, config, out, **kwargs):
+        self.prepared.append((config, out, kwargs))
+        return SimpleNamespace(close=self.close), {"position-monitor": "pm-object",
+                                                   "comb": "comb-object"}
+
+    def close(self):
+        self.closed += 1
+
+    def evaluate_rows(self, setup, rows, detectors, log=None):
+        self.evaluated.append((list(rows["run_id"]), dict(detectors)))
+        (label,) = detectors
+        names = [label, f"{label}[safety=2]"]
+        return pd.DataFrame([{"run_id": r, "detector": name, "status": "ok",
+                              "margin": self.outcome[s][0], "false_alarm": self.outcome[s][1]}
+                             for r, s in zip(rows["run_id"], rows["stream"]) for name in names])
+
+
+def _store(root, name, streams, budget=30, seed=0):
+    """A finished search of *name* under campaign directory *root* whose worst.toml holds
+    the runs of *streams*."""
+    path = CampaignDir(root).worst_case_search_dir(name, budget, seed)
+    path.mkdir(parents=True)
+    stored = SearchDir(path)
+    stored.write_search(pd.DataFrame({"run_id": ["x"], "margin": [0.0]}), SMOKE.to_json(),
+                        detector=name, budget=budget, seed=seed)
+    stored.write_worst(worst_toml(SMOKE, _runs(streams), label=name, note="stored"))
+    return stored.worst_path
+
+
+@pytest.fixture
+def pipeline(monkeypatch):
+    import campaign.runner
+
+    rec = _Pipeline({11: (0.4, False), 12: (1.3, True), 13: (1.6, True), 14: (0.9, False)})
+    monkeypatch.setattr(campaign.runner, "prepare", rec.prepare)
+    monkeypatch.setattr(campaign.runner, "evaluate_rows", rec.evaluate_rows)
+    return rec
+
+
+def test_the_corpus_of_each_name_is_replayed_with_its_owners_fitted_detector(tmp_path,
+                                                                             pipeline):
+    first = _store(tmp_path, "position-monitor", [11, 12], budget=30)
+    second = _store(tmp_path, "position-monitor", [12, 13, 14], budget=40)
+    variant = _store(tmp_path, "position-monitor[safety=2]", [14])
+    names = ["comb", "position-monitor", "position-monitor[safety=2]"]    # comb: no corpus
+    outcomes = {n: WorstCase(n, 30, 0, tmp_path / n) for n in names}
+    said = []
+    camp = SimpleNamespace(root=tmp_path, config=SMOKE)
+    replay_corpus(camp, outcomes, jobs=3, scheduler="tcp://s", tls="t", log=said.append)
+    # one set-up for every name, on the campaign's fitted detectors, closed after
+    ((config, out, kwargs),) = pipeline.prepared
+    assert config is SMOKE and out == CampaignDir(tmp_path).worst_case_replay_dir()
+    assert kwargs == {"jobs": 3, "scheduler": "tcp://s", "tls": "t", "fitted_from": tmp_path,
+                      "log": said.append}
+    assert pipeline.closed == 1
+    rows, _ = _corpus_rows(SMOKE, [first, second])
+    (ids, dets), (vids, vdets) = pipeline.evaluated
+    assert ids == list(rows["run_id"]) and dets == {"position-monitor": "pm-object"}
+    assert vdets == {"position-monitor": "pm-object"} and len(vids) == 1
+    pm = outcomes["position-monitor"]
+    assert (pm.corpus_files, pm.corpus_runs) == (2, 4)
+    # the corpus's false alarms, worst first, each with the file that holds it
+    assert [(a.margin, a.source, a.worst_toml) for a in pm.alarms] == [
+        (1.6, "corpus", second), (1.3, "corpus", first)]
+    assert outcomes["position-monitor[safety=2]"].corpus_runs == 1
+    assert outcomes["position-monitor[safety=2]"].alarms == []
+    assert outcomes["position-monitor[safety=2]"].corpus_files == 1 and variant.is_file()
+    comb = outcomes["comb"]
+    assert (comb.corpus_files, comb.corpus_runs, comb.alarms) == (0, 0, [])
+    assert "worst case position-monitor: replaying the corpus first, 4 runs of 2 stored " \
+           "search(es)" in said
+
+
+def test_the_replay_set_up_is_closed_when_a_replay_fails(tmp_path, pipeline, monkeypatch):
+    import campaign.runner
+
+    _store(tmp_path, "position-monitor", [11])
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("worker lost")
+
+    monkeypatch.setattr(campaign.runner, "evaluate_rows", broken)
+    outcomes = {"position-monitor": WorstCase("position-monitor", 30, 0, tmp_path / "s")}
+    with pytest.raises(RuntimeError, match="worker lost"):
+        replay_corpus(SimpleNamespace(root=tmp_path, config=SMOKE), outcomes, jobs=1,
+                      log=lambda m: None)
+    assert pipeline.closed == 1
+
+
+class _Search:
+    """Recorder of falsify: a search of four runs, r1 and r2 false alarms."""
+
+    def __init__(self, fail=None):
+        self.calls, self.fail = [], fail
+
+    def __call__(self, config, label, **kwargs):
+        self.calls.append((config, label, kwargs))
+        if self.fail:
+            raise self.fail
+        return SimpleNamespace(search=_rows(4).reset_index(drop=True).assign(
+            margin=[0.2, 1.4, 1.1, 0.8], false_alarm=[False, True, True, None]))
+
+
+def test_a_search_not_stored_is_run_with_the_campaigns_detectors(tmp_path, monkeypatch):
+    import campaign.evidence.worst_case as wc
+
+    search = _Search()
+    monkeypatch.setattr(wc, "falsify", search)
+    path = CampaignDir(tmp_path).worst_case_search_dir("position-monitor", 30, 4)
+    found = WorstCase("position-monitor", 30, 4, path)
+    found.alarms.append(Alarm("r2", "m2", {}, 1.1, Path("c.toml"), "corpus"))
+    said = []
+    search_detector(SimpleNamespace(root=tmp_path, config=SMOKE), found, jobs=2,
+                    scheduler="tcp://s", tls="t", log=said.append)
+    ((config, label, kwargs),) = search.calls
+    assert config is SMOKE and label == "position-monitor"
+    assert kwargs == {"budget": 30, "out": path, "jobs": 2, "seed": 4, "scheduler": "tcp://s",
+                      "tls": "t", "fitted_from": tmp_path, "against": tmp_path, "keep": KEEP,
+                      "log": said.append}
+    assert said == [f"worst case position-monitor: searching 30 fault-free runs (seed 4) -> "
+                    f"{path}"]
+    assert not found.reused and (found.searched, found.search_alarms) == (4, 2)
+    assert (found.worst_margin, found.worst_run, found.worst_manoeuvre) == (1.4, "r1", "m1")
+    assert [(a.run_id, a.source) for a in found.alarms] == [("r2", "corpus"), ("r1", "search")]
+    assert found.alarms[1].worst_toml == SearchDir(path).worst_path
+
+
+def test_a_search_that_cannot_start_is_a_worst_case_error(tmp_path, monkeypatch):
+    import campaign.evidence.worst_case as wc
+    from campaign.evidence.falsify import FalsifyError
+
+    monkeypatch.setattr(wc, "falsify", _Search(FalsifyError("every run failed")))
+    found = WorstCase("position-monitor", 30, 0, tmp_path / "s")
+    with pytest.raises(WorstCaseError, match="^worst case position-monitor: every run "
+                                             "failed$"):
+        search_detector(SimpleNamespace(root=tmp_path, config=SMOKE), found, jobs=1,
+                        log=lambda m: None)
+
+
+def test_the_gate_replays_the_corpus_then_searches_each_name(tmp_path, pipeline, monkeypatch,
+                                                             capsys):
+    import campaign.evidence.worst_case as wc
+
+    search = _Search()
+    monkeypatch.setattr(wc, "falsify", search)
+    _store(tmp_path, "position-monitor", [12], budget=50)
+    camp = SimpleNamespace(root=tmp_path, config=SMOKE)
+    out = worst_case(camp, " 30 ", ["position-monitor", "comb"], seed=np.int64(5), jobs=1)
+    assert [(w.name, w.budget, w.seed) for w in out] == [("position-monitor", 30, 5),
+                                                         ("comb", 30, 5)]
+    assert type(out[0].seed) is int
+    assert out[0].search_dir == CampaignDir(tmp_path).worst_case_search_dir(
+        "position-monitor", 30, 5)
+    assert [c[1] for c in search.calls] == ["position-monitor", "comb"]
+    # the corpus run (stream 12) first, then the search's alarms
+    assert [(a.source, a.margin) for a in out[0].alarms] == [("corpus", 1.3),
+                                                             ("search", 1.4),
+                                                             ("search", 1.1)]
+    assert not out[0].passed and not out[1].passed
+    # without a log the progress goes to stderr
+    err = capsys.readouterr().err
+    assert "worst case position-monitor: replaying the corpus first, 1 runs" in err
+    assert "worst case comb: searching 30 fault-free runs (seed 5)" in err
+
+
+def test_options_are_keyword_only_and_a_fresh_outcome_has_counted_nothing():
+    import inspect
+
+    for fn, options in ((worst_case, ("seed", "jobs", "scheduler", "tls", "log")),
+                        (replay_corpus, ("jobs", "scheduler", "tls", "log")),
+                        (search_detector, ("jobs", "scheduler", "tls", "log"))):
+        params = inspect.signature(fn).parameters
+        assert all(params[o].kind is inspect.Parameter.KEYWORD_ONLY for o in options), fn
+    found = WorstCase("pm", 30, 0, Path("d"))
+    assert (found.searched, found.search_alarms, found.corpus_files, found.corpus_runs) == (
+        0, 0, 0, 0)
+    assert (found.worst_run, found.worst_manoeuvre) == ("", "")
+    alarm = Alarm("r", "m", {}, 1.0, Path("w"), "search")
+    import dataclasses
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        alarm.margin = 2.0
+
+
+def test_a_detector_with_a_single_fault_free_run_is_gated():
+    summary = pd.DataFrame({"detector": ["pm"], "fault": ["none"], "n_runs": [1]})
+    assert gated_names(summary, {}) == (["pm"], [])
+
+
+def test_the_gate_searches_on_two_workers_by_default(tmp_path, pipeline, monkeypatch):
+    import campaign.evidence.worst_case as wc
+
+    search = _Search()
+    monkeypatch.setattr(wc, "falsify", search)
+    worst_case(SimpleNamespace(root=tmp_path, config=SMOKE), 30, ["comb"], log=lambda m: None)
+    ((_, _, kwargs),) = search.calls
+    assert kwargs["jobs"] == 2 and kwargs["seed"] == DEFAULT_SEED
