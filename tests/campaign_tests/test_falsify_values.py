@@ -499,3 +499,114 @@ def test_the_smallest_budget_and_keep_go_on_to_the_search_space(budget, keep, tm
         falsify(NO_FREE, "position-monitor", budget=budget, keep=keep, out=tmp_path / "o")
     assert not isinstance(info.value, FalsifyOptionError)
     assert not (tmp_path / "o").exists()
+
+
+# ---- the search loop, the simulation replaced by a recorder -------------------------------
+# The loop of falsify on its own: the runner's pipeline (campaign.runner.prepare and
+# evaluate_rows) is replaced by a recorder whose margin is a function of each run's
+# supply-pressure draw (a run of stream ≡ 0 mod 13 fails); test_falsify.py runs the real
+# pipeline on the smoke preset.
+def _margin(row):
+    return 1.0 + 10.0 * float(row["d_supply"])          # d_supply in ±0.05: 0.5 … 1.5
+
+
+class _Pipeline:
+    def __init__(self):
+        self.prepared, self.batches, self.closed = [], [], 0
+
+    def prepare(self, config, out, **kwargs):
+        from campaign.plant_setup import as_resolved
+
+        self.prepared.append((config, out, kwargs))
+        det = SimpleNamespace(capabilities=SimpleNamespace(threshold_scale=True))
+        return (SimpleNamespace(campaign=as_resolved(config), close=self.close),
+                {label: det for label in config.detector_labels})
+
+    def close(self):
+        self.closed += 1
+
+    def evaluate_rows(self, setup, rows, detectors, log=None):
+        self.batches.append(len(rows))
+        out = []
+        for _, row in rows.iterrows():
+            error = int(row["stream"]) % 13 == 0
+            m = math.nan if error else _margin(row)
+            for name in detectors:
+                out.append({"run_id": row["run_id"], "detector": name,
+                            "status": "error" if error else "ok", "margin": m,
+                            "false_alarm": None if error else m >= 1.3})
+        return pd.DataFrame(out)
+
+
+@pytest.fixture
+def pipeline(monkeypatch):
+    import campaign.runner
+
+    rec = _Pipeline()
+    monkeypatch.setattr(campaign.runner, "prepare", rec.prepare)
+    monkeypatch.setattr(campaign.runner, "evaluate_rows", rec.evaluate_rows)
+    return rec
+
+
+def test_the_search_evaluates_its_batches_and_compares_with_a_plain_monte_carlo(tmp_path,
+                                                                               pipeline):
+    from campaign.store.files import read_metadata
+
+    out = tmp_path / "s"
+    said = []
+    res = falsify(SMOKE, "position-monitor", budget=30, out=out, jobs=3, seed=3, keep=4,
+                  log=said.append, progress=False)
+    ((config, learned, kwargs),) = pipeline.prepared
+    assert config is SMOKE and learned == out / "learned"
+    assert kwargs == {"jobs": 3, "scheduler": None, "tls": None, "fitted_from": None,
+                      "log": said.append}
+    assert pipeline.closed == 1
+    search = res.search
+    # the budget in batches: screening (10 of 30), sweep; then the Monte Carlo's 30 runs
+    assert len(search) == 30 == sum(pipeline.batches[:-1]) and pipeline.batches[-1] == 30
+    assert list(dict.fromkeys(search["phase"])) == ["screen", "polish"]
+    assert (search.loc[search["phase"] == "screen", "generation"] == 0).all()
+    assert (search.loc[search["phase"] == "polish", "generation"] == 1).all()
+    errors = search["stream"] % 13 == 0
+    assert res.errors == int(errors.sum())
+    want = np.where(errors, np.nan, [_margin(r) for _, r in search.iterrows()])
+    np.testing.assert_array_equal(search["margin"].to_numpy(), want)
+    np.testing.assert_array_equal(search["false_alarm"].to_numpy(bool),
+                                  ~errors.to_numpy() & (want >= 1.3))
+    assert res.false_alarms == int(np.nansum(want >= 1.3))
+    assert res.worst["margin"] == np.nanmax(want) and res.margin_kind == "decision"
+    # the plain Monte Carlo of the same budget: its worst margin is the baseline
+    mc = build_plan(monte_carlo_config(SMOKE, 30)).iloc[:30]
+    mc_margin = np.where(mc["stream"] % 13 == 0, np.nan, [_margin(r) for _, r in mc.iterrows()])
+    assert res.baseline_margin == np.nanmax(mc_margin) and res.baseline_runs == 30
+    assert res.baseline_source == ("a plain Monte Carlo of about the same budget (30 fault-free "
+                                   "runs)")
+    stored = pd.read_parquet(out / "monte-carlo.parquet")
+    np.testing.assert_array_equal(stored["margin"].to_numpy(), mc_margin)
+    assert "plain Monte Carlo of about the same budget: 30 fault-free runs" in said
+    meta = read_metadata(out / "search.parquet")
+    assert (meta["detector"], int(meta["budget"]), int(meta["seed"])) == (
+        "position-monitor", 30, 3)
+    assert list(meta["dimensions"]) == search_space(SMOKE).names
+    runs = tomllib.loads((out / "worst.toml").read_text())["run"]
+    assert len(runs) == 4
+
+
+def test_a_variant_the_results_lack_is_refused_on_the_first_batch(tmp_path, pipeline):
+    with pytest.raises(FalsifyOptionError, match="its results are named: position-monitor"):
+        falsify(SMOKE, "position-monitor[x]", budget=30, out=tmp_path / "s", jobs=1,
+                log=lambda m: None, progress=False)
+    assert len(pipeline.batches) == 1 and pipeline.closed == 1
+
+
+def test_the_search_reports_its_progress(tmp_path, pipeline):
+    said = []
+    res = falsify(SMOKE, "position-monitor", budget=30, out=tmp_path / "s", jobs=1, seed=3,
+                  log=said.append, progress=True)
+    lines = [line for line in said if "worst margin so far" in line]
+    # one line a batch, each with the largest margin of the batches so far (4 digits)
+    assert [line.split(":")[0] for line in lines] == ["screen (batch 1)", "polish (batch 2)"]
+    first = res.search["margin"].iloc[:10].max()
+    assert lines[0].endswith(f"worst margin so far {first:.4g}")
+    assert lines[-1].endswith(f"worst margin so far {res.search['margin'].max():.4g}")
+
