@@ -31,18 +31,22 @@ def _against_config():
         "campaign": {"name": "against", "seed": 11, "duration_s": 20.0, "ts_s": 0.05,
                      "sampler": "random", "realistic_only": False},
         "envelope": {"vcas_kt": [160.0, 300.0]},
-        "group": [{"name": "ff", "fault": "none", "manoeuvres": ["cruise", "nose_up"],
+        "group": [{"name": "ra", "fault": "runaway", "manoeuvres": ["cruise"], "count": 2},
+                  {"name": "ff", "fault": "none", "manoeuvres": ["cruise", "nose_up"],
                    "count": 6}],
         "detector": [{"name": "schedule-margin", "label": "sm",
-                      "params": {"limit_kt": 280.0}}],
+                      "params": {"limit_kt": 280.0}},
+                     {"name": "schedule-margin", "label": "twice",
+                      "params": {"limit_kt": 140.0}}],
         "learning": {"runs_per_manoeuvre": 2, "manoeuvres": ["cruise"]},
     })
 
 
 @pytest.fixture(scope="module")
 def against(tmp_path_factory):
-    """A campaign of 12 fault-free runs (a few seconds) whose margin is measured VCAS / 280
-    kt (tests/plugin_detectors.py, ScheduleMargin)."""
+    """A campaign of 2 runaways, then 12 fault-free runs (a few seconds), whose margin is
+    measured VCAS / 280 kt (tests/plugin_detectors.py, ScheduleMargin), and twice that of a
+    second detector."""
     from campaign.runner import run
     from detectors import registry
 
@@ -76,9 +80,25 @@ def test_against_gives_the_worst_fault_free_margin_and_the_worst_runs_in_order(a
         mine.sort_values("margin", ascending=False, kind="stable")["run_id"])
 
 
+def test_against_reads_the_results_a_batch_at_a_time(against, monkeypatch):
+    # batches of two runs: the first holds only the runaways, the worst runs of the others
+    # are gathered over the batches
+    from campaign.result import Campaign
+
+    config = _against_config()
+    whole = _against(against, config, "sm", 3)
+    read = Campaign.result_batches
+    monkeypatch.setattr(Campaign, "result_batches",
+                        lambda self, columns=None, batch_runs=0, positions=False: read(
+                            self, columns=columns, batch_runs=2, positions=positions))
+    small = _against(against, config, "sm", 3)
+    assert small[0] == whole[0]
+    pd.testing.assert_frame_equal(small[1], whole[1])
+
+
 def test_against_refuses_a_directory_without_the_detector(against):
     with pytest.raises(FalsifyOptionError, match=f"against='{against}': its results hold no "
-                                                 "detector 'pm'; they hold: sm"):
+                                                 "detector 'pm'; they hold: sm, twice"):
         _against(against, _against_config(), "pm", 3)
 
 

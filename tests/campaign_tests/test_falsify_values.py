@@ -114,6 +114,24 @@ def test_one_valued_ranges_are_held_and_groups_fix_their_values():
     assert space.anchors[0][0] == 18000.0 and space.anchors[2][0] != 18000.0
 
 
+def test_a_cell_is_frozen_and_a_search_space_keeps_to_the_realistic_envelope_by_default():
+    import dataclasses
+    import inspect
+
+    from campaign.evidence.falsify import Cell, SearchSpace
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        Cell("g", "cruise").manoeuvre = "nose_up"
+    space = SearchSpace(SMOKE, {}, {}, (), np.empty((0, 4)))
+    assert space.realistic_only is True and "anchors" not in repr(space)
+    params = inspect.signature(falsify).parameters
+    assert all(params[o].kind is inspect.Parameter.KEYWORD_ONLY
+               for o in ("budget", "out", "jobs", "seed", "scheduler", "tls", "fitted_from",
+                         "against", "keep", "log", "progress"))
+    params = inspect.signature(worst_toml).parameters
+    assert all(params[o].kind is inspect.Parameter.KEYWORD_ONLY for o in ("label", "note"))
+
+
 def test_no_fault_free_group_is_refused():
     config = _with(group=[g for g in SMOKE.to_dict()["group"] if g["fault"] != "none"])
     with pytest.raises(FalsifyError, match="campaign 'smoke' has no fault-free"):
@@ -133,19 +151,22 @@ def test_anchor_is_the_realistic_point_nearest_the_centre():
 
 
 def test_anchor_distance_is_scaled_by_each_columns_span():
-    # (18000, 220) and (28000, 220) are both realistic; the centre (23000, 220, 233, 17) is
-    # not. Scaled by the spans (20000 ft, 140 kt) the distances to the centre of the box
-    # (23000 ft, 230 kt) are equal in altitude; the speed decides nothing either, so the
-    # first of the grid points in grid order wins among equals — unless the spans are not
-    # used: here they make (28000, 300) farther than (28000, 220).
-    config = _with(envelope={"alt_ft": [18000.0, 28000.0], "vcas_kt": [160.0, 220.0, 300.0],
-                             "mass_t": [233.0], "cg_pct": [17.0]})
+    # the centre (23000 ft, 210 kt, 206.5 t) is not realistic; of the realistic grid points
+    # (8000 ft, 220 kt, 180 t) is the nearest in units of each column's span
+    # (√(0.5² + 0.1² + 0.5²) = 0.714), (28000 ft, 260 kt, 180 t) the next
+    # (√(0.167² + 0.5² + 0.5²) = 0.726); in unscaled units the altitude alone decides
+    env = {"alt_ft": [8000.0, 28000.0, 38000.0], "vcas_kt": [160.0, 220.0, 260.0],
+           "mass_t": [180.0, 233.0], "cg_pct": [17.0]}
+    config = _with(envelope=env)
+    assert not _realistic(config, [23000.0, 210.0, 206.5, 17.0])[0]
+    assert _realistic(config, [[8000.0, 220.0, 180.0, 17.0], [28000.0, 260.0, 180.0, 17.0]]
+                      ).all()
     space = search_space(config)
-    lo = np.array([18000.0, 160.0, 233.0, 17.0])
-    hi = np.array([28000.0, 300.0, 233.0, 17.0])
-    grid = envelope.grid_points(envelope.GridTable(
-        alt_ft=(18000.0, 28000.0), vcas_kt=(160.0, 220.0, 300.0), mass_t=(233.0,),
-        cg_pct=(17.0,)))[list(FLIGHT_COLUMNS)].to_numpy(float)
+    np.testing.assert_array_equal(space.anchors[0], [8000.0, 220.0, 180.0, 17.0])
+    lo = np.array([8000.0, 160.0, 180.0, 17.0])
+    hi = np.array([38000.0, 260.0, 233.0, 17.0])
+    grid = envelope.grid_points(envelope.GridTable(**{c: tuple(env[c]) for c in env}))[
+        list(FLIGHT_COLUMNS)].to_numpy(float)
     points = np.vstack([(lo + hi) / 2, grid])
     ok = _realistic(config, points)
     span = np.where(hi > lo, hi - lo, 1.0)
@@ -386,7 +407,10 @@ def test_worst_toml_replays_its_runs_with_the_note_as_comments():
 
 
 def _search(margins, alarms):
-    rows = explicit_plan(SMOKE, [_run(100 + i, alt=18000.0 + i) for i in range(len(margins))])
+    # the runs of even streams leave their manoeuvre start to the model (NaN)
+    rows = explicit_plan(SMOKE, [_run(100 + i, alt=18000.0 + i,
+                                      start=None if i % 2 == 0 else 5.5)
+                                 for i in range(len(margins))])
     return rows.assign(margin=np.asarray(margins, float), false_alarm=alarms)
 
 
@@ -401,6 +425,7 @@ def test_write_worst_puts_false_alarms_first_then_the_largest_margins(tmp_path):
     # the two false alarms (1.05, 0.9), then the largest margin of the rest (1.2)
     assert [r["stream"] for r in runs] == [104, 102, 101]
     assert [r["alt_ft"] for r in runs] == [18004.0, 18002.0, 18001.0]
+    assert [r.get("manoeuvre_start_s") for r in runs] == [None, None, 5.5]
     assert "(seed 7,\n# budget 60)" in text and "false alarm first (2)" in text
     assert "margins 1.05, 0.9, 1.2." in text
     assert "--fitted-from" in text and str(tmp_path / "learned") in text
@@ -467,8 +492,14 @@ def test_warm_rows_of_an_unknown_manoeuvre_are_skipped():
 
 def test_an_aircraft_campaign_has_no_start_dimension():
     config = load_config("chen-mc")
-    strategy = _strategy(search_space(config), config, 60, 0, None)
+    space = search_space(config)
+    strategy = _strategy(space, config, 60, 0, None)
     assert strategy.start_dim is None
+    plan = build_plan(config)
+    warm = plan[plan["fault"] == "none"].head(2)
+    strategy = _strategy(space, config, 60, 0, warm)
+    assert len(strategy.warm) == 2 and strategy.warm_start == {}
+    np.testing.assert_array_equal(strategy.warm[0].unit, space.unit_of(warm.iloc[0]))
 
 
 # ---- arguments, before any work -----------------------------------------------------------
@@ -600,9 +631,14 @@ def test_a_variant_the_results_lack_is_refused_on_the_first_batch(tmp_path, pipe
 
 
 def test_the_search_reports_its_progress(tmp_path, pipeline):
+    from campaign.store.files import read_metadata
+
     said = []
-    res = falsify(SMOKE, "position-monitor", budget=30, out=tmp_path / "s", jobs=1, seed=3,
-                  log=said.append, progress=True)
+    out = tmp_path / "a" / "b"                               # parents made as needed
+    res = falsify(SMOKE, "position-monitor", budget=30, out=out, log=said.append)
+    # the defaults: seed 0, two workers, the progress shown
+    assert int(read_metadata(out / "search.parquet")["seed"]) == 0
+    assert pipeline.prepared[0][2]["jobs"] == 2
     lines = [line for line in said if "worst margin so far" in line]
     # one line a batch, each with the largest margin of the batches so far (4 digits)
     assert [line.split(":")[0] for line in lines] == ["screen (batch 1)", "polish (batch 2)"]
