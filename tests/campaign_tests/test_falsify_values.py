@@ -350,6 +350,8 @@ def test_result_counts_the_searched_false_alarms():
     assert res.false_alarms == 2 and res.false_alarm and res.margin_kind == "decision"
     res = FalsifyResult("pm", search.iloc[:1], search.iloc[0], 0.5, 10, "mc", 0)
     assert res.false_alarms == 0 and not res.false_alarm
+    res = FalsifyResult("pm", search.iloc[:2], search.iloc[0], 0.5, 10, "mc", 0)
+    assert res.false_alarms == 1 and res.false_alarm
 
 
 # ---- the plain Monte Carlo ----------------------------------------------------------------
@@ -510,6 +512,7 @@ NO_FREE = _with(group=[g for g in SMOKE.to_dict()["group"] if g["fault"] != "non
     ({"budget": 0}, "budget=0: must be a whole number of runs ≥ 10; fix: e.g. budget=600"),
     ({"budget": True}, "budget=True: must be a whole number of runs ≥ 10"),
     ({"budget": 20.0}, "budget=20.0: must be a whole number of runs ≥ 10"),
+    ({"budget": 1}, "budget=1: too small; the search needs at least 10 runs"),
     ({"budget": 9}, "budget=9: too small; the search needs at least 10 runs (screening, then "
                     "the worst cell); fix: e.g. budget=600, or any other ≥ 10"),
     ({"budget": 20, "keep": 0}, "keep=0: must be a whole number ≥ 1 (runs written to "
@@ -593,6 +596,7 @@ def test_the_search_evaluates_its_batches_and_compares_with_a_plain_monte_carlo(
                       "log": said.append}
     assert pipeline.closed == 1
     search = res.search
+    assert list(search.index) == list(range(30))            # one index over the batches
     # the budget in batches: screening (10 of 30), sweep; then the Monte Carlo's 30 runs
     assert len(search) == 30 == sum(pipeline.batches[:-1]) and pipeline.batches[-1] == 30
     assert list(dict.fromkeys(search["phase"])) == ["screen", "polish"]
@@ -630,12 +634,12 @@ def test_a_variant_the_results_lack_is_refused_on_the_first_batch(tmp_path, pipe
     assert len(pipeline.batches) == 1 and pipeline.closed == 1
 
 
-def test_the_search_reports_its_progress(tmp_path, pipeline):
+def test_the_search_reports_its_progress(tmp_path, pipeline, capsys):
     from campaign.store.files import read_metadata
 
-    said = []
     out = tmp_path / "a" / "b"                               # parents made as needed
-    res = falsify(SMOKE, "position-monitor", budget=30, out=out, log=said.append)
+    res = falsify(SMOKE, "position-monitor", budget=30, out=out)
+    said = capsys.readouterr().err.splitlines()            # no log given: to stderr
     # the defaults: seed 0, two workers, the progress shown
     assert int(read_metadata(out / "search.parquet")["seed"]) == 0
     assert pipeline.prepared[0][2]["jobs"] == 2
