@@ -116,3 +116,24 @@ def test_the_search_against_a_campaign_opens_with_its_worst_runs(against, tmp_pa
     np.testing.assert_array_equal(first["vcas_kt"], rows["vcas_kt"])
     assert first["manoeuvre_start_s"].isna().all()
     assert not (out / "monte-carlo.parquet").exists() and len(pipeline.batches) == 2
+
+
+def test_a_worst_run_the_plan_lacks_counts_but_is_not_replayed(against, tmp_path):
+    # a result row of a run id outside the plan (plan position = the plan's run count)
+    import shutil
+
+    from campaign.result import load
+
+    copy = tmp_path / "c"
+    shutil.copytree(against, copy)
+    cdir = CampaignDir(copy)
+    row = pd.read_parquet(cdir.shard_paths()[-1])
+    row = row[(row["detector"] == "sm") & (row["fault"] == "none")].head(1)
+    cdir.write_shard(row.assign(run_id="outside-the-plan", margin=9.0),
+                     load(copy).config.to_json())
+    config = _against_config()
+    (top, n_free, _), rows = _against(copy, config, "sm", 3)
+    _, whole = _against(against, config, "sm", 3)
+    assert (top, n_free) == (9.0, 13)
+    # the two worst runs of the plan, in order; the outside run left out
+    assert list(rows["run_id"]) == list(whole["run_id"].iloc[:2])

@@ -587,6 +587,7 @@ def test_the_search_evaluates_its_batches_and_compares_with_a_plain_monte_carlo(
     from campaign.store.files import read_metadata
 
     out = tmp_path / "s"
+    out.mkdir()                                   # an existing directory is written into
     said = []
     res = falsify(SMOKE, "position-monitor", budget=30, out=out, jobs=3, seed=3, keep=4,
                   log=said.append, progress=False)
@@ -640,9 +641,10 @@ def test_the_search_reports_its_progress(tmp_path, pipeline, capsys):
     out = tmp_path / "a" / "b"                               # parents made as needed
     res = falsify(SMOKE, "position-monitor", budget=30, out=out)
     said = capsys.readouterr().err.splitlines()            # no log given: to stderr
-    # the defaults: seed 0, two workers, the progress shown
+    # the defaults: seed 0, two workers, the 10 worst runs kept, the progress shown
     assert int(read_metadata(out / "search.parquet")["seed"]) == 0
     assert pipeline.prepared[0][2]["jobs"] == 2
+    assert len(tomllib.loads((out / "worst.toml").read_text())["run"]) == 10     # keep
     lines = [line for line in said if "worst margin so far" in line]
     # one line a batch, each with the largest margin of the batches so far (4 digits)
     assert [line.split(":")[0] for line in lines] == ["screen (batch 1)", "polish (batch 2)"]
