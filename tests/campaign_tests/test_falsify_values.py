@@ -174,6 +174,17 @@ def test_anchor_distance_is_scaled_by_each_columns_span():
     np.testing.assert_array_equal(space.anchors[0], points[ok][int(np.argmin(dist))])
 
 
+def test_a_one_valued_column_leaves_the_nearest_point_to_the_others():
+    # cg held at 17 %: its span counts as 1, not 0 (0/0 would make every distance NaN and
+    # pick the first realistic point, (8000 ft, 220 kt, 180 t))
+    env = {"alt_ft": [8000.0, 18000.0, 28000.0], "vcas_kt": [160.0, 220.0, 260.0],
+           "mass_t": [180.0, 233.0], "cg_pct": [17.0]}
+    config = _with(envelope=env)
+    assert not _realistic(config, [18000.0, 210.0, 206.5, 17.0])[0]
+    np.testing.assert_array_equal(search_space(config).anchors[0],
+                                  [18000.0, 220.0, 180.0, 17.0])
+
+
 def test_anchor_without_the_realistic_rule_is_the_centre():
     space = search_space(_with(envelope=CORNER, campaign={"realistic_only": False}))
     np.testing.assert_array_equal(space.anchors[0], [33000.0, 230.0, 233.0, 17.0])
