@@ -109,6 +109,12 @@ TESTS: dict[str, tuple[str, ...]] = {
                                     "tests/campaign_tests/test_hazard.py"),
     "campaign/evidence/rare.py": ("tests/campaign_tests/test_rare_values.py",
                                   "tests/campaign_tests/test_rare.py"),
+    "campaign/evidence/figures.py": ("tests/campaign_tests/test_figures_values.py",),
+    "campaign/evidence/falsify_search.py": (
+        "tests/campaign_tests/test_falsify_search_values.py",),
+    "campaign/evidence/worst_case.py": ("tests/campaign_tests/test_worst_case_values.py",),
+    "campaign/evidence/falsify.py": ("tests/campaign_tests/test_falsify_values.py",
+                                     "tests/campaign_tests/test_falsify_against_values.py"),
     "detectors/builtin/position_monitor.py": (
         "tests/detectors_tests/test_position_monitor_values.py",
         "tests/detectors_tests/test_position_monitor_band.py",
