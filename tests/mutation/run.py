@@ -92,6 +92,9 @@ TESTS: dict[str, tuple[str, ...]] = {
                           "tests/detectors_tests/test_calibrate_values.py"),
     "scenarios/aircraft/laws.py": ("tests/scenarios_tests/test_aircraft_laws_values.py",
                                    "tests/scenarios_tests/test_aircraft_truth_blind.py"),
+    "scenarios/aircraft/pilot.py": ("tests/scenarios_tests/test_aircraft_pilot_values.py",
+                                    "tests/scenarios_tests/test_aircraft_model.py",
+                                    "tests/scenarios_tests/test_manoeuvre_sets.py"),
     "campaign/evidence/certify/levels.py": (
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
