@@ -95,6 +95,9 @@ TESTS: dict[str, tuple[str, ...]] = {
     "scenarios/aircraft/pilot.py": ("tests/scenarios_tests/test_aircraft_pilot_values.py",
                                     "tests/scenarios_tests/test_aircraft_model.py",
                                     "tests/scenarios_tests/test_manoeuvre_sets.py"),
+    "scenarios/aircraft/lpv.py": ("tests/scenarios_tests/test_aircraft_lpv_values.py",
+                                  "tests/scenarios_tests/test_aircraft_data_values.py",
+                                  "tests/scenarios_tests/test_aircraft_model.py"),
     "campaign/evidence/certify/levels.py": (
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
