@@ -98,6 +98,10 @@ TESTS: dict[str, tuple[str, ...]] = {
     "scenarios/aircraft/lpv.py": ("tests/scenarios_tests/test_aircraft_lpv_values.py",
                                   "tests/scenarios_tests/test_aircraft_data_values.py",
                                   "tests/scenarios_tests/test_aircraft_model.py"),
+    "scenarios/aircraft/data.py": ("tests/scenarios_tests/test_aircraft_data_values.py",
+                                   "tests/scenarios_tests/test_aircraft_lpv_values.py",
+                                   "tests/scenarios_tests/test_aircraft_pilot_values.py",
+                                   "tests/scenarios_tests/test_aircraft_model.py"),
     "campaign/evidence/certify/levels.py": (
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
