@@ -12,6 +12,7 @@ sign, factor or column moves these by per cents."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import replace
 
@@ -95,6 +96,20 @@ def test_scheduled_derivatives_are_mach_and_cg_scaled_then_drawn_per_coefficient
     np.testing.assert_allclose(same["Cl_p"], 1.1 * nominal["Cl_p"], rtol=REL)
     with pytest.raises(ValueError, match=r"unknown aerodynamic coefficient\(s\) \['cw'\]"):
         lpv.scheduled_derivatives(MACH, CG, {"cw": 0.1})
+
+
+def test_one_flight_point_with_draws_per_run_gives_one_derivative_a_run():
+    """A scalar Mach and CG with a mapping of per-run draws: arrays of the draws' shape,
+    the derivatives and the control rows alike."""
+    draws = {"cz": np.array([0.01, -0.02]), "cl": np.array([0.03, 0.0])}
+    d = lpv.scheduled_derivatives(0.7, 30.0, draws)
+    nominal = lpv.scheduled_derivatives(0.7, 30.0)
+    np.testing.assert_allclose(d["Cz_q"], nominal["Cz_q"] * np.array([1.01, 0.98]), rtol=REL)
+    np.testing.assert_allclose(d["Cm_q"], np.full(2, nominal["Cm_q"]), rtol=REL)
+    c = lpv.control_derivatives(0.7, 30.0, draws)
+    c0 = lpv.control_derivatives(0.7, 30.0)
+    assert c["Cl"].shape == (2, lpv.N_INPUTS)
+    np.testing.assert_allclose(c["Cl"], c0["Cl"] * np.array([[1.03], [1.0]]), rtol=REL)
 
 
 def test_scheduled_derivatives_at_the_reference_point_are_the_table():
@@ -291,16 +306,43 @@ def test_the_exact_discretisations_are_the_matrix_exponential_series(ts):
 
 
 def test_modes_pick_the_upper_roots_and_the_fastest_and_slowest_real_roots():
-    """On a hand-made block-diagonal model: short period −1 ± 2j, Dutch roll −0.1 ± 1j,
-    roll −2, spiral +0.01 (real roots told from complex ones by |Im| < 1e-9)."""
+    """On a hand-made block-diagonal model: short period −1 ± 2j, an oscillation −3 ± 0.5j
+    in the Dutch roll's place (faster than the roll and slower than 1 rad/s, so that
+    counting a complex root as real would move the roll root), roll −2, spiral +0.01 (real
+    roots told from complex ones by |Im| < 1e-9)."""
     A = np.zeros((1, 7, 7))
     A[0, :2, :2] = [[-1.0, 2.0], [-2.0, -1.0]]
-    A[0, 3:5, 3:5] = [[-0.1, 1.0], [-1.0, -0.1]]
+    A[0, 3:5, 3:5] = [[-3.0, 0.5], [-0.5, -3.0]]
     A[0, 5, 5], A[0, 6, 6] = -2.0, 0.01
     m = lpv.ContinuousModel(A=A, B=np.zeros((1, 7, 10)), C=np.zeros((1, 2, 7)),
                             D=np.zeros((1, 2, 10)), tas_ms=np.ones(1))
     md = lpv.modes(m)
     assert md["short_period"][0] == pytest.approx(complex(-1.0, 2.0), abs=1e-12)
-    assert md["dutch_roll"][0] == pytest.approx(complex(-0.1, 1.0), abs=1e-12)
+    assert md["dutch_roll"][0] == pytest.approx(complex(-3.0, 0.5), abs=1e-12)
     assert md["roll"][0] == pytest.approx(-2.0, abs=1e-12)
     assert md["spiral"][0] == pytest.approx(0.01, abs=1e-12)
+
+
+def test_a_root_whose_imaginary_part_is_at_the_threshold_counts_as_complex():
+    """Decision boundary of modes: |Im| = 1e-9 exactly (−3 ± 1e-9j, exact in the
+    eigensolver for this block) is not a real root, so the roll root stays −2."""
+    A = np.zeros((1, 7, 7))
+    A[0, 3:5, 3:5] = [[-3.0, 1e-9], [-1e-9, -3.0]]
+    A[0, 5, 5], A[0, 6, 6] = -2.0, 0.01
+    m = lpv.ContinuousModel(A=A, B=np.zeros((1, 7, 10)), C=np.zeros((1, 2, 7)),
+                            D=np.zeros((1, 2, 10)), tas_ms=np.ones(1))
+    assert np.abs(np.linalg.eigvals(A[0, 3:, 3:]).imag).max() == 1e-9
+    assert lpv.modes(m)["roll"][0] == -2.0
+
+
+def test_models_are_frozen_and_the_options_of_run_models_are_keyword_only():
+    """A model or an airframe set is never changed after it is built; run_models's aircraft
+    and layout are named (passed by position they would be taken for one another)."""
+    model, _, frames, _ = _model()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        model.A = model.A
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        frames.S = 1.0
+    flight = {"mass_t": MASS, "cg_pct": CG, "mach": MACH, "qbar_pa": QBAR, "tas_ms": TAS}
+    with pytest.raises(TypeError, match="positional"):
+        lpv.run_models(flight, 0.0, A330)
