@@ -102,6 +102,9 @@ TESTS: dict[str, tuple[str, ...]] = {
                                    "tests/scenarios_tests/test_aircraft_lpv_values.py",
                                    "tests/scenarios_tests/test_aircraft_pilot_values.py",
                                    "tests/scenarios_tests/test_aircraft_model.py"),
+    "scenarios/aircraft/loop.py": ("tests/scenarios_tests/test_aircraft_loop_values.py",
+                                   "tests/scenarios_tests/test_aircraft_truth_blind.py",
+                                   "tests/scenarios_tests/test_aircraft_kernel.py"),
     "campaign/evidence/certify/levels.py": (
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
