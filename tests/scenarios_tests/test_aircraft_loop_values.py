@@ -11,19 +11,21 @@ numbers; a value taken from the wrong stream, position, surface or run differs."
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from scenarios import acquisition, envelope
-from scenarios.aircraft import laws, loop, lpv, pilot
+from scenarios.aircraft import kernel, laws, loop, lpv, pilot
 from scenarios.aircraft.data import AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, LAYOUT
 from scenarios.faults import fault_arrays
 from scenarios.manoeuvres import elevator_trim_deg
 from scenarios.params import ELEVATOR, SENSORS
 from scenarios.runs import flight_of, run_streams
 from scenarios.servo import authority_limits, plant_arrays
-from scenarios.simulate import single_run
+from scenarios.simulate import servo_provides, single_run
 from scenarios.turbulence import MODERATE, dryden_gusts
 
 MONITORED = "left_inboard_aileron"
@@ -180,3 +182,82 @@ def test_the_servos_start_at_the_trim(batch):
     np.testing.assert_array_equal(x, want)
     np.testing.assert_array_equal(delta, np.arcsin(want / r))
     assert x[0] != 0 and x[6] == 0
+
+
+def test_each_law_moves_its_own_surfaces():
+    """The pitch order drives the two elevators, the yaw order the rudder, the roll order the
+    ailerons with the laws' antisymmetric distribution (docs/aircraft.md §4)."""
+    np.testing.assert_array_equal(loop._PITCH, [1, 1, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(loop._YAW, [0, 0, 0, 0, 0, 0, 1])
+    np.testing.assert_array_equal(loop._ELEVATORS, [True, True, False, False, False, False,
+                                                    False])
+    np.testing.assert_array_equal(loop._ROLL, laws.ROLL_DISTRIBUTION[:7])
+
+
+def test_the_engine_runs_the_kernel_only_when_asked_and_available(batch, monkeypatch):
+    """integrate_aircraft: the compiled kernel with engine "compiled" where it can run bit for
+    bit, the NumPy reference otherwise (engine "numpy", or the kernel unavailable)."""
+    _, p = batch
+    monkeypatch.setattr(loop, "_integrate_compiled", lambda p, s: "compiled")
+    monkeypatch.setattr(loop, "integrate_reference", lambda p, s: "reference")
+    monkeypatch.setattr(loop.kernel, "available", lambda: True)
+    assert loop.integrate_aircraft(p, engine="compiled") == "compiled"
+    assert loop.integrate_aircraft(p, engine="numpy") == "reference"
+    monkeypatch.setattr(loop.kernel, "available", lambda: False)
+    assert loop.integrate_aircraft(p, engine="compiled") == "reference"
+
+
+def test_the_plant_s_options_are_keyword_only():
+    """ts, sensors and the pressure sensor are named (a period passed by position would be
+    taken for the sensors)."""
+    plant = loop.AircraftPlant()
+    runs = _runs(1.0)
+    with pytest.raises(TypeError, match="positional"):
+        plant.simulate_signals(runs, 0.01)
+    with pytest.raises(TypeError, match="positional"):
+        plant.simulate(runs, 0.01)
+
+
+def test_the_plant_names_its_surfaces_and_signals():
+    plant = loop.AircraftPlant()
+    assert plant.run_surface("elevator") == "left_elevator"
+    assert plant.run_surface("aileron") == "left_inboard_aileron"
+    assert plant.run_surface("aileron", "right_outboard_aileron") == "right_outboard_aileron"
+    act = plant.actuator("rudder")
+    for pressure in (False, True):
+        want = servo_provides(act, pressure) | {"aircraft"}
+        assert plant.provides("rudder", pressure_sensor=pressure) == want
+        assert "aircraft" in want and len(want) > 1
+
+
+@pytest.mark.skipif(not kernel.available(), reason="the compiled aircraft loop cannot run "
+                                                    "bit for bit here (see kernel.available)")
+def test_an_offset_jam_and_a_runaway_past_the_stop_in_the_kernel_and_the_reference():
+    """The two paths a campaign's default faults rarely take, the kernel against the NumPy
+    reference bit for bit: an "offset" solid jam (the rod jumps by −1.1 mm at onset, [CHEN]
+    eq. 4) and a runaway at −60 °/s, whose order passes the lower stop and is clipped 5°
+    beyond it (docs/physics.md §5), so the rod ends on its stop."""
+    runs = _runs(3.0).iloc[:2].copy()
+    runs["fault"] = ["solid_jam", "runaway"]
+    runs["onset_s"] = [1.0, 0.5]
+    runs["magnitude"] = [-1.1, -60.0]
+    p = loop.prepare_aircraft(runs)
+    ref = loop.integrate_reference(p)
+    fast = loop.integrate_aircraft(p, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    k0 = 100
+    # the jump plus the rod's own motion over one period (0.07 mm here, under 0.1 mm)
+    assert ref.x[0, k0] - ref.x[0, k0 - 1] == pytest.approx(-1.1, abs=0.1)
+    assert (ref.x[0, k0:] == ref.x[0, k0]).all()
+    assert ref.x[1, -1] == pytest.approx(p.plant_m.x_min[1], abs=1e-6)
+
+
+def test_prepared_batches_and_plants_are_frozen_and_simulate_aircraft_s_options_named(batch):
+    _, p = batch
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.n = 4
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        loop.AircraftPlant().turbulence = "none"
+    with pytest.raises(TypeError, match="positional"):
+        loop.simulate_aircraft(_runs(1.0), 0.01)
