@@ -33,7 +33,8 @@ CASES = (("turn_coordination", "none"), ("nose_up", "runaway"), ("cruise", "soli
 
 
 def _runs(duration_s=10.0):
-    rows = [single_run("aileron", man, fault, duration_s=duration_s, onset_s=5.0, seed=11 + i,
+    rows = [single_run("aileron", man, fault, duration_s=duration_s,
+                       onset_s=min(5.0, duration_s / 2), seed=11 + i,
                        alt_ft=12000.0 + 6000.0 * i, mass_t=150.0 + 30.0 * i)
             for i, (man, fault) in enumerate(CASES)]
     runs = pd.concat(rows, ignore_index=True)
@@ -236,11 +237,14 @@ def test_an_offset_jam_and_a_runaway_past_the_stop_in_the_kernel_and_the_referen
     """The two paths a campaign's default faults rarely take, the kernel against the NumPy
     reference bit for bit: an "offset" solid jam (the rod jumps by −1.1 mm at onset, [CHEN]
     eq. 4) and a runaway at −60 °/s, whose order passes the lower stop and is clipped 5°
-    beyond it (docs/physics.md §5), so the rod ends on its stop."""
-    runs = _runs(3.0).iloc[:2].copy()
-    runs["fault"] = ["solid_jam", "runaway"]
-    runs["onset_s"] = [1.0, 0.5]
-    runs["magnitude"] = [-1.1, -60.0]
+    beyond it (docs/physics.md §5), so the rod ends on its stop; the same upwards at 160 kt
+    and 10 000 ft, where the hinge load lets the rod reach its upper stop (at 300 kt it
+    stalls half-way, where any order beyond saturates the current alike)."""
+    runs = _runs(3.0)
+    runs.loc[2, ["alt_ft", "vcas_kt"]] = [10000.0, 160.0]
+    runs["fault"] = ["solid_jam", "runaway", "runaway"]
+    runs["onset_s"] = [1.0, 0.5, 0.5]
+    runs["magnitude"] = [-1.1, -60.0, 60.0]
     p = loop.prepare_aircraft(runs)
     ref = loop.integrate_reference(p)
     fast = loop.integrate_aircraft(p, engine="compiled")
@@ -251,6 +255,28 @@ def test_an_offset_jam_and_a_runaway_past_the_stop_in_the_kernel_and_the_referen
     assert ref.x[0, k0] - ref.x[0, k0 - 1] == pytest.approx(-1.1, abs=0.1)
     assert (ref.x[0, k0:] == ref.x[0, k0]).all()
     assert ref.x[1, -1] == pytest.approx(p.plant_m.x_min[1], abs=1e-6)
+    assert ref.x[2, -1] == pytest.approx(p.plant_m.x_max[2], abs=1e-6)
+
+
+@pytest.mark.skipif(not kernel.available(), reason="the compiled aircraft loop cannot run "
+                                                    "bit for bit here (see kernel.available)")
+def test_an_elevator_sensor_reading_past_the_rod_s_reach_is_read_at_the_end_of_its_arc():
+    """Decision boundary of the elevator angle the laws read from the COM rods (asin of y/r
+    clipped to ±1): a monitored elevator's COM acquisition off by ±200 mm (beyond its
+    r = 120 mm) is read as ±90° in both engines, bit for bit."""
+    runs = _runs(1.0).iloc[:2].copy()
+    runs["surface"] = "left_elevator"
+    runs["fault"] = "none"
+    p = loop.prepare_aircraft(runs, turbulence=None)
+    add = np.empty((2, p.T))
+    add[0], add[1] = 200.0, -200.0
+    p = dataclasses.replace(p, faults=dataclasses.replace(p.faults, com_add=add))
+    ref = loop.integrate_reference(p)
+    fast = loop.integrate_aircraft(p, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    assert np.isfinite(ref.states).all()
+    assert ref.y_com[0, 0] > 120.0 and ref.y_com[1, 0] < -120.0
 
 
 def test_prepared_batches_and_plants_are_frozen_and_simulate_aircraft_s_options_named(batch):
@@ -261,3 +287,15 @@ def test_prepared_batches_and_plants_are_frozen_and_simulate_aircraft_s_options_
         loop.AircraftPlant().turbulence = "none"
     with pytest.raises(TypeError, match="positional"):
         loop.simulate_aircraft(_runs(1.0), 0.01)
+    with pytest.raises(TypeError, match="positional"):
+        loop.prepare_aircraft(_runs(1.0), 0.01)
+    traj = loop.integrate_reference(loop.prepare_aircraft(_runs(1.0)))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        traj.x = traj.x
+
+
+def test_the_plant_has_no_pressure_sensor_unless_asked():
+    runs = _runs(1.0)
+    plant = loop.AircraftPlant(turbulence="none")
+    assert np.isnan(plant.simulate(runs)[0].pressure).all()
+    assert np.isfinite(plant.simulate(runs, pressure_sensor=True)[0].pressure).all()
