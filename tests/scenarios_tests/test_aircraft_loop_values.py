@@ -299,3 +299,34 @@ def test_the_plant_has_no_pressure_sensor_unless_asked():
     plant = loop.AircraftPlant(turbulence="none")
     assert np.isnan(plant.simulate(runs)[0].pressure).all()
     assert np.isfinite(plant.simulate(runs, pressure_sensor=True)[0].pressure).all()
+
+
+def test_the_options_of_the_block_functions_and_of_the_plant_are_named(batch):
+    runs, p = batch
+    plant = loop.AircraftPlant()
+    with pytest.raises(TypeError, match="positional"):
+        plant.simulate(runs, 0.01)
+    with pytest.raises(TypeError, match="positional"):
+        plant.provides("rudder", False)
+    with pytest.raises(TypeError, match="positional"):
+        loop._simulate_block(runs, 0.01, SENSORS, False, None, laws.LAWS, AIRCRAFT_SENSORS,
+                             True)
+    small = _runs(1.0)
+    q = loop.prepare_aircraft(small)
+    traj = loop.integrate_reference(q)
+    with pytest.raises(TypeError, match="positional"):
+        loop.trajectory_signals(traj, q, small, 0.01, SENSORS, False, True)
+
+
+def test_blocks_that_all_have_a_jam_keep_every_rod_fault(monkeypatch):
+    """rod_fault_mm of a batch cut into blocks each with a solid jam: every block's series
+    (none is NaN-filled or dropped), as the batch simulated whole gives them."""
+    runs = _runs(1.0).iloc[:2].copy()
+    runs["fault"] = "solid_jam"
+    runs["onset_s"] = 0.5
+    runs["magnitude"] = np.nan
+    _, whole = loop.simulate_aircraft(runs, turbulence=None)
+    monkeypatch.setattr(loop.AircraftPlant, "batch_runs", 1)
+    _, cut = loop.simulate_aircraft(runs, turbulence=None)
+    assert cut.rod_fault_mm is not None and np.isfinite(cut.rod_fault_mm[:, -1]).all()
+    np.testing.assert_array_equal(cut.rod_fault_mm, whole.rod_fault_mm)
