@@ -105,6 +105,8 @@ TESTS: dict[str, tuple[str, ...]] = {
     "scenarios/aircraft/loop.py": ("tests/scenarios_tests/test_aircraft_loop_values.py",
                                    "tests/scenarios_tests/test_aircraft_truth_blind.py",
                                    "tests/scenarios_tests/test_aircraft_kernel.py"),
+    "scenarios/aircraft/kernel.py": ("tests/scenarios_tests/test_aircraft_loop_values.py",
+                                     "tests/scenarios_tests/test_aircraft_kernel.py"),
     "campaign/evidence/certify/levels.py": (
         "tests/campaign_tests/test_certify_level_rows_values.py",
         "tests/campaign_tests/test_certify_mixture_values.py",
