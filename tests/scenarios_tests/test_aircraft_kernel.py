@@ -127,3 +127,29 @@ def test_without_jit_the_aircraft_plant_runs_the_numpy_loop():
     env = {**__import__("os").environ, "NUMBA_DISABLE_JIT": "1"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+@pytest.mark.skipif(kernel._numpy_blas() is None or not kernel._jit_enabled(),
+                    reason="another NumPy build (no bundled OpenBLAS) or NUMBA_DISABLE_JIT: "
+                           "the NumPy reference runs instead")
+def test_where_numpy_s_loops_and_blas_are_found_the_kernel_runs():
+    """The compiled loop is not silently turned off on a NumPy build that has what it needs:
+    the arcsin and power inner loops and dgemv resolved to addresses, NumPy's sin and cos
+    equal to the C library's on the sample, the kernel available."""
+    loops = kernel.LOOPS
+    assert loops is not None and len(loops) == 7
+    assert loops[0] and loops[3] and loops[6]          # arcsin, power, dgemv
+    assert kernel._self_check()
+    assert kernel.available()
+
+
+def test_the_self_check_refuses_a_cosine_one_ulp_off(monkeypatch):
+    """Either function differing from NumPy's on the sample turns the kernel off."""
+    import math
+    import types
+
+    def off(a):
+        return math.nextafter(math.cos(a), 2.0)
+
+    monkeypatch.setattr(kernel, "math", types.SimpleNamespace(sin=math.sin, cos=off))
+    assert not kernel._self_check()
