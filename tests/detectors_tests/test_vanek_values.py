@@ -571,6 +571,20 @@ def test_adaptive_threshold_is_tau0_plus_the_allowance():
                                   np.abs(r["lpv-affine"]) / (1.7 * 0.4))
 
 
+def test_a_learned_threshold_of_zero_is_refused():
+    """τ0 is learned on each run's largest (|r̂| − b)⁺: learning runs whose |r̂| never
+    exceeds b(t) (no sensor noise) give τ0 = 0, a threshold that would alarm on any
+    residual above the allowance; the fit refuses it, naming the variant."""
+    sig = _signals()
+    r = {"lti": np.array([[0.1, -0.5, 0.2], [0.3, 0.2, -0.1]])}
+    det = _stubbed(_fitted_max(variants=("lti",), aoa_sensor=True), r)
+    det.allowances = lambda signals, v=None: {"lti": np.abs(r["lti"])}
+    with pytest.raises(ValueError, match=r"\[lti\]: the learned threshold is 0.0"):
+        det.fit(sig)
+    det.allowances = lambda signals, v=None: {"lti": np.abs(r["lti"]) - 1e-3}
+    assert det.fit(sig).thresholds_deg_ == {"lti": pytest.approx(1.5e-3, rel=1e-9)}
+
+
 def test_the_allowance_needs_alpha_and_is_off_for_a_detector_fitted_before_it():
     """τ0 + b(t) is used with the α vane and ``adaptive`` (both defaults); without α (the
     bound needs every state) or without ``adaptive`` the thresholds are constant and no
