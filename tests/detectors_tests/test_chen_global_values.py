@@ -322,6 +322,11 @@ def test_envelope_schedules_are_the_table2_corners_widened_by_the_margin():
                                         ("cg_pct", "cg_pct", dc, w.cg)):
                 np.testing.assert_allclose(got[key][part], pts[true].to_numpy(float)
                                            * (1.0 + d * width * (1.0 + margin)), rtol=1e-14)
+    # without the corners: the points themselves, measured without error (whatever margin)
+    got = cg.envelope_schedules(0.25, corners=False)
+    assert len(got["mach"]) == n
+    for key in ("vcas_kt", "alt_ft", "mass_t", "cg_pct"):
+        np.testing.assert_allclose(got[key], pts[key].to_numpy(float), rtol=1e-14)
 
 
 def test_table2_error_bounds_are_the_largest_relative_errors():
