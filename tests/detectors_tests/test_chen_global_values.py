@@ -322,6 +322,11 @@ def test_envelope_schedules_are_the_table2_corners_widened_by_the_margin():
                                         ("cg_pct", "cg_pct", dc, w.cg)):
                 np.testing.assert_allclose(got[key][part], pts[true].to_numpy(float)
                                            * (1.0 + d * width * (1.0 + margin)), rtol=1e-14)
+    # without the corners: the points themselves, measured without error (whatever margin)
+    got = cg.envelope_schedules(0.25, corners=False)
+    assert len(got["mach"]) == n
+    for key in ("vcas_kt", "alt_ft", "mass_t", "cg_pct"):
+        np.testing.assert_allclose(got[key], pts[key].to_numpy(float), rtol=1e-14)
 
 
 def test_table2_error_bounds_are_the_largest_relative_errors():
@@ -756,3 +761,85 @@ def test_the_stable_components_rule_drops_a_component_whose_vertices_are_no_airc
     with pytest.raises(ValueError, match="no affine LPV fit.*stable at every vertex"):
         cg._stable_components(x, _affine_rows(x, np.eye(4), A_k, np.ones((4, 6))),
                               np.zeros(4), np.ones(4))
+
+
+def test_the_stable_components_rule_keeps_a_single_component_when_only_it_is_an_aircraft():
+    """Each of x1, x2, x3 spans only [0, 0.2] in the data, where its term 5·x_k on a00 is
+    real, but the box reaches 1, where A0 + x_k·A_k has a pole at +2 1/s: every subset with
+    one of them is refused at a vertex, and the single component x0 (whose fit, a00 about
+    −1.5 − 0.5·x0 with the three terms left out, is stable at its vertices) is kept."""
+    rng = np.random.default_rng(13)
+    x = rng.uniform(0.0, 1.0, (60, 4))
+    x[:, 1:] *= 0.2
+    A_k = np.zeros((4, 4, 4))
+    A_k[0] = -0.5 * np.eye(4)
+    A_k[1:, 0, 0] = 5.0                                   # a00 = −3 + 5·x_k: +2 at x_k = 1
+    Y = _affine_rows(x, -3.0 * np.eye(4), A_k, np.ones((4, 6)))
+    np.testing.assert_array_equal(cg._stable_components(x, Y, np.zeros(4), np.ones(4)), [0])
+
+
+def test_a_pole_at_zero_is_not_stable():
+    """Stable is every eigenvalue in the open left half-plane: a fit whose vertices all
+    have a pole at exactly 0 (a neutral mode: the data's a33 is 0 everywhere, so is every
+    fitted coefficient of it, and A is diagonal) is refused; at −1e-3 it is kept whole."""
+    rng = np.random.default_rng(14)
+    x = rng.uniform(0.0, 1.0, (60, 4))
+    A_k = np.zeros((4, 4, 4))
+    for k in range(4):
+        A_k[k][:3, :3] = -0.1 * (k + 1) * np.eye(3)
+    neutral = np.diag([-1.0, -1.0, -1.0, 0.0])
+    with pytest.raises(ValueError, match="no affine LPV fit.*stable at every vertex"):
+        cg._stable_components(x, _affine_rows(x, neutral, A_k, np.ones((4, 6))),
+                              np.zeros(4), np.ones(4))
+    slow = np.diag([-1.0, -1.0, -1.0, -1e-3])
+    np.testing.assert_array_equal(
+        cg._stable_components(x, _affine_rows(x, slow, A_k, np.ones((4, 6))),
+                              np.zeros(4), np.ones(4)), [0, 1, 2, 3])
+
+
+def test_a_nonlinear_aircrafts_fit_is_its_stable_components_with_its_residual(monkeypatch):
+    """On an aircraft whose models are not affine in ρ (here ours with L_β's entry scaled by
+    1 + q̄/1e4, ∝ ρ0² — as a JSBSim aircraft's linearisations are only approximately
+    affine), the fit is not refused: its components are the best-fitting subset whose
+    vertices of the box are stable (a plain search here), its coefficients the least squares
+    on them, and its residual the largest relative misfit (far above affine_tolerance). The
+    box is needed: without it, a ValueError."""
+    from scenarios import design_models
+
+    real = cg.lateral_models
+
+    def quadratic(schedule, airframe=None):
+        A, B = real(schedule)
+        A = A.copy()
+        A[:, 0, 0] *= 1.0 + np.asarray(schedule["qbar_pa"], float) / 1e4
+        return A, B
+
+    monkeypatch.setattr(cg, "lateral_models", quadratic)
+    monkeypatch.setattr(design_models, "exactly_affine", lambda airframe: airframe is None)
+    sched = {k: np.concatenate([s[k][::5] for _, s in plain_envelope(0.25)[::4]])
+             for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "mach", "qbar_pa")}
+    lo, hi = plain_box(0.25)
+    model = cg.fit_affine(sched, airframe="nonlinear", box=(lo, hi))
+    rho = plain_rho(sched)
+    A, B = quadratic(sched)
+    Y = np.concatenate([A.reshape(len(A), -1), B.reshape(len(B), -1)], axis=1)
+    best = (np.inf, None, None)
+    for r in range(1, 5):
+        for keep in itertools.combinations(range(4), r):
+            X = np.column_stack([np.ones(len(rho)), rho[:, keep]])
+            coef = np.linalg.lstsq(X, Y, rcond=None)[0]
+            verts = np.column_stack([np.ones(2 ** r),
+                                     list(itertools.product(*zip(lo[list(keep)],
+                                                                 hi[list(keep)])))])
+            if np.linalg.eigvals((verts @ coef)[:, :16].reshape(-1, 4, 4)).real.max() < 0.0:
+                misfit = np.abs(X @ coef - Y).max()
+                if misfit < best[0]:
+                    best = (misfit, keep, coef)
+    misfit, keep, coef = best
+    np.testing.assert_array_equal(model.keep, keep)
+    assert model.residual == pytest.approx(misfit / np.abs(Y).max(), rel=1e-9)
+    assert model.residual > 1e3 * cg.NUMERICS.affine_tolerance
+    np.testing.assert_allclose(model.coef_A, coef[:, :16].reshape(-1, 4, 4), rtol=1e-8,
+                               atol=1e-10 * np.abs(coef).max())
+    with pytest.raises(ValueError, match="needs the scheduling box"):
+        cg.fit_affine(sched, airframe="nonlinear")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import builtins
 import dataclasses
 import functools
+from collections import OrderedDict
 import pickle
 
 import numpy as np
@@ -19,8 +20,9 @@ import scipy.signal
 
 from detectors import calibrate
 from detectors.synthesis import geometric as geo
+from detectors.synthesis import vanek_model_error as me
 from detectors.builtin import vanek_geometric as vg
-from detectors.base import Detection
+from detectors.base import Capabilities, Detection, at_threshold_scale, set_threshold_scale
 from detectors.builtin.position_monitor import PositionMonitor
 from scenarios import envelope
 from scenarios.aircraft import lpv
@@ -163,16 +165,19 @@ def _geometric_estimate(gen, v, smoothing_s=2.0):
     B = np.hstack([gen.F, -gen.G])
     D = np.hstack([np.zeros((gen.M.shape[0], m)), -gen.H])
     r = _run_filter(gen.N, B, gen.M, D, v, g / (g @ g))
-    if smoothing_s > 0.0:
-        k = 2.0 * smoothing_s / TS
-        y = np.zeros_like(r)
-        for i in range(r.shape[0]):
-            prev_x = prev_y = 0.0
-            for t in range(r.shape[1]):
-                y[i, t] = (r[i, t] + prev_x - (1.0 - k) * prev_y) / (1.0 + k)
-                prev_x, prev_y = r[i, t], y[i, t]
-        r = y
-    return np.degrees(r)
+    return np.degrees(_lowpassed(r, smoothing_s) if smoothing_s > 0.0 else r)
+
+
+def _lowpassed(r, smoothing_s):
+    """1/(τ s + 1) by Tustin along axis 1, from rest."""
+    k = 2.0 * smoothing_s / TS
+    y = np.zeros_like(r)
+    for i in range(r.shape[0]):
+        prev_x = prev_y = 0.0
+        for t in range(r.shape[1]):
+            y[i, t] = (r[i, t] + prev_x - (1.0 - k) * prev_y) / (1.0 + k)
+            prev_x, prev_y = r[i, t], y[i, t]
+    return y
 
 
 def _close(actual, expected):
@@ -206,8 +211,11 @@ def test_documented_constants_and_defaults():
     f = vg._Filter(Ad=np.eye(1), Bd=np.eye(1), Cd=np.eye(1), Dd=np.eye(1), c=np.ones(1))
     with pytest.raises(dataclasses.FrozenInstanceError):
         f.c = np.zeros(1)               # a cached design cannot be altered
-    caps = vg.VanekGeometric.capabilities
-    assert caps.needs_fit and caps.causal and caps.needs_aircraft
+    # an aileron filter (isolation scored on the other surfaces' faults) whose decision is
+    # |r̂|/τ, so that a campaign's threshold_scale applies (test_a_threshold_scale_...)
+    assert vg.VanekGeometric.capabilities == Capabilities(
+        needs_fit=True, causal=True, needs_aircraft=True, fault_surfaces=(vg.FAULT_SURFACE,),
+        threshold_scale=True)
 
 
 def test_columns_output_matrix_and_flight_point():
@@ -416,6 +424,34 @@ def test_the_design_cache_keys_exact_points_and_is_bounded(monkeypatch):
     assert len(det._cache) == 3 and first not in det._cache and second in det._cache
 
 
+def test_a_design_made_while_another_thread_empties_the_cache_is_returned(monkeypatch):
+    """The cache is shared by the threads of a detector: when another thread empties it
+    between the size check and the eviction (popitem on an empty cache raises KeyError), the
+    design just made is still returned and the cache left as it is."""
+
+    class EmptiedMeanwhile(OrderedDict):
+        def popitem(self, last=True):
+            self.clear()                        # what the other thread did
+            return super().popitem(last)
+
+    det = _fitted_max()
+    det._cache = EmptiedMeanwhile(old="a design")
+    monkeypatch.setattr(vg, "DESIGN_CACHE_SIZE", 1)
+    assert det._memo("new", lambda: "its design") == "its design"
+    assert len(det._cache) == 0
+
+
+def test_the_design_cache_holds_4096_designs():
+    """The default bound: 4096 designs of 5.5 KB, about 22 MB per detector (the lpv variants
+    design one per run); the 4097th drops the oldest."""
+    det = _fitted_max()
+    for k in range(4096):
+        det._memo(k, lambda: k)
+    assert len(det._cache) == 4096 and 0 in det._cache
+    assert det._memo(4096, lambda: "new") == "new"
+    assert len(det._cache) == 4096 and 0 not in det._cache and 1 in det._cache
+
+
 def test_affine_model_is_the_least_squares_fit_over_the_realistic_points():
     model, err = vg.affine_model()
     pts = envelope.realistic_points()
@@ -535,6 +571,105 @@ def test_adaptive_threshold_is_tau0_plus_the_allowance():
                                   np.abs(r["lpv-affine"]) / (1.7 * 0.4))
 
 
+def test_a_learned_threshold_of_zero_is_refused():
+    """τ0 is learned on each run's largest (|r̂| − b)⁺: learning runs whose |r̂| never
+    exceeds b(t) (no sensor noise) give τ0 = 0, a threshold that would alarm on any
+    residual above the allowance; the fit refuses it, naming the variant."""
+    sig = _signals()
+    r = {"lti": np.array([[0.1, -0.5, 0.2], [0.3, 0.2, -0.1]])}
+    det = _stubbed(_fitted_max(variants=("lti",), aoa_sensor=True), r)
+    det.allowances = lambda signals, v=None: {"lti": np.abs(r["lti"])}
+    with pytest.raises(ValueError, match=r"\[lti\]: the learned threshold is 0.0"):
+        det.fit(sig)
+    det.allowances = lambda signals, v=None: {"lti": np.abs(r["lti"]) - 1e-3}
+    assert det.fit(sig).thresholds_deg_ == {"lti": pytest.approx(1.5e-3, rel=1e-9)}
+
+
+def test_the_allowance_needs_alpha_and_is_off_for_a_detector_fitted_before_it():
+    """τ0 + b(t) is used with the α vane and ``adaptive`` (both defaults); without α (the
+    bound needs every state) or without ``adaptive`` the thresholds are constant and no
+    allowance is computed; a fitted state without ``adaptive_`` (fitted before the allowance
+    existed) keeps its constant thresholds; ``adaptive_`` once fitted is what counts."""
+    sig = _signals(points=POINTS[:1], n_steps=3)
+    assert vg.VanekGeometric()._bounded()
+    for kwargs in ({"aoa_sensor": False}, {"adaptive": False},
+                   {"aoa_sensor": False, "adaptive": False}):
+        det = vg.VanekGeometric(**kwargs)
+        assert not det._bounded() and det.allowances(sig) == {}, kwargs
+    legacy = vg.VanekGeometric()
+    legacy.thresholds_deg_ = {"lti": 1.0, "lpv": 1.0}
+    assert not legacy._bounded() and legacy.allowances(sig) == {}
+    legacy.adaptive_ = True
+    assert legacy._bounded()
+    fitted = vg.VanekGeometric(adaptive=True)
+    fitted.adaptive_ = False
+    assert not fitted._bounded()
+
+
+@pytest.mark.parametrize("variant", ["lti", "lpv"])
+def test_allowance_terms_are_each_errors_worse_end_through_the_error_path(variant):
+    """``allowance_terms`` by a plain recursion (detectors/synthesis/vanek_model_error.py):
+    row k of the run's error matrices K gives the model error d_k = K_k s (s = [x̃; u],
+    :meth:`model_error_signals`), and r̂_k its response through the filter's error path
+    (e' = Ad e + Bdist d, r̂ = c (Cd e + Ddist d)), low-passed as r̂; the design point's term
+    is |r̂_0| (non-zero for lti, whose design point is not the runs'), error j's
+    max(|r̂_(1+2j)|, |r̂_(2+2j)|), in degrees; and the terms sum to ``allowances``' b(t)."""
+    sig = _signals()
+    det = vg.VanekGeometric(variants=(variant,))
+    terms = det.allowance_terms(sig, variant)
+    assert list(terms) == ["design point", *me.ERRORS]
+    s = det.model_error_signals(sig)
+    sched = sig.schedule
+    for i, f in enumerate(det._filters(variant, sig)):
+        K = det._error_matrices(variant, {k: float(sched[k][i]) for k in
+                                          ("vcas_kt", "alt_ft", "mass_t", "cg_pct")},
+                                sched["mach"][i], sched["qbar_pa"][i])
+        assert K.shape[0] == 1 + 2 * len(me.ERRORS)
+        r = np.empty((K.shape[0], s.shape[1]))
+        for k, Kk in enumerate(K):
+            e = np.zeros(f.Ad.shape[0])
+            for t, d in enumerate(s[i] @ Kk.T):
+                r[k, t] = f.c @ (f.Cd @ e + f.Ddist @ d)
+                e = f.Ad @ e + f.Bdist @ d
+        r = np.degrees(np.abs(_lowpassed(r, det.smoothing_s)))
+        expected = {"design point": r[0]} | {e: np.maximum(r[1 + 2 * j], r[2 + 2 * j])
+                                             for j, e in enumerate(me.ERRORS)}
+        for name, term in expected.items():
+            np.testing.assert_allclose(terms[name][i], term, rtol=0.0,
+                                       atol=1e-9 * r.max(), err_msg=name)
+        assert (r[0].max() > 1e-3 * r.max()) == (variant == "lti")
+        # a 10 % VCAS error's two ends differ (q̄ scales by 1/1.1² and 1/0.9²): which rows
+        # pair into a term matters
+        j = me.ERRORS.index("vcas")
+        assert np.abs(r[1 + 2 * j] - r[2 + 2 * j]).max() > 1e-3 * r.max()
+    np.testing.assert_allclose(sum(terms.values()), det.allowances(sig)[variant], rtol=1e-12,
+                               atol=1e-12 * np.abs(det.allowances(sig)[variant]).max())
+    with pytest.raises(ValueError, match="lpv-affine.*allowed: lti, lpv"):
+        det.allowance_terms(sig, "lpv-affine")
+
+
+@pytest.mark.parametrize("monitored", ["left_elevator", "left_inboard_aileron"])
+def test_model_error_signals_are_the_measured_states_and_every_surface(monitored):
+    """s = [x̃; u] of the allowance (docs/vanek-geometric.md): the seven states α, q, θ, β,
+    p, r, φ as the filter reads them with the α vane (θ relative to its first sample, α to
+    θ's), then every surface's deflection asin(x/r) from its COM rod (the monitored one as it
+    moves, not its expected rod) relative to its first sample, then the spoiler angle."""
+    sig = _signals(monitored=monitored)
+    s = vg.VanekGeometric.model_error_signals(sig)
+    assert s.shape == (2, N_STEPS, lpv.N_STATES + me.N_INPUTS)
+    assert lpv.STATES == OUTPUTS
+    plain = _plain_inputs(sig, monitored, aoa=True)
+    cols = [plain[:, :, len(KNOWN) + 1 + OUTPUTS.index(x)] for x in lpv.STATES]
+    for name in LAYOUT.names:
+        d = np.arcsin(np.clip(sig.rods[name] / _lever(name), -1.0, 1.0))
+        cols.append(d - d[:, :1])
+    cols.append(np.radians(sig.aircraft["spoiler"]))
+    np.testing.assert_allclose(s, np.stack(cols, axis=2), rtol=1e-13, atol=1e-15)
+    # given the filter's inputs with α, the same
+    v = vg.VanekGeometric.filter_inputs(sig, aoa_sensor=True)
+    np.testing.assert_array_equal(vg.VanekGeometric.model_error_signals(sig, v), s)
+
+
 def test_evt_threshold_is_the_calibrated_one_per_class():
     rng = np.random.default_rng(5)
     n = 80
@@ -579,12 +714,38 @@ def test_confirmation_boundary_and_latching(confirm_s, n_confirm):
     assert not alarm[2, :-1].any() and alarm[2, -1]
 
 
+def test_a_threshold_scale_is_every_threshold_times_s():
+    """The capability ``threshold_scale``: the detection with thresholds τ × s is the
+    unscaled one with its decision divided by s (:func:`detectors.base.at_threshold_scale`),
+    so a campaign's ``threshold_scale`` can be applied to vanek-geometric."""
+    sig = _signals(points=POINTS * 2, n_steps=10)
+    tau, s = 0.8, 1.25
+    # |r̂|/τ from step 4 on: 1.1 (alarms unscaled only), 1.3 and −1.3 (both), 0.9 (neither)
+    r = {"lti": np.outer([1.1, 1.3, -1.3, 0.9], np.r_[np.full(4, 0.5), np.ones(6)]) * tau}
+
+    def detector(scale):
+        det = vg.VanekGeometric(variants=("lti",), confirm_s=0.02)
+        det.thresholds_deg_ = {"lti": tau * scale}
+        return _stubbed(det, r)
+
+    base = set_threshold_scale(detector(1.0), s).detect(sig)["lti"]
+    scaled, direct = at_threshold_scale(base, s), detector(s).detect(sig)["lti"]
+    np.testing.assert_allclose(scaled.decision, direct.decision, rtol=1e-15)
+    np.testing.assert_array_equal(scaled.alarm, direct.alarm)
+    assert (base.alarm != direct.alarm).any()      # the scale moves some alarms
+
+
 def test_bad_signals_and_parameters_are_refused_before_work():
     sig = _signals(points=POINTS[:1], n_steps=3)
-    for missing in ("spoiler", "q"):
+    for missing in ("spoiler", "q", "alpha"):
         aircraft = {k: v for k, v in sig.aircraft.items() if k != missing}
-        with pytest.raises(ValueError, match=rf"lacks \['{missing}'\]"):
+        with pytest.raises(ValueError, match=rf"lacks \['{missing}'\]") as err:
             vg.VanekGeometric().check_signals(dataclasses.replace(sig, aircraft=aircraft))
+        # the way out of a missing α vane is named only when α is what is missing
+        assert ("or set aoa_sensor = false" in str(err.value)) == (missing == "alpha")
+    no_alpha = {k: v for k, v in sig.aircraft.items() if k != "alpha"}
+    vg.VanekGeometric(aoa_sensor=False).check_signals(dataclasses.replace(sig,
+                                                                          aircraft=no_alpha))
     vg.VanekGeometric().check_signals(sig)
     with pytest.raises(ValueError, match="confirm_s"):
         vg.VanekGeometric(confirm_s=-0.01).validate_params()
