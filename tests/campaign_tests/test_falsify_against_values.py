@@ -13,18 +13,13 @@ from campaign.config.schema import CampaignConfig
 from campaign.evidence.falsify import FalsifyOptionError, _against, falsify
 from campaign.store.directory import CampaignDir
 
-from test_falsify_values import _Pipeline
+from test_falsify_values import install_pipeline
 
 
 @pytest.fixture
 def pipeline(monkeypatch):
     """The runner's pipeline replaced by the recorder of test_falsify_values.py."""
-    import campaign.runner
-
-    rec = _Pipeline()
-    monkeypatch.setattr(campaign.runner, "prepare", rec.prepare)
-    monkeypatch.setattr(campaign.runner, "evaluate_rows", rec.evaluate_rows)
-    return rec
+    return install_pipeline(monkeypatch)
 
 def _against_config():
     return CampaignConfig.from_dict({

@@ -23,16 +23,7 @@ from campaign.evidence.falsify_search import (
 )
 from campaign.config import load_config
 
-
-def _drive(strategy, objective):
-    """Run *strategy* on *objective*(point) → margin: [(phase, batch, margins)]."""
-    seen = []
-    while batch := strategy.ask():
-        phase = strategy.phase
-        margins = [objective(p) for p in batch]
-        seen.append((phase, batch, margins))
-        strategy.tell(batch, margins)
-    return seen
+from test_falsify import _drive
 
 
 def _screen_margins(batch, best_cell=None, value=0.5):

@@ -583,14 +583,19 @@ class _Pipeline:
         return pd.DataFrame(out)
 
 
-@pytest.fixture
-def pipeline(monkeypatch):
+def install_pipeline(monkeypatch) -> _Pipeline:
+    """The runner's pipeline (prepare, evaluate_rows) replaced by a :class:`_Pipeline`."""
     import campaign.runner
 
     rec = _Pipeline()
     monkeypatch.setattr(campaign.runner, "prepare", rec.prepare)
     monkeypatch.setattr(campaign.runner, "evaluate_rows", rec.evaluate_rows)
     return rec
+
+
+@pytest.fixture
+def pipeline(monkeypatch):
+    return install_pipeline(monkeypatch)
 
 
 def test_the_search_evaluates_its_batches_and_compares_with_a_plain_monte_carlo(tmp_path,
