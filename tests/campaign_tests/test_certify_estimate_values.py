@@ -43,11 +43,7 @@ from detectors.tail import CURVE_SHAPES, fit_tail
 from reports.scoring.metrics import upper_bound
 from scenarios import envelope
 from small_campaigns import small_campaign
-
-
-def maxima(seed: int, n: int, scale: float) -> np.ndarray:
-    """Fault-free margins of *n* runs: the maximum of 100 Gaussian samples × *scale*."""
-    return np.random.default_rng(seed).standard_normal((n, 100)).max(axis=1) * scale
+from test_certify_level_rows_values import maxima
 
 
 # ---- evt_estimate ------------------------------------------------------------------------

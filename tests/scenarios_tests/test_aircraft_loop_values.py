@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from scenarios import acquisition, envelope
-from scenarios.aircraft import kernel, laws, loop, lpv, pilot
+from scenarios.aircraft import laws, loop, lpv, pilot
 from scenarios.aircraft.data import AIRCRAFT_ACTUATORS, AIRCRAFT_SENSORS, LAYOUT
 from scenarios.faults import fault_arrays
 from scenarios.manoeuvres import elevator_trim_deg
@@ -27,6 +27,8 @@ from scenarios.runs import flight_of, run_streams
 from scenarios.servo import authority_limits, plant_arrays
 from scenarios.simulate import servo_provides, single_run
 from scenarios.turbulence import MODERATE, dryden_gusts
+
+from test_aircraft_kernel import needs_kernel
 
 MONITORED = "left_inboard_aileron"
 CASES = (("turn_coordination", "none"), ("nose_up", "runaway"), ("cruise", "solid_jam"))
@@ -231,8 +233,7 @@ def test_the_plant_names_its_surfaces_and_signals():
         assert "aircraft" in want and len(want) > 1
 
 
-@pytest.mark.skipif(not kernel.available(), reason="the compiled aircraft loop cannot run "
-                                                    "bit for bit here (see kernel.available)")
+@needs_kernel
 def test_an_offset_jam_and_a_runaway_past_the_stop_in_the_kernel_and_the_reference():
     """The two paths a campaign's default faults rarely take, the kernel against the NumPy
     reference bit for bit: an "offset" solid jam (the rod jumps by −1.1 mm at onset, [CHEN]
@@ -258,8 +259,7 @@ def test_an_offset_jam_and_a_runaway_past_the_stop_in_the_kernel_and_the_referen
     assert ref.x[2, -1] == pytest.approx(p.plant_m.x_max[2], abs=1e-6)
 
 
-@pytest.mark.skipif(not kernel.available(), reason="the compiled aircraft loop cannot run "
-                                                    "bit for bit here (see kernel.available)")
+@needs_kernel
 def test_an_elevator_sensor_reading_past_the_rod_s_reach_is_read_at_the_end_of_its_arc():
     """Decision boundary of the elevator angle the laws read from the COM rods (asin of y/r
     clipped to ±1): a monitored elevator's COM acquisition off by ±200 mm (beyond its
