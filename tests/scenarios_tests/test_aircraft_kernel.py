@@ -153,3 +153,77 @@ def test_the_self_check_refuses_a_cosine_one_ulp_off(monkeypatch):
 
     monkeypatch.setattr(kernel, "math", types.SimpleNamespace(sin=math.sin, cos=off))
     assert not kernel._self_check()
+
+
+@needs_kernel
+@pytest.mark.parametrize("loaded", [True, False], ids=["loaded", "disconnected"])
+def test_rod_rates_at_the_stops_equal_the_servo_model(loaded):
+    """docs/physics.md §3: at a stop the rod does not move further into it, and it leaves it
+    at its own rate however slowly. Rods on either stop with currents for ±0.5 mm/s unloaded
+    (below any constant a rate test might compare with, such as 1 mm/s), and with a fast
+    current, give scenarios.servo.rod_rate's rates exactly, the kernel's row layout
+    included."""
+    from scenarios import compiled
+    from scenarios.servo import rod_rate
+
+    p = loop.prepare_aircraft(_batch("left_elevator", "elevator", ("cruise",)).iloc[:1])
+    pl = p.plant
+    n = len(pl.K)
+    at_min = np.arange(n) % 2 == 0
+    x = np.where(at_min, pl.x_min, pl.x_max)
+    # leaving the lower stop, the upper, into the lower, into the upper, ...; one row in
+    # eight fast (200 mm/s unloaded)
+    direction = np.where(at_min, 1.0, -1.0) * np.tile([1.0, 1.0, -1.0, -1.0], n)[:n]
+    speed = np.where(np.arange(n) % 8 == 1, 200.0, 0.5)
+    cur = direction * speed / pl.Kci
+    flags = np.full(n, loaded)
+    want = rod_rate(x, cur, pl, flags)
+    out, s, asn = np.empty(n), np.empty(n), np.empty(n)
+    kernel._rod_rates(kernel.LOOPS, x, cur, compiled.plant_matrix(pl), flags, out, s, asn,
+                      np.zeros(8, np.int64))
+    np.testing.assert_array_equal(out, want)
+    # the cases are there: slow rods leaving either stop, rods held at either stop
+    leaving = (want != 0.0) & (np.abs(want) < 1.0)
+    assert (leaving & at_min).any() and (leaving & ~at_min).any()
+    assert ((want == 0.0) & at_min).any() and ((want == 0.0) & ~at_min).any()
+
+
+@needs_kernel
+@pytest.mark.parametrize("faults", [("ofc_solid", "hardover"), ("ofc_liquid", "liquid_jam")],
+                         ids=["com_osc+cur_force", "cur_add+com_add"])
+def test_batches_with_some_fault_inputs_equal_the_reference(faults):
+    """The kernel reads each fault input only where its batch has it (flags as
+    scenarios.compiled.integrate_block): two batches that each have two of the four (the COM
+    oscillation and the forced current; the added current and the added COM) give the
+    reference's numbers bit for bit, so no input is read under another's flag."""
+    runs = _batch("left_inboard_aileron", "aileron", ("turn_coordination",))
+    p = loop.prepare_aircraft(runs[runs.fault.isin(faults)])
+    fa = p.faults
+    have = [a is not None for a in (fa.com_add, fa.com_osc, fa.cur_add, fa.cur_force)]
+    assert have == ([False, True, False, True] if "ofc_solid" in faults
+                    else [True, False, True, False])
+    ref = loop.integrate_reference(p)
+    fast = loop.integrate_aircraft(p, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+
+
+@needs_kernel
+def test_the_spoilers_order_at_the_roll_limit_equals_the_reference(monkeypatch):
+    """docs/aircraft.md §4.4: the spoilers follow the aileron order clipped to the aileron's
+    travel. The laws never order the full 25° in these manoeuvres (9.3° at most), so the
+    travel is cut to 1° here: the spoilers' order then sits on the limit in about half the
+    periods, and the kernel gives the reference's numbers bit for bit."""
+    from dataclasses import replace
+
+    from scenarios.aircraft.data import AIRCRAFT_ACTUATORS
+
+    monkeypatch.setitem(AIRCRAFT_ACTUATORS, "aileron",
+                        replace(AIRCRAFT_ACTUATORS["aileron"], delta_max_deg=1.0))
+    runs = _batch("left_elevator", "elevator", ("turn_coordination",)).iloc[:2]
+    p = loop.prepare_aircraft(runs)
+    ref = loop.integrate_reference(p)
+    fast = loop.integrate_aircraft(p, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    assert np.isclose(np.abs(ref.spoiler), np.radians(1.0), rtol=1e-12).mean() > 0.2
