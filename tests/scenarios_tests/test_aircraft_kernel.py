@@ -227,3 +227,15 @@ def test_the_spoilers_order_at_the_roll_limit_equals_the_reference(monkeypatch):
     for name in loop.AircraftTrajectory.__dataclass_fields__:
         np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
     assert np.isclose(np.abs(ref.spoiler), np.radians(1.0), rtol=1e-12).mean() > 0.2
+
+
+@pytest.mark.parametrize("error", [AttributeError, TypeError, ValueError])
+def test_a_numpy_build_without_the_inner_loop_api_turns_the_kernel_off(monkeypatch, error):
+    """On a NumPy build whose ufuncs lack the NEP 43 calls (``_resolve_dtypes_and_context``,
+    ``_get_strided_loop``) or refuse float64, the look-up of the inner loops gives no
+    addresses, so the NumPy reference runs; it does not fail the import."""
+    def missing(ufunc, nin):
+        raise error("not on this build")
+
+    monkeypatch.setattr(kernel, "_ufunc_loop", missing)
+    assert kernel._resolve() == (None, ())
