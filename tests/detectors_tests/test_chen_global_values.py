@@ -778,6 +778,25 @@ def test_the_stable_components_rule_keeps_a_single_component_when_only_it_is_an_
     np.testing.assert_array_equal(cg._stable_components(x, Y, np.zeros(4), np.ones(4)), [0])
 
 
+def test_of_equal_fits_the_stable_components_rule_keeps_the_one_found_first():
+    """Two components equal over the data (x1 = x0) fit exactly alike, to the last bit: of
+    equal residuals the rule keeps the subset met first, fewer components and then lower
+    indices, here x0. Their joint fit splits the slope between them (least squares' least
+    norm), and its vertex (0, 1) is the midpoint of A1 and A2, both stable, whose coupling
+    of 5 both ways gives a pole at +4 1/s: it is refused, so the tie is between x0 and x1."""
+    rng = np.random.default_rng(15)
+    t = rng.uniform(0.0, 1.0, 40)
+    x = np.stack([t, t], axis=1)
+    A1, A2 = -np.eye(4), -np.eye(4)
+    A1[0, 1] = A2[1, 0] = 10.0
+    A_k = np.zeros((2, 4, 4))
+    A_k[0] = A2 - A1                                       # A = A1 + x0·(A2 − A1)
+    A = A1[None] + np.einsum("nk,kij->nij", x, A_k)
+    Y = np.concatenate([A.reshape(len(x), -1), np.ones((len(x), 24))], axis=1)
+    assert np.linalg.eigvals(0.5 * (A1 + A2)).real.max() == pytest.approx(4.0)
+    np.testing.assert_array_equal(cg._stable_components(x, Y, np.zeros(2), np.ones(2)), [0])
+
+
 def test_a_pole_at_zero_is_not_stable():
     """Stable is every eigenvalue in the open left half-plane: a fit whose vertices all
     have a pole at exactly 0 (a neutral mode: the data's a33 is 0 everywhere, so is every
