@@ -155,7 +155,8 @@ def test_the_validation_options_are_checked_before_any_work():
     assert check_validation(cfg, 100, None) == 22          # the campaign's seed + 1
     assert check_validation(cfg, 100, 5) == 5
     with pytest.raises(CertifyError, match=r"n=99: the brute-force runs must be ≥ "
-                                           r"100 \(a level is tested only where they show ≥ 5"):
+                                           r"100 \(a level is tested only where they show ≥ 5 "
+                                           r"exceedances\); fix: e.g. n=60000$"):
         check_validation(cfg, 99, 5)
     with pytest.raises(CertifyError, match="seed=21: the campaign's own seed.*"
                                            "seed=22"):
