@@ -38,7 +38,9 @@ equivalent mutants are those listed, each with its one-line reason, in
 ``tests/mutation/equivalent.toml``. Sessions (cosmic-ray's SQLite files) are kept in
 ``tests/mutation/sessions/`` (not tracked); a module whose source changed is started
 afresh, an unchanged one resumes where it stopped. ``--rerun-survivors`` runs the
-surviving mutants again (after new tests were written).
+surviving mutants again (after new tests were written). A mutant listed equivalent is not
+run (a survivor costs every mapped test, often until its time-out) and counts as
+equivalent; ``--run-equivalents`` runs the listed ones too, to check the list.
 """
 
 from __future__ import annotations
@@ -441,7 +443,34 @@ def _skip_annotations(db: Path, module: str) -> None:
                             (job_id,))
 
 
-def run_module(module: str, scratch: Path, sock: Path, rerun_survivors: bool) -> None:
+def _skip_equivalents(db: Path, module: str, equivalent: list[dict]) -> None:
+    """Mark the not yet run mutants listed equivalent (:data:`EQUIVALENT_FILE`, matched on
+    operator, line and column of the unchanged source) skipped: each entry's reason says why
+    no test can tell it from the original, so running it only costs a full pass of the
+    mapped tests (a survivor runs every test, and often until its time-out). :func:`score`
+    counts them as equivalent; ``--run-equivalents`` runs them instead, to check the list."""
+    listed = {(e["operator"], e["line"], e["col"]) for e in equivalent if e["module"] == module}
+    with sqlite3.connect(db) as con:
+        # skipped as equivalent before, no longer listed: to run again
+        for job_id, op, row, col in con.execute(
+                "select s.job_id, s.operator_name, s.start_pos_row, s.start_pos_col from "
+                "mutation_specs s join work_results r on s.job_id = r.job_id where "
+                "upper(r.worker_outcome) = 'SKIPPED' and r.output = 'equivalent'").fetchall():
+            if (op.removeprefix("core/"), row, col) not in listed:
+                con.execute("delete from work_results where job_id = ?", (job_id,))
+        rows = con.execute(
+            "select s.job_id, s.operator_name, s.start_pos_row, s.start_pos_col from "
+            "mutation_specs s left join work_results r on s.job_id = r.job_id "
+            "where r.job_id is null").fetchall()
+        for job_id, op, row, col in rows:
+            if (op.removeprefix("core/"), row, col) in listed:
+                con.execute("insert into work_results (worker_outcome, output, test_outcome, "
+                            "diff, job_id) values ('SKIPPED', 'equivalent', NULL, '', ?)",
+                            (job_id,))
+
+
+def run_module(module: str, scratch: Path, sock: Path, rerun_survivors: bool,
+               run_equivalents: bool = False) -> None:
     """Run (or resume) the cosmic-ray session of ``module`` in ``scratch``."""
     env = _environment(scratch)
     db, stamp = _session(module), _session(module).with_suffix(".sha256")
@@ -470,6 +499,12 @@ def run_module(module: str, scratch: Path, sock: Path, rerun_survivors: bool) ->
             con.execute("delete from work_results where upper(test_outcome) = 'SURVIVED' "
                         "and upper(worker_outcome) != 'SKIPPED'")
     _skip_annotations(db, module)
+    if run_equivalents:
+        with sqlite3.connect(db) as con:
+            con.execute("delete from work_results where upper(worker_outcome) = 'SKIPPED' "
+                        "and output = 'equivalent'")
+    else:
+        _skip_equivalents(db, module, load_equivalent())
     print(f"mutation: {module}: tests {' '.join(TESTS[module])} "
           f"({took:.0f} s unmutated)", flush=True)
     subprocess.run(["cosmic-ray", "exec", str(config), str(db)], cwd=scratch, env=env, check=True)
@@ -492,6 +527,15 @@ def score(module: str, equivalent: list[dict]) -> tuple[Score, list[tuple]]:
             "work_results r on s.job_id = r.job_id").fetchall()
     for op, row, col, name, worker, test, output, diff in rows:
         worker, test = (worker or "").lower() or None, (test or "").lower()
+        listed = (op.removeprefix("core/"), row, col) in eq
+        if worker == "skipped" and output == "equivalent":
+            result.mutants += 1         # listed equivalent, not run (_skip_equivalents)
+            if listed:
+                result.survived += 1
+                result.equivalent += 1
+            else:                       # no longer listed: run on the next pass
+                result.pending += 1
+            continue
         if worker == "skipped" or any(a <= (row, col) < b for a, b in spans):
             continue
         result.mutants += 1
@@ -503,7 +547,7 @@ def score(module: str, equivalent: list[dict]) -> tuple[Score, list[tuple]]:
             result.killed += 1
         else:
             result.survived += 1
-            if (op.removeprefix("core/"), row, col) in eq:
+            if listed:
                 result.equivalent += 1
             else:
                 survivors.append((module, row, col, op.removeprefix("core/"), name,
@@ -553,6 +597,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--survivors", action="store_true", help="list the surviving mutants")
     parser.add_argument("--rerun-survivors", action="store_true",
                         help="run the surviving mutants of an unchanged module again")
+    parser.add_argument("--run-equivalents", action="store_true",
+                        help="run the mutants listed in equivalent.toml too (by default they "
+                             "are skipped and counted as equivalent)")
     parser.add_argument("--fail-under", type=float, default=None, metavar="PERCENT",
                         help="exit 1 when a module scores below PERCENT")
     args = parser.parse_args(argv)
@@ -580,7 +627,8 @@ def main(argv: list[str] | None = None) -> int:
                         _fail("the fork server stopped before it listened")
                     time.sleep(0.1)
                 for module in modules:
-                    run_module(module, scratch, sock, args.rerun_survivors)
+                    run_module(module, scratch, sock, args.rerun_survivors,
+                               args.run_equivalents)
             finally:
                 server.terminate()
                 server.wait()
