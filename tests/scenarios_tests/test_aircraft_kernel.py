@@ -129,7 +129,17 @@ def test_without_jit_the_aircraft_plant_runs_the_numpy_loop():
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 
 
-@pytest.mark.skipif(kernel._numpy_blas() is None or not kernel._jit_enabled(),
+def _bundled_openblas() -> list[str]:
+    """The OpenBLAS libraries NumPy's wheel bundles (numpy.libs), found without the kernel
+    module's own look-up, so a fault in that look-up fails the test instead of skipping it."""
+    import glob
+    import os
+
+    root = os.path.dirname(os.path.dirname(np.__file__))
+    return glob.glob(os.path.join(root, "numpy.libs", "*openblas*"))
+
+
+@pytest.mark.skipif(not _bundled_openblas() or not kernel._jit_enabled(),
                     reason="another NumPy build (no bundled OpenBLAS) or NUMBA_DISABLE_JIT: "
                            "the NumPy reference runs instead")
 def test_where_numpy_s_loops_and_blas_are_found_the_kernel_runs():
@@ -239,3 +249,54 @@ def test_a_numpy_build_without_the_inner_loop_api_turns_the_kernel_off(monkeypat
 
     monkeypatch.setattr(kernel, "_ufunc_loop", missing)
     assert kernel._resolve() == (None, ())
+
+
+def test_an_unreadable_blas_library_is_passed_over_for_the_next(monkeypatch):
+    """_numpy_blas tries numpy.libs' OpenBLAS libraries in name order and keeps the first
+    that loads: one that raises OSError is passed over; none loading gives None."""
+    tried = []
+
+    def cdll(path):
+        tried.append(path)
+        if path.endswith("a-openblas.so"):
+            raise OSError("unreadable")
+        return ("loaded", path)
+
+    monkeypatch.setattr(kernel.glob, "glob", lambda pattern: ["/x/b-openblas.so",
+                                                              "/x/a-openblas.so"])
+    monkeypatch.setattr(kernel.ctypes, "CDLL", cdll)
+    assert kernel._numpy_blas() == ("loaded", "/x/b-openblas.so")
+    assert tried == ["/x/a-openblas.so", "/x/b-openblas.so"]
+    monkeypatch.setattr(kernel.glob, "glob", lambda pattern: ["/x/a-openblas.so"])
+    assert kernel._numpy_blas() is None
+
+
+def test_without_blas_gemv_the_kernel_is_turned_off(monkeypatch):
+    """NumPy's inner loops found but no OpenBLAS (another build): no addresses."""
+    monkeypatch.setattr(kernel, "_numpy_blas", lambda: None)
+    assert kernel._resolve() == (None, ())
+
+
+@needs_kernel
+def test_a_sideslip_order_and_a_one_millimetre_offset_jam_equal_the_reference():
+    """Two inputs the other batches leave at a value where a sign or a constant cannot
+    show: the sideslip order of yaw_angle_mode (zero in every other manoeuvre, so the sign
+    of the laws' sideslip error β − β_c is seen only here) and an "offset" solid jam of
+    exactly +1 mm (the rod jumps at onset, docs/physics.md §5). Kernel and reference bit
+    for bit."""
+    rows = [single_run("aileron", "yaw_angle_mode", "none", duration_s=8.0, seed=3),
+            single_run("aileron", "cruise", "solid_jam", duration_s=8.0, onset_s=1.0, seed=4)]
+    runs = pd.concat(rows, ignore_index=True)
+    runs.loc[1, "magnitude"] = 1.0
+    runs["surface"] = "left_inboard_aileron"
+    runs["stream"] = [0, 1]
+    runs["run_id"] = ["b0", "b1"]
+    p = loop.prepare_aircraft(runs)
+    assert np.abs(p.beta_c[0]).max() > np.radians(1.0)
+    ref = loop.integrate_reference(p)
+    fast = loop.integrate_aircraft(p, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    k0 = int(round(1.0 / p.ts))
+    # the jump plus the rod's own motion over one period (under 0.1 mm)
+    assert ref.x[1, k0] - ref.x[1, k0 - 1] == pytest.approx(1.0, abs=0.1)
