@@ -461,6 +461,8 @@ def test_the_documented_defaults_and_parameter_limits():
     caps = ChenGlobalEstimator.capabilities
     assert (caps.needs_fit, caps.needs_surface_sensor, caps.causal, caps.needs_aircraft) == \
         (True, False, True, True)
+    # its alarm is a decision |f̂| > τ, so a trade-off curve may scale τ (threshold_scale)
+    assert caps.threshold_scale is True
     assert cg.NUMERICS == cg.GlobalNumerics(affine_tolerance=1e-9, negligible=1e-9,
                                             grid_per_axis=9, polytope_margin=0.02)
     with pytest.raises(dataclasses.FrozenInstanceError):    # constants, not settings
@@ -778,6 +780,23 @@ def test_the_stable_components_rule_keeps_a_single_component_when_only_it_is_an_
     np.testing.assert_array_equal(cg._stable_components(x, Y, np.zeros(4), np.ones(4)), [0])
 
 
+def test_the_stable_components_rule_searches_past_a_refused_subset():
+    """The first component's box vertices are no aircraft (a00 = −3 + 5·x0 reaches +2 at
+    x0 = 1, while the data span x0 in [0, 0.2]): every subset with x0 is refused, first
+    among its size, and the search goes on to the subsets after it, keeping the best of
+    those without x0 (here x1, x2, x3, all stable)."""
+    rng = np.random.default_rng(16)
+    x = rng.uniform(0.0, 1.0, (60, 4))
+    x[:, 0] *= 0.2
+    A_k = np.zeros((4, 4, 4))
+    A_k[0, 0, 0] = 5.0
+    for k in (1, 2, 3):
+        A_k[k] = -0.2 * k * np.eye(4)
+    Y = _affine_rows(x, -3.0 * np.eye(4), A_k, np.ones((4, 6)))
+    np.testing.assert_array_equal(cg._stable_components(x, Y, np.zeros(4), np.ones(4)),
+                                  [1, 2, 3])
+
+
 def test_of_equal_fits_the_stable_components_rule_keeps_the_one_found_first():
     """Two components equal over the data (x1 = x0) fit exactly alike, to the last bit: of
     equal residuals the rule keeps the subset met first, fewer components and then lower
@@ -835,11 +854,24 @@ def test_a_nonlinear_aircrafts_fit_is_its_stable_components_with_its_residual(mo
 
     monkeypatch.setattr(cg, "lateral_models", quadratic)
     monkeypatch.setattr(design_models, "exactly_affine", lambda airframe: airframe is None)
+    seen = {}
+    real_rule = cg._stable_components
+
+    def spy(x, Y, lo, hi):
+        seen.update(x=x, lo=lo, hi=hi)
+        return real_rule(x, Y, lo, hi)
+
+    monkeypatch.setattr(cg, "_stable_components", spy)
     sched = {k: np.concatenate([s[k][::5] for _, s in plain_envelope(0.25)[::4]])
              for k in ("alt_ft", "vcas_kt", "mass_t", "cg_pct", "mach", "qbar_pa")}
     lo, hi = plain_box(0.25)
     model = cg.fit_affine(sched, airframe="nonlinear", box=(lo, hi))
     rho = plain_rho(sched)
+    # the rule sees the box in the units it sees the data in (each ρ over its largest value)
+    scale = rho.max(axis=0)
+    np.testing.assert_allclose(seen["x"] * scale, rho, rtol=1e-12)
+    np.testing.assert_allclose(seen["lo"] * scale, lo, rtol=1e-12)
+    np.testing.assert_allclose(seen["hi"] * scale, hi, rtol=1e-12)
     A, B = quadratic(sched)
     Y = np.concatenate([A.reshape(len(A), -1), B.reshape(len(B), -1)], axis=1)
     best = (np.inf, None, None)
