@@ -138,6 +138,10 @@ def test_model_plant_corner_scales_kci_stall_force_and_each_hinge_term_only():
     for name, value in vars(nominal).items():
         if name not in ("Kci", "SdP", "hm_0", "hm_delta"):
             np.testing.assert_array_equal(getattr(corner, name), value, err_msg=name)
+    # every factor is applied whatever its value (2 as well as 0.95): none is taken for 1
+    double = PositionMonitor.model_plant(sig, corner=(2.0, 2.0, 2.0, 2.0))
+    for name in ("Kci", "SdP", "hm_0", "hm_delta"):
+        assert getattr(double, name) == pytest.approx(2.0 * getattr(nominal, name), rel=1e-15)
 
 
 def _corners(hinge_scale, kci=(0.95, 1.05), supply=(0.95, 1.05), band="corners"):
@@ -479,3 +483,43 @@ def test_defaults_are_the_documented_ones():
         "threshold_confidence": 0.95, "threshold_tail": "exponential", "hinge_scale": (0.6, 1.6),
         "model_step": "euler", "kci_scale": (0.95, 1.05), "supply_scale": (0.95, 1.05),
         "band": "corners"}
+
+
+def test_rate_evaluations_per_step_are_the_band_models_times_the_step_stages():
+    """``fdd-campaign bench``'s arithmetic floor: the nine models of the default band, each
+    1 (Euler), 2 (Heun) or 4 (RK4) evaluations of the rate law per step; none without the
+    loop check, the only check that runs the models."""
+    assert [PositionMonitor(model_step=s).rate_evaluations_per_step()
+            for s in ("euler", "heun", "rk4")] == [9, 18, 36]
+    assert PositionMonitor(hinge_scale=(1.0, 1.0), kci_scale=(1.0, 1.0), supply_scale=(1.0, 1.0),
+                           model_step="rk4").rate_evaluations_per_step() == 4
+    assert PositionMonitor(checks=("com_mon", "surface")).rate_evaluations_per_step() == 0
+
+
+def test_coverage_and_capabilities():
+    """With the surface check the monitor covers every fault type; without it every one but
+    the disconnection (docs/physics.md §5). It fits on the workers and its alarm is a
+    decision a trade-off curve may scale."""
+    from detectors.base import Coverage
+    from scenarios.catalog import FAULT_TYPES
+
+    assert PositionMonitor().coverage() == Coverage(None, "")
+    rods_only = PositionMonitor(checks=("loop", "com_mon")).coverage()
+    assert rods_only.faults == tuple(f for f in FAULT_TYPES if f != "disconnection")
+    assert "disconnection" in rods_only.reason
+    caps = PositionMonitor.capabilities
+    assert (caps.needs_fit, caps.needs_surface_sensor, caps.causal, caps.fit_concurrently,
+            caps.threshold_scale) == (True, False, True, True, True)
+
+
+def test_the_warm_up_runs_the_decision_on_writable_and_read_only_signals(monkeypatch):
+    """detect reads the signals as read-only views (scenarios.compiled.read_only_view), a
+    fit's arrays are writable: the warm-up calls the decision kernel on both, so that numba
+    compiles (or loads) both signatures before a campaign's first chunk."""
+    import detectors.builtin.position_monitor as pm
+
+    writable = []
+    monkeypatch.setattr(pm, "_decide_block",
+                        lambda rod, *rest: writable.append(rod.flags.writeable))
+    pm._warm_kernels()
+    assert writable == [True, False]
