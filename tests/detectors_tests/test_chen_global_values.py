@@ -421,6 +421,29 @@ def test_a_component_below_the_negligible_share_is_dropped(monkeypatch):
     assert 1e-13 < model.residual < 1e-9 / 11.0
 
 
+def test_a_component_exactly_at_the_negligible_level_is_dropped(monkeypatch):
+    """Decision boundary of the exact fit's components: one is kept when its largest
+    coefficient is more than negligible × the largest model entry; exactly at that level it
+    is dropped, as below it (the least squares are replaced by prescribed coefficients, so
+    the level is met to the last bit)."""
+    sched = _schedule(LEARNING_POINTS)
+    A, B = cg.lateral_models(sched)
+    Y = np.concatenate([A.reshape(len(A), -1), B.reshape(len(B), -1)], axis=1)
+    level = cg.NUMERICS.negligible * np.abs(Y).max()
+    coef = np.zeros((5, Y.shape[1]))
+    coef[0] = Y[0]
+    coef[1, 0] = level                                   # ρ0: exactly at the level
+    coef[2, 3] = -2.0 * level                            # ρ1: above it
+    coef[3, 7] = 0.5 * level                             # ρ2: below it
+    coef[4, 20] = np.nextafter(level, np.inf)            # ρ3: one ulp above it
+
+    def prescribed(x, Y_, keep):
+        return coef[np.r_[0, np.asarray(keep) + 1]], Y_
+
+    monkeypatch.setattr(cg, "_least_squares", prescribed)
+    np.testing.assert_array_equal(cg.fit_affine(sched).keep, [1, 3])
+
+
 @pytest.mark.parametrize("gust", [True, False])
 def test_fault_matrix_and_h_direction(gust):
     rng = np.random.default_rng(1)
