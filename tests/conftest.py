@@ -37,6 +37,23 @@ def pytest_cmdline_main(config):
         config.option.numprocesses = "auto"
     if config.option.dist == "no":
         config.option.dist = "loadfile"
+        # files in the order pytest_collection_modifyitems gives (slow files first), not
+        # by their number of tests, pytest-xdist's default order since 3.6
+        if hasattr(config.option, "loadscopereorder"):
+            config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(config, items):
+    """On the workers of a parallel run, the files with a ``slow`` test first (each file
+    otherwise in its collected order, its tests in theirs): a file runs on one worker, so
+    a long file collected last (the README's, about 1.5 minutes) would run alone at the end
+    while the other worker idles. Starting the longest work first (the classic
+    longest-processing-time-first rule) leaves the short files to fill the end."""
+    if not hasattr(config, "workerinput"):
+        return
+    slow_files = {item.nodeid.split("::")[0] for item in items
+                  if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.nodeid.split("::")[0] not in slow_files)
 
 
 class LibmNumpy:

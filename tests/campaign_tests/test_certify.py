@@ -138,6 +138,7 @@ def test_constructed_case_both_estimators_cover_the_true_probability(constructed
     assert 'name="fa_probability[none/all]"' in xml and "false-alarm probability: sm" in xml
 
 
+@pytest.mark.slow
 def test_sampling_resumes_after_a_kill_without_recomputing(constructed, monkeypatch, capsys,
                                                            tmp_path):
     """--sampling evaluates through the runner's pipeline and keeps every batch under

@@ -80,6 +80,7 @@ def cluster(tmp_path_factory):
         _stop(procs)
 
 
+@pytest.mark.slow
 def test_smoke_on_the_cluster_is_bit_identical_to_two_local_jobs(cluster, tmp_path):
     address, _ = cluster
     assert main(["run", "smoke", "--out", str(tmp_path / "dask"), "--scheduler", address,

@@ -74,6 +74,7 @@ def test_a_worker_killed_by_a_run_ends_as_an_error_row_and_a_rerun_completes(
     assert (again.results["status"] == "ok").all()
 
 
+@pytest.mark.slow
 def test_a_run_over_its_time_limit_is_recorded_as_timeout_and_a_rerun_completes(
         tmp_path, misbehaving):
     marker = tmp_path / "marked.json"

@@ -645,6 +645,7 @@ def test_a_passing_value_beside_a_failure_names_the_failure():
     assert cells[3].endswith('<small class="why">liquid_jam: MD 100.00 % &gt; 0.00 %</small>')
 
 
+@pytest.mark.slow
 def test_workers_and_threads_make_the_page_one_process_makes(campaign_dir, report, tmp_path,
                                                              monkeypatch):
     import campaign.report_build as replay

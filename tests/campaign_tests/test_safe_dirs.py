@@ -164,6 +164,7 @@ def test_the_presets_below_cover_every_builtin_detector():
     assert names == set(BUILTIN)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("preset", PRESETS)
 def test_fitted_detectors_read_back_from_the_directory_detect_bit_identically(preset,
                                                                               tmp_path):

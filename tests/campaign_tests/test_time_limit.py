@@ -62,6 +62,7 @@ def misbehaving(monkeypatch):
     monkeypatch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_a_hanging_detector_is_stopped_at_the_limit(tmp_path, misbehaving, jobs):
     """The detector sleeps an hour on one planned run and on the learning run of the

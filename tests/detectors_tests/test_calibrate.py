@@ -44,6 +44,7 @@ TAILS = {
 TOLERANCE = {"exponential": 0.10, "pareto-0.2": 0.10, "gaussian-max": 0.20}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(TAILS))
 def test_calibrated_threshold_meets_the_target_at_the_stated_confidence(name):
     draw, sf = TAILS[name]

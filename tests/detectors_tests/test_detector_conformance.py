@@ -166,6 +166,7 @@ def test_parametrize_with_checks_gives_one_test_id_per_check():
     assert len(ids) == len(set(ids)) == 3 * 14
 
 
+@pytest.mark.slow
 def test_bench_reports_the_cost_of_every_registered_detector():
     from campaign.tools.bench import detector_costs
 

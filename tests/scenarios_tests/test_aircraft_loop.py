@@ -72,6 +72,7 @@ def envelope_batch():
     return runs, sig, truth
 
 
+@pytest.mark.slow
 def test_envelope_has_every_case(envelope_batch):
     runs, _, _ = envelope_batch
     assert len(runs) == 159 * len(MANOEUVRES)

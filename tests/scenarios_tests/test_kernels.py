@@ -84,6 +84,7 @@ def test_compiled_monitor_model_is_bit_identical_to_numpy_with_the_same_libm(
     np.testing.assert_array_equal(fast, ref)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 def test_compiled_monitor_band_is_bit_identical_to_numpy_with_the_same_libm(
         libm_numpy, libm_signals, step):
