@@ -467,3 +467,35 @@ def test_defaults_are_the_documented_ones():
         "h_radius": 0.0, "q_max": 300, "x0_radius_mm": 0.5, "sensor": "rod_com",
         "use_power_law": False, "floor_mm": 1e-4, "threshold_method": "evt",
         "target_fa_per_run": 1e-4, "threshold_confidence": 0.95, "threshold_tail": "exponential"}
+
+
+def test_coverage_capabilities_and_rate_evaluations():
+    """On the surface sensor the detector covers every fault type; on a rod sensor every one
+    but the disconnection, which leaves the rod following its order (docs/physics.md §5).
+    It fits on the workers, its alarm is a decision a trade-off curve may scale, and its
+    predictor evaluates the rate law once per step ([COMB] eq. 14; bench's floor)."""
+    from detectors.base import Coverage
+    from scenarios.catalog import FAULT_TYPES
+
+    assert IntervalDetector(sensor="surface").coverage() == Coverage(None, "")
+    for sensor in ("rod_com", "rod_mon"):
+        rod = IntervalDetector(sensor=sensor).coverage()
+        assert rod.faults == tuple(f for f in FAULT_TYPES if f != "disconnection")
+        assert f"the {sensor} measurement" in rod.reason
+    caps = IntervalDetector.capabilities
+    assert (caps.needs_fit, caps.needs_surface_sensor, caps.causal, caps.fit_concurrently,
+            caps.threshold_scale) == (True, False, True, True, True)
+    assert IntervalDetector().rate_evaluations_per_step() == 1
+
+
+def test_the_warm_up_runs_the_predictor_on_writable_and_read_only_signals(monkeypatch):
+    """detect reads the signals as read-only views (scenarios.compiled.read_only_view), a
+    fit's arrays are writable: the warm-up calls the predictor kernel on both, so that numba
+    compiles (or loads) both signatures before a campaign's first chunk."""
+    import detectors.builtin.comb_interval as ci
+
+    writable = []
+    monkeypatch.setattr(ci, "_predict_block",
+                        lambda y, *rest: writable.append(y.flags.writeable))
+    ci._warm_kernels()
+    assert writable == [True, False]

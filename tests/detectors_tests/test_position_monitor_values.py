@@ -189,7 +189,8 @@ def test_default_band_is_the_nine_corners_of_the_mismatch_the_plant_draws():
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 @pytest.mark.parametrize("params", [{}, {"band": "paired"}, {**PLAIN, "hinge_scale": (1.0, 2.0)},
-                                    PLAIN, {"hinge_scale": (1.0, 1.0)}])
+                                    PLAIN, {"hinge_scale": (1.0, 1.0)},
+                                    {**PLAIN, "supply_scale": (1.0, 1.05)}])   # two models
 def test_model_band_is_the_hull_of_the_corner_models(engine, step, params):
     sig = signals(_rod(), command=U)
     det = PositionMonitor(model_step=step, **params)
