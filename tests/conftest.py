@@ -116,3 +116,15 @@ def edit_fmu(src, dst, replace=None, drop=(), rename=None):
             item.filename = rename.get(name, name)
             zout.writestr(item, data)
     return dst
+
+
+def warm_up_writability(monkeypatch, module, kernel: str) -> list[bool]:
+    """Whether each call of *module*'s ``_warm_kernels`` hands the kernel *kernel* a
+    writable first argument (the kernel replaced by a recorder): a detector's warm-up runs
+    its kernel on the writable arrays of a fit and on the read-only views detect reads
+    (scenarios.compiled.read_only_view), so that numba compiles both signatures at once."""
+    writable = []
+    monkeypatch.setattr(module, kernel, lambda first, *rest: writable.append(
+        first.flags.writeable))
+    module._warm_kernels()
+    return writable

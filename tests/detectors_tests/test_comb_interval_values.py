@@ -492,10 +492,8 @@ def test_the_warm_up_runs_the_predictor_on_writable_and_read_only_signals(monkey
     """detect reads the signals as read-only views (scenarios.compiled.read_only_view), a
     fit's arrays are writable: the warm-up calls the predictor kernel on both, so that numba
     compiles (or loads) both signatures before a campaign's first chunk."""
+    from conftest import warm_up_writability
+
     import detectors.builtin.comb_interval as ci
 
-    writable = []
-    monkeypatch.setattr(ci, "_predict_block",
-                        lambda y, *rest: writable.append(y.flags.writeable))
-    ci._warm_kernels()
-    assert writable == [True, False]
+    assert warm_up_writability(monkeypatch, ci, "_predict_block") == [True, False]

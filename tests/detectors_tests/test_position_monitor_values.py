@@ -517,10 +517,8 @@ def test_the_warm_up_runs_the_decision_on_writable_and_read_only_signals(monkeyp
     """detect reads the signals as read-only views (scenarios.compiled.read_only_view), a
     fit's arrays are writable: the warm-up calls the decision kernel on both, so that numba
     compiles (or loads) both signatures before a campaign's first chunk."""
+    from conftest import warm_up_writability
+
     import detectors.builtin.position_monitor as pm
 
-    writable = []
-    monkeypatch.setattr(pm, "_decide_block",
-                        lambda rod, *rest: writable.append(rod.flags.writeable))
-    pm._warm_kernels()
-    assert writable == [True, False]
+    assert warm_up_writability(monkeypatch, pm, "_decide_block") == [True, False]
