@@ -336,15 +336,15 @@ def fresh(finished, tmp_path):
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"level": 0.5}, "level=0.5: must be a confidence in (0.5, 1)"),
+    ({"level": 0.5}, "level=0.5: must be a confidence in (0.5, 1); fix: e.g. level=0.95"),
     ({"level": 1.0}, "level=1.0: must be a confidence in (0.5, 1)"),
     ({"level": "0.9"}, "level='0.9': must be a confidence"),
     ({"sampling": 10}, "sampling=10: runs per level of the subset simulation must be a "
-                       "multiple of 10 and ≥ 20 (p0 = 0.1)"),
+                       "multiple of 10 and ≥ 20 (p0 = 0.1); fix: e.g. sampling=500"),
     ({"sampling": 25}, "sampling=25: runs per level"),
-    ({"jobs": 0}, "jobs=0: must be ≥ 1"),
+    ({"jobs": 0}, "jobs=0: must be ≥ 1; fix: e.g. jobs=2"),
     ({"max_levels": 0}, "max_levels=0: levels of the subset simulation after the first, in "
-                        "[1, 30] (p0 = 0.1: 12 reach 1e-12)"),
+                        "[1, 30] (p0 = 0.1: 12 reach 1e-12); fix: e.g. max_levels=12"),
     ({"max_levels": 31}, "max_levels=31:"),
     ({"levels": "0.6,x"}, "levels: 'x' is not a number"),
 ])
