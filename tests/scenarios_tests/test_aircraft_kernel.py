@@ -316,3 +316,22 @@ def test_a_null_inner_loop_of_either_ufunc_turns_the_kernel_off(monkeypatch, mis
 
     monkeypatch.setattr(kernel, "_ufunc_loop", one_null)
     assert kernel._resolve() == (None, ())
+
+
+@needs_kernel
+def test_a_coarser_rod_quantisation_equals_the_reference():
+    """The COM acquisitions' quantum is a sensor parameter, 0.01 mm by default, the same
+    number as the 0.01 s period: at 0.02 mm the kernel still gives the reference's numbers
+    bit for bit, so neither is read for the other."""
+    from dataclasses import replace
+
+    from scenarios.params import SENSORS
+
+    coarse = replace(SENSORS, rod_quant_mm=0.02)
+    p = loop.prepare_aircraft(_batch("left_elevator", "elevator", ("cruise",)).iloc[:2])
+    ref = loop.integrate_reference(p, coarse)
+    fast = loop.integrate_aircraft(p, coarse, engine="compiled")
+    for name in loop.AircraftTrajectory.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    steps = np.round(ref.y_com[0] / 0.02, 6)           # the fault-free run's acquisitions
+    assert (steps == np.round(steps)).all()
