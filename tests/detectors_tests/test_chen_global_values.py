@@ -833,8 +833,7 @@ def test_of_equal_fits_the_stable_components_rule_keeps_the_one_found_first():
     A1[0, 1] = A2[1, 0] = 10.0
     A_k = np.zeros((2, 4, 4))
     A_k[0] = A2 - A1                                       # A = A1 + x0·(A2 − A1)
-    A = A1[None] + np.einsum("nk,kij->nij", x, A_k)
-    Y = np.concatenate([A.reshape(len(x), -1), np.ones((len(x), 24))], axis=1)
+    Y = _affine_rows(x, A1, A_k, np.ones((4, 6)))
     assert np.linalg.eigvals(0.5 * (A1 + A2)).real.max() == pytest.approx(4.0)
     np.testing.assert_array_equal(cg._stable_components(x, Y, np.zeros(2), np.ones(2)), [0])
 
