@@ -443,13 +443,18 @@ def _skip_annotations(db: Path, module: str) -> None:
                             (job_id,))
 
 
+def _listed(equivalent: list[dict], module: str) -> set[tuple[str, int, int]]:
+    """(operator, line, col) of the mutants of *module* listed in *equivalent*."""
+    return {(e["operator"], e["line"], e["col"]) for e in equivalent if e["module"] == module}
+
+
 def _skip_equivalents(db: Path, module: str, equivalent: list[dict]) -> None:
     """Mark the not yet run mutants listed equivalent (:data:`EQUIVALENT_FILE`, matched on
     operator, line and column of the unchanged source) skipped: each entry's reason says why
     no test can tell it from the original, so running it only costs a full pass of the
     mapped tests (a survivor runs every test, and often until its time-out). :func:`score`
     counts them as equivalent; ``--run-equivalents`` runs them instead, to check the list."""
-    listed = {(e["operator"], e["line"], e["col"]) for e in equivalent if e["module"] == module}
+    listed = _listed(equivalent, module)
     with sqlite3.connect(db) as con:
         # skipped as equivalent before, no longer listed: to run again
         for job_id, op, row, col in con.execute(
@@ -519,7 +524,7 @@ def score(module: str, equivalent: list[dict]) -> tuple[Score, list[tuple]]:
     source = (REPO / module).read_text()
     lines = source.splitlines()
     spans = annotation_spans(source)
-    eq = {(e["operator"], e["line"], e["col"]) for e in equivalent if e["module"] == module}
+    eq = _listed(equivalent, module)
     with sqlite3.connect(db) as con:
         rows = con.execute(
             "select s.operator_name, s.start_pos_row, s.start_pos_col, s.definition_name, "
