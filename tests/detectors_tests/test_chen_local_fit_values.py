@@ -286,6 +286,35 @@ def test_polytope_box_and_gain_range_by_definition(hand_model, margin, theta):
     assert 5.0 < k_min < k_max - 5.0         # the hand-built load term moves K
 
 
+def test_the_zero_error_row_of_the_grid_counts(hand_model, monkeypatch):
+    """Each Table-2 error is seen at −w, 0 and +w, not only at its two corners: a measured
+    schedule whose α is largest at zero altitude error (a hand-made bump of 0.4° on the
+    real schedule) sets the box's upper α there, and K_max with it."""
+    real = envelope.measured_schedule
+
+    def bumped(alt, vcas, mass, cg, d_alt, d_vcas, d_mass, d_cg, *args):
+        meas = real(alt, vcas, mass, cg, d_alt, d_vcas, d_mass, d_cg, *args)
+        bump = 0.4 * (1.0 - (np.asarray(d_alt) / (envelope.UNCERTAINTY.alt * 1.25)) ** 2)
+        return {**meas, "alpha_deg": meas["alpha_deg"] + bump}
+
+    monkeypatch.setattr(envelope, "measured_schedule", bumped)
+    hand_model()
+    u, y = _runs(256)
+    det = ChenLocalEstimator(threshold_method="max").fit(_signals(u, y))
+    lo, hi, k_min, k_max, _ = _polytope(THETA, 0.25)
+    np.testing.assert_array_equal(det.schedule_box_[1], hi)
+    np.testing.assert_allclose(det.k_range_, (k_min, k_max), rtol=1e-13)
+    # the corners alone would give a lower α: the zero row is what the box reads
+    pts = envelope.realistic_points()
+    pts = pts[pts["realistic"]]
+    w = envelope.UNCERTAINTY
+    corners = max(float(bumped(*(pts[c].to_numpy(float) for c in envelope.FLIGHT_COLUMNS),
+                               eh * w.alt * 1.25, ev * w.vcas * 1.25, em * w.mass * 1.25,
+                               ec * w.cg * 1.25)["alpha_deg"].max())
+                  for ev, eh, em, ec in itertools.product((-1.0, 1.0), repeat=4))
+    assert hi[2] * SCALES["alpha_deg"] > corners + 0.1
+
+
 @pytest.mark.parametrize("e_sat", [E_SAT_MM, 500.0])
 def test_vertices_saturation_and_poles_by_formula(hand_model, e_sat):
     """σ_min, D_min, the vertices and the reported poles (docs/chen-estimator.md §2); an
@@ -542,6 +571,33 @@ def test_liquid_alarm_after_n_steps_beyond_the_threshold(hand_model, confirm_ste
     assert count[2, first] == needed and not alarm[2, first - 1] and alarm[2, -1]
 
 
+#: sampling periods [s]: binary fractions (exact), decimal ones (rounded), and periods over a
+#: second, where (n − 1)·Ts and (n − 1)/Ts differ in the other direction
+LIQUID_PERIODS = (TS, 0.01, 0.02, 0.005, 0.0125, 1.0 / 3.0, 0.1, 0.3, 0.7, 1.1, 2.5)
+
+
+def test_liquid_samples_is_the_fewest_steps_that_cover_the_confirmation_time():
+    """liquid_samples(Ts) is the fewest n ≥ 1 with n·Ts ≥ max(liquid_confirm_s, Ts) − Ts/2
+    in floats (docs/chen-estimator.md §3), by a plain count from 1, at whole and half
+    steps of every period. Among these are times where the first estimate ceil(need/Ts)
+    falls short of that n, where it is one over it (n − 1 already covers need; some of
+    them exactly, n·Ts = need, and some at periods over a second)."""
+    short = over = at = over_long = 0
+    for ts in LIQUID_PERIODS:
+        for k in range(120):
+            for confirm in (k * ts, (k + 0.5) * ts, k * ts + 0.5 * ts):
+                need = max(confirm, ts) - 0.5 * ts
+                plain = next(n for n in itertools.count(1) if n * ts >= need)
+                det = ChenLocalEstimator(liquid_confirm_s=confirm)
+                assert det.liquid_samples(ts) == plain, (ts, confirm)
+                first = max(math.ceil(need / ts), 1)
+                short += first * ts < need
+                over += first > plain
+                at += first > plain and plain * ts == need
+                over_long += first > plain and ts > 1.0
+    assert min(short, over, at, over_long) > 0, (short, over, at, over_long)
+
+
 def test_a_statistic_equal_to_its_threshold_raises_the_alarm(hand_model):
     """≥, not >: a statistic exactly at τ is an alarm, so that the margin (the decision's
     largest value before onset) is ≥ s exactly when the run alarms at threshold × s."""
@@ -570,6 +626,21 @@ def test_documented_defaults_and_capabilities():
     assert ChenLocalEstimator.capabilities == Capabilities(
         needs_fit=True, needs_surface_sensor=False, causal=True, estimates_rod_fault=True,
         threshold_scale=True)
+
+
+def test_each_variant_covers_its_own_jam_and_the_detector_both():
+    """coverage: the liquid variant the liquid jam, the solid variant the solid jam, each
+    with its [CHEN] §6.2 reason; the detector as a whole (and an unknown variant) both
+    jams, in that order."""
+    det = ChenLocalEstimator()
+    liquid, solid = det.coverage("liquid"), det.coverage("solid")
+    assert liquid.faults == ("liquid_jam",) and solid.faults == ("solid_jam",)
+    assert liquid.reason.startswith("[CHEN] §6.2: the liquid-jam statistic")
+    assert solid.reason.startswith("[CHEN] §6.2: the solid-jam statistic")
+    for whole in (det.coverage(), det.coverage("both")):
+        assert whole.faults == ("liquid_jam", "solid_jam")
+        assert whole.covers("liquid_jam") and whole.covers("solid_jam")
+        assert not whole.covers("runaway") and not whole.covers("disconnection")
 
 
 def test_fit_needs_no_surface_sensor(hand_model):
