@@ -643,6 +643,23 @@ def test_each_variant_covers_its_own_jam_and_the_detector_both():
         assert not whole.covers("runaway") and not whole.covers("disconnection")
 
 
+def test_the_warm_up_compiles_what_fit_and_detect_call(monkeypatch):
+    """_warm_kernels calls the decision's kernel on a writable array (fit's learning
+    statistics) and on a read-only view (detect's signals), and the estimator's on writable
+    signals and schedule (fit), read-only signals (detect) and a read-only schedule too
+    (scenarios.compiled.read_only_view): numba compiles each signature before a campaign's
+    first run, not inside it."""
+    from conftest import warm_up_writability
+    from detectors.builtin import chen_local
+
+    assert warm_up_writability(monkeypatch, chen_local, "_nth_largest_so_far") == [True, False]
+    calls = []
+    monkeypatch.setattr(chen_local, "_estimate_block", lambda u, y, c0, *rest: calls.append(
+        (u.flags.writeable, y.flags.writeable, c0.flags.writeable)))
+    chen_local._warm_kernels()
+    assert calls == [(True, True, True), (False, False, True), (False, False, False)]
+
+
 def test_fit_needs_no_surface_sensor(hand_model):
     """The learning runs of _signals have no surface sensor (all NaN)."""
     det, _, _ = _fitted(hand_model)
