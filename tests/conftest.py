@@ -43,6 +43,57 @@ def pytest_cmdline_main(config):
             config.option.loadscopereorder = False
 
 
+#: Compile the kernels one module registers (scenarios.compiled.register_warmup), in a
+#: child process: python -c WARM_KERNELS MODULE ...
+WARM_KERNELS = """
+import importlib, sys
+from scenarios import compiled
+for name in sys.argv[1:]:
+    importlib.import_module(name)
+    for warm in list(compiled._WARMUPS):
+        if warm.__module__ == name:
+            warm()
+"""
+
+
+def kernel_modules(root):
+    """The modules under *root* that register a kernel warm-up, by dotted name."""
+    return [".".join(path.relative_to(root).with_suffix("").parts)
+            for package in ("scenarios", "detectors")
+            for path in sorted((root / package).rglob("*.py"))
+            if "register_warmup(" in path.read_text(encoding="utf-8")
+            and path.name != "__init__.py"]
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session):
+    """Before the workers of a parallel run start: compile every registered kernel once
+    (or load it from numba's cache), in two child processes. After a fresh clone (CI) the
+    cache is empty, and each worker, and each process a test starts (a campaign's workers,
+    a dask worker, a command run as a child), would compile the kernels it needs at the
+    same moment as the others: two minutes of CPU time spent on the same work, against
+    half a minute once. A run in one process compiles as it goes, as before."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None) \
+            or config.getoption("collectonly", False):
+        return
+    import os
+    import subprocess
+    import sys
+
+    root = config.rootpath
+    modules = kernel_modules(root)
+    # the servo-loop's kernels take about as long to compile as all the others together
+    servo = [name for name in modules if name == "scenarios.compiled"]
+    halves = [servo, [name for name in modules if name not in servo]]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(root), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    children = [subprocess.Popen([sys.executable, "-c", WARM_KERNELS, *half], cwd=root,
+                                 env=env) for half in halves if half]
+    for child in children:
+        child.wait()                  # a failure shows in the tests that call the kernel
+
+
 def pytest_collection_modifyitems(config, items):
     """On the workers of a parallel run, the files with a ``slow`` test first (each file
     otherwise in its collected order, its tests in theirs): a file runs on one worker, so
