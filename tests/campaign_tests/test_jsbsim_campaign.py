@@ -19,7 +19,8 @@ def _tiny(plant=None, **campaign):
             {"name": "ra", "fault": "runaway", "manoeuvres": ["cruise"], "count": 2},
         ],
         "detector": [{"name": "position-monitor"}],
-        "learning": {"runs_per_manoeuvre": 1},
+        # the learning set on the plan's two manoeuvres (default: all six, 6 JSBSim runs)
+        "learning": {"runs_per_manoeuvre": 1, "manoeuvres": ["cruise", "turn_coordination"]},
         "runner": {"chunk_size": 2},
     })
 
