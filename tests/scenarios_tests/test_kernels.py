@@ -126,13 +126,45 @@ def test_compiled_band_propagates_a_nan_model_like_numpy():
     np.testing.assert_array_equal(hi, np.maximum.reduce(outs))
 
 
+#: NumPy model bands of the decision test below, by (corners, step, signals): each is the
+#: same for every set of checks with the loop check.
+_NUMPY_BANDS: dict = {}
+
+
+@pytest.fixture
+def numpy_band_once(monkeypatch):
+    """PositionMonitor.model_band with the NumPy engine computed once per band, model step
+    and signals, its arrays reused (read-only) by the next test that asks for them: the
+    NumPy band, a Python loop over the steps of nine models, is the slow part of the
+    decision test, and the band test above checks it against the compiled one."""
+    import hashlib
+
+    from scenarios.compiled import resolve_engine
+
+    real = PositionMonitor.model_band
+
+    def once(self, signals, engine=None):
+        if resolve_engine(engine) != "numpy":
+            return real(self, signals, engine)
+        key = (tuple(self.band_corners()), self.model_step, hashlib.sha256(
+            signals.command.tobytes() + signals.rod_com.tobytes()).hexdigest())
+        if key not in _NUMPY_BANDS:
+            lo, hi = real(self, signals, engine)
+            lo.setflags(write=False)
+            hi.setflags(write=False)
+            _NUMPY_BANDS[key] = lo, hi
+        return _NUMPY_BANDS[key]
+
+    monkeypatch.setattr(PositionMonitor, "model_band", once)
+
+
 @pytest.mark.parametrize("step", ["euler", "heun", "rk4"])
 @pytest.mark.parametrize("band", [{}, {"band": "paired"}, {"hinge_scale": (1.0, 1.0)},
                                   {"hinge_scale": (1.0, 1.0), "kci_scale": (1.0, 1.0),
                                    "supply_scale": (1.0, 1.0)}])
 @pytest.mark.parametrize("checks", [("loop", "com_mon", "surface"), ("loop",), ("com_mon",)])
 def test_compiled_monitor_decision_is_bit_identical_to_numpy_with_the_same_libm(
-        libm_numpy, libm_signals, band, checks, step):
+        libm_numpy, libm_signals, numpy_band_once, band, checks, step):
     signals = libm_signals
     det = PositionMonitor(checks=checks, confirm_s=0.03, model_step=step, **band)
     # thresholds a fraction of the largest residuals, so that alarms are raised and cleared
