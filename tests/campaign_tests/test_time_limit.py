@@ -62,27 +62,74 @@ def misbehaving(monkeypatch):
     monkeypatch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
 
 
+class Child:
+    """A command started in a child process (:data:`DRIVER`), its output read once."""
+
+    def __init__(self, argv: list[str]):
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(TESTS)])}
+        self.proc = subprocess.Popen([sys.executable, "-c", DRIVER, *argv], env=env,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self._done = None
+
+    def result(self) -> tuple[int, str]:
+        """(exit code, stderr), waiting at most :data:`HANG_GUARD_S`."""
+        if self._done is None:
+            try:
+                _, err = self.proc.communicate(timeout=HANG_GUARD_S)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                raise
+            self._done = (self.proc.returncode, err)
+        return self._done
+
+
+@pytest.fixture(scope="module")
+def hanging(tmp_path_factory):
+    """The three commands of the tests below, started at once: each spends most of its time
+    waiting for a limit (the start-up check's 3 × 2 s, a run's 2 s, a fit's 2 s), so they
+    wait side by side instead of one after the other. name → (Child, directory, plan,
+    victim run id)."""
+    started = {}
+    with pytest.MonkeyPatch.context() as patch:
+        from detectors import registry
+
+        patch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
+        for jobs in (1, 2):
+            tmp = tmp_path_factory.mktemp(f"hanging-detector-{jobs}")
+            marker = tmp / "marked.json"
+            cfg = _config(marker)
+            resolved = resolve(CampaignConfig.from_dict(cfg))
+            plan, learning = build_plan(resolved), build_learning_plan(resolved)
+            victim = plan["run_id"].iloc[3]
+            marker.write_text(json.dumps([victim, learning["run_id"].iloc[0]]))
+            path, out = _write(tmp, cfg), tmp / "out"
+            started[jobs] = (Child(["run", str(path), "--jobs", str(jobs), "--quiet",
+                                    "--out", str(out)]), out, plan, victim)
+    tmp = tmp_path_factory.mktemp("hanging-fit")
+    cfg = _config(tmp / "none.json")
+    cfg["detector"] = [{"name": "fit-sleeps", "label": "slow"},
+                       {"name": "position-monitor", "label": "pm"}]
+    path, out = _write(tmp, cfg), tmp / "out"
+    started["fit"] = (Child(["run", str(path), "--jobs", "1", "--quiet", "--out", str(out)]),
+                      out, None, None)
+    yield started
+    for child, *_ in started.values():
+        if child.proc.poll() is None:
+            child.proc.kill()
+            child.proc.wait()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("jobs", [1, 2])
-def test_a_hanging_detector_is_stopped_at_the_limit(tmp_path, misbehaving, jobs):
+def test_a_hanging_detector_is_stopped_at_the_limit(hanging, jobs):
     """The detector sleeps an hour on one planned run and on the learning run of the
     start-up batch-invariance check; the limit is 2 s. The check is stopped (a note says
     so), the run is recorded as a timeout, every other run is scored, and the command ends
     (exit 0), on the default backend with --jobs 1 (in-process before: unbounded) and 2."""
-    marker = tmp_path / "marked.json"
-    cfg = _config(marker)
-    config = CampaignConfig.from_dict(cfg)
-    resolved = resolve(config)
-    plan, learning = build_plan(resolved), build_learning_plan(resolved)
-    victim = plan["run_id"].iloc[3]
-    marker.write_text(json.dumps([victim, learning["run_id"].iloc[0]]))
-    path, out = _write(tmp_path, cfg), tmp_path / "out"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(TESTS)])}
-    done = subprocess.run(
-        [sys.executable, "-c", DRIVER, "run", str(path), "--jobs", str(jobs), "--quiet",
-         "--out", str(out)], env=env, capture_output=True, text=True, timeout=HANG_GUARD_S)
-    assert done.returncode == 0, done.stderr
-    assert "did not finish its batch-invariance check" in done.stderr
+    child, out, plan, victim = hanging[jobs]
+    code, err = child.result()
+    assert code == 0, err
+    assert "did not finish its batch-invariance check" in err
     results = CampaignDir(out).read_results().set_index(["run_id", "detector"])
     assert len(results) == 2 * len(plan)
     late = results.loc[victim]
@@ -90,21 +137,15 @@ def test_a_hanging_detector_is_stopped_at_the_limit(tmp_path, misbehaving, jobs)
     assert (results.drop(index=victim, level="run_id")["status"] == "ok").all()
 
 
-def test_a_hanging_fit_is_stopped_at_the_limit(tmp_path):
+def test_a_hanging_fit_is_stopped_at_the_limit(hanging):
     """A third-party detector whose fit sleeps an hour, with a limit of 2 s and one learning
     run: the fit is stopped after 2 s and the start refused (exit 2) naming it."""
-    cfg = _config(tmp_path / "none.json")
-    cfg["detector"] = [{"name": "fit-sleeps", "label": "slow"},
-                       {"name": "position-monitor", "label": "pm"}]
-    path, out = _write(tmp_path, cfg), tmp_path / "out"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(TESTS)])}
-    done = subprocess.run(
-        [sys.executable, "-c", DRIVER, "run", str(path), "--jobs", "1", "--quiet",
-         "--out", str(out)], env=env, capture_output=True, text=True, timeout=HANG_GUARD_S)
-    assert done.returncode == 2, done.stderr
-    assert "detector 'slow' (FitSleeps) failed while fitting on the learning set" in done.stderr
+    child, out, _, _ = hanging["fit"]
+    code, err = child.result()
+    assert code == 2, err
+    assert "detector 'slow' (FitSleeps) failed while fitting on the learning set" in err
     assert "fit did not finish within 2 s (run_timeout_s = 2 s for each of the 1 learning " \
-           "runs)" in done.stderr
+           "runs)" in err
     assert not out.exists()
 
 
