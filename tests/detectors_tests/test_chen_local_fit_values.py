@@ -148,8 +148,9 @@ def _c(theta, rho) -> list[float]:
     return out
 
 
-def _polytope(theta, margin):
-    """(ρ box lo, hi, K_min, K_max, grid points) by the definition of docs/chen-estimator.md §2."""
+def _polytope(theta, margin, levels=(-1.0, 0.0, 1.0)):
+    """(ρ box lo, hi, K_min, K_max, grid points) by the definition of docs/chen-estimator.md §2;
+    *levels*: each Table-2 error at these multiples of its (widened) half-width w."""
     pts = envelope.realistic_points()
     pts = pts[pts["realistic"]]
     alt, vcas, mass, cg = (pts[c].to_numpy(float) for c in ("alt_ft", "vcas_kt", "mass_t",
@@ -162,7 +163,7 @@ def _polytope(theta, margin):
                   for j in range(41)], axis=1)
     w, widen = envelope.UNCERTAINTY, 1.0 + margin
     rhos, k_ext = [], []
-    for ev, eh, em, ec in itertools.product((-1.0, 0.0, 1.0), repeat=4):
+    for ev, eh, em, ec in itertools.product(levels, repeat=4):
         meas = envelope.measured_schedule(alt, vcas, mass, cg, eh * w.alt * widen,
                                           ev * w.vcas * widen, em * w.mass * widen,
                                           ec * w.cg * widen)
@@ -175,7 +176,7 @@ def _polytope(theta, margin):
     rho = np.concatenate(rhos)
     k_ext = np.array(k_ext)
     return (rho.min(axis=0), rho.max(axis=0), k_ext[:, 0].min(), k_ext[:, 1].max(),
-            len(pts) * 81 * 41 * 3)
+            len(pts) * len(levels) ** 4 * 41 * 3)
 
 
 def _pole(a):
@@ -291,28 +292,25 @@ def test_the_zero_error_row_of_the_grid_counts(hand_model, monkeypatch):
     schedule whose α is largest at zero altitude error (a hand-made bump of 0.4° on the
     real schedule) sets the box's upper α there, and K_max with it."""
     real = envelope.measured_schedule
+    det = ChenLocalEstimator(threshold_method="max")
+    w_alt = envelope.UNCERTAINTY.alt * (1.0 + det.schedule_margin)     # widened half-width
 
     def bumped(alt, vcas, mass, cg, d_alt, d_vcas, d_mass, d_cg, *args):
         meas = real(alt, vcas, mass, cg, d_alt, d_vcas, d_mass, d_cg, *args)
-        bump = 0.4 * (1.0 - (np.asarray(d_alt) / (envelope.UNCERTAINTY.alt * 1.25)) ** 2)
+        bump = 0.4 * (1.0 - (np.asarray(d_alt) / w_alt) ** 2)             # [deg]
         return {**meas, "alpha_deg": meas["alpha_deg"] + bump}
 
     monkeypatch.setattr(envelope, "measured_schedule", bumped)
     hand_model()
     u, y = _runs(256)
-    det = ChenLocalEstimator(threshold_method="max").fit(_signals(u, y))
-    lo, hi, k_min, k_max, _ = _polytope(THETA, 0.25)
+    det.fit(_signals(u, y))
+    lo, hi, k_min, k_max, _ = _polytope(THETA, det.schedule_margin)
     np.testing.assert_array_equal(det.schedule_box_[1], hi)
     np.testing.assert_allclose(det.k_range_, (k_min, k_max), rtol=1e-13)
-    # the corners alone would give a lower α: the zero row is what the box reads
-    pts = envelope.realistic_points()
-    pts = pts[pts["realistic"]]
-    w = envelope.UNCERTAINTY
-    corners = max(float(bumped(*(pts[c].to_numpy(float) for c in envelope.FLIGHT_COLUMNS),
-                               eh * w.alt * 1.25, ev * w.vcas * 1.25, em * w.mass * 1.25,
-                               ec * w.cg * 1.25)["alpha_deg"].max())
-                  for ev, eh, em, ec in itertools.product((-1.0, 1.0), repeat=4))
-    assert hi[2] * SCALES["alpha_deg"] > corners + 0.1
+    # the corners alone would give an upper α lower by about the bump, and another K_max
+    _, corners, _, k_max_corners, _ = _polytope(THETA, det.schedule_margin, (-1.0, 1.0))
+    assert (hi[2] - corners[2]) * SCALES["alpha_deg"] > 0.1
+    assert k_max != k_max_corners
 
 
 @pytest.mark.parametrize("e_sat", [E_SAT_MM, 500.0])
@@ -630,17 +628,16 @@ def test_documented_defaults_and_capabilities():
 
 def test_each_variant_covers_its_own_jam_and_the_detector_both():
     """coverage: the liquid variant the liquid jam, the solid variant the solid jam, each
-    with its [CHEN] §6.2 reason; the detector as a whole (and an unknown variant) both
-    jams, in that order."""
+    with its [CHEN] §6.2 reason; the detector as a whole both jams, in that order."""
     det = ChenLocalEstimator()
     liquid, solid = det.coverage("liquid"), det.coverage("solid")
     assert liquid.faults == ("liquid_jam",) and solid.faults == ("solid_jam",)
     assert liquid.reason.startswith("[CHEN] §6.2: the liquid-jam statistic")
     assert solid.reason.startswith("[CHEN] §6.2: the solid-jam statistic")
-    for whole in (det.coverage(), det.coverage("both")):
-        assert whole.faults == ("liquid_jam", "solid_jam")
-        assert whole.covers("liquid_jam") and whole.covers("solid_jam")
-        assert not whole.covers("runaway") and not whole.covers("disconnection")
+    whole = det.coverage()
+    assert whole.faults == ("liquid_jam", "solid_jam")
+    assert whole.covers("liquid_jam") and whole.covers("solid_jam")
+    assert not whole.covers("runaway") and not whole.covers("disconnection")
 
 
 def test_the_warm_up_compiles_what_fit_and_detect_call(monkeypatch):
