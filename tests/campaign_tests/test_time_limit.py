@@ -55,11 +55,16 @@ def _write(tmp_path, cfg: dict) -> Path:
     return path
 
 
-@pytest.fixture
-def misbehaving(monkeypatch):
+def _register_misbehaving(patch: pytest.MonkeyPatch) -> None:
+    """The misbehaving test detector as a built-in one, in this process, while *patch* lasts."""
     from detectors import registry
 
-    monkeypatch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
+    patch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
+
+
+@pytest.fixture
+def misbehaving(monkeypatch):
+    _register_misbehaving(monkeypatch)
 
 
 class Child:
@@ -91,9 +96,7 @@ def hanging(tmp_path_factory):
     victim run id)."""
     started = {}
     with pytest.MonkeyPatch.context() as patch:
-        from detectors import registry
-
-        patch.setitem(registry.BUILTIN, "misbehaving", "machinery_detectors:Misbehaving")
+        _register_misbehaving(patch)
         for jobs in (1, 2):
             tmp = tmp_path_factory.mktemp(f"hanging-detector-{jobs}")
             marker = tmp / "marked.json"
